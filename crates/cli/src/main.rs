@@ -1,0 +1,203 @@
+//! `unitac`: the command line of the UniTac robot stack (embedded runtime, no ROS).
+//!
+//! Exit codes: 0 success; 1 the run failed (e.g. the source died); 2 bad usage or configuration
+//! (unknown scene, unknown stage, missing model, bad value), reported as one line on stderr.
+
+use anyhow::Context;
+use clap::{Parser, Subcommand};
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use unitac_core::Scene;
+use unitac_core::scene::{SceneContext, SensorArg};
+use unitac_runtime::{KNOWN_STAGES, RunOptions};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "unitac",
+    version,
+    about = "UniTac robot stack: tactile sensing, contact, inference, policy"
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand, Debug)]
+enum Cmd {
+    /// Run a scene (launch/scenes/<NAME>.yaml) in one process, without ROS.
+    Run {
+        /// Scene name (looked up in the scene directories) or path to a scene file.
+        #[arg(long)]
+        scene: String,
+        /// Frame source, overriding the scene's: mock | v4l[:<serial>] | bag:<path>.
+        #[arg(long)]
+        sensor: Option<SensorArg>,
+        /// Print the summary as one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+        /// Also print every event (contact states, episodes, ...) as a JSON line on stdout.
+        #[arg(long)]
+        events: bool,
+        /// Replay sources as fast as possible (lossless, deterministic) instead of in real time.
+        #[arg(long)]
+        fast: bool,
+        /// Stop after this many frames.
+        #[arg(long)]
+        max_frames: Option<u64>,
+        /// Extra directory to look for scenes in (searched first).
+        #[arg(long)]
+        scene_dir: Option<PathBuf>,
+    },
+    /// List the scenes found in the scene directories.
+    Scenes {
+        #[arg(long)]
+        scene_dir: Option<PathBuf>,
+    },
+}
+
+/// Error that maps to exit code 2 (usage / configuration).
+#[derive(Debug)]
+struct ConfigError(String);
+impl std::fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+impl std::error::Error for ConfigError {}
+
+fn scene_dirs(extra: Option<PathBuf>) -> Vec<PathBuf> {
+    let mut dirs: Vec<PathBuf> = extra.into_iter().collect();
+    if let Some(d) = std::env::var_os("UNITAC_SCENES") {
+        dirs.push(d.into());
+    }
+    if let Some(root) = std::env::var_os("UNITAC_ROOT") {
+        dirs.push(PathBuf::from(root).join("launch/scenes"));
+    }
+    dirs.push(PathBuf::from("launch/scenes"));
+    // The source tree this binary was built from.
+    dirs.push(PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../launch/scenes"
+    )));
+    dirs
+}
+
+fn scene_context() -> SceneContext {
+    let mut ctx = SceneContext {
+        known_stages: KNOWN_STAGES.iter().map(|s| s.to_string()).collect(),
+        ..Default::default()
+    };
+    let models = std::env::var_os("UNITAC_MODELS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            let root = std::env::var_os("UNITAC_ROOT")
+                .map(PathBuf::from)
+                .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")));
+            root.join(".build/models")
+        });
+    ctx.vars.insert("UNITAC_MODELS".into(), models);
+    ctx
+}
+
+fn cmd_run(
+    scene: &str,
+    sensor: Option<SensorArg>,
+    json: bool,
+    events: bool,
+    fast: bool,
+    max_frames: Option<u64>,
+    scene_dir: Option<PathBuf>,
+) -> anyhow::Result<bool> {
+    let cfg = |e: unitac_core::SceneError| anyhow::Error::new(ConfigError(e.to_string()));
+    let path = unitac_core::scene::resolve(scene, &scene_dirs(scene_dir)).map_err(cfg)?;
+    let scene = Scene::load(&path, &scene_context()).map_err(cfg)?;
+    let stages = unitac_runtime::build_stages(&scene).map_err(cfg)?;
+    let source = unitac_runtime::build_source(&scene, sensor.as_ref()).map_err(cfg)?;
+
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = Arc::clone(&stop);
+        // A second Ctrl-C while draining is ignored; the drain is short.
+        ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst))
+            .context("installing the Ctrl-C handler")?;
+    }
+    let opts = RunOptions {
+        realtime: !fast,
+        max_frames,
+        stop,
+    };
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    let mut write_err = None;
+    let report = unitac_runtime::run(&scene, source, stages, &opts, |m| {
+        if events && write_err.is_none() {
+            if let Err(e) = writeln!(out, "{}", m.to_json()) {
+                write_err = Some(e);
+            }
+        }
+    });
+    if let Some(e) = write_err {
+        return Err(e).context("writing events to stdout");
+    }
+    if json {
+        writeln!(out, "{}", serde_json::to_string(&report)?)?;
+    } else {
+        write!(out, "{}", report.text())?;
+    }
+    Ok(!report.ended.starts_with("source_failed"))
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    let result = match cli.cmd {
+        Cmd::Run {
+            scene,
+            sensor,
+            json,
+            events,
+            fast,
+            max_frames,
+            scene_dir,
+        } => cmd_run(&scene, sensor, json, events, fast, max_frames, scene_dir),
+        Cmd::Scenes { scene_dir } => {
+            let mut names: Vec<String> = scene_dirs(scene_dir)
+                .iter()
+                .flat_map(|d| unitac_core::scene::list(d))
+                .collect();
+            names.sort();
+            names.dedup();
+            for n in names {
+                println!("{n}");
+            }
+            Ok(true)
+        }
+    };
+    match result {
+        Ok(true) => ExitCode::SUCCESS,
+        Ok(false) => ExitCode::from(1),
+        Err(e) if e.downcast_ref::<ConfigError>().is_some() => {
+            eprintln!("unitac: {e}");
+            ExitCode::from(2)
+        }
+        Err(e) => {
+            eprintln!("unitac: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}

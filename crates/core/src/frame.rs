@@ -1,0 +1,120 @@
+//! A tactile frame: RGB8 pixels plus where and when they were captured.
+
+use crate::clock::Stamp;
+use thiserror::Error;
+
+/// Largest accepted frame side, in pixels. GelSight Mini's native 3280x2464 fits; anything larger
+/// coming from a device, a bag or a file is rejected before allocation.
+pub const MAX_SIDE: u32 = 8192;
+
+#[derive(Debug, Error, PartialEq, Eq)]
+pub enum FrameError {
+    #[error("frame size {width}x{height} is outside 1..={max} per side", max = MAX_SIDE)]
+    BadSize { width: u32, height: u32 },
+    #[error("frame {width}x{height} RGB8 needs {expected} bytes, got {got}")]
+    BadLength {
+        width: u32,
+        height: u32,
+        expected: usize,
+        got: usize,
+    },
+}
+
+/// One RGB8 image (row-major, 3 bytes per pixel, no padding).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Frame {
+    /// Sensor serial or configured name; stays the same across reconnects.
+    pub sensor_id: String,
+    /// Per-sensor sequence number from the source (gaps mean drops).
+    pub seq: u64,
+    /// Capture time (device buffer time mapped to ROS time), never read time.
+    pub stamp: Stamp,
+    pub width: u32,
+    pub height: u32,
+    data: Vec<u8>,
+}
+
+impl Frame {
+    pub fn new(
+        sensor_id: impl Into<String>,
+        seq: u64,
+        stamp: Stamp,
+        width: u32,
+        height: u32,
+        data: Vec<u8>,
+    ) -> Result<Self, FrameError> {
+        let expected = Self::byte_len(width, height)?;
+        if data.len() != expected {
+            return Err(FrameError::BadLength {
+                width,
+                height,
+                expected,
+                got: data.len(),
+            });
+        }
+        Ok(Self {
+            sensor_id: sensor_id.into(),
+            seq,
+            stamp,
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// Bytes an RGB8 frame of this size needs, after checking the size bounds.
+    pub fn byte_len(width: u32, height: u32) -> Result<usize, FrameError> {
+        if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
+            return Err(FrameError::BadSize { width, height });
+        }
+        Ok(width as usize * height as usize * 3)
+    }
+
+    pub fn data(&self) -> &[u8] {
+        &self.data
+    }
+    pub fn into_data(self) -> Vec<u8> {
+        self.data
+    }
+    /// RGB of pixel (x, y), or None outside the image.
+    pub fn pixel(&self, x: u32, y: u32) -> Option<[u8; 3]> {
+        if x >= self.width || y >= self.height {
+            return None;
+        }
+        let i = (y as usize * self.width as usize + x as usize) * 3;
+        let p = self.data.get(i..i + 3)?;
+        Some([p[0], p[1], p[2]])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejects_wrong_length_and_size() {
+        assert!(matches!(
+            Frame::new("s", 0, Stamp::ZERO, 2, 2, vec![0; 11]),
+            Err(FrameError::BadLength {
+                expected: 12,
+                got: 11,
+                ..
+            })
+        ));
+        assert!(matches!(
+            Frame::new("s", 0, Stamp::ZERO, 0, 2, vec![]),
+            Err(FrameError::BadSize { .. })
+        ));
+        assert!(matches!(
+            Frame::byte_len(MAX_SIDE + 1, 1),
+            Err(FrameError::BadSize { .. })
+        ));
+    }
+
+    #[test]
+    fn pixel_access() {
+        let f = Frame::new("s", 0, Stamp::ZERO, 2, 1, vec![1, 2, 3, 4, 5, 6]).unwrap();
+        assert_eq!(f.pixel(1, 0), Some([4, 5, 6]));
+        assert_eq!(f.pixel(2, 0), None);
+    }
+}

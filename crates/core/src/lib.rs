@@ -1,0 +1,19 @@
+//! Pure types shared by every stage and transport of the UniTac robot stack.
+//!
+//! Nothing here does I/O beyond reading a scene file, starts a thread, or reads the wall clock
+//! except through [`clock::SystemClock`]. Stages take a `&dyn Clock` so the same code runs live,
+//! in replay and in tests with identical output for identical input.
+
+pub mod clock;
+pub mod frame;
+pub mod msg;
+pub mod scene;
+pub mod sensor;
+pub mod stage;
+
+pub use clock::{Clock, ManualClock, Stamp, SystemClock};
+pub use frame::{Frame, FrameError};
+pub use msg::Msg;
+pub use scene::{Scene, SceneError};
+pub use sensor::{SensorKind, SensorSpec};
+pub use stage::{Source, SourceError, Stage, StageError};

@@ -1,0 +1,124 @@
+//! Sensor specifications (facts from ../shared/notes/sensors.md).
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::str::FromStr;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SensorKind {
+    GelsightMini,
+    Digit,
+    /// Any other RGB tactile camera: no vendor defaults beyond the output size.
+    Generic,
+}
+
+impl SensorKind {
+    pub const ALL: [SensorKind; 3] = [
+        SensorKind::GelsightMini,
+        SensorKind::Digit,
+        SensorKind::Generic,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SensorKind::GelsightMini => "gelsight-mini",
+            SensorKind::Digit => "digit",
+            SensorKind::Generic => "generic",
+        }
+    }
+
+    pub fn spec(self) -> SensorSpec {
+        match self {
+            // Native stream: MJPG 3280x2464 @ 25 fps only; the vendor pipeline crops a border and
+            // resizes to 320x240, ~0.0634 mm/px at that size.
+            SensorKind::GelsightMini => SensorSpec {
+                kind: self,
+                native_width: 3280,
+                native_height: 2464,
+                width: 320,
+                height: 240,
+                fps: 25.0,
+                mm_per_px: 0.0634,
+            },
+            // QVGA 320x240 @ 60/30 fps or VGA 640x480 @ 30/15 fps; ~0.0405 mm/px.
+            SensorKind::Digit => SensorSpec {
+                kind: self,
+                native_width: 320,
+                native_height: 240,
+                width: 320,
+                height: 240,
+                fps: 60.0,
+                mm_per_px: 0.0405,
+            },
+            SensorKind::Generic => SensorSpec {
+                kind: self,
+                native_width: 320,
+                native_height: 240,
+                width: 320,
+                height: 240,
+                fps: 30.0,
+                mm_per_px: 0.05,
+            },
+        }
+    }
+}
+
+impl fmt::Display for SensorKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl FromStr for SensorKind {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        SensorKind::ALL
+            .into_iter()
+            .find(|k| k.as_str() == s)
+            .ok_or_else(|| {
+                format!("unknown sensor kind '{s}' (known: gelsight-mini, digit, generic)")
+            })
+    }
+}
+
+/// What the rest of the stack needs to know about a sensor's output.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SensorSpec {
+    pub kind: SensorKind,
+    /// Size the camera streams at.
+    pub native_width: u32,
+    pub native_height: u32,
+    /// Size of the frames the driver publishes (after crop and resize).
+    pub width: u32,
+    pub height: u32,
+    pub fps: f64,
+    /// Gel-surface millimetres per published pixel.
+    pub mm_per_px: f64,
+}
+
+impl SensorSpec {
+    pub fn mm2_per_px(&self) -> f64 {
+        self.mm_per_px * self.mm_per_px
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip() {
+        for k in SensorKind::ALL {
+            assert_eq!(k.as_str().parse::<SensorKind>(), Ok(k));
+        }
+        assert!("kinect".parse::<SensorKind>().is_err());
+    }
+
+    #[test]
+    fn gelsight_streams_only_full_size() {
+        let s = SensorKind::GelsightMini.spec();
+        assert_eq!((s.native_width, s.native_height), (3280, 2464));
+        assert_eq!((s.width, s.height), (320, 240));
+    }
+}

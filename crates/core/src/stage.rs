@@ -1,0 +1,63 @@
+//! The stage and source interfaces: logic with an injected clock and no transport.
+//!
+//! A stage is a plain struct. The embedded runtime (crates/runtime) and the ROS nodes
+//! (crates/ros) are two thin drivers that feed it messages; neither adds logic. Same inputs and
+//! same clock readings give the same outputs.
+
+use crate::clock::Clock;
+use crate::frame::{Frame, FrameError};
+use crate::msg::Msg;
+use thiserror::Error;
+
+/// A per-message failure. The runtime counts it, logs it once and goes on with the next message;
+/// the stage's state must be as it was before the bad input.
+#[derive(Debug, Error)]
+pub enum StageError {
+    #[error("bad input: {0}")]
+    BadInput(String),
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+    #[error("model: {0}")]
+    Model(String),
+    #[error("{0}")]
+    Other(String),
+}
+
+pub trait Stage: Send {
+    /// Name in counters, logs and tracing spans (the scene's stage kind).
+    fn name(&self) -> &str;
+
+    /// Handle one message. Messages the stage does not use are ignored (return nothing): the
+    /// runtime forwards every input downstream itself, so later stages still see it.
+    fn process(&mut self, input: &Msg, clock: &dyn Clock) -> Result<Vec<Msg>, StageError>;
+
+    /// The input ended (source finished or shutdown): emit what is still pending, e.g. an open
+    /// contact episode.
+    fn finish(&mut self, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
+        Ok(Vec::new())
+    }
+}
+
+#[derive(Debug, Error)]
+pub enum SourceError {
+    /// This frame is lost (corrupt buffer, decode error); the source goes on.
+    #[error("frame dropped: {0}")]
+    Frame(String),
+    /// The device is gone; the source may come back (reconnect) or end.
+    #[error("device unavailable: {0}")]
+    Unavailable(String),
+    /// Nothing more can come from this source.
+    #[error("source failed: {0}")]
+    Fatal(String),
+}
+
+/// Where frames come from: a V4L2 sensor, the mock sensor, a bag.
+pub trait Source: Send {
+    fn name(&self) -> &str;
+    /// The next frame, blocking until it is captured (live) or produced (mock, bag).
+    /// `Ok(None)` is the end of the source.
+    fn next_frame(&mut self) -> Result<Option<Frame>, SourceError>;
+    /// True for sources whose stamps are their own (mock, bag): the runtime may pace them to
+    /// real time and drives stage clocks from the stamps. False for live sensors.
+    fn is_replay(&self) -> bool;
+}

@@ -1,0 +1,12 @@
+//! Link libpython into every binary and test of this crate (ROS-from-PyPI workaround 3: the
+//! wheels' librcl*.so need Python symbols). `rustc-link-arg` does not propagate to dependents,
+//! so every crate that makes binaries linking r2r needs this.
+fn main() {
+    println!("cargo:rerun-if-env-changed=UNITAC_PYTHON_LIBDIR");
+    if let Ok(dir) = std::env::var("UNITAC_PYTHON_LIBDIR") {
+        if !dir.is_empty() {
+            println!("cargo:rustc-link-search=native={dir}");
+        }
+    }
+    println!("cargo:rustc-link-arg=-Wl,--push-state,--no-as-needed,-lpython3.11,--pop-state");
+}

@@ -1,0 +1,152 @@
+//! Interop peer for the ROS tests (and a quick check on a robot that unitac_msgs work end to end).
+//!
+//! `unitac_ros_interop publish [--topic-prefix P]`: waits for a subscriber, then publishes the
+//!   fixture ContactState and PropertyComparison a few times (the first message can be lost
+//!   before discovery completes).
+//! `unitac_ros_interop echo [--topic-prefix P]`: prints the first TactileLatent and GripperCommand
+//!   it receives as JSON lines on stdout, then exits.
+//! Exit code 1 on timeout, 2 on bad usage.
+
+use anyhow::{Context, bail};
+use futures::{FutureExt, StreamExt};
+use r2r::QosProfile;
+use r2r::unitac_msgs::msg as ros;
+use std::time::Duration;
+use unitac_core::Stamp;
+use unitac_core::msg::{ContactState, Header, Msg, PropertyComparison, Winner};
+use unitac_ros::{convert, spin_until};
+
+const TIMEOUT: Duration = Duration::from_secs(30);
+
+/// The values the peer must see (tests/ros/peer.py checks the same numbers).
+fn fixture_contact() -> ContactState {
+    ContactState {
+        header: Header::new(Stamp(1_700_000_001_250_000_000), "gsmini_optical_frame"),
+        sensor_id: "GS-0A1B-2C3D".into(),
+        frame_seq: 4_294_967_301,
+        in_contact: true,
+        area_px: 1234.5,
+        area_mm2: 4.9619,
+        centroid_px: [160.25, 119.75],
+        bbox_px: [140, 100, 181, 141],
+        strength: 0.625,
+        episode_id: 7,
+        background_age_s: 12.5,
+    }
+}
+
+fn fixture_comparison() -> PropertyComparison {
+    PropertyComparison {
+        header: Header::new(Stamp(1_700_000_002_000_000_001), "base_link"),
+        property: "roughness".into(),
+        episode_a: 1,
+        label_a: "fabric_a".into(),
+        episode_b: 2,
+        label_b: "fabric_b".into(),
+        winner: Winner::A,
+        score_a: 0.8125,
+        score_b: 0.1875,
+        margin: 0.625,
+        confidence: 0.9375,
+        sentence: "B is smoother than A".into(),
+    }
+}
+
+fn publish(prefix: &str) -> anyhow::Result<()> {
+    let ctx = r2r::Context::create()?;
+    let mut node = r2r::Node::create(ctx, "unitac_interop_pub", "")?;
+    let p1 = node.create_publisher::<ros::ContactState>(
+        &format!("{prefix}/contact_state"),
+        QosProfile::default(),
+    )?;
+    let p2 = node.create_publisher::<ros::PropertyComparison>(
+        &format!("{prefix}/property_comparison"),
+        QosProfile::default(),
+    )?;
+    let matched = spin_until(&mut node, TIMEOUT, || {
+        p1.get_inter_process_subscription_count().unwrap_or(0) > 0
+            && p2.get_inter_process_subscription_count().unwrap_or(0) > 0
+    });
+    if !matched {
+        bail!("no subscriber matched within {TIMEOUT:?}");
+    }
+    let (c, k) = (
+        convert::contact_state(&fixture_contact()),
+        convert::property_comparison(&fixture_comparison()),
+    );
+    for _ in 0..5 {
+        p1.publish(&c)?;
+        p2.publish(&k)?;
+        spin_until(&mut node, Duration::from_millis(200), || false);
+    }
+    Ok(())
+}
+
+fn echo(prefix: &str) -> anyhow::Result<()> {
+    let ctx = r2r::Context::create()?;
+    let mut node = r2r::Node::create(ctx, "unitac_interop_echo", "")?;
+    let mut s1 = node.subscribe::<ros::TactileLatent>(
+        &format!("{prefix}/tactile_latent"),
+        QosProfile::default(),
+    )?;
+    let mut s2 = node.subscribe::<ros::GripperCommand>(
+        &format!("{prefix}/gripper_command"),
+        QosProfile::default(),
+    )?;
+    let (mut got1, mut got2) = (false, false);
+    let mut err: Option<String> = None;
+    spin_until(&mut node, TIMEOUT, || {
+        while let Some(Some(m)) = s1.next().now_or_never() {
+            if !got1 {
+                match convert::tactile_latent_from(&m) {
+                    Ok(l) => println!("{}", Msg::Latent(l).to_json()),
+                    Err(e) => err = Some(e),
+                }
+                got1 = true;
+            }
+        }
+        while let Some(Some(m)) = s2.next().now_or_never() {
+            if !got2 {
+                match convert::gripper_command_from(&m) {
+                    Ok(c) => println!("{}", Msg::Command(c).to_json()),
+                    Err(e) => err = Some(e),
+                }
+                got2 = true;
+            }
+        }
+        (got1 && got2) || err.is_some()
+    });
+    if let Some(e) = err {
+        bail!("bad message: {e}");
+    }
+    if !(got1 && got2) {
+        bail!("timed out: tactile_latent {got1}, gripper_command {got2}");
+    }
+    Ok(())
+}
+
+fn main() -> std::process::ExitCode {
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .take_while(|a| a != "--ros-args")
+        .collect();
+    let prefix = match args.iter().position(|a| a == "--topic-prefix") {
+        Some(i) => args.get(i + 1).cloned().unwrap_or_default(),
+        None => "/unitac_interop".to_string(),
+    };
+    let r = match args.first().map(String::as_str) {
+        Some("publish") => publish(&prefix).context("publish"),
+        Some("echo") => echo(&prefix).context("echo"),
+        _ => {
+            eprintln!("usage: unitac_ros_interop publish|echo [--topic-prefix P]");
+            return std::process::ExitCode::from(2);
+        }
+    };
+    match r {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("unitac_ros_interop: {e:#}");
+            std::process::ExitCode::from(1)
+        }
+    }
+}

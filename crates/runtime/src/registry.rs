@@ -1,0 +1,97 @@
+//! Stage kinds and sources the runner can build from a scene.
+
+use serde::de::DeserializeOwned;
+use unitac_contact::{ContactParams, ContactStage};
+use unitac_core::scene::{SceneError, SensorArg, SourceKind, StageSpec};
+use unitac_core::{Scene, Source, Stage};
+use unitac_sim::{MockConfig, MockSensor, Scenario};
+
+/// Stage kinds a scene may name.
+pub const KNOWN_STAGES: &[&str] = &["contact"];
+
+fn params<T: DeserializeOwned + Default>(
+    scene: &Scene,
+    index: usize,
+    st: &StageSpec,
+) -> Result<T, SceneError> {
+    if st.params.is_null() {
+        return Ok(T::default());
+    }
+    serde_yaml::from_value(st.params.clone()).map_err(|e| SceneError::BadValue {
+        path: scene.path.clone(),
+        field: format!("stages[{index}].params ({})", st.kind),
+        msg: e
+            .to_string()
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" "),
+    })
+}
+
+/// Build every stage of the scene, in order. Fails before anything runs.
+pub fn build_stages(scene: &Scene) -> Result<Vec<Box<dyn Stage>>, SceneError> {
+    let spec = scene.source.sensor.spec();
+    let mut out: Vec<Box<dyn Stage>> = Vec::new();
+    for (i, st) in scene.stages.iter().enumerate() {
+        let index = i + 1;
+        let bad = |msg: String| SceneError::BadValue {
+            path: scene.path.clone(),
+            field: format!("stages[{index}].params ({})", st.kind),
+            msg,
+        };
+        match st.kind.as_str() {
+            "contact" => {
+                let p: ContactParams = params(scene, index, st)?;
+                out.push(Box::new(ContactStage::new(p, spec).map_err(bad)?));
+            }
+            other => {
+                return Err(SceneError::UnknownStage {
+                    path: scene.path.clone(),
+                    index,
+                    kind: other.to_string(),
+                    known: KNOWN_STAGES.join(", "),
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// The frame source: the scene's, or the command line's `--sensor` override.
+pub fn build_source(scene: &Scene, arg: Option<&SensorArg>) -> Result<Box<dyn Source>, SceneError> {
+    let kind = match arg {
+        Some(SensorArg::Mock) => SourceKind::Mock,
+        Some(SensorArg::V4l(_)) => SourceKind::V4l,
+        Some(SensorArg::Bag(_)) => SourceKind::Bag,
+        None => scene.source.kind,
+    };
+    let bad = |field: &str, msg: String| SceneError::BadValue {
+        path: scene.path.clone(),
+        field: field.to_string(),
+        msg,
+    };
+    match kind {
+        SourceKind::Mock => {
+            let name = scene
+                .source
+                .scenario
+                .clone()
+                .unwrap_or_else(|| scene.name.clone());
+            let scenario =
+                Scenario::by_name(&name).map_err(|e| bad("source.scenario", e.to_string()))?;
+            let mut cfg = MockConfig::new(scene.source.sensor, scene.source.seed);
+            if let Some(fps) = scene.source.fps {
+                cfg.fps = fps;
+            }
+            Ok(Box::new(MockSensor::new(cfg, scenario)))
+        }
+        SourceKind::V4l => Err(bad(
+            "source.kind",
+            "v4l sensors are not in this build yet (sensor-driver issue); use --sensor mock".into(),
+        )),
+        SourceKind::Bag => Err(bad(
+            "source.kind",
+            "bag replay is not in this build yet (rosbag2 issue); use --sensor mock".into(),
+        )),
+    }
+}

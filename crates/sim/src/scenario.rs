@@ -1,0 +1,234 @@
+//! Scenarios: timed phases of pressing objects into the gel.
+
+use thiserror::Error;
+
+#[derive(Debug, Error, PartialEq, Eq)]
+pub enum ScenarioError {
+    #[error("unknown mock scenario '{0}' (known: fabric_selection, cup_deformation, idle)")]
+    Unknown(String),
+}
+
+/// Something pressed into the gel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Object {
+    pub label: String,
+    /// Indenter radius of curvature [mm].
+    pub radius_mm: f64,
+    /// Surface texture amplitude [mm] (rougher = larger).
+    pub roughness_mm: f64,
+    /// Texture period [mm].
+    pub period_mm: f64,
+}
+
+impl Object {
+    pub fn texture_height(&self, x_mm: f64, y_mm: f64) -> f64 {
+        let k = std::f64::consts::TAU / self.period_mm;
+        self.roughness_mm * (k * x_mm).sin() * (k * y_mm * 0.8 + 0.5).cos()
+    }
+    pub fn texture_gradient(&self, x_mm: f64, y_mm: f64) -> (f64, f64) {
+        let k = std::f64::consts::TAU / self.period_mm;
+        let (sx, cx) = (k * x_mm).sin_cos();
+        let (sy, cy) = (k * y_mm * 0.8 + 0.5).sin_cos();
+        (
+            self.roughness_mm * k * cx * cy,
+            -self.roughness_mm * k * 0.8 * sx * sy,
+        )
+    }
+}
+
+/// One phase: the indenter depth ramps linearly from `from_mm` to `to_mm` over `duration_s`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Phase {
+    pub duration_s: f64,
+    pub object: Option<Object>,
+    pub from_mm: f64,
+    pub to_mm: f64,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    pub name: String,
+    pub phases: Vec<Phase>,
+}
+
+fn free(d: f64) -> Phase {
+    Phase {
+        duration_s: d,
+        object: None,
+        from_mm: 0.0,
+        to_mm: 0.0,
+    }
+}
+
+/// Approach, hold and release on one object.
+fn press(o: &Object, depth: f64, hold_s: f64) -> [Phase; 3] {
+    [
+        Phase {
+            duration_s: 0.4,
+            object: Some(o.clone()),
+            from_mm: -0.1,
+            to_mm: depth,
+        },
+        Phase {
+            duration_s: hold_s,
+            object: Some(o.clone()),
+            from_mm: depth,
+            to_mm: depth,
+        },
+        Phase {
+            duration_s: 0.3,
+            object: Some(o.clone()),
+            from_mm: depth,
+            to_mm: -0.1,
+        },
+    ]
+}
+
+impl Scenario {
+    pub fn by_name(name: &str) -> Result<Scenario, ScenarioError> {
+        match name {
+            "fabric_selection" => Ok(Self::fabric_selection()),
+            "cup_deformation" => Ok(Self::cup_deformation()),
+            "idle" => Ok(Scenario {
+                name: "idle".into(),
+                phases: vec![free(5.0)],
+            }),
+            other => Err(ScenarioError::Unknown(other.to_string())),
+        }
+    }
+
+    /// Touch fabric A (rougher), release, touch fabric B (smoother), release.
+    pub fn fabric_selection() -> Scenario {
+        let a = Object {
+            label: "fabric_a".into(),
+            radius_mm: 6.0,
+            roughness_mm: 0.06,
+            period_mm: 0.9,
+        };
+        let b = Object {
+            label: "fabric_b".into(),
+            radius_mm: 6.0,
+            roughness_mm: 0.015,
+            period_mm: 0.6,
+        };
+        let mut phases = vec![free(1.0)];
+        phases.extend(press(&a, 0.6, 0.8));
+        phases.push(free(0.8));
+        phases.extend(press(&b, 0.6, 0.8));
+        phases.push(free(0.8));
+        Scenario {
+            name: "fabric_selection".into(),
+            phases,
+        }
+    }
+
+    /// Squeeze a cup wall: a wide, smooth contact that deepens slowly, holds, releases.
+    pub fn cup_deformation() -> Scenario {
+        let cup = Object {
+            label: "cup".into(),
+            radius_mm: 12.0,
+            roughness_mm: 0.005,
+            period_mm: 2.0,
+        };
+        let phases = vec![
+            free(1.0),
+            Phase {
+                duration_s: 1.5,
+                object: Some(cup.clone()),
+                from_mm: -0.1,
+                to_mm: 0.9,
+            },
+            Phase {
+                duration_s: 1.0,
+                object: Some(cup.clone()),
+                from_mm: 0.9,
+                to_mm: 0.9,
+            },
+            Phase {
+                duration_s: 0.4,
+                object: Some(cup),
+                from_mm: 0.9,
+                to_mm: -0.1,
+            },
+            free(0.6),
+        ];
+        Scenario {
+            name: "cup_deformation".into(),
+            phases,
+        }
+    }
+
+    pub fn duration_s(&self) -> f64 {
+        self.phases.iter().map(|p| p.duration_s).sum()
+    }
+
+    /// Indenter depth [mm] (negative = above the gel) and object at time t.
+    pub fn at(&self, t: f64) -> (f64, Option<&Object>) {
+        let mut t0 = 0.0;
+        for p in &self.phases {
+            if t < t0 + p.duration_s {
+                let a = ((t - t0) / p.duration_s).clamp(0.0, 1.0);
+                return (p.from_mm + a * (p.to_mm - p.from_mm), p.object.as_ref());
+            }
+            t0 += p.duration_s;
+        }
+        (0.0, None)
+    }
+
+    /// Middle of the first hold phase on the object with this label (for tests and demos).
+    pub fn first_hold_time(&self, label: &str) -> Option<f64> {
+        let mut t0 = 0.0;
+        for p in &self.phases {
+            let is_hold = p.from_mm == p.to_mm && p.from_mm > 0.0;
+            if is_hold && p.object.as_ref().is_some_and(|o| o.label == label) {
+                return Some(t0 + p.duration_s / 2.0);
+            }
+            t0 += p.duration_s;
+        }
+        None
+    }
+
+    /// Number of distinct presses (phases sequences on an object separated by free time).
+    pub fn press_count(&self) -> usize {
+        let mut n = 0;
+        let mut prev: Option<&str> = None;
+        for p in &self.phases {
+            let cur = p.object.as_ref().map(|o| o.label.as_str());
+            if cur.is_some() && cur != prev {
+                n += 1;
+            }
+            prev = cur;
+        }
+        n
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn known_scenarios() {
+        assert_eq!(
+            Scenario::by_name("fabric_selection").unwrap().press_count(),
+            2
+        );
+        assert_eq!(
+            Scenario::by_name("cup_deformation").unwrap().press_count(),
+            1
+        );
+        assert_eq!(Scenario::by_name("idle").unwrap().press_count(), 0);
+        assert!(Scenario::by_name("juggling").is_err());
+    }
+
+    #[test]
+    fn depth_follows_phases() {
+        let s = Scenario::fabric_selection();
+        assert_eq!(s.at(0.5).0, 0.0);
+        let t = s.first_hold_time("fabric_b").unwrap();
+        let (d, o) = s.at(t);
+        assert!((d - 0.6).abs() < 1e-12);
+        assert_eq!(o.unwrap().label, "fabric_b");
+        assert_eq!(s.at(s.duration_s() + 1.0), (0.0, None));
+    }
+}
