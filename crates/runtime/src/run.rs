@@ -70,6 +70,8 @@ pub struct RunReport {
     /// Why the run ended: "source_end", "max_frames", "stopped", or "source_failed: ...".
     pub ended: String,
     pub wall_s: f64,
+    /// Capture stamp of the first frame (episode times in the text summary are relative to it).
+    pub stream_start: Stamp,
     /// Stream time from first to last frame.
     pub stream_s: f64,
     pub stages: Vec<StageReport>,
@@ -103,8 +105,8 @@ impl RunReport {
                 "  episode {} {:<10} {:.2}-{:.2} s  {} frames  peak {:.0} px ({:.1} mm^2)",
                 e.episode_id,
                 if e.label.is_empty() { "-" } else { &e.label },
-                e.start.secs_since(Stamp(0)) % 1000.0,
-                e.end.secs_since(Stamp(0)) % 1000.0,
+                e.start.secs_since(self.stream_start),
+                e.end.secs_since(self.stream_start),
                 e.frame_count,
                 e.peak_area_px,
                 e.peak_area_mm2
@@ -284,6 +286,7 @@ pub fn run(
             frames,
             errors,
             ended,
+            first.unwrap_or(Stamp::ZERO),
             first.map_or(0.0, |f| last.secs_since(f)),
         )
     });
@@ -305,9 +308,16 @@ pub fn run(
             _ => {}
         }
     }
-    let (frames, source_errors, ended, stream_s) = source_thread
-        .join()
-        .unwrap_or_else(|_| (0, 0, "source_failed: source thread panicked".into(), 0.0));
+    let (frames, source_errors, ended, stream_start, stream_s) =
+        source_thread.join().unwrap_or_else(|_| {
+            (
+                0,
+                0,
+                "source_failed: source thread panicked".into(),
+                Stamp::ZERO,
+                0.0,
+            )
+        });
     for h in handles {
         if h.join().is_err() {
             tracing::error!("a stage thread panicked");
@@ -344,6 +354,7 @@ pub fn run(
         source_errors,
         ended,
         wall_s: started.elapsed().as_secs_f64(),
+        stream_start,
         stream_s,
         stages,
         event_counts,

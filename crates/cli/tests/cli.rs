@@ -1,0 +1,187 @@
+//! The `unitac` command line contract: what users and scripts rely on.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn unitac(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .unwrap()
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("unitac-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn fabric_selection_on_mock_prints_a_json_summary() {
+    let o = unitac(&[
+        "run",
+        "--scene",
+        "fabric_selection",
+        "--sensor",
+        "mock",
+        "--fast",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["scene"], "fabric_selection");
+    assert_eq!(j["ended"], "source_end");
+    assert_eq!(j["frames"], 140);
+    assert_eq!(j["stages"][0]["name"], "contact");
+    assert_eq!(j["stages"][0]["dropped"], 0);
+    let eps = j["episodes"].as_array().unwrap();
+    assert_eq!(eps.len(), 2);
+    assert_eq!(
+        (eps[0]["label"].as_str(), eps[1]["label"].as_str()),
+        (Some("fabric_a"), Some("fabric_b"))
+    );
+    assert_eq!(j["event_counts"]["contact_episode"], 2);
+}
+
+#[test]
+fn text_summary_names_the_episodes() {
+    let o = unitac(&["run", "--scene", "cup_deformation", "--fast"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = String::from_utf8(o.stdout).unwrap();
+    assert!(s.starts_with("scene cup_deformation on mock"), "{s}");
+    assert!(s.contains("episode 1 cup"), "{s}");
+}
+
+#[test]
+fn events_are_byte_identical_across_runs() {
+    let args = [
+        "run",
+        "--scene",
+        "fabric_selection",
+        "--fast",
+        "--events",
+        "--max-frames",
+        "80",
+    ];
+    let (a, b) = (unitac(&args), unitac(&args));
+    assert!(a.status.success());
+    let lines = |o: &Output| -> Vec<String> {
+        // The last line is the summary, whose wall-clock timings differ; events must not.
+        let s = String::from_utf8_lossy(&o.stdout).into_owned();
+        s.lines()
+            .filter(|l| l.starts_with('{'))
+            .map(str::to_string)
+            .collect()
+    };
+    let (la, lb) = (lines(&a), lines(&b));
+    assert_eq!(
+        la.len(),
+        70 + 1,
+        "70 contact states after 10 learning frames, one episode"
+    );
+    assert_eq!(la, lb);
+}
+
+fn assert_config_error(o: &Output, needle: &str) {
+    assert_eq!(o.status.code(), Some(2), "stderr: {}", stderr(o));
+    let e = stderr(o);
+    assert_eq!(e.trim_end().lines().count(), 1, "one line: {e}");
+    assert!(e.contains(needle), "expected '{needle}' in: {e}");
+    assert!(o.stdout.is_empty());
+}
+
+#[test]
+fn unknown_stage_is_exit_2_one_line() {
+    let d = tmpdir("unknown-stage");
+    let p = d.join("bad.yaml");
+    std::fs::write(
+        &p,
+        "scene: bad\nsource: {kind: mock}\nstages:\n  - kind: contact\n  - kind: teleport\n",
+    )
+    .unwrap();
+    let o = unitac(&["run", "--scene", p.to_str().unwrap()]);
+    assert_config_error(&o, "stage 2 has unknown kind 'teleport'");
+}
+
+#[test]
+fn missing_scene_file_is_exit_2_one_line() {
+    let o = unitac(&["run", "--scene", "no_such_scene"]);
+    assert_config_error(&o, "scene 'no_such_scene' not found");
+    assert!(
+        stderr(&o).contains("fabric_selection"),
+        "lists what is available"
+    );
+    let o = unitac(&["run", "--scene", "/nonexistent/dir/x.yaml"]);
+    assert_config_error(&o, "not found");
+}
+
+#[test]
+fn missing_model_and_bad_values_are_exit_2() {
+    let d = tmpdir("bad-values");
+    let p = d.join("m.yaml");
+    std::fs::write(
+        &p,
+        "scene: m\nsource: {kind: mock}\nmodels: {encoder: missing.onnx}\nstages:\n  - kind: contact\n    models: [encoder]\n",
+    )
+    .unwrap();
+    assert_config_error(
+        &unitac(&["run", "--scene", p.to_str().unwrap()]),
+        "model 'encoder': file not found",
+    );
+    std::fs::write(
+        &p,
+        "scene: m\nsource: {kind: mock}\nstages:\n  - kind: contact\n    params: {stride: 0}\n",
+    )
+    .unwrap();
+    assert_config_error(
+        &unitac(&["run", "--scene", p.to_str().unwrap()]),
+        "stride 0 is outside",
+    );
+    std::fs::write(
+        &p,
+        "scene: m\nsource: {kind: mock}\nstages:\n  - kind: contact\n    params: {strid: 2}\n",
+    )
+    .unwrap();
+    assert_config_error(
+        &unitac(&["run", "--scene", p.to_str().unwrap()]),
+        "unknown field `strid`",
+    );
+    std::fs::write(&p, "scene: m\nsource: {kind: mock, scenario: juggling}\n").unwrap();
+    assert_config_error(
+        &unitac(&["run", "--scene", p.to_str().unwrap()]),
+        "unknown mock scenario 'juggling'",
+    );
+}
+
+#[test]
+fn unavailable_sources_and_bad_flags_are_exit_2() {
+    assert_config_error(
+        &unitac(&[
+            "run",
+            "--scene",
+            "fabric_selection",
+            "--sensor",
+            "v4l:D00045",
+        ]),
+        "v4l",
+    );
+    let o = unitac(&["run", "--scene", "fabric_selection", "--sensor", "usb"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("mock, v4l"));
+}
+
+#[test]
+fn scenes_lists_the_shipped_scenes() {
+    let o = unitac(&["scenes"]);
+    let s = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        s.lines().any(|l| l == "fabric_selection") && s.lines().any(|l| l == "cup_deformation"),
+        "{s}"
+    );
+}
