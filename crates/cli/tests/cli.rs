@@ -185,3 +185,30 @@ fn scenes_lists_the_shipped_scenes() {
         "{s}"
     );
 }
+
+#[test]
+fn ctrl_c_stops_a_real_time_run_cleanly() {
+    let child = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args(["run", "--scene", "fabric_selection", "--json"])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Real-time pacing: 1.8 s in, the sensor is pressing fabric A.
+    std::thread::sleep(std::time::Duration::from_millis(1800));
+    let st = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "SIGINT is a clean stop, exit 0");
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["ended"], "stopped");
+    let frames = j["frames"].as_u64().unwrap();
+    assert!((30..100).contains(&frames), "{frames}");
+    assert_eq!(
+        j["episodes"].as_array().unwrap().len(),
+        1,
+        "the open episode is flushed on stop"
+    );
+}
