@@ -1,84 +1,54 @@
 //! Contact detection by background subtraction, as a pure [`Stage`].
 //!
-//! Per frame: learn a background from the first frames (mean) and the sensor noise (from
-//! frame-to-frame differences); then sum the per-channel absolute difference to the background on
-//! a strided grid, threshold it at a multiple of the measured noise, and measure area, centroid,
-//! bounding box and strength. Hysteresis (enter/exit areas) and debounce (k frames) turn that into
-//! contact episodes. The background follows slow changes by an EMA that runs only while there is
-//! no contact, so a held contact is never absorbed.
+//! Per frame, on a grid of block means (stride 2 by default):
+//! 1. compensate global illumination changes: per-channel gain = median of frame / background over
+//!    a sample of cells (robust to a contact covering less than half the gel), so LED warm-up and
+//!    exposure steps do not fire contacts;
+//! 2. residual = sum over channels of |frame - gain * background|, thresholded at `noise_k` times the
+//!    noise measured while learning the background (never below `min_threshold`);
+//! 3. marker dots masked (GelSight Mini), opening then closing, connected components below
+//!    `min_component_px` dropped;
+//! 4. area (px and mm^2), centroid and bounding box in the INPUT image's pixels, strength score;
+//! 5. hysteresis (enter / exit area) and debounce (k frames) into contact episodes, with a bounded
+//!    clip of the episode's frames for the encoder;
+//! 6. the background follows slow changes by an EMA only while there is no contact, and only in
+//!    cells outside the current mask: a held contact is never absorbed.
+//!
+//! Saturated or dark frames, and frames whose gain is implausible, are rejected with an error and
+//! leave the detector's state as it was.
 
-use serde::Deserialize;
-use unitac_core::msg::{ContactEpisode, ContactState, Header};
-use unitac_core::{Clock, Frame, Msg, SensorSpec, Stage, StageError, Stamp};
+pub mod background;
+pub mod grid;
+mod params;
 
-/// Parameters (scene file `params:` of a `contact` stage). Unknown keys are errors.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ContactParams {
-    /// Frames averaged into the initial background.
-    pub learn_frames: u32,
-    /// Grid stride in pixels (1 = every pixel).
-    pub stride: u32,
-    /// Threshold on the 3-channel absolute difference, in units of the measured noise sigma.
-    pub noise_k: f32,
-    /// Lower bound of that threshold [DN, summed over channels].
-    pub min_threshold: f32,
-    /// Contact starts when the area reaches this [px] ...
-    pub enter_area_px: f32,
-    /// ... and ends when it falls below this [px].
-    pub exit_area_px: f32,
-    /// Consecutive frames needed to enter / leave contact.
-    pub debounce_frames: u32,
-    /// Background EMA weight per no-contact frame.
-    pub ema_alpha: f32,
-    /// Labels given to episodes in order (e.g. [fabric_a, fabric_b]); later episodes get "".
-    pub episode_labels: Vec<String>,
-}
+pub use background::{Background, BackgroundFileError, Learner};
+pub use params::{ContactParams, MAX_CLIP_FRAMES};
 
-impl Default for ContactParams {
-    fn default() -> Self {
-        Self {
-            learn_frames: 10,
-            stride: 2,
-            noise_k: 3.0,
-            min_threshold: 6.0,
-            enter_area_px: 120.0,
-            exit_area_px: 60.0,
-            debounce_frames: 2,
-            ema_alpha: 0.02,
-            episode_labels: Vec::new(),
-        }
-    }
-}
+use grid::{Geometry, block_means, keep_components, open_close};
+use std::collections::VecDeque;
+use unitac_core::msg::{ContactEpisode, ContactState, EpisodeClip, Header};
+use unitac_core::{Clock, Frame, Msg, SensorKind, SensorSpec, Stage, StageError, Stamp};
 
-impl ContactParams {
-    pub fn check(&self) -> Result<(), String> {
-        if !(1..=1000).contains(&self.learn_frames) {
-            return Err(format!(
-                "learn_frames {} is outside 1..=1000",
-                self.learn_frames
-            ));
-        }
-        if !(1..=16).contains(&self.stride) {
-            return Err(format!("stride {} is outside 1..=16", self.stride));
-        }
-        if !(self.exit_area_px >= 0.0 && self.exit_area_px <= self.enter_area_px) {
-            return Err("need 0 <= exit_area_px <= enter_area_px".into());
-        }
-        if !(self.ema_alpha >= 0.0 && self.ema_alpha < 1.0) {
-            return Err(format!("ema_alpha {} is outside [0, 1)", self.ema_alpha));
-        }
-        if !(self.noise_k.is_finite() && self.noise_k > 0.0 && self.min_threshold.is_finite()) {
-            return Err("noise_k must be > 0 and min_threshold finite".into());
-        }
-        if self.debounce_frames > 1000 {
-            return Err(format!(
-                "debounce_frames {} is above 1000",
-                self.debounce_frames
-            ));
-        }
-        Ok(())
-    }
+/// Plausible range of the per-channel illumination gain against the background.
+const GAIN_RANGE: (f32, f32) = (0.2, 5.0);
+/// Every n-th grid cell is sampled for the gain and the saturation check.
+const SAMPLE_STEP: usize = 5;
+
+/// Measurement of one frame against the background.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measurement {
+    /// Contact area [input px].
+    pub area_px: f32,
+    /// Centroid [input px] (x, y); zeros when empty.
+    pub centroid: [f32; 2],
+    /// Bounding box [input px] x0, y0, x1, y1 (exclusive); zeros when empty.
+    pub bbox: [u32; 4],
+    /// 0..1, monotone in the mean residual over the contact.
+    pub strength: f32,
+    /// Per-channel illumination gain against the background.
+    pub gain: [f32; 3],
+    /// Cell threshold used [DN].
+    pub threshold: f32,
 }
 
 #[derive(Debug, Clone)]
@@ -91,178 +61,313 @@ struct Episode {
     peak_seq: u64,
 }
 
-/// Measurement of one frame against the background.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Measurement {
-    pub area_px: f32,
-    pub centroid: [f32; 2],
-    pub bbox: [u32; 4],
-    pub strength: f32,
+#[derive(Debug, Default)]
+struct Scratch {
+    grid: Vec<f32>,
+    mask: Vec<u8>,
+    resid: Vec<f32>,
+    tmp: Vec<u8>,
+    labels: Vec<u32>,
+    stack: Vec<usize>,
+    ratios: [Vec<f32>; 3],
+}
+
+#[derive(Debug)]
+enum Model {
+    Learning(Learner),
+    Ready { bg: Background, markers: Vec<u8> },
 }
 
 #[derive(Debug)]
 pub struct ContactDetector {
     p: ContactParams,
     spec: SensorSpec,
-    size: Option<(u32, u32)>,
-    /// Background on the strided grid, RGB, float DN.
-    bg: Vec<f32>,
-    learn_sum: Vec<f64>,
-    learned: u32,
-    prev: Vec<f32>,
-    noise_acc: f64,
-    noise_n: u64,
-    noise_sigma: f32,
-    bg_stamp: Stamp,
+    mask_markers: bool,
+    geo: Option<Geometry>,
+    model: Option<Model>,
+    s: Scratch,
     in_contact: bool,
     streak: u32,
     next_episode: u64,
     episode: Option<Episode>,
     last_episode: u64,
+    clip: VecDeque<Frame>,
+    peak_frame: Option<Frame>,
+    idle_frames: u64,
 }
 
 impl ContactDetector {
     pub fn new(p: ContactParams, spec: SensorSpec) -> Result<Self, String> {
         p.check()?;
+        let mask_markers = p
+            .mask_markers
+            .unwrap_or(spec.kind == SensorKind::GelsightMini);
         Ok(Self {
             p,
             spec,
-            size: None,
-            bg: Vec::new(),
-            learn_sum: Vec::new(),
-            learned: 0,
-            prev: Vec::new(),
-            noise_acc: 0.0,
-            noise_n: 0,
-            noise_sigma: 0.0,
-            bg_stamp: Stamp::ZERO,
+            mask_markers,
+            geo: None,
+            model: None,
+            s: Scratch::default(),
             in_contact: false,
             streak: 0,
             next_episode: 1,
             episode: None,
             last_episode: 0,
+            clip: VecDeque::new(),
+            peak_frame: None,
+            idle_frames: 0,
         })
     }
 
-    pub fn is_learned(&self) -> bool {
-        self.learned >= self.p.learn_frames
+    pub fn params(&self) -> &ContactParams {
+        &self.p
     }
-    /// Measured per-channel noise sigma [DN].
-    pub fn noise_sigma(&self) -> f32 {
-        self.noise_sigma
+    pub fn is_learned(&self) -> bool {
+        matches!(self.model, Some(Model::Ready { .. }))
+    }
+    pub fn in_contact(&self) -> bool {
+        self.in_contact
+    }
+    pub fn background(&self) -> Option<&Background> {
+        match &self.model {
+            Some(Model::Ready { bg, .. }) => Some(bg),
+            _ => None,
+        }
+    }
+    /// The current non-contact frame (the sensor prior for inference), once learned.
+    pub fn background_frame(&self, sensor_id: &str) -> Option<Frame> {
+        self.background().and_then(|b| b.frame(sensor_id))
+    }
+    /// Measured per-channel noise sigma of one detection cell [DN].
+    pub fn cell_sigma(&self) -> f32 {
+        self.background().map_or(0.0, |b| b.cell_sigma)
     }
     pub fn threshold(&self) -> f32 {
-        (self.p.noise_k * 3.0 * self.noise_sigma).max(self.p.min_threshold)
+        (self.p.noise_k * 3.0 * self.cell_sigma()).max(self.p.min_threshold)
     }
 
-    fn grid(&self, f: &Frame) -> Vec<f32> {
-        let s = self.p.stride as usize;
-        let (w, h) = (f.width as usize, f.height as usize);
-        let d = f.data();
-        let mut g = Vec::with_capacity((w / s + 1) * (h / s + 1) * 3);
-        for y in (0..h).step_by(s) {
-            let row = &d[y * w * 3..(y + 1) * w * 3];
-            for px in row.chunks_exact(3).step_by(s) {
-                g.extend(px.iter().map(|&v| f32::from(v)));
+    /// Forget the background and learn it again from the next frames (e.g. after the gel was
+    /// changed). Episode numbering goes on.
+    pub fn recapture(&mut self) {
+        self.model = None;
+        self.in_contact = false;
+        self.streak = 0;
+        self.episode = None;
+        self.clip.clear();
+        self.peak_frame = None;
+    }
+
+    /// Use a background captured elsewhere (a saved file, a single image).
+    pub fn set_background(&mut self, bg: Background) {
+        self.geo = Some(bg.geo);
+        let markers = if self.mask_markers {
+            marker_cells(&bg)
+        } else {
+            vec![0; bg.geo.cells()]
+        };
+        self.model = Some(Model::Ready { bg, markers });
+    }
+
+    /// Use one image as the background; the noise is taken from `default_noise_dn`.
+    pub fn set_background_frame(&mut self, f: &Frame) {
+        let geo = Geometry::new(f.width, f.height, self.p.stride);
+        let mut l = Learner::new(geo);
+        l.add(f);
+        // Block means of s*s pixels have sigma / s per channel.
+        let sigma = self.p.default_noise_dn / geo.stride as f32;
+        self.set_background(l.finish(f.stamp, sigma));
+    }
+
+    fn check_size(&mut self, f: &Frame) -> Result<Geometry, StageError> {
+        match self.geo {
+            None => {
+                let g = Geometry::new(f.width, f.height, self.p.stride);
+                self.geo = Some(g);
+                Ok(g)
+            }
+            Some(g) if (g.width, g.height) != (f.width, f.height) => {
+                Err(StageError::BadInput(format!(
+                    "frame {} is {}x{}, the background is {}x{}",
+                    f.seq, f.width, f.height, g.width, g.height
+                )))
+            }
+            Some(g) => Ok(g),
+        }
+    }
+
+    /// Measure a frame against the background without changing the detector's state (scratch
+    /// buffers aside). The mask of contact cells is left in the scratch buffer.
+    pub fn measure(&mut self, f: &Frame) -> Result<Measurement, StageError> {
+        let geo = self.check_size(f)?;
+        let Some(Model::Ready { bg, markers }) = &self.model else {
+            return Err(StageError::BadInput("background not learned yet".into()));
+        };
+        let thr = (self.p.noise_k * 3.0 * bg.cell_sigma).max(self.p.min_threshold);
+        let s = &mut self.s;
+        block_means(f, &geo, &mut s.grid);
+
+        // 1. Frame quality and illumination gain, on a sample of cells.
+        let (mut sat, mut dark, mut sampled) = (0usize, 0usize, 0usize);
+        for r in s.ratios.iter_mut() {
+            r.clear();
+        }
+        for i in (0..geo.cells()).step_by(SAMPLE_STEP) {
+            let (g, b) = (&s.grid[i * 3..i * 3 + 3], &bg.grid[i * 3..i * 3 + 3]);
+            sampled += 1;
+            if g.iter().any(|&v| v >= 250.0) {
+                sat += 1;
+            }
+            if g.iter().all(|&v| v <= 5.0) {
+                dark += 1;
+            }
+            if markers[i] == 0 {
+                for c in 0..3 {
+                    if b[c] > 10.0 && g[c] < 250.0 {
+                        s.ratios[c].push(g[c] / b[c]);
+                    }
+                }
             }
         }
-        g
-    }
-
-    /// Measure a frame against the background (no state change).
-    pub fn measure(&self, f: &Frame) -> Measurement {
-        let s = self.p.stride as usize;
-        let g = self.grid(f);
-        let gw = (f.width as usize).div_ceil(s);
-        let thr = self.threshold();
-        let (mut n, mut sx, mut sy, mut sd) = (0u64, 0f64, 0f64, 0f64);
-        let mut bb = [u32::MAX, u32::MAX, 0u32, 0u32];
-        for (i, (px, bg)) in g.chunks_exact(3).zip(self.bg.chunks_exact(3)).enumerate() {
-            let d = (px[0] - bg[0]).abs() + (px[1] - bg[1]).abs() + (px[2] - bg[2]).abs();
-            if d > thr {
-                let (x, y) = (((i % gw) * s) as u32, ((i / gw) * s) as u32);
-                n += 1;
-                sx += f64::from(x);
-                sy += f64::from(y);
-                sd += f64::from(d);
-                bb = [
-                    bb[0].min(x),
-                    bb[1].min(y),
-                    bb[2].max(x + 1),
-                    bb[3].max(y + 1),
-                ];
+        let share = |n: usize| n as f32 / sampled.max(1) as f32;
+        if share(sat) > self.p.max_bad_pixel_share {
+            return Err(StageError::BadInput(format!(
+                "frame {} is saturated ({:.0} % of the gel at 250 DN or more)",
+                f.seq,
+                100.0 * share(sat)
+            )));
+        }
+        if share(dark) > self.p.max_bad_pixel_share {
+            return Err(StageError::BadInput(format!(
+                "frame {} is dark ({:.0} % of the gel at 5 DN or less)",
+                f.seq,
+                100.0 * share(dark)
+            )));
+        }
+        let mut gain = [1.0f32; 3];
+        for (c, (g, r)) in gain.iter_mut().zip(s.ratios.iter_mut()).enumerate() {
+            if !r.is_empty() {
+                let mid = r.len() / 2;
+                let (_, m, _) = r.select_nth_unstable_by(mid, f32::total_cmp);
+                *g = *m;
             }
+            if !(GAIN_RANGE.0..=GAIN_RANGE.1).contains(g) {
+                return Err(StageError::BadInput(format!(
+                    "frame {}: illumination gain {g:.2} on channel {c} is implausible",
+                    f.seq
+                )));
+            }
+        }
+
+        // 2. Residual and threshold.
+        s.mask.clear();
+        s.mask.resize(geo.cells(), 0);
+        s.resid.clear();
+        s.resid.resize(geo.cells(), 0.0);
+        let per_cell = s
+            .grid
+            .chunks_exact(3)
+            .zip(bg.grid.chunks_exact(3))
+            .zip(markers);
+        for (((g, b), &marker), (r, m)) in per_cell.zip(s.resid.iter_mut().zip(s.mask.iter_mut())) {
+            let d = (g[0] - gain[0] * b[0]).abs()
+                + (g[1] - gain[1] * b[1]).abs()
+                + (g[2] - gain[2] * b[2]).abs();
+            *r = d;
+            *m = u8::from(d > thr && marker == 0);
+        }
+
+        // 3. Morphology and components.
+        let st = geo.stride;
+        let cells = |px: u32| {
+            if px == 0 {
+                0
+            } else {
+                ((px as f32 / st as f32).round() as u32).max(1)
+            }
+        };
+        let (open, close) = (cells(self.p.open_radius_px), cells(self.p.close_radius_px));
+        open_close(&mut s.mask, &mut s.tmp, geo.gw, geo.gh, open, close);
+        let min_cells = (self.p.min_component_px / geo.cell_px()).ceil() as usize;
+        keep_components(
+            &mut s.mask,
+            geo.gw,
+            geo.gh,
+            min_cells.max(1),
+            &mut s.labels,
+            &mut s.stack,
+        );
+
+        // 4. Geometry in input pixels.
+        let (mut n, mut sx, mut sy, mut sr) = (0u64, 0f64, 0f64, 0f64);
+        let mut bb = [u32::MAX, u32::MAX, 0u32, 0u32];
+        for (i, &m) in s.mask.iter().enumerate() {
+            if m == 0 {
+                continue;
+            }
+            let (gx, gy) = ((i % geo.gw) as u32, (i / geo.gw) as u32);
+            n += 1;
+            sx += f64::from(gx);
+            sy += f64::from(gy);
+            // Closing can add masked marker cells with no residual of their own: count them at
+            // the threshold.
+            sr += f64::from((s.resid[i] / thr).max(1.0));
+            bb = [
+                bb[0].min(gx),
+                bb[1].min(gy),
+                bb[2].max(gx + 1),
+                bb[3].max(gy + 1),
+            ];
         }
         if n == 0 {
-            return Measurement {
+            return Ok(Measurement {
                 area_px: 0.0,
                 centroid: [0.0; 2],
                 bbox: [0; 4],
                 strength: 0.0,
-            };
+                gain,
+                threshold: thr,
+            });
         }
-        let cell = (s * s) as f32;
-        let mean_d = (sd / n as f64) as f32;
-        Measurement {
-            area_px: n as f32 * cell,
-            centroid: [(sx / n as f64) as f32, (sy / n as f64) as f32],
-            bbox: bb,
-            strength: ((mean_d - thr) / 60.0).clamp(0.0, 1.0),
-        }
+        let half = (st as f64 - 1.0) / 2.0;
+        let nf = n as f64;
+        let mean_ratio = (sr / nf) as f32;
+        Ok(Measurement {
+            area_px: n as f32 * geo.cell_px(),
+            centroid: [
+                (sx / nf * f64::from(st) + half) as f32,
+                (sy / nf * f64::from(st) + half) as f32,
+            ],
+            bbox: [
+                bb[0] * st,
+                bb[1] * st,
+                (bb[2] * st).min(geo.width),
+                (bb[3] * st).min(geo.height),
+            ],
+            strength: 1.0 - (-(mean_ratio - 1.0) / 3.0).exp(),
+            gain,
+            threshold: thr,
+        })
     }
 
-    fn learn(&mut self, f: &Frame) {
-        let g = self.grid(f);
-        if self.learn_sum.is_empty() {
-            self.learn_sum = vec![0.0; g.len()];
-        }
-        if !self.prev.is_empty() {
-            // E|a - b| = 2 sigma / sqrt(pi) for two independent N(., sigma^2) samples.
-            let mad: f64 = g
-                .iter()
-                .zip(&self.prev)
-                .map(|(a, b)| f64::from((a - b).abs()))
-                .sum();
-            self.noise_acc += mad;
-            self.noise_n += g.len() as u64;
-        }
-        for (s, v) in self.learn_sum.iter_mut().zip(&g) {
-            *s += f64::from(*v);
-        }
-        self.prev = g;
-        self.learned += 1;
-        if self.is_learned() {
-            let n = f64::from(self.learned);
-            self.bg = self.learn_sum.iter().map(|s| (s / n) as f32).collect();
-            let mean_abs = if self.noise_n > 0 {
-                self.noise_acc / self.noise_n as f64
-            } else {
-                0.0
-            };
-            self.noise_sigma = (mean_abs * std::f64::consts::PI.sqrt() / 2.0) as f32;
-            self.bg_stamp = f.stamp;
-            self.learn_sum = Vec::new();
-            self.prev = Vec::new();
-        }
-    }
-
-    /// One frame in, zero or more events out.
+    /// One frame in, zero or more events out. Nothing comes out while the background is learned.
     pub fn step(&mut self, f: &Frame) -> Result<Vec<Msg>, StageError> {
-        match self.size {
-            None => self.size = Some((f.width, f.height)),
-            Some((w, h)) if (w, h) != (f.width, f.height) => {
-                return Err(StageError::BadInput(format!(
-                    "frame {} is {}x{}, the background is {w}x{h}",
-                    f.seq, f.width, f.height
-                )));
-            }
-            Some(_) => {}
-        }
+        let geo = self.check_size(f)?;
         if !self.is_learned() {
-            self.learn(f);
+            let mut learner = match self.model.take() {
+                Some(Model::Learning(l)) => l,
+                _ => Learner::new(geo),
+            };
+            learner.add(f);
+            if learner.frames() >= self.p.learn_frames {
+                let sigma = self.p.default_noise_dn / geo.stride as f32;
+                self.set_background(learner.finish(f.stamp, sigma));
+            } else {
+                self.model = Some(Model::Learning(learner));
+            }
             return Ok(Vec::new());
         }
-        let m = self.measure(f);
+        let m = self.measure(f)?;
         let raw = if self.in_contact {
             m.area_px >= self.p.exit_area_px
         } else {
@@ -286,8 +391,10 @@ impl ContactDetector {
                         peak_area: 0.0,
                         peak_seq: f.seq,
                     });
-                } else if let Some(ep) = self.episode.take() {
-                    out.push(Msg::Episode(self.episode_msg(&f.sensor_id, ep)));
+                    self.clip.clear();
+                    self.peak_frame = None;
+                } else {
+                    out.extend(self.close_episode(&f.sensor_id));
                 }
             }
         } else {
@@ -296,43 +403,86 @@ impl ContactDetector {
         if let (true, Some(ep)) = (self.in_contact, self.episode.as_mut()) {
             ep.frames += 1;
             ep.last = f.stamp;
+            let cap = self.p.clip_frames as usize;
             if m.area_px > ep.peak_area {
                 ep.peak_area = m.area_px;
                 ep.peak_seq = f.seq;
+                if cap > 0 {
+                    self.peak_frame = Some(f.clone());
+                }
+            }
+            if cap > 0 {
+                if self.clip.len() == cap {
+                    self.clip.pop_front();
+                }
+                self.clip.push_back(f.clone());
             }
         }
-        if !self.in_contact && !raw && m.area_px < self.p.exit_area_px {
-            let a = self.p.ema_alpha;
-            let g = self.grid(f);
-            for (b, v) in self.bg.iter_mut().zip(g) {
-                *b += a * (v - *b);
-            }
+        if !self.in_contact && !raw {
+            self.update_background(f);
         }
-        let mm2 = self.spec.mm2_per_px() as f32;
+        let bg_age = self
+            .background()
+            .map_or(0.0, |b| f.stamp.secs_since(b.captured_at));
         let state = ContactState {
             header: Header::optical(f.stamp, &f.sensor_id),
             sensor_id: f.sensor_id.clone(),
             frame_seq: f.seq,
             in_contact: self.in_contact,
             area_px: m.area_px,
-            area_mm2: m.area_px * mm2,
+            area_mm2: m.area_px * self.spec.mm2_per_px() as f32,
             centroid_px: m.centroid,
             bbox_px: m.bbox,
             strength: m.strength,
             episode_id: self.last_episode,
-            background_age_s: f.stamp.secs_since(self.bg_stamp),
+            background_age_s: bg_age,
         };
         out.insert(0, Msg::Contact(state));
         Ok(out)
     }
 
-    fn episode_msg(&self, sensor_id: &str, ep: Episode) -> ContactEpisode {
-        let label = usize::try_from(ep.id - 1)
+    /// EMA on the cells outside the current mask (scratch from `measure`), and every 8th idle
+    /// frame on the full-resolution background.
+    fn update_background(&mut self, f: &Frame) {
+        let a = self.p.ema_alpha;
+        if a <= 0.0 {
+            return;
+        }
+        self.idle_frames += 1;
+        let Some(Model::Ready { bg, .. }) = self.model.as_mut() else {
+            return;
+        };
+        for (i, &m) in self.s.mask.iter().enumerate() {
+            if m == 0 {
+                for c in 0..3 {
+                    let (b, g) = (&mut bg.grid[i * 3 + c], self.s.grid[i * 3 + c]);
+                    *b += a * (g - *b);
+                }
+            }
+        }
+        if self.idle_frames % 8 == 0 {
+            let a8 = (a * 8.0).min(0.5);
+            for (b, &v) in bg.full.iter_mut().zip(f.data()) {
+                *b += a8 * (f32::from(v) - *b);
+            }
+        }
+    }
+
+    fn label(&self, id: u64) -> String {
+        usize::try_from(id.saturating_sub(1))
             .ok()
             .and_then(|i| self.p.episode_labels.get(i))
             .cloned()
-            .unwrap_or_default();
-        ContactEpisode {
+            .unwrap_or_default()
+    }
+
+    fn close_episode(&mut self, sensor_id: &str) -> Vec<Msg> {
+        self.in_contact = false;
+        let Some(ep) = self.episode.take() else {
+            return Vec::new();
+        };
+        let label = self.label(ep.id);
+        let mut out = vec![Msg::Episode(ContactEpisode {
             header: Header::optical(ep.last, sensor_id),
             sensor_id: sensor_id.to_string(),
             episode_id: ep.id,
@@ -342,22 +492,102 @@ impl ContactDetector {
             peak_area_px: ep.peak_area,
             peak_area_mm2: ep.peak_area * self.spec.mm2_per_px() as f32,
             peak_frame_seq: ep.peak_seq,
-            label,
+            label: label.clone(),
+        })];
+        if self.p.clip_frames > 0 {
+            if let Some(clip) = self.take_clip(sensor_id, &ep, label) {
+                out.push(Msg::Clip(clip));
+            }
         }
+        out
+    }
+
+    /// Up to `clip_frames` frames centred on the peak: the peak frame plus the kept frames around
+    /// it (if the peak is older than the kept window, the peak frame then the latest frames).
+    fn take_clip(&mut self, sensor_id: &str, ep: &Episode, label: String) -> Option<EpisodeClip> {
+        let peak = self.peak_frame.take()?;
+        let cap = self.p.clip_frames as usize;
+        let mut frames: Vec<Frame> = self.clip.drain(..).collect();
+        let peak_index = match frames.iter().position(|f| f.seq == peak.seq) {
+            Some(i) => {
+                let start = i
+                    .saturating_sub(cap / 2)
+                    .min(frames.len().saturating_sub(cap));
+                frames = frames.into_iter().skip(start).take(cap).collect();
+                i - start
+            }
+            None => {
+                frames.insert(0, peak);
+                frames.truncate(cap);
+                0
+            }
+        };
+        Some(EpisodeClip {
+            sensor_id: sensor_id.to_string(),
+            episode_id: ep.id,
+            label,
+            peak_index,
+            frames,
+        })
     }
 
     /// Close an open episode (end of input).
     pub fn flush(&mut self, sensor_id: &str) -> Vec<Msg> {
-        self.in_contact = false;
-        self.episode
-            .take()
-            .map(|ep| Msg::Episode(self.episode_msg(sensor_id, ep)))
-            .into_iter()
-            .collect()
+        self.close_episode(sensor_id)
     }
 }
 
-/// The detector as a runtime stage: consumes frames, emits ContactState and ContactEpisode.
+/// Marker dots: background cells much darker than the gel around them, dilated by one cell
+/// (markers move a little with the gel).
+fn marker_cells(bg: &Background) -> Vec<u8> {
+    let g = bg.geo;
+    let lum: Vec<f32> = bg
+        .grid
+        .chunks_exact(3)
+        .map(|p| p[0] + p[1] + p[2])
+        .collect();
+    let mut sorted = lum.clone();
+    let mid = sorted.len() / 2;
+    let median = if sorted.is_empty() {
+        0.0
+    } else {
+        *sorted.select_nth_unstable_by(mid, f32::total_cmp).1
+    };
+    let mut m: Vec<u8> = lum.iter().map(|&l| u8::from(l < 0.7 * median)).collect();
+    // Only small dark spots are markers; a mask covering much of the gel means it is not a marker
+    // gel (or the background is odd): then mask nothing.
+    if m.iter().filter(|&&v| v != 0).count() * 5 > m.len() {
+        return vec![0; g.cells()];
+    }
+    let mut out = m.clone();
+    for y in 0..g.gh {
+        for x in 0..g.gw {
+            if m[y * g.gw + x] == 0 {
+                continue;
+            }
+            for (dx, dy) in [
+                (-1i64, 0i64),
+                (1, 0),
+                (0, -1),
+                (0, 1),
+                (-1, -1),
+                (1, 1),
+                (-1, 1),
+                (1, -1),
+            ] {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                if nx >= 0 && ny >= 0 && (nx as usize) < g.gw && (ny as usize) < g.gh {
+                    out[ny as usize * g.gw + nx as usize] = 1;
+                }
+            }
+        }
+    }
+    m.clear();
+    out
+}
+
+/// The detector as a runtime stage: consumes frames, emits ContactState per frame and
+/// ContactEpisode (plus an EpisodeClip when `clip_frames` > 0) on release.
 #[derive(Debug)]
 pub struct ContactStage {
     det: ContactDetector,
@@ -373,6 +603,9 @@ impl ContactStage {
     }
     pub fn detector(&self) -> &ContactDetector {
         &self.det
+    }
+    pub fn detector_mut(&mut self) -> &mut ContactDetector {
+        &mut self.det
     }
 }
 
@@ -391,135 +624,5 @@ impl Stage for ContactStage {
     }
     fn finish(&mut self, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
         Ok(self.det.flush(&self.sensor_id))
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use unitac_core::{ManualClock, SensorKind};
-    use unitac_sim::{MockConfig, MockSensor, Scenario};
-
-    fn run(
-        kind: SensorKind,
-        scenario: Scenario,
-        p: ContactParams,
-    ) -> (Vec<Msg>, Vec<(bool, bool)>) {
-        let mut sensor = MockSensor::new(MockConfig::new(kind, 11), scenario);
-        let mut stage = ContactStage::new(p, kind.spec()).unwrap();
-        let clock = ManualClock::default();
-        let mut out = Vec::new();
-        let mut agree = Vec::new();
-        while let Some((f, truth)) = sensor.next_with_truth() {
-            let msgs = stage.process(&Msg::Frame(f), &clock).unwrap();
-            for m in &msgs {
-                if let Msg::Contact(c) = m {
-                    agree.push((c.in_contact, truth.penetration_mm > 0.05));
-                }
-            }
-            out.extend(msgs);
-        }
-        out.extend(stage.finish(&clock).unwrap());
-        (out, agree)
-    }
-
-    #[test]
-    fn fabric_scenario_gives_two_labelled_episodes() {
-        for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
-            let p = ContactParams {
-                episode_labels: vec!["fabric_a".into(), "fabric_b".into()],
-                ..Default::default()
-            };
-            let (out, agree) = run(kind, Scenario::fabric_selection(), p);
-            let eps: Vec<&ContactEpisode> = out
-                .iter()
-                .filter_map(|m| {
-                    if let Msg::Episode(e) = m {
-                        Some(e)
-                    } else {
-                        None
-                    }
-                })
-                .collect();
-            assert_eq!(eps.len(), 2, "{kind}: {eps:?}");
-            assert_eq!(
-                (eps[0].label.as_str(), eps[1].label.as_str()),
-                ("fabric_a", "fabric_b")
-            );
-            assert!(
-                eps.iter()
-                    .all(|e| e.frame_count > 10 && e.peak_area_px > 1000.0),
-                "{eps:?}"
-            );
-            // Per-frame agreement with ground truth on clearly pressed / clearly free frames.
-            let right = agree.iter().filter(|(d, t)| d == t).count();
-            assert!(
-                right as f64 / agree.len() as f64 > 0.9,
-                "{kind}: {right}/{}",
-                agree.len()
-            );
-        }
-    }
-
-    #[test]
-    fn no_contact_no_episode() {
-        let (out, agree) = run(
-            SensorKind::GelsightMini,
-            Scenario::by_name("idle").unwrap(),
-            ContactParams::default(),
-        );
-        assert!(out.iter().all(|m| !matches!(m, Msg::Episode(_))));
-        assert!(agree.iter().all(|(d, _)| !d));
-    }
-
-    #[test]
-    fn wrong_size_frame_is_an_error_and_state_survives() {
-        let kind = SensorKind::GelsightMini;
-        let mut sensor = MockSensor::new(MockConfig::new(kind, 1), Scenario::fabric_selection());
-        let mut stage = ContactStage::new(ContactParams::default(), kind.spec()).unwrap();
-        let clock = ManualClock::default();
-        for _ in 0..15 {
-            let (f, _) = sensor.next_with_truth().unwrap();
-            stage.process(&Msg::Frame(f), &clock).unwrap();
-        }
-        let small = Frame::new("mock", 99, Stamp(1), 4, 4, vec![0; 48]).unwrap();
-        let e = stage.process(&Msg::Frame(small), &clock).unwrap_err();
-        assert!(e.to_string().contains("4x4"), "{e}");
-        let (f, _) = sensor.next_with_truth().unwrap();
-        let out = stage.process(&Msg::Frame(f), &clock).unwrap();
-        assert!(matches!(&out[0], Msg::Contact(c) if !c.in_contact));
-    }
-
-    #[test]
-    fn noise_is_measured() {
-        let kind = SensorKind::Digit;
-        let mut sensor =
-            MockSensor::new(MockConfig::new(kind, 5), Scenario::by_name("idle").unwrap());
-        let mut det = ContactDetector::new(ContactParams::default(), kind.spec()).unwrap();
-        for _ in 0..10 {
-            det.step(&sensor.next_with_truth().unwrap().0).unwrap();
-        }
-        assert!(det.is_learned());
-        // The mock's noise is 1 DN; rounding to integers adds ~0.29 DN.
-        assert!(
-            (0.8..1.3).contains(&det.noise_sigma()),
-            "{}",
-            det.noise_sigma()
-        );
-    }
-
-    #[test]
-    fn bad_params_are_rejected() {
-        let spec = SensorKind::Digit.spec();
-        let p = ContactParams {
-            stride: 0,
-            ..Default::default()
-        };
-        assert!(ContactDetector::new(p, spec).is_err());
-        let p = ContactParams {
-            exit_area_px: 500.0,
-            ..Default::default()
-        };
-        assert!(ContactDetector::new(p, spec).is_err());
     }
 }

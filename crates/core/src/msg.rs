@@ -146,6 +146,18 @@ pub struct PolicyStatus {
     pub message: String,
 }
 
+/// The frames of one contact episode, centred on its peak (for the touch encoder). Bounded by the
+/// contact stage's `clip_frames`. Not a ROS message: nodes pass frames as sensor_msgs/Image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EpisodeClip {
+    pub sensor_id: String,
+    pub episode_id: u64,
+    pub label: String,
+    /// Index into `frames` of the peak-area frame.
+    pub peak_index: usize,
+    pub frames: Vec<Frame>,
+}
+
 /// Everything that flows between stages. Frames may be dropped under load (drop-oldest edges);
 /// every other variant is an event and is never dropped.
 #[derive(Debug, Clone, PartialEq)]
@@ -153,6 +165,7 @@ pub enum Msg {
     Frame(Frame),
     Contact(ContactState),
     Episode(ContactEpisode),
+    Clip(EpisodeClip),
     Properties(TactileProperties),
     Comparison(PropertyComparison),
     Latent(TactileLatent),
@@ -170,6 +183,7 @@ impl Msg {
             Msg::Frame(f) => f.stamp,
             Msg::Contact(m) => m.header.stamp,
             Msg::Episode(m) => m.header.stamp,
+            Msg::Clip(m) => m.frames.last().map_or(Stamp::ZERO, |f| f.stamp),
             Msg::Properties(m) => m.header.stamp,
             Msg::Comparison(m) => m.header.stamp,
             Msg::Latent(m) => m.header.stamp,
@@ -183,6 +197,7 @@ impl Msg {
             Msg::Frame(_) => "frame",
             Msg::Contact(_) => "contact_state",
             Msg::Episode(_) => "contact_episode",
+            Msg::Clip(_) => "episode_clip",
             Msg::Properties(_) => "tactile_properties",
             Msg::Comparison(_) => "property_comparison",
             Msg::Latent(_) => "tactile_latent",
@@ -199,6 +214,11 @@ impl Msg {
             }),
             Msg::Contact(m) => serde_json::to_value(m).unwrap_or_default(),
             Msg::Episode(m) => serde_json::to_value(m).unwrap_or_default(),
+            Msg::Clip(m) => serde_json::json!({
+                "sensor_id": m.sensor_id, "episode_id": m.episode_id, "label": m.label,
+                "peak_index": m.peak_index,
+                "frame_seqs": m.frames.iter().map(|f| f.seq).collect::<Vec<_>>(),
+            }),
             Msg::Properties(m) => serde_json::to_value(m).unwrap_or_default(),
             Msg::Comparison(m) => serde_json::to_value(m).unwrap_or_default(),
             Msg::Latent(m) => serde_json::to_value(m).unwrap_or_default(),

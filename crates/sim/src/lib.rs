@@ -26,6 +26,54 @@ pub struct GroundTruth {
     pub label: String,
     /// Pixels where the indenter touches the gel (height > 0), in output pixels.
     pub contact_px: u32,
+    /// Row-major mask of those pixels (width x height of the frame).
+    pub mask: Vec<bool>,
+    /// Global illumination gain applied to this frame (drift, exposure steps).
+    pub gain: f64,
+}
+
+/// Slow illumination changes of a real sensor: LED warm-up, slow wander, exposure steps.
+/// The frame is multiplied by `gain(t)`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Drift {
+    /// Relative gain at t = 0 that decays away (LED warm-up), e.g. -0.08.
+    pub warmup: f64,
+    /// Warm-up time constant [s].
+    pub warmup_tau_s: f64,
+    /// Relative amplitude of a slow sinusoidal wander, e.g. 0.01.
+    pub wander: f64,
+    /// Wander period [s].
+    pub wander_period_s: f64,
+    /// Exposure steps: from time t [s] on, multiply by gain.
+    pub steps: Vec<(f64, f64)>,
+}
+
+impl Drift {
+    /// A realistic mix: 8 % warm-up over ~90 s plus 1 % wander with a 47 s period.
+    pub fn warmup() -> Self {
+        Self {
+            warmup: -0.08,
+            warmup_tau_s: 90.0,
+            wander: 0.01,
+            wander_period_s: 47.0,
+            steps: Vec::new(),
+        }
+    }
+    pub fn gain(&self, t: f64) -> f64 {
+        let mut g = 1.0;
+        if self.warmup != 0.0 && self.warmup_tau_s > 0.0 {
+            g *= 1.0 + self.warmup * (-t / self.warmup_tau_s).exp();
+        }
+        if self.wander != 0.0 && self.wander_period_s > 0.0 {
+            g *= 1.0 + self.wander * (std::f64::consts::TAU * t / self.wander_period_s).sin();
+        }
+        for &(ts, gs) in &self.steps {
+            if t >= ts {
+                g *= gs;
+            }
+        }
+        g
+    }
 }
 
 /// Mock sensor settings.
@@ -37,6 +85,9 @@ pub struct MockConfig {
     pub seed: u64,
     /// Per-pixel noise sigma [DN].
     pub noise_dn: f64,
+    pub drift: Drift,
+    /// Black marker dots on the gel that move with it (GelSight Mini has them; DIGIT does not).
+    pub markers: bool,
 }
 
 impl MockConfig {
@@ -47,9 +98,18 @@ impl MockConfig {
             fps: sensor.spec().fps,
             seed,
             noise_dn: 1.0,
+            drift: Drift::default(),
+            markers: sensor == SensorKind::GelsightMini,
         }
     }
 }
+
+/// Marker grid: spacing and dot radius in output pixels, darkening factor inside a dot.
+const MARKER_SPACING: f64 = 24.0;
+const MARKER_RADIUS: f64 = 2.6;
+const MARKER_DARK: f64 = 0.35;
+/// Lateral marker displacement per mm of local gel depression [px/mm].
+const MARKER_SHIFT_PX_PER_MM: f64 = 6.0;
 
 /// Deterministic renderer of a scenario.
 #[derive(Debug)]
@@ -80,6 +140,9 @@ impl MockSensor {
     pub fn spec(&self) -> &SensorSpec {
         &self.spec
     }
+    pub fn config(&self) -> &MockConfig {
+        &self.cfg
+    }
     pub fn frame_count(&self) -> u64 {
         self.total
     }
@@ -90,39 +153,73 @@ impl MockSensor {
         let (depth, obj) = self.scenario.at(t);
         let (w, h) = (self.spec.width as usize, self.spec.height as usize);
         let mut rng = SplitMix64::new(self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let gain = self.cfg.drift.gain(t);
         let mut data = vec![0u8; w * h * 3];
+        let mut mask = vec![false; w * h];
         let mut contact_px = 0u32;
-        // Indenter centred in the image; sizes in output pixels.
         let px_per_mm = 1.0 / self.spec.mm_per_px;
         let (cx, cy) = (w as f64 * 0.5, h as f64 * 0.5);
+        let touching = obj.filter(|_| depth > 0.0);
         let radius_px = obj.map_or(1.0, |o| o.radius_mm * px_per_mm);
+        // Contact radius [px] of a sphere cap of this depth: depth = r^2 R / 2 (r in units of R).
+        let contact_r_px = touching.map_or(0.0, |o| (2.0 * depth / o.radius_mm).sqrt() * radius_px);
+        // The gel deforms a little past the contact circle.
+        let halo = contact_r_px * 1.6 + 4.0;
         let lights: [[f64; 2]; 3] = [[1.0, 0.0], [-0.5, 0.866], [-0.5, -0.866]];
-        let gain = 90.0; // DN per unit slope
+        let shade_gain = 90.0; // DN per unit slope
+        let noise = self.cfg.noise_dn;
         for y in 0..h {
             for x in 0..w {
+                let (dxp, dyp) = (x as f64 - cx, y as f64 - cy);
+                let r = (dxp * dxp + dyp * dyp).sqrt();
                 let mut dz = [0.0f64; 2];
                 let mut height = 0.0;
-                if let (Some(o), true) = (obj, depth > 0.0) {
-                    let (dxp, dyp) = (x as f64 - cx, y as f64 - cy);
-                    let r2 = (dxp * dxp + dyp * dyp) / (radius_px * radius_px);
-                    // Sphere cap in mm: depth - r^2 * R / 2, R = radius.
+                let mut sx = x as f64;
+                let mut sy = y as f64;
+                if let (Some(o), true) = (touching, r < halo) {
+                    let r2 = (r / radius_px).powi(2);
                     let cap = depth - 0.5 * r2 * o.radius_mm;
                     if cap > 0.0 {
-                        let tex = o.texture_height(x as f64 / px_per_mm, y as f64 / px_per_mm);
-                        height = cap + tex * cap.min(0.2) / 0.2;
-                        // Analytic gradient of the cap [mm/mm] plus the texture's.
-                        let (tx, ty) =
-                            o.texture_gradient(x as f64 / px_per_mm, y as f64 / px_per_mm);
+                        let (xm, ym) = (x as f64 / px_per_mm, y as f64 / px_per_mm);
                         let s = cap.min(0.2) / 0.2;
+                        height = cap + o.texture_height(xm, ym) * s;
+                        let (tx, ty) = o.texture_gradient(xm, ym);
                         dz = [-dxp / radius_px + tx * s, -dyp / radius_px + ty * s];
+                        mask[y * w + x] = true;
                         contact_px += 1;
+                    } else if contact_r_px > 0.0 {
+                        // Outside the contact the gel slopes back up to rest (smooth skirt).
+                        let u = ((r - contact_r_px) / (halo - contact_r_px)).clamp(0.0, 1.0);
+                        let skirt = (1.0 - u).powi(2) * depth * 0.15;
+                        height = skirt;
+                        let slope = 2.0 * (1.0 - u) * depth * 0.15 / (halo - contact_r_px)
+                            * px_per_mm.recip();
+                        let k = if r > 0.0 { slope * px_per_mm / r } else { 0.0 };
+                        dz = [-dxp * k * 0.05, -dyp * k * 0.05];
+                    }
+                    // Markers are dragged outward by the local depression (sampled at the pixel:
+                    // render the dot that would have moved here).
+                    let shift = MARKER_SHIFT_PX_PER_MM * height.max(0.0);
+                    if r > 0.0 {
+                        sx -= dxp / r * shift;
+                        sy -= dyp / r * shift;
+                    }
+                }
+                let mut dark = 1.0;
+                if self.cfg.markers {
+                    let mx = (sx / MARKER_SPACING).floor() * MARKER_SPACING + MARKER_SPACING * 0.5;
+                    let my = (sy / MARKER_SPACING).floor() * MARKER_SPACING + MARKER_SPACING * 0.5;
+                    let d = ((sx - mx).powi(2) + (sy - my).powi(2)).sqrt();
+                    if d < MARKER_RADIUS + 1.0 {
+                        let edge = (MARKER_RADIUS + 1.0 - d).clamp(0.0, 1.0);
+                        dark = 1.0 - (1.0 - MARKER_DARK) * edge;
                     }
                 }
                 let i = (y * w + x) * 3;
                 for (c, l) in lights.iter().enumerate() {
-                    let shade = gain * (dz[0] * l[0] + dz[1] * l[1]) - 25.0 * height;
-                    let v =
-                        self.background[i + c] as f64 + shade + self.cfg.noise_dn * rng.gaussian();
+                    let shade = shade_gain * (dz[0] * l[0] + dz[1] * l[1]) - 25.0 * height;
+                    let lit = (f64::from(self.background[i + c]) + shade) * dark * gain;
+                    let v = lit + noise * rng.gaussian_fast();
                     data[i + c] = v.round().clamp(0.0, 255.0) as u8;
                 }
             }
@@ -142,6 +239,8 @@ impl MockSensor {
             penetration_mm: depth.max(0.0),
             label: obj.map(|o| o.label.clone()).unwrap_or_default(),
             contact_px,
+            mask,
+            gain,
         };
         (frame, truth)
     }
@@ -259,6 +358,51 @@ mod tests {
         assert!(diff(5, 5) <= 12);
         let r = (truth.contact_px as f64 / std::f64::consts::PI).sqrt();
         assert!(diff(160 + (r * 0.7) as u32, 120) > 20);
+    }
+
+    #[test]
+    fn truth_mask_matches_contact_pixels_and_drift_scales_the_image() {
+        let mut cfg = MockConfig::new(SensorKind::Digit, 2);
+        cfg.drift.steps.push((1.0, 1.25));
+        let s = MockSensor::new(cfg, Scenario::fabric_selection());
+        let (before, tb) = s.render(10);
+        let (after, ta) = s.render(61);
+        assert_eq!(tb.gain, 1.0);
+        assert_eq!(ta.gain, 1.25);
+        let mean =
+            |f: &Frame| f.data().iter().map(|&v| f64::from(v)).sum::<f64>() / f.data().len() as f64;
+        assert!((mean(&after) / mean(&before) - 1.25).abs() < 0.02);
+        let k = (Scenario::fabric_selection()
+            .first_hold_time("fabric_a")
+            .unwrap()
+            * 60.0) as u64;
+        let (_, t) = s.render(k);
+        assert_eq!(t.mask.iter().filter(|&&m| m).count() as u32, t.contact_px);
+        assert!(t.mask[120 * 320 + 160], "the centre is in contact");
+        assert!(!t.mask[0]);
+    }
+
+    #[test]
+    fn gelsight_has_marker_dots_digit_does_not() {
+        let g = sensor(SensorKind::GelsightMini, 1).render(0).0;
+        let d = sensor(SensorKind::Digit, 1).render(0).0;
+        // A marker centre (12, 12) is much darker than the gel beside it (24, 12).
+        let lum = |f: &Frame, x, y| {
+            f.pixel(x, y)
+                .unwrap()
+                .iter()
+                .map(|&v| u32::from(v))
+                .sum::<u32>()
+        };
+        assert!(lum(&g, 12, 12) * 2 < lum(&g, 24, 12));
+        assert!(lum(&d, 12, 12) * 10 > lum(&d, 24, 12) * 8);
+    }
+
+    #[test]
+    fn warmup_drift_decays() {
+        let d = Drift::warmup();
+        assert!((d.gain(0.0) - 0.92).abs() < 1e-9);
+        assert!((d.gain(600.0) - 1.0).abs() < 0.011);
     }
 
     #[test]

@@ -122,6 +122,48 @@ impl Scenario {
         }
     }
 
+    /// No contact at all for `duration_s`.
+    pub fn idle(duration_s: f64) -> Scenario {
+        Scenario {
+            name: "idle".into(),
+            phases: vec![free(duration_s)],
+        }
+    }
+
+    /// One press per depth [mm] on `object`: free 0.8 s, press 0.4 s, hold 0.8 s, release 0.3 s.
+    pub fn press_sweep(object: &Object, depths: &[f64]) -> Scenario {
+        let mut phases = vec![free(1.0)];
+        for &d in depths {
+            phases.extend(press(object, d, 0.8));
+            phases.push(free(0.8));
+        }
+        Scenario {
+            name: "press_sweep".into(),
+            phases,
+        }
+    }
+
+    /// A contact held for `hold_s` (minutes, for background-absorption tests).
+    pub fn held(object: &Object, depth: f64, hold_s: f64) -> Scenario {
+        let mut phases = vec![free(2.0)];
+        phases.extend(press(object, depth, hold_s));
+        phases.push(free(2.0));
+        Scenario {
+            name: "held".into(),
+            phases,
+        }
+    }
+
+    /// The fabrics of the fabric scenario (A rougher than B).
+    pub fn fabric(label: &str, roughness_mm: f64, period_mm: f64) -> Object {
+        Object {
+            label: label.into(),
+            radius_mm: 6.0,
+            roughness_mm,
+            period_mm,
+        }
+    }
+
     /// Squeeze a cup wall: a wide, smooth contact that deepens slowly, holds, releases.
     pub fn cup_deformation() -> Scenario {
         let cup = Object {
