@@ -25,7 +25,7 @@ fn run(cfg: MockConfig, scenario: Scenario, p: ContactParams) -> Run {
         clips: Vec::new(),
         errors: 0,
     };
-    let mut take = |msgs: Vec<Msg>, truth: f64, r: &mut Run| {
+    let take = |msgs: Vec<Msg>, truth: f64, r: &mut Run| {
         for m in msgs {
             match m {
                 Msg::Contact(c) => r.frames.push((c.in_contact, truth)),
