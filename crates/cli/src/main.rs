@@ -3,6 +3,8 @@
 //! Exit codes: 0 success; 1 the run failed (e.g. the source died); 2 bad usage or configuration
 //! (unknown scene, unknown stage, missing model, bad value), reported as one line on stderr.
 
+mod images;
+
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use std::io::Write;
@@ -50,6 +52,22 @@ enum Cmd {
         /// Extra directory to look for scenes in (searched first).
         #[arg(long)]
         scene_dir: Option<PathBuf>,
+    },
+    /// Detect contact in image files against a background image: one line per frame (JSON with
+    /// --json). Coordinates are in the input image's pixels. A bad file gets an error line and the
+    /// others still run; exit code 2 if any file failed.
+    Contact {
+        /// Sensor kind: gelsight-mini | digit | generic (sets marker masking and mm per pixel).
+        #[arg(long)]
+        sensor: unitac_core::SensorKind,
+        /// Image of the gel without contact.
+        #[arg(long)]
+        background: PathBuf,
+        /// Frames to check (PNG or JPEG, same size as the background).
+        #[arg(required = true)]
+        frames: Vec<PathBuf>,
+        #[arg(long)]
+        json: bool,
     },
     /// List the scenes found in the scene directories.
     Scenes {
@@ -150,6 +168,62 @@ fn cmd_run(
     Ok(!report.ended.starts_with("source_failed"))
 }
 
+fn cmd_contact(
+    sensor: unitac_core::SensorKind,
+    background: &std::path::Path,
+    frames: &[PathBuf],
+    json: bool,
+) -> anyhow::Result<bool> {
+    use unitac_contact::{ContactDetector, ContactParams};
+    let bg = images::read_frame(background, sensor.as_str(), 0)
+        .map_err(|e| anyhow::Error::new(ConfigError(format!("background {e:#}"))))?;
+    let mut det = ContactDetector::new(ContactParams::default(), sensor.spec())
+        .map_err(|e| anyhow::Error::new(ConfigError(e)))?;
+    det.set_background_frame(&bg);
+    let enter = det.params().enter_area_px;
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    let mut all_ok = true;
+    for (i, path) in frames.iter().enumerate() {
+        let file = path.display().to_string();
+        let result = images::read_frame(path, sensor.as_str(), i as u64 + 1)
+            .and_then(|f| det.measure(&f).map_err(|e| anyhow::anyhow!("{file}: {e}")));
+        let line = match result {
+            Ok(m) => {
+                let contact = m.area_px >= enter;
+                if json {
+                    serde_json::json!({
+                        "file": file, "contact": contact, "area_px": m.area_px,
+                        "centroid": m.centroid, "bbox": m.bbox, "score": m.strength,
+                    })
+                    .to_string()
+                } else {
+                    format!(
+                        "{file}: contact {} area {:.0} px centroid ({:.1}, {:.1}) bbox {:?} score {:.2}",
+                        if contact { "yes" } else { "no" },
+                        m.area_px,
+                        m.centroid[0],
+                        m.centroid[1],
+                        m.bbox,
+                        m.strength
+                    )
+                }
+            }
+            Err(e) => {
+                all_ok = false;
+                let msg = format!("{e:#}");
+                if json {
+                    serde_json::json!({ "file": file, "error": msg }).to_string()
+                } else {
+                    format!("{file}: error: {msg}")
+                }
+            }
+        };
+        writeln!(out, "{line}")?;
+    }
+    Ok(all_ok)
+}
+
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
@@ -175,6 +249,18 @@ fn main() -> ExitCode {
             max_frames,
             scene_dir,
         } => cmd_run(&scene, sensor, json, events, fast, max_frames, scene_dir),
+        Cmd::Contact {
+            sensor,
+            background,
+            frames,
+            json,
+        } => {
+            match cmd_contact(sensor, &background, &frames, json) {
+                // Any failed file: exit 2, after every other file was processed.
+                Ok(false) => return ExitCode::from(2),
+                other => other,
+            }
+        }
         Cmd::Scenes { scene_dir } => {
             let mut names: Vec<String> = scene_dirs(scene_dir)
                 .iter()

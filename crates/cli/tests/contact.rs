@@ -1,0 +1,220 @@
+//! `unitac contact`: the command-line contract of DESIGN.md on mock-sensor images.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use unitac_core::SensorKind;
+use unitac_sim::{MockConfig, MockSensor, Scenario};
+
+fn dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("unitac-contact-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn save_rgb(path: &Path, f: &unitac_core::Frame) {
+    image::RgbImage::from_raw(f.width, f.height, f.data().to_vec())
+        .unwrap()
+        .save(path)
+        .unwrap();
+}
+
+fn run(args: &[&str]) -> (Option<i32>, Vec<Value>, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args(args)
+        .output()
+        .unwrap();
+    let lines = String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    (
+        o.status.code(),
+        lines,
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn contract_on_good_and_bad_files() {
+    let d = dir();
+    let s = MockSensor::new(
+        MockConfig::new(SensorKind::GelsightMini, 3),
+        Scenario::fabric_selection(),
+    );
+    let hold = (Scenario::fabric_selection()
+        .first_hold_time("fabric_a")
+        .unwrap()
+        * 25.0) as u64;
+    let (bg, press, idle) = (d.join("bg.png"), d.join("press.png"), d.join("idle.jpg"));
+    save_rgb(&bg, &s.render(0).0);
+    save_rgb(&press, &s.render(hold).0);
+    // JPEG at high quality: compression noise must not read as contact.
+    let f = s.render(3).0;
+    let img = image::RgbImage::from_raw(f.width, f.height, f.data().to_vec()).unwrap();
+    let mut jpg = std::fs::File::create(&idle).unwrap();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpg, 95)
+        .encode_image(&img)
+        .unwrap();
+    drop(jpg);
+
+    // Truncated PNG, zero-byte file, grayscale and 16-bit versions of the press, a 1x1 image.
+    let truncated = d.join("truncated.png");
+    let bytes = std::fs::read(&press).unwrap();
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    let empty = d.join("empty.png");
+    std::fs::write(&empty, b"").unwrap();
+    let rgb = image::open(&press).unwrap();
+    let gray = d.join("gray.png");
+    rgb.to_luma8().save(&gray).unwrap();
+    let deep = d.join("deep16.png");
+    image::DynamicImage::ImageRgb16(rgb.to_rgb16())
+        .save(&deep)
+        .unwrap();
+    let tiny = d.join("tiny.png");
+    image::RgbImage::from_pixel(1, 1, image::Rgb([10, 20, 30]))
+        .save(&tiny)
+        .unwrap();
+    let missing = d.join("missing.png");
+
+    let files = [
+        &press, &idle, &truncated, &empty, &gray, &deep, &tiny, &missing,
+    ];
+    let mut args = vec![
+        "contact",
+        "--sensor",
+        "gelsight-mini",
+        "--background",
+        bg.to_str().unwrap(),
+        "--json",
+    ];
+    args.extend(files.iter().map(|p| p.to_str().unwrap()));
+    let (code, lines, stderr) = run(&args);
+    assert_eq!(code, Some(2), "some files failed: exit 2 ({stderr})");
+    assert_eq!(lines.len(), files.len(), "one line per file, in order");
+    for (l, f) in lines.iter().zip(files) {
+        assert_eq!(l["file"], f.to_str().unwrap());
+    }
+    let by = |p: &PathBuf| &lines[files.iter().position(|f| *f == p).unwrap()];
+
+    let p = by(&press);
+    assert_eq!(p["contact"], true);
+    let c: Vec<f64> = p["centroid"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        (c[0] - 160.0).abs() < 4.0 && (c[1] - 120.0).abs() < 4.0,
+        "{p}"
+    );
+    let b: Vec<u64> = p["bbox"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    assert!(
+        b[0] < 160 && b[2] > 160 && b[2] <= 320 && b[3] <= 240,
+        "{p}"
+    );
+    assert!(p["area_px"].as_f64().unwrap() > 2000.0 && p["score"].as_f64().unwrap() > 0.0);
+    assert_eq!(by(&idle)["contact"], false, "{}", by(&idle));
+    // 16-bit PNG: same picture, same answer.
+    assert_eq!(by(&deep)["contact"], true);
+    assert_eq!(by(&deep)["area_px"], p["area_px"]);
+    // Grayscale is converted and processed (a grey image is far from the tinted background).
+    assert!(by(&gray).get("contact").is_some(), "{}", by(&gray));
+    for (f, needle) in [
+        (&truncated, "decode"),
+        (&empty, "empty"),
+        (&tiny, "1x1"),
+        (&missing, "missing.png"),
+    ] {
+        let e = by(f)["error"]
+            .as_str()
+            .unwrap_or_else(|| panic!("{}", by(f)));
+        assert!(e.contains(needle), "{e}");
+    }
+}
+
+#[test]
+fn all_good_files_exit_0_and_bad_background_exits_2() {
+    let d = dir().join("ok");
+    std::fs::create_dir_all(&d).unwrap();
+    let s = MockSensor::new(MockConfig::new(SensorKind::Digit, 1), Scenario::idle(1.0));
+    let (bg, f) = (d.join("bg.png"), d.join("f.png"));
+    save_rgb(&bg, &s.render(0).0);
+    save_rgb(&f, &s.render(1).0);
+    let (code, lines, _) = run(&[
+        "contact",
+        "--sensor",
+        "digit",
+        "--background",
+        bg.to_str().unwrap(),
+        f.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(code, Some(0));
+    assert_eq!(lines[0]["contact"], false);
+    assert_eq!(lines[0]["area_px"], 0.0);
+    let (code, lines, stderr) = run(&[
+        "contact",
+        "--sensor",
+        "digit",
+        "--background",
+        "/nonexistent.png",
+        f.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(2));
+    assert!(
+        lines.is_empty() && stderr.contains("background") && stderr.trim().lines().count() == 1,
+        "{stderr}"
+    );
+    // A 1x1 background with 1x1 frames runs (the grid shrinks), no panic.
+    let (t1, t2) = (d.join("t1.png"), d.join("t2.png"));
+    image::RgbImage::from_pixel(1, 1, image::Rgb([100, 100, 100]))
+        .save(&t1)
+        .unwrap();
+    image::RgbImage::from_pixel(1, 1, image::Rgb([200, 100, 100]))
+        .save(&t2)
+        .unwrap();
+    let (code, lines, _) = run(&[
+        "contact",
+        "--sensor",
+        "generic",
+        "--background",
+        t1.to_str().unwrap(),
+        t2.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(code, Some(0));
+    assert_eq!(
+        lines[0]["contact"], false,
+        "one pixel is below the minimum contact area"
+    );
+}
+
+/// Writes sample frames for a person to look at (UNITAC_SAMPLES=dir); not an assertion.
+#[test]
+fn write_samples_when_asked() {
+    let Some(out) = std::env::var_os("UNITAC_SAMPLES") else {
+        return;
+    };
+    let out = PathBuf::from(out);
+    std::fs::create_dir_all(&out).unwrap();
+    for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
+        let s = MockSensor::new(MockConfig::new(kind, 3), Scenario::fabric_selection());
+        let t = Scenario::fabric_selection()
+            .first_hold_time("fabric_a")
+            .unwrap()
+            * s.config().fps;
+        save_rgb(
+            &out.join(format!("{}_press.png", kind.as_str())),
+            &s.render(t as u64).0,
+        );
+    }
+}
