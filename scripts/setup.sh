@@ -49,7 +49,8 @@ if [ "$(cat "$VENV/.unitac-stamp" 2>/dev/null)" != "$venv_key" ]; then
   # Workaround 4: the wheels' exported CMake files point at their build container's Python.
   real_inc="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
   np_inc="$("$VENV/bin/python" -c 'import numpy; print(numpy.get_include())')"
-  grep -rl --include='*.cmake' '/opt/python/cp311-cp311' "$VENV/share" 2>/dev/null | while read -r f; do
+  # (grep finds nothing once rewritten: a re-install after a requirements change must not fail)
+  { grep -rl --include='*.cmake' '/opt/python/cp311-cp311' "$VENV/share" 2>/dev/null || true; } | while read -r f; do
     sed -i \
       -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#${np_inc}#g" \
       -e "s#/opt/python/cp311-cp311/include/python3.11#${real_inc}#g" "$f"
