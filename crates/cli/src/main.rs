@@ -3,6 +3,8 @@
 //! Exit codes: 0 success; 1 the run failed (e.g. the source died); 2 bad usage or configuration
 //! (unknown scene, unknown stage, missing model, bad value), reported as one line on stderr.
 
+mod bench;
+mod eval;
 mod images;
 
 use anyhow::Context;
@@ -69,11 +71,45 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Measure quality against ground truth (mock sensor): `eval contact`.
+    Eval {
+        what: EvalTarget,
+        #[arg(long)]
+        json: bool,
+        /// Minutes of simulated idle time for the false-episode count.
+        #[arg(long, default_value_t = 10.0)]
+        idle_minutes: f64,
+    },
+    /// Benchmarks, side by side with the Python a user would otherwise run: `bench contact`.
+    Bench {
+        what: BenchTarget,
+        #[arg(long)]
+        json: bool,
+        /// Distinct frames.
+        #[arg(long, default_value_t = 140)]
+        frames: usize,
+        /// Passes over the frames.
+        #[arg(long, default_value_t = 5)]
+        repeat: usize,
+        /// Skip the Python baseline.
+        #[arg(long)]
+        no_python: bool,
+    },
     /// List the scenes found in the scene directories.
     Scenes {
         #[arg(long)]
         scene_dir: Option<PathBuf>,
     },
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum EvalTarget {
+    Contact,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum BenchTarget {
+    Contact,
 }
 
 /// Error that maps to exit code 2 (usage / configuration).
@@ -261,6 +297,33 @@ fn main() -> ExitCode {
                 other => other,
             }
         }
+        Cmd::Eval {
+            what: EvalTarget::Contact,
+            json,
+            idle_minutes,
+        } => eval::eval_contact(idle_minutes.clamp(0.0, 600.0) * 60.0).and_then(|r| {
+            if json {
+                println!("{}", serde_json::to_string(&r)?);
+            } else {
+                print!("{}", r.text());
+            }
+            Ok(true)
+        }),
+        Cmd::Bench {
+            what: BenchTarget::Contact,
+            json,
+            frames,
+            repeat,
+            no_python,
+        } => bench::bench_contact(frames.clamp(1, 10_000), repeat.clamp(1, 1000), !no_python)
+            .and_then(|r| {
+                if json {
+                    println!("{}", serde_json::to_string(&r)?);
+                } else {
+                    print!("{}", r.text());
+                }
+                Ok(true)
+            }),
         Cmd::Scenes { scene_dir } => {
             let mut names: Vec<String> = scene_dirs(scene_dir)
                 .iter()

@@ -32,84 +32,188 @@ impl Geometry {
     }
 }
 
-/// Block means, RGB interleaved, into `out` (resized as needed). One pass over the frame.
+/// Block means, RGB interleaved, into `out` (resized as needed). One pass over the frame, integer
+/// sums per cell row, one conversion per cell.
 pub fn block_means(f: &Frame, g: &Geometry, out: &mut Vec<f32>) {
     let s = g.stride as usize;
     let w = f.width as usize;
+    let used = g.gw * s * 3;
     out.clear();
     out.resize(g.cells() * 3, 0.0);
     let data = f.data();
+    let inv = 1.0 / (s * s) as f32;
+    let mut sums = vec![0u32; g.gw * 3];
     for gy in 0..g.gh {
-        let row_out = &mut out[gy * g.gw * 3..(gy + 1) * g.gw * 3];
+        sums.fill(0);
         for dy in 0..s {
             let y = gy * s + dy;
-            let row = &data[y * w * 3..y * w * 3 + g.gw * s * 3];
-            for (cell, px) in row_out.chunks_exact_mut(3).zip(row.chunks_exact(s * 3)) {
-                for p in px.chunks_exact(3) {
-                    cell[0] += f32::from(p[0]);
-                    cell[1] += f32::from(p[1]);
-                    cell[2] += f32::from(p[2]);
+            let row = &data[y * w * 3..y * w * 3 + used];
+            if s == 2 {
+                for (cell, px) in sums.chunks_exact_mut(3).zip(row.chunks_exact(6)) {
+                    cell[0] += u32::from(px[0]) + u32::from(px[3]);
+                    cell[1] += u32::from(px[1]) + u32::from(px[4]);
+                    cell[2] += u32::from(px[2]) + u32::from(px[5]);
+                }
+            } else {
+                for (cell, px) in sums.chunks_exact_mut(3).zip(row.chunks_exact(s * 3)) {
+                    for p in px.chunks_exact(3) {
+                        cell[0] += u32::from(p[0]);
+                        cell[1] += u32::from(p[1]);
+                        cell[2] += u32::from(p[2]);
+                    }
+                }
+            }
+        }
+        for (o, &v) in out[gy * g.gw * 3..(gy + 1) * g.gw * 3]
+            .iter_mut()
+            .zip(&sums)
+        {
+            *o = v as f32 * inv;
+        }
+    }
+}
+
+/// A binary mask packed 64 cells per word, row by row; bit j of word i of a row is cell
+/// x = 64 i + j. Padding bits past the row's end are kept at zero between operations.
+#[derive(Debug, Default, Clone)]
+pub struct BitMask {
+    gw: usize,
+    gh: usize,
+    wpr: usize,
+    words: Vec<u64>,
+    tmp: Vec<u64>,
+}
+
+impl BitMask {
+    pub fn reset(&mut self, gw: usize, gh: usize) {
+        self.gw = gw;
+        self.gh = gh;
+        self.wpr = gw.div_ceil(64);
+        self.words.clear();
+        self.words.resize(self.wpr * gh, 0);
+    }
+    pub fn set(&mut self, x: usize, y: usize) {
+        self.words[y * self.wpr + x / 64] |= 1u64 << (x % 64);
+    }
+    pub fn get(&self, x: usize, y: usize) -> bool {
+        self.words[y * self.wpr + x / 64] >> (x % 64) & 1 == 1
+    }
+    pub fn is_empty(&self) -> bool {
+        self.words.iter().all(|&w| w == 0)
+    }
+    fn pad_mask(&self) -> u64 {
+        match self.gw % 64 {
+            0 => !0,
+            r => (1u64 << r) - 1,
+        }
+    }
+    fn set_padding(&mut self, ones: bool) {
+        let (m, wpr) = (self.pad_mask(), self.wpr);
+        if wpr == 0 {
+            return;
+        }
+        for row in self.words.chunks_exact_mut(wpr) {
+            if let Some(last) = row.last_mut() {
+                *last = if ones { *last | !m } else { *last & m };
+            }
+        }
+    }
+
+    /// Horizontal then vertical min (erode) or max (dilate) over a (2r+1)^2 square. Outside the
+    /// grid counts as background for dilation and as foreground for erosion, so an opening does
+    /// not eat contacts touching the border.
+    fn morph(&mut self, r: usize, dilate: bool) {
+        if r == 0 || self.words.is_empty() {
+            return;
+        }
+        let r = r.min(63);
+        let wpr = self.wpr;
+        let outside = if dilate { 0 } else { !0u64 };
+        self.set_padding(!dilate);
+        self.tmp.clear();
+        self.tmp.resize(self.words.len(), 0);
+        for (row, out) in self
+            .words
+            .chunks_exact(wpr)
+            .zip(self.tmp.chunks_exact_mut(wpr))
+        {
+            for i in 0..wpr {
+                let w = row[i];
+                let prev = if i > 0 { row[i - 1] } else { outside };
+                let next = if i + 1 < wpr { row[i + 1] } else { outside };
+                let mut acc = w;
+                for k in 1..=r as u32 {
+                    let left = (w << k) | (prev >> (64 - k));
+                    let right = (w >> k) | (next << (64 - k));
+                    acc = if dilate {
+                        acc | left | right
+                    } else {
+                        acc & left & right
+                    };
+                }
+                out[i] = acc;
+            }
+        }
+        let gh = self.gh;
+        for y in 0..gh {
+            let (lo, hi) = (y.saturating_sub(r), (y + r).min(gh - 1));
+            for i in 0..wpr {
+                let mut acc = self.tmp[y * wpr + i];
+                for yy in lo..=hi {
+                    let v = self.tmp[yy * wpr + i];
+                    acc = if dilate { acc | v } else { acc & v };
+                }
+                self.words[y * wpr + i] = acc;
+            }
+        }
+        self.set_padding(false);
+    }
+
+    /// Opening (radius `open`) then closing (radius `close`), in cells.
+    pub fn open_close(&mut self, open: u32, close: u32) {
+        let (o, c) = (open as usize, close as usize);
+        self.morph(o, false);
+        self.morph(o, true);
+        self.morph(c, true);
+        self.morph(c, false);
+    }
+
+    /// Unpack into one byte per cell (0 or 1).
+    pub fn to_bytes(&self, out: &mut Vec<u8>) {
+        out.clear();
+        out.resize(self.gw * self.gh, 0);
+        for y in 0..self.gh {
+            for i in 0..self.wpr {
+                let mut w = self.words[y * self.wpr + i];
+                while w != 0 {
+                    let j = w.trailing_zeros() as usize;
+                    out[y * self.gw + i * 64 + j] = 1;
+                    w &= w - 1;
                 }
             }
         }
     }
-    let inv = 1.0 / (s * s) as f32;
-    for v in out.iter_mut() {
-        *v *= inv;
-    }
 }
 
-/// Separable square min (erode) or max (dilate) of radius r on a 0/1 mask.
-fn morph(mask: &mut [u8], tmp: &mut Vec<u8>, gw: usize, gh: usize, r: usize, dilate: bool) {
-    if r == 0 || mask.is_empty() {
-        return;
-    }
-    tmp.clear();
-    tmp.resize(mask.len(), 0);
-    let pick = |a: u8, b: u8| if dilate { a.max(b) } else { a.min(b) };
-    // Outside the image counts as background for dilation and as foreground for erosion, so an
-    // opening does not eat contacts touching the border.
-    let outside = u8::from(!dilate);
-    for y in 0..gh {
-        let row = &mask[y * gw..(y + 1) * gw];
-        for x in 0..gw {
-            let mut v = row[x];
-            for k in 1..=r {
-                let l = if x >= k { row[x - k] } else { outside };
-                let rr = if x + k < gw { row[x + k] } else { outside };
-                v = pick(v, pick(l, rr));
-            }
-            tmp[y * gw + x] = v;
+/// Opening then closing of a byte mask (0/1), through [`BitMask`].
+pub fn open_close(
+    mask: &mut [u8],
+    bits: &mut BitMask,
+    gw: usize,
+    gh: usize,
+    open: u32,
+    close: u32,
+) {
+    bits.reset(gw, gh);
+    for (i, &m) in mask.iter().enumerate() {
+        if m != 0 {
+            bits.set(i % gw, i / gw);
         }
     }
-    for y in 0..gh {
-        for x in 0..gw {
-            let mut v = tmp[y * gw + x];
-            for k in 1..=r {
-                let u = if y >= k {
-                    tmp[(y - k) * gw + x]
-                } else {
-                    outside
-                };
-                let d = if y + k < gh {
-                    tmp[(y + k) * gw + x]
-                } else {
-                    outside
-                };
-                v = pick(v, pick(u, d));
-            }
-            mask[y * gw + x] = v;
-        }
-    }
-}
-
-/// Opening (radius `open`) then closing (radius `close`).
-pub fn open_close(mask: &mut [u8], tmp: &mut Vec<u8>, gw: usize, gh: usize, open: u32, close: u32) {
-    let (o, c) = (open as usize, close as usize);
-    morph(mask, tmp, gw, gh, o, false);
-    morph(mask, tmp, gw, gh, o, true);
-    morph(mask, tmp, gw, gh, c, true);
-    morph(mask, tmp, gw, gh, c, false);
+    bits.open_close(open, close);
+    let mut out = Vec::new();
+    bits.to_bytes(&mut out);
+    mask.copy_from_slice(&out);
 }
 
 /// Keep 4-connected components of at least `min_cells`; returns how many cells were kept.
@@ -204,10 +308,66 @@ mod tests {
             }
         }
         m[gw + 11] = 1;
-        let mut tmp = Vec::new();
-        open_close(&mut m, &mut tmp, gw, gh, 1, 1);
+        let mut bits = BitMask::default();
+        open_close(&mut m, &mut bits, gw, gh, 1, 1);
         assert_eq!(m[gw + 11], 0, "speck removed");
         assert_eq!(m[4 * gw + 5], 1, "line filled");
+    }
+
+    /// The packed morphology against a plain per-cell reference, on random masks whose width
+    /// crosses word boundaries.
+    #[test]
+    fn packed_morphology_matches_reference() {
+        fn reference(m: &[u8], gw: usize, gh: usize, r: usize, dilate: bool) -> Vec<u8> {
+            let outside = u8::from(!dilate);
+            (0..gw * gh)
+                .map(|i| {
+                    let (x, y) = ((i % gw) as i64, (i / gw) as i64);
+                    let mut v = u8::from(!dilate);
+                    for dy in -(r as i64)..=r as i64 {
+                        for dx in -(r as i64)..=r as i64 {
+                            let (nx, ny) = (x + dx, y + dy);
+                            let inside = nx >= 0 && ny >= 0 && nx < gw as i64 && ny < gh as i64;
+                            let c = if inside {
+                                m[ny as usize * gw + nx as usize]
+                            } else {
+                                outside
+                            };
+                            v = if dilate { v.max(c) } else { v.min(c) };
+                        }
+                    }
+                    v
+                })
+                .collect()
+        }
+        let mut seed = 12345u64;
+        for (gw, gh) in [(7, 5), (64, 3), (65, 4), (130, 6), (160, 9)] {
+            let m: Vec<u8> = (0..gw * gh)
+                .map(|_| {
+                    seed = seed
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    u8::from((seed >> 33) % 3 != 0)
+                })
+                .collect();
+            for (r, dilate) in [(1, false), (1, true), (2, false), (3, true)] {
+                let mut bits = BitMask::default();
+                bits.reset(gw, gh);
+                for (i, &v) in m.iter().enumerate() {
+                    if v != 0 {
+                        bits.set(i % gw, i / gw);
+                    }
+                }
+                bits.morph(r, dilate);
+                let mut got = Vec::new();
+                bits.to_bytes(&mut got);
+                assert_eq!(
+                    got,
+                    reference(&m, gw, gh, r, dilate),
+                    "{gw}x{gh} r={r} dilate={dilate}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -24,15 +24,16 @@ mod params;
 pub use background::{Background, BackgroundFileError, Learner};
 pub use params::{ContactParams, MAX_CLIP_FRAMES};
 
-use grid::{Geometry, block_means, keep_components, open_close};
+use grid::{BitMask, Geometry, block_means, keep_components};
 use std::collections::VecDeque;
 use unitac_core::msg::{ContactEpisode, ContactState, EpisodeClip, Header};
 use unitac_core::{Clock, Frame, Msg, SensorKind, SensorSpec, Stage, StageError, Stamp};
 
 /// Plausible range of the per-channel illumination gain against the background.
 const GAIN_RANGE: (f32, f32) = (0.2, 5.0);
-/// Every n-th grid cell is sampled for the gain and the saturation check.
-const SAMPLE_STEP: usize = 5;
+/// Every n-th grid cell is sampled for the gain and the saturation check (13 is prime, so the
+/// samples do not line up in columns): ~1500 samples on a 160x120 grid.
+const SAMPLE_STEP: usize = 13;
 
 /// Measurement of one frame against the background.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -66,7 +67,7 @@ struct Scratch {
     grid: Vec<f32>,
     mask: Vec<u8>,
     resid: Vec<f32>,
-    tmp: Vec<u8>,
+    bits: BitMask,
     labels: Vec<u32>,
     stack: Vec<usize>,
     ratios: [Vec<f32>; 3],
@@ -145,6 +146,24 @@ impl ContactDetector {
     }
     pub fn threshold(&self) -> f32 {
         (self.p.noise_k * 3.0 * self.cell_sigma()).max(self.p.min_threshold)
+    }
+
+    /// The contact mask of the last measured frame, in input pixels (row-major; empty before the
+    /// first measurement). Pixels in the right/bottom remainder of a stride are never set.
+    pub fn mask_px(&self) -> Vec<bool> {
+        let Some(g) = self.geo else { return Vec::new() };
+        if self.s.mask.len() != g.cells() {
+            return Vec::new();
+        }
+        let (w, st) = (g.width as usize, g.stride as usize);
+        let mut out = vec![false; w * g.height as usize];
+        for (i, _) in self.s.mask.iter().enumerate().filter(|(_, m)| **m != 0) {
+            let (gx, gy) = (i % g.gw, i / g.gw);
+            for y in gy * st..(gy + 1) * st {
+                out[y * w + gx * st..y * w + (gx + 1) * st].fill(true);
+            }
+        }
+        out
     }
 
     /// Forget the background and learn it again from the next frames (e.g. after the gel was
@@ -259,22 +278,23 @@ impl ContactDetector {
             }
         }
 
-        // 2. Residual and threshold.
-        s.mask.clear();
-        s.mask.resize(geo.cells(), 0);
+        // 2. Residual and threshold, straight into a packed mask.
         s.resid.clear();
         s.resid.resize(geo.cells(), 0.0);
+        s.bits.reset(geo.gw, geo.gh);
         let per_cell = s
             .grid
             .chunks_exact(3)
             .zip(bg.grid.chunks_exact(3))
             .zip(markers);
-        for (((g, b), &marker), (r, m)) in per_cell.zip(s.resid.iter_mut().zip(s.mask.iter_mut())) {
+        for (i, (((g, b), &marker), r)) in per_cell.zip(s.resid.iter_mut()).enumerate() {
             let d = (g[0] - gain[0] * b[0]).abs()
                 + (g[1] - gain[1] * b[1]).abs()
                 + (g[2] - gain[2] * b[2]).abs();
             *r = d;
-            *m = u8::from(d > thr && marker == 0);
+            if d > thr && marker == 0 {
+                s.bits.set(i % geo.gw, i / geo.gw);
+            }
         }
 
         // 3. Morphology and components.
@@ -286,8 +306,11 @@ impl ContactDetector {
                 ((px as f32 / st as f32).round() as u32).max(1)
             }
         };
-        let (open, close) = (cells(self.p.open_radius_px), cells(self.p.close_radius_px));
-        open_close(&mut s.mask, &mut s.tmp, geo.gw, geo.gh, open, close);
+        if !s.bits.is_empty() {
+            s.bits
+                .open_close(cells(self.p.open_radius_px), cells(self.p.close_radius_px));
+        }
+        s.bits.to_bytes(&mut s.mask);
         let min_cells = (self.p.min_component_px / geo.cell_px()).ceil() as usize;
         keep_components(
             &mut s.mask,
@@ -376,7 +399,12 @@ impl ContactDetector {
         let mut out = Vec::new();
         if raw != self.in_contact {
             self.streak += 1;
-            if self.streak >= self.p.debounce_frames.max(1) {
+            let needed = if raw {
+                self.p.debounce_frames
+            } else {
+                self.p.exit_debounce_frames
+            };
+            if self.streak >= needed.max(1) {
                 self.streak = 0;
                 self.in_contact = raw;
                 if raw {

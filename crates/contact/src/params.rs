@@ -29,8 +29,10 @@ pub struct ContactParams {
     /// one cell when non-zero.
     pub open_radius_px: u32,
     pub close_radius_px: u32,
-    /// Consecutive frames needed to enter / leave contact.
+    /// Consecutive frames needed to enter contact ...
     pub debounce_frames: u32,
+    /// ... and to leave it (the exit area is already a hysteresis band below the enter area).
+    pub exit_debounce_frames: u32,
     /// Background EMA weight per no-contact frame (cells in the current mask are never updated).
     pub ema_alpha: f32,
     /// Ignore the gel's marker dots (dark spots of the background). None = by sensor kind
@@ -58,6 +60,7 @@ impl Default for ContactParams {
             open_radius_px: 2,
             close_radius_px: 4,
             debounce_frames: 2,
+            exit_debounce_frames: 1,
             ema_alpha: 0.02,
             mask_markers: None,
             max_bad_pixel_share: 0.5,
