@@ -637,6 +637,25 @@ impl ContactStage {
     }
 }
 
+impl ContactStage {
+    /// Load `<background_dir>/<serial>.unitac-bg` once the first frame tells the serial and size.
+    /// A missing file means "learn"; an unreadable or mismatched one is logged by the caller
+    /// through the returned error and the stage learns instead.
+    fn load_saved_background(&mut self, f: &Frame) -> Result<(), String> {
+        let Some(dir) = self.det.p.background_dir.clone() else {
+            return Ok(());
+        };
+        let path = Background::path_for(&dir, &f.sensor_id);
+        if !path.exists() {
+            return Ok(());
+        }
+        let bg = Background::load(&path, f.width, f.height, self.det.p.stride)
+            .map_err(|e| e.to_string())?;
+        self.det.set_background(bg);
+        Ok(())
+    }
+}
+
 impl Stage for ContactStage {
     fn name(&self) -> &str {
         "contact"
@@ -644,13 +663,26 @@ impl Stage for ContactStage {
     fn process(&mut self, input: &Msg, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
         match input {
             Msg::Frame(f) => {
-                self.sensor_id.clone_from(&f.sensor_id);
+                if self.sensor_id.is_empty() {
+                    self.sensor_id.clone_from(&f.sensor_id);
+                    if let Err(e) = self.load_saved_background(f) {
+                        self.sensor_id.clear();
+                        return Err(StageError::Other(format!("saved background not used: {e}")));
+                    }
+                }
                 self.det.step(f)
             }
             _ => Ok(Vec::new()),
         }
     }
+    /// Closes an open episode and, with `background_dir`, saves the current background.
     fn finish(&mut self, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
-        Ok(self.det.flush(&self.sensor_id))
+        let out = self.det.flush(&self.sensor_id);
+        if let (Some(dir), Some(bg)) = (&self.det.p.background_dir, self.det.background()) {
+            let path = Background::path_for(dir, &self.sensor_id);
+            bg.save(&path)
+                .map_err(|e| StageError::Other(e.to_string()))?;
+        }
+        Ok(out)
     }
 }

@@ -42,6 +42,9 @@ pub struct ContactParams {
     pub max_bad_pixel_share: f32,
     /// Frames kept per episode for the encoder (0 = no clips are emitted).
     pub clip_frames: u32,
+    /// Directory of saved backgrounds (`<serial>.unitac-bg`): loaded when the stage starts if one
+    /// matches the sensor and frame size (no learning needed), saved when the stage finishes.
+    pub background_dir: Option<std::path::PathBuf>,
     /// Labels given to episodes in order (e.g. [fabric_a, fabric_b]); later episodes get "".
     pub episode_labels: Vec<String>,
 }
@@ -65,6 +68,7 @@ impl Default for ContactParams {
             mask_markers: None,
             max_bad_pixel_share: 0.5,
             clip_frames: 0,
+            background_dir: None,
             episode_labels: Vec::new(),
         }
     }

@@ -348,3 +348,30 @@ fn bad_params_are_rejected() {
         assert!(ContactDetector::new(p, spec).is_err());
     }
 }
+
+#[test]
+fn stage_saves_its_background_and_the_next_run_starts_without_learning() {
+    let dir = std::env::temp_dir().join(format!("unitac-bgdir-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let kind = SensorKind::Digit;
+    let p = ContactParams {
+        background_dir: Some(dir.clone()),
+        ..Default::default()
+    };
+    let s = MockSensor::new(MockConfig::new(kind, 6), Scenario::idle(1.0));
+    let clock = ManualClock::default();
+    let mut first = ContactStage::new(p.clone(), kind.spec()).unwrap();
+    for k in 0..12 {
+        first.process(&Msg::Frame(s.render(k).0), &clock).unwrap();
+    }
+    first.finish(&clock).unwrap();
+    assert!(Background::path_for(&dir, "mock_digit").exists());
+    // The second run measures from its very first frame.
+    let mut second = ContactStage::new(p, kind.spec()).unwrap();
+    let out = second.process(&Msg::Frame(s.render(20).0), &clock).unwrap();
+    assert!(
+        matches!(out.first(), Some(Msg::Contact(c)) if !c.in_contact),
+        "{out:?}"
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
