@@ -8,6 +8,8 @@ _SITE="$_V/lib/python3.11/site-packages"
 export UNITAC_ROOT="$_UNITAC_ROOT"
 export UNITAC_VENV="$_V"
 # ONNX Runtime shared library from the pinned wheel (ort load-dynamic).
+# Generated model bundles (scripts/setup.sh step 5).
+export UNITAC_MODELS="$_UNITAC_ROOT/.build/models"
 export UNITAC_ORT_LIB="$_SITE/onnxruntime/capi/libonnxruntime.so.1.31.1"
 # libpython for binaries that link r2r (workaround 3; crates/ros/build.rs reads this).
 _PYLIBDIR="$("$_V/bin/python" -c 'import sysconfig; print(sysconfig.get_config_var("LIBDIR"))' 2>/dev/null || true)"

@@ -8,6 +8,9 @@
 #   3. the ROS-from-PyPI workarounds (see ../shared/notes/ros2-from-pypi.md and scripts/env.sh):
 #      the librmw_implementation shim and the rewrite of build-container paths in the wheels' CMake
 #   4. msg/unitac_msgs built with plain cmake into .build/msgs/install
+#   5. the reference model bundle in .build/models/reference: `unitac dataset fabrics` renders
+#      mock presses through the real contact stage, models/generate_reference.py builds the ONNX
+#      models and fits the property head on them (~1 min; only when its inputs changed)
 # Each step keeps a stamp of its inputs and is skipped when they did not change, so a re-run with
 # nothing changed takes a couple of seconds.
 set -euo pipefail
@@ -81,5 +84,20 @@ if [ "$(cat "$BUILD/msgs/.stamp" 2>/dev/null)" != "$msgs_key" ]; then
   # r2r caches generated bindings keyed on the environment, not on the message files.
   if [ -d target ]; then cargo clean -q -p r2r_msg_gen 2>/dev/null || true; fi
   echo "$msgs_key" >"$BUILD/msgs/.stamp"
+fi
+# --- 5. reference model bundle ----------------------------------------------------------------
+MODELS="$BUILD/models"
+models_inputs=(models/generate_reference.py Cargo.lock crates/cli/src/dataset.rs crates/infer/src/preprocess.rs
+  $(find crates/sim/src crates/contact/src crates/core/src -name '*.rs' | sort))
+models_key="$(hash_of "${models_inputs[@]}" "$VENV/.unitac-stamp")"
+if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS/reference/manifest.json" ]; then
+  log "models: generating the reference bundle (dataset from the mock sensor, then fitting)"
+  cargo build --release --locked -q -p unitac-cli
+  rm -rf "$MODELS/data" "$MODELS/reference.tmp"
+  target/release/unitac dataset fabrics --out "$MODELS/data"
+  "$VENV/bin/python" models/generate_reference.py "$MODELS/reference.tmp" --data "$MODELS/data" >"$MODELS/fit.json"
+  rm -rf "$MODELS/reference" "$MODELS/data"
+  mv "$MODELS/reference.tmp" "$MODELS/reference"
+  echo "$models_key" >"$MODELS/.stamp"
 fi
 log "ready"

@@ -4,6 +4,7 @@
 //! (unknown scene, unknown stage, missing model, bad value), reported as one line on stderr.
 
 mod bench;
+mod dataset;
 mod eval;
 mod images;
 
@@ -95,6 +96,18 @@ enum Cmd {
         #[arg(long)]
         no_python: bool,
     },
+    /// Write a training set for the reference models: `dataset fabrics --out DIR`.
+    Dataset {
+        what: DatasetTarget,
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long, default_value_t = 240)]
+        train: usize,
+        #[arg(long, default_value_t = 120)]
+        test: usize,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     /// List the scenes found in the scene directories.
     Scenes {
         #[arg(long)]
@@ -105,6 +118,11 @@ enum Cmd {
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum EvalTarget {
     Contact,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum DatasetTarget {
+    Fabrics,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -324,6 +342,13 @@ fn main() -> ExitCode {
                 }
                 Ok(true)
             }),
+        Cmd::Dataset {
+            what: DatasetTarget::Fabrics,
+            out,
+            train,
+            test,
+            seed,
+        } => dataset::fabrics(&out, train, test, seed).map(|()| true),
         Cmd::Scenes { scene_dir } => {
             let mut names: Vec<String> = scene_dirs(scene_dir)
                 .iter()

@@ -550,12 +550,14 @@ impl ContactDetector {
                 0
             }
         };
+        let background = self.background_frame(sensor_id);
         Some(EpisodeClip {
             sensor_id: sensor_id.to_string(),
             episode_id: ep.id,
             label,
             peak_index,
             frames,
+            background,
         })
     }
 

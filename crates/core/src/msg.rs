@@ -156,6 +156,8 @@ pub struct EpisodeClip {
     /// Index into `frames` of the peak-area frame.
     pub peak_index: usize,
     pub frames: Vec<Frame>,
+    /// The non-contact frame (the contact stage's background) at the time of the episode.
+    pub background: Option<Frame>,
 }
 
 /// Everything that flows between stages. Frames may be dropped under load (drop-oldest edges);

@@ -4,10 +4,12 @@ use serde::de::DeserializeOwned;
 use unitac_contact::{ContactParams, ContactStage};
 use unitac_core::scene::{SceneError, SensorArg, SourceKind, StageSpec};
 use unitac_core::{Scene, Source, Stage};
+use unitac_infer::RuntimeConfig;
+use unitac_infer::encoder::{CompareParams, CompareStage, EncoderStage};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
 /// Stage kinds a scene may name.
-pub const KNOWN_STAGES: &[&str] = &["contact"];
+pub const KNOWN_STAGES: &[&str] = &["contact", "encoder", "compare"];
 
 fn params<T: DeserializeOwned + Default>(
     scene: &Scene,
@@ -43,6 +45,30 @@ pub fn build_stages(scene: &Scene) -> Result<Vec<Box<dyn Stage>>, SceneError> {
             "contact" => {
                 let p: ContactParams = params(scene, index, st)?;
                 out.push(Box::new(ContactStage::new(p, spec).map_err(bad)?));
+            }
+            "encoder" => {
+                let cfg: RuntimeConfig = params(scene, index, st)?;
+                let [name] = st.models.as_slice() else {
+                    return Err(bad(
+                        "an encoder stage names exactly one model bundle in models:".into(),
+                    ));
+                };
+                // Scene::load checked that the file exists; the bundle is the manifest's directory.
+                let manifest = scene
+                    .models
+                    .get(name)
+                    .ok_or_else(|| bad(format!("model '{name}' not loaded")))?;
+                let dir = manifest.parent().unwrap_or(std::path::Path::new("."));
+                let stage = EncoderStage::new(dir, &cfg).map_err(|e| SceneError::BadValue {
+                    path: scene.path.clone(),
+                    field: format!("stages[{index}] ({}) model '{name}'", st.kind),
+                    msg: e.to_string(),
+                })?;
+                out.push(Box::new(stage));
+            }
+            "compare" => {
+                let p: CompareParams = params(scene, index, st)?;
+                out.push(Box::new(CompareStage::new(p).map_err(bad)?));
             }
             other => {
                 return Err(SceneError::UnknownStage {

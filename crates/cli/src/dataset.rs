@@ -1,0 +1,152 @@
+//! `unitac dataset fabrics`: mock-sensor presses on fabrics with known properties, run through
+//! the real contact stage and the encoder's preprocessing, written for the reference bundle's
+//! fitting script (models/generate_reference.py).
+//!
+//! Output directory: `clips.f32` (N x T x 3 x S x S), `backgrounds.f32` (N x 3 x S x S),
+//! `labels.jsonl` (one object per sample: hardness, roughness, texture in 0..1, the physical
+//! values, split), `meta.json`.
+
+use anyhow::{Context, bail};
+use std::io::Write;
+use std::path::Path;
+use unitac_contact::{ContactParams, ContactStage};
+use unitac_core::{ManualClock, Msg, SensorKind, Stage};
+use unitac_infer::preprocess::Preprocess;
+use unitac_sim::{MockConfig, MockSensor, Object, Phase, Scenario, SplitMix64};
+
+/// Property ranges of the generated fabrics and their 0..1 scores.
+pub const ROUGHNESS_MM: (f64, f64) = (0.005, 0.08);
+pub const PERIOD_MM: (f64, f64) = (0.4, 1.6);
+/// Press depth for hardness 0 and 1 at the same grip force: a harder fabric indents the gel more.
+pub const DEPTH_MM: (f64, f64) = (0.25, 0.75);
+
+/// A fabric drawn from the ranges above, and its scores (hardness, roughness, texture).
+pub fn fabric(rng: &mut SplitMix64, label: &str) -> (Object, f64, [f64; 3]) {
+    let u = |rng: &mut SplitMix64, (a, b): (f64, f64)| a + (b - a) * rng.uniform();
+    let roughness = u(rng, ROUGHNESS_MM);
+    let period = u(rng, PERIOD_MM);
+    let hardness = rng.uniform();
+    let depth = DEPTH_MM.0 + (DEPTH_MM.1 - DEPTH_MM.0) * hardness;
+    let scores = [
+        hardness,
+        (roughness - ROUGHNESS_MM.0) / (ROUGHNESS_MM.1 - ROUGHNESS_MM.0),
+        (period - PERIOD_MM.0) / (PERIOD_MM.1 - PERIOD_MM.0),
+    ];
+    (
+        Object {
+            label: label.into(),
+            radius_mm: 6.0,
+            roughness_mm: roughness,
+            period_mm: period,
+        },
+        depth,
+        scores,
+    )
+}
+
+/// One short press: learn the background, press, hold, release.
+pub fn press(object: &Object, depth: f64) -> Scenario {
+    let free = |d| Phase {
+        duration_s: d,
+        object: None,
+        from_mm: 0.0,
+        to_mm: 0.0,
+    };
+    let on = |d, a, b| Phase {
+        duration_s: d,
+        object: Some(object.clone()),
+        from_mm: a,
+        to_mm: b,
+    };
+    Scenario {
+        name: "dataset_press".into(),
+        phases: vec![
+            free(0.5),
+            on(0.4, -0.1, depth),
+            on(0.6, depth, depth),
+            on(0.3, depth, -0.1),
+            free(0.2),
+        ],
+    }
+}
+
+/// Run one press through the contact stage; the episode's clip, preprocessed.
+pub fn clip_of(
+    kind: SensorKind,
+    seed: u64,
+    scenario: Scenario,
+    pre: &Preprocess,
+) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
+    let mut sensor = MockSensor::new(MockConfig::new(kind, seed), scenario);
+    let p = ContactParams {
+        clip_frames: pre.clip_frames * 2,
+        ..Default::default()
+    };
+    let mut stage = ContactStage::new(p, kind.spec()).map_err(anyhow::Error::msg)?;
+    let clock = ManualClock::default();
+    let mut clip = None;
+    while let Some((f, _)) = sensor.next_with_truth() {
+        for m in stage
+            .process(&Msg::Frame(f), &clock)
+            .map_err(|e| anyhow::anyhow!("{e}"))?
+        {
+            if let Msg::Clip(c) = m {
+                clip.get_or_insert(c);
+            }
+        }
+    }
+    for m in stage.finish(&clock).map_err(|e| anyhow::anyhow!("{e}"))? {
+        if let Msg::Clip(c) = m {
+            clip.get_or_insert(c);
+        }
+    }
+    let c = clip.context("the contact stage found no episode")?;
+    let bg = c.background.as_ref().context("clip without background")?;
+    let x = pre.clip(&c.frames, c.peak_index).context("empty clip")?;
+    let mut b = Vec::new();
+    pre.frame_into(bg, &mut b);
+    Ok((x, b))
+}
+
+fn f32_bytes(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+pub fn fabrics(out: &Path, train: usize, test: usize, seed: u64) -> anyhow::Result<()> {
+    if train + test == 0 || train + test > 100_000 {
+        bail!("train + test must be 1..=100000");
+    }
+    std::fs::create_dir_all(out).with_context(|| out.display().to_string())?;
+    let pre = Preprocess::reference();
+    let mut clips = std::io::BufWriter::new(std::fs::File::create(out.join("clips.f32"))?);
+    let mut bgs = std::io::BufWriter::new(std::fs::File::create(out.join("backgrounds.f32"))?);
+    let mut labels = std::io::BufWriter::new(std::fs::File::create(out.join("labels.jsonl"))?);
+    let mut rng = SplitMix64::new(seed);
+    for i in 0..train + test {
+        let (obj, depth, s) = fabric(&mut rng, &format!("fabric_{i}"));
+        let (x, b) = clip_of(
+            SensorKind::GelsightMini,
+            seed.wrapping_add(i as u64),
+            press(&obj, depth),
+            &pre,
+        )
+        .with_context(|| format!("sample {i}"))?;
+        clips.write_all(&f32_bytes(&x))?;
+        bgs.write_all(&f32_bytes(&b))?;
+        let split = if i < train { "train" } else { "test" };
+        let line = serde_json::json!({
+            "hardness": s[0], "roughness": s[1], "texture": s[2], "roughness_mm": obj.roughness_mm,
+            "period_mm": obj.period_mm, "depth_mm": depth, "split": split, "sensor": "gelsight-mini",
+        });
+        writeln!(labels, "{line}")?;
+    }
+    clips.flush()?;
+    bgs.flush()?;
+    labels.flush()?;
+    let meta = serde_json::json!({
+        "count": train + test, "train": train, "test": test, "clip_frames": pre.clip_frames, "crop_size": pre.crop_size,
+        "size": pre.size, "seed": seed,
+    });
+    std::fs::write(out.join("meta.json"), serde_json::to_string_pretty(&meta)?)?;
+    Ok(())
+}

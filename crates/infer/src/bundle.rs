@@ -1,0 +1,347 @@
+//! Model bundles: a directory with `manifest.json` and the `.onnx` files it lists.
+//!
+//! On load, each requested model's file must exist, match its sha256, open in ONNX Runtime, and
+//! have exactly the declared inputs and outputs (names, dtypes, ranks, fixed dimensions; a
+//! declared symbolic dimension such as "batch" matches anything). Every mismatch of every
+//! requested model is listed in one error, so a user fixing an exported bundle sees all problems
+//! at once. A scene loads only the models it names.
+
+use crate::preprocess::Preprocess;
+use crate::runtime::{InferError, RuntimeConfig, session};
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// Largest manifest accepted [bytes].
+const MAX_MANIFEST_BYTES: u64 = 1 << 20;
+/// Largest tensor a model may return [elements].
+pub const MAX_OUTPUT_ELEMENTS: usize = 64 << 20;
+
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Dim {
+    Fixed(i64),
+    Symbolic(String),
+}
+
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TensorSpec {
+    pub name: String,
+    pub dtype: String,
+    pub shape: Vec<Dim>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelSpec {
+    pub file: String,
+    pub sha256: String,
+    pub inputs: Vec<TensorSpec>,
+    pub outputs: Vec<TensorSpec>,
+    /// Velocity models: "tau_data_at_1" (tau = 0 noise, output d x/d tau) or "tau_noise_at_1"
+    /// (fed 1 - tau, output negated).
+    #[serde(default)]
+    pub time_convention: Option<String>,
+    /// Velocity models: smallest target sigma they represent (sets the s*h guard).
+    #[serde(default)]
+    pub sigma_min: Option<f64>,
+    /// Anything else the generator recorded (fit statistics, ...).
+    #[serde(flatten)]
+    pub extra: BTreeMap<String, serde_json::Value>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LatentSpec {
+    pub tokens: u32,
+    pub dim: u32,
+    pub sampler_dim: u32,
+    pub cond_dim: u32,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct Manifest {
+    pub bundle: String,
+    pub version: String,
+    #[serde(default)]
+    pub description: String,
+    pub preprocess: Preprocess,
+    pub latent: LatentSpec,
+    pub properties: Vec<String>,
+    #[serde(default)]
+    pub sensor_tokens: BTreeMap<String, u32>,
+    pub models: BTreeMap<String, ModelSpec>,
+}
+
+/// An opened bundle (manifest parsed and checked; no model loaded yet).
+#[derive(Debug, Clone)]
+pub struct Bundle {
+    pub dir: PathBuf,
+    pub manifest: Manifest,
+}
+
+/// A float32 tensor: shape and row-major data.
+pub type TensorF32 = (Vec<i64>, Vec<f32>);
+
+/// A loaded, checked model.
+#[derive(Debug)]
+pub struct Model {
+    pub name: String,
+    pub spec: ModelSpec,
+    /// `bundle@sha256-prefix`, for messages.
+    pub id: String,
+    session: ort::session::Session,
+}
+
+fn dtype_name(t: ort::value::TensorElementType) -> &'static str {
+    use ort::value::TensorElementType as T;
+    match t {
+        T::Float32 => "float32",
+        T::Float64 => "float64",
+        T::Float16 => "float16",
+        T::Int64 => "int64",
+        T::Int32 => "int32",
+        T::Uint8 => "uint8",
+        T::Int8 => "int8",
+        T::Bool => "bool",
+        _ => "other",
+    }
+}
+
+pub fn sha256_file(path: &Path) -> std::io::Result<String> {
+    let mut f = std::fs::File::open(path)?;
+    let mut h = Sha256::new();
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        let n = f.read(&mut buf)?;
+        if n == 0 {
+            break;
+        }
+        h.update(&buf[..n]);
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Compare declared tensors with the file's; push one line per mismatch.
+fn check_io(
+    model: &str,
+    kind: &str,
+    declared: &[TensorSpec],
+    actual: &[ort::value::Outlet],
+    problems: &mut Vec<String>,
+) {
+    let names: Vec<&str> = actual.iter().map(|o| o.name()).collect();
+    for d in declared {
+        let Some(a) = actual.iter().find(|o| o.name() == d.name) else {
+            problems.push(format!(
+                "{model}: {kind} '{}' is declared but the file has {names:?}",
+                d.name
+            ));
+            continue;
+        };
+        let ort::value::ValueType::Tensor { ty, shape, .. } = a.dtype() else {
+            problems.push(format!(
+                "{model}: {kind} '{}' is not a tensor in the file",
+                d.name
+            ));
+            continue;
+        };
+        if dtype_name(*ty) != d.dtype {
+            problems.push(format!(
+                "{model}: {kind} '{}' is {} in the file, declared {}",
+                d.name,
+                dtype_name(*ty),
+                d.dtype
+            ));
+        }
+        if shape.len() != d.shape.len() {
+            problems.push(format!(
+                "{model}: {kind} '{}' has rank {} in the file ({shape:?}), declared {} ({:?})",
+                d.name,
+                shape.len(),
+                d.shape.len(),
+                d.shape
+            ));
+            continue;
+        }
+        for (i, (fd, dd)) in shape.iter().zip(&d.shape).enumerate() {
+            if let Dim::Fixed(v) = dd {
+                if *fd >= 0 && fd != v {
+                    problems.push(format!(
+                        "{model}: {kind} '{}' dim {i} is {fd} in the file, declared {v}",
+                        d.name
+                    ));
+                }
+            }
+        }
+    }
+    for a in actual {
+        if !declared.iter().any(|d| d.name == a.name()) {
+            problems.push(format!(
+                "{model}: the file has {kind} '{}' that the manifest does not declare",
+                a.name()
+            ));
+        }
+    }
+}
+
+impl Bundle {
+    pub fn open(dir: &Path) -> Result<Bundle, InferError> {
+        let err = |msg: String| InferError::Bundle {
+            dir: dir.to_path_buf(),
+            msg,
+        };
+        let path = dir.join("manifest.json");
+        let meta = std::fs::metadata(&path).map_err(|e| err(format!("manifest.json: {e}")))?;
+        if meta.len() > MAX_MANIFEST_BYTES {
+            return Err(err(format!(
+                "manifest.json is {} bytes, more than {MAX_MANIFEST_BYTES}",
+                meta.len()
+            )));
+        }
+        let text =
+            std::fs::read_to_string(&path).map_err(|e| err(format!("manifest.json: {e}")))?;
+        let manifest: Manifest =
+            serde_json::from_str(&text).map_err(|e| err(format!("manifest.json: {e}")))?;
+        manifest.preprocess.check().map_err(err)?;
+        Ok(Bundle {
+            dir: dir.to_path_buf(),
+            manifest,
+        })
+    }
+
+    /// Load and check the named models. All problems of all of them come back in one error.
+    pub fn load(&self, names: &[&str], cfg: &RuntimeConfig) -> Result<Vec<Model>, InferError> {
+        let mut problems = Vec::new();
+        let mut out = Vec::new();
+        for &name in names {
+            let Some(spec) = self.manifest.models.get(name) else {
+                problems.push(format!(
+                    "{name}: not in the manifest (it has {:?})",
+                    self.manifest.models.keys().collect::<Vec<_>>()
+                ));
+                continue;
+            };
+            let path = self.dir.join(&spec.file);
+            if !path.is_file() {
+                problems.push(format!("{name}: file not found: {}", path.display()));
+                continue;
+            }
+            match sha256_file(&path) {
+                Ok(h) if h.eq_ignore_ascii_case(&spec.sha256) => {}
+                Ok(h) => {
+                    problems.push(format!(
+                        "{name}: sha256 of {} is {h}, the manifest says {}",
+                        spec.file, spec.sha256
+                    ));
+                    continue;
+                }
+                Err(e) => {
+                    problems.push(format!("{name}: {}: {e}", path.display()));
+                    continue;
+                }
+            }
+            let session = match session(name, &path, cfg) {
+                Ok(s) => s,
+                Err(InferError::Library(e)) => return Err(InferError::Library(e)),
+                Err(e) => {
+                    problems.push(e.to_string());
+                    continue;
+                }
+            };
+            let before = problems.len();
+            check_io(name, "input", &spec.inputs, session.inputs(), &mut problems);
+            check_io(
+                name,
+                "output",
+                &spec.outputs,
+                session.outputs(),
+                &mut problems,
+            );
+            if problems.len() == before {
+                let id = format!(
+                    "{}@{}",
+                    self.manifest.bundle,
+                    spec.sha256.get(..8).unwrap_or(&spec.sha256)
+                );
+                out.push(Model {
+                    name: name.to_string(),
+                    spec: spec.clone(),
+                    id,
+                    session,
+                });
+            }
+        }
+        if problems.is_empty() {
+            Ok(out)
+        } else {
+            Err(InferError::Bundle {
+                dir: self.dir.clone(),
+                msg: problems.join("; "),
+            })
+        }
+    }
+}
+
+impl Model {
+    /// Run with float32 inputs given in the manifest's input order as (shape, data); returns
+    /// float32 outputs in the manifest's output order as (shape, data). Output sizes are bounded.
+    pub fn run(&mut self, inputs: &[(&[i64], &[f32])]) -> Result<Vec<TensorF32>, InferError> {
+        let err = |msg: String| InferError::Model {
+            model: self.name.clone(),
+            msg,
+        };
+        if inputs.len() != self.spec.inputs.len() {
+            return Err(err(format!(
+                "{} inputs given, {} declared",
+                inputs.len(),
+                self.spec.inputs.len()
+            )));
+        }
+        let mut values: Vec<(
+            std::borrow::Cow<'_, str>,
+            ort::session::SessionInputValue<'_>,
+        )> = Vec::new();
+        for (spec, (shape, data)) in self.spec.inputs.iter().zip(inputs) {
+            let n: i64 = shape.iter().product();
+            if n < 0 || n as usize != data.len() {
+                return Err(err(format!(
+                    "input '{}': shape {shape:?} needs {n} values, got {}",
+                    spec.name,
+                    data.len()
+                )));
+            }
+            let t = ort::value::TensorRef::from_array_view((shape.to_vec(), *data))
+                .map_err(|e| err(e.to_string()))?;
+            values.push((spec.name.clone().into(), t.into()));
+        }
+        let names: Vec<String> = self.spec.outputs.iter().map(|o| o.name.clone()).collect();
+        let model = self.name.clone();
+        let outputs = self.session.run(values).map_err(|e| InferError::Model {
+            model: model.clone(),
+            msg: e.to_string(),
+        })?;
+        let mut out = Vec::with_capacity(names.len());
+        for n in &names {
+            let v = outputs.get(n).ok_or_else(|| InferError::Output {
+                model: model.clone(),
+                msg: format!("missing '{n}'"),
+            })?;
+            let (shape, data) = v
+                .try_extract_tensor::<f32>()
+                .map_err(|e| InferError::Output {
+                    model: model.clone(),
+                    msg: format!("'{n}': {e}"),
+                })?;
+            if data.len() > MAX_OUTPUT_ELEMENTS {
+                return Err(InferError::Output {
+                    model: model.clone(),
+                    msg: format!("'{n}' has {} elements", data.len()),
+                });
+            }
+            out.push((shape.to_vec(), data.to_vec()));
+        }
+        Ok(out)
+    }
+}
