@@ -123,21 +123,23 @@ impl Stage for EncoderStage {
     fn name(&self) -> &str {
         "encoder"
     }
-    fn process(&mut self, input: &Msg, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
+    fn process(&mut self, input: &Msg, clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
         let Msg::Clip(clip) = input else {
             return Ok(Vec::new());
         };
-        let t0 = Instant::now();
+        // Compute time through the injected clock: real when live, 0 in replay, so replayed
+        // outputs stay byte-identical. `latencies` keeps the wall time for benchmarks.
+        let (c0, t0) = (clock.now(), Instant::now());
         let Encoded {
             tok_shape: shape,
             tokens,
             scores: sc,
             stds: sd,
         } = self.encode(clip)?;
-        let elapsed = t0.elapsed().as_secs_f64();
         if self.latencies.len() < 1000 {
-            self.latencies.push(elapsed);
+            self.latencies.push(t0.elapsed().as_secs_f64());
         }
+        let elapsed = clock.now().secs_since(c0).max(0.0);
         let stamp = input.stamp();
         let header = Header::optical(stamp, &clip.sensor_id);
         let latent = TactileLatent {
