@@ -227,10 +227,12 @@ def build_velocity_gaussian(path):
 def build_velocity_dit(path):
     rng = np.random.default_rng(7)
     W, L, P = 32, 8, 8  # width, tokens, values per token
+    # Time embedding frequencies up to 4 pi: a trained flow model is smooth in tau; random weights
+    # with the usual 2^k frequencies would make the field oscillate hundreds of times over [0, 1].
     def lin(i, o, scale=1.0):
         return (rng.standard_normal((i, o)) * scale / np.sqrt(i)).astype(np.float32)
     inits = [init("w_in", lin(P, W)), init("w_t", lin(16, W)), init("w_c", lin(COND, W, 0.5)),
-             init("freqs", (np.pi * 2.0 ** np.arange(8)).reshape(1, 8)), init("w_out", lin(W, P, 0.5)),
+             init("freqs", (np.pi * 0.5 * np.arange(1, 9)).reshape(1, 8)), init("w_out", lin(W, P, 0.5)),
              init("scale", [1.0 / np.sqrt(W)]), i64("shape_tok", [-1, L, P]), i64("shape_out", [-1, D_LAT]),
              i64("ax1", [1]), init("ln_g", np.ones(W)), init("ln_b", np.zeros(W))]
     nodes = [

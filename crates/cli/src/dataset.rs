@@ -162,9 +162,14 @@ mod tests {
     #[test]
     fn comparison_is_right_on_unseen_fabrics() {
         let root = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-        let models = std::env::var_os("UNITAC_MODELS").map(std::path::PathBuf::from).unwrap_or(root.join(".build/models"));
+        let models = std::env::var_os("UNITAC_MODELS")
+            .map(std::path::PathBuf::from)
+            .unwrap_or(root.join(".build/models"));
         let bundle = models.join("reference");
-        assert!(bundle.join("manifest.json").is_file(), "run scripts/setup.sh first");
+        assert!(
+            bundle.join("manifest.json").is_file(),
+            "run scripts/setup.sh first"
+        );
         let mut enc = EncoderStage::new(&bundle, &unitac_infer::RuntimeConfig::default()).unwrap();
         let pre = Preprocess::reference();
         let mut rng = SplitMix64::new(0xDEC0DE);
@@ -173,7 +178,10 @@ mod tests {
             let (obj, depth, _) = fabric(&mut rng, "unseen");
             let kind = SensorKind::GelsightMini;
             let mut sensor = MockSensor::new(MockConfig::new(kind, 777 + i), press(&obj, depth));
-            let p = ContactParams { clip_frames: pre.clip_frames * 2, ..Default::default() };
+            let p = ContactParams {
+                clip_frames: pre.clip_frames * 2,
+                ..Default::default()
+            };
             let mut stage = ContactStage::new(p, kind.spec()).unwrap();
             let clock = ManualClock::default();
             let mut clip = None;
@@ -197,7 +205,9 @@ mod tests {
             }
         }
         let acc = right as f64 / total as f64;
-        eprintln!("unseen fabrics, roughness pairs differing by > 0.01 mm: {right}/{total} right ({acc:.3})");
+        eprintln!(
+            "unseen fabrics, roughness pairs differing by > 0.01 mm: {right}/{total} right ({acc:.3})"
+        );
         assert!(total > 400 && acc >= 0.9, "{right}/{total} = {acc:.3}");
     }
 }

@@ -7,6 +7,8 @@ mod bench;
 mod dataset;
 mod eval;
 mod images;
+mod plot;
+mod sampler;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
@@ -96,6 +98,18 @@ enum Cmd {
         #[arg(long)]
         no_python: bool,
     },
+    /// Error against run time, with tables and PNG plots: `report sampler`.
+    Report {
+        what: ReportTarget,
+        #[arg(long)]
+        json: bool,
+        /// Directory for the PNG plots (default: $UNITAC_ROOT/.build/report or ./report).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Timed repetitions per configuration (median).
+        #[arg(long, default_value_t = 5)]
+        repeat: usize,
+    },
     /// Write a training set for the reference models: `dataset fabrics --out DIR`.
     Dataset {
         what: DatasetTarget,
@@ -128,6 +142,12 @@ enum DatasetTarget {
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum BenchTarget {
     Contact,
+    Sampler,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum ReportTarget {
+    Sampler,
 }
 
 /// Error that maps to exit code 2 (usage / configuration).
@@ -327,6 +347,38 @@ fn main() -> ExitCode {
             }
             Ok(true)
         }),
+        Cmd::Bench {
+            what: BenchTarget::Sampler,
+            json,
+            repeat,
+            ..
+        } => sampler::bench(repeat.clamp(1, 1000)).and_then(|r| {
+            if json {
+                println!("{}", serde_json::to_string(&r)?);
+            } else {
+                print!("{}", r.text());
+            }
+            Ok(true)
+        }),
+        Cmd::Report {
+            what: ReportTarget::Sampler,
+            json,
+            out,
+            repeat,
+        } => {
+            let out = out.unwrap_or_else(|| match std::env::var_os("UNITAC_ROOT") {
+                Some(r) => PathBuf::from(r).join(".build/report"),
+                None => PathBuf::from("report"),
+            });
+            sampler::report(&out, repeat.clamp(1, 1000)).and_then(|r| {
+                if json {
+                    println!("{}", serde_json::to_string(&r)?);
+                } else {
+                    print!("{}", r.text());
+                }
+                Ok(true)
+            })
+        }
         Cmd::Bench {
             what: BenchTarget::Contact,
             json,

@@ -6,20 +6,28 @@ use unitac_infer::{Bundle, RuntimeConfig};
 
 fn edit(dir: &std::path::Path, f: impl FnOnce(&mut serde_json::Value)) {
     let p = dir.join("manifest.json");
-    let mut m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+    let mut m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
     f(&mut m);
     std::fs::write(&p, serde_json::to_string_pretty(&m).unwrap()).unwrap();
 }
 
 fn load_err(dir: &std::path::Path, models: &[&str]) -> String {
     let b = Bundle::open(dir).unwrap();
-    b.load(models, &RuntimeConfig::default()).unwrap_err().to_string()
+    b.load(models, &RuntimeConfig::default())
+        .unwrap_err()
+        .to_string()
 }
 
 #[test]
 fn the_reference_bundle_loads_and_names_its_models() {
     let b = Bundle::open(&common::reference()).unwrap();
-    let models = b.load(&["encoder", "properties", "velocity", "velocity_gaussian"], &RuntimeConfig::default()).unwrap();
+    let models = b
+        .load(
+            &["encoder", "properties", "velocity", "velocity_gaussian"],
+            &RuntimeConfig::default(),
+        )
+        .unwrap();
     assert_eq!(models.len(), 4);
     assert!(models[0].id.starts_with("unitac-reference@"));
 }
@@ -29,15 +37,24 @@ fn missing_file() {
     let d = common::copy_reference("missing");
     std::fs::remove_file(d.join("encoder.onnx")).unwrap();
     let e = load_err(&d, &["encoder"]);
-    assert!(e.contains("encoder: file not found") && e.contains("encoder.onnx"), "{e}");
+    assert!(
+        e.contains("encoder: file not found") && e.contains("encoder.onnx"),
+        "{e}"
+    );
 }
 
 #[test]
 fn wrong_sha256() {
     let d = common::copy_reference("sha");
-    edit(&d, |m| m["models"]["properties"]["sha256"] = "00".repeat(32).into());
+    edit(&d, |m| {
+        m["models"]["properties"]["sha256"] = "00".repeat(32).into()
+    });
     let e = load_err(&d, &["properties"]);
-    assert!(e.contains("properties: sha256 of properties.onnx is") && e.contains("the manifest says 0000"), "{e}");
+    assert!(
+        e.contains("properties: sha256 of properties.onnx is")
+            && e.contains("the manifest says 0000"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -49,10 +66,22 @@ fn wrong_shape_and_dtype_are_listed_together() {
         m["models"]["encoder"]["inputs"][1]["name"] = "bg".into();
     });
     let e = load_err(&d, &["encoder", "velocity"]);
-    assert!(e.contains("velocity: input 'x' dim 1 is 64 in the file, declared 65"), "{e}");
-    assert!(e.contains("velocity: output 'v' is float32 in the file, declared float64"), "{e}");
-    assert!(e.contains("encoder: input 'bg' is declared but the file has"), "{e}");
-    assert!(e.contains("encoder: the file has input 'background' that the manifest does not declare"), "{e}");
+    assert!(
+        e.contains("velocity: input 'x' dim 1 is 64 in the file, declared 65"),
+        "{e}"
+    );
+    assert!(
+        e.contains("velocity: output 'v' is float32 in the file, declared float64"),
+        "{e}"
+    );
+    assert!(
+        e.contains("encoder: input 'bg' is declared but the file has"),
+        "{e}"
+    );
+    assert!(
+        e.contains("encoder: the file has input 'background' that the manifest does not declare"),
+        "{e}"
+    );
     assert!(!e.contains('\n'), "one line: {e}");
 }
 
@@ -62,7 +91,12 @@ fn unknown_model_and_bad_manifest() {
     assert!(e.contains("policy: not in the manifest"), "{e}");
     let d = common::copy_reference("manifest");
     std::fs::write(d.join("manifest.json"), b"{ not json").unwrap();
-    assert!(Bundle::open(&d).unwrap_err().to_string().contains("manifest.json"));
+    assert!(
+        Bundle::open(&d)
+            .unwrap_err()
+            .to_string()
+            .contains("manifest.json")
+    );
     edit_text(&d);
     let e = Bundle::open(&d).unwrap_err().to_string();
     assert!(e.contains("crop"), "{e}");
@@ -70,5 +104,9 @@ fn unknown_model_and_bad_manifest() {
 
 fn edit_text(d: &std::path::Path) {
     let good = std::fs::read_to_string(common::reference().join("manifest.json")).unwrap();
-    std::fs::write(d.join("manifest.json"), good.replace("center_square", "letterbox")).unwrap();
+    std::fs::write(
+        d.join("manifest.json"),
+        good.replace("center_square", "letterbox"),
+    )
+    .unwrap();
 }

@@ -6,14 +6,29 @@ use std::process::Command;
 use unitac_infer::{Bundle, RuntimeConfig};
 
 fn inputs(shapes: &[Vec<i64>], seed: u64) -> Vec<Vec<f32>> {
-    shapes.iter().enumerate().map(|(i, s)| unitac_infer::flow::noise(seed + i as u64, s.iter().product::<i64>() as usize)).collect()
+    shapes
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            unitac_infer::flow::noise(seed + i as u64, s.iter().product::<i64>() as usize)
+        })
+        .collect()
 }
 
 fn check(model: &str, shapes: Vec<Vec<i64>>) {
     let dir = common::reference();
-    let mut m = Bundle::open(&dir).unwrap().load(&[model], &RuntimeConfig::default()).unwrap().pop().unwrap();
+    let mut m = Bundle::open(&dir)
+        .unwrap()
+        .load(&[model], &RuntimeConfig::default())
+        .unwrap()
+        .pop()
+        .unwrap();
     let data = inputs(&shapes, 11);
-    let args: Vec<(&[i64], &[f32])> = shapes.iter().zip(&data).map(|(s, d)| (s.as_slice(), d.as_slice())).collect();
+    let args: Vec<(&[i64], &[f32])> = shapes
+        .iter()
+        .zip(&data)
+        .map(|(s, d)| (s.as_slice(), d.as_slice()))
+        .collect();
     let ours = m.run(&args).unwrap();
 
     let tmp = common::tmpdir(&format!("oracle-{model}"));
@@ -23,7 +38,11 @@ fn check(model: &str, shapes: Vec<Vec<i64>>) {
         common::write_f32(&f, d);
         spec.push(serde_json::json!({"name": t.name, "shape": s, "file": f}));
     }
-    std::fs::write(tmp.join("spec.json"), serde_json::json!({"inputs": spec}).to_string()).unwrap();
+    std::fs::write(
+        tmp.join("spec.json"),
+        serde_json::json!({"inputs": spec}).to_string(),
+    )
+    .unwrap();
     let st = Command::new(common::python())
         .arg(common::root().join("tests/infer/ort_oracle.py"))
         .arg(dir.join(&m.spec.file))
@@ -35,8 +54,15 @@ fn check(model: &str, shapes: Vec<Vec<i64>>) {
     for (o, (_, v)) in m.spec.outputs.iter().zip(&ours) {
         let theirs = common::read_f32(&tmp.join(format!("out.{}.f32", o.name)));
         assert_eq!(theirs.len(), v.len());
-        let same = theirs.iter().zip(v).all(|(a, b)| a.to_bits() == b.to_bits());
-        assert!(same, "{model}/{}: outputs differ from Python onnxruntime", o.name);
+        let same = theirs
+            .iter()
+            .zip(v)
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(
+            same,
+            "{model}/{}: outputs differ from Python onnxruntime",
+            o.name
+        );
     }
 }
 

@@ -9,14 +9,23 @@ pub fn root() -> PathBuf {
 
 /// The reference bundle made by scripts/setup.sh. Its absence is a failure, not a skip.
 pub fn reference() -> PathBuf {
-    let models = std::env::var_os("UNITAC_MODELS").map(PathBuf::from).unwrap_or_else(|| root().join(".build/models"));
+    let models = std::env::var_os("UNITAC_MODELS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join(".build/models"));
     let dir = models.join("reference");
-    assert!(dir.join("manifest.json").is_file(), "{} is missing: run scripts/setup.sh", dir.display());
+    assert!(
+        dir.join("manifest.json").is_file(),
+        "{} is missing: run scripts/setup.sh",
+        dir.display()
+    );
     dir
 }
 
 pub fn python() -> PathBuf {
-    std::env::var_os("UNITAC_VENV").map(PathBuf::from).unwrap_or_else(|| root().join(".venv")).join("bin/python")
+    std::env::var_os("UNITAC_VENV")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join(".venv"))
+        .join("bin/python")
 }
 
 pub fn tmpdir(name: &str) -> PathBuf {
@@ -37,9 +46,17 @@ pub fn copy_reference(name: &str) -> PathBuf {
 }
 
 pub fn write_f32(path: &Path, v: &[f32]) {
-    std::fs::write(path, v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>()).unwrap();
+    std::fs::write(
+        path,
+        v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>(),
+    )
+    .unwrap();
 }
 
 pub fn read_f32(path: &Path) -> Vec<f32> {
-    std::fs::read(path).unwrap().chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+    std::fs::read(path)
+        .unwrap()
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
 }

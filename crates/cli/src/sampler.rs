@@ -1,0 +1,532 @@
+//! `unitac report sampler` and `unitac bench sampler`: error against run time of the flow
+//! sampler (Euler / midpoint / Heun x steps x guidance) on the reference bundle's two velocity
+//! models: the analytic Gaussian (error against the exact solution) and the small transformer
+//! (error against a 1024-step Heun reference), with guards off so failures show as errors; the
+//! guard verdict is reported beside each row.
+
+use crate::plot;
+use anyhow::Context;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use unitac_infer::flow::{
+    Guards, OnnxVelocity, SampleConfig, Solver, exact_gaussian, noise, sample,
+};
+use unitac_infer::{Bundle, RuntimeConfig};
+
+pub const STEPS: [u32; 6] = [4, 8, 16, 32, 50, 64];
+pub const GUIDANCE: [f64; 4] = [1.0, 1.5, 3.0, 7.5];
+const SEED: u64 = 17;
+/// Target sigma of the Gaussian case (>= the models' declared sigma_min of 0.1).
+const SIGMA_C: f64 = 0.2;
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    pub model: String,
+    pub solver: Solver,
+    pub steps: u32,
+    pub guidance: f64,
+    pub model_calls: u32,
+    /// Median wall time per sample [us], batched guidance, one thread.
+    pub time_us: f64,
+    /// RMS error of the sample against the exact (Gaussian) or fine-step (transformer) answer.
+    pub error: f64,
+    /// What the guards would say: "ok", or the start of their report.
+    pub guard: String,
+}
+
+struct Case {
+    name: &'static str,
+    v: OnnxVelocity,
+    prior: Vec<f32>,
+    cond: Vec<f32>,
+    mu: Vec<f32>,
+}
+
+fn bundle_dir() -> anyhow::Result<PathBuf> {
+    let models = std::env::var_os("UNITAC_MODELS")
+        .map(PathBuf::from)
+        .context("UNITAC_MODELS is not set (use scripts/unitac)")?;
+    Ok(models.join("reference"))
+}
+
+fn cases() -> anyhow::Result<Vec<Case>> {
+    let b = Bundle::open(&bundle_dir()?)?;
+    let mut ms = b
+        .load(
+            &["velocity_gaussian", "velocity"],
+            &RuntimeConfig::default(),
+        )?
+        .into_iter();
+    let (Some(g), Some(t)) = (ms.next(), ms.next()) else {
+        anyhow::bail!("models missing")
+    };
+    let (g, t) = (OnnxVelocity::new(g)?, OnnxVelocity::new(t)?);
+    use unitac_infer::flow::Velocity;
+    let d = g.dim();
+    let mu: Vec<f32> = noise(SEED + 1, d).iter().map(|v| 0.8 * v).collect();
+    let gp = vec![0.0; d + 1];
+    let gc: Vec<f32> = mu.iter().copied().chain([SIGMA_C.ln() as f32]).collect();
+    // Transformer: prior = sensor only, conditional = object + sensor (SPSS layout).
+    let c = t.cond_dim();
+    let half = (c - 1) / 2;
+    let sen = noise(SEED + 2, half);
+    let obj = noise(SEED + 3, half);
+    let tp: Vec<f32> = vec![0.0; half]
+        .into_iter()
+        .chain(sen.iter().copied())
+        .chain([0.0])
+        .collect();
+    let tc: Vec<f32> = obj.into_iter().chain(sen).chain([1.0]).collect();
+    Ok(vec![
+        Case {
+            name: "gaussian",
+            v: g,
+            prior: gp,
+            cond: gc,
+            mu,
+        },
+        Case {
+            name: "transformer",
+            v: t,
+            prior: tp,
+            cond: tc,
+            mu: Vec::new(),
+        },
+    ])
+}
+
+fn rms(a: &[f32], b: &[f64]) -> f64 {
+    let s: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (f64::from(*x) - y).powi(2))
+        .sum();
+    let e = (s / a.len().max(1) as f64).sqrt();
+    if a.iter().all(|v| v.is_finite()) {
+        e
+    } else {
+        f64::INFINITY
+    }
+}
+
+fn off() -> Guards {
+    Guards {
+        enabled: false,
+        sigma_min: 0.1,
+        growth: 4.0,
+    }
+}
+
+/// Timed sample: (median time [us], outcome of the last run).
+fn timed(
+    case: &mut Case,
+    cfg: &SampleConfig,
+    reps: usize,
+) -> anyhow::Result<(f64, unitac_infer::flow::Outcome)> {
+    let mut times = Vec::with_capacity(reps);
+    let mut last = None;
+    for _ in 0..reps {
+        let t0 = Instant::now();
+        let out = sample(&mut case.v, cfg, &off(), &case.prior, &case.cond)?;
+        times.push(t0.elapsed().as_secs_f64() * 1e6);
+        last = Some(out);
+    }
+    times.sort_by(f64::total_cmp);
+    Ok((times[times.len() / 2], last.context("no run")?))
+}
+
+fn truth(case: &mut Case, s: f64) -> anyhow::Result<Vec<f64>> {
+    if case.name == "gaussian" {
+        let z = noise(SEED, case.mu.len());
+        return Ok(z
+            .iter()
+            .zip(&case.mu)
+            .map(|(&z, &m)| exact_gaussian(f64::from(z), 0.0, 1.0, f64::from(m), SIGMA_C, s))
+            .collect());
+    }
+    let cfg = SampleConfig {
+        solver: Solver::Heun,
+        steps: 1024,
+        guidance: s,
+        seed: SEED,
+        batched: true,
+    };
+    let out = sample(&mut case.v, &cfg, &off(), &case.prior, &case.cond)?;
+    Ok(out.x.iter().map(|&v| f64::from(v)).collect())
+}
+
+pub fn table(reps: usize) -> anyhow::Result<Vec<Row>> {
+    let mut rows = Vec::new();
+    for mut case in cases()? {
+        for s in GUIDANCE {
+            let exact = truth(&mut case, s)?;
+            for solver in Solver::ALL {
+                for steps in STEPS {
+                    let cfg = SampleConfig {
+                        solver,
+                        steps,
+                        guidance: s,
+                        seed: SEED,
+                        batched: true,
+                    };
+                    let (time_us, out) = timed(&mut case, &cfg, reps)?;
+                    let g = Guards::new(case.v.sigma_min);
+                    let guarded = sample(&mut case.v, &cfg, &g, &case.prior, &case.cond)?;
+                    let guard = if guarded.valid {
+                        "ok".to_string()
+                    } else {
+                        guarded.report.split(':').next().unwrap_or("").to_string()
+                    };
+                    rows.push(Row {
+                        model: case.name.into(),
+                        solver,
+                        steps,
+                        guidance: s,
+                        model_calls: out.model_calls,
+                        time_us,
+                        error: rms(&out.x, &exact),
+                        guard,
+                    });
+                }
+            }
+        }
+    }
+    Ok(rows)
+}
+
+#[derive(Debug, Serialize)]
+pub struct Report {
+    pub rows: Vec<Row>,
+    /// solver -> guidance -> steps -> stable (finite, error < 0.5) on the Gaussian case.
+    pub stability: Vec<(Solver, Vec<(f64, Vec<(u32, bool)>)>)>,
+    pub plots: Vec<PathBuf>,
+}
+
+pub const STAB_S: [f64; 6] = [1.0, 1.5, 3.0, 7.5, 20.0, 50.0];
+pub const STAB_N: [u32; 7] = [2, 4, 8, 16, 32, 64, 128];
+
+fn stability() -> anyhow::Result<Vec<(Solver, Vec<(f64, Vec<(u32, bool)>)>)>> {
+    let mut case = cases()?.into_iter().next().context("gaussian case")?;
+    let mut out = Vec::new();
+    for solver in Solver::ALL {
+        let mut by_s = Vec::new();
+        for s in STAB_S {
+            let exact = truth(&mut case, s)?;
+            let mut row = Vec::new();
+            for n in STAB_N {
+                let cfg = SampleConfig {
+                    solver,
+                    steps: n,
+                    guidance: s,
+                    seed: SEED,
+                    batched: true,
+                };
+                let o = sample(&mut case.v, &cfg, &off(), &case.prior, &case.cond)?;
+                row.push((n, rms(&o.x, &exact) < 0.5));
+            }
+            by_s.push((s, row));
+        }
+        out.push((solver, by_s));
+    }
+    Ok(out)
+}
+
+pub fn report(out_dir: &Path, reps: usize) -> anyhow::Result<Report> {
+    std::fs::create_dir_all(out_dir).with_context(|| out_dir.display().to_string())?;
+    let rows = table(reps)?;
+    let stab = stability()?;
+    // Error vs time: one panel per model x guidance, one line per solver.
+    let (pw, ph) = (420i64, 300i64);
+    let mut img = image::RgbImage::from_pixel(
+        (pw * 4) as u32,
+        (ph * 2 + 30) as u32,
+        image::Rgb([255, 255, 255]),
+    );
+    for (mi, model) in ["gaussian", "transformer"].iter().enumerate() {
+        for (gi, s) in GUIDANCE.iter().enumerate() {
+            let series: Vec<plot::Series> = Solver::ALL
+                .iter()
+                .enumerate()
+                .map(|(k, solver)| plot::Series {
+                    colour: plot::COLOURS[k],
+                    points: rows
+                        .iter()
+                        .filter(|r| r.model == *model && r.guidance == *s && r.solver == *solver)
+                        .map(|r| (r.time_us * 1e-6, r.error))
+                        .collect(),
+                })
+                .collect();
+            plot::loglog(
+                &mut img,
+                (gi as i64 * pw, mi as i64 * ph, pw, ph),
+                &series,
+                &format!("{} s={s}", if mi == 0 { "exact" } else { "ref" }),
+            );
+        }
+    }
+    plot::text(
+        &mut img,
+        10,
+        ph * 2 + 8,
+        "x = time per sample s   y = rms error   red euler  green midpoint  blue heun",
+        2,
+        [0, 0, 0],
+    );
+    let p1 = out_dir.join("sampler_error_vs_time.png");
+    img.save(&p1).with_context(|| p1.display().to_string())?;
+    // Stability map: one grid per solver.
+    let cell = 34i64;
+    let gw = 70 + cell * STAB_N.len() as i64 + 30;
+    let mut img = image::RgbImage::from_pixel(
+        (gw * 3) as u32,
+        (cell * STAB_S.len() as i64 + 60) as u32,
+        image::Rgb([255, 255, 255]),
+    );
+    for (k, (_, by_s)) in stab.iter().enumerate() {
+        let cells: Vec<Vec<bool>> = by_s
+            .iter()
+            .map(|(_, r)| r.iter().map(|(_, ok)| *ok).collect())
+            .collect();
+        let rl: Vec<String> = STAB_S.iter().map(|s| format!("s={s}")).collect();
+        let cl: Vec<String> = STAB_N.iter().map(|n| n.to_string()).collect();
+        plot::grid(
+            &mut img,
+            (k as i64 * gw + 4, 4, cell),
+            &cells,
+            &rl,
+            &cl,
+            ["euler", "midpoint", "heun"][k],
+        );
+    }
+    let p2 = out_dir.join("sampler_stability.png");
+    img.save(&p2).with_context(|| p2.display().to_string())?;
+    Ok(Report {
+        rows,
+        stability: stab,
+        plots: vec![p1, p2],
+    })
+}
+
+impl Report {
+    pub fn text(&self) -> String {
+        let mut s = String::from(
+            "flow sampler: error against run time (guards off; 'guard' = what the guards would do)\n",
+        );
+        for model in ["gaussian", "transformer"] {
+            s += &format!(
+                "\n{model} ({})\n  s     solver    steps calls   time [us]     error   guard\n",
+                if model == "gaussian" {
+                    "error vs the exact solution"
+                } else {
+                    "error vs Heun-1024"
+                }
+            );
+            for r in self.rows.iter().filter(|r| r.model == model) {
+                s += &format!(
+                    "  {:<5} {:<9} {:>5} {:>5} {:>11.1} {:>9.2e}   {}\n",
+                    r.guidance,
+                    r.solver.as_str(),
+                    r.steps,
+                    r.model_calls,
+                    r.time_us,
+                    r.error,
+                    r.guard
+                );
+            }
+        }
+        s += "\nstability map (Gaussian, exact; S = finite and rms error < 0.5, U = not)\n";
+        for (solver, by_s) in &self.stability {
+            s += &format!(
+                "  {:<9} steps {}\n",
+                solver.as_str(),
+                STAB_N.iter().map(|n| format!("{n:>4}")).collect::<String>()
+            );
+            for (g, row) in by_s {
+                s += &format!(
+                    "  {:<9} s={g:<4}{}\n",
+                    "",
+                    row.iter()
+                        .map(|(_, ok)| if *ok { "   S" } else { "   U" })
+                        .collect::<String>()
+                );
+            }
+        }
+        for p in &self.plots {
+            s += &format!("plot: {}\n", p.display());
+        }
+        s
+    }
+}
+
+/// The paper's Euler-50 against the cheapest (solver, steps) that is at least as accurate, on one
+/// velocity model at s = 1.5.
+#[derive(Debug, Serialize)]
+pub struct VersusEuler50 {
+    pub model: String,
+    pub euler50_error: f64,
+    pub euler50_us: f64,
+    pub best: Option<Row>,
+    pub best_time_ratio: Option<f64>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Bench {
+    pub versus_euler50: Vec<VersusEuler50>,
+    /// Heun-16 at s = 1.5 on the transformer: both guidance branches in one batch-2 call, or two.
+    pub batched_us: f64,
+    pub two_calls_us: f64,
+    pub batched_speedup: f64,
+    pub encoder_properties_us: f64,
+}
+
+pub fn bench(reps: usize) -> anyhow::Result<Bench> {
+    let s = 1.5;
+    let mut versus = Vec::new();
+    let mut all = cases()?;
+    for case in all.iter_mut() {
+        let exact = truth(case, s)?;
+        let mut rows = Vec::new();
+        for solver in Solver::ALL {
+            for steps in [2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 50] {
+                let cfg = SampleConfig {
+                    solver,
+                    steps,
+                    guidance: s,
+                    seed: SEED,
+                    batched: true,
+                };
+                let (t, out) = timed(case, &cfg, reps)?;
+                rows.push(Row {
+                    model: case.name.into(),
+                    solver,
+                    steps,
+                    guidance: s,
+                    model_calls: out.model_calls,
+                    time_us: t,
+                    error: rms(&out.x, &exact),
+                    guard: String::new(),
+                });
+            }
+        }
+        let e50 = rows
+            .iter()
+            .find(|r| r.solver == Solver::Euler && r.steps == 50)
+            .context("euler 50")?
+            .clone();
+        let best = rows
+            .iter()
+            .filter(|r| r.error <= e50.error && !(r.solver == Solver::Euler && r.steps == 50))
+            .min_by(|a, b| a.time_us.total_cmp(&b.time_us))
+            .cloned();
+        versus.push(VersusEuler50 {
+            model: case.name.into(),
+            euler50_error: e50.error,
+            euler50_us: e50.time_us,
+            best_time_ratio: best.as_ref().map(|b| b.time_us / e50.time_us),
+            best,
+        });
+    }
+    let case = all.get_mut(1).context("transformer case")?;
+    let heun16 = SampleConfig {
+        solver: Solver::Heun,
+        steps: 16,
+        guidance: s,
+        seed: SEED,
+        batched: true,
+    };
+    let (batched, _) = timed(case, &heun16, reps * 4)?;
+    let (two, _) = timed(
+        case,
+        &SampleConfig {
+            batched: false,
+            ..heun16
+        },
+        reps * 4,
+    )?;
+    Ok(Bench {
+        versus_euler50: versus,
+        batched_us: batched,
+        two_calls_us: two,
+        batched_speedup: two / batched,
+        encoder_properties_us: encoder_latency(reps * 4)?,
+    })
+}
+
+/// Median encoder + property head time per episode clip, on a mock fabric press.
+fn encoder_latency(reps: usize) -> anyhow::Result<f64> {
+    use unitac_core::SensorKind;
+    let mut enc =
+        unitac_infer::encoder::EncoderStage::new(&bundle_dir()?, &RuntimeConfig::default())?;
+    let pre = unitac_infer::preprocess::Preprocess::reference();
+    let obj = unitac_sim::Scenario::fabric("bench", 0.04, 0.9);
+    let mut sensor = unitac_sim::MockSensor::new(
+        unitac_sim::MockConfig::new(SensorKind::GelsightMini, 3),
+        crate::dataset::press(&obj, 0.5),
+    );
+    let p = unitac_contact::ContactParams {
+        clip_frames: pre.clip_frames * 2,
+        ..Default::default()
+    };
+    let mut stage = unitac_contact::ContactStage::new(p, SensorKind::GelsightMini.spec())
+        .map_err(anyhow::Error::msg)?;
+    let clock = unitac_core::ManualClock::default();
+    let mut clip = None;
+    while let Some((f, _)) = sensor.next_with_truth() {
+        use unitac_core::Stage;
+        for m in stage
+            .process(&unitac_core::Msg::Frame(f), &clock)
+            .map_err(|e| anyhow::anyhow!("{e}"))?
+        {
+            if let unitac_core::Msg::Clip(c) = m {
+                clip = Some(c);
+            }
+        }
+    }
+    let clip = clip.context("no episode")?;
+    let mut t = Vec::new();
+    for _ in 0..reps {
+        let t0 = Instant::now();
+        enc.encode(&clip).map_err(|e| anyhow::anyhow!("{e}"))?;
+        t.push(t0.elapsed().as_secs_f64() * 1e6);
+    }
+    t.sort_by(f64::total_cmp);
+    Ok(t[t.len() / 2])
+}
+
+impl Bench {
+    pub fn text(&self) -> String {
+        let mut s = String::from(
+            "flow sampler at s = 1.5 (the paper's setting), one thread, batched guidance\n",
+        );
+        for v in &self.versus_euler50 {
+            s += &format!(
+                "  {} ({}): paper's Euler-50 error {:.2e} in {:.0} us\n",
+                v.model,
+                if v.model == "gaussian" {
+                    "error vs the exact solution"
+                } else {
+                    "error vs Heun-1024"
+                },
+                v.euler50_error,
+                v.euler50_us
+            );
+            if let (Some(b), Some(r)) = (&v.best, v.best_time_ratio) {
+                s += &format!(
+                    "    cheapest at least as accurate: {} {} ({} calls), error {:.2e} in {:.0} us = {:.0} % of Euler-50's time\n",
+                    b.solver.as_str(),
+                    b.steps,
+                    b.model_calls,
+                    b.error,
+                    b.time_us,
+                    100.0 * r
+                );
+            }
+        }
+        s += &format!(
+            "  guidance branches (Heun-16, transformer): one batch-2 call {:.0} us, two calls {:.0} us: {:.2}x\n  encoder + property head per episode: {:.0} us\n",
+            self.batched_us, self.two_calls_us, self.batched_speedup, self.encoder_properties_us
+        );
+        s
+    }
+}
