@@ -195,18 +195,21 @@ pub fn table(reps: usize) -> anyhow::Result<Vec<Row>> {
     Ok(rows)
 }
 
+/// Per solver, per guidance scale: (steps, stable) cells.
+pub type StabilityMap = Vec<(Solver, Vec<(f64, Vec<(u32, bool)>)>)>;
+
 #[derive(Debug, Serialize)]
 pub struct Report {
     pub rows: Vec<Row>,
     /// solver -> guidance -> steps -> stable (finite, error < 0.5) on the Gaussian case.
-    pub stability: Vec<(Solver, Vec<(f64, Vec<(u32, bool)>)>)>,
+    pub stability: StabilityMap,
     pub plots: Vec<PathBuf>,
 }
 
 pub const STAB_S: [f64; 6] = [1.0, 1.5, 3.0, 7.5, 20.0, 50.0];
 pub const STAB_N: [u32; 7] = [2, 4, 8, 16, 32, 64, 128];
 
-fn stability() -> anyhow::Result<Vec<(Solver, Vec<(f64, Vec<(u32, bool)>)>)>> {
+fn stability() -> anyhow::Result<StabilityMap> {
     let mut case = cases()?.into_iter().next().context("gaussian case")?;
     let mut out = Vec::new();
     for solver in Solver::ALL {
