@@ -622,6 +622,8 @@ fn marker_cells(bg: &Background) -> Vec<u8> {
 pub struct ContactStage {
     det: ContactDetector,
     sensor_id: String,
+    /// Whether the current background was announced downstream (Msg::Background).
+    announced: bool,
 }
 
 impl ContactStage {
@@ -629,6 +631,7 @@ impl ContactStage {
         Ok(Self {
             det: ContactDetector::new(p, spec)?,
             sensor_id: String::new(),
+            announced: false,
         })
     }
     pub fn detector(&self) -> &ContactDetector {
@@ -672,7 +675,14 @@ impl Stage for ContactStage {
                         return Err(StageError::Other(format!("saved background not used: {e}")));
                     }
                 }
-                self.det.step(f)
+                let mut out = self.det.step(f)?;
+                if self.det.is_learned() != self.announced {
+                    self.announced = self.det.is_learned();
+                    if let Some(bg) = self.det.background_frame(&f.sensor_id) {
+                        out.insert(0, Msg::Background(bg));
+                    }
+                }
+                Ok(out)
             }
             _ => Ok(Vec::new()),
         }

@@ -168,6 +168,9 @@ pub enum Msg {
     Contact(ContactState),
     Episode(ContactEpisode),
     Clip(EpisodeClip),
+    /// The contact stage's non-contact frame, announced when it is learned or loaded: the
+    /// sensor prior (Z_sen) for the flow sampler.
+    Background(Frame),
     Properties(TactileProperties),
     Comparison(PropertyComparison),
     Latent(TactileLatent),
@@ -186,6 +189,7 @@ impl Msg {
             Msg::Contact(m) => m.header.stamp,
             Msg::Episode(m) => m.header.stamp,
             Msg::Clip(m) => m.frames.last().map_or(Stamp::ZERO, |f| f.stamp),
+            Msg::Background(f) => f.stamp,
             Msg::Properties(m) => m.header.stamp,
             Msg::Comparison(m) => m.header.stamp,
             Msg::Latent(m) => m.header.stamp,
@@ -200,6 +204,7 @@ impl Msg {
             Msg::Contact(_) => "contact_state",
             Msg::Episode(_) => "contact_episode",
             Msg::Clip(_) => "episode_clip",
+            Msg::Background(_) => "background",
             Msg::Properties(_) => "tactile_properties",
             Msg::Comparison(_) => "property_comparison",
             Msg::Latent(_) => "tactile_latent",
@@ -210,7 +215,7 @@ impl Msg {
     /// JSON of an event (`{"type": kind, ...fields}`); frames give only their metadata.
     pub fn to_json(&self) -> serde_json::Value {
         let body = match self {
-            Msg::Frame(f) => serde_json::json!({
+            Msg::Frame(f) | Msg::Background(f) => serde_json::json!({
                 "sensor_id": f.sensor_id, "seq": f.seq, "stamp": f.stamp,
                 "width": f.width, "height": f.height,
             }),

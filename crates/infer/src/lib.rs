@@ -15,6 +15,7 @@
 pub mod bundle;
 pub mod encoder;
 pub mod flow;
+pub mod predict;
 pub mod preprocess;
 pub mod runtime;
 

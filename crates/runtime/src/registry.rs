@@ -6,10 +6,11 @@ use unitac_core::scene::{SceneError, SensorArg, SourceKind, StageSpec};
 use unitac_core::{Scene, Source, Stage};
 use unitac_infer::RuntimeConfig;
 use unitac_infer::encoder::{CompareParams, CompareStage, EncoderStage};
+use unitac_infer::predict::{SamplerParams, SamplerStage};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
 /// Stage kinds a scene may name.
-pub const KNOWN_STAGES: &[&str] = &["contact", "encoder", "compare"];
+pub const KNOWN_STAGES: &[&str] = &["contact", "encoder", "compare", "sampler"];
 
 fn params<T: DeserializeOwned + Default>(
     scene: &Scene,
@@ -60,6 +61,25 @@ pub fn build_stages(scene: &Scene) -> Result<Vec<Box<dyn Stage>>, SceneError> {
                     .ok_or_else(|| bad(format!("model '{name}' not loaded")))?;
                 let dir = manifest.parent().unwrap_or(std::path::Path::new("."));
                 let stage = EncoderStage::new(dir, &cfg).map_err(|e| SceneError::BadValue {
+                    path: scene.path.clone(),
+                    field: format!("stages[{index}] ({}) model '{name}'", st.kind),
+                    msg: e.to_string(),
+                })?;
+                out.push(Box::new(stage));
+            }
+            "sampler" => {
+                let p: SamplerParams = params(scene, index, st)?;
+                let [name] = st.models.as_slice() else {
+                    return Err(bad(
+                        "a sampler stage names exactly one model bundle in models:".into(),
+                    ));
+                };
+                let manifest = scene
+                    .models
+                    .get(name)
+                    .ok_or_else(|| bad(format!("model '{name}' not loaded")))?;
+                let dir = manifest.parent().unwrap_or(std::path::Path::new("."));
+                let stage = SamplerStage::new(dir, p).map_err(|e| SceneError::BadValue {
                     path: scene.path.clone(),
                     field: format!("stages[{index}] ({}) model '{name}'", st.kind),
                     msg: e.to_string(),

@@ -80,6 +80,8 @@ pub struct RunReport {
     pub episodes: Vec<ContactEpisode>,
     pub properties: Vec<TactileProperties>,
     pub comparisons: Vec<PropertyComparison>,
+    /// Tactile latents without their data (source, shape, solver, validity, guard report).
+    pub latents: Vec<serde_json::Value>,
 }
 
 impl RunReport {
@@ -110,6 +112,38 @@ impl RunReport {
                 e.frame_count,
                 e.peak_area_px,
                 e.peak_area_mm2
+            );
+        }
+        for p in &self.properties {
+            let _ = writeln!(
+                s,
+                "  properties {} {:<10} hardness {:.2}±{:.2}  roughness {:.2}±{:.2}  texture {:.2}±{:.2}",
+                p.episode_id,
+                p.label,
+                p.hardness,
+                p.hardness_std,
+                p.roughness,
+                p.roughness_std,
+                p.texture,
+                p.texture_std
+            );
+        }
+        for l in &self.latents {
+            let _ = writeln!(
+                s,
+                "  latent {} {} shape {} solver {} steps {} s {} valid {}{}",
+                l["source"].as_str().unwrap_or(""),
+                l["sensor_id"].as_str().unwrap_or(""),
+                l["shape"],
+                l["solver"].as_str().unwrap_or("-"),
+                l["steps"],
+                l["guidance"],
+                l["valid"],
+                l["guard_report"]
+                    .as_str()
+                    .filter(|r| !r.is_empty())
+                    .map(|r| format!(" ({r})"))
+                    .unwrap_or_default()
             );
         }
         for c in &self.comparisons {
@@ -294,6 +328,7 @@ pub fn run(
     // Collector: the end of the chain.
     let mut event_counts: BTreeMap<String, u64> = BTreeMap::new();
     let (mut episodes, mut properties, mut comparisons) = (Vec::new(), Vec::new(), Vec::new());
+    let mut latents = Vec::new();
     let tail = Arc::clone(&edges[n]);
     while let Some(m) = tail.pop() {
         if m.is_frame() {
@@ -305,6 +340,13 @@ pub fn run(
             Msg::Episode(e) if episodes.len() < MAX_KEPT_EVENTS => episodes.push(e),
             Msg::Properties(p) if properties.len() < MAX_KEPT_EVENTS => properties.push(p),
             Msg::Comparison(c) if comparisons.len() < MAX_KEPT_EVENTS => comparisons.push(c),
+            Msg::Latent(l) if latents.len() < MAX_KEPT_EVENTS => {
+                let mut j = Msg::Latent(l).to_json();
+                if let Some(o) = j.as_object_mut() {
+                    o.remove("data");
+                }
+                latents.push(j);
+            }
             _ => {}
         }
     }
@@ -361,5 +403,6 @@ pub fn run(
         episodes,
         properties,
         comparisons,
+        latents,
     }
 }
