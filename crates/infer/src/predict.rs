@@ -95,9 +95,8 @@ impl SamplerStage {
             msg,
         };
         let solver: Solver = p.solver.parse().map_err(bad)?;
-        if !(p.guidance.is_finite() && p.guidance >= 0.0 && p.guidance <= 100.0)
-            || !(1..=10_000).contains(&p.steps)
-        {
+        let ok_guidance = p.guidance.is_finite() && (0.0..=100.0).contains(&p.guidance);
+        if !ok_guidance || !(1..=10_000).contains(&p.steps) {
             return Err(bad(
                 "guidance must be in [0, 100] and steps in 1..=10000".into()
             ));
