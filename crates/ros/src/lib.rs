@@ -19,3 +19,6 @@ pub fn spin_until(node: &mut r2r::Node, timeout: Duration, mut done: impl FnMut(
     }
     done()
 }
+
+pub mod diagnostics;
+pub mod image;

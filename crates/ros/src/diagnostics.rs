@@ -1,0 +1,87 @@
+//! A small diagnostic updater (r2r has none): one DiagnosticStatus per node on /diagnostics once
+//! a second, with rate, counters and timing.
+
+use r2r::diagnostic_msgs::msg::{DiagnosticArray, DiagnosticStatus, KeyValue};
+use std::time::Instant;
+
+/// Counters a node keeps for its diagnostics.
+#[derive(Debug, Default, Clone)]
+pub struct Counters {
+    pub frames_in: u64,
+    pub messages_out: u64,
+    pub errors: u64,
+    /// Frames known lost before processing (subscriber queue overflow, source gaps).
+    pub dropped: u64,
+    pub busy_us: f64,
+    pub last_error: String,
+}
+
+#[derive(Debug)]
+pub struct Updater {
+    name: String,
+    hardware_id: String,
+    last: Instant,
+    last_frames: u64,
+}
+
+impl Updater {
+    pub fn new(name: &str, hardware_id: &str) -> Self {
+        Self {
+            name: name.into(),
+            hardware_id: hardware_id.into(),
+            last: Instant::now(),
+            last_frames: 0,
+        }
+    }
+
+    /// A DiagnosticArray when a second has passed since the last one.
+    pub fn tick(
+        &mut self,
+        c: &Counters,
+        stamp: r2r::builtin_interfaces::msg::Time,
+        extra: &[(&str, String)],
+    ) -> Option<DiagnosticArray> {
+        let dt = self.last.elapsed().as_secs_f64();
+        if dt < 1.0 {
+            return None;
+        }
+        let rate = (c.frames_in - self.last_frames) as f64 / dt;
+        self.last = Instant::now();
+        self.last_frames = c.frames_in;
+        let mean = if c.frames_in > 0 {
+            c.busy_us / c.frames_in as f64
+        } else {
+            0.0
+        };
+        // OK = 0, WARN = 1: errors or drops since start are a warning, not a failure.
+        let level = u8::from(c.errors > 0 || c.dropped > 0);
+        let kv = |k: &str, v: String| KeyValue {
+            key: k.into(),
+            value: v,
+        };
+        let mut values = vec![
+            kv("rate_hz", format!("{rate:.2}")),
+            kv("frames_in", c.frames_in.to_string()),
+            kv("messages_out", c.messages_out.to_string()),
+            kv("errors", c.errors.to_string()),
+            kv("dropped", c.dropped.to_string()),
+            kv("mean_process_us", format!("{mean:.1}")),
+        ];
+        values.extend(extra.iter().map(|(k, v)| kv(k, v.clone())));
+        let status = DiagnosticStatus {
+            level: level as _,
+            name: self.name.clone(),
+            message: if c.last_error.is_empty() {
+                "ok".into()
+            } else {
+                c.last_error.clone()
+            },
+            hardware_id: self.hardware_id.clone(),
+            values,
+        };
+        let mut a = DiagnosticArray::default();
+        a.header.stamp = stamp;
+        a.status = vec![status];
+        Some(a)
+    }
+}
