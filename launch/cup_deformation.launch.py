@@ -1,0 +1,13 @@
+"""ros2 launch for the cup_deformation scene: nodes from launch/scenes/cup_deformation.yaml (see unitac_launch.py).
+
+ros2 launch <this file> sensor_id:=gsmini namespace:=left inference:=true
+"""
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import unitac_launch  # noqa: E402
+
+
+def generate_launch_description():
+    return unitac_launch.description("cup_deformation")
