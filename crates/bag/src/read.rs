@@ -1,0 +1,590 @@
+//! Reading rosbag2 bags: a directory (metadata.yaml + .mcap or .db3 files), a bare .mcap or a
+//! bare .db3, as one stream of raw messages in file order.
+//!
+//! MCAP is read with the `mcap` crate's sans-io linear reader: records are streamed from the
+//! file, chunks (zstd, lz4 or none) are decompressed as they come, and no record may be longer
+//! than [`MAX_RECORD_BYTES`], so memory stays bounded whatever the file says. The summary section
+//! is never needed: a file a recorder could not finish (killed, disk full) is read up to its last
+//! complete record and flagged [`BagReader::truncated`]. sqlite3 (Humble's default) is read with
+//! rusqlite from the `topics` and `messages` tables, in pages ordered by (timestamp, id).
+//!
+//! Messages of every topic come out with their raw CDR bytes, whatever their type; decoding is the
+//! caller's choice (see [`crate::ros::is_known_type`]).
+
+use crate::BagError;
+use crate::cdr::MAX_IMAGE_BYTES;
+use crate::metadata;
+use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+use std::collections::{BTreeMap, VecDeque};
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Longest MCAP record (and decompressed chunk) accepted: the largest image plus headroom.
+pub const MAX_RECORD_BYTES: usize = MAX_IMAGE_BYTES + (1 << 20);
+/// Largest single read from a file.
+const READ_BLOCK: usize = 1 << 20;
+/// sqlite rows fetched per query.
+const SQLITE_PAGE: i64 = 64;
+
+/// A topic as the bag declares it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TopicInfo {
+    pub name: String,
+    /// e.g. `sensor_msgs/msg/Image` (empty if the file gives none).
+    pub type_name: String,
+    /// Serialization format / message encoding, `cdr` for ROS 2.
+    pub encoding: String,
+}
+
+/// One message, undecoded.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RawMessage {
+    pub topic: Arc<TopicInfo>,
+    /// Receive time in the bag [ns since the epoch].
+    pub log_time: i64,
+    /// Serialized payload (CDR with its 4-byte encapsulation header).
+    pub data: Vec<u8>,
+}
+
+/// Which messages to return.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// Only these topics (all when empty).
+    pub topics: Vec<String>,
+    /// Only messages with `log_time >= start_ns`.
+    pub start_ns: Option<i64>,
+    /// Only messages with `log_time < end_ns`.
+    pub end_ns: Option<i64>,
+}
+
+impl ReadOptions {
+    fn wants(&self, topic: &str, t: i64) -> bool {
+        (self.topics.is_empty() || self.topics.iter().any(|x| x == topic))
+            && self.start_ns.is_none_or(|s| t >= s)
+            && self.end_ns.is_none_or(|e| t < e)
+    }
+}
+
+/// A bag opened for reading: an iterator over its messages.
+#[derive(Debug)]
+pub struct BagReader {
+    path: PathBuf,
+    files: VecDeque<PathBuf>,
+    current: Option<Storage>,
+    opts: ReadOptions,
+    declared: Vec<TopicInfo>,
+    truncated: Vec<PathBuf>,
+    failed: bool,
+}
+
+#[derive(Debug)]
+enum Storage {
+    Mcap(Box<McapFile>),
+    Sqlite(SqliteFile),
+}
+
+impl BagReader {
+    /// Open a bag directory, a bare `.mcap` or a bare `.db3`.
+    pub fn open(path: &Path, opts: ReadOptions) -> Result<Self, BagError> {
+        let io = |e| BagError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        };
+        let meta = std::fs::metadata(path).map_err(io)?;
+        let mut declared = Vec::new();
+        let files: Vec<PathBuf> = if meta.is_file() {
+            if storage_kind(path).is_none() {
+                return Err(BagError::NotABag(path.to_path_buf()));
+            }
+            vec![path.to_path_buf()]
+        } else {
+            let mpath = path.join("metadata.yaml");
+            if mpath.is_file() {
+                let text = read_bounded(&mpath, metadata::MAX_METADATA_BYTES)?;
+                let info = metadata::parse(&text).map_err(|msg| BagError::Metadata {
+                    path: mpath.clone(),
+                    msg,
+                })?;
+                if !info.compression_mode.is_empty() || !info.compression_format.is_empty() {
+                    return Err(BagError::Unsupported {
+                        path: path.to_path_buf(),
+                        msg: format!(
+                            "rosbag2 {} compression '{}' (decompress with `ros2 bag convert`; \
+                             MCAP chunk compression is supported)",
+                            info.compression_mode, info.compression_format
+                        ),
+                    });
+                }
+                declared = info
+                    .topics_with_message_count
+                    .iter()
+                    .map(|t| TopicInfo {
+                        name: t.topic_metadata.name.clone(),
+                        type_name: t.topic_metadata.type_name.clone(),
+                        encoding: t.topic_metadata.serialization_format.clone(),
+                    })
+                    .collect();
+                let listed: Vec<PathBuf> = info
+                    .relative_file_paths
+                    .iter()
+                    .map(|p| path.join(p))
+                    .collect();
+                // A recording that died before writing its final metadata lists no files.
+                if listed.is_empty() {
+                    storage_files_in(path)?
+                } else {
+                    listed
+                }
+            } else {
+                storage_files_in(path)?
+            }
+        };
+        if files.is_empty() {
+            return Err(BagError::NotABag(path.to_path_buf()));
+        }
+        for f in &files {
+            if storage_kind(f).is_none() {
+                return Err(BagError::Unsupported {
+                    path: f.clone(),
+                    msg: "storage file is neither .mcap nor .db3".into(),
+                });
+            }
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            files: files.into(),
+            current: None,
+            opts,
+            declared,
+            truncated: Vec::new(),
+            failed: false,
+        })
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+    /// Topics listed in metadata.yaml (empty for a bare file).
+    pub fn declared_topics(&self) -> &[TopicInfo] {
+        &self.declared
+    }
+    /// Storage files that ended before their end (no footer, cut record): read up to there.
+    pub fn truncated(&self) -> &[PathBuf] {
+        &self.truncated
+    }
+
+    fn next_message(&mut self) -> Result<Option<RawMessage>, BagError> {
+        loop {
+            if self.current.is_none() {
+                let Some(f) = self.files.pop_front() else {
+                    return Ok(None);
+                };
+                self.current = Some(match storage_kind(&f) {
+                    Some(Kind::Sqlite) => Storage::Sqlite(SqliteFile::open(&f)?),
+                    _ => Storage::Mcap(Box::new(McapFile::open(&f)?)),
+                });
+            }
+            let next = match &mut self.current {
+                Some(Storage::Mcap(m)) => {
+                    let r = m.next(&self.opts);
+                    if m.truncated && !self.truncated.contains(&m.path) {
+                        tracing::warn!(
+                            "{}: file ends before its end record; read up to the last complete record",
+                            m.path.display()
+                        );
+                        self.truncated.push(m.path.clone());
+                    }
+                    r
+                }
+                Some(Storage::Sqlite(s)) => s.next(&self.opts),
+                None => Ok(None),
+            }?;
+            match next {
+                Some(m) => return Ok(Some(m)),
+                None => self.current = None,
+            }
+        }
+    }
+}
+
+impl Iterator for BagReader {
+    type Item = Result<RawMessage, BagError>;
+    /// After an error that leaves the file unreadable (corrupt MCAP record, sqlite failure) the
+    /// iterator ends; a message over the size limit is one error and reading goes on.
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.failed {
+            return None;
+        }
+        match self.next_message() {
+            Ok(m) => m.map(Ok),
+            Err(e) => {
+                if !matches!(e, BagError::TooLarge { .. }) {
+                    self.failed = true;
+                }
+                Some(Err(e))
+            }
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Mcap,
+    Sqlite,
+}
+
+fn storage_kind(p: &Path) -> Option<Kind> {
+    match p.extension()?.to_str()? {
+        "mcap" => Some(Kind::Mcap),
+        "db3" => Some(Kind::Sqlite),
+        _ => None,
+    }
+}
+
+fn storage_files_in(dir: &Path) -> Result<Vec<PathBuf>, BagError> {
+    let io = |e| BagError::Io {
+        path: dir.to_path_buf(),
+        source: e,
+    };
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(io)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && storage_kind(p).is_some())
+        .collect();
+    // rosbag2 names split files <bag>_0, <bag>_1, ...: order by that index, then by name.
+    files.sort_by_key(|p| {
+        let stem = p
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or_default()
+            .to_string();
+        let idx = stem
+            .rsplit_once('_')
+            .and_then(|(_, n)| n.parse::<u64>().ok())
+            .unwrap_or(0);
+        (idx, stem)
+    });
+    Ok(files)
+}
+
+fn read_bounded(p: &Path, max: usize) -> Result<String, BagError> {
+    let io = |e| BagError::Io {
+        path: p.to_path_buf(),
+        source: e,
+    };
+    let f = std::fs::File::open(p).map_err(io)?;
+    let mut s = String::new();
+    f.take(max as u64 + 1).read_to_string(&mut s).map_err(io)?;
+    Ok(s)
+}
+
+// ---------------------------------------------------------------------------------------------
+// MCAP
+
+struct McapFile {
+    path: PathBuf,
+    file: Box<dyn Read + Send>,
+    reader: LinearReader,
+    schemas: BTreeMap<u16, String>,
+    channels: BTreeMap<u16, Arc<TopicInfo>>,
+    eof: bool,
+    done: bool,
+    truncated: bool,
+}
+
+impl std::fmt::Debug for McapFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("McapFile")
+            .field("path", &self.path)
+            .field("channels", &self.channels)
+            .finish_non_exhaustive()
+    }
+}
+
+impl McapFile {
+    fn open(path: &Path) -> Result<Self, BagError> {
+        let file = std::fs::File::open(path).map_err(|e| BagError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
+        Ok(Self::from_reader(path, Box::new(file)))
+    }
+
+    fn from_reader(path: &Path, file: Box<dyn Read + Send>) -> Self {
+        let opts = LinearReaderOptions::default()
+            .with_record_length_limit(MAX_RECORD_BYTES)
+            .with_validate_chunk_crcs(true);
+        Self {
+            path: path.to_path_buf(),
+            file,
+            reader: LinearReader::new_with_options(opts),
+            schemas: BTreeMap::new(),
+            channels: BTreeMap::new(),
+            eof: false,
+            done: false,
+            truncated: false,
+        }
+    }
+
+    fn err(&mut self, msg: String) -> BagError {
+        self.done = true;
+        BagError::Mcap {
+            path: self.path.clone(),
+            msg,
+        }
+    }
+
+    fn next(&mut self, opts: &ReadOptions) -> Result<Option<RawMessage>, BagError> {
+        while !self.done {
+            let event = match self.reader.next_event() {
+                None => {
+                    self.done = true;
+                    return Ok(None);
+                }
+                Some(Err(e)) => {
+                    if self.eof {
+                        // The file stops inside a record or before its footer.
+                        self.done = true;
+                        self.truncated = true;
+                        return Ok(None);
+                    }
+                    return Err(self.err(e.to_string()));
+                }
+                Some(Ok(ev)) => ev,
+            };
+            match event {
+                LinearReadEvent::ReadRequest(n) => {
+                    let buf = self.reader.insert(n.clamp(1, READ_BLOCK));
+                    let got = loop {
+                        match self.file.read(buf) {
+                            Ok(k) => break k,
+                            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                            Err(e) => {
+                                let path = self.path.clone();
+                                self.done = true;
+                                return Err(BagError::Io { path, source: e });
+                            }
+                        }
+                    };
+                    if got == 0 {
+                        self.eof = true;
+                    }
+                    self.reader.notify_read(got);
+                }
+                LinearReadEvent::Record { opcode, data } => {
+                    let rec = match mcap::parse_record(opcode, data) {
+                        Ok(r) => r,
+                        Err(e) => return Err(self.err(format!("record 0x{opcode:02x}: {e}"))),
+                    };
+                    match rec {
+                        mcap::records::Record::Schema { header, .. } => {
+                            self.schemas.insert(header.id, header.name);
+                        }
+                        mcap::records::Record::Channel(c) => {
+                            let type_name = if c.schema_id == 0 {
+                                String::new()
+                            } else {
+                                match self.schemas.get(&c.schema_id) {
+                                    Some(s) => s.clone(),
+                                    None => {
+                                        return Err(self.err(format!(
+                                            "channel {} ({}) uses schema {} that was not defined before it",
+                                            c.id, c.topic, c.schema_id
+                                        )));
+                                    }
+                                }
+                            };
+                            self.channels.insert(
+                                c.id,
+                                Arc::new(TopicInfo {
+                                    name: c.topic,
+                                    type_name,
+                                    encoding: c.message_encoding,
+                                }),
+                            );
+                        }
+                        mcap::records::Record::Message { header, data } => {
+                            let Some(topic) = self.channels.get(&header.channel_id) else {
+                                return Err(self.err(format!(
+                                    "message on channel {} that was not defined before it",
+                                    header.channel_id
+                                )));
+                            };
+                            let t = i64::try_from(header.log_time).unwrap_or(i64::MAX);
+                            if opts.wants(&topic.name, t) {
+                                return Ok(Some(RawMessage {
+                                    topic: Arc::clone(topic),
+                                    log_time: t,
+                                    data: data.into_owned(),
+                                }));
+                            }
+                        }
+                        // The summary repeats what the data section said.
+                        mcap::records::Record::DataEnd(_) | mcap::records::Record::Footer(_) => {
+                            self.done = true;
+                        }
+                        _ => {}
+                    }
+                }
+            }
+        }
+        Ok(None)
+    }
+}
+
+/// Every message of an MCAP stream in memory (fuzzing and tests): stops at the first error.
+pub fn read_mcap_bytes(data: &[u8]) -> Result<(Vec<RawMessage>, bool), BagError> {
+    let mut f = McapFile::from_reader(
+        Path::new("<memory>"),
+        Box::new(std::io::Cursor::new(data.to_vec())),
+    );
+    let mut out = Vec::new();
+    while let Some(m) = f.next(&ReadOptions::default())? {
+        out.push(m);
+    }
+    Ok((out, f.truncated))
+}
+
+// ---------------------------------------------------------------------------------------------
+// sqlite3
+
+struct SqliteFile {
+    path: PathBuf,
+    conn: rusqlite::Connection,
+    topics: BTreeMap<i64, Arc<TopicInfo>>,
+    page: VecDeque<RawMessage>,
+    /// (timestamp, id) of the last row fetched.
+    cursor: Option<(i64, i64)>,
+    done: bool,
+}
+
+impl std::fmt::Debug for SqliteFile {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SqliteFile")
+            .field("path", &self.path)
+            .field("topics", &self.topics)
+            .finish_non_exhaustive()
+    }
+}
+
+impl SqliteFile {
+    fn open(path: &Path) -> Result<Self, BagError> {
+        let err = |e: rusqlite::Error| BagError::Sqlite {
+            path: path.to_path_buf(),
+            msg: e.to_string(),
+        };
+        let conn = rusqlite::Connection::open_with_flags(
+            path,
+            rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY | rusqlite::OpenFlags::SQLITE_OPEN_NO_MUTEX,
+        )
+        .map_err(err)?;
+        let mut topics = BTreeMap::new();
+        {
+            let mut st = conn
+                .prepare("SELECT id, name, type, serialization_format FROM topics ORDER BY id")
+                .map_err(err)?;
+            let rows = st
+                .query_map([], |r| {
+                    Ok((
+                        r.get::<_, i64>(0)?,
+                        TopicInfo {
+                            name: r.get(1)?,
+                            type_name: r.get(2)?,
+                            encoding: r.get(3)?,
+                        },
+                    ))
+                })
+                .map_err(err)?;
+            for row in rows {
+                let (id, t) = row.map_err(err)?;
+                if topics.len() >= metadata::MAX_TOPICS {
+                    return Err(BagError::Sqlite {
+                        path: path.to_path_buf(),
+                        msg: format!("more than {} topics", metadata::MAX_TOPICS),
+                    });
+                }
+                topics.insert(id, Arc::new(t));
+            }
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            conn,
+            topics,
+            page: VecDeque::new(),
+            cursor: None,
+            done: false,
+        })
+    }
+
+    fn fill(&mut self, opts: &ReadOptions) -> Result<(), BagError> {
+        let path = self.path.clone();
+        let err = |e: rusqlite::Error| BagError::Sqlite {
+            path: path.clone(),
+            msg: e.to_string(),
+        };
+        let (t0, id0) = self.cursor.unwrap_or((i64::MIN, i64::MIN));
+        let mut st = self
+            .conn
+            .prepare_cached(
+                "SELECT id, topic_id, timestamp, data FROM messages \
+                 WHERE timestamp > ?1 OR (timestamp = ?1 AND id > ?2) \
+                 ORDER BY timestamp, id LIMIT ?3",
+            )
+            .map_err(err)?;
+        let mut rows = st
+            .query(rusqlite::params![t0, id0, SQLITE_PAGE])
+            .map_err(err)?;
+        let mut n = 0;
+        let mut too_large = None;
+        while let Some(r) = rows.next().map_err(err)? {
+            n += 1;
+            let id: i64 = r.get(0).map_err(err)?;
+            let topic_id: i64 = r.get(1).map_err(err)?;
+            let t: i64 = r.get(2).map_err(err)?;
+            self.cursor = Some((t, id));
+            let Some(topic) = self.topics.get(&topic_id) else {
+                return Err(BagError::Sqlite {
+                    path: path.clone(),
+                    msg: format!("message {id} names topic id {topic_id}, which is not in topics"),
+                });
+            };
+            if !opts.wants(&topic.name, t) {
+                continue;
+            }
+            let blob = r.get_ref(3).map_err(err)?;
+            let data = blob.as_blob().map_err(|e| BagError::Sqlite {
+                path: path.clone(),
+                msg: format!("message {id}: {e}"),
+            })?;
+            if data.len() > MAX_RECORD_BYTES {
+                too_large = Some(BagError::TooLarge {
+                    path: path.clone(),
+                    topic: topic.name.clone(),
+                    len: data.len(),
+                    max: MAX_RECORD_BYTES,
+                });
+                break;
+            }
+            self.page.push_back(RawMessage {
+                topic: Arc::clone(topic),
+                log_time: t,
+                data: data.to_vec(),
+            });
+        }
+        if n == 0 {
+            self.done = true;
+        }
+        match too_large {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    fn next(&mut self, opts: &ReadOptions) -> Result<Option<RawMessage>, BagError> {
+        while self.page.is_empty() && !self.done {
+            self.fill(opts)?;
+        }
+        Ok(self.page.pop_front())
+    }
+}
