@@ -172,8 +172,9 @@ impl BagSource {
             }
             self.pass_last = raw.log_time;
             self.pass_images += 1;
-            self.seq += 1;
+            // Sequence numbers count the topic's image messages from 0 (gaps: undecodable ones).
             let frame = self.decode(ty, &raw.data, raw.log_time);
+            self.seq += 1;
             return Ok(Some(ImageItem {
                 topic: raw.topic,
                 log_time: raw.log_time.saturating_add(self.offset),
