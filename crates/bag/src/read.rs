@@ -1,9 +1,11 @@
 //! Reading rosbag2 bags: a directory (metadata.yaml + .mcap or .db3 files), a bare .mcap or a
 //! bare .db3, as one stream of raw messages in file order.
 //!
-//! MCAP is read with the `mcap` crate's sans-io linear reader: records are streamed from the
-//! file, chunks (zstd, lz4 or none) are decompressed as they come, and no record may be longer
-//! than [`MAX_RECORD_BYTES`], so memory stays bounded whatever the file says. The summary section
+//! MCAP is read with the `mcap` crate's sans-io linear reader, which streams records from the
+//! file; each chunk record (at most [`MAX_RECORD_BYTES`]) is decompressed here (zstd, lz4 or
+//! none) after checking its claimed size against the same limit, and the records inside are
+//! walked with bounds checks, so memory stays bounded whatever the file says. (The reader's own
+//! in-chunk walk underflows on a record longer than its chunk: the fuzz smoke found it.) The summary section
 //! is never needed: a file a recorder could not finish (killed, disk full) is read up to its last
 //! complete record and flagged [`BagReader::truncated`]. sqlite3 (Humble's default) is read with
 //! rusqlite from the `topics` and `messages` tables, in pages ordered by (timestamp, id).
@@ -81,7 +83,7 @@ pub struct BagReader {
 #[derive(Debug)]
 enum Storage {
     Mcap(Box<McapFile>),
-    Sqlite(SqliteFile),
+    Sqlite(Box<SqliteFile>),
 }
 
 impl BagReader {
@@ -181,7 +183,7 @@ impl BagReader {
                     return Ok(None);
                 };
                 self.current = Some(match storage_kind(&f) {
-                    Some(Kind::Sqlite) => Storage::Sqlite(SqliteFile::open(&f)?),
+                    Some(Kind::Sqlite) => Storage::Sqlite(Box::new(SqliteFile::open(&f)?)),
                     _ => Storage::Mcap(Box::new(McapFile::open(&f)?)),
                 });
             }
@@ -286,20 +288,169 @@ struct McapFile {
     path: PathBuf,
     file: Box<dyn Read + Send>,
     reader: LinearReader,
-    schemas: BTreeMap<u16, String>,
-    channels: BTreeMap<u16, Arc<TopicInfo>>,
+    state: McapState,
     eof: bool,
     done: bool,
     truncated: bool,
+}
+
+/// What the records so far defined, and the chunk being read.
+struct McapState {
+    schemas: BTreeMap<u16, String>,
+    channels: BTreeMap<u16, Arc<TopicInfo>>,
+    /// Decompressed records of the current chunk, and where the next one starts.
+    chunk: Vec<u8>,
+    chunk_pos: usize,
+    end: bool,
 }
 
 impl std::fmt::Debug for McapFile {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("McapFile")
             .field("path", &self.path)
-            .field("channels", &self.channels)
+            .field("channels", &self.state.channels)
             .finish_non_exhaustive()
     }
+}
+
+/// Opcodes this reader acts on (MCAP spec).
+const OP_CHUNK: u8 = 0x06;
+
+impl McapState {
+    /// Handle one record from the file or from a chunk. Errors are one line, for the user.
+    fn handle(
+        &mut self,
+        opcode: u8,
+        data: &[u8],
+        opts: &ReadOptions,
+        in_chunk: bool,
+    ) -> Result<Option<RawMessage>, String> {
+        use mcap::records::Record;
+        if opcode == OP_CHUNK && in_chunk {
+            return Err("chunk inside a chunk".into());
+        }
+        let rec =
+            mcap::parse_record(opcode, data).map_err(|e| format!("record 0x{opcode:02x}: {e}"))?;
+        match rec {
+            Record::Schema { header, .. } => {
+                self.schemas.insert(header.id, header.name);
+            }
+            Record::Channel(c) => {
+                let type_name = if c.schema_id == 0 {
+                    String::new()
+                } else {
+                    self.schemas.get(&c.schema_id).cloned().ok_or_else(|| {
+                        format!(
+                            "channel {} ({}) uses schema {} that was not defined before it",
+                            c.id, c.topic, c.schema_id
+                        )
+                    })?
+                };
+                self.channels.insert(
+                    c.id,
+                    Arc::new(TopicInfo {
+                        name: c.topic,
+                        type_name,
+                        encoding: c.message_encoding,
+                    }),
+                );
+            }
+            Record::Message { header, data } => {
+                let topic = self.channels.get(&header.channel_id).ok_or_else(|| {
+                    format!(
+                        "message on channel {} that was not defined before it",
+                        header.channel_id
+                    )
+                })?;
+                let t = i64::try_from(header.log_time).unwrap_or(i64::MAX);
+                if opts.wants(&topic.name, t) {
+                    return Ok(Some(RawMessage {
+                        topic: Arc::clone(topic),
+                        log_time: t,
+                        data: data.into_owned(),
+                    }));
+                }
+            }
+            Record::Chunk { header, data } => {
+                self.chunk = decompress_chunk(&header, &data)?;
+                self.chunk_pos = 0;
+            }
+            // The summary repeats what the data section said.
+            Record::DataEnd(_) | Record::Footer(_) => self.end = true,
+            _ => {}
+        }
+        Ok(None)
+    }
+
+    /// The next record inside the current chunk: (opcode, body range).
+    fn next_in_chunk(&mut self) -> Result<Option<(u8, std::ops::Range<usize>)>, String> {
+        let rest = self.chunk.len().saturating_sub(self.chunk_pos);
+        if rest == 0 {
+            return Ok(None);
+        }
+        let p = self.chunk_pos;
+        let head = self
+            .chunk
+            .get(p..p + 9)
+            .ok_or_else(|| format!("chunk ends inside a record header ({rest} bytes left)"))?;
+        let opcode = head[0];
+        let mut len = [0u8; 8];
+        len.copy_from_slice(&head[1..9]);
+        let len = u64::from_le_bytes(len);
+        let body = p + 9;
+        let end = usize::try_from(len)
+            .ok()
+            .and_then(|l| body.checked_add(l))
+            .filter(|&e| e <= self.chunk.len())
+            .ok_or_else(|| {
+                format!(
+                    "record 0x{opcode:02x} of {len} bytes overruns its chunk ({rest} bytes left)"
+                )
+            })?;
+        self.chunk_pos = end;
+        Ok(Some((opcode, body..end)))
+    }
+}
+
+/// Decompress a chunk's records, refusing sizes over the limit before allocating.
+fn decompress_chunk(h: &mcap::records::ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
+    let size = usize::try_from(h.uncompressed_size)
+        .ok()
+        .filter(|&n| n <= MAX_RECORD_BYTES)
+        .ok_or_else(|| {
+            format!(
+                "chunk claims {} uncompressed bytes, over the limit {MAX_RECORD_BYTES}",
+                h.uncompressed_size
+            )
+        })?;
+    let out = match h.compression.as_str() {
+        "" => data.to_vec(),
+        "zstd" => zstd::bulk::decompress(data, size).map_err(|e| format!("zstd chunk: {e}"))?,
+        "lz4" => {
+            let mut out = Vec::new();
+            lz4::Decoder::new(data)
+                .and_then(|d| d.take(size as u64 + 1).read_to_end(&mut out))
+                .map_err(|e| format!("lz4 chunk: {e}"))?;
+            out
+        }
+        other => return Err(format!("chunk compression '{other}' is not supported")),
+    };
+    if out.len() != size {
+        return Err(format!(
+            "chunk holds {} bytes after decompression, its header says {size}",
+            out.len()
+        ));
+    }
+    if h.uncompressed_crc != 0 {
+        let crc = crc32fast::hash(&out);
+        if crc != h.uncompressed_crc {
+            return Err(format!(
+                "chunk CRC {crc:08x} does not match its header ({:08x})",
+                h.uncompressed_crc
+            ));
+        }
+    }
+    Ok(out)
 }
 
 impl McapFile {
@@ -312,15 +463,21 @@ impl McapFile {
     }
 
     fn from_reader(path: &Path, file: Box<dyn Read + Send>) -> Self {
+        // Whole chunk records come to us (bounded by the record limit); we decompress them.
         let opts = LinearReaderOptions::default()
             .with_record_length_limit(MAX_RECORD_BYTES)
-            .with_validate_chunk_crcs(true);
+            .with_emit_chunks(true);
         Self {
             path: path.to_path_buf(),
             file,
             reader: LinearReader::new_with_options(opts),
-            schemas: BTreeMap::new(),
-            channels: BTreeMap::new(),
+            state: McapState {
+                schemas: BTreeMap::new(),
+                channels: BTreeMap::new(),
+                chunk: Vec::new(),
+                chunk_pos: 0,
+                end: false,
+            },
             eof: false,
             done: false,
             truncated: false,
@@ -337,6 +494,25 @@ impl McapFile {
 
     fn next(&mut self, opts: &ReadOptions) -> Result<Option<RawMessage>, BagError> {
         while !self.done {
+            // Records of the current chunk first.
+            match self.state.next_in_chunk() {
+                Ok(Some((opcode, range))) => {
+                    let chunk = std::mem::take(&mut self.state.chunk);
+                    let r = self.state.handle(opcode, &chunk[range], opts, true);
+                    self.state.chunk = chunk;
+                    match r {
+                        Ok(Some(m)) => return Ok(Some(m)),
+                        Ok(None) => continue,
+                        Err(e) => return Err(self.err(e)),
+                    }
+                }
+                Ok(None) => {}
+                Err(e) => return Err(self.err(e)),
+            }
+            if self.state.end {
+                self.done = true;
+                break;
+            }
             let event = match self.reader.next_event() {
                 None => {
                     self.done = true;
@@ -373,58 +549,10 @@ impl McapFile {
                     self.reader.notify_read(got);
                 }
                 LinearReadEvent::Record { opcode, data } => {
-                    let rec = match mcap::parse_record(opcode, data) {
-                        Ok(r) => r,
-                        Err(e) => return Err(self.err(format!("record 0x{opcode:02x}: {e}"))),
-                    };
-                    match rec {
-                        mcap::records::Record::Schema { header, .. } => {
-                            self.schemas.insert(header.id, header.name);
-                        }
-                        mcap::records::Record::Channel(c) => {
-                            let type_name = if c.schema_id == 0 {
-                                String::new()
-                            } else {
-                                match self.schemas.get(&c.schema_id) {
-                                    Some(s) => s.clone(),
-                                    None => {
-                                        return Err(self.err(format!(
-                                            "channel {} ({}) uses schema {} that was not defined before it",
-                                            c.id, c.topic, c.schema_id
-                                        )));
-                                    }
-                                }
-                            };
-                            self.channels.insert(
-                                c.id,
-                                Arc::new(TopicInfo {
-                                    name: c.topic,
-                                    type_name,
-                                    encoding: c.message_encoding,
-                                }),
-                            );
-                        }
-                        mcap::records::Record::Message { header, data } => {
-                            let Some(topic) = self.channels.get(&header.channel_id) else {
-                                return Err(self.err(format!(
-                                    "message on channel {} that was not defined before it",
-                                    header.channel_id
-                                )));
-                            };
-                            let t = i64::try_from(header.log_time).unwrap_or(i64::MAX);
-                            if opts.wants(&topic.name, t) {
-                                return Ok(Some(RawMessage {
-                                    topic: Arc::clone(topic),
-                                    log_time: t,
-                                    data: data.into_owned(),
-                                }));
-                            }
-                        }
-                        // The summary repeats what the data section said.
-                        mcap::records::Record::DataEnd(_) | mcap::records::Record::Footer(_) => {
-                            self.done = true;
-                        }
-                        _ => {}
+                    match self.state.handle(opcode, data, opts, false) {
+                        Ok(Some(m)) => return Ok(Some(m)),
+                        Ok(None) => {}
+                        Err(e) => return Err(self.err(e)),
                     }
                 }
             }

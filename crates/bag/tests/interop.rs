@@ -140,6 +140,7 @@ fn python_written_bags_replay_frame_for_frame() {
         }
     }
     assert!(total > 50 && same * 100 >= total * 95, "{same}/{total}");
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 fn header(ns: i64) -> Header {
@@ -516,4 +517,5 @@ fn bags_written_here_are_read_by_rosbags_field_for_field() {
             x.image
         );
     }
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -127,6 +127,7 @@ fn replaying_twice_gives_byte_identical_output_bags() {
         .map(|m| ContactState::from_cdr(&m.data).unwrap())
         .collect();
     assert_eq!(from_lines, from_bag);
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
@@ -169,6 +170,7 @@ fn start_and_loop_and_source() {
     }
     assert_eq!(got[30].data(), frames[0].data());
     assert_eq!(got[74].seq, 74);
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 /// The writer in a child process: writes frames, flushing each chunk, reports how many frames are
@@ -250,4 +252,5 @@ fn killed_recorder_leaves_a_readable_bag() {
     let (lines, report) = replay_contact(&out, ReplayOptions::default(), None);
     assert_eq!(lines.len(), durable);
     assert_eq!(report.truncated_files.len(), 1);
+    std::fs::remove_dir_all(&dir).ok();
 }

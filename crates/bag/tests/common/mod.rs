@@ -64,12 +64,15 @@ pub fn contact_stage() -> Vec<Box<dyn Stage>> {
     )]
 }
 
+/// (stamp, events, error) of one image message.
+pub type Line = (i64, Vec<Msg>, Option<String>);
+
 /// Replay a bag through the contact stage: per-image results and the report.
 pub fn replay_contact(
     bag: &Path,
     opts: ReplayOptions,
     out: Option<&Path>,
-) -> (Vec<(i64, Vec<Msg>, Option<String>)>, ReplayReport) {
+) -> (Vec<Line>, ReplayReport) {
     let mut src = BagSource::open(bag, opts).unwrap();
     let mut stages = contact_stage();
     let mut out = out.map(|p| {
