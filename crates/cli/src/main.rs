@@ -6,6 +6,7 @@
 mod bench;
 mod eval;
 mod images;
+mod replay;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
@@ -70,6 +71,36 @@ enum Cmd {
         frames: Vec<PathBuf>,
         #[arg(long)]
         json: bool,
+    },
+    /// Replay a rosbag2 bag (directory with metadata.yaml + .mcap/.db3, or a bare .mcap) through
+    /// the contact stage. With --json: one line per image message {stamp, contact (null while the
+    /// background is learned), area_px, centroid, episode_id}.
+    Replay {
+        bag: PathBuf,
+        /// Image topic (sensor_msgs/Image or CompressedImage); default: the first one in the bag.
+        #[arg(long)]
+        topic: Option<String>,
+        /// Replay speed against the bag's stamps (1 = real time, the default).
+        #[arg(long, conflicts_with = "fast")]
+        rate: Option<f64>,
+        /// As fast as possible.
+        #[arg(long)]
+        fast: bool,
+        /// Start over at the end (stamps keep increasing).
+        #[arg(long = "loop")]
+        looped: bool,
+        /// Skip the first SECONDS of the image topic.
+        #[arg(long, default_value_t = 0.0, value_name = "SECONDS")]
+        start: f64,
+        /// Write the replayed images and everything the pipeline produced to this MCAP bag
+        /// (a directory, or a bare file if it ends in .mcap).
+        #[arg(long, value_name = "OUT_BAG")]
+        out: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+        /// Sensor kind of the bag's images: gelsight-mini | digit | generic.
+        #[arg(long, default_value = "gelsight-mini")]
+        sensor: unitac_core::SensorKind,
     },
     /// Measure quality against ground truth (mock sensor): `eval contact`.
     Eval {
@@ -297,6 +328,27 @@ fn main() -> ExitCode {
                 other => other,
             }
         }
+        Cmd::Replay {
+            bag,
+            topic,
+            rate,
+            fast,
+            looped,
+            start,
+            out,
+            json,
+            sensor,
+        } => replay::cmd_replay(replay::Args {
+            bag,
+            topic,
+            rate,
+            fast,
+            looped,
+            start,
+            out,
+            json,
+            sensor,
+        }),
         Cmd::Eval {
             what: EvalTarget::Contact,
             json,
