@@ -21,12 +21,12 @@ fn cdr_as(type_name: &str, data: &[u8]) {
     match type_name {
         "sensor_msgs/msg/Image" => {
             if let Ok(img) = Image::from_cdr(data) {
-                let _ = crate::image::image_to_frame(&img, "fuzz", 0);
+                let _ = crate::image::image_to_frame(&img.view(), "fuzz", 0);
             }
         }
         "sensor_msgs/msg/CompressedImage" => {
             if let Ok(img) = CompressedImage::from_cdr(data) {
-                let _ = crate::image::compressed_to_frame(&img, "fuzz", 0);
+                let _ = crate::image::compressed_to_frame(&img.view(), "fuzz", 0);
             }
         }
         _ => {}

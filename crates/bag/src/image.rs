@@ -7,7 +7,7 @@
 //! `step x height` bytes. Compressed: JPEG and PNG (format string or, if it names neither, the
 //! magic bytes), decoded with size and allocation limits.
 
-use crate::ros::{CompressedImage, Image};
+use crate::ros::{CompressedImageView, ImageView};
 use unitac_core::frame::MAX_SIDE;
 use unitac_core::{Frame, FrameError, Stamp};
 
@@ -96,7 +96,7 @@ fn yuv_to_rgb(y: u8, u: u8, v: u8) -> [u8; 3] {
 }
 
 /// Decode a raw image to an RGB8 frame carrying the image's header stamp.
-pub fn image_to_frame(img: &Image, sensor_id: &str, seq: u64) -> Result<Frame, ImageError> {
+pub fn image_to_frame(img: &ImageView<'_>, sensor_id: &str, seq: u64) -> Result<Frame, ImageError> {
     let enc =
         Enc::parse(&img.encoding).ok_or_else(|| ImageError::Encoding(img.encoding.clone()))?;
     let out_len = Frame::byte_len(img.width, img.height)?;
@@ -127,7 +127,7 @@ pub fn image_to_frame(img: &Image, sensor_id: &str, seq: u64) -> Result<Frame, I
     }
     let mut out = Vec::with_capacity(out_len);
     if enc == Enc::Rgb8 && step == row {
-        out.extend_from_slice(&img.data);
+        out.extend_from_slice(img.data);
     } else {
         for src in img.data.chunks_exact(step) {
             let src = &src[..row];
@@ -180,7 +180,7 @@ pub fn image_to_frame(img: &Image, sensor_id: &str, seq: u64) -> Result<Frame, I
 
 /// Decode a JPEG or PNG compressed image to an RGB8 frame carrying the header stamp.
 pub fn compressed_to_frame(
-    img: &CompressedImage,
+    img: &CompressedImageView<'_>,
     sensor_id: &str,
     seq: u64,
 ) -> Result<Frame, ImageError> {
@@ -196,7 +196,7 @@ pub fn compressed_to_frame(
     } else {
         return Err(ImageError::Format(img.format.clone()));
     };
-    decode_bytes(&img.data, format, sensor_id, seq, img.header.stamp)
+    decode_bytes(img.data, format, sensor_id, seq, img.header.stamp)
 }
 
 fn decode_bytes(
@@ -224,6 +224,7 @@ fn decode_bytes(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ros::{CompressedImage, Image};
     use unitac_core::msg::Header;
 
     fn raw(w: u32, h: u32, enc: &str, step: u32, data: Vec<u8>) -> Image {
@@ -240,12 +241,14 @@ mod tests {
 
     #[test]
     fn encodings_to_rgb() {
-        let rgb = image_to_frame(&raw(2, 1, "rgb8", 6, vec![1, 2, 3, 4, 5, 6]), "s", 0).unwrap();
+        let rgb =
+            image_to_frame(&raw(2, 1, "rgb8", 6, vec![1, 2, 3, 4, 5, 6]).view(), "s", 0).unwrap();
         assert_eq!(rgb.data(), &[1, 2, 3, 4, 5, 6]);
         assert_eq!(rgb.stamp, Stamp(42));
-        let bgr = image_to_frame(&raw(2, 1, "bgr8", 6, vec![1, 2, 3, 4, 5, 6]), "s", 0).unwrap();
+        let bgr =
+            image_to_frame(&raw(2, 1, "bgr8", 6, vec![1, 2, 3, 4, 5, 6]).view(), "s", 0).unwrap();
         assert_eq!(bgr.data(), &[3, 2, 1, 6, 5, 4]);
-        let mono = image_to_frame(&raw(2, 1, "mono8", 2, vec![7, 9]), "s", 0).unwrap();
+        let mono = image_to_frame(&raw(2, 1, "mono8", 2, vec![7, 9]).view(), "s", 0).unwrap();
         assert_eq!(mono.data(), &[7, 7, 7, 9, 9, 9]);
         // Padded rows: step 8 for a 2-px rgb8 row of 6 bytes.
         let pad = image_to_frame(
@@ -255,7 +258,8 @@ mod tests {
                 "rgb8",
                 8,
                 vec![1, 2, 3, 4, 5, 6, 0, 0, 7, 8, 9, 10, 11, 12, 0, 0],
-            ),
+            )
+            .view(),
             "s",
             0,
         )
@@ -266,42 +270,53 @@ mod tests {
     #[test]
     fn yuyv_grey_and_colours() {
         // Y=126 U=V=128 is mid grey in limited range: (126-16)*298/256 = 128.
-        let f = image_to_frame(&raw(2, 1, "yuyv", 4, vec![126, 128, 126, 128]), "s", 0).unwrap();
+        let f = image_to_frame(
+            &raw(2, 1, "yuyv", 4, vec![126, 128, 126, 128]).view(),
+            "s",
+            0,
+        )
+        .unwrap();
         assert_eq!(f.data(), &[128, 128, 128, 128, 128, 128]);
         // Pure red in BT.601 limited range: Y=81 U=90 V=240.
-        let f = image_to_frame(&raw(2, 1, "yuyv", 4, vec![81, 90, 81, 240]), "s", 0).unwrap();
+        let f =
+            image_to_frame(&raw(2, 1, "yuyv", 4, vec![81, 90, 81, 240]).view(), "s", 0).unwrap();
         let p = f.pixel(0, 0).unwrap();
         assert!(p[0] >= 250 && p[1] <= 5 && p[2] <= 5, "{p:?}");
         // UYVY has the same pixels in another byte order.
-        let g = image_to_frame(&raw(2, 1, "yuv422", 4, vec![90, 81, 240, 81]), "s", 0).unwrap();
+        let g = image_to_frame(
+            &raw(2, 1, "yuv422", 4, vec![90, 81, 240, 81]).view(),
+            "s",
+            0,
+        )
+        .unwrap();
         assert_eq!(f.data(), g.data());
     }
 
     #[test]
     fn wrong_sizes_are_errors() {
         assert!(matches!(
-            image_to_frame(&raw(2, 1, "rgb8", 6, vec![0; 5]), "s", 0),
+            image_to_frame(&raw(2, 1, "rgb8", 6, vec![0; 5]).view(), "s", 0),
             Err(ImageError::Length { .. })
         ));
         assert!(matches!(
-            image_to_frame(&raw(2, 1, "rgb8", 5, vec![0; 5]), "s", 0),
+            image_to_frame(&raw(2, 1, "rgb8", 5, vec![0; 5]).view(), "s", 0),
             Err(ImageError::Step { .. })
         ));
         assert!(matches!(
-            image_to_frame(&raw(3, 1, "yuyv", 6, vec![0; 6]), "s", 0),
+            image_to_frame(&raw(3, 1, "yuyv", 6, vec![0; 6]).view(), "s", 0),
             Err(ImageError::OddWidth(3))
         ));
         assert!(matches!(
-            image_to_frame(&raw(9000, 1, "mono8", 9000, vec![0; 9000]), "s", 0),
+            image_to_frame(&raw(9000, 1, "mono8", 9000, vec![0; 9000]).view(), "s", 0),
             Err(ImageError::Frame(_))
         ));
         assert!(matches!(
-            image_to_frame(&raw(1, 1, "16UC1", 2, vec![0; 2]), "s", 0),
+            image_to_frame(&raw(1, 1, "16UC1", 2, vec![0; 2]).view(), "s", 0),
             Err(ImageError::Encoding(_))
         ));
         // A huge step times height cannot overflow or allocate.
         assert!(matches!(
-            image_to_frame(&raw(8, 8192, "rgb8", u32::MAX, vec![0; 10]), "s", 0),
+            image_to_frame(&raw(8, 8192, "rgb8", u32::MAX, vec![0; 10]).view(), "s", 0),
             Err(ImageError::Length { .. })
         ));
     }
@@ -317,7 +332,7 @@ mod tests {
             format: "png".into(),
             data: png,
         };
-        let f = compressed_to_frame(&c, "s", 3).unwrap();
+        let f = compressed_to_frame(&c.view(), "s", 3).unwrap();
         assert_eq!(f.data(), &[10, 20, 30, 40, 50, 60]);
         assert_eq!((f.stamp, f.seq), (Stamp(7), 3));
         let bad = CompressedImage {
@@ -326,7 +341,7 @@ mod tests {
             ..c.clone()
         };
         assert!(matches!(
-            compressed_to_frame(&bad, "s", 0),
+            compressed_to_frame(&bad.view(), "s", 0),
             Err(ImageError::Decode(_))
         ));
         let tiff = CompressedImage {
@@ -334,7 +349,7 @@ mod tests {
             ..c
         };
         assert!(matches!(
-            compressed_to_frame(&tiff, "s", 0),
+            compressed_to_frame(&tiff.view(), "s", 0),
             Err(ImageError::Format(_))
         ));
     }

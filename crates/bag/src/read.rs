@@ -176,20 +176,41 @@ impl BagReader {
         &self.truncated
     }
 
-    fn next_message(&mut self) -> Result<Option<RawMessage>, BagError> {
+    /// The next message, its payload borrowed for the call of `f` (no copy for MCAP chunks).
+    /// `Ok(None)` at the end.
+    pub fn next_with<R>(
+        &mut self,
+        f: &mut dyn FnMut(&Arc<TopicInfo>, i64, &[u8]) -> R,
+    ) -> Result<Option<R>, BagError> {
+        if self.failed {
+            return Ok(None);
+        }
+        let r = self.next_with_inner(f);
+        if let Err(e) = &r {
+            if !matches!(e, BagError::TooLarge { .. }) {
+                self.failed = true;
+            }
+        }
+        r
+    }
+
+    fn next_with_inner<R>(
+        &mut self,
+        f: &mut dyn FnMut(&Arc<TopicInfo>, i64, &[u8]) -> R,
+    ) -> Result<Option<R>, BagError> {
         loop {
             if self.current.is_none() {
-                let Some(f) = self.files.pop_front() else {
+                let Some(p) = self.files.pop_front() else {
                     return Ok(None);
                 };
-                self.current = Some(match storage_kind(&f) {
-                    Some(Kind::Sqlite) => Storage::Sqlite(Box::new(SqliteFile::open(&f)?)),
-                    _ => Storage::Mcap(Box::new(McapFile::open(&f)?)),
+                self.current = Some(match storage_kind(&p) {
+                    Some(Kind::Sqlite) => Storage::Sqlite(Box::new(SqliteFile::open(&p)?)),
+                    _ => Storage::Mcap(Box::new(McapFile::open(&p)?)),
                 });
             }
             let next = match &mut self.current {
                 Some(Storage::Mcap(m)) => {
-                    let r = m.next(&self.opts);
+                    let r = m.next_with(&self.opts, f);
                     if m.truncated && !self.truncated.contains(&m.path) {
                         tracing::warn!(
                             "{}: file ends before its end record; read up to the last complete record",
@@ -199,7 +220,9 @@ impl BagReader {
                     }
                     r
                 }
-                Some(Storage::Sqlite(s)) => s.next(&self.opts),
+                Some(Storage::Sqlite(s)) => s
+                    .next(&self.opts)
+                    .map(|o| o.map(|m| f(&m.topic, m.log_time, &m.data))),
                 None => Ok(None),
             }?;
             match next {
@@ -215,18 +238,12 @@ impl Iterator for BagReader {
     /// After an error that leaves the file unreadable (corrupt MCAP record, sqlite failure) the
     /// iterator ends; a message over the size limit is one error and reading goes on.
     fn next(&mut self) -> Option<Self::Item> {
-        if self.failed {
-            return None;
-        }
-        match self.next_message() {
-            Ok(m) => m.map(Ok),
-            Err(e) => {
-                if !matches!(e, BagError::TooLarge { .. }) {
-                    self.failed = true;
-                }
-                Some(Err(e))
-            }
-        }
+        self.next_with(&mut |topic, log_time, data| RawMessage {
+            topic: Arc::clone(topic),
+            log_time,
+            data: data.to_vec(),
+        })
+        .transpose()
     }
 }
 
@@ -315,6 +332,16 @@ impl std::fmt::Debug for McapFile {
 
 /// Opcodes this reader acts on (MCAP spec).
 const OP_CHUNK: u8 = 0x06;
+const OP_MESSAGE: u8 = 0x05;
+/// channel_id u16, sequence u32, log_time u64, publish_time u64.
+const MESSAGE_HEADER: usize = 22;
+
+/// A wanted message: its payload is the record body from `offset` on.
+struct Found {
+    topic: Arc<TopicInfo>,
+    log_time: i64,
+    offset: usize,
+}
 
 impl McapState {
     /// Handle one record from the file or from a chunk. Errors are one line, for the user.
@@ -324,10 +351,31 @@ impl McapState {
         data: &[u8],
         opts: &ReadOptions,
         in_chunk: bool,
-    ) -> Result<Option<RawMessage>, String> {
+    ) -> Result<Option<Found>, String> {
         use mcap::records::Record;
         if opcode == OP_CHUNK && in_chunk {
             return Err("chunk inside a chunk".into());
+        }
+        if opcode == OP_MESSAGE {
+            // Parsed here, not by parse_record: the payload stays where it is (no copy).
+            let head = data
+                .get(..MESSAGE_HEADER)
+                .ok_or_else(|| format!("message record of {} bytes", data.len()))?;
+            let channel = u16::from_le_bytes([head[0], head[1]]);
+            let mut t = [0u8; 8];
+            t.copy_from_slice(&head[6..14]);
+            let t = i64::try_from(u64::from_le_bytes(t)).unwrap_or(i64::MAX);
+            let topic = self.channels.get(&channel).ok_or_else(|| {
+                format!("message on channel {channel} that was not defined before it")
+            })?;
+            if opts.wants(&topic.name, t) {
+                return Ok(Some(Found {
+                    topic: Arc::clone(topic),
+                    log_time: t,
+                    offset: MESSAGE_HEADER,
+                }));
+            }
+            return Ok(None);
         }
         let rec =
             mcap::parse_record(opcode, data).map_err(|e| format!("record 0x{opcode:02x}: {e}"))?;
@@ -354,22 +402,6 @@ impl McapState {
                         encoding: c.message_encoding,
                     }),
                 );
-            }
-            Record::Message { header, data } => {
-                let topic = self.channels.get(&header.channel_id).ok_or_else(|| {
-                    format!(
-                        "message on channel {} that was not defined before it",
-                        header.channel_id
-                    )
-                })?;
-                let t = i64::try_from(header.log_time).unwrap_or(i64::MAX);
-                if opts.wants(&topic.name, t) {
-                    return Ok(Some(RawMessage {
-                        topic: Arc::clone(topic),
-                        log_time: t,
-                        data: data.into_owned(),
-                    }));
-                }
             }
             Record::Chunk { header, data } => {
                 self.chunk = decompress_chunk(&header, &data)?;
@@ -492,13 +524,21 @@ impl McapFile {
         }
     }
 
-    fn next(&mut self, opts: &ReadOptions) -> Result<Option<RawMessage>, BagError> {
+    fn next_with<R>(
+        &mut self,
+        opts: &ReadOptions,
+        f: &mut dyn FnMut(&Arc<TopicInfo>, i64, &[u8]) -> R,
+    ) -> Result<Option<R>, BagError> {
         while !self.done {
             // Records of the current chunk first.
             match self.state.next_in_chunk() {
                 Ok(Some((opcode, range))) => {
                     let chunk = std::mem::take(&mut self.state.chunk);
-                    let r = self.state.handle(opcode, &chunk[range], opts, true);
+                    let body = &chunk[range];
+                    let r = self
+                        .state
+                        .handle(opcode, body, opts, true)
+                        .map(|found| found.map(|m| f(&m.topic, m.log_time, &body[m.offset..])));
                     self.state.chunk = chunk;
                     match r {
                         Ok(Some(m)) => return Ok(Some(m)),
@@ -549,7 +589,11 @@ impl McapFile {
                     self.reader.notify_read(got);
                 }
                 LinearReadEvent::Record { opcode, data } => {
-                    match self.state.handle(opcode, data, opts, false) {
+                    let r = self
+                        .state
+                        .handle(opcode, data, opts, false)
+                        .map(|found| found.map(|m| f(&m.topic, m.log_time, &data[m.offset..])));
+                    match r {
                         Ok(Some(m)) => return Ok(Some(m)),
                         Ok(None) => {}
                         Err(e) => return Err(self.err(e)),
@@ -558,6 +602,14 @@ impl McapFile {
             }
         }
         Ok(None)
+    }
+
+    fn next(&mut self, opts: &ReadOptions) -> Result<Option<RawMessage>, BagError> {
+        self.next_with(opts, &mut |topic, log_time, data| RawMessage {
+            topic: Arc::clone(topic),
+            log_time,
+            data: data.to_vec(),
+        })
     }
 }
 

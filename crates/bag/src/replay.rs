@@ -15,7 +15,7 @@
 use crate::BagError;
 use crate::image::{compressed_to_frame, image_to_frame};
 use crate::read::{BagReader, ReadOptions, TopicInfo};
-use crate::ros::{CompressedImage, Image, RosMessage, is_known_type};
+use crate::ros::{CompressedImageView, ImageView, RosMessage, is_known_type};
 use crate::write::{BagWriter, TopicId};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -49,7 +49,7 @@ pub struct ImageItem {
     pub topic: Arc<TopicInfo>,
     /// Log time in the bag, shifted by the loop offset [ns].
     pub log_time: i64,
-    /// The CDR payload as recorded.
+    /// The CDR payload as recorded (empty unless [`BagSource::keep_raw`] was set).
     pub raw: Vec<u8>,
     pub frame: Result<Frame, String>,
 }
@@ -59,8 +59,16 @@ pub struct ImageItem {
 pub struct BagSource {
     path: PathBuf,
     name: String,
-    opts: ReplayOptions,
     reader: BagReader,
+    st: SourceState,
+}
+
+/// Everything but the reader, so the reader's borrowed-payload callback can update it.
+#[derive(Debug)]
+struct SourceState {
+    opts: ReplayOptions,
+    path: PathBuf,
+    keep_raw: bool,
     topic: Option<String>,
     warned: BTreeSet<String>,
     first_log: Option<i64>,
@@ -80,18 +88,22 @@ impl BagSource {
         Ok(Self {
             path: path.to_path_buf(),
             name: format!("bag:{}", path.display()),
-            topic: opts.topic.clone(),
-            opts,
             reader,
-            warned: BTreeSet::new(),
-            first_log: None,
-            seq: 0,
-            offset: 0,
-            pass_first: None,
-            pass_last: 0,
-            pass_images: 0,
-            last_gap: 1_000_000,
-            truncated: BTreeSet::new(),
+            st: SourceState {
+                topic: opts.topic.clone(),
+                opts,
+                path: path.to_path_buf(),
+                keep_raw: false,
+                warned: BTreeSet::new(),
+                first_log: None,
+                seq: 0,
+                offset: 0,
+                pass_first: None,
+                pass_last: 0,
+                pass_images: 0,
+                last_gap: 1_000_000,
+                truncated: BTreeSet::new(),
+            },
         })
     }
 
@@ -102,86 +114,106 @@ impl BagSource {
         }
     }
 
+    /// Keep each image message's CDR bytes in [`ImageItem::raw`] (for an output bag).
+    pub fn keep_raw(&mut self, keep: bool) {
+        self.st.keep_raw = keep;
+    }
     /// The image topic being replayed (known after the first image).
     pub fn topic(&self) -> Option<&str> {
-        self.topic.as_deref()
+        self.st.topic.as_deref()
     }
     /// Topics skipped because their type is unknown here.
     pub fn skipped_topics(&self) -> impl Iterator<Item = &String> {
-        self.warned.iter()
+        self.st.warned.iter()
     }
     /// Storage files that were cut short (read up to their last complete record).
     pub fn truncated_files(&self) -> impl Iterator<Item = &PathBuf> {
-        self.truncated.iter()
+        self.st.truncated.iter()
     }
 
     /// The next image message, decoded; `Ok(None)` at the end (of the last pass with `looped`).
     pub fn next_image(&mut self) -> Result<Option<ImageItem>, BagError> {
         loop {
-            let Some(raw) = self.reader.next() else {
-                for t in self.reader.truncated() {
-                    self.truncated.insert(t.clone());
-                }
-                if !self.opts.looped || self.pass_images == 0 {
-                    return Ok(None);
-                }
-                // Next pass: shift time so it starts one frame interval after this one ended.
-                let first = self.pass_first.unwrap_or(0);
-                self.offset = self
-                    .offset
-                    .saturating_add(self.pass_last - first)
-                    .saturating_add(self.last_gap.max(1));
-                self.pass_first = None;
-                self.pass_images = 0;
-                self.reader = BagReader::open(&self.path, Self::read_opts(&self.opts))?;
-                continue;
-            };
-            let raw = raw?;
-            let ty = raw.topic.type_name.as_str();
-            if !is_known_type(ty) {
-                if self.warned.insert(raw.topic.name.clone()) {
-                    tracing::warn!(
-                        "{}: topic {} has type '{}', unknown here: skipped",
-                        self.path.display(),
-                        raw.topic.name,
-                        ty
-                    );
-                }
-                continue;
+            let st = &mut self.st;
+            let next = self
+                .reader
+                .next_with(&mut |topic, log_time, data| st.visit(topic, log_time, data))?;
+            match next {
+                Some(Some(item)) => return Ok(Some(item)),
+                Some(None) => continue,
+                None => {}
             }
-            if ty != IMAGE && ty != COMPRESSED {
-                continue;
+            for t in self.reader.truncated() {
+                self.st.truncated.insert(t.clone());
             }
-            match &self.topic {
-                None => self.topic = Some(raw.topic.name.clone()),
-                Some(t) if *t != raw.topic.name => continue,
-                Some(_) => {}
+            let st = &mut self.st;
+            if !st.opts.looped || st.pass_images == 0 {
+                return Ok(None);
             }
-            let first = *self.first_log.get_or_insert(raw.log_time);
-            if self.opts.start_s > 0.0
-                && (raw.log_time.saturating_sub(first) as f64) < self.opts.start_s * 1e9
-            {
-                continue;
-            }
-            self.pass_first.get_or_insert(raw.log_time);
-            if self.pass_images > 0 {
-                let gap = raw.log_time - self.pass_last;
-                if gap > 0 {
-                    self.last_gap = gap;
-                }
-            }
-            self.pass_last = raw.log_time;
-            self.pass_images += 1;
-            // Sequence numbers count the topic's image messages from 0 (gaps: undecodable ones).
-            let frame = self.decode(ty, &raw.data, raw.log_time);
-            self.seq += 1;
-            return Ok(Some(ImageItem {
-                topic: raw.topic,
-                log_time: raw.log_time.saturating_add(self.offset),
-                raw: raw.data,
-                frame,
-            }));
+            // Next pass: shift time so it starts one frame interval after this one ended.
+            let first = st.pass_first.unwrap_or(0);
+            st.offset = st
+                .offset
+                .saturating_add(st.pass_last - first)
+                .saturating_add(st.last_gap.max(1));
+            st.pass_first = None;
+            st.pass_images = 0;
+            self.reader = BagReader::open(&self.path, Self::read_opts(&st.opts))?;
         }
+    }
+}
+
+impl SourceState {
+    /// One message of the bag: an image item, or None if it is not for us.
+    fn visit(&mut self, topic: &Arc<TopicInfo>, log_time: i64, data: &[u8]) -> Option<ImageItem> {
+        let ty = topic.type_name.as_str();
+        if !is_known_type(ty) {
+            if self.warned.insert(topic.name.clone()) {
+                tracing::warn!(
+                    "{}: topic {} has type '{}', unknown here: skipped",
+                    self.path.display(),
+                    topic.name,
+                    ty
+                );
+            }
+            return None;
+        }
+        if ty != IMAGE && ty != COMPRESSED {
+            return None;
+        }
+        match &self.topic {
+            None => self.topic = Some(topic.name.clone()),
+            Some(t) if *t != topic.name => return None,
+            Some(_) => {}
+        }
+        let first = *self.first_log.get_or_insert(log_time);
+        if self.opts.start_s > 0.0
+            && (log_time.saturating_sub(first) as f64) < self.opts.start_s * 1e9
+        {
+            return None;
+        }
+        self.pass_first.get_or_insert(log_time);
+        if self.pass_images > 0 {
+            let gap = log_time - self.pass_last;
+            if gap > 0 {
+                self.last_gap = gap;
+            }
+        }
+        self.pass_last = log_time;
+        self.pass_images += 1;
+        // Sequence numbers count the topic's image messages from 0 (gaps: undecodable ones).
+        let frame = self.decode(ty, data, log_time);
+        self.seq += 1;
+        Some(ImageItem {
+            topic: Arc::clone(topic),
+            log_time: log_time.saturating_add(self.offset),
+            raw: if self.keep_raw {
+                data.to_vec()
+            } else {
+                Vec::new()
+            },
+            frame,
+        })
     }
 
     fn sensor_id(&self, frame_id: &str) -> String {
@@ -198,11 +230,11 @@ impl BagSource {
 
     fn decode(&self, ty: &str, data: &[u8], log_time: i64) -> Result<Frame, String> {
         let mut f = if ty == IMAGE {
-            let img = Image::from_cdr(data).map_err(|e| e.to_string())?;
+            let img = ImageView::from_cdr(data).map_err(|e| e.to_string())?;
             image_to_frame(&img, &self.sensor_id(&img.header.frame_id), self.seq)
                 .map_err(|e| e.to_string())?
         } else {
-            let img = CompressedImage::from_cdr(data).map_err(|e| e.to_string())?;
+            let img = CompressedImageView::from_cdr(data).map_err(|e| e.to_string())?;
             compressed_to_frame(&img, &self.sensor_id(&img.header.frame_id), self.seq)
                 .map_err(|e| e.to_string())?
         };
@@ -386,6 +418,7 @@ pub fn replay(
 ) -> Result<ReplayReport, BagError> {
     let clock = ManualClock::default();
     let mut report = ReplayReport::default();
+    source.keep_raw(out.is_some());
     let mut now = Stamp::ZERO;
     let t0 = Instant::now();
     let mut first: Option<i64> = None;

@@ -37,6 +37,86 @@ pub struct CompressedImage {
     pub data: Vec<u8>,
 }
 
+/// sensor_msgs/msg/Image with its pixels borrowed from the CDR payload (no copy).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImageView<'a> {
+    pub header: Header,
+    pub height: u32,
+    pub width: u32,
+    pub encoding: String,
+    pub is_bigendian: u8,
+    pub step: u32,
+    pub data: &'a [u8],
+}
+
+impl<'a> ImageView<'a> {
+    pub fn from_cdr(payload: &'a [u8]) -> Result<Self, CdrError> {
+        let mut r = CdrReader::new(payload)?;
+        let v = Self::read(&mut r)?;
+        r.finish()?;
+        Ok(v)
+    }
+    fn read(r: &mut CdrReader<'a>) -> Result<Self, CdrError> {
+        Ok(ImageView {
+            header: Header::read_cdr(r)?,
+            height: r.u32("height")?,
+            width: r.u32("width")?,
+            encoding: r.string("encoding")?,
+            is_bigendian: r.u8("is_bigendian")?,
+            step: r.u32("step")?,
+            data: r.bytes("data", MAX_IMAGE_BYTES)?,
+        })
+    }
+}
+
+impl Image {
+    pub fn view(&self) -> ImageView<'_> {
+        ImageView {
+            header: self.header.clone(),
+            height: self.height,
+            width: self.width,
+            encoding: self.encoding.clone(),
+            is_bigendian: self.is_bigendian,
+            step: self.step,
+            data: &self.data,
+        }
+    }
+}
+
+/// sensor_msgs/msg/CompressedImage with its bytes borrowed from the CDR payload.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompressedImageView<'a> {
+    pub header: Header,
+    pub format: String,
+    pub data: &'a [u8],
+}
+
+impl<'a> CompressedImageView<'a> {
+    pub fn from_cdr(payload: &'a [u8]) -> Result<Self, CdrError> {
+        let mut r = CdrReader::new(payload)?;
+        let v = Self::read(&mut r)?;
+        r.finish()?;
+        Ok(v)
+    }
+    fn read(r: &mut CdrReader<'a>) -> Result<Self, CdrError> {
+        Ok(CompressedImageView {
+            header: Header::read_cdr(r)?,
+            format: r.string("format")?,
+            data: r.bytes("data", MAX_IMAGE_BYTES)?,
+        })
+    }
+}
+
+impl CompressedImage {
+    pub fn view(&self) -> CompressedImageView<'_> {
+        CompressedImageView {
+            header: self.header.clone(),
+            format: self.format.clone(),
+            data: &self.data,
+        }
+    }
+}
+
 /// A message with a ROS type name, a CDR form and a schema.
 pub trait RosMessage: Sized {
     /// e.g. `sensor_msgs/msg/Image`.
@@ -96,14 +176,15 @@ impl RosMessage for Image {
         w.bytes(&self.data);
     }
     fn read_cdr(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
+        let v = ImageView::read(r)?;
         Ok(Image {
-            header: Header::read_cdr(r)?,
-            height: r.u32("height")?,
-            width: r.u32("width")?,
-            encoding: r.string("encoding")?,
-            is_bigendian: r.u8("is_bigendian")?,
-            step: r.u32("step")?,
-            data: r.bytes("data", MAX_IMAGE_BYTES)?.to_vec(),
+            header: v.header,
+            height: v.height,
+            width: v.width,
+            encoding: v.encoding,
+            is_bigendian: v.is_bigendian,
+            step: v.step,
+            data: v.data.to_vec(),
         })
     }
 }
@@ -116,10 +197,11 @@ impl RosMessage for CompressedImage {
         w.bytes(&self.data);
     }
     fn read_cdr(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
+        let v = CompressedImageView::read(r)?;
         Ok(CompressedImage {
-            header: Header::read_cdr(r)?,
-            format: r.string("format")?,
-            data: r.bytes("data", MAX_IMAGE_BYTES)?.to_vec(),
+            header: v.header,
+            format: v.format,
+            data: v.data.to_vec(),
         })
     }
 }

@@ -111,7 +111,8 @@ enum Cmd {
         #[arg(long, default_value_t = 10.0)]
         idle_minutes: f64,
     },
-    /// Benchmarks, side by side with the Python a user would otherwise run: `bench contact`.
+    /// Benchmarks, side by side with the Python a user would otherwise run: `bench contact`,
+    /// `bench replay`.
     Bench {
         what: BenchTarget,
         #[arg(long)]
@@ -141,6 +142,7 @@ enum EvalTarget {
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum BenchTarget {
     Contact,
+    Replay,
 }
 
 /// Error that maps to exit code 2 (usage / configuration).
@@ -362,20 +364,28 @@ fn main() -> ExitCode {
             Ok(true)
         }),
         Cmd::Bench {
-            what: BenchTarget::Contact,
+            what,
             json,
             frames,
             repeat,
             no_python,
-        } => bench::bench_contact(frames.clamp(1, 10_000), repeat.clamp(1, 1000), !no_python)
-            .and_then(|r| {
+        } => {
+            let (frames, repeat) = (frames.clamp(1, 10_000), repeat.clamp(1, 1000));
+            let text = match what {
+                BenchTarget::Contact => bench::bench_contact(frames, repeat, !no_python)
+                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
+                BenchTarget::Replay => bench::bench_replay(frames, repeat, !no_python)
+                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
+            };
+            text.map(|(j, t)| {
                 if json {
-                    println!("{}", serde_json::to_string(&r)?);
+                    println!("{j}");
                 } else {
-                    print!("{}", r.text());
+                    print!("{t}");
                 }
-                Ok(true)
-            }),
+                true
+            })
+        }
         Cmd::Scenes { scene_dir } => {
             let mut names: Vec<String> = scene_dirs(scene_dir)
                 .iter()
