@@ -29,6 +29,9 @@ const READ_BLOCK: usize = 1 << 20;
 /// sqlite rows fetched per query.
 const SQLITE_PAGE: i64 = 64;
 
+/// A callback that sees one message with its payload borrowed: (topic, log time [ns], CDR).
+pub type Visit<'f, R> = dyn FnMut(&Arc<TopicInfo>, i64, &[u8]) -> R + 'f;
+
 /// A topic as the bag declares it.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct TopicInfo {
@@ -178,10 +181,7 @@ impl BagReader {
 
     /// The next message, its payload borrowed for the call of `f` (no copy for MCAP chunks).
     /// `Ok(None)` at the end.
-    pub fn next_with<R>(
-        &mut self,
-        f: &mut dyn FnMut(&Arc<TopicInfo>, i64, &[u8]) -> R,
-    ) -> Result<Option<R>, BagError> {
+    pub fn next_with<R>(&mut self, f: &mut Visit<'_, R>) -> Result<Option<R>, BagError> {
         if self.failed {
             return Ok(None);
         }
@@ -194,10 +194,7 @@ impl BagReader {
         r
     }
 
-    fn next_with_inner<R>(
-        &mut self,
-        f: &mut dyn FnMut(&Arc<TopicInfo>, i64, &[u8]) -> R,
-    ) -> Result<Option<R>, BagError> {
+    fn next_with_inner<R>(&mut self, f: &mut Visit<'_, R>) -> Result<Option<R>, BagError> {
         loop {
             if self.current.is_none() {
                 let Some(p) = self.files.pop_front() else {
@@ -527,7 +524,7 @@ impl McapFile {
     fn next_with<R>(
         &mut self,
         opts: &ReadOptions,
-        f: &mut dyn FnMut(&Arc<TopicInfo>, i64, &[u8]) -> R,
+        f: &mut Visit<'_, R>,
     ) -> Result<Option<R>, BagError> {
         while !self.done {
             // Records of the current chunk first.
