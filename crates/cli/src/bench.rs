@@ -173,3 +173,194 @@ impl ContactBench {
         s
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// `unitac bench replay`
+
+#[derive(Debug, Serialize)]
+pub struct ReplayBench {
+    pub bag: String,
+    pub frames_per_pass: usize,
+    pub passes: usize,
+    /// Read + CDR decode + RGB frame + contact detection, median pass.
+    pub rust_fps: f64,
+    pub rust_pass_s: f64,
+    /// Read only (the floor): reader + CDR decode + frame, no detection.
+    pub rust_read_fps: f64,
+    pub python_fps: Option<f64>,
+    pub python_pass_s: Option<f64>,
+    pub python_versions: String,
+    pub ratio: Option<f64>,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+/// Write the mock fabric frames as an uncompressed rgb8 MCAP bag (rosbag2's default: no
+/// compression).
+fn bench_bag(dir: &std::path::Path, frames: &[Frame]) -> anyhow::Result<std::path::PathBuf> {
+    use unitac_bag::{BagWriter, Compression, Image, WriteOptions};
+    let path = dir.join("bench_replay");
+    let mut w = BagWriter::create(
+        &path,
+        WriteOptions {
+            compression: Compression::None,
+            chunk_size: 4 << 20,
+        },
+    )?;
+    let t = w.add_topic("/gs/image_raw", "sensor_msgs/msg/Image")?;
+    for f in frames {
+        let img = Image {
+            header: unitac_core::msg::Header::optical(f.stamp, &f.sensor_id),
+            height: f.height,
+            width: f.width,
+            encoding: "rgb8".into(),
+            is_bigendian: 0,
+            step: f.width * 3,
+            data: f.data().to_vec(),
+        };
+        w.write(t, f.stamp.0, &img)?;
+    }
+    Ok(w.finish()?)
+}
+
+fn rust_pass(bag: &std::path::Path, detect: bool) -> anyhow::Result<(usize, f64)> {
+    use unitac_bag::{BagSource, ReplayOptions};
+    let t0 = Instant::now();
+    let mut src = BagSource::open(bag, ReplayOptions::default())?;
+    let mut det: Option<ContactDetector> = None;
+    let mut n = 0;
+    while let Some(item) = src.next_image()? {
+        let f = item.frame.map_err(anyhow::Error::msg)?;
+        if detect {
+            let d = match &mut det {
+                Some(d) => d,
+                None => {
+                    let mut d = ContactDetector::new(
+                        ContactParams::default(),
+                        SensorKind::GelsightMini.spec(),
+                    )
+                    .map_err(anyhow::Error::msg)?;
+                    d.set_background_frame(&f);
+                    det.insert(d)
+                }
+            };
+            let _ = black_box(d.step(&f));
+        } else {
+            black_box(f.data());
+        }
+        n += 1;
+    }
+    Ok((n, t0.elapsed().as_secs_f64()))
+}
+
+pub fn bench_replay(n: usize, repeat: usize, with_python: bool) -> anyhow::Result<ReplayBench> {
+    let frames = frames(n.max(20));
+    let (w, h) = frames
+        .first()
+        .map(|f| (f.width, f.height))
+        .context("no frames")?;
+    let dir = std::env::temp_dir().join(format!("unitac-bench-replay-{}", std::process::id()));
+    std::fs::remove_dir_all(&dir).ok();
+    std::fs::create_dir_all(&dir)?;
+    let result = (|| {
+        let bag = bench_bag(&dir, &frames)?;
+        rust_pass(&bag, true)?; // warm-up (page cache)
+        let mut full = Vec::new();
+        let mut read = Vec::new();
+        let mut count = 0;
+        for _ in 0..repeat {
+            let (k, s) = rust_pass(&bag, true)?;
+            full.push(s);
+            count = k;
+            read.push(rust_pass(&bag, false)?.1);
+        }
+        let rust_pass_s = median(full);
+        let (python_fps, python_pass_s, versions) = if with_python {
+            let (fps, pass, v) = python_replay(&bag, repeat)?;
+            (Some(fps), Some(pass), v)
+        } else {
+            (None, None, String::new())
+        };
+        let rust_fps = count as f64 / rust_pass_s;
+        Ok(ReplayBench {
+            bag: format!(
+                "{count} rgb8 {w}x{h} frames, MCAP, uncompressed (GelSight Mini mock, fabric scene)"
+            ),
+            frames_per_pass: count,
+            passes: repeat,
+            rust_fps,
+            rust_pass_s,
+            rust_read_fps: count as f64 / median(read),
+            python_fps,
+            python_pass_s,
+            python_versions: versions,
+            ratio: python_fps.map(|p| rust_fps / p),
+        })
+    })();
+    std::fs::remove_dir_all(&dir).ok();
+    result
+}
+
+fn python_replay(bag: &std::path::Path, repeat: usize) -> anyhow::Result<(f64, f64, String)> {
+    let venv = std::env::var_os("UNITAC_VENV")
+        .map(PathBuf::from)
+        .context("UNITAC_VENV is not set (use scripts/unitac)")?;
+    let root = std::env::var_os("UNITAC_ROOT")
+        .map(PathBuf::from)
+        .context("UNITAC_ROOT is not set")?;
+    let out = Command::new(venv.join("bin/python"))
+        .arg(root.join("bench/replay_baseline.py"))
+        .arg(bag)
+        .arg(repeat.to_string())
+        .env("OMP_NUM_THREADS", "1")
+        .env("OPENBLAS_NUM_THREADS", "1")
+        .env_remove("OPENBLAS_CORETYPE")
+        .env_remove("OPENBLAS_L2_SIZE")
+        .output()
+        .context("running the Python baseline")?;
+    if !out.status.success() {
+        bail!(
+            "Python baseline failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+    Ok((
+        j["fps"].as_f64().unwrap_or(f64::NAN),
+        j["pass_s"].as_f64().unwrap_or(f64::NAN),
+        format!(
+            "rosbags {} numpy {} opencv {}",
+            j["rosbags"], j["numpy"], j["opencv"]
+        ),
+    ))
+}
+
+impl ReplayBench {
+    pub fn text(&self) -> String {
+        let mut s = format!(
+            "bag replay: read + decode + contact detection, one core, {}; median of {} passes\n",
+            self.bag, self.passes
+        );
+        s += &format!(
+            "  unitac (Rust)                {:>8.0} frames/s  ({:.3} s per pass)\n",
+            self.rust_fps, self.rust_pass_s
+        );
+        if let (Some(f), Some(p)) = (self.python_fps, self.python_pass_s) {
+            s += &format!(
+                "  rosbags + numpy + OpenCV     {:>8.0} frames/s  ({:.3} s per pass)  [{}]\n",
+                f, p, self.python_versions
+            );
+        }
+        s += &format!(
+            "  floor (Rust read + decode)   {:>8.0} frames/s\n",
+            self.rust_read_fps
+        );
+        if let Some(r) = self.ratio {
+            s += &format!("  speed-up: {r:.1}x\n");
+        }
+        s
+    }
+}

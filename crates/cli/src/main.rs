@@ -8,6 +8,7 @@ mod dataset;
 mod eval;
 mod images;
 mod plot;
+mod replay;
 mod sampler;
 
 use anyhow::Context;
@@ -74,6 +75,36 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Replay a rosbag2 bag (directory with metadata.yaml + .mcap/.db3, or a bare .mcap) through
+    /// the contact stage. With --json: one line per image message {stamp, contact (null while the
+    /// background is learned), area_px, centroid, episode_id}.
+    Replay {
+        bag: PathBuf,
+        /// Image topic (sensor_msgs/Image or CompressedImage); default: the first one in the bag.
+        #[arg(long)]
+        topic: Option<String>,
+        /// Replay speed against the bag's stamps (1 = real time, the default).
+        #[arg(long, conflicts_with = "fast")]
+        rate: Option<f64>,
+        /// As fast as possible.
+        #[arg(long)]
+        fast: bool,
+        /// Start over at the end (stamps keep increasing).
+        #[arg(long = "loop")]
+        looped: bool,
+        /// Skip the first SECONDS of the image topic.
+        #[arg(long, default_value_t = 0.0, value_name = "SECONDS")]
+        start: f64,
+        /// Write the replayed images and everything the pipeline produced to this MCAP bag
+        /// (a directory, or a bare file if it ends in .mcap).
+        #[arg(long, value_name = "OUT_BAG")]
+        out: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+        /// Sensor kind of the bag's images: gelsight-mini | digit | generic.
+        #[arg(long, default_value = "gelsight-mini")]
+        sensor: unitac_core::SensorKind,
+    },
     /// Measure quality against ground truth (mock sensor): `eval contact`.
     Eval {
         what: EvalTarget,
@@ -83,7 +114,8 @@ enum Cmd {
         #[arg(long, default_value_t = 10.0)]
         idle_minutes: f64,
     },
-    /// Benchmarks, side by side with the Python a user would otherwise run: `bench contact`.
+    /// Benchmarks, side by side with the Python a user would otherwise run: `bench contact`,
+    /// `bench replay`.
     Bench {
         what: BenchTarget,
         #[arg(long)]
@@ -142,6 +174,7 @@ enum DatasetTarget {
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum BenchTarget {
     Contact,
+    Replay,
     Sampler,
 }
 
@@ -335,24 +368,32 @@ fn main() -> ExitCode {
                 other => other,
             }
         }
+        Cmd::Replay {
+            bag,
+            topic,
+            rate,
+            fast,
+            looped,
+            start,
+            out,
+            json,
+            sensor,
+        } => replay::cmd_replay(replay::Args {
+            bag,
+            topic,
+            rate,
+            fast,
+            looped,
+            start,
+            out,
+            json,
+            sensor,
+        }),
         Cmd::Eval {
             what: EvalTarget::Contact,
             json,
             idle_minutes,
         } => eval::eval_contact(idle_minutes.clamp(0.0, 600.0) * 60.0).and_then(|r| {
-            if json {
-                println!("{}", serde_json::to_string(&r)?);
-            } else {
-                print!("{}", r.text());
-            }
-            Ok(true)
-        }),
-        Cmd::Bench {
-            what: BenchTarget::Sampler,
-            json,
-            repeat,
-            ..
-        } => sampler::bench(repeat.clamp(1, 1000)).and_then(|r| {
             if json {
                 println!("{}", serde_json::to_string(&r)?);
             } else {
@@ -380,20 +421,31 @@ fn main() -> ExitCode {
             })
         }
         Cmd::Bench {
-            what: BenchTarget::Contact,
+            what,
             json,
             frames,
             repeat,
             no_python,
-        } => bench::bench_contact(frames.clamp(1, 10_000), repeat.clamp(1, 1000), !no_python)
-            .and_then(|r| {
-                if json {
-                    println!("{}", serde_json::to_string(&r)?);
-                } else {
-                    print!("{}", r.text());
+        } => {
+            let (frames, repeat) = (frames.clamp(1, 10_000), repeat.clamp(1, 1000));
+            let text = match what {
+                BenchTarget::Contact => bench::bench_contact(frames, repeat, !no_python)
+                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
+                BenchTarget::Replay => bench::bench_replay(frames, repeat, !no_python)
+                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
+                BenchTarget::Sampler => {
+                    sampler::bench(repeat).and_then(|r| Ok((serde_json::to_string(&r)?, r.text())))
                 }
-                Ok(true)
-            }),
+            };
+            text.map(|(j, t)| {
+                if json {
+                    println!("{j}");
+                } else {
+                    print!("{t}");
+                }
+                true
+            })
+        }
         Cmd::Dataset {
             what: DatasetTarget::Fabrics,
             out,

@@ -1,6 +1,7 @@
 //! Stage kinds and sources the runner can build from a scene.
 
 use serde::de::DeserializeOwned;
+use unitac_bag::{BagSource, ReplayOptions};
 use unitac_contact::{ContactParams, ContactStage};
 use unitac_core::scene::{SceneError, SensorArg, SourceKind, StageSpec};
 use unitac_core::{Scene, Source, Stage};
@@ -135,9 +136,22 @@ pub fn build_source(scene: &Scene, arg: Option<&SensorArg>) -> Result<Box<dyn So
             "source.kind",
             "v4l sensors are not in this build yet (sensor-driver issue); use --sensor mock".into(),
         )),
-        SourceKind::Bag => Err(bad(
-            "source.kind",
-            "bag replay is not in this build yet (rosbag2 issue); use --sensor mock".into(),
-        )),
+        SourceKind::Bag => {
+            let path = match arg {
+                Some(SensorArg::Bag(p)) => p.clone(),
+                _ => scene
+                    .source
+                    .path
+                    .clone()
+                    .ok_or_else(|| bad("source.path", "a bag source needs a path".into()))?,
+            };
+            let opts = ReplayOptions {
+                sensor_id: scene.source.serial.clone(),
+                ..ReplayOptions::default()
+            };
+            let src =
+                BagSource::open(&path, opts).map_err(|e| bad("source.path", e.to_string()))?;
+            Ok(Box::new(src))
+        }
     }
 }

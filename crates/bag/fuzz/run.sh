@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Run the unitac-bag fuzz targets (mcap, cdr, metadata) for SECONDS each (default 60) with
+# cargo-fuzz on nightly, seeded from corpus/ (metadata.yaml and CDR files committed here, MCAP
+# seeds written by `cargo test -p unitac-bag --test hostile` style bags: see seed step below).
+# Without cargo-fuzz or nightly, runs the CI smoke instead: the same entry functions over a
+# seeded, mutated corpus in a normal test (crates/bag/tests/hostile.rs, fuzz_smoke_seeded_corpus).
+set -euo pipefail
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+ROOT="$(cd "$HERE/../../.." && pwd)"
+SECONDS_EACH="${1:-60}"
+if ! cargo +nightly fuzz --version >/dev/null 2>&1; then
+  echo "cargo-fuzz on nightly not available (cargo install cargo-fuzz; rustup toolchain install nightly);" >&2
+  echo "running the seeded smoke test instead" >&2
+  cd "$ROOT" && exec cargo test -p unitac-bag --test hostile fuzz_smoke
+fi
+cd "$HERE"
+# MCAP seeds: small bags from the writer (none / zstd / lz4 chunks).
+mkdir -p corpus/mcap
+if ! ls corpus/mcap/*.mcap >/dev/null 2>&1; then
+  (cd "$ROOT" && UNITAC_FUZZ_SEED_DIR="$HERE/corpus/mcap" cargo test -q -p unitac-bag --test hostile write_fuzz_seeds -- --ignored)
+fi
+for t in mcap cdr metadata; do
+  cargo +nightly fuzz run "$t" "corpus/$t" -- -max_total_time="$SECONDS_EACH" -rss_limit_mb=1024 -max_len=1048576
+done

@@ -1,0 +1,356 @@
+//! sensor_msgs/Image and CompressedImage to a core [`Frame`] (RGB8, no row padding).
+//!
+//! Raw encodings: rgb8, bgr8, rgba8, bgra8, mono8, and 4:2:2 YUV. ROS's `yuv422` is UYVY byte
+//! order (sensor_msgs/image_encodings.hpp), `yuv422_yuy2` / `yuyv` is YUYV, the order V4L2
+//! tactile sensors deliver; both are converted with BT.601 limited-range integer arithmetic.
+//! Rows may be padded (`step` > width x bytes per pixel); `data` must hold exactly
+//! `step x height` bytes. Compressed: JPEG and PNG (format string or, if it names neither, the
+//! magic bytes), decoded with size and allocation limits.
+
+use crate::ros::{CompressedImageView, ImageView};
+use unitac_core::frame::MAX_SIDE;
+use unitac_core::{Frame, FrameError, Stamp};
+
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum ImageError {
+    #[error(
+        "image encoding '{0}' is not supported (rgb8, bgr8, rgba8, bgra8, mono8, yuv422, yuyv)"
+    )]
+    Encoding(String),
+    #[error("image {width}x{height} {encoding}: step {step} is less than a row ({row} bytes)")]
+    Step {
+        width: u32,
+        height: u32,
+        encoding: String,
+        step: u32,
+        row: usize,
+    },
+    #[error("image {width}x{height} step {step}: data has {got} bytes, expected {expected}")]
+    Length {
+        width: u32,
+        height: u32,
+        step: u32,
+        expected: usize,
+        got: usize,
+    },
+    #[error("yuv 4:2:2 image with odd width {0}")]
+    OddWidth(u32),
+    #[error("compressed image format '{0}' is not supported (jpeg, png)")]
+    Format(String),
+    #[error("compressed image: {0}")]
+    Decode(String),
+    #[error(transparent)]
+    Frame(#[from] FrameError),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Enc {
+    Rgb8,
+    Bgr8,
+    Rgba8,
+    Bgra8,
+    Mono8,
+    Yuyv,
+    Uyvy,
+}
+
+impl Enc {
+    fn parse(s: &str) -> Option<Enc> {
+        Some(match s.to_ascii_lowercase().as_str() {
+            "rgb8" => Enc::Rgb8,
+            "bgr8" => Enc::Bgr8,
+            "rgba8" => Enc::Rgba8,
+            "bgra8" => Enc::Bgra8,
+            "mono8" | "8uc1" => Enc::Mono8,
+            "yuyv" | "yuv422_yuy2" => Enc::Yuyv,
+            "yuv422" | "uyvy" => Enc::Uyvy,
+            _ => return None,
+        })
+    }
+    /// Bytes per pixel (2 for 4:2:2).
+    fn bpp(self) -> usize {
+        match self {
+            Enc::Rgb8 | Enc::Bgr8 => 3,
+            Enc::Rgba8 | Enc::Bgra8 => 4,
+            Enc::Mono8 => 1,
+            Enc::Yuyv | Enc::Uyvy => 2,
+        }
+    }
+}
+
+#[inline]
+fn clamp8(v: i32) -> u8 {
+    v.clamp(0, 255) as u8
+}
+
+#[inline]
+fn yuv_to_rgb(y: u8, u: u8, v: u8) -> [u8; 3] {
+    let c = 298 * (i32::from(y) - 16);
+    let d = i32::from(u) - 128;
+    let e = i32::from(v) - 128;
+    [
+        clamp8((c + 409 * e + 128) >> 8),
+        clamp8((c - 100 * d - 208 * e + 128) >> 8),
+        clamp8((c + 516 * d + 128) >> 8),
+    ]
+}
+
+/// Decode a raw image to an RGB8 frame carrying the image's header stamp.
+pub fn image_to_frame(img: &ImageView<'_>, sensor_id: &str, seq: u64) -> Result<Frame, ImageError> {
+    let enc =
+        Enc::parse(&img.encoding).ok_or_else(|| ImageError::Encoding(img.encoding.clone()))?;
+    let out_len = Frame::byte_len(img.width, img.height)?;
+    let (w, h) = (img.width as usize, img.height as usize);
+    let row = w * enc.bpp();
+    let step = img.step as usize;
+    if step < row {
+        return Err(ImageError::Step {
+            width: img.width,
+            height: img.height,
+            encoding: img.encoding.clone(),
+            step: img.step,
+            row,
+        });
+    }
+    let expected = step.saturating_mul(h);
+    if img.data.len() != expected {
+        return Err(ImageError::Length {
+            width: img.width,
+            height: img.height,
+            step: img.step,
+            expected,
+            got: img.data.len(),
+        });
+    }
+    if matches!(enc, Enc::Yuyv | Enc::Uyvy) && w % 2 == 1 {
+        return Err(ImageError::OddWidth(img.width));
+    }
+    let mut out = Vec::with_capacity(out_len);
+    if enc == Enc::Rgb8 && step == row {
+        out.extend_from_slice(img.data);
+    } else {
+        for src in img.data.chunks_exact(step) {
+            let src = &src[..row];
+            match enc {
+                Enc::Rgb8 => out.extend_from_slice(src),
+                Enc::Bgr8 => {
+                    for p in src.chunks_exact(3) {
+                        out.extend_from_slice(&[p[2], p[1], p[0]]);
+                    }
+                }
+                Enc::Rgba8 => {
+                    for p in src.chunks_exact(4) {
+                        out.extend_from_slice(&p[..3]);
+                    }
+                }
+                Enc::Bgra8 => {
+                    for p in src.chunks_exact(4) {
+                        out.extend_from_slice(&[p[2], p[1], p[0]]);
+                    }
+                }
+                Enc::Mono8 => {
+                    for &g in src {
+                        out.extend_from_slice(&[g, g, g]);
+                    }
+                }
+                Enc::Yuyv => {
+                    for q in src.chunks_exact(4) {
+                        out.extend_from_slice(&yuv_to_rgb(q[0], q[1], q[3]));
+                        out.extend_from_slice(&yuv_to_rgb(q[2], q[1], q[3]));
+                    }
+                }
+                Enc::Uyvy => {
+                    for q in src.chunks_exact(4) {
+                        out.extend_from_slice(&yuv_to_rgb(q[1], q[0], q[2]));
+                        out.extend_from_slice(&yuv_to_rgb(q[3], q[0], q[2]));
+                    }
+                }
+            }
+        }
+    }
+    Ok(Frame::new(
+        sensor_id,
+        seq,
+        img.header.stamp,
+        img.width,
+        img.height,
+        out,
+    )?)
+}
+
+/// Decode a JPEG or PNG compressed image to an RGB8 frame carrying the header stamp.
+pub fn compressed_to_frame(
+    img: &CompressedImageView<'_>,
+    sensor_id: &str,
+    seq: u64,
+) -> Result<Frame, ImageError> {
+    let f = img.format.to_ascii_lowercase();
+    let format = if f.contains("jpeg") || f.contains("jpg") {
+        image::ImageFormat::Jpeg
+    } else if f.contains("png") {
+        image::ImageFormat::Png
+    } else if img.data.starts_with(&[0xff, 0xd8, 0xff]) && f.is_empty() {
+        image::ImageFormat::Jpeg
+    } else if img.data.starts_with(b"\x89PNG") && f.is_empty() {
+        image::ImageFormat::Png
+    } else {
+        return Err(ImageError::Format(img.format.clone()));
+    };
+    decode_bytes(img.data, format, sensor_id, seq, img.header.stamp)
+}
+
+fn decode_bytes(
+    data: &[u8],
+    format: image::ImageFormat,
+    sensor_id: &str,
+    seq: u64,
+    stamp: Stamp,
+) -> Result<Frame, ImageError> {
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(data), format);
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_SIDE);
+    limits.max_image_height = Some(MAX_SIDE);
+    // An RGBA 16-bit image of the largest side is the worst case the decoder may need.
+    limits.max_alloc = Some(8192 * 8192 * 8);
+    reader.limits(limits);
+    let img = reader
+        .decode()
+        .map_err(|e| ImageError::Decode(e.to_string()))?;
+    let rgb = img.into_rgb8();
+    let (w, h) = rgb.dimensions();
+    Ok(Frame::new(sensor_id, seq, stamp, w, h, rgb.into_raw())?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ros::{CompressedImage, Image};
+    use unitac_core::msg::Header;
+
+    fn raw(w: u32, h: u32, enc: &str, step: u32, data: Vec<u8>) -> Image {
+        Image {
+            header: Header::new(Stamp(42), "x"),
+            height: h,
+            width: w,
+            encoding: enc.into(),
+            is_bigendian: 0,
+            step,
+            data,
+        }
+    }
+
+    #[test]
+    fn encodings_to_rgb() {
+        let rgb =
+            image_to_frame(&raw(2, 1, "rgb8", 6, vec![1, 2, 3, 4, 5, 6]).view(), "s", 0).unwrap();
+        assert_eq!(rgb.data(), &[1, 2, 3, 4, 5, 6]);
+        assert_eq!(rgb.stamp, Stamp(42));
+        let bgr =
+            image_to_frame(&raw(2, 1, "bgr8", 6, vec![1, 2, 3, 4, 5, 6]).view(), "s", 0).unwrap();
+        assert_eq!(bgr.data(), &[3, 2, 1, 6, 5, 4]);
+        let mono = image_to_frame(&raw(2, 1, "mono8", 2, vec![7, 9]).view(), "s", 0).unwrap();
+        assert_eq!(mono.data(), &[7, 7, 7, 9, 9, 9]);
+        // Padded rows: step 8 for a 2-px rgb8 row of 6 bytes.
+        let pad = image_to_frame(
+            &raw(
+                2,
+                2,
+                "rgb8",
+                8,
+                vec![1, 2, 3, 4, 5, 6, 0, 0, 7, 8, 9, 10, 11, 12, 0, 0],
+            )
+            .view(),
+            "s",
+            0,
+        )
+        .unwrap();
+        assert_eq!(pad.data(), &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12]);
+    }
+
+    #[test]
+    fn yuyv_grey_and_colours() {
+        // Y=126 U=V=128 is mid grey in limited range: (126-16)*298/256 = 128.
+        let f = image_to_frame(
+            &raw(2, 1, "yuyv", 4, vec![126, 128, 126, 128]).view(),
+            "s",
+            0,
+        )
+        .unwrap();
+        assert_eq!(f.data(), &[128, 128, 128, 128, 128, 128]);
+        // Pure red in BT.601 limited range: Y=81 U=90 V=240.
+        let f =
+            image_to_frame(&raw(2, 1, "yuyv", 4, vec![81, 90, 81, 240]).view(), "s", 0).unwrap();
+        let p = f.pixel(0, 0).unwrap();
+        assert!(p[0] >= 250 && p[1] <= 5 && p[2] <= 5, "{p:?}");
+        // UYVY has the same pixels in another byte order.
+        let g = image_to_frame(
+            &raw(2, 1, "yuv422", 4, vec![90, 81, 240, 81]).view(),
+            "s",
+            0,
+        )
+        .unwrap();
+        assert_eq!(f.data(), g.data());
+    }
+
+    #[test]
+    fn wrong_sizes_are_errors() {
+        assert!(matches!(
+            image_to_frame(&raw(2, 1, "rgb8", 6, vec![0; 5]).view(), "s", 0),
+            Err(ImageError::Length { .. })
+        ));
+        assert!(matches!(
+            image_to_frame(&raw(2, 1, "rgb8", 5, vec![0; 5]).view(), "s", 0),
+            Err(ImageError::Step { .. })
+        ));
+        assert!(matches!(
+            image_to_frame(&raw(3, 1, "yuyv", 6, vec![0; 6]).view(), "s", 0),
+            Err(ImageError::OddWidth(3))
+        ));
+        assert!(matches!(
+            image_to_frame(&raw(9000, 1, "mono8", 9000, vec![0; 9000]).view(), "s", 0),
+            Err(ImageError::Frame(_))
+        ));
+        assert!(matches!(
+            image_to_frame(&raw(1, 1, "16UC1", 2, vec![0; 2]).view(), "s", 0),
+            Err(ImageError::Encoding(_))
+        ));
+        // A huge step times height cannot overflow or allocate.
+        assert!(matches!(
+            image_to_frame(&raw(8, 8192, "rgb8", u32::MAX, vec![0; 10]).view(), "s", 0),
+            Err(ImageError::Length { .. })
+        ));
+    }
+
+    #[test]
+    fn compressed_png_and_garbage() {
+        let mut png = Vec::new();
+        let img = image::RgbImage::from_raw(2, 1, vec![10, 20, 30, 40, 50, 60]).unwrap();
+        img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .unwrap();
+        let c = CompressedImage {
+            header: Header::new(Stamp(7), "x"),
+            format: "png".into(),
+            data: png,
+        };
+        let f = compressed_to_frame(&c.view(), "s", 3).unwrap();
+        assert_eq!(f.data(), &[10, 20, 30, 40, 50, 60]);
+        assert_eq!((f.stamp, f.seq), (Stamp(7), 3));
+        let bad = CompressedImage {
+            format: "jpeg".into(),
+            data: vec![0xff, 0xd8, 0xff, 0, 1, 2],
+            ..c.clone()
+        };
+        assert!(matches!(
+            compressed_to_frame(&bad.view(), "s", 0),
+            Err(ImageError::Decode(_))
+        ));
+        let tiff = CompressedImage {
+            format: "tiff".into(),
+            ..c
+        };
+        assert!(matches!(
+            compressed_to_frame(&tiff.view(), "s", 0),
+            Err(ImageError::Format(_))
+        ));
+    }
+}

@@ -1,0 +1,495 @@
+//! A bag as a frame source, and the replay loop behind `unitac replay`.
+//!
+//! [`BagSource`] picks one image topic (sensor_msgs/Image or CompressedImage: the one asked for,
+//! else the first image topic met), decodes each message to an RGB8 frame stamped with the
+//! message's header stamp (its log time when the header stamp is zero) and implements
+//! [`unitac_core::Source`] for the runtime. Topics of types this crate does not know are skipped
+//! with one warning each; the reader still hands out their raw bytes to whoever asks.
+//!
+//! [`replay`] drives stages synchronously, one frame at a time, with a [`ManualClock`] set to the
+//! frame stamps, the same order of messages the runtime uses (each stage sees its input and the
+//! outputs of the stages before it). Nothing in it reads the wall clock except the optional
+//! pacing, which only decides when a frame is processed, never what comes out: two replays of a
+//! bag give the same events and, with an output bag, the same bytes.
+
+use crate::BagError;
+use crate::image::{compressed_to_frame, image_to_frame};
+use crate::read::{BagReader, ReadOptions, TopicInfo};
+use crate::ros::{CompressedImageView, ImageView, RosMessage, is_known_type};
+use crate::write::{BagWriter, TopicId};
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+use unitac_core::msg::{
+    ContactEpisode, ContactState, GripperCommand, PolicyStatus, PropertyComparison, TactileLatent,
+    TactileProperties,
+};
+use unitac_core::{Clock, Frame, ManualClock, Msg, Source, SourceError, Stage, Stamp};
+
+const IMAGE: &str = "sensor_msgs/msg/Image";
+const COMPRESSED: &str = "sensor_msgs/msg/CompressedImage";
+
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ReplayOptions {
+    /// Image topic to replay; default: the first Image or CompressedImage topic in the bag.
+    pub topic: Option<String>,
+    /// Skip the first seconds of the image topic.
+    pub start_s: f64,
+    /// Start over at the end, stamps shifted so time keeps going forward.
+    pub looped: bool,
+    /// Sensor id of the frames; default: the header frame_id without `_optical_frame`.
+    pub sensor_id: Option<String>,
+}
+
+/// One image message of the bag, decoded or not.
+#[derive(Debug)]
+pub struct ImageItem {
+    pub topic: Arc<TopicInfo>,
+    /// Log time in the bag, shifted by the loop offset [ns].
+    pub log_time: i64,
+    /// The CDR payload as recorded (empty unless [`BagSource::keep_raw`] was set).
+    pub raw: Vec<u8>,
+    pub frame: Result<Frame, String>,
+}
+
+/// A bag replayed as a stream of frames.
+#[derive(Debug)]
+pub struct BagSource {
+    path: PathBuf,
+    name: String,
+    reader: BagReader,
+    st: SourceState,
+}
+
+/// Everything but the reader, so the reader's borrowed-payload callback can update it.
+#[derive(Debug)]
+struct SourceState {
+    opts: ReplayOptions,
+    path: PathBuf,
+    keep_raw: bool,
+    topic: Option<String>,
+    warned: BTreeSet<String>,
+    first_log: Option<i64>,
+    seq: u64,
+    /// Added to stamps and log times in the current pass.
+    offset: i64,
+    pass_first: Option<i64>,
+    pass_last: i64,
+    pass_images: u64,
+    last_gap: i64,
+    truncated: BTreeSet<PathBuf>,
+}
+
+impl BagSource {
+    pub fn open(path: &Path, opts: ReplayOptions) -> Result<Self, BagError> {
+        let reader = BagReader::open(path, Self::read_opts(&opts))?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            name: format!("bag:{}", path.display()),
+            reader,
+            st: SourceState {
+                topic: opts.topic.clone(),
+                opts,
+                path: path.to_path_buf(),
+                keep_raw: false,
+                warned: BTreeSet::new(),
+                first_log: None,
+                seq: 0,
+                offset: 0,
+                pass_first: None,
+                pass_last: 0,
+                pass_images: 0,
+                last_gap: 1_000_000,
+                truncated: BTreeSet::new(),
+            },
+        })
+    }
+
+    fn read_opts(opts: &ReplayOptions) -> ReadOptions {
+        ReadOptions {
+            topics: opts.topic.iter().cloned().collect(),
+            ..ReadOptions::default()
+        }
+    }
+
+    /// Keep each image message's CDR bytes in [`ImageItem::raw`] (for an output bag).
+    pub fn keep_raw(&mut self, keep: bool) {
+        self.st.keep_raw = keep;
+    }
+    /// The image topic being replayed (known after the first image).
+    pub fn topic(&self) -> Option<&str> {
+        self.st.topic.as_deref()
+    }
+    /// Topics skipped because their type is unknown here.
+    pub fn skipped_topics(&self) -> impl Iterator<Item = &String> {
+        self.st.warned.iter()
+    }
+    /// Storage files that were cut short (read up to their last complete record).
+    pub fn truncated_files(&self) -> impl Iterator<Item = &PathBuf> {
+        self.st.truncated.iter()
+    }
+
+    /// The next image message, decoded; `Ok(None)` at the end (of the last pass with `looped`).
+    pub fn next_image(&mut self) -> Result<Option<ImageItem>, BagError> {
+        loop {
+            let st = &mut self.st;
+            let next = self
+                .reader
+                .next_with(&mut |topic, log_time, data| st.visit(topic, log_time, data))?;
+            match next {
+                Some(Some(item)) => return Ok(Some(item)),
+                Some(None) => continue,
+                None => {}
+            }
+            for t in self.reader.truncated() {
+                self.st.truncated.insert(t.clone());
+            }
+            let st = &mut self.st;
+            if !st.opts.looped || st.pass_images == 0 {
+                return Ok(None);
+            }
+            // Next pass: shift time so it starts one frame interval after this one ended.
+            let first = st.pass_first.unwrap_or(0);
+            st.offset = st
+                .offset
+                .saturating_add(st.pass_last - first)
+                .saturating_add(st.last_gap.max(1));
+            st.pass_first = None;
+            st.pass_images = 0;
+            self.reader = BagReader::open(&self.path, Self::read_opts(&st.opts))?;
+        }
+    }
+}
+
+impl SourceState {
+    /// One message of the bag: an image item, or None if it is not for us.
+    fn visit(&mut self, topic: &Arc<TopicInfo>, log_time: i64, data: &[u8]) -> Option<ImageItem> {
+        let ty = topic.type_name.as_str();
+        if !is_known_type(ty) {
+            if self.warned.insert(topic.name.clone()) {
+                tracing::warn!(
+                    "{}: topic {} has type '{}', unknown here: skipped",
+                    self.path.display(),
+                    topic.name,
+                    ty
+                );
+            }
+            return None;
+        }
+        if ty != IMAGE && ty != COMPRESSED {
+            return None;
+        }
+        match &self.topic {
+            None => self.topic = Some(topic.name.clone()),
+            Some(t) if *t != topic.name => return None,
+            Some(_) => {}
+        }
+        let first = *self.first_log.get_or_insert(log_time);
+        if self.opts.start_s > 0.0
+            && (log_time.saturating_sub(first) as f64) < self.opts.start_s * 1e9
+        {
+            return None;
+        }
+        self.pass_first.get_or_insert(log_time);
+        if self.pass_images > 0 {
+            let gap = log_time - self.pass_last;
+            if gap > 0 {
+                self.last_gap = gap;
+            }
+        }
+        self.pass_last = log_time;
+        self.pass_images += 1;
+        // Sequence numbers count the topic's image messages from 0 (gaps: undecodable ones).
+        let frame = self.decode(ty, data, log_time);
+        self.seq += 1;
+        Some(ImageItem {
+            topic: Arc::clone(topic),
+            log_time: log_time.saturating_add(self.offset),
+            raw: if self.keep_raw {
+                data.to_vec()
+            } else {
+                Vec::new()
+            },
+            frame,
+        })
+    }
+
+    fn sensor_id(&self, frame_id: &str) -> String {
+        if let Some(s) = &self.opts.sensor_id {
+            return s.clone();
+        }
+        let id = frame_id.strip_suffix("_optical_frame").unwrap_or(frame_id);
+        if id.is_empty() {
+            "bag".to_string()
+        } else {
+            id.to_string()
+        }
+    }
+
+    fn decode(&self, ty: &str, data: &[u8], log_time: i64) -> Result<Frame, String> {
+        let mut f = if ty == IMAGE {
+            let img = ImageView::from_cdr(data).map_err(|e| e.to_string())?;
+            image_to_frame(&img, &self.sensor_id(&img.header.frame_id), self.seq)
+                .map_err(|e| e.to_string())?
+        } else {
+            let img = CompressedImageView::from_cdr(data).map_err(|e| e.to_string())?;
+            compressed_to_frame(&img, &self.sensor_id(&img.header.frame_id), self.seq)
+                .map_err(|e| e.to_string())?
+        };
+        if f.stamp == Stamp::ZERO {
+            f.stamp = Stamp(log_time);
+        }
+        f.stamp = f.stamp.saturating_add_nanos(self.offset);
+        Ok(f)
+    }
+}
+
+impl Source for BagSource {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
+        match self.next_image() {
+            Ok(Some(item)) => item.frame.map(Some).map_err(|e| {
+                SourceError::Frame(format!("{} at {} ns: {e}", item.topic.name, item.log_time))
+            }),
+            Ok(None) => Ok(None),
+            Err(e) => Err(SourceError::Fatal(e.to_string())),
+        }
+    }
+    fn is_replay(&self) -> bool {
+        true
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The replay loop
+
+/// How fast to replay.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pace {
+    /// As fast as possible.
+    Fast,
+    /// Stream time / wall time (1.0 = real time).
+    Rate(f64),
+}
+
+/// What one image message gave.
+#[derive(Debug)]
+pub struct ImageResult {
+    /// Frame stamp (log time when the frame could not be decoded) [ns].
+    pub stamp: i64,
+    pub topic: Arc<TopicInfo>,
+    /// Events the stages produced for this frame, in order.
+    pub events: Vec<Msg>,
+    /// Decode or stage error, if any.
+    pub error: Option<String>,
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct ReplayReport {
+    pub images: u64,
+    pub errors: u64,
+    /// Events by kind, including those from the stages' `finish`.
+    pub events: BTreeMap<String, u64>,
+    pub topic: Option<String>,
+    pub skipped_topics: Vec<String>,
+    pub truncated_files: Vec<PathBuf>,
+    pub stopped: bool,
+}
+
+/// Output topics of the events written to an output bag.
+pub fn output_topic(m: &Msg) -> Option<(&'static str, &'static str)> {
+    Some(match m {
+        Msg::Contact(_) => ("/unitac/contact_state", ContactState::TYPE),
+        Msg::Episode(_) => ("/unitac/contact_episode", ContactEpisode::TYPE),
+        Msg::Properties(_) => ("/unitac/tactile_properties", TactileProperties::TYPE),
+        Msg::Comparison(_) => ("/unitac/property_comparison", PropertyComparison::TYPE),
+        Msg::Latent(_) => ("/unitac/tactile_latent", TactileLatent::TYPE),
+        Msg::Command(_) => ("/unitac/gripper_command", GripperCommand::TYPE),
+        Msg::Status(_) => ("/unitac/policy_status", PolicyStatus::TYPE),
+        Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return None,
+    })
+}
+
+/// Writes inputs and events to an output bag; topics are added in order of first use.
+#[derive(Debug)]
+pub struct OutputBag {
+    writer: BagWriter,
+    topics: BTreeMap<String, TopicId>,
+}
+
+impl OutputBag {
+    pub fn new(writer: BagWriter) -> Self {
+        Self {
+            writer,
+            topics: BTreeMap::new(),
+        }
+    }
+    fn topic(&mut self, name: &str, ty: &str) -> Result<TopicId, BagError> {
+        if let Some(&id) = self.topics.get(name) {
+            return Ok(id);
+        }
+        let id = self.writer.add_topic(name, ty)?;
+        self.topics.insert(name.to_string(), id);
+        Ok(id)
+    }
+    /// Copy an input message as recorded.
+    pub fn write_input(
+        &mut self,
+        topic: &TopicInfo,
+        log_time: i64,
+        raw: &[u8],
+    ) -> Result<(), BagError> {
+        let id = self.topic(&topic.name, &topic.type_name)?;
+        self.writer.write_raw(id, log_time, raw)
+    }
+    /// Write an event (frames and clips are not ROS messages and are skipped).
+    pub fn write_event(&mut self, m: &Msg) -> Result<(), BagError> {
+        let Some((name, ty)) = output_topic(m) else {
+            return Ok(());
+        };
+        let id = self.topic(name, ty)?;
+        let t = m.stamp().0;
+        let data = match m {
+            Msg::Contact(x) => x.to_cdr(),
+            Msg::Episode(x) => x.to_cdr(),
+            Msg::Properties(x) => x.to_cdr(),
+            Msg::Comparison(x) => x.to_cdr(),
+            Msg::Latent(x) => x.to_cdr(),
+            Msg::Command(x) => x.to_cdr(),
+            Msg::Status(x) => x.to_cdr(),
+            Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return Ok(()),
+        };
+        self.writer.write_raw(id, t, &data)
+    }
+    pub fn finish(self) -> Result<PathBuf, BagError> {
+        self.writer.finish()
+    }
+}
+
+/// Push one message through the stages (runtime order: a stage's outputs, then its input, go on
+/// to the next stage). Returns every message that leaves the last stage, and the first error.
+fn run_stages(
+    stages: &mut [Box<dyn Stage>],
+    input: Vec<Msg>,
+    clock: &dyn Clock,
+    finishing: Option<usize>,
+) -> (Vec<Msg>, Option<String>) {
+    let mut msgs = input;
+    let mut error = None;
+    for (i, stage) in stages.iter_mut().enumerate() {
+        let mut next = Vec::with_capacity(msgs.len() + 1);
+        for m in msgs {
+            match stage.process(&m, clock) {
+                Ok(outs) => next.extend(outs),
+                Err(e) => {
+                    error.get_or_insert_with(|| format!("{}: {e}", stage.name()));
+                }
+            }
+            next.push(m);
+        }
+        if finishing == Some(i) {
+            match stage.finish(clock) {
+                Ok(outs) => next.extend(outs),
+                Err(e) => {
+                    error.get_or_insert_with(|| format!("{} finish: {e}", stage.name()));
+                }
+            }
+        }
+        msgs = next;
+    }
+    (msgs, error)
+}
+
+/// Replay `source` through `stages`. `on_image` sees every image message with what it produced;
+/// `on_finish` sees the events the stages emit when the input ends (e.g. an open episode).
+/// With `out`, the replayed image messages and every event go into that bag.
+pub fn replay(
+    source: &mut BagSource,
+    stages: &mut [Box<dyn Stage>],
+    mut out: Option<&mut OutputBag>,
+    pace: Pace,
+    stop: &AtomicBool,
+    mut on_image: impl FnMut(&ImageResult),
+    mut on_finish: impl FnMut(&Msg),
+) -> Result<ReplayReport, BagError> {
+    let clock = ManualClock::default();
+    let mut report = ReplayReport::default();
+    source.keep_raw(out.is_some());
+    let mut now = Stamp::ZERO;
+    let t0 = Instant::now();
+    let mut first: Option<i64> = None;
+    while let Some(item) = source.next_image()? {
+        if stop.load(Ordering::SeqCst) {
+            report.stopped = true;
+            break;
+        }
+        if let Pace::Rate(r) = pace {
+            let f0 = *first.get_or_insert(item.log_time);
+            let due = (item.log_time.saturating_sub(f0)) as f64 * 1e-9 / r.max(1e-6);
+            let due = Duration::from_secs_f64(due.clamp(0.0, 1e7));
+            while let Some(wait) = due.checked_sub(t0.elapsed()) {
+                if stop.load(Ordering::SeqCst) {
+                    break;
+                }
+                std::thread::sleep(wait.min(Duration::from_millis(50)));
+            }
+        }
+        report.images += 1;
+        if let Some(o) = out.as_deref_mut() {
+            o.write_input(&item.topic, item.log_time, &item.raw)?;
+        }
+        let result = match item.frame {
+            Ok(frame) => {
+                now = now.max(frame.stamp);
+                clock.set(now);
+                let stamp = frame.stamp.0;
+                let (msgs, error) = run_stages(stages, vec![Msg::Frame(frame)], &clock, None);
+                ImageResult {
+                    stamp,
+                    topic: Arc::clone(&item.topic),
+                    events: msgs.into_iter().filter(|m| !m.is_frame()).collect(),
+                    error,
+                }
+            }
+            Err(e) => ImageResult {
+                stamp: item.log_time,
+                topic: Arc::clone(&item.topic),
+                events: Vec::new(),
+                error: Some(e),
+            },
+        };
+        if result.error.is_some() {
+            report.errors += 1;
+        }
+        for m in &result.events {
+            *report.events.entry(m.kind().to_string()).or_default() += 1;
+            if let Some(o) = out.as_deref_mut() {
+                o.write_event(m)?;
+            }
+        }
+        on_image(&result);
+    }
+    // Finish each stage in order; later stages see what earlier ones flushed.
+    for i in 0..stages.len() {
+        let (msgs, error) = run_stages(&mut stages[i..], Vec::new(), &clock, Some(0));
+        if let Some(e) = error {
+            tracing::warn!("{e}");
+            report.errors += 1;
+        }
+        for m in msgs.iter().filter(|m| !m.is_frame()) {
+            *report.events.entry(m.kind().to_string()).or_default() += 1;
+            if let Some(o) = out.as_deref_mut() {
+                o.write_event(m)?;
+            }
+            on_finish(m);
+        }
+    }
+    report.topic = source.topic().map(str::to_string);
+    report.skipped_topics = source.skipped_topics().cloned().collect();
+    report.truncated_files = source.truncated_files().cloned().collect();
+    Ok(report)
+}
