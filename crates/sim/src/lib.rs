@@ -6,11 +6,13 @@
 //! Frames are a pure function of (scenario, sensor, seed, frame index), so the same seed gives the
 //! same bytes. [`MockSensor`] implements the runtime's `Source`.
 
+mod object;
 mod rng;
 mod scenario;
 
+pub use object::{BUMP_ASPECT, FLAT_FILLET, Object, Shape};
 pub use rng::SplitMix64;
-pub use scenario::{Object, Phase, Scenario, ScenarioError};
+pub use scenario::{Phase, Scenario, ScenarioError};
 
 use unitac_core::{Frame, SensorKind, SensorSpec, Source, SourceError, Stamp};
 
@@ -118,6 +120,8 @@ pub struct MockSensor {
     spec: SensorSpec,
     scenario: Scenario,
     background: Vec<f32>,
+    /// Background times the marker dots at rest.
+    base: Vec<f32>,
     index: u64,
     total: u64,
 }
@@ -127,11 +131,13 @@ impl MockSensor {
         let spec = cfg.sensor.spec();
         let total = (scenario.duration_s() * cfg.fps).floor() as u64;
         let background = render_background(&spec);
+        let base = render_base(&spec, &background, cfg.markers);
         Self {
             cfg,
             spec,
             scenario,
             background,
+            base,
             index: 0,
             total,
         }
@@ -150,78 +156,58 @@ impl MockSensor {
     /// Render frame `index` (independent of what was rendered before).
     pub fn render(&self, index: u64) -> (Frame, GroundTruth) {
         let t = index as f64 / self.cfg.fps;
-        let (depth, obj) = self.scenario.at(t);
+        let (approach, obj) = self.scenario.at(t);
         let (w, h) = (self.spec.width as usize, self.spec.height as usize);
         let mut rng = SplitMix64::new(self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
         let gain = self.cfg.drift.gain(t);
         let mut data = vec![0u8; w * h * 3];
         let mut mask = vec![false; w * h];
         let mut contact_px = 0u32;
-        let px_per_mm = 1.0 / self.spec.mm_per_px;
-        let (cx, cy) = (w as f64 * 0.5, h as f64 * 0.5);
-        let touching = obj.filter(|_| depth > 0.0);
-        let radius_px = obj.map_or(1.0, |o| o.radius_mm * px_per_mm);
-        // Contact radius [px] of a sphere cap of this depth: depth = r^2 R / 2 (r in units of R).
-        let contact_r_px = touching.map_or(0.0, |o| (2.0 * depth / o.radius_mm).sqrt() * radius_px);
-        // The gel deforms a little past the contact circle.
-        let halo = contact_r_px * 1.6 + 4.0;
-        let lights: [[f64; 2]; 3] = [[1.0, 0.0], [-0.5, 0.866], [-0.5, -0.866]];
-        let shade_gain = 90.0; // DN per unit slope
         let noise = self.cfg.noise_dn;
+        let touching = obj.filter(|_| approach > 0.0);
+        let depth = touching.map_or(0.0, |o| o.gel_depth(approach));
+        let press = touching.map(|o| Press::new(o, depth, &self.spec));
+        // Rows and columns the press can change (contact, skirt, dragged markers); everything
+        // else is the lit background times the gain, plus noise.
+        let (x0, x1, y0, y1) = press.as_ref().map_or((0, 0, 0, 0), |p| p.bbox(w, h));
         for y in 0..h {
-            for x in 0..w {
-                let (dxp, dyp) = (x as f64 - cx, y as f64 - cy);
-                let r = (dxp * dxp + dyp * dyp).sqrt();
-                let mut dz = [0.0f64; 2];
-                let mut height = 0.0;
-                let mut sx = x as f64;
-                let mut sy = y as f64;
-                if let (Some(o), true) = (touching, r < halo) {
-                    let r2 = (r / radius_px).powi(2);
-                    let cap = depth - 0.5 * r2 * o.radius_mm;
-                    if cap > 0.0 {
-                        let (xm, ym) = (x as f64 / px_per_mm, y as f64 / px_per_mm);
-                        let s = cap.min(0.2) / 0.2;
-                        height = cap + o.texture_height(xm, ym) * s;
-                        let (tx, ty) = o.texture_gradient(xm, ym);
-                        dz = [-dxp / radius_px + tx * s, -dyp / radius_px + ty * s];
-                        mask[y * w + x] = true;
-                        contact_px += 1;
-                    } else if contact_r_px > 0.0 {
-                        // Outside the contact the gel slopes back up to rest (smooth skirt).
-                        let u = ((r - contact_r_px) / (halo - contact_r_px)).clamp(0.0, 1.0);
-                        let skirt = (1.0 - u).powi(2) * depth * 0.15;
-                        height = skirt;
-                        let slope = 2.0 * (1.0 - u) * depth * 0.15 / (halo - contact_r_px)
-                            * px_per_mm.recip();
-                        let k = if r > 0.0 { slope * px_per_mm / r } else { 0.0 };
-                        dz = [-dxp * k * 0.05, -dyp * k * 0.05];
+            let row = y * w * 3;
+            let in_rows = y >= y0 && y < y1;
+            let mut x = 0;
+            while x < w {
+                let seg_end = if in_rows && x < x0 {
+                    x0
+                } else if in_rows && x < x1 {
+                    x1
+                } else {
+                    w
+                };
+                if in_rows && x >= x0 && x < x1 {
+                    if let Some(p) = &press {
+                        for xi in x..seg_end {
+                            let i = row + xi * 3;
+                            let px = p.pixel(xi, y, self.cfg.markers);
+                            if px.in_contact {
+                                mask[y * w + xi] = true;
+                                contact_px += 1;
+                            }
+                            for c in 0..3 {
+                                let lit = (f64::from(self.background[i + c]) + px.shade[c])
+                                    * px.dark
+                                    * gain;
+                                let v = lit + noise * rng.gaussian_fast();
+                                data[i + c] = v.round().clamp(0.0, 255.0) as u8;
+                            }
+                        }
                     }
-                    // Markers are dragged outward by the local depression (sampled at the pixel:
-                    // render the dot that would have moved here).
-                    let shift = MARKER_SHIFT_PX_PER_MM * height.max(0.0);
-                    if r > 0.0 {
-                        sx -= dxp / r * shift;
-                        sy -= dyp / r * shift;
-                    }
-                }
-                let mut dark = 1.0;
-                if self.cfg.markers {
-                    let mx = (sx / MARKER_SPACING).floor() * MARKER_SPACING + MARKER_SPACING * 0.5;
-                    let my = (sy / MARKER_SPACING).floor() * MARKER_SPACING + MARKER_SPACING * 0.5;
-                    let d = ((sx - mx).powi(2) + (sy - my).powi(2)).sqrt();
-                    if d < MARKER_RADIUS + 1.0 {
-                        let edge = (MARKER_RADIUS + 1.0 - d).clamp(0.0, 1.0);
-                        dark = 1.0 - (1.0 - MARKER_DARK) * edge;
+                } else {
+                    let (a, b) = (row + x * 3, row + seg_end * 3);
+                    for (d, &base) in data[a..b].iter_mut().zip(&self.base[a..b]) {
+                        let v = f64::from(base) * gain + noise * rng.gaussian_fast();
+                        *d = v.round().clamp(0.0, 255.0) as u8;
                     }
                 }
-                let i = (y * w + x) * 3;
-                for (c, l) in lights.iter().enumerate() {
-                    let shade = shade_gain * (dz[0] * l[0] + dz[1] * l[1]) - 25.0 * height;
-                    let lit = (f64::from(self.background[i + c]) + shade) * dark * gain;
-                    let v = lit + noise * rng.gaussian_fast();
-                    data[i + c] = v.round().clamp(0.0, 255.0) as u8;
-                }
+                x = seg_end;
             }
         }
         let stamp = EPOCH.saturating_add_nanos((index as f64 * 1e9 / self.cfg.fps).round() as i64);
@@ -254,6 +240,155 @@ impl MockSensor {
         self.index += 1;
         Some(out)
     }
+}
+
+/// Darkening factor of the marker dots at (sx, y) [px] (1 = no marker).
+fn marker_dark(sx: f64, sy: f64) -> f64 {
+    let mx = (sx / MARKER_SPACING).floor() * MARKER_SPACING + MARKER_SPACING * 0.5;
+    let my = (sy / MARKER_SPACING).floor() * MARKER_SPACING + MARKER_SPACING * 0.5;
+    let d = ((sx - mx).powi(2) + (sy - my).powi(2)).sqrt();
+    if d < MARKER_RADIUS + 1.0 {
+        let edge = (MARKER_RADIUS + 1.0 - d).clamp(0.0, 1.0);
+        1.0 - (1.0 - MARKER_DARK) * edge
+    } else {
+        1.0
+    }
+}
+
+/// The lights' directions in the image plane (GelSight-style R, G, B from 120 degrees apart).
+const LIGHTS: [[f64; 2]; 3] = [[1.0, 0.0], [-0.5, 0.866], [-0.5, -0.866]];
+/// DN per unit slope of the gel surface.
+const SHADE_GAIN: f64 = 90.0;
+/// DN per mm of depression (the pressed gel is a little darker).
+const DEPTH_DARK: f64 = 25.0;
+
+/// What one pixel of a pressed gel looks like before the background and noise.
+struct PressPixel {
+    in_contact: bool,
+    /// Added to the background per channel [DN].
+    shade: [f64; 3],
+    /// Marker darkening.
+    dark: f64,
+}
+
+/// One object pressed `depth` mm into the gel at the image centre, in pixel terms.
+struct Press<'a> {
+    obj: &'a Object,
+    depth: f64,
+    px_per_mm: f64,
+    cx: f64,
+    cy: f64,
+    /// Contact half-width [px] (radius; half the band for an edge).
+    a_px: f64,
+    /// Width of the skirt outside the contact where the gel slopes back to rest [px].
+    skirt_px: f64,
+}
+
+impl<'a> Press<'a> {
+    fn new(obj: &'a Object, depth: f64, spec: &SensorSpec) -> Self {
+        let px_per_mm = 1.0 / spec.mm_per_px;
+        let a_px = obj.contact_half_width_mm(depth) * px_per_mm;
+        Self {
+            obj,
+            depth,
+            px_per_mm,
+            cx: spec.width as f64 * 0.5,
+            cy: spec.height as f64 * 0.5,
+            a_px,
+            // The gel deforms a little past the contact: 60 % of the contact size plus 4 px.
+            skirt_px: a_px * 0.6 + 4.0,
+        }
+    }
+
+    /// Pixel box [x0, x1) x [y0, y1) outside which the gel is at rest.
+    fn bbox(&self, w: usize, h: usize) -> (usize, usize, usize, usize) {
+        // Reach of the deformation plus the farthest a marker dot can be dragged into view.
+        let reach = self.a_px
+            + self.skirt_px
+            + MARKER_SHIFT_PX_PER_MM * self.depth * 1.5
+            + MARKER_RADIUS
+            + 3.0;
+        let span = |c: f64, n: usize| {
+            let lo = (c - reach).floor().max(0.0) as usize;
+            let hi = ((c + reach).ceil().max(0.0) as usize).min(n);
+            (lo.min(n), hi)
+        };
+        let (x0, x1) = span(self.cx, w);
+        let (y0, y1) = match self.obj.shape {
+            Shape::Edge => (0, h),
+            _ => span(self.cy, h),
+        };
+        (x0, x1, y0, y1)
+    }
+
+    fn pixel(&self, x: usize, y: usize, markers: bool) -> PressPixel {
+        let o = self.obj;
+        let (dxp, dyp) = (x as f64 - self.cx, y as f64 - self.cy);
+        // Distance outside the contact boundary [px] and the outward direction.
+        let (r, nx, ny) = match o.shape {
+            Shape::Edge => (dxp.abs(), dxp.signum(), 0.0),
+            _ => {
+                let r = (dxp * dxp + dyp * dyp).sqrt();
+                if r > 0.0 {
+                    (r, dxp / r, dyp / r)
+                } else {
+                    (0.0, 0.0, 0.0)
+                }
+            }
+        };
+        let mut dz = [0.0f64; 2];
+        let mut height = 0.0;
+        let mut in_contact = false;
+        if r < self.a_px + self.skirt_px {
+            let (g, gx, gy) = o.gap(dxp / self.px_per_mm, dyp / self.px_per_mm);
+            let cap = self.depth - g;
+            if cap > 0.0 {
+                let (xm, ym) = (x as f64 / self.px_per_mm, y as f64 / self.px_per_mm);
+                let s = cap.min(0.2) / 0.2;
+                height = cap + o.texture_height(xm, ym) * s;
+                let (tx, ty) = o.texture_gradient(xm, ym);
+                dz = [-gx + tx * s, -gy + ty * s];
+                in_contact = true;
+            } else if self.a_px > 0.0 {
+                // Outside the contact the gel slopes back up to rest (smooth skirt).
+                let u = ((r - self.a_px) / self.skirt_px).clamp(0.0, 1.0);
+                height = (1.0 - u).powi(2) * self.depth * 0.15;
+                let slope = 2.0 * (1.0 - u) * self.depth * 0.15 / self.skirt_px * 0.05;
+                dz = [-nx * slope, -ny * slope];
+            }
+        }
+        let mut dark = 1.0;
+        if markers {
+            // Markers are dragged outward by the local depression (sampled at the pixel: render
+            // the dot that would have moved here).
+            let shift = MARKER_SHIFT_PX_PER_MM * height.max(0.0);
+            dark = marker_dark(x as f64 - nx * shift, y as f64 - ny * shift);
+        }
+        let mut shade = [0.0; 3];
+        for (c, l) in LIGHTS.iter().enumerate() {
+            shade[c] = SHADE_GAIN * (dz[0] * l[0] + dz[1] * l[1]) - DEPTH_DARK * height;
+        }
+        PressPixel {
+            in_contact,
+            shade,
+            dark,
+        }
+    }
+}
+
+/// Background with the marker dots at rest (what every pixel away from a press shows).
+fn render_base(spec: &SensorSpec, background: &[f32], markers: bool) -> Vec<f32> {
+    let w = spec.width as usize;
+    let mut base = background.to_vec();
+    if markers {
+        for (p, px) in base.chunks_exact_mut(3).enumerate() {
+            let dark = marker_dark((p % w) as f64, (p / w) as f64) as f32;
+            for v in px {
+                *v *= dark;
+            }
+        }
+    }
+    base
 }
 
 fn unreachable_frame(id: &str) -> Frame {

@@ -1,39 +1,14 @@
 //! Scenarios: timed phases of pressing objects into the gel.
 
+pub use crate::object::Object;
 use thiserror::Error;
 
 #[derive(Debug, Error, PartialEq, Eq)]
 pub enum ScenarioError {
-    #[error("unknown mock scenario '{0}' (known: fabric_selection, cup_deformation, idle)")]
+    #[error(
+        "unknown mock scenario '{0}' (known: fabric_selection, cup_deformation, indenters, idle)"
+    )]
     Unknown(String),
-}
-
-/// Something pressed into the gel.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Object {
-    pub label: String,
-    /// Indenter radius of curvature [mm].
-    pub radius_mm: f64,
-    /// Surface texture amplitude [mm] (rougher = larger).
-    pub roughness_mm: f64,
-    /// Texture period [mm].
-    pub period_mm: f64,
-}
-
-impl Object {
-    pub fn texture_height(&self, x_mm: f64, y_mm: f64) -> f64 {
-        let k = std::f64::consts::TAU / self.period_mm;
-        self.roughness_mm * (k * x_mm).sin() * (k * y_mm * 0.8 + 0.5).cos()
-    }
-    pub fn texture_gradient(&self, x_mm: f64, y_mm: f64) -> (f64, f64) {
-        let k = std::f64::consts::TAU / self.period_mm;
-        let (sx, cx) = (k * x_mm).sin_cos();
-        let (sy, cy) = (k * y_mm * 0.8 + 0.5).sin_cos();
-        (
-            self.roughness_mm * k * cx * cy,
-            -self.roughness_mm * k * 0.8 * sx * sy,
-        )
-    }
 }
 
 /// One phase: the indenter depth ramps linearly from `from_mm` to `to_mm` over `duration_s`.
@@ -89,6 +64,7 @@ impl Scenario {
         match name {
             "fabric_selection" => Ok(Self::fabric_selection()),
             "cup_deformation" => Ok(Self::cup_deformation()),
+            "indenters" => Ok(Self::indenters()),
             "idle" => Ok(Scenario {
                 name: "idle".into(),
                 phases: vec![free(5.0)],
@@ -99,18 +75,8 @@ impl Scenario {
 
     /// Touch fabric A (rougher), release, touch fabric B (smoother), release.
     pub fn fabric_selection() -> Scenario {
-        let a = Object {
-            label: "fabric_a".into(),
-            radius_mm: 6.0,
-            roughness_mm: 0.06,
-            period_mm: 0.9,
-        };
-        let b = Object {
-            label: "fabric_b".into(),
-            radius_mm: 6.0,
-            roughness_mm: 0.015,
-            period_mm: 0.6,
-        };
+        let a = Object::new("fabric_a", 6.0, 0.06, 0.9);
+        let b = Object::new("fabric_b", 6.0, 0.015, 0.6);
         let mut phases = vec![free(1.0)];
         phases.extend(press(&a, 0.6, 0.8));
         phases.push(free(0.8));
@@ -118,6 +84,28 @@ impl Scenario {
         phases.push(free(0.8));
         Scenario {
             name: "fabric_selection".into(),
+            phases,
+        }
+    }
+
+    /// One press each with a sphere, a flat punch, an edge, and a soft bumpy fabric (terry towel
+    /// over the sphere): the object models side by side.
+    pub fn indenters() -> Scenario {
+        let objects = [
+            Object::sphere("sphere", 4.0),
+            Object::flat("flat", 2.5),
+            Object::edge("edge", 1.0),
+            Object::new("towel", 6.0, 0.01, 0.7)
+                .with_hardness(0.5)
+                .with_bumps(0.35, 1.2),
+        ];
+        let mut phases = vec![free(1.0)];
+        for o in &objects {
+            phases.extend(press(o, 0.6, 0.8));
+            phases.push(free(0.6));
+        }
+        Scenario {
+            name: "indenters".into(),
             phases,
         }
     }
@@ -156,22 +144,12 @@ impl Scenario {
 
     /// The fabrics of the fabric scenario (A rougher than B).
     pub fn fabric(label: &str, roughness_mm: f64, period_mm: f64) -> Object {
-        Object {
-            label: label.into(),
-            radius_mm: 6.0,
-            roughness_mm,
-            period_mm,
-        }
+        Object::new(label, 6.0, roughness_mm, period_mm)
     }
 
     /// Squeeze a cup wall: a wide, smooth contact that deepens slowly, holds, releases.
     pub fn cup_deformation() -> Scenario {
-        let cup = Object {
-            label: "cup".into(),
-            radius_mm: 12.0,
-            roughness_mm: 0.005,
-            period_mm: 2.0,
-        };
+        let cup = Object::new("cup", 12.0, 0.005, 2.0);
         let phases = vec![
             free(1.0),
             Phase {
@@ -260,6 +238,7 @@ mod tests {
             1
         );
         assert_eq!(Scenario::by_name("idle").unwrap().press_count(), 0);
+        assert_eq!(Scenario::by_name("indenters").unwrap().press_count(), 4);
         assert!(Scenario::by_name("juggling").is_err());
     }
 
