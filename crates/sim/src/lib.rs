@@ -9,10 +9,15 @@
 mod object;
 mod rng;
 mod scenario;
+pub mod world;
 
 pub use object::{BUMP_ASPECT, FLAT_FILLET, Object, Shape};
 pub use rng::SplitMix64;
 pub use scenario::{Phase, Scenario, ScenarioError};
+pub use world::{
+    Command, Cup, Gel, GripSample, Gripper, Method, Substep, World, WorldConfig, WorldError,
+    WorldTruth,
+};
 
 use unitac_core::{Frame, SensorKind, SensorSpec, Source, SourceError, Stamp};
 
@@ -32,6 +37,10 @@ pub struct GroundTruth {
     pub mask: Vec<bool>,
     /// Global illumination gain applied to this frame (drift, exposure steps).
     pub gain: f64,
+    /// Grip force per finger [N] when the world drives the scenario (0 otherwise).
+    pub force_n: f64,
+    /// Cup deformation (loss of diameter) [mm] when the world drives the scenario (0 otherwise).
+    pub deformation_mm: f64,
 }
 
 /// Slow illumination changes of a real sensor: LED warm-up, slow wander, exposure steps.
@@ -157,6 +166,7 @@ impl MockSensor {
     pub fn render(&self, index: u64) -> (Frame, GroundTruth) {
         let t = index as f64 / self.cfg.fps;
         let (approach, obj) = self.scenario.at(t);
+        let grip = self.scenario.grip_at(t);
         let (w, h) = (self.spec.width as usize, self.spec.height as usize);
         let mut rng = SplitMix64::new(self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
         let gain = self.cfg.drift.gain(t);
@@ -227,6 +237,8 @@ impl MockSensor {
             contact_px,
             mask,
             gain,
+            force_n: grip.map_or(0.0, |g| g.force_n),
+            deformation_mm: grip.map_or(0.0, |g| g.deformation_mm),
         };
         (frame, truth)
     }
