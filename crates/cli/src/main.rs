@@ -80,7 +80,8 @@ enum Cmd {
         #[arg(long, default_value_t = 10.0)]
         idle_minutes: f64,
     },
-    /// Benchmarks, side by side with the Python a user would otherwise run: `bench contact`.
+    /// Benchmarks: `bench contact` (side by side with the Python a user would otherwise run),
+    /// `bench render` (mock sensor frames per size; uses --repeat only).
     Bench {
         what: BenchTarget,
         #[arg(long)]
@@ -94,6 +95,17 @@ enum Cmd {
         /// Skip the Python baseline.
         #[arg(long)]
         no_python: bool,
+    },
+    /// Reports with tables and PNG plots: `report sim` (the simulator's integrators: error
+    /// against run time on soft, stiff and extreme cups, and a stability map).
+    Report {
+        what: ReportTarget,
+        /// Print the tables as one JSON object instead of text.
+        #[arg(long)]
+        json: bool,
+        /// Directory for the PNG plots (created if missing).
+        #[arg(long, default_value = ".")]
+        out: PathBuf,
     },
     /// List the scenes found in the scene directories.
     Scenes {
@@ -110,6 +122,12 @@ enum EvalTarget {
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum BenchTarget {
     Contact,
+    Render,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum ReportTarget {
+    Sim,
 }
 
 /// Error that maps to exit code 2 (usage / configuration).
@@ -260,6 +278,35 @@ fn cmd_contact(
     Ok(all_ok)
 }
 
+fn bench_render(json: bool, repeat: usize) -> anyhow::Result<bool> {
+    let r = unitac_sim::bench::render_bench(repeat.clamp(1, 1000));
+    if json {
+        println!("{}", serde_json::to_string(&r)?);
+    } else {
+        print!("{}", r.text());
+    }
+    Ok(true)
+}
+
+fn report_sim(json: bool, out: &std::path::Path) -> anyhow::Result<bool> {
+    use unitac_sim::numerics::{NumericsOptions, report};
+    std::fs::create_dir_all(out)
+        .map_err(|e| anyhow::Error::new(ConfigError(format!("--out {}: {e}", out.display()))))?;
+    let r = report(&NumericsOptions::default());
+    let files = r.write_plots(out)?;
+    if json {
+        let mut v = serde_json::to_value(&r)?;
+        v["plots"] = serde_json::json!(files);
+        println!("{v}");
+    } else {
+        print!("{}", r.text());
+        for f in &files {
+            println!("wrote {}", f.display());
+        }
+    }
+    Ok(true)
+}
+
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
@@ -324,6 +371,17 @@ fn main() -> ExitCode {
                 }
                 Ok(true)
             }),
+        Cmd::Bench {
+            what: BenchTarget::Render,
+            json,
+            repeat,
+            ..
+        } => bench_render(json, repeat),
+        Cmd::Report {
+            what: ReportTarget::Sim,
+            json,
+            out,
+        } => report_sim(json, &out),
         Cmd::Scenes { scene_dir } => {
             let mut names: Vec<String> = scene_dirs(scene_dir)
                 .iter()

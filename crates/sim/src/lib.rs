@@ -6,7 +6,10 @@
 //! Frames are a pure function of (scenario, sensor, seed, frame index), so the same seed gives the
 //! same bytes. [`MockSensor`] implements the runtime's `Source`.
 
+pub mod bench;
+pub mod numerics;
 mod object;
+pub mod plot;
 mod rng;
 mod scenario;
 pub mod world;
@@ -152,11 +155,31 @@ impl MockSensor {
         }
     }
 
+    /// A mock sensor with its own output size (e.g. DIGIT's VGA mode, 640x480 at 0.02 mm/px).
+    /// The spec's size must be within `unitac_core::frame::MAX_SIDE`.
+    pub fn with_spec(cfg: MockConfig, spec: SensorSpec, scenario: Scenario) -> Self {
+        let total = (scenario.duration_s() * cfg.fps).floor() as u64;
+        let background = render_background(&spec);
+        let base = render_base(&spec, &background, cfg.markers);
+        Self {
+            cfg,
+            spec,
+            scenario,
+            background,
+            base,
+            index: 0,
+            total,
+        }
+    }
+
     pub fn spec(&self) -> &SensorSpec {
         &self.spec
     }
     pub fn config(&self) -> &MockConfig {
         &self.cfg
+    }
+    pub fn scenario(&self) -> &Scenario {
+        &self.scenario
     }
     pub fn frame_count(&self) -> u64 {
         self.total

@@ -333,9 +333,9 @@ pub struct World {
     newton_max_iters: u32,
 }
 
-/// Iterations and tolerance of the Newton solve [mm].
+/// Iterations and tolerance of the Newton solve [mm] (relative to 1 + |x|).
 const NEWTON_ITERS: u32 = 60;
-const NEWTON_TOL_MM: f64 = 1e-12;
+const NEWTON_TOL_MM: f64 = 1e-13;
 
 impl World {
     pub fn new(cfg: WorldConfig) -> Self {
@@ -546,10 +546,11 @@ impl World {
                 lo = x;
             }
             let mut xn = x - rx / dr(x);
-            if !(xn > lo && xn < hi) {
+            if !(xn >= lo && xn <= hi) {
                 xn = 0.5 * (lo + hi);
             }
-            if (xn - x).abs() <= NEWTON_TOL_MM * (1.0 + x.abs()) || hi - lo <= NEWTON_TOL_MM {
+            let dx = (xn - x).abs();
+            if dx <= NEWTON_TOL_MM * (1.0 + x.abs()) || hi - lo <= NEWTON_TOL_MM {
                 return (xn, it);
             }
             x = xn;
