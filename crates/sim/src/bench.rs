@@ -9,6 +9,8 @@ use crate::{MockConfig, MockSensor, Scenario};
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Timing {
+    /// Fastest frame (least disturbed by other load on the machine).
+    pub min_us: f64,
     pub median_us: f64,
     pub mean_us: f64,
     pub p90_us: f64,
@@ -18,6 +20,7 @@ fn timing(mut v: Vec<f64>) -> Timing {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     Timing {
+        min_us: v.first().copied().unwrap_or(0.0),
         median_us: v.get(n / 2).copied().unwrap_or(0.0),
         mean_us: v.iter().sum::<f64>() / n.max(1) as f64,
         p90_us: v.get(n * 9 / 10).copied().unwrap_or(0.0),

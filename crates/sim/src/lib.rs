@@ -15,7 +15,7 @@ mod scenario;
 pub mod world;
 
 pub use object::{BUMP_ASPECT, FLAT_FILLET, Object, Shape};
-pub use rng::SplitMix64;
+pub use rng::{GaussianTable, NoiseStream, SplitMix64, normal_quantile};
 pub use scenario::{Phase, Scenario, ScenarioError};
 pub use world::{
     Command, Cup, Gel, GripSample, Gripper, Method, Substep, World, WorldConfig, WorldError,
@@ -134,6 +134,8 @@ pub struct MockSensor {
     background: Vec<f32>,
     /// Background times the marker dots at rest.
     base: Vec<f32>,
+    /// Per-pixel noise, sigma = noise_dn.
+    noise: GaussianTable,
     index: u64,
     total: u64,
 }
@@ -141,18 +143,7 @@ pub struct MockSensor {
 impl MockSensor {
     pub fn new(cfg: MockConfig, scenario: Scenario) -> Self {
         let spec = cfg.sensor.spec();
-        let total = (scenario.duration_s() * cfg.fps).floor() as u64;
-        let background = render_background(&spec);
-        let base = render_base(&spec, &background, cfg.markers);
-        Self {
-            cfg,
-            spec,
-            scenario,
-            background,
-            base,
-            index: 0,
-            total,
-        }
+        Self::with_spec(cfg, spec, scenario)
     }
 
     /// A mock sensor with its own output size (e.g. DIGIT's VGA mode, 640x480 at 0.02 mm/px).
@@ -161,12 +152,14 @@ impl MockSensor {
         let total = (scenario.duration_s() * cfg.fps).floor() as u64;
         let background = render_background(&spec);
         let base = render_base(&spec, &background, cfg.markers);
+        let noise = GaussianTable::new(cfg.noise_dn);
         Self {
             cfg,
             spec,
             scenario,
             background,
             base,
+            noise,
             index: 0,
             total,
         }
@@ -191,18 +184,19 @@ impl MockSensor {
         let (approach, obj) = self.scenario.at(t);
         let grip = self.scenario.grip_at(t);
         let (w, h) = (self.spec.width as usize, self.spec.height as usize);
-        let mut rng = SplitMix64::new(self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let mut rng = self.noise.stream(SplitMix64::new(
+            self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        ));
         let gain = self.cfg.drift.gain(t);
         let mut data = vec![0u8; w * h * 3];
         let mut mask = vec![false; w * h];
         let mut contact_px = 0u32;
-        let noise = self.cfg.noise_dn;
         let touching = obj.filter(|_| approach > 0.0);
         let depth = touching.map_or(0.0, |o| o.gel_depth(approach));
-        let press = touching.map(|o| Press::new(o, depth, &self.spec));
+        let press = touching.map(|o| Press::new(o, depth, &self.spec, w, h));
         // Rows and columns the press can change (contact, skirt, dragged markers); everything
         // else is the lit background times the gain, plus noise.
-        let (x0, x1, y0, y1) = press.as_ref().map_or((0, 0, 0, 0), |p| p.bbox(w, h));
+        let (x0, x1, y0, y1) = press.as_ref().map_or((0, 0, 0, 0), |p| p.bbox);
         for y in 0..h {
             let row = y * w * 3;
             let in_rows = y >= y0 && y < y1;
@@ -217,27 +211,33 @@ impl MockSensor {
                 };
                 if in_rows && x >= x0 && x < x1 {
                     if let Some(p) = &press {
+                        let row_trig = p.row_trig(y);
                         for xi in x..seg_end {
                             let i = row + xi * 3;
-                            let px = p.pixel(xi, y, self.cfg.markers);
+                            let Some(px) = p.pixel(xi, y, row_trig, self.cfg.markers) else {
+                                // At rest: the background path.
+                                let g = gain as f32;
+                                for c in 0..3 {
+                                    data[i + c] = quantise32(self.base[i + c] * g + rng.sample());
+                                }
+                                continue;
+                            };
                             if px.in_contact {
                                 mask[y * w + xi] = true;
                                 contact_px += 1;
                             }
+                            let dg = (px.dark * gain) as f32;
                             for c in 0..3 {
-                                let lit = (f64::from(self.background[i + c]) + px.shade[c])
-                                    * px.dark
-                                    * gain;
-                                let v = lit + noise * rng.gaussian_fast();
-                                data[i + c] = v.round().clamp(0.0, 255.0) as u8;
+                                let lit = (self.background[i + c] + px.shade[c] as f32) * dg;
+                                data[i + c] = quantise32(lit + rng.sample());
                             }
                         }
                     }
                 } else {
                     let (a, b) = (row + x * 3, row + seg_end * 3);
+                    let g = gain as f32;
                     for (d, &base) in data[a..b].iter_mut().zip(&self.base[a..b]) {
-                        let v = f64::from(base) * gain + noise * rng.gaussian_fast();
-                        *d = v.round().clamp(0.0, 255.0) as u8;
+                        *d = quantise32(base * g + rng.sample());
                     }
                 }
                 x = seg_end;
@@ -279,15 +279,30 @@ impl MockSensor {
 
 /// Darkening factor of the marker dots at (sx, y) [px] (1 = no marker).
 fn marker_dark(sx: f64, sy: f64) -> f64 {
-    let mx = (sx / MARKER_SPACING).floor() * MARKER_SPACING + MARKER_SPACING * 0.5;
-    let my = (sy / MARKER_SPACING).floor() * MARKER_SPACING + MARKER_SPACING * 0.5;
-    let d = ((sx - mx).powi(2) + (sy - my).powi(2)).sqrt();
-    if d < MARKER_RADIUS + 1.0 {
-        let edge = (MARKER_RADIUS + 1.0 - d).clamp(0.0, 1.0);
+    let mx = floor(sx / MARKER_SPACING) * MARKER_SPACING + MARKER_SPACING * 0.5;
+    let my = floor(sy / MARKER_SPACING) * MARKER_SPACING + MARKER_SPACING * 0.5;
+    let d2 = (sx - mx) * (sx - mx) + (sy - my) * (sy - my);
+    let reach = MARKER_RADIUS + 1.0;
+    if d2 < reach * reach {
+        let edge = (reach - d2.sqrt()).clamp(0.0, 1.0);
         1.0 - (1.0 - MARKER_DARK) * edge
     } else {
         1.0
     }
+}
+
+/// floor() without a libm call (baseline x86-64 has no rounding instruction); exact for
+/// |x| < 2^52.
+#[inline]
+fn floor(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    if t > x { t - 1.0 } else { t }
+}
+
+/// Round to the nearest DN and saturate (NaN gives 0), in f32.
+#[inline]
+fn quantise32(v: f32) -> u8 {
+    (v.clamp(0.0, 255.0) + 0.5) as u8
 }
 
 /// The lights' directions in the image plane (GelSight-style R, G, B from 120 degrees apart).
@@ -317,13 +332,24 @@ struct Press<'a> {
     a_px: f64,
     /// Width of the skirt outside the contact where the gel slopes back to rest [px].
     skirt_px: f64,
+    /// Pixel box [x0, x1) x [y0, y1) outside which the gel is at rest.
+    bbox: (usize, usize, usize, usize),
+    /// Texture wave: k [1/mm], and (sin, cos) of k x per column of the box.
+    k: f64,
+    cols: Vec<(f64, f64)>,
+    /// Precomputed reciprocals: mm per px, 1 / effective radius [1/mm], 1 / skirt [1/px].
+    mm_per_px: f64,
+    inv_r: f64,
+    inv_skirt: f64,
+    /// Outer radius of the deformed area [px].
+    outer_px: f64,
 }
 
 impl<'a> Press<'a> {
-    fn new(obj: &'a Object, depth: f64, spec: &SensorSpec) -> Self {
+    fn new(obj: &'a Object, depth: f64, spec: &SensorSpec, w: usize, h: usize) -> Self {
         let px_per_mm = 1.0 / spec.mm_per_px;
         let a_px = obj.contact_half_width_mm(depth) * px_per_mm;
-        Self {
+        let mut p = Self {
             obj,
             depth,
             px_per_mm,
@@ -332,17 +358,33 @@ impl<'a> Press<'a> {
             a_px,
             // The gel deforms a little past the contact: 60 % of the contact size plus 4 px.
             skirt_px: a_px * 0.6 + 4.0,
-        }
+            bbox: (0, 0, 0, 0),
+            k: std::f64::consts::TAU / obj.period_mm,
+            cols: Vec::new(),
+            mm_per_px: spec.mm_per_px,
+            inv_r: 1.0 / obj.effective_radius_mm(),
+            inv_skirt: 1.0 / (a_px * 0.6 + 4.0),
+            outer_px: a_px * 1.6 + 4.0,
+        };
+        p.bbox = p.find_bbox(w, h);
+        let (x0, x1, _, _) = p.bbox;
+        p.cols = (x0..x1)
+            .map(|x| (p.k * x as f64 / px_per_mm).sin_cos())
+            .collect();
+        p
+    }
+
+    /// (sin, cos) of the texture's row phase at row y.
+    fn row_trig(&self, y: usize) -> (f64, f64) {
+        (self.k * (y as f64 / self.px_per_mm) * 0.8 + 0.5).sin_cos()
     }
 
     /// Pixel box [x0, x1) x [y0, y1) outside which the gel is at rest.
-    fn bbox(&self, w: usize, h: usize) -> (usize, usize, usize, usize) {
+    fn find_bbox(&self, w: usize, h: usize) -> (usize, usize, usize, usize) {
         // Reach of the deformation plus the farthest a marker dot can be dragged into view.
-        let reach = self.a_px
-            + self.skirt_px
-            + MARKER_SHIFT_PX_PER_MM * self.depth * 1.5
-            + MARKER_RADIUS
-            + 3.0;
+        // Beyond the skirt the gel is at rest (markers are sampled at the pixel, so a dragged
+        // dot never shows outside the deformed area).
+        let reach = self.a_px + self.skirt_px + 2.0;
         let span = |c: f64, n: usize| {
             let lo = (c - reach).floor().max(0.0) as usize;
             let hi = ((c + reach).ceil().max(0.0) as usize).min(n);
@@ -356,40 +398,78 @@ impl<'a> Press<'a> {
         (x0, x1, y0, y1)
     }
 
-    fn pixel(&self, x: usize, y: usize, markers: bool) -> PressPixel {
+    /// The pressed gel at pixel (x, y); None where it is at rest.
+    fn pixel(&self, x: usize, y: usize, (sy, cy): (f64, f64), markers: bool) -> Option<PressPixel> {
         let o = self.obj;
         let (dxp, dyp) = (x as f64 - self.cx, y as f64 - self.cy);
         // Distance outside the contact boundary [px] and the outward direction.
         let (r, nx, ny) = match o.shape {
             Shape::Edge => (dxp.abs(), dxp.signum(), 0.0),
             _ => {
-                let r = (dxp * dxp + dyp * dyp).sqrt();
-                if r > 0.0 {
-                    (r, dxp / r, dyp / r)
-                } else {
-                    (0.0, 0.0, 0.0)
+                let r2 = dxp * dxp + dyp * dyp;
+                if r2 >= self.outer_px * self.outer_px {
+                    return None;
                 }
+                let r = r2.sqrt();
+                // The outward direction (skirt slope, marker drag), normalised below if used.
+                (r, dxp, dyp)
+            }
+        };
+        if r >= self.outer_px {
+            return None;
+        }
+        let unit = || -> (f64, f64) {
+            match o.shape {
+                Shape::Edge => (nx, ny),
+                _ if r > 0.0 => (nx / r, ny / r),
+                _ => (0.0, 0.0),
             }
         };
         let mut dz = [0.0f64; 2];
         let mut height = 0.0;
         let mut in_contact = false;
-        if r < self.a_px + self.skirt_px {
-            let (g, gx, gy) = o.gap(dxp / self.px_per_mm, dyp / self.px_per_mm);
+        {
+            let (dx, dy) = (dxp * self.mm_per_px, dyp * self.mm_per_px);
+            // Object::gap, with the reciprocal precomputed for the common shapes.
+            let (g, gx, gy) = match o.shape {
+                Shape::Sphere => (
+                    0.5 * (dx * dx + dy * dy) * self.inv_r,
+                    dx * self.inv_r,
+                    dy * self.inv_r,
+                ),
+                Shape::Edge => (0.5 * dx * dx * self.inv_r, dx * self.inv_r, 0.0),
+                Shape::Flat => o.gap(dx, dy),
+            };
             let cap = self.depth - g;
             if cap > 0.0 {
-                let (xm, ym) = (x as f64 / self.px_per_mm, y as f64 / self.px_per_mm);
-                let s = cap.min(0.2) / 0.2;
-                height = cap + o.texture_height(xm, ym) * s;
-                let (tx, ty) = o.texture_gradient(xm, ym);
+                // Texture (Object::texture_height / texture_gradient, with the trigonometry
+                // per row and column).
+                let (sx, cx) = self
+                    .cols
+                    .get(x - self.bbox.0)
+                    .copied()
+                    .unwrap_or((0.0, 1.0));
+                let amp = o.roughness_mm;
+                let mut th = amp * sx * cy;
+                let mut tx = amp * self.k * cx * cy;
+                let mut ty = -amp * self.k * 0.8 * sx * sy;
+                if o.bump_mm > 0.0 {
+                    let (bh, bx, by) = o.bump(x as f64 * self.mm_per_px, y as f64 * self.mm_per_px);
+                    th += bh;
+                    tx += bx;
+                    ty += by;
+                }
+                let s = cap.min(0.2) * 5.0;
+                height = cap + th * s;
                 dz = [-gx + tx * s, -gy + ty * s];
                 in_contact = true;
             } else if self.a_px > 0.0 {
                 // Outside the contact the gel slopes back up to rest (smooth skirt).
-                let u = ((r - self.a_px) / self.skirt_px).clamp(0.0, 1.0);
-                height = (1.0 - u).powi(2) * self.depth * 0.15;
-                let slope = 2.0 * (1.0 - u) * self.depth * 0.15 / self.skirt_px * 0.05;
-                dz = [-nx * slope, -ny * slope];
+                let u = ((r - self.a_px) * self.inv_skirt).clamp(0.0, 1.0);
+                height = (1.0 - u) * (1.0 - u) * self.depth * 0.15;
+                let slope = 2.0 * (1.0 - u) * self.depth * 0.15 * self.inv_skirt * 0.05;
+                let (ux, uy) = unit();
+                dz = [-ux * slope, -uy * slope];
             }
         }
         let mut dark = 1.0;
@@ -397,17 +477,18 @@ impl<'a> Press<'a> {
             // Markers are dragged outward by the local depression (sampled at the pixel: render
             // the dot that would have moved here).
             let shift = MARKER_SHIFT_PX_PER_MM * height.max(0.0);
-            dark = marker_dark(x as f64 - nx * shift, y as f64 - ny * shift);
+            let (ux, uy) = unit();
+            dark = marker_dark(x as f64 - ux * shift, y as f64 - uy * shift);
         }
         let mut shade = [0.0; 3];
         for (c, l) in LIGHTS.iter().enumerate() {
             shade[c] = SHADE_GAIN * (dz[0] * l[0] + dz[1] * l[1]) - DEPTH_DARK * height;
         }
-        PressPixel {
+        Some(PressPixel {
             in_contact,
             shade,
             dark,
-        }
+        })
     }
 }
 
