@@ -15,7 +15,7 @@ mod scenario;
 pub mod world;
 
 pub use object::{BUMP_ASPECT, FLAT_FILLET, Object, Shape};
-pub use rng::{GaussianTable, NoiseStream, SplitMix64, normal_quantile};
+pub use rng::{GaussianTable, NoiseStream, SplitMix64, normal_quantile, quantise_f32};
 pub use scenario::{Phase, Scenario, ScenarioError};
 pub use world::{
     Command, Cup, Gel, GripSample, Gripper, Method, Substep, World, WorldConfig, WorldError,
@@ -197,50 +197,50 @@ impl MockSensor {
         // Rows and columns the press can change (contact, skirt, dragged markers); everything
         // else is the lit background times the gain, plus noise.
         let (x0, x1, y0, y1) = press.as_ref().map_or((0, 0, 0, 0), |p| p.bbox);
-        for y in 0..h {
-            let row = y * w * 3;
-            let in_rows = y >= y0 && y < y1;
-            let mut x = 0;
-            while x < w {
-                let seg_end = if in_rows && x < x0 {
-                    x0
-                } else if in_rows && x < x1 {
-                    x1
-                } else {
-                    w
+        let g = gain as f32;
+        let mut noise = vec![0f32; w * 3];
+        for (y, ((out, base), bg)) in data
+            .chunks_exact_mut(w * 3)
+            .zip(self.base.chunks_exact(w * 3))
+            .zip(self.background.chunks_exact(w * 3))
+            .enumerate()
+        {
+            // This row's noise, in raster order.
+            rng.fill(&mut noise);
+            let pressed = match &press {
+                Some(p) if y >= y0 && y < y1 => Some(p),
+                _ => None,
+            };
+            let Some(p) = pressed else {
+                quantise_row(out, base, &noise, g);
+                continue;
+            };
+            let (a, b) = (x0 * 3, x1 * 3);
+            quantise_row(&mut out[..a], &base[..a], &noise[..a], g);
+            quantise_row(&mut out[b..], &base[b..], &noise[b..], g);
+            let row_trig = p.row_trig(y);
+            let mask_row = &mut mask[y * w + x0..y * w + x1];
+            for (xi, ((((o, bs), bk), n), m)) in out[a..b]
+                .chunks_exact_mut(3)
+                .zip(base[a..b].chunks_exact(3))
+                .zip(bg[a..b].chunks_exact(3))
+                .zip(noise[a..b].chunks_exact(3))
+                .zip(mask_row.iter_mut())
+                .enumerate()
+            {
+                let Some(px) = p.pixel(x0 + xi, y, row_trig, self.cfg.markers) else {
+                    // At rest: the background path.
+                    quantise_row(o, bs, n, g);
+                    continue;
                 };
-                if in_rows && x >= x0 && x < x1 {
-                    if let Some(p) = &press {
-                        let row_trig = p.row_trig(y);
-                        for xi in x..seg_end {
-                            let i = row + xi * 3;
-                            let Some(px) = p.pixel(xi, y, row_trig, self.cfg.markers) else {
-                                // At rest: the background path.
-                                let g = gain as f32;
-                                for c in 0..3 {
-                                    data[i + c] = quantise32(self.base[i + c] * g + rng.sample());
-                                }
-                                continue;
-                            };
-                            if px.in_contact {
-                                mask[y * w + xi] = true;
-                                contact_px += 1;
-                            }
-                            let dg = (px.dark * gain) as f32;
-                            for c in 0..3 {
-                                let lit = (self.background[i + c] + px.shade[c] as f32) * dg;
-                                data[i + c] = quantise32(lit + rng.sample());
-                            }
-                        }
-                    }
-                } else {
-                    let (a, b) = (row + x * 3, row + seg_end * 3);
-                    let g = gain as f32;
-                    for (d, &base) in data[a..b].iter_mut().zip(&self.base[a..b]) {
-                        *d = quantise32(base * g + rng.sample());
-                    }
+                if px.in_contact {
+                    *m = true;
+                    contact_px += 1;
                 }
-                x = seg_end;
+                let dg = (px.dark * gain) as f32;
+                for c in 0..3 {
+                    o[c] = quantise_f32((bk[c] + px.shade[c] as f32) * dg + n[c]);
+                }
             }
         }
         let stamp = EPOCH.saturating_add_nanos((index as f64 * 1e9 / self.cfg.fps).round() as i64);
@@ -277,6 +277,14 @@ impl MockSensor {
     }
 }
 
+/// `out = quantise(base * gain + noise)`, element-wise (vectorises).
+#[inline]
+fn quantise_row(out: &mut [u8], base: &[f32], noise: &[f32], gain: f32) {
+    for ((o, &b), &n) in out.iter_mut().zip(base).zip(noise) {
+        *o = quantise_f32(b * gain + n);
+    }
+}
+
 /// Darkening factor of the marker dots at (sx, y) [px] (1 = no marker).
 fn marker_dark(sx: f64, sy: f64) -> f64 {
     let mx = floor(sx / MARKER_SPACING) * MARKER_SPACING + MARKER_SPACING * 0.5;
@@ -297,12 +305,6 @@ fn marker_dark(sx: f64, sy: f64) -> f64 {
 fn floor(x: f64) -> f64 {
     let t = x as i64 as f64;
     if t > x { t - 1.0 } else { t }
-}
-
-/// Round to the nearest DN and saturate (NaN gives 0), in f32.
-#[inline]
-fn quantise32(v: f32) -> u8 {
-    (v.clamp(0.0, 255.0) + 0.5) as u8
 }
 
 /// The lights' directions in the image plane (GelSight-style R, G, B from 120 degrees apart).

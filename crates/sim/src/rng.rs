@@ -149,11 +149,67 @@ impl NoiseStream<'_> {
         self.left -= 1;
         self.table[i]
     }
+
+    /// Fill `out` with the next samples: the same as calling [`Self::sample`] for each in
+    /// order, five per generator step without the per-sample bookkeeping.
+    pub fn fill(&mut self, out: &mut [f32]) {
+        let head = (self.left as usize).min(out.len());
+        let (first, rest) = out.split_at_mut(head);
+        for d in first {
+            *d = self.sample();
+        }
+        let mut chunks = rest.chunks_exact_mut(PER_DRAW as usize);
+        for c in &mut chunks {
+            let mut bits = self.rng.next_u64();
+            for d in c {
+                *d = self.table[(bits as usize) & (TABLE_LEN - 1)];
+                bits >>= TABLE_BITS;
+            }
+        }
+        for d in chunks.into_remainder() {
+            *d = self.sample();
+        }
+    }
+}
+
+/// Round to the nearest integer in [0, 255] (ties to even; NaN gives 0): clamp with plain
+/// comparisons (maxss/minss), then the 1.5 x 2^23 trick puts the rounded value in the low
+/// mantissa bits.
+#[inline]
+pub fn quantise_f32(v: f32) -> u8 {
+    let v = if v > 0.0 { v } else { 0.0 };
+    let v = if v < 255.0 { v } else { 255.0 };
+    (v + 12_582_912.0).to_bits() as u8
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quantise_rounds_and_saturates() {
+        assert_eq!(quantise_f32(-3.0), 0);
+        assert_eq!(quantise_f32(f32::NAN), 0);
+        assert_eq!(quantise_f32(300.0), 255);
+        assert_eq!(quantise_f32(254.6), 255);
+        assert_eq!(quantise_f32(17.4), 17);
+        assert_eq!(quantise_f32(17.6), 18);
+    }
+
+    #[test]
+    fn fill_matches_sample_by_sample() {
+        let t = GaussianTable::new(1.0);
+        let base: Vec<f32> = (0..97).map(|i| i as f32 * 2.5).collect();
+        let mut a = t.stream(SplitMix64::new(4));
+        let mut b = t.stream(SplitMix64::new(4));
+        // Start mid-draw, then fill.
+        let _ = (a.sample(), b.sample());
+        let mut fa = vec![0f32; 97];
+        a.fill(&mut fa);
+        let fb: Vec<f32> = base.iter().map(|_| b.sample()).collect();
+        assert_eq!(fa, fb);
+        assert_eq!(a.sample(), b.sample());
+    }
 
     #[test]
     fn table_noise_is_standard_normal() {
