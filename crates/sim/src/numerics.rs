@@ -112,7 +112,7 @@ pub fn run_task(cup: &Cup, method: Method, substep: Substep, h: f64) -> Outcome 
         match w.step_finger(h, task.finger_at(t)) {
             Ok(s) => {
                 out.steps += u64::from(s.substeps);
-                out.peak_force_n = out.peak_force_n.max(s.force_n);
+                out.peak_force_n = out.peak_force_n.max(s.step_peak_force_n);
                 out.final_deformation_mm = s.deformation_mm;
                 if i == n_close {
                     out.stop_deformation_mm = s.deformation_mm;

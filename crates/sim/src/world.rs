@@ -319,6 +319,8 @@ pub struct WorldTruth {
     pub wall_velocity_mm_s: f64,
     /// Integrator steps this world step took.
     pub substeps: u32,
+    /// Largest force at the end of any of those sub-steps [N] (a peak inside the step).
+    pub step_peak_force_n: f64,
 }
 
 /// The world: state and integrator.
@@ -383,6 +385,7 @@ impl World {
             penetration_mm: self.p - self.x,
             wall_velocity_mm_s: self.v,
             substeps,
+            step_peak_force_n: self.force,
         }
     }
 
@@ -416,10 +419,12 @@ impl World {
         let n = self.substeps(h);
         let hs = h / f64::from(n);
         let p0 = self.p;
+        let mut peak: f64 = 0.0;
         for i in 1..=n {
             let pe = p0 + (p1 - p0) * f64::from(i) / f64::from(n);
             self.integrate(hs, pe);
             self.t += hs;
+            peak = peak.max(self.force);
             if let Some(what) = self.broken() {
                 return Err(WorldError::Diverged {
                     method: self.cfg.method,
@@ -429,7 +434,9 @@ impl World {
                 });
             }
         }
-        Ok(self.truth(n))
+        let mut t = self.truth(n);
+        t.step_peak_force_n = peak;
+        Ok(t)
     }
 
     /// Number of sub-steps for a step of `h` from the current state.
@@ -665,7 +672,7 @@ pub fn grip_cup(
     let mut last = w.truth(0);
     while last.deformation_mm < target_mm && k < max_steps {
         last = w.step(dt, Command::Position(far))?;
-        peak = peak.max(last.force_n);
+        peak = peak.max(last.step_peak_force_n);
         samples.push(sample(last));
         k += 1;
         if last.force_n >= w.cfg.gripper.max_force_n {
@@ -677,7 +684,7 @@ pub fn grip_cup(
     let n_hold = (hold_s / dt).round() as u64;
     for _ in 0..n_hold {
         last = w.step(dt, hold)?;
-        peak = peak.max(last.force_n);
+        peak = peak.max(last.step_peak_force_n);
         samples.push(sample(last));
     }
     let hold_end_s = w.t;
