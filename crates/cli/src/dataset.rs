@@ -32,16 +32,7 @@ pub fn fabric(rng: &mut SplitMix64, label: &str) -> (Object, f64, [f64; 3]) {
         (roughness - ROUGHNESS_MM.0) / (ROUGHNESS_MM.1 - ROUGHNESS_MM.0),
         (period - PERIOD_MM.0) / (PERIOD_MM.1 - PERIOD_MM.0),
     ];
-    (
-        Object {
-            label: label.into(),
-            radius_mm: 6.0,
-            roughness_mm: roughness,
-            period_mm: period,
-        },
-        depth,
-        scores,
-    )
+    (Object::new(label, 6.0, roughness, period), depth, scores)
 }
 
 /// One short press: learn the background, press, hold, release.
@@ -67,6 +58,7 @@ pub fn press(object: &Object, depth: f64) -> Scenario {
             on(0.3, depth, -0.1),
             free(0.2),
         ],
+        grip: Vec::new(),
     }
 }
 

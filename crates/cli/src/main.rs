@@ -114,8 +114,8 @@ enum Cmd {
         #[arg(long, default_value_t = 10.0)]
         idle_minutes: f64,
     },
-    /// Benchmarks, side by side with the Python a user would otherwise run: `bench contact`,
-    /// `bench replay`.
+    /// Benchmarks, side by side with the Python a user would otherwise run where there is one:
+    /// `bench contact`, `bench replay`, `bench sampler`, `bench render` (mock sensor frames).
     Bench {
         what: BenchTarget,
         #[arg(long)]
@@ -130,7 +130,8 @@ enum Cmd {
         #[arg(long)]
         no_python: bool,
     },
-    /// Error against run time, with tables and PNG plots: `report sampler`.
+    /// Error against run time, with tables and PNG plots: `report sampler` (flow sampler),
+    /// `report sim` (the simulator's integrators on soft, stiff and extreme cups, stability map).
     Report {
         what: ReportTarget,
         #[arg(long)]
@@ -176,11 +177,13 @@ enum BenchTarget {
     Contact,
     Replay,
     Sampler,
+    Render,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum ReportTarget {
     Sampler,
+    Sim,
 }
 
 /// Error that maps to exit code 2 (usage / configuration).
@@ -331,6 +334,25 @@ fn cmd_contact(
     Ok(all_ok)
 }
 
+fn report_sim(json: bool, out: &std::path::Path) -> anyhow::Result<bool> {
+    use unitac_sim::numerics::{NumericsOptions, report};
+    std::fs::create_dir_all(out)
+        .map_err(|e| anyhow::Error::new(ConfigError(format!("--out {}: {e}", out.display()))))?;
+    let r = report(&NumericsOptions::default());
+    let files = r.write_plots(out)?;
+    if json {
+        let mut v = serde_json::to_value(&r)?;
+        v["plots"] = serde_json::json!(files);
+        println!("{v}");
+    } else {
+        print!("{}", r.text());
+        for f in &files {
+            println!("wrote {}", f.display());
+        }
+    }
+    Ok(true)
+}
+
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
@@ -402,7 +424,7 @@ fn main() -> ExitCode {
             Ok(true)
         }),
         Cmd::Report {
-            what: ReportTarget::Sampler,
+            what,
             json,
             out,
             repeat,
@@ -411,14 +433,19 @@ fn main() -> ExitCode {
                 Some(r) => PathBuf::from(r).join(".build/report"),
                 None => PathBuf::from("report"),
             });
-            sampler::report(&out, repeat.clamp(1, 1000)).and_then(|r| {
-                if json {
-                    println!("{}", serde_json::to_string(&r)?);
-                } else {
-                    print!("{}", r.text());
+            match what {
+                ReportTarget::Sampler => {
+                    sampler::report(&out, repeat.clamp(1, 1000)).and_then(|r| {
+                        if json {
+                            println!("{}", serde_json::to_string(&r)?);
+                        } else {
+                            print!("{}", r.text());
+                        }
+                        Ok(true)
+                    })
                 }
-                Ok(true)
-            })
+                ReportTarget::Sim => report_sim(json, &out),
+            }
         }
         Cmd::Bench {
             what,
@@ -435,6 +462,12 @@ fn main() -> ExitCode {
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
                 BenchTarget::Sampler => {
                     sampler::bench(repeat).and_then(|r| Ok((serde_json::to_string(&r)?, r.text())))
+                }
+                BenchTarget::Render => {
+                    let r = unitac_sim::bench::render_bench(repeat);
+                    serde_json::to_string(&r)
+                        .map(|j| (j, r.text()))
+                        .map_err(anyhow::Error::from)
                 }
             };
             text.map(|(j, t)| {

@@ -6,11 +6,21 @@
 //! Frames are a pure function of (scenario, sensor, seed, frame index), so the same seed gives the
 //! same bytes. [`MockSensor`] implements the runtime's `Source`.
 
+pub mod bench;
+pub mod numerics;
+mod object;
+pub mod plot;
 mod rng;
 mod scenario;
+pub mod world;
 
-pub use rng::SplitMix64;
-pub use scenario::{Object, Phase, Scenario, ScenarioError};
+pub use object::{BUMP_ASPECT, FLAT_FILLET, Object, Shape};
+pub use rng::{GaussianTable, NoiseStream, SplitMix64, normal_quantile, quantise_f32};
+pub use scenario::{Phase, Scenario, ScenarioError};
+pub use world::{
+    Command, Cup, Gel, GripSample, Gripper, Method, Substep, World, WorldConfig, WorldError,
+    WorldTruth,
+};
 
 use unitac_core::{Frame, SensorKind, SensorSpec, Source, SourceError, Stamp};
 
@@ -30,6 +40,10 @@ pub struct GroundTruth {
     pub mask: Vec<bool>,
     /// Global illumination gain applied to this frame (drift, exposure steps).
     pub gain: f64,
+    /// Grip force per finger [N] when the world drives the scenario (0 otherwise).
+    pub force_n: f64,
+    /// Cup deformation (loss of diameter) [mm] when the world drives the scenario (0 otherwise).
+    pub deformation_mm: f64,
 }
 
 /// Slow illumination changes of a real sensor: LED warm-up, slow wander, exposure steps.
@@ -118,6 +132,10 @@ pub struct MockSensor {
     spec: SensorSpec,
     scenario: Scenario,
     background: Vec<f32>,
+    /// Background times the marker dots at rest.
+    base: Vec<f32>,
+    /// Per-pixel noise, sigma = noise_dn.
+    noise: GaussianTable,
     index: u64,
     total: u64,
 }
@@ -125,13 +143,23 @@ pub struct MockSensor {
 impl MockSensor {
     pub fn new(cfg: MockConfig, scenario: Scenario) -> Self {
         let spec = cfg.sensor.spec();
+        Self::with_spec(cfg, spec, scenario)
+    }
+
+    /// A mock sensor with its own output size (e.g. DIGIT's VGA mode, 640x480 at 0.02 mm/px).
+    /// The spec's size must be within `unitac_core::frame::MAX_SIDE`.
+    pub fn with_spec(cfg: MockConfig, spec: SensorSpec, scenario: Scenario) -> Self {
         let total = (scenario.duration_s() * cfg.fps).floor() as u64;
         let background = render_background(&spec);
+        let base = render_base(&spec, &background, cfg.markers);
+        let noise = GaussianTable::new(cfg.noise_dn);
         Self {
             cfg,
             spec,
             scenario,
             background,
+            base,
+            noise,
             index: 0,
             total,
         }
@@ -143,6 +171,9 @@ impl MockSensor {
     pub fn config(&self) -> &MockConfig {
         &self.cfg
     }
+    pub fn scenario(&self) -> &Scenario {
+        &self.scenario
+    }
     pub fn frame_count(&self) -> u64 {
         self.total
     }
@@ -150,77 +181,65 @@ impl MockSensor {
     /// Render frame `index` (independent of what was rendered before).
     pub fn render(&self, index: u64) -> (Frame, GroundTruth) {
         let t = index as f64 / self.cfg.fps;
-        let (depth, obj) = self.scenario.at(t);
+        let (approach, obj) = self.scenario.at(t);
+        let grip = self.scenario.grip_at(t);
         let (w, h) = (self.spec.width as usize, self.spec.height as usize);
-        let mut rng = SplitMix64::new(self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+        let mut rng = self.noise.stream(SplitMix64::new(
+            self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        ));
         let gain = self.cfg.drift.gain(t);
         let mut data = vec![0u8; w * h * 3];
         let mut mask = vec![false; w * h];
         let mut contact_px = 0u32;
-        let px_per_mm = 1.0 / self.spec.mm_per_px;
-        let (cx, cy) = (w as f64 * 0.5, h as f64 * 0.5);
-        let touching = obj.filter(|_| depth > 0.0);
-        let radius_px = obj.map_or(1.0, |o| o.radius_mm * px_per_mm);
-        // Contact radius [px] of a sphere cap of this depth: depth = r^2 R / 2 (r in units of R).
-        let contact_r_px = touching.map_or(0.0, |o| (2.0 * depth / o.radius_mm).sqrt() * radius_px);
-        // The gel deforms a little past the contact circle.
-        let halo = contact_r_px * 1.6 + 4.0;
-        let lights: [[f64; 2]; 3] = [[1.0, 0.0], [-0.5, 0.866], [-0.5, -0.866]];
-        let shade_gain = 90.0; // DN per unit slope
-        let noise = self.cfg.noise_dn;
-        for y in 0..h {
-            for x in 0..w {
-                let (dxp, dyp) = (x as f64 - cx, y as f64 - cy);
-                let r = (dxp * dxp + dyp * dyp).sqrt();
-                let mut dz = [0.0f64; 2];
-                let mut height = 0.0;
-                let mut sx = x as f64;
-                let mut sy = y as f64;
-                if let (Some(o), true) = (touching, r < halo) {
-                    let r2 = (r / radius_px).powi(2);
-                    let cap = depth - 0.5 * r2 * o.radius_mm;
-                    if cap > 0.0 {
-                        let (xm, ym) = (x as f64 / px_per_mm, y as f64 / px_per_mm);
-                        let s = cap.min(0.2) / 0.2;
-                        height = cap + o.texture_height(xm, ym) * s;
-                        let (tx, ty) = o.texture_gradient(xm, ym);
-                        dz = [-dxp / radius_px + tx * s, -dyp / radius_px + ty * s];
-                        mask[y * w + x] = true;
-                        contact_px += 1;
-                    } else if contact_r_px > 0.0 {
-                        // Outside the contact the gel slopes back up to rest (smooth skirt).
-                        let u = ((r - contact_r_px) / (halo - contact_r_px)).clamp(0.0, 1.0);
-                        let skirt = (1.0 - u).powi(2) * depth * 0.15;
-                        height = skirt;
-                        let slope = 2.0 * (1.0 - u) * depth * 0.15 / (halo - contact_r_px)
-                            * px_per_mm.recip();
-                        let k = if r > 0.0 { slope * px_per_mm / r } else { 0.0 };
-                        dz = [-dxp * k * 0.05, -dyp * k * 0.05];
-                    }
-                    // Markers are dragged outward by the local depression (sampled at the pixel:
-                    // render the dot that would have moved here).
-                    let shift = MARKER_SHIFT_PX_PER_MM * height.max(0.0);
-                    if r > 0.0 {
-                        sx -= dxp / r * shift;
-                        sy -= dyp / r * shift;
-                    }
+        let touching = obj.filter(|_| approach > 0.0);
+        let depth = touching.map_or(0.0, |o| o.gel_depth(approach));
+        let press = touching.map(|o| Press::new(o, depth, &self.spec, w, h));
+        // Rows and columns the press can change (contact, skirt, dragged markers); everything
+        // else is the lit background times the gain, plus noise.
+        let (x0, x1, y0, y1) = press.as_ref().map_or((0, 0, 0, 0), |p| p.bbox);
+        let g = gain as f32;
+        let mut noise = vec![0f32; w * 3];
+        for (y, ((out, base), bg)) in data
+            .chunks_exact_mut(w * 3)
+            .zip(self.base.chunks_exact(w * 3))
+            .zip(self.background.chunks_exact(w * 3))
+            .enumerate()
+        {
+            // This row's noise, in raster order.
+            rng.fill(&mut noise);
+            let pressed = match &press {
+                Some(p) if y >= y0 && y < y1 => Some(p),
+                _ => None,
+            };
+            let Some(p) = pressed else {
+                quantise_row(out, base, &noise, g);
+                continue;
+            };
+            let (a, b) = (x0 * 3, x1 * 3);
+            quantise_row(&mut out[..a], &base[..a], &noise[..a], g);
+            quantise_row(&mut out[b..], &base[b..], &noise[b..], g);
+            let row_trig = p.row_trig(y);
+            let mask_row = &mut mask[y * w + x0..y * w + x1];
+            for (xi, ((((o, bs), bk), n), m)) in out[a..b]
+                .chunks_exact_mut(3)
+                .zip(base[a..b].chunks_exact(3))
+                .zip(bg[a..b].chunks_exact(3))
+                .zip(noise[a..b].chunks_exact(3))
+                .zip(mask_row.iter_mut())
+                .enumerate()
+            {
+                let Some(px) = p.pixel(x0 + xi, y, row_trig, self.cfg.markers) else {
+                    // At rest: the background path.
+                    quantise_row(o, bs, n, g);
+                    continue;
+                };
+                if px.in_contact {
+                    *m = true;
+                    contact_px += 1;
                 }
-                let mut dark = 1.0;
-                if self.cfg.markers {
-                    let mx = (sx / MARKER_SPACING).floor() * MARKER_SPACING + MARKER_SPACING * 0.5;
-                    let my = (sy / MARKER_SPACING).floor() * MARKER_SPACING + MARKER_SPACING * 0.5;
-                    let d = ((sx - mx).powi(2) + (sy - my).powi(2)).sqrt();
-                    if d < MARKER_RADIUS + 1.0 {
-                        let edge = (MARKER_RADIUS + 1.0 - d).clamp(0.0, 1.0);
-                        dark = 1.0 - (1.0 - MARKER_DARK) * edge;
-                    }
-                }
-                let i = (y * w + x) * 3;
-                for (c, l) in lights.iter().enumerate() {
-                    let shade = shade_gain * (dz[0] * l[0] + dz[1] * l[1]) - 25.0 * height;
-                    let lit = (f64::from(self.background[i + c]) + shade) * dark * gain;
-                    let v = lit + noise * rng.gaussian_fast();
-                    data[i + c] = v.round().clamp(0.0, 255.0) as u8;
+                let dg = (px.dark * gain) as f32;
+                for c in 0..3 {
+                    o[c] = quantise_f32((bk[c] + px.shade[c] as f32) * dg + n[c]);
                 }
             }
         }
@@ -241,6 +260,8 @@ impl MockSensor {
             contact_px,
             mask,
             gain,
+            force_n: grip.map_or(0.0, |g| g.force_n),
+            deformation_mm: grip.map_or(0.0, |g| g.deformation_mm),
         };
         (frame, truth)
     }
@@ -254,6 +275,238 @@ impl MockSensor {
         self.index += 1;
         Some(out)
     }
+}
+
+/// `out = quantise(base * gain + noise)`, element-wise (vectorises).
+#[inline]
+fn quantise_row(out: &mut [u8], base: &[f32], noise: &[f32], gain: f32) {
+    for ((o, &b), &n) in out.iter_mut().zip(base).zip(noise) {
+        *o = quantise_f32(b * gain + n);
+    }
+}
+
+/// Darkening factor of the marker dots at (sx, y) [px] (1 = no marker).
+fn marker_dark(sx: f64, sy: f64) -> f64 {
+    let mx = floor(sx / MARKER_SPACING) * MARKER_SPACING + MARKER_SPACING * 0.5;
+    let my = floor(sy / MARKER_SPACING) * MARKER_SPACING + MARKER_SPACING * 0.5;
+    let d2 = (sx - mx) * (sx - mx) + (sy - my) * (sy - my);
+    let reach = MARKER_RADIUS + 1.0;
+    if d2 < reach * reach {
+        let edge = (reach - d2.sqrt()).clamp(0.0, 1.0);
+        1.0 - (1.0 - MARKER_DARK) * edge
+    } else {
+        1.0
+    }
+}
+
+/// floor() without a libm call (baseline x86-64 has no rounding instruction); exact for
+/// |x| < 2^52.
+#[inline]
+fn floor(x: f64) -> f64 {
+    let t = x as i64 as f64;
+    if t > x { t - 1.0 } else { t }
+}
+
+/// The lights' directions in the image plane (GelSight-style R, G, B from 120 degrees apart).
+const LIGHTS: [[f64; 2]; 3] = [[1.0, 0.0], [-0.5, 0.866], [-0.5, -0.866]];
+/// DN per unit slope of the gel surface.
+const SHADE_GAIN: f64 = 90.0;
+/// DN per mm of depression (the pressed gel is a little darker).
+const DEPTH_DARK: f64 = 25.0;
+
+/// What one pixel of a pressed gel looks like before the background and noise.
+struct PressPixel {
+    in_contact: bool,
+    /// Added to the background per channel [DN].
+    shade: [f64; 3],
+    /// Marker darkening.
+    dark: f64,
+}
+
+/// One object pressed `depth` mm into the gel at the image centre, in pixel terms.
+struct Press<'a> {
+    obj: &'a Object,
+    depth: f64,
+    px_per_mm: f64,
+    cx: f64,
+    cy: f64,
+    /// Contact half-width [px] (radius; half the band for an edge).
+    a_px: f64,
+    /// Width of the skirt outside the contact where the gel slopes back to rest [px].
+    skirt_px: f64,
+    /// Pixel box [x0, x1) x [y0, y1) outside which the gel is at rest.
+    bbox: (usize, usize, usize, usize),
+    /// Texture wave: k [1/mm], and (sin, cos) of k x per column of the box.
+    k: f64,
+    cols: Vec<(f64, f64)>,
+    /// Precomputed reciprocals: mm per px, 1 / effective radius [1/mm], 1 / skirt [1/px].
+    mm_per_px: f64,
+    inv_r: f64,
+    inv_skirt: f64,
+    /// Outer radius of the deformed area [px].
+    outer_px: f64,
+}
+
+impl<'a> Press<'a> {
+    fn new(obj: &'a Object, depth: f64, spec: &SensorSpec, w: usize, h: usize) -> Self {
+        let px_per_mm = 1.0 / spec.mm_per_px;
+        let a_px = obj.contact_half_width_mm(depth) * px_per_mm;
+        let mut p = Self {
+            obj,
+            depth,
+            px_per_mm,
+            cx: spec.width as f64 * 0.5,
+            cy: spec.height as f64 * 0.5,
+            a_px,
+            // The gel deforms a little past the contact: 60 % of the contact size plus 4 px.
+            skirt_px: a_px * 0.6 + 4.0,
+            bbox: (0, 0, 0, 0),
+            k: std::f64::consts::TAU / obj.period_mm,
+            cols: Vec::new(),
+            mm_per_px: spec.mm_per_px,
+            inv_r: 1.0 / obj.effective_radius_mm(),
+            inv_skirt: 1.0 / (a_px * 0.6 + 4.0),
+            outer_px: a_px * 1.6 + 4.0,
+        };
+        p.bbox = p.find_bbox(w, h);
+        let (x0, x1, _, _) = p.bbox;
+        p.cols = (x0..x1)
+            .map(|x| (p.k * x as f64 / px_per_mm).sin_cos())
+            .collect();
+        p
+    }
+
+    /// (sin, cos) of the texture's row phase at row y.
+    fn row_trig(&self, y: usize) -> (f64, f64) {
+        (self.k * (y as f64 / self.px_per_mm) * 0.8 + 0.5).sin_cos()
+    }
+
+    /// Pixel box [x0, x1) x [y0, y1) outside which the gel is at rest.
+    fn find_bbox(&self, w: usize, h: usize) -> (usize, usize, usize, usize) {
+        // Reach of the deformation plus the farthest a marker dot can be dragged into view.
+        // Beyond the skirt the gel is at rest (markers are sampled at the pixel, so a dragged
+        // dot never shows outside the deformed area).
+        let reach = self.a_px + self.skirt_px + 2.0;
+        let span = |c: f64, n: usize| {
+            let lo = (c - reach).floor().max(0.0) as usize;
+            let hi = ((c + reach).ceil().max(0.0) as usize).min(n);
+            (lo.min(n), hi)
+        };
+        let (x0, x1) = span(self.cx, w);
+        let (y0, y1) = match self.obj.shape {
+            Shape::Edge => (0, h),
+            _ => span(self.cy, h),
+        };
+        (x0, x1, y0, y1)
+    }
+
+    /// The pressed gel at pixel (x, y); None where it is at rest.
+    fn pixel(&self, x: usize, y: usize, (sy, cy): (f64, f64), markers: bool) -> Option<PressPixel> {
+        let o = self.obj;
+        let (dxp, dyp) = (x as f64 - self.cx, y as f64 - self.cy);
+        // Distance outside the contact boundary [px] and the outward direction.
+        let (r, nx, ny) = match o.shape {
+            Shape::Edge => (dxp.abs(), dxp.signum(), 0.0),
+            _ => {
+                let r2 = dxp * dxp + dyp * dyp;
+                if r2 >= self.outer_px * self.outer_px {
+                    return None;
+                }
+                let r = r2.sqrt();
+                // The outward direction (skirt slope, marker drag), normalised below if used.
+                (r, dxp, dyp)
+            }
+        };
+        if r >= self.outer_px {
+            return None;
+        }
+        let unit = || -> (f64, f64) {
+            match o.shape {
+                Shape::Edge => (nx, ny),
+                _ if r > 0.0 => (nx / r, ny / r),
+                _ => (0.0, 0.0),
+            }
+        };
+        let mut dz = [0.0f64; 2];
+        let mut height = 0.0;
+        let mut in_contact = false;
+        {
+            let (dx, dy) = (dxp * self.mm_per_px, dyp * self.mm_per_px);
+            // Object::gap, with the reciprocal precomputed for the common shapes.
+            let (g, gx, gy) = match o.shape {
+                Shape::Sphere => (
+                    0.5 * (dx * dx + dy * dy) * self.inv_r,
+                    dx * self.inv_r,
+                    dy * self.inv_r,
+                ),
+                Shape::Edge => (0.5 * dx * dx * self.inv_r, dx * self.inv_r, 0.0),
+                Shape::Flat => o.gap(dx, dy),
+            };
+            let cap = self.depth - g;
+            if cap > 0.0 {
+                // Texture (Object::texture_height / texture_gradient, with the trigonometry
+                // per row and column).
+                let (sx, cx) = self
+                    .cols
+                    .get(x - self.bbox.0)
+                    .copied()
+                    .unwrap_or((0.0, 1.0));
+                let amp = o.roughness_mm;
+                let mut th = amp * sx * cy;
+                let mut tx = amp * self.k * cx * cy;
+                let mut ty = -amp * self.k * 0.8 * sx * sy;
+                if o.bump_mm > 0.0 {
+                    let (bh, bx, by) = o.bump(x as f64 * self.mm_per_px, y as f64 * self.mm_per_px);
+                    th += bh;
+                    tx += bx;
+                    ty += by;
+                }
+                let s = cap.min(0.2) * 5.0;
+                height = cap + th * s;
+                dz = [-gx + tx * s, -gy + ty * s];
+                in_contact = true;
+            } else if self.a_px > 0.0 {
+                // Outside the contact the gel slopes back up to rest (smooth skirt).
+                let u = ((r - self.a_px) * self.inv_skirt).clamp(0.0, 1.0);
+                height = (1.0 - u) * (1.0 - u) * self.depth * 0.15;
+                let slope = 2.0 * (1.0 - u) * self.depth * 0.15 * self.inv_skirt * 0.05;
+                let (ux, uy) = unit();
+                dz = [-ux * slope, -uy * slope];
+            }
+        }
+        let mut dark = 1.0;
+        if markers {
+            // Markers are dragged outward by the local depression (sampled at the pixel: render
+            // the dot that would have moved here).
+            let shift = MARKER_SHIFT_PX_PER_MM * height.max(0.0);
+            let (ux, uy) = unit();
+            dark = marker_dark(x as f64 - ux * shift, y as f64 - uy * shift);
+        }
+        let mut shade = [0.0; 3];
+        for (c, l) in LIGHTS.iter().enumerate() {
+            shade[c] = SHADE_GAIN * (dz[0] * l[0] + dz[1] * l[1]) - DEPTH_DARK * height;
+        }
+        Some(PressPixel {
+            in_contact,
+            shade,
+            dark,
+        })
+    }
+}
+
+/// Background with the marker dots at rest (what every pixel away from a press shows).
+fn render_base(spec: &SensorSpec, background: &[f32], markers: bool) -> Vec<f32> {
+    let w = spec.width as usize;
+    let mut base = background.to_vec();
+    if markers {
+        for (p, px) in base.chunks_exact_mut(3).enumerate() {
+            let dark = marker_dark((p % w) as f64, (p / w) as f64) as f32;
+            for v in px {
+                *v *= dark;
+            }
+        }
+    }
+    base
 }
 
 fn unreachable_frame(id: &str) -> Frame {

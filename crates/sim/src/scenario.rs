@@ -1,39 +1,15 @@
 //! Scenarios: timed phases of pressing objects into the gel.
 
+pub use crate::object::Object;
+use crate::world::{Cup, GripSample, WorldConfig, grip_cup};
 use thiserror::Error;
 
 #[derive(Debug, Error, PartialEq, Eq)]
 pub enum ScenarioError {
-    #[error("unknown mock scenario '{0}' (known: fabric_selection, cup_deformation, idle)")]
+    #[error(
+        "unknown mock scenario '{0}' (known: fabric_selection, cup_deformation, indenters, idle)"
+    )]
     Unknown(String),
-}
-
-/// Something pressed into the gel.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Object {
-    pub label: String,
-    /// Indenter radius of curvature [mm].
-    pub radius_mm: f64,
-    /// Surface texture amplitude [mm] (rougher = larger).
-    pub roughness_mm: f64,
-    /// Texture period [mm].
-    pub period_mm: f64,
-}
-
-impl Object {
-    pub fn texture_height(&self, x_mm: f64, y_mm: f64) -> f64 {
-        let k = std::f64::consts::TAU / self.period_mm;
-        self.roughness_mm * (k * x_mm).sin() * (k * y_mm * 0.8 + 0.5).cos()
-    }
-    pub fn texture_gradient(&self, x_mm: f64, y_mm: f64) -> (f64, f64) {
-        let k = std::f64::consts::TAU / self.period_mm;
-        let (sx, cx) = (k * x_mm).sin_cos();
-        let (sy, cy) = (k * y_mm * 0.8 + 0.5).sin_cos();
-        (
-            self.roughness_mm * k * cx * cy,
-            -self.roughness_mm * k * 0.8 * sx * sy,
-        )
-    }
 }
 
 /// One phase: the indenter depth ramps linearly from `from_mm` to `to_mm` over `duration_s`.
@@ -49,6 +25,9 @@ pub struct Phase {
 pub struct Scenario {
     pub name: String,
     pub phases: Vec<Phase>,
+    /// World samples (grip force, cup deformation) when the world drives the scenario, one per
+    /// control period, time-sorted; empty otherwise.
+    pub grip: Vec<GripSample>,
 }
 
 fn free(d: f64) -> Phase {
@@ -84,14 +63,20 @@ fn press(o: &Object, depth: f64, hold_s: f64) -> [Phase; 3] {
     ]
 }
 
+fn start_pen(samples: &[GripSample]) -> f64 {
+    samples.first().map_or(0.0, |s| s.penetration_mm)
+}
+
 impl Scenario {
     pub fn by_name(name: &str) -> Result<Scenario, ScenarioError> {
         match name {
             "fabric_selection" => Ok(Self::fabric_selection()),
             "cup_deformation" => Ok(Self::cup_deformation()),
+            "indenters" => Ok(Self::indenters()),
             "idle" => Ok(Scenario {
                 name: "idle".into(),
                 phases: vec![free(5.0)],
+                grip: Vec::new(),
             }),
             other => Err(ScenarioError::Unknown(other.to_string())),
         }
@@ -99,18 +84,8 @@ impl Scenario {
 
     /// Touch fabric A (rougher), release, touch fabric B (smoother), release.
     pub fn fabric_selection() -> Scenario {
-        let a = Object {
-            label: "fabric_a".into(),
-            radius_mm: 6.0,
-            roughness_mm: 0.06,
-            period_mm: 0.9,
-        };
-        let b = Object {
-            label: "fabric_b".into(),
-            radius_mm: 6.0,
-            roughness_mm: 0.015,
-            period_mm: 0.6,
-        };
+        let a = Object::new("fabric_a", 6.0, 0.06, 0.9);
+        let b = Object::new("fabric_b", 6.0, 0.015, 0.6);
         let mut phases = vec![free(1.0)];
         phases.extend(press(&a, 0.6, 0.8));
         phases.push(free(0.8));
@@ -119,6 +94,30 @@ impl Scenario {
         Scenario {
             name: "fabric_selection".into(),
             phases,
+            grip: Vec::new(),
+        }
+    }
+
+    /// One press each with a sphere, a flat punch, an edge, and a soft bumpy fabric (terry towel
+    /// over the sphere): the object models side by side.
+    pub fn indenters() -> Scenario {
+        let objects = [
+            Object::sphere("sphere", 4.0),
+            Object::flat("flat", 2.5),
+            Object::edge("edge", 1.0),
+            Object::new("towel", 6.0, 0.01, 0.7)
+                .with_hardness(0.5)
+                .with_bumps(0.35, 1.2),
+        ];
+        let mut phases = vec![free(1.0)];
+        for o in &objects {
+            phases.extend(press(o, 0.6, 0.8));
+            phases.push(free(0.6));
+        }
+        Scenario {
+            name: "indenters".into(),
+            phases,
+            grip: Vec::new(),
         }
     }
 
@@ -127,6 +126,7 @@ impl Scenario {
         Scenario {
             name: "idle".into(),
             phases: vec![free(duration_s)],
+            grip: Vec::new(),
         }
     }
 
@@ -140,6 +140,7 @@ impl Scenario {
         Scenario {
             name: "press_sweep".into(),
             phases,
+            grip: Vec::new(),
         }
     }
 
@@ -151,53 +152,92 @@ impl Scenario {
         Scenario {
             name: "held".into(),
             phases,
+            grip: Vec::new(),
         }
     }
 
     /// The fabrics of the fabric scenario (A rougher than B).
     pub fn fabric(label: &str, roughness_mm: f64, period_mm: f64) -> Object {
-        Object {
-            label: label.into(),
-            radius_mm: 6.0,
-            roughness_mm,
-            period_mm,
-        }
+        Object::new(label, 6.0, roughness_mm, period_mm)
     }
 
-    /// Squeeze a cup wall: a wide, smooth contact that deepens slowly, holds, releases.
+    /// The paper's cup task on a paper cup (80 mm): the world's gripper closes at its speed
+    /// limit until the cup is compressed by 1 cm (ground truth), holds 1 s, opens. The gel
+    /// penetration the world computes drives the renderer; force and deformation are ground truth.
     pub fn cup_deformation() -> Scenario {
-        let cup = Object {
-            label: "cup".into(),
-            radius_mm: 12.0,
-            roughness_mm: 0.005,
-            period_mm: 2.0,
-        };
-        let phases = vec![
-            free(1.0),
-            Phase {
-                duration_s: 1.5,
-                object: Some(cup.clone()),
-                from_mm: -0.1,
-                to_mm: 0.9,
-            },
-            Phase {
-                duration_s: 1.0,
-                object: Some(cup.clone()),
-                from_mm: 0.9,
-                to_mm: 0.9,
-            },
-            Phase {
-                duration_s: 0.4,
-                object: Some(cup),
-                from_mm: 0.9,
-                to_mm: -0.1,
-            },
-            free(0.6),
-        ];
+        Self::cup_grip(&Cup::paper(80.0), 10.0)
+    }
+
+    /// Grip `cup` until it is compressed by `target_mm` (or the gripper's force limit), hold 1 s,
+    /// open (world-driven; semi-implicit Euler with sub-stepping, 1 ms control period).
+    pub fn cup_grip(cup: &Cup, target_mm: f64) -> Scenario {
+        let object = cup.object();
+        let mut phases = vec![free(1.0)];
+        let mut grip = Vec::new();
+        match grip_cup(WorldConfig::new(cup.clone()), target_mm, 1.0, 1e-3) {
+            Ok(run) => {
+                // One phase per 10 ms of the grip, linear between world samples; the settled part
+                // of the hold (0.1 s after closing until opening) is one constant phase.
+                let settle = run.closed_s + 0.1;
+                let (mut t_prev, mut pen_prev) = (0.0, start_pen(&run.samples));
+                let mut hold_open = false;
+                for s in run.samples.iter().step_by(10).skip(1) {
+                    let dt = s.t_s - t_prev;
+                    let hold = s.t_s > settle && s.t_s <= run.hold_end_s + 1e-9;
+                    match (hold, hold_open, phases.last_mut()) {
+                        (true, true, Some(last)) => last.duration_s += dt,
+                        (true, _, _) => {
+                            phases.push(Phase {
+                                duration_s: dt,
+                                object: Some(object.clone()),
+                                from_mm: pen_prev,
+                                to_mm: pen_prev,
+                            });
+                            hold_open = true;
+                        }
+                        (false, _, _) => {
+                            phases.push(Phase {
+                                duration_s: dt,
+                                object: Some(object.clone()),
+                                from_mm: pen_prev,
+                                to_mm: s.penetration_mm,
+                            });
+                            pen_prev = s.penetration_mm;
+                            hold_open = false;
+                        }
+                    }
+                    t_prev = s.t_s;
+                }
+                grip = run
+                    .samples
+                    .iter()
+                    .map(|s| GripSample {
+                        t_s: s.t_s + 1.0,
+                        ..*s
+                    })
+                    .collect();
+            }
+            Err(_) => {
+                // The default world never diverges (sub-stepped); keep a press as a fallback.
+                phases.extend(press(&object, 0.6, 1.0));
+            }
+        }
+        phases.push(free(0.6));
         Scenario {
             name: "cup_deformation".into(),
             phases,
+            grip,
         }
+    }
+
+    /// World sample at time t (None outside a world-driven grip).
+    pub fn grip_at(&self, t: f64) -> Option<GripSample> {
+        let (first, last) = (self.grip.first()?, self.grip.last()?);
+        if t < first.t_s || t > last.t_s {
+            return None;
+        }
+        let i = self.grip.partition_point(|s| s.t_s <= t);
+        self.grip.get(i.saturating_sub(1)).copied()
     }
 
     pub fn duration_s(&self) -> f64 {
@@ -260,7 +300,35 @@ mod tests {
             1
         );
         assert_eq!(Scenario::by_name("idle").unwrap().press_count(), 0);
+        assert_eq!(Scenario::by_name("indenters").unwrap().press_count(), 4);
         assert!(Scenario::by_name("juggling").is_err());
+    }
+
+    #[test]
+    fn cup_deformation_is_driven_by_the_world() {
+        let s = Scenario::cup_deformation();
+        let t = s.first_hold_time("cup").unwrap();
+        let (d, o) = s.at(t);
+        assert_eq!(o.unwrap().label, "cup");
+        let g = s.grip_at(t).unwrap();
+        assert!((g.deformation_mm - 10.0).abs() < 0.1, "{g:?}");
+        assert!((g.penetration_mm - d).abs() < 1e-3, "{g:?} vs {d}");
+        assert!(d > 0.4 && d < 1.0, "{d}");
+        assert!(g.force_n > 1.0);
+        // Phases are continuous and the scenario ends free.
+        let mut t0 = 0.0;
+        for w in s.phases.windows(2) {
+            t0 += w[0].duration_s;
+            if w[0].object.is_some() && w[1].object.is_some() {
+                assert!((w[0].to_mm - w[1].from_mm).abs() < 1e-3, "at {t0}");
+            }
+        }
+        assert_eq!(s.at(s.duration_s() - 0.1), (0.0, None));
+        assert!(
+            s.duration_s() > 4.0 && s.duration_s() < 8.0,
+            "{}",
+            s.duration_s()
+        );
     }
 
     #[test]

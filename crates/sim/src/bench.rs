@@ -1,0 +1,163 @@
+//! `unitac bench render`: time to render one mock frame, on one core.
+
+use serde::Serialize;
+use std::hint::black_box;
+use std::time::Instant;
+use unitac_core::{SensorKind, SensorSpec};
+
+use crate::{MockConfig, MockSensor, Scenario};
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Timing {
+    /// Fastest frame (least disturbed by other load on the machine).
+    pub min_us: f64,
+    pub median_us: f64,
+    pub mean_us: f64,
+    pub p90_us: f64,
+}
+
+fn timing(mut v: Vec<f64>) -> Timing {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    Timing {
+        min_us: v.first().copied().unwrap_or(0.0),
+        median_us: v.get(n / 2).copied().unwrap_or(0.0),
+        mean_us: v.iter().sum::<f64>() / n.max(1) as f64,
+        p90_us: v.get(n * 9 / 10).copied().unwrap_or(0.0),
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RenderRow {
+    pub sensor: String,
+    pub width: u32,
+    pub height: u32,
+    /// Frames from the whole fabric scenario (about half of them pressed).
+    pub all: Timing,
+    /// Frames in the middle of a press (the most work per frame).
+    pub pressed: Timing,
+    /// Frames without contact.
+    pub free: Timing,
+    pub frames_timed: usize,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RenderBench {
+    pub rows: Vec<RenderRow>,
+    /// Published CPU GelSight-style optical simulators: per 640x480 frame [ms].
+    pub published_ms_640x480: [f64; 2],
+    pub note: String,
+}
+
+fn time_frames(s: &MockSensor, idx: &[u64], repeat: usize) -> Timing {
+    for &i in idx.iter().take(3) {
+        black_box(s.render(i));
+    }
+    let mut v = Vec::with_capacity(idx.len() * repeat);
+    for _ in 0..repeat {
+        for &i in idx {
+            let t0 = Instant::now();
+            black_box(s.render(black_box(i)));
+            v.push(t0.elapsed().as_secs_f64() * 1e6);
+        }
+    }
+    timing(v)
+}
+
+fn row(name: &str, s: &MockSensor, repeat: usize) -> RenderRow {
+    let n = s.frame_count();
+    let fps = s.config().fps;
+    let all: Vec<u64> = (0..n).collect();
+    let mut pressed = Vec::new();
+    let mut free = Vec::new();
+    for i in 0..n {
+        let (d, o) = s.scenario().at(i as f64 / fps);
+        if o.is_some() && d > 0.3 {
+            pressed.push(i);
+        } else if o.is_none() {
+            free.push(i);
+        }
+    }
+    let spec = s.spec();
+    RenderRow {
+        sensor: name.into(),
+        width: spec.width,
+        height: spec.height,
+        all: time_frames(s, &all, repeat),
+        pressed: time_frames(s, &pressed, repeat),
+        free: time_frames(s, &free, repeat),
+        frames_timed: all.len() * repeat,
+    }
+}
+
+/// Time GelSight Mini and DIGIT at 320x240 and DIGIT's VGA mode (640x480), each over the whole
+/// fabric scenario, `repeat` passes.
+pub fn render_bench(repeat: usize) -> RenderBench {
+    let repeat = repeat.max(1);
+    let mut rows = Vec::new();
+    for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
+        let s = MockSensor::new(MockConfig::new(kind, 5), Scenario::fabric_selection());
+        rows.push(row(kind.as_str(), &s, repeat));
+    }
+    let d = SensorKind::Digit.spec();
+    let vga = SensorSpec {
+        width: 640,
+        height: 480,
+        native_width: 640,
+        native_height: 480,
+        fps: 30.0,
+        mm_per_px: d.mm_per_px * 0.5,
+        ..d
+    };
+    let mut cfg = MockConfig::new(SensorKind::Digit, 5);
+    cfg.fps = vga.fps;
+    let s = MockSensor::with_spec(cfg, vga, Scenario::fabric_selection());
+    rows.push(row("digit-vga", &s, repeat));
+    RenderBench {
+        rows,
+        published_ms_640x480: [28.0, 45.0],
+        note: "one core; frame + ground-truth mask; published CPU GelSight-style optical \
+               simulators take 28-45 ms per 640x480 frame (mock-sensor issue)"
+            .into(),
+    }
+}
+
+impl RenderBench {
+    pub fn text(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::from(
+            "mock render per frame, one core (frame + ground truth); min / median [us]\n",
+        );
+        let _ = writeln!(
+            s,
+            "  {:<14} {:>9}  {:>15}  {:>15}  {:>15}",
+            "sensor", "size", "whole scene", "pressed", "no contact"
+        );
+        let mm = |t: &Timing| format!("{:.0} / {:.0}", t.min_us, t.median_us);
+        for r in &self.rows {
+            let _ = writeln!(
+                s,
+                "  {:<14} {:>9}  {:>15}  {:>15}  {:>15}",
+                r.sensor,
+                format!("{}x{}", r.width, r.height),
+                mm(&r.all),
+                mm(&r.pressed),
+                mm(&r.free)
+            );
+        }
+        if let Some(v) = self.rows.iter().find(|r| r.width == 640) {
+            let [a, b] = self.published_ms_640x480;
+            let (lo, med) = (v.pressed.min_us / 1e3, v.pressed.median_us / 1e3);
+            let _ = writeln!(
+                s,
+                "  640x480 pressed: {lo:.2} ms min, {med:.2} ms median, vs {a}-{b} ms for published \
+                 CPU optical simulators: {:.0}-{:.0}x faster (median), {:.0}-{:.0}x (min)",
+                a / med,
+                b / med,
+                a / lo,
+                b / lo
+            );
+        }
+        s
+    }
+}

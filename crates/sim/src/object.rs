@@ -1,0 +1,252 @@
+//! Things pressed into the gel: fabrics (roughness, texture bumps, hardness), cups, indenters.
+//!
+//! An object is described by the gap between its surface and the plane of its lowest point,
+//! `g(x, y) >= 0` [mm], plus a surface texture. The renderer presses it `depth` mm into the gel:
+//! the gel is indented where `depth - g > 0`.
+//!
+//! Hardness: the object and the gel are two springs in series. With `hardness` h in (0, 1] the gel
+//! takes the share h of the approach (1 = rigid, the model before hardness existed) and the soft
+//! object's surface flattens around the contact, which this model renders as radii of curvature
+//! divided by h: a soft fabric indents the gel less for the same approach and spreads the contact
+//! over the area a rigid one of the same approach would cover (a^2 = 2 R d is kept).
+
+/// Indenter shape. `Object::radius_mm` is the sphere's radius, the flat punch's radius, or the
+/// edge's radius of curvature.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Shape {
+    /// Spherical cap (fingertip, fabric over a rounded probe, a cup wall on a domed gel).
+    #[default]
+    Sphere,
+    /// Flat circular punch with a rounded rim (fillet radius `FLAT_FILLET` x radius).
+    Flat,
+    /// A straight edge along the image's y axis (a cylinder of radius `radius_mm`).
+    Edge,
+}
+
+impl Shape {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Shape::Sphere => "sphere",
+            Shape::Flat => "flat",
+            Shape::Edge => "edge",
+        }
+    }
+}
+
+/// Fillet of a flat punch's rim, as a share of its radius.
+pub const FLAT_FILLET: f64 = 0.15;
+/// Height of a texture bump as a share of its radius.
+pub const BUMP_ASPECT: f64 = 0.35;
+
+/// Something pressed into the gel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Object {
+    pub label: String,
+    /// Indenter radius of curvature [mm] (see [`Shape`]).
+    pub radius_mm: f64,
+    /// Surface texture amplitude [mm] (rougher = larger).
+    pub roughness_mm: f64,
+    /// Texture period [mm].
+    pub period_mm: f64,
+    pub shape: Shape,
+    /// Share of the approach the gel takes, in (0, 1]: 1 = rigid, smaller = softer (see the
+    /// module docs).
+    pub hardness: f64,
+    /// Radius of texture bumps (knots, pile, weave crossings) [mm]; 0 = none.
+    pub bump_mm: f64,
+    /// Bumps per mm^2 (on a jittered grid; at most one bump per cell).
+    pub bump_density: f64,
+}
+
+impl Object {
+    /// A rigid sphere with a sinusoidal texture and no bumps: the object model of the first mock.
+    pub fn new(label: &str, radius_mm: f64, roughness_mm: f64, period_mm: f64) -> Self {
+        Self {
+            label: label.into(),
+            radius_mm,
+            roughness_mm,
+            period_mm,
+            shape: Shape::Sphere,
+            hardness: 1.0,
+            bump_mm: 0.0,
+            bump_density: 0.0,
+        }
+    }
+    /// Smooth rigid indenters.
+    pub fn sphere(label: &str, radius_mm: f64) -> Self {
+        Self::new(label, radius_mm, 0.0, 1.0)
+    }
+    pub fn flat(label: &str, radius_mm: f64) -> Self {
+        Self::new(label, radius_mm, 0.0, 1.0).with_shape(Shape::Flat)
+    }
+    pub fn edge(label: &str, radius_mm: f64) -> Self {
+        Self::new(label, radius_mm, 0.0, 1.0).with_shape(Shape::Edge)
+    }
+    pub fn with_shape(mut self, shape: Shape) -> Self {
+        self.shape = shape;
+        self
+    }
+    /// Hardness in (0, 1]; values outside are clamped to [0.05, 1].
+    pub fn with_hardness(mut self, hardness: f64) -> Self {
+        self.hardness = clamp_hardness(hardness);
+        self
+    }
+    /// Texture bumps of this radius [mm] and density [1/mm^2].
+    pub fn with_bumps(mut self, radius_mm: f64, per_mm2: f64) -> Self {
+        self.bump_mm = radius_mm.max(0.0);
+        self.bump_density = per_mm2.max(0.0);
+        self
+    }
+
+    /// Gel penetration [mm] for an approach of `depth` mm (the soft object takes the rest).
+    pub fn gel_depth(&self, depth: f64) -> f64 {
+        depth * clamp_hardness(self.hardness)
+    }
+    /// Radius of curvature the gel sees [mm] (softer objects flatten: R / h).
+    pub fn effective_radius_mm(&self) -> f64 {
+        self.radius_mm / clamp_hardness(self.hardness)
+    }
+
+    pub fn texture_height(&self, x_mm: f64, y_mm: f64) -> f64 {
+        let k = std::f64::consts::TAU / self.period_mm;
+        let wave = self.roughness_mm * (k * x_mm).sin() * (k * y_mm * 0.8 + 0.5).cos();
+        wave + self.bump(x_mm, y_mm).0
+    }
+    pub fn texture_gradient(&self, x_mm: f64, y_mm: f64) -> (f64, f64) {
+        let k = std::f64::consts::TAU / self.period_mm;
+        let (sx, cx) = (k * x_mm).sin_cos();
+        let (sy, cy) = (k * y_mm * 0.8 + 0.5).sin_cos();
+        let (_, bx, by) = self.bump(x_mm, y_mm);
+        (
+            self.roughness_mm * k * cx * cy + bx,
+            -self.roughness_mm * k * 0.8 * sx * sy + by,
+        )
+    }
+
+    /// Height and gradient of the bump field at (x, y) [mm]: one dome (1 - d^2/r^2)^2 per grid
+    /// cell of side 1/sqrt(density), placed at a hashed offset that keeps it inside its cell.
+    pub fn bump(&self, x_mm: f64, y_mm: f64) -> (f64, f64, f64) {
+        let r = self.bump_mm;
+        if r <= 0.0 || self.bump_density <= 0.0 {
+            return (0.0, 0.0, 0.0);
+        }
+        let cell = self.bump_density.recip().sqrt().max(2.0 * r);
+        let (ci, cj) = ((x_mm / cell).floor(), (y_mm / cell).floor());
+        let h = hash2(ci as i64, cj as i64);
+        let room = 0.5 - r / cell; // how far the centre may move from the cell centre (cells)
+        let jx = ((h & 0xFFFF) as f64 / 65_535.0 - 0.5) * 2.0 * room;
+        let jy = (((h >> 16) & 0xFFFF) as f64 / 65_535.0 - 0.5) * 2.0 * room;
+        let (bx, by) = ((ci + 0.5 + jx) * cell, (cj + 0.5 + jy) * cell);
+        let (dx, dy) = (x_mm - bx, y_mm - by);
+        let q = (dx * dx + dy * dy) / (r * r);
+        if q >= 1.0 {
+            return (0.0, 0.0, 0.0);
+        }
+        let amp = BUMP_ASPECT * r;
+        let s = 1.0 - q;
+        // d/dx (1 - q)^2 = -2 (1 - q) * 2 dx / r^2
+        let g = -4.0 * amp * s / (r * r);
+        (amp * s * s, g * dx, g * dy)
+    }
+
+    /// Gap g(x, y) between the object's surface and its lowest point [mm] at offset (dx, dy)
+    /// [mm] from the contact centre, with its gradient, as the gel sees it (hardness applied).
+    /// Returns (g, dg/dx, dg/dy).
+    pub fn gap(&self, dx: f64, dy: f64) -> (f64, f64, f64) {
+        let r = self.effective_radius_mm();
+        match self.shape {
+            Shape::Sphere => (0.5 * (dx * dx + dy * dy) / r, dx / r, dy / r),
+            Shape::Edge => (0.5 * dx * dx / r, dx / r, 0.0),
+            Shape::Flat => {
+                let rho = (dx * dx + dy * dy).sqrt();
+                let f = FLAT_FILLET * r;
+                let e = rho - self.radius_mm;
+                if e <= 0.0 || rho <= 0.0 {
+                    (0.0, 0.0, 0.0)
+                } else {
+                    let s = e / f / rho;
+                    (0.5 * e * e / f, s * dx, s * dy)
+                }
+            }
+        }
+    }
+
+    /// Half-width of the contact [mm] at gel depth `d` (radius for sphere and flat punch,
+    /// half-width of the band for an edge).
+    pub fn contact_half_width_mm(&self, d: f64) -> f64 {
+        if d <= 0.0 {
+            return 0.0;
+        }
+        let r = self.effective_radius_mm();
+        match self.shape {
+            Shape::Sphere | Shape::Edge => (2.0 * d * r).sqrt(),
+            Shape::Flat => self.radius_mm + (2.0 * d * FLAT_FILLET * r).sqrt(),
+        }
+    }
+}
+
+fn clamp_hardness(h: f64) -> f64 {
+    if h.is_finite() {
+        h.clamp(0.05, 1.0)
+    } else {
+        1.0
+    }
+}
+
+/// Stable hash of a grid cell (SplitMix64 finaliser).
+fn hash2(i: i64, j: i64) -> u64 {
+    let mut z = (i as u64)
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add((j as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bump_gradient_matches_finite_differences() {
+        let o = Object::new("f", 6.0, 0.02, 0.8).with_bumps(0.3, 1.5);
+        let e = 1e-6;
+        let mut seen = 0;
+        for k in 0..400 {
+            let (x, y) = (k as f64 * 0.037, k as f64 * 0.021 + 0.1);
+            let (h, gx, gy) = o.bump(x, y);
+            if h > 0.0 {
+                seen += 1;
+            }
+            let nx = (o.bump(x + e, y).0 - o.bump(x - e, y).0) / (2.0 * e);
+            let ny = (o.bump(x, y + e).0 - o.bump(x, y - e).0) / (2.0 * e);
+            assert!((nx - gx).abs() < 1e-4 && (ny - gy).abs() < 1e-4, "{x} {y}");
+        }
+        assert!(seen > 10, "bumps are present: {seen}");
+    }
+
+    #[test]
+    fn softer_objects_indent_less_and_spread() {
+        let hard = Object::sphere("a", 6.0);
+        let soft = Object::sphere("b", 6.0).with_hardness(0.5);
+        assert_eq!(hard.gel_depth(0.6), 0.6);
+        assert!((soft.gel_depth(0.6) - 0.3).abs() < 1e-12);
+        // Contact radius at the gel depth each produces from the same approach: equal, whereas a
+        // rigid sphere at the soft one's gel depth would touch a smaller area.
+        let a_soft = soft.contact_half_width_mm(soft.gel_depth(0.6));
+        let a_hard = hard.contact_half_width_mm(hard.gel_depth(0.6));
+        assert!((a_soft - a_hard).abs() < 1e-9);
+        assert!(a_soft > hard.contact_half_width_mm(0.3) * 1.3);
+    }
+
+    #[test]
+    fn shapes_have_their_gaps() {
+        let f = Object::flat("p", 2.0);
+        assert_eq!(f.gap(1.0, 1.0).0, 0.0);
+        assert!(f.gap(2.5, 0.0).0 > 0.0);
+        let e = Object::edge("e", 1.0);
+        assert_eq!(e.gap(0.0, 5.0).0, 0.0);
+        assert!((e.gap(1.0, 5.0).0 - 0.5).abs() < 1e-12);
+        assert!((f.contact_half_width_mm(0.01) - 2.0).abs() < 0.1);
+    }
+}
