@@ -5,6 +5,7 @@
 
 mod bench;
 mod dataset;
+mod devices;
 mod eval;
 mod images;
 mod plot;
@@ -121,6 +122,11 @@ enum Cmd {
         test: usize,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+    },
+    /// List the tactile sensors on the USB bus: model, serial, firmware, V4L2 node, modes.
+    Devices {
+        #[arg(long)]
+        json: bool,
     },
     /// List the scenes found in the scene directories.
     Scenes {
@@ -401,6 +407,21 @@ fn main() -> ExitCode {
             test,
             seed,
         } => dataset::fabrics(&out, train, test, seed).map(|()| true),
+        Cmd::Devices { json } => {
+            let root = std::env::var_os("UNITAC_SYSFS_ROOT")
+                .map(PathBuf::from)
+                .unwrap_or_else(|| PathBuf::from("/"));
+            let r = devices::devices(&root);
+            if json {
+                serde_json::to_string(&r)
+                    .map(|j| println!("{j}"))
+                    .map(|()| true)
+                    .map_err(anyhow::Error::from)
+            } else {
+                print!("{}", r.text());
+                Ok(true)
+            }
+        }
         Cmd::Scenes { scene_dir } => {
             let mut names: Vec<String> = scene_dirs(scene_dir)
                 .iter()

@@ -53,8 +53,13 @@ impl std::fmt::Debug for V4lDevice {
 impl V4lDevice {
     /// Open a node and check that it is a video capture node (not the UVC metadata node).
     pub fn open(path: &Path) -> Result<Self, DeviceError> {
-        let dev = v4l::Device::with_path(path).map_err(dev_err)?;
-        let caps = dev.query_caps().map_err(dev_err)?;
+        let at = |e: io::Error| match dev_err(e) {
+            DeviceError::Gone(m) => DeviceError::Gone(format!("{}: {m}", path.display())),
+            DeviceError::Io(m) => DeviceError::Io(format!("{}: {m}", path.display())),
+            other => other,
+        };
+        let dev = v4l::Device::with_path(path).map_err(at)?;
+        let caps = dev.query_caps().map_err(at)?;
         if !caps
             .capabilities
             .contains(v4l::capability::Flags::VIDEO_CAPTURE)
