@@ -5,6 +5,7 @@
 
 mod bench;
 mod dataset;
+mod decode_bench;
 mod devices;
 mod eval;
 mod images;
@@ -89,7 +90,7 @@ enum Cmd {
         what: BenchTarget,
         #[arg(long)]
         json: bool,
-        /// Distinct frames.
+        /// Distinct frames (`bench decode`: at most 8 generated JPEGs).
         #[arg(long, default_value_t = 140)]
         frames: usize,
         /// Passes over the frames.
@@ -149,6 +150,8 @@ enum DatasetTarget {
 enum BenchTarget {
     Contact,
     Sampler,
+    /// GelSight Mini MJPEG 3280x2464 -> 320x240 and YUYV 320x240 -> RGB, vs OpenCV.
+    Decode,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -385,6 +388,20 @@ fn main() -> ExitCode {
                 Ok(true)
             })
         }
+        Cmd::Bench {
+            what: BenchTarget::Decode,
+            json,
+            frames,
+            repeat,
+            no_python,
+        } => decode_bench::bench_decode(frames, repeat.clamp(1, 1000), !no_python).and_then(|r| {
+            if json {
+                println!("{}", serde_json::to_string(&r)?);
+            } else {
+                print!("{}", r.text());
+            }
+            Ok(true)
+        }),
         Cmd::Bench {
             what: BenchTarget::Contact,
             json,

@@ -84,6 +84,7 @@ impl Calibration {
             flip_horizontal: self.flip_horizontal,
             flip_vertical: self.flip_vertical,
             dct_scaling: true,
+            max_upscale: 1.0,
         }
     }
 

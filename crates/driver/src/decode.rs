@@ -145,6 +145,14 @@ pub struct DecodeConfig {
     /// Allow decoding MJPEG at reduced scale in the DCT domain (on by default; off = full decode).
     #[serde(default = "yes")]
     pub dct_scaling: bool,
+    /// How much the resize may upsample to allow a smaller DCT scale (1.0 = never upsample;
+    /// 1.1 lets GelSight Mini decode at 1/8: 410x308 cropped 1/7 per side is 293x220 for 320x240).
+    #[serde(default = "one")]
+    pub max_upscale: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 fn yes() -> bool {
@@ -162,6 +170,7 @@ impl DecodeConfig {
             flip_horizontal: false,
             flip_vertical: false,
             dct_scaling: true,
+            max_upscale: 1.0,
         }
     }
     /// GelSight Mini vendor pipeline: 1/7 border per side, 320x240.
@@ -173,6 +182,12 @@ impl DecodeConfig {
     }
     pub fn check(&self) -> Result<(), DecodeError> {
         check_size(self.out_width, self.out_height)?;
+        if !(self.max_upscale.is_finite() && (1.0..=2.0).contains(&self.max_upscale)) {
+            return Err(DecodeError::BadCrop(format!(
+                "max_upscale {} is outside 1..=2",
+                self.max_upscale
+            )));
+        }
         self.crop.check()
     }
     /// Size the resize produces, before the rotation.
@@ -334,8 +349,9 @@ pub fn choose_jpeg_scale(width: u32, height: u32, cfg: &DecodeConfig) -> u32 {
     for d in [8u32, 4, 2] {
         let w = width.div_ceil(d);
         let h = height.div_ceil(d);
-        if f64::from(w) * cfg.crop.kept_w() >= f64::from(tw)
-            && f64::from(h) * cfg.crop.kept_h() >= f64::from(th)
+        let up = cfg.max_upscale;
+        if f64::from(w) * cfg.crop.kept_w() * up >= f64::from(tw)
+            && f64::from(h) * cfg.crop.kept_h() * up >= f64::from(th)
         {
             return d;
         }
@@ -351,6 +367,30 @@ pub fn decode_jpeg_scaled(
     height: u32,
     cfg: &DecodeConfig,
 ) -> Result<(Rgb, u32), DecodeError> {
+    let d = choose_jpeg_scale(width, height, cfg);
+    if d == 8 {
+        // Fast path: DC coefficients only (crate::dcjpeg); other JPEG kinds fall back below.
+        match crate::dcjpeg::decode_dc(buf, MAX_SIDE) {
+            Ok(img) if (img.full_width, img.full_height) == (width, height) => {
+                let rgb = Rgb {
+                    width: img.width,
+                    height: img.height,
+                    data: img.rgb,
+                };
+                return Ok((rgb, 8));
+            }
+            Ok(img) => {
+                return Err(DecodeError::WrongJpegSize {
+                    got_w: img.full_width,
+                    got_h: img.full_height,
+                    want_w: width,
+                    want_h: height,
+                });
+            }
+            Err(crate::dcjpeg::DcError::Corrupt(m)) => return Err(DecodeError::Jpeg(m)),
+            Err(crate::dcjpeg::DcError::Unsupported(_)) => {}
+        }
+    }
     let jerr = |e: jpeg_decoder::Error| DecodeError::Jpeg(e.to_string());
     let mut dec = jpeg_decoder::Decoder::new(buf);
     // Output at full size, 3 bytes per pixel, is the most we ever allow.
@@ -367,7 +407,6 @@ pub fn decode_jpeg_scaled(
             want_h: height,
         });
     }
-    let d = choose_jpeg_scale(width, height, cfg);
     let (w, h) = if d > 1 {
         let rw = u16::try_from(width.div_ceil(d)).unwrap_or(u16::MAX);
         let rh = u16::try_from(height.div_ceil(d)).unwrap_or(u16::MAX);

@@ -15,6 +15,7 @@
 pub mod calib;
 pub mod capture;
 pub mod controls;
+pub mod dcjpeg;
 pub mod decode;
 pub mod discover;
 pub mod stream;

@@ -135,3 +135,73 @@ fn digit_mjpeg_and_yuyv_of_the_same_scene_agree() {
     assert!(mean_abs_diff(&from_yuyv.data, &rgb) < 1.5);
     assert!(mean_abs_diff(&from_jpeg.data, &rgb) < 2.5);
 }
+
+/// Remove every DHT segment and add an AVI1 APP0, as UVC MJPEG frames come.
+fn strip_dht(jpeg: &[u8]) -> Vec<u8> {
+    let mut out = vec![
+        0xFF, 0xD8, 0xFF, 0xE0, 0x00, 0x08, b'A', b'V', b'I', b'1', 0, 0,
+    ];
+    let mut pos = 2;
+    loop {
+        let m = jpeg[pos + 1];
+        let len = (usize::from(jpeg[pos + 2]) << 8) | usize::from(jpeg[pos + 3]);
+        if m == 0xDA {
+            out.extend_from_slice(&jpeg[pos..]);
+            return out;
+        }
+        if m != 0xC4 {
+            out.extend_from_slice(&jpeg[pos..pos + 2 + len]);
+        }
+        pos += 2 + len;
+    }
+}
+
+#[test]
+fn dc_only_fast_path_matches_jpeg_decoder_at_one_eighth() {
+    for (w, h) in [(3280u32, 2464u32), (640, 480), (333, 250)] {
+        let jpeg = encode(w, h, &gel_image(w, h));
+        let fast = unitac_driver::dcjpeg::decode_dc(&jpeg, 8192).unwrap();
+        assert_eq!((fast.width, fast.height), (w.div_ceil(8), h.div_ceil(8)));
+        let mut dec = jpeg_decoder::Decoder::new(&jpeg[..]);
+        dec.read_info().unwrap();
+        let (rw, rh) = dec
+            .scale(w.div_ceil(8) as u16, h.div_ceil(8) as u16)
+            .unwrap();
+        assert_eq!((u32::from(rw), u32::from(rh)), (fast.width, fast.height));
+        let reference = dec.decode().unwrap();
+        let mad = mean_abs_diff(&fast.rgb, &reference);
+        assert!(mad < 1.5, "{w}x{h}: mean abs diff {mad}");
+        // Without Huffman tables (MJPEG): the standard tables give the same image.
+        let bare = strip_dht(&jpeg);
+        assert!(bare.len() < jpeg.len());
+        let again = unitac_driver::dcjpeg::decode_dc(&bare, 8192).unwrap();
+        assert_eq!(again, fast);
+    }
+    // Grey JPEG.
+    let grey: Vec<u8> = (0..64 * 48).map(|i| (i % 251) as u8).collect();
+    let mut out = Vec::new();
+    JpegEncoder::new_with_quality(&mut out, 90)
+        .encode(&grey, 64, 48, image::ExtendedColorType::L8)
+        .unwrap();
+    let g = unitac_driver::dcjpeg::decode_dc(&out, 8192).unwrap();
+    assert_eq!((g.width, g.height), (8, 6));
+}
+
+#[test]
+fn dc_only_path_rejects_truncated_and_corrupt_data() {
+    let jpeg = encode(640, 480, &gel_image(640, 480));
+    for cut in [2, 50, 300, 600] {
+        assert!(unitac_driver::dcjpeg::decode_dc(&jpeg[..cut], 8192).is_err());
+    }
+    let mut bad = jpeg.clone();
+    let n = bad.len();
+    for b in bad[n / 3..n / 3 + 400].iter_mut() {
+        *b = 0xFF;
+    }
+    // Garbage in the entropy-coded data: an error or some image, never a panic.
+    let _ = unitac_driver::dcjpeg::decode_dc(&bad, 8192);
+    let mut small = jpeg.clone();
+    small.truncate(n - n / 4);
+    let _ = unitac_driver::dcjpeg::decode_dc(&small, 8192);
+    assert!(unitac_driver::dcjpeg::decode_dc(&jpeg, 100).is_err());
+}
