@@ -35,9 +35,9 @@ pub struct DecodeBench {
     pub rust: Timing,
     /// Same Rust pipeline with DCT-domain scaling off (full-size decode, then crop + resize).
     pub rust_full_decode: Timing,
-    /// `max_upscale: 1.1`: GelSight Mini at 1/8 (293x220 after the crop, upsampled to 320x240).
-    pub rust_eighth: Timing,
-    pub eighth_scale: u32,
+    /// `max_upscale: 1.0` (never upsample): GelSight Mini at 1/4.
+    pub rust_strict: Timing,
+    pub strict_scale: u32,
     pub python: Option<Timing>,
     pub python_versions: String,
     /// Python median / Rust median, wall and CPU.
@@ -163,8 +163,9 @@ pub fn bench_decode(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
     let mut full_cfg = cfg;
     full_cfg.dct_scaling = false;
     let (rust_full, _, _) = time_decoder(full_cfg, &jpegs, repeat.div_ceil(2))?;
+    // The strict variant: never upsample (GelSight Mini then decodes at 1/4).
     let mut eighth_cfg = cfg;
-    eighth_cfg.max_upscale = 1.1;
+    eighth_cfg.max_upscale = 1.0;
     let (rust_eighth, _, eighth_scale) = time_decoder(eighth_cfg, &jpegs, repeat)?;
 
     // YUYV 320x240 (DIGIT).
@@ -254,8 +255,8 @@ pub fn bench_decode(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
         mean_abs_diff_vs_opencv: mad,
         rust,
         rust_full_decode: rust_full,
-        rust_eighth,
-        eighth_scale,
+        rust_strict: rust_eighth,
+        strict_scale: eighth_scale,
         python_versions: versions,
         yuyv_python: py.as_ref().map(|(_, y)| Timing { ..*y }),
         python: py.map(|(p, _)| p),
@@ -278,12 +279,12 @@ impl DecodeBench {
             self.jpeg_bytes_mean / 1000
         );
         s += &row(
-            &format!("unitac (DCT scale 1/{})", self.dct_scale),
+            &format!("unitac (DCT 1/{}, default)", self.dct_scale),
             &self.rust,
         );
         s += &row(
-            &format!("unitac (DCT 1/{}, max_upscale 1.1)", self.eighth_scale),
-            &self.rust_eighth,
+            &format!("unitac (DCT 1/{}, max_upscale 1.0)", self.strict_scale),
+            &self.rust_strict,
         );
         s += &row("unitac, full-size decode", &self.rust_full_decode);
         if let Some(p) = &self.python {

@@ -50,6 +50,9 @@ pub struct Calibration {
     pub mm_per_px: f64,
     #[serde(default)]
     pub camera: CameraSettings,
+    /// See `DecodeConfig::max_upscale` (default: 1.1 for GelSight Mini, 1.0 otherwise).
+    #[serde(default)]
+    pub max_upscale: Option<f64>,
 }
 
 impl Calibration {
@@ -72,6 +75,7 @@ impl Calibration {
             height: spec.height,
             mm_per_px: spec.mm_per_px,
             camera,
+            max_upscale: None,
         }
     }
 
@@ -84,7 +88,10 @@ impl Calibration {
             flip_horizontal: self.flip_horizontal,
             flip_vertical: self.flip_vertical,
             dct_scaling: true,
-            max_upscale: 1.0,
+            max_upscale: self.max_upscale.unwrap_or(match self.kind {
+                SensorKind::GelsightMini => crate::decode::GELSIGHT_MAX_UPSCALE,
+                _ => 1.0,
+            }),
         }
     }
 

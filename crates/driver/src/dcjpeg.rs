@@ -57,11 +57,15 @@ const STD_AC_CHROMA_VALS: [u8; 162] = [
 ];
 
 const LOOKAHEAD: u32 = 9;
+const FAST_BITS: u32 = 11;
 
 #[derive(Debug, Clone)]
 struct Huffman {
     /// (length, symbol) for every 9-bit prefix; length 0 = longer code.
     lut: Vec<(u8, u8)>,
+    /// AC only: for every FAST_BITS prefix, code and skipped value bits in one step:
+    /// (total bits, coefficient positions advanced, end of block); total 0 = slow path.
+    fast_ac: Vec<(u8, u8, bool)>,
     maxcode: [i32; 17],
     valoffset: [i32; 17],
     vals: Vec<u8>,
@@ -100,8 +104,37 @@ impl Huffman {
             }
             code <<= 1;
         }
+        // Fused AC entries: code length + value bits fit in FAST_BITS.
+        let mut fast_ac = vec![(0u8, 0u8, false); 1 << FAST_BITS];
+        let mut code: u32 = 0;
+        let mut k = 0usize;
+        for len in 1..=16u32 {
+            for _ in 0..bits[len as usize - 1] {
+                let rs = vals[k];
+                let (r, sz) = (u32::from(rs >> 4), u32::from(rs & 15));
+                let total = len + sz;
+                if total <= FAST_BITS {
+                    let entry = if sz == 0 && r == 0 {
+                        (len as u8, 0, true)
+                    } else if sz == 0 {
+                        (len as u8, 16, false)
+                    } else {
+                        (total as u8, (r + 1) as u8, false)
+                    };
+                    let shift = FAST_BITS - len;
+                    let start = (code << shift) as usize;
+                    for e in fast_ac.iter_mut().skip(start).take(1 << shift) {
+                        *e = entry;
+                    }
+                }
+                code += 1;
+                k += 1;
+            }
+            code <<= 1;
+        }
         Ok(Self {
             lut,
+            fast_ac,
             maxcode,
             valoffset,
             vals: vals[..total].to_vec(),
@@ -462,6 +495,20 @@ pub fn decode_dc(data: &[u8], max_side: u32) -> Result<DcImage, DcError> {
                         pred[ci] += bits.receive(s);
                         let mut k = 1;
                         while k < 64 {
+                            if bits.n < 16 {
+                                bits.refill();
+                            }
+                            let (total, adv, eob) =
+                                ac.fast_ac[(bits.acc >> (64 - FAST_BITS)) as usize];
+                            if total > 0 {
+                                bits.acc <<= total;
+                                bits.n -= u32::from(total);
+                                if eob {
+                                    break;
+                                }
+                                k += usize::from(adv);
+                                continue;
+                            }
                             let rs = bits.decode(ac)?;
                             let (r, s) = (rs >> 4, rs & 15);
                             if s == 0 {

@@ -155,6 +155,9 @@ fn one() -> f64 {
     1.0
 }
 
+/// Default `max_upscale` for GelSight Mini (lets the 3280x2464 stream decode at 1/8).
+pub const GELSIGHT_MAX_UPSCALE: f64 = 1.1;
+
 fn yes() -> bool {
     true
 }
@@ -173,10 +176,13 @@ impl DecodeConfig {
             max_upscale: 1.0,
         }
     }
-    /// GelSight Mini vendor pipeline: 1/7 border per side, 320x240.
+    /// GelSight Mini vendor pipeline: 1/7 border per side, 320x240. Decoded at 1/8 scale
+    /// (DC only, `crate::dcjpeg`): the cropped region is then 293x220, upsampled 1.09x to
+    /// 320x240; `max_upscale: 1.0` decodes at 1/4 instead (full detail, about 2.5x the CPU).
     pub fn gelsight_mini() -> Self {
         Self {
             crop: Crop::uniform(1.0 / 7.0),
+            max_upscale: GELSIGHT_MAX_UPSCALE,
             ..Self::plain(320, 240)
         }
     }
@@ -677,10 +683,14 @@ mod tests {
     }
 
     #[test]
-    fn jpeg_scale_choice_never_upsamples() {
+    fn jpeg_scale_choice_upsamples_at_most_max_upscale() {
         let g = DecodeConfig::gelsight_mini();
-        // 3280x2464 / 8 = 410x308, 5/7 of that is 293 < 320: 1/4 it is (820x616 -> 586x440).
-        assert_eq!(choose_jpeg_scale(3280, 2464, &g), 4);
+        // 3280x2464 / 8 = 410x308, 5/7 of that is 293x220: 1/8 only because max_upscale 1.1.
+        assert_eq!(choose_jpeg_scale(3280, 2464, &g), 8);
+        let mut strict = g;
+        strict.max_upscale = 1.0;
+        // 1/4 then (820x616 -> 586x440 after the crop).
+        assert_eq!(choose_jpeg_scale(3280, 2464, &strict), 4);
         assert_eq!(
             choose_jpeg_scale(3280, 2464, &DecodeConfig::plain(320, 240)),
             8
