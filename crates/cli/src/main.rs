@@ -5,6 +5,8 @@
 
 mod bench;
 mod dataset;
+mod decode_bench;
+mod devices;
 mod eval;
 mod images;
 mod plot;
@@ -120,7 +122,7 @@ enum Cmd {
         what: BenchTarget,
         #[arg(long)]
         json: bool,
-        /// Distinct frames.
+        /// Distinct frames (`bench decode`: at most 8 generated JPEGs).
         #[arg(long, default_value_t = 140)]
         frames: usize,
         /// Passes over the frames.
@@ -155,6 +157,11 @@ enum Cmd {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// List the tactile sensors on the USB bus: model, serial, firmware, V4L2 node, modes.
+    Devices {
+        #[arg(long)]
+        json: bool,
+    },
     /// List the scenes found in the scene directories.
     Scenes {
         #[arg(long)]
@@ -178,6 +185,8 @@ enum BenchTarget {
     Replay,
     Sampler,
     Render,
+    /// GelSight Mini MJPEG 3280x2464 -> 320x240 and YUYV 320x240 -> RGB, vs OpenCV.
+    Decode,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -463,6 +472,8 @@ fn main() -> ExitCode {
                 BenchTarget::Sampler => {
                     sampler::bench(repeat).and_then(|r| Ok((serde_json::to_string(&r)?, r.text())))
                 }
+                BenchTarget::Decode => decode_bench::bench_decode(frames, repeat, !no_python)
+                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
                 BenchTarget::Render => {
                     let r = unitac_sim::bench::render_bench(repeat);
                     serde_json::to_string(&r)
@@ -486,6 +497,21 @@ fn main() -> ExitCode {
             test,
             seed,
         } => dataset::fabrics(&out, train, test, seed).map(|()| true),
+        Cmd::Devices { json } => {
+            let root = std::env::var_os("UNITAC_SYSFS_ROOT")
+                .map(PathBuf::from)
+                .unwrap_or_else(|| PathBuf::from("/"));
+            let r = devices::devices(&root);
+            if json {
+                serde_json::to_string(&r)
+                    .map(|j| println!("{j}"))
+                    .map(|()| true)
+                    .map_err(anyhow::Error::from)
+            } else {
+                print!("{}", r.text());
+                Ok(true)
+            }
+        }
         Cmd::Scenes { scene_dir } => {
             let mut names: Vec<String> = scene_dirs(scene_dir)
                 .iter()

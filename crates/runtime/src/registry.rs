@@ -10,6 +10,80 @@ use unitac_infer::encoder::{CompareParams, CompareStage, EncoderStage};
 use unitac_infer::predict::{SamplerParams, SamplerStage};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
+/// Root of the sysfs tree live sensors are discovered in (`/` unless `UNITAC_SYSFS_ROOT` says
+/// otherwise, e.g. a fixture tree in tests).
+fn sysfs_root() -> std::path::PathBuf {
+    std::env::var_os("UNITAC_SYSFS_ROOT")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| "/".into())
+}
+
+/// A live GelSight Mini or DIGIT by serial (or the only one of the scene's kind on the bus).
+/// Per-serial calibration files are read from `UNITAC_CALIBRATION_DIR` when set.
+fn open_v4l(
+    scene: &Scene,
+    serial: Option<&str>,
+) -> Result<Box<dyn Source>, (&'static str, String)> {
+    let root = sysfs_root();
+    let want = scene.source.sensor;
+    let name = serial
+        .map(|s| format!("v4l:{s}"))
+        .unwrap_or_else(|| "v4l".into());
+    let found = unitac_driver::discover::discover(&root).map_err(|e| {
+        (
+            "source.serial",
+            format!("{name}: cannot look for sensors: {e}"),
+        )
+    })?;
+    let serial = match serial {
+        Some(s) => s.to_string(),
+        None => {
+            let of_kind: Vec<&str> = found
+                .sensors
+                .iter()
+                .filter(|s| s.kind == want)
+                .map(|s| s.serial.as_str())
+                .collect();
+            match of_kind.as_slice() {
+                [one] => one.to_string(),
+                [] => {
+                    return Err((
+                        "source.serial",
+                        format!(
+                            "no {want} sensor found (`unitac devices` lists what is connected)"
+                        ),
+                    ));
+                }
+                many => {
+                    return Err((
+                        "source.serial",
+                        format!(
+                            "{} {want} sensors found ({}): name one with --sensor v4l:<serial>",
+                            many.len(),
+                            many.join(", ")
+                        ),
+                    ));
+                }
+            }
+        }
+    };
+    if let Some(s) = found.sensors.iter().find(|s| s.serial == serial) {
+        if s.kind != want {
+            return Err((
+                "source.sensor",
+                format!(
+                    "the scene is for a {want} but {serial} is a {}; use a scene for that sensor",
+                    s.kind
+                ),
+            ));
+        }
+    }
+    let cal_dir = std::env::var_os("UNITAC_CALIBRATION_DIR").map(std::path::PathBuf::from);
+    let stream = unitac_driver::open_v4l(&root, &serial, cal_dir.as_deref())
+        .map_err(|e| ("source.serial", format!("v4l:{serial}: {e}")))?;
+    Ok(Box::new(stream))
+}
+
 /// Stage kinds a scene may name.
 pub const KNOWN_STAGES: &[&str] = &["contact", "encoder", "compare", "sampler"];
 
@@ -132,10 +206,13 @@ pub fn build_source(scene: &Scene, arg: Option<&SensorArg>) -> Result<Box<dyn So
             }
             Ok(Box::new(MockSensor::new(cfg, scenario)))
         }
-        SourceKind::V4l => Err(bad(
-            "source.kind",
-            "v4l sensors are not in this build yet (sensor-driver issue); use --sensor mock".into(),
-        )),
+        SourceKind::V4l => {
+            let serial = match arg {
+                Some(SensorArg::V4l(s)) => s.clone(),
+                _ => scene.source.serial.clone(),
+            };
+            open_v4l(scene, serial.as_deref()).map_err(|(field, msg)| bad(field, msg))
+        }
         SourceKind::Bag => {
             let path = match arg {
                 Some(SensorArg::Bag(p)) => p.clone(),

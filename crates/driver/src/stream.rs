@@ -1,0 +1,455 @@
+//! A sensor stream: open by serial, negotiate, set controls, capture, decode, and reconnect.
+//!
+//! [`SensorStream`] is the runtime's [`Source`] for a live sensor. It is written against two
+//! traits so the whole state machine runs in tests without hardware: a [`Backend`] that opens a
+//! [`CaptureDevice`] by serial, and a [`DriverClock`] (monotonic time, system time, sleep).
+//!
+//! States: `Opening` -> `Streaming` -> (device gone) `Lost` -> retry with exponential backoff ->
+//! `Streaming` again, with the same sensor id, settings written again and the published sequence
+//! going on. While the device is away, `next_frame` returns `SourceError::Unavailable` once per
+//! `report_every` so the caller can log it and see its stop flag.
+
+use crate::calib::Calibration;
+use crate::capture::{
+    CaptureDevice, DeviceError, Mode, ModeRequest, SequenceTracker, StaleFlush, TimeMapper,
+    choose_mode,
+};
+use crate::controls::{ControlMismatch, apply_and_verify, firmware_number};
+use crate::decode::{DecodeError, FrameDecoder, PixelFormat};
+use serde::Serialize;
+use std::time::Duration;
+use unitac_core::{Frame, SensorKind, Source, SourceError, Stamp};
+
+/// Opens devices by serial: the real one (V4L2 through sysfs discovery) or a fake.
+pub trait Backend: Send {
+    /// Open the capture node of the sensor with this serial. `DeviceError::Gone` if it is not
+    /// on the bus (the stream keeps retrying).
+    fn open(&mut self, serial: &str) -> Result<OpenedDevice, DeviceError>;
+}
+
+/// What `Backend::open` returns.
+pub struct OpenedDevice {
+    pub device: Box<dyn CaptureDevice>,
+    /// bcdDevice string (DIGIT LED encoding depends on it).
+    pub firmware: Option<String>,
+}
+
+impl std::fmt::Debug for OpenedDevice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("OpenedDevice")
+            .field("firmware", &self.firmware)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The clocks a stream needs. The real one reads CLOCK_MONOTONIC (the clock V4L2 stamps buffers
+/// with) and CLOCK_REALTIME, and sleeps; tests move a fake one by hand.
+pub trait DriverClock: Send {
+    fn monotonic(&self) -> Duration;
+    fn realtime(&self) -> Stamp;
+    fn sleep(&self, d: Duration);
+}
+
+/// CLOCK_MONOTONIC / CLOCK_REALTIME through rustix (no unsafe here), `std::thread::sleep`.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct SystemDriverClock;
+
+impl DriverClock for SystemDriverClock {
+    fn monotonic(&self) -> Duration {
+        let t = rustix::time::clock_gettime(rustix::time::ClockId::Monotonic);
+        Duration::new(
+            u64::try_from(t.tv_sec).unwrap_or(0),
+            u32::try_from(t.tv_nsec).unwrap_or(0),
+        )
+    }
+    fn realtime(&self) -> Stamp {
+        let t = rustix::time::clock_gettime(rustix::time::ClockId::Realtime);
+        Stamp(
+            t.tv_sec
+                .saturating_mul(1_000_000_000)
+                .saturating_add(t.tv_nsec),
+        )
+    }
+    fn sleep(&self, d: Duration) {
+        std::thread::sleep(d);
+    }
+}
+
+/// Link state, for status reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LinkState {
+    Opening,
+    Streaming,
+    Lost,
+}
+
+/// Counters of one stream (they survive reconnects).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct StreamCounters {
+    pub frames: u64,
+    pub decode_errors: u64,
+    /// Frames lost according to gaps in the driver's sequence numbers.
+    pub dropped: u64,
+    pub sequence_resets: u64,
+    /// Stale buffers thrown away at (re)start.
+    pub flushed: u64,
+    /// Buffers without a capture timestamp (dropped: no read-time stamps).
+    pub no_timestamp: u64,
+    pub timeouts: u64,
+    pub disconnects: u64,
+    pub reconnects: u64,
+    pub open_failures: u64,
+    pub control_mismatches: u64,
+    pub clock_resyncs: u64,
+}
+
+/// Settings of a stream.
+#[derive(Debug, Clone)]
+pub struct StreamConfig {
+    pub serial: String,
+    pub calibration: Calibration,
+    /// Formats in order of preference, size and rate asked of the device.
+    pub request: ModeRequest,
+    /// Wait for one buffer.
+    pub frame_timeout: Duration,
+    /// Consecutive timeouts after which the device is closed and re-opened.
+    pub timeouts_before_reopen: u32,
+    pub backoff_initial: Duration,
+    pub backoff_max: Duration,
+    /// While the device is away, how often `next_frame` returns `Unavailable`.
+    pub report_every: Duration,
+}
+
+impl StreamConfig {
+    pub fn new(serial: &str, calibration: Calibration) -> Self {
+        let spec = calibration.kind.spec();
+        let formats = match calibration.kind {
+            // MJPEG first: a third of the USB bandwidth of YUYV ("Not enough bandwidth" with
+            // several cameras on one root port).
+            SensorKind::Digit => vec![PixelFormat::Mjpg, PixelFormat::Yuyv],
+            _ => vec![PixelFormat::Mjpg, PixelFormat::Yuyv],
+        };
+        Self {
+            serial: serial.to_string(),
+            request: ModeRequest {
+                formats,
+                width: spec.native_width,
+                height: spec.native_height,
+                fps: spec.fps,
+            },
+            calibration,
+            frame_timeout: Duration::from_secs(1),
+            timeouts_before_reopen: 3,
+            backoff_initial: Duration::from_millis(100),
+            backoff_max: Duration::from_secs(2),
+            report_every: Duration::from_secs(2),
+        }
+    }
+}
+
+enum State {
+    Streaming(Box<dyn CaptureDevice>),
+    Lost { attempt: u32, next_try: Duration },
+}
+
+/// A live sensor as a [`Source`].
+pub struct SensorStream<B: Backend, C: DriverClock> {
+    cfg: StreamConfig,
+    backend: B,
+    clock: C,
+    state: State,
+    name: String,
+    mode: Option<Mode>,
+    /// Firmware revision as a number (0 if unknown).
+    firmware: u32,
+    decoder: FrameDecoder,
+    time: TimeMapper,
+    seq: SequenceTracker,
+    flush: StaleFlush,
+    timeouts_in_a_row: u32,
+    counters: StreamCounters,
+    last_mismatches: Vec<ControlMismatch>,
+    lost_reported_at: Option<Duration>,
+}
+
+impl<B: Backend, C: DriverClock> std::fmt::Debug for SensorStream<B, C> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SensorStream")
+            .field("serial", &self.cfg.serial)
+            .field("state", &self.state())
+            .field("counters", &self.counters)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<B: Backend, C: DriverClock> SensorStream<B, C> {
+    /// Opens the device now; a sensor that is not there is an error (a typo in a serial should
+    /// not look like a loose cable). Later disappearances are reconnected.
+    pub fn open(cfg: StreamConfig, backend: B, clock: C) -> Result<Self, SourceError> {
+        let decoder = FrameDecoder::new(cfg.calibration.decode_config())
+            .map_err(|e| SourceError::Fatal(format!("calibration: {e}")))?;
+        let mut s = Self {
+            name: format!("v4l:{}", cfg.serial),
+            cfg,
+            backend,
+            clock,
+            state: State::Lost {
+                attempt: 0,
+                next_try: Duration::ZERO,
+            },
+            mode: None,
+            firmware: 0,
+            decoder,
+            time: TimeMapper::default(),
+            seq: SequenceTracker::default(),
+            flush: StaleFlush::default(),
+            timeouts_in_a_row: 0,
+            counters: StreamCounters::default(),
+            last_mismatches: Vec::new(),
+            lost_reported_at: None,
+        };
+        let dev = s.connect().map_err(|e| match e {
+            DeviceError::Gone(m) => SourceError::Unavailable(m),
+            other => SourceError::Fatal(other.to_string()),
+        })?;
+        s.state = State::Streaming(dev);
+        Ok(s)
+    }
+
+    pub fn state(&self) -> LinkState {
+        match self.state {
+            State::Streaming(_) => LinkState::Streaming,
+            State::Lost { .. } => LinkState::Lost,
+        }
+    }
+    pub fn counters(&self) -> StreamCounters {
+        let mut c = self.counters;
+        c.decode_errors = self.decoder.counters.errors;
+        c.dropped = self.seq.dropped;
+        c.sequence_resets = self.seq.resets;
+        c.flushed = self.flush.flushed;
+        c.clock_resyncs = self.time.resyncs;
+        c
+    }
+    /// The mode the device streams in (after negotiation).
+    pub fn mode(&self) -> Option<Mode> {
+        self.mode
+    }
+    /// Controls the device did not take at the last (re)open.
+    pub fn control_mismatches(&self) -> &[ControlMismatch] {
+        &self.last_mismatches
+    }
+    pub fn backend(&self) -> &B {
+        &self.backend
+    }
+    pub fn backend_mut(&mut self) -> &mut B {
+        &mut self.backend
+    }
+
+    /// Change the camera settings: written now (if streaming) and after every reconnect.
+    pub fn set_camera_settings(
+        &mut self,
+        settings: crate::controls::CameraSettings,
+    ) -> Result<Vec<ControlMismatch>, SourceError> {
+        settings.validate().map_err(SourceError::Fatal)?;
+        self.cfg.calibration.camera = settings;
+        if let State::Streaming(dev) = &mut self.state {
+            let plan = settings.plan(self.cfg.calibration.kind, self.firmware);
+            let bad = apply_and_verify(dev.as_mut(), &plan)
+                .map_err(|e| SourceError::Unavailable(e.to_string()))?;
+            self.counters.control_mismatches += bad.len() as u64;
+            self.last_mismatches = bad.clone();
+            return Ok(bad);
+        }
+        Ok(Vec::new())
+    }
+
+    /// Open, negotiate, write settings, start streaming, reset the pure trackers.
+    fn connect(&mut self) -> Result<Box<dyn CaptureDevice>, DeviceError> {
+        let opened = self.backend.open(&self.cfg.serial)?;
+        self.firmware = opened
+            .firmware
+            .as_deref()
+            .and_then(firmware_number)
+            .unwrap_or(0);
+        let mut dev = opened.device;
+        let offered = dev.modes()?;
+        let want = choose_mode(&offered, &self.cfg.request).ok_or_else(|| {
+            DeviceError::Unsupported(format!(
+                "none of {:?} offered (device lists {})",
+                self.cfg.request.formats,
+                offered
+                    .iter()
+                    .map(ToString::to_string)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))
+        })?;
+        let got = dev.set_mode(&want)?;
+        if got != want {
+            tracing::warn!("{}: asked for {want}, device set {got}", self.name);
+        }
+        self.mode = Some(got);
+        let plan = self
+            .cfg
+            .calibration
+            .camera
+            .plan(self.cfg.calibration.kind, self.firmware);
+        let bad = apply_and_verify(dev.as_mut(), &plan)?;
+        for m in &bad {
+            tracing::warn!("{}: control {} not taken: {m:?}", self.name, m.name);
+        }
+        self.counters.control_mismatches += bad.len() as u64;
+        self.last_mismatches = bad;
+        let started = self.clock.monotonic();
+        dev.start()?;
+        self.flush.start(started, dev.queue_len());
+        self.time
+            .start(self.clock.realtime(), self.clock.monotonic());
+        self.seq.restart();
+        self.timeouts_in_a_row = 0;
+        Ok(dev)
+    }
+
+    fn backoff(&self, attempt: u32) -> Duration {
+        let f = 1u32.checked_shl(attempt.min(16)).unwrap_or(u32::MAX);
+        self.cfg
+            .backoff_initial
+            .saturating_mul(f)
+            .min(self.cfg.backoff_max)
+    }
+
+    fn lose(&mut self, why: &str) -> SourceError {
+        // Dropping the device closes it (and unmaps its buffers).
+        self.state = State::Lost {
+            attempt: 0,
+            next_try: self.clock.monotonic(),
+        };
+        self.counters.disconnects += 1;
+        self.lost_reported_at = Some(self.clock.monotonic());
+        tracing::warn!("{}: {why}; reconnecting", self.name);
+        SourceError::Unavailable(format!("{}: {why}", self.name))
+    }
+
+    /// One step while lost: wait for the next try (bounded by `report_every`), try to open.
+    fn try_reconnect(&mut self) -> Result<(), SourceError> {
+        let State::Lost { attempt, next_try } = self.state else {
+            return Ok(());
+        };
+        let now = self.clock.monotonic();
+        if next_try > now {
+            self.clock.sleep(next_try - now);
+        }
+        match self.connect() {
+            Ok(dev) => {
+                self.state = State::Streaming(dev);
+                self.counters.reconnects += 1;
+                self.lost_reported_at = None;
+                tracing::info!("{}: reconnected", self.name);
+                Ok(())
+            }
+            Err(e) => {
+                self.counters.open_failures += 1;
+                let now = self.clock.monotonic();
+                self.state = State::Lost {
+                    attempt: attempt.saturating_add(1),
+                    next_try: now + self.backoff(attempt),
+                };
+                let due = self
+                    .lost_reported_at
+                    .is_none_or(|t| now.saturating_sub(t) >= self.cfg.report_every);
+                if due {
+                    self.lost_reported_at = Some(now);
+                    Err(SourceError::Unavailable(format!(
+                        "{}: still away after {} attempts: {e}",
+                        self.name,
+                        attempt + 1
+                    )))
+                } else {
+                    Ok(())
+                }
+            }
+        }
+    }
+
+    fn capture_one(&mut self) -> Result<Option<Frame>, SourceError> {
+        let State::Streaming(dev) = &mut self.state else {
+            return Ok(None);
+        };
+        let Some(mode) = self.mode else {
+            return Err(SourceError::Fatal("streaming without a mode".into()));
+        };
+        // Re-check the clock offset before dequeuing (cheap: two clock reads once a second).
+        let mono = self.clock.monotonic();
+        if self.time.is_due(mono) {
+            let real = self.clock.realtime();
+            self.time.recheck(real, self.clock.monotonic());
+        }
+        let buf = match dev.next_buffer(self.cfg.frame_timeout) {
+            Ok(b) => b,
+            Err(DeviceError::Gone(m)) => return Err(self.lose(&m)),
+            Err(DeviceError::Timeout(d)) => {
+                self.counters.timeouts += 1;
+                self.timeouts_in_a_row += 1;
+                if self.timeouts_in_a_row >= self.cfg.timeouts_before_reopen {
+                    return Err(self.lose(&format!(
+                        "{} timeouts of {d:?} in a row",
+                        self.timeouts_in_a_row
+                    )));
+                }
+                return Err(SourceError::Frame(format!("no frame within {d:?}")));
+            }
+            Err(e) => return Err(SourceError::Frame(e.to_string())),
+        };
+        self.timeouts_in_a_row = 0;
+        if self.flush.is_stale(buf.timestamp) {
+            return Ok(None);
+        }
+        let (seq, _) = self.seq.feed(buf.sequence);
+        let Some(stamp) = self.time.map(buf.timestamp) else {
+            self.counters.no_timestamp += 1;
+            return Err(SourceError::Frame(
+                "buffer without a capture timestamp".into(),
+            ));
+        };
+        let rgb = self
+            .decoder
+            .decode(mode.format, mode.width, mode.height, buf.data)
+            .map_err(|e: DecodeError| SourceError::Frame(format!("seq {seq}: {e}")))?;
+        let frame = Frame::new(
+            self.cfg.serial.clone(),
+            seq,
+            stamp,
+            rgb.width,
+            rgb.height,
+            rgb.data,
+        )
+        .map_err(|e| SourceError::Frame(e.to_string()))?;
+        self.counters.frames += 1;
+        Ok(Some(frame))
+    }
+}
+
+impl<B: Backend, C: DriverClock> Source for SensorStream<B, C> {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn is_replay(&self) -> bool {
+        false
+    }
+    fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
+        // Bounded: stale buffers are at most queue_len + 1 per start.
+        for _ in 0..64 {
+            match self.state {
+                State::Lost { .. } => self.try_reconnect()?,
+                State::Streaming(_) => {
+                    if let Some(f) = self.capture_one()? {
+                        return Ok(Some(f));
+                    }
+                }
+            }
+        }
+        Err(SourceError::Frame("no fresh buffer after 64 tries".into()))
+    }
+}
