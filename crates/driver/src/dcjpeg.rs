@@ -160,7 +160,7 @@ impl<'a> Bits<'a> {
             marker: false,
         }
     }
-    #[inline]
+    #[inline(always)]
     fn refill(&mut self) {
         while self.n <= 56 {
             let mut b = 0u8;
@@ -184,7 +184,7 @@ impl<'a> Bits<'a> {
             self.n += 8;
         }
     }
-    #[inline]
+    #[inline(always)]
     fn decode(&mut self, h: &Huffman) -> Result<u8, DcError> {
         if self.n < 16 {
             self.refill();
@@ -211,7 +211,7 @@ impl<'a> Bits<'a> {
         }
         corrupt("bad Huffman code")
     }
-    #[inline]
+    #[inline(always)]
     fn receive(&mut self, s: u8) -> i32 {
         if s == 0 {
             return 0;
@@ -230,7 +230,7 @@ impl<'a> Bits<'a> {
             v
         }
     }
-    #[inline]
+    #[inline(always)]
     fn skip(&mut self, s: u8) {
         if s == 0 {
             return;

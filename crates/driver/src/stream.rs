@@ -18,7 +18,7 @@ use crate::controls::{ControlMismatch, apply_and_verify, firmware_number};
 use crate::decode::{DecodeError, FrameDecoder, PixelFormat};
 use serde::Serialize;
 use std::time::Duration;
-use unitac_core::{Frame, SensorKind, Source, SourceError, Stamp};
+use unitac_core::{Frame, Source, SourceError, Stamp};
 
 /// Opens devices by serial: the real one (V4L2 through sysfs discovery) or a fake.
 pub trait Backend: Send {
@@ -124,12 +124,9 @@ pub struct StreamConfig {
 impl StreamConfig {
     pub fn new(serial: &str, calibration: Calibration) -> Self {
         let spec = calibration.kind.spec();
-        let formats = match calibration.kind {
-            // MJPEG first: a third of the USB bandwidth of YUYV ("Not enough bandwidth" with
-            // several cameras on one root port).
-            SensorKind::Digit => vec![PixelFormat::Mjpg, PixelFormat::Yuyv],
-            _ => vec![PixelFormat::Mjpg, PixelFormat::Yuyv],
-        };
+        // MJPEG first for both models: a third of the USB bandwidth of YUYV ("Not enough
+        // bandwidth" with several cameras on one root port); GelSight Mini offers only MJPEG.
+        let formats = vec![PixelFormat::Mjpg, PixelFormat::Yuyv];
         Self {
             serial: serial.to_string(),
             request: ModeRequest {
