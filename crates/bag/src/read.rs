@@ -633,6 +633,8 @@ struct SqliteFile {
     page: VecDeque<RawMessage>,
     /// (timestamp, id) of the last row fetched.
     cursor: Option<(i64, i64)>,
+    /// An oversized row met while filling the page: reported after the rows before it.
+    pending: Option<BagError>,
     done: bool,
 }
 
@@ -690,6 +692,7 @@ impl SqliteFile {
             topics,
             page: VecDeque::new(),
             cursor: None,
+            pending: None,
             done: false,
         })
     }
@@ -752,16 +755,22 @@ impl SqliteFile {
         if n == 0 {
             self.done = true;
         }
-        match too_large {
-            Some(e) => Err(e),
-            None => Ok(()),
-        }
+        self.pending = too_large;
+        Ok(())
     }
 
     fn next(&mut self, opts: &ReadOptions) -> Result<Option<RawMessage>, BagError> {
-        while self.page.is_empty() && !self.done {
+        loop {
+            if let Some(m) = self.page.pop_front() {
+                return Ok(Some(m));
+            }
+            if let Some(e) = self.pending.take() {
+                return Err(e);
+            }
+            if self.done {
+                return Ok(None);
+            }
             self.fill(opts)?;
         }
-        Ok(self.page.pop_front())
     }
 }
