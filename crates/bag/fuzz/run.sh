@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Run the unitac-bag fuzz targets (mcap, cdr, metadata) for SECONDS each (default 60) with
-# cargo-fuzz on nightly, seeded from corpus/ (metadata.yaml and CDR files committed here, MCAP
-# seeds written by `cargo test -p unitac-bag --test hostile` style bags: see seed step below).
+# cargo-fuzz on nightly, seeded from corpus/ (metadata.yaml and CDR files committed here; MCAP
+# seeds are small bags written by the crate's writer, see below).
 # Without cargo-fuzz or nightly, runs the CI smoke instead: the same entry functions over a
 # seeded, mutated corpus in a normal test (crates/bag/tests/hostile.rs, fuzz_smoke_seeded_corpus).
 set -euo pipefail
@@ -14,11 +14,15 @@ if ! cargo +nightly fuzz --version >/dev/null 2>&1; then
   cd "$ROOT" && exec cargo test -p unitac-bag --test hostile fuzz_smoke
 fi
 cd "$HERE"
+# The fuzzers grow their corpus in work/ (ignored by git); the committed seeds stay as they are.
+mkdir -p work/mcap work/cdr work/metadata
 # MCAP seeds: small bags from the writer (none / zstd / lz4 chunks).
-mkdir -p corpus/mcap
-if ! ls corpus/mcap/*.mcap >/dev/null 2>&1; then
-  (cd "$ROOT" && UNITAC_FUZZ_SEED_DIR="$HERE/corpus/mcap" cargo test -q -p unitac-bag --test hostile write_fuzz_seeds -- --ignored)
+if ! ls work/mcap/*.mcap >/dev/null 2>&1; then
+  (cd "$ROOT" && UNITAC_FUZZ_SEED_DIR="$HERE/work/mcap" cargo test -q -p unitac-bag --test hostile write_fuzz_seeds -- --ignored)
 fi
+cp -n corpus/cdr/* work/cdr/ && cp -n corpus/metadata/* work/metadata/
 for t in mcap cdr metadata; do
-  cargo +nightly fuzz run "$t" "corpus/$t" -- -max_total_time="$SECONDS_EACH" -rss_limit_mb=1024 -max_len=1048576
+  # A crash or out-of-memory input lands in artifacts/<target>/: copy it to regressions/ and
+  # tests/hostile.rs::fuzz_regressions replays it in CI.
+  cargo +nightly fuzz run "$t" "work/$t" -- -max_total_time="$SECONDS_EACH" -rss_limit_mb=1024 -max_len=1048576
 done

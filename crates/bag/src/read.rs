@@ -330,6 +330,78 @@ impl std::fmt::Debug for McapFile {
 /// Opcodes this reader acts on (MCAP spec).
 const OP_CHUNK: u8 = 0x06;
 const OP_MESSAGE: u8 = 0x05;
+const OP_FOOTER: u8 = 0x02;
+const OP_SCHEMA: u8 = 0x03;
+const OP_CHANNEL: u8 = 0x04;
+const OP_DATA_END: u8 = 0x0f;
+/// Longest topic, type or encoding name accepted in a record.
+const MAX_NAME: usize = 64 * 1024;
+
+struct ChunkHeader {
+    uncompressed_size: u64,
+    uncompressed_crc: u32,
+    compression: String,
+}
+
+/// Little-endian fields of one record body, every read bounds-checked.
+struct Fields<'a> {
+    data: &'a [u8],
+    pos: usize,
+    opcode: u8,
+}
+
+impl<'a> Fields<'a> {
+    fn new(data: &'a [u8], opcode: u8) -> Self {
+        Self {
+            data,
+            pos: 0,
+            opcode,
+        }
+    }
+    fn take(&mut self, n: u64) -> Result<&'a [u8], String> {
+        let end = usize::try_from(n)
+            .ok()
+            .and_then(|n| self.pos.checked_add(n))
+            .filter(|&e| e <= self.data.len())
+            .ok_or_else(|| {
+                format!(
+                    "record 0x{:02x}: field of {n} bytes at {} overruns the record ({} bytes)",
+                    self.opcode,
+                    self.pos,
+                    self.data.len()
+                )
+            })?;
+        let s = &self.data[self.pos..end];
+        self.pos = end;
+        Ok(s)
+    }
+    fn array<const N: usize>(&mut self) -> Result<[u8; N], String> {
+        let mut a = [0u8; N];
+        a.copy_from_slice(self.take(N as u64)?);
+        Ok(a)
+    }
+    fn u16(&mut self) -> Result<u16, String> {
+        self.array::<2>().map(u16::from_le_bytes)
+    }
+    fn u32(&mut self) -> Result<u32, String> {
+        self.array::<4>().map(u32::from_le_bytes)
+    }
+    fn u64(&mut self) -> Result<u64, String> {
+        self.array::<8>().map(u64::from_le_bytes)
+    }
+    fn string(&mut self) -> Result<String, String> {
+        let n = self.u32()?;
+        if n as usize > MAX_NAME {
+            return Err(format!(
+                "record 0x{:02x}: string of {n} bytes, over the limit {MAX_NAME}",
+                self.opcode
+            ));
+        }
+        let b = self.take(u64::from(n))?;
+        String::from_utf8(b.to_vec())
+            .map_err(|_| format!("record 0x{:02x}: string is not UTF-8", self.opcode))
+    }
+}
 /// channel_id u16, sequence u32, log_time u64, publish_time u64.
 const MESSAGE_HEADER: usize = 22;
 
@@ -349,7 +421,6 @@ impl McapState {
         opts: &ReadOptions,
         in_chunk: bool,
     ) -> Result<Option<Found>, String> {
-        use mcap::records::Record;
         if opcode == OP_CHUNK && in_chunk {
             return Err("chunk inside a chunk".into());
         }
@@ -374,38 +445,54 @@ impl McapState {
             }
             return Ok(None);
         }
-        let rec =
-            mcap::parse_record(opcode, data).map_err(|e| format!("record 0x{opcode:02x}: {e}"))?;
-        match rec {
-            Record::Schema { header, .. } => {
-                self.schemas.insert(header.id, header.name);
+        // Records are parsed here with bounds checks, not by mcap::parse_record: its string
+        // reader reserves the claimed length (up to 4 GiB) before checking the bytes exist
+        // (found by cargo fuzz). Records we do not need are not parsed at all.
+        let mut r = Fields::new(data, opcode);
+        match opcode {
+            OP_SCHEMA => {
+                let id = r.u16()?;
+                let name = r.string()?;
+                self.schemas.insert(id, name);
             }
-            Record::Channel(c) => {
-                let type_name = if c.schema_id == 0 {
+            OP_CHANNEL => {
+                let id = r.u16()?;
+                let schema_id = r.u16()?;
+                let topic = r.string()?;
+                let encoding = r.string()?;
+                let type_name = if schema_id == 0 {
                     String::new()
                 } else {
-                    self.schemas.get(&c.schema_id).cloned().ok_or_else(|| {
+                    self.schemas.get(&schema_id).cloned().ok_or_else(|| {
                         format!(
-                            "channel {} ({}) uses schema {} that was not defined before it",
-                            c.id, c.topic, c.schema_id
+                            "channel {id} ({topic}) uses schema {schema_id} that was not defined before it"
                         )
                     })?
                 };
                 self.channels.insert(
-                    c.id,
+                    id,
                     Arc::new(TopicInfo {
-                        name: c.topic,
+                        name: topic,
                         type_name,
-                        encoding: c.message_encoding,
+                        encoding,
                     }),
                 );
             }
-            Record::Chunk { header, data } => {
-                self.chunk = decompress_chunk(&header, &data)?;
+            OP_CHUNK => {
+                let _start = r.u64()?;
+                let _end = r.u64()?;
+                let header = ChunkHeader {
+                    uncompressed_size: r.u64()?,
+                    uncompressed_crc: r.u32()?,
+                    compression: r.string()?,
+                };
+                let len = r.u64()?;
+                let body = r.take(len)?;
+                self.chunk = decompress_chunk(&header, body)?;
                 self.chunk_pos = 0;
             }
             // The summary repeats what the data section said.
-            Record::DataEnd(_) | Record::Footer(_) => self.end = true,
+            OP_DATA_END | OP_FOOTER => self.end = true,
             _ => {}
         }
         Ok(None)
@@ -442,7 +529,7 @@ impl McapState {
 }
 
 /// Decompress a chunk's records, refusing sizes over the limit before allocating.
-fn decompress_chunk(h: &mcap::records::ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
+fn decompress_chunk(h: &ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
     let size = usize::try_from(h.uncompressed_size)
         .ok()
         .filter(|&n| n <= MAX_RECORD_BYTES)
@@ -633,6 +720,8 @@ struct SqliteFile {
     page: VecDeque<RawMessage>,
     /// (timestamp, id) of the last row fetched.
     cursor: Option<(i64, i64)>,
+    /// An oversized row met while filling the page: reported after the rows before it.
+    pending: Option<BagError>,
     done: bool,
 }
 
@@ -690,6 +779,7 @@ impl SqliteFile {
             topics,
             page: VecDeque::new(),
             cursor: None,
+            pending: None,
             done: false,
         })
     }
@@ -752,16 +842,22 @@ impl SqliteFile {
         if n == 0 {
             self.done = true;
         }
-        match too_large {
-            Some(e) => Err(e),
-            None => Ok(()),
-        }
+        self.pending = too_large;
+        Ok(())
     }
 
     fn next(&mut self, opts: &ReadOptions) -> Result<Option<RawMessage>, BagError> {
-        while self.page.is_empty() && !self.done {
+        loop {
+            if let Some(m) = self.page.pop_front() {
+                return Ok(Some(m));
+            }
+            if let Some(e) = self.pending.take() {
+                return Err(e);
+            }
+            if self.done {
+                return Ok(None);
+            }
             self.fill(opts)?;
         }
-        Ok(self.page.pop_front())
     }
 }

@@ -293,3 +293,43 @@ fn write_fuzz_seeds() {
         std::fs::remove_dir_all(&tmp).ok();
     }
 }
+
+/// Inputs cargo fuzz found (crates/bag/fuzz/regressions), run in a child process whose address
+/// space is limited to 1 GiB (`ulimit -v`): a reservation of gigabytes (the first input made
+/// mcap's record parser reserve 1.9 GB for a string) aborts it even if the pages are never
+/// touched, which a resident-memory check would not see.
+#[test]
+fn fuzz_regressions() {
+    let exe = std::env::current_exe().unwrap();
+    let o = std::process::Command::new("bash")
+        .arg("-c")
+        .arg("ulimit -v 1048576 && exec \"$0\" --exact fuzz_regressions_child --ignored --test-threads=1")
+        .arg(&exe)
+        .env("UNITAC_FUZZ_REGRESSIONS", "1")
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success() && out.contains("1 passed"),
+        "{out}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+#[test]
+#[ignore = "run by fuzz_regressions under an address-space limit"]
+fn fuzz_regressions_child() {
+    if std::env::var_os("UNITAC_FUZZ_REGRESSIONS").is_none() {
+        return;
+    }
+    let dir = root().join("crates/bag/fuzz/regressions");
+    let mut n = 0;
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let data = std::fs::read(e.unwrap().path()).unwrap();
+        fuzzing::mcap(&data);
+        fuzzing::cdr(&data);
+        fuzzing::metadata(&data);
+        n += 1;
+    }
+    assert!(n >= 1);
+}
