@@ -40,6 +40,36 @@ fn timing(mut v: Vec<f64>) -> Timing {
     }
 }
 
+/// Run `bench/<script>` with the project's Python on one thread (as a user would run the
+/// baseline, at its best: OpenBLAS core-type overrides removed) and parse its JSON line.
+pub fn run_python_baseline(
+    script: &str,
+    args: &[std::ffi::OsString],
+) -> anyhow::Result<serde_json::Value> {
+    let venv = std::env::var_os("UNITAC_VENV")
+        .map(PathBuf::from)
+        .context("UNITAC_VENV is not set (use scripts/unitac)")?;
+    let root = std::env::var_os("UNITAC_ROOT")
+        .map(PathBuf::from)
+        .context("UNITAC_ROOT is not set")?;
+    let out = Command::new(venv.join("bin/python"))
+        .arg(root.join("bench").join(script))
+        .args(args)
+        .env("OMP_NUM_THREADS", "1")
+        .env("OPENBLAS_NUM_THREADS", "1")
+        .env_remove("OPENBLAS_CORETYPE")
+        .env_remove("OPENBLAS_L2_SIZE")
+        .output()
+        .context("running the Python baseline")?;
+    if !out.status.success() {
+        bail!(
+            "Python baseline failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    Ok(serde_json::from_slice(&out.stdout)?)
+}
+
 fn frames(n: usize) -> Vec<Frame> {
     let mut s = MockSensor::new(
         MockConfig::new(SensorKind::GelsightMini, 5),
@@ -55,12 +85,6 @@ fn python_baseline(
     bg: &Frame,
     repeat: usize,
 ) -> anyhow::Result<(Timing, String)> {
-    let venv = std::env::var_os("UNITAC_VENV")
-        .map(PathBuf::from)
-        .context("UNITAC_VENV is not set (use scripts/unitac)")?;
-    let root = std::env::var_os("UNITAC_ROOT")
-        .map(PathBuf::from)
-        .context("UNITAC_ROOT is not set")?;
     let dir = std::env::temp_dir().join(format!("unitac-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let raw: Vec<u8> = frames
@@ -69,29 +93,16 @@ fn python_baseline(
         .collect();
     std::fs::write(dir.join("frames.raw"), raw)?;
     std::fs::write(dir.join("bg.raw"), bg.data())?;
-    let out = Command::new(venv.join("bin/python"))
-        .arg(root.join("bench/contact_baseline.py"))
-        .arg(dir.join("frames.raw"))
-        .arg(dir.join("bg.raw"))
-        .args([
-            bg.width.to_string(),
-            bg.height.to_string(),
-            repeat.to_string(),
-        ])
-        .env("OMP_NUM_THREADS", "1")
-        .env("OPENBLAS_NUM_THREADS", "1")
-        .env_remove("OPENBLAS_CORETYPE")
-        .env_remove("OPENBLAS_L2_SIZE")
-        .output()
-        .context("running the Python baseline")?;
+    let args = [
+        dir.join("frames.raw").into_os_string(),
+        dir.join("bg.raw").into_os_string(),
+        bg.width.to_string().into(),
+        bg.height.to_string().into(),
+        repeat.to_string().into(),
+    ];
+    let j = run_python_baseline("contact_baseline.py", &args);
     std::fs::remove_dir_all(&dir).ok();
-    if !out.status.success() {
-        bail!(
-            "Python baseline failed: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    let j: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+    let j = j?;
     let t = Timing {
         median_us: j["median_us"].as_f64().unwrap_or(f64::NAN),
         mean_us: j["mean_us"].as_f64().unwrap_or(f64::NAN),
@@ -305,29 +316,10 @@ pub fn bench_replay(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
 }
 
 fn python_replay(bag: &std::path::Path, repeat: usize) -> anyhow::Result<(f64, f64, String)> {
-    let venv = std::env::var_os("UNITAC_VENV")
-        .map(PathBuf::from)
-        .context("UNITAC_VENV is not set (use scripts/unitac)")?;
-    let root = std::env::var_os("UNITAC_ROOT")
-        .map(PathBuf::from)
-        .context("UNITAC_ROOT is not set")?;
-    let out = Command::new(venv.join("bin/python"))
-        .arg(root.join("bench/replay_baseline.py"))
-        .arg(bag)
-        .arg(repeat.to_string())
-        .env("OMP_NUM_THREADS", "1")
-        .env("OPENBLAS_NUM_THREADS", "1")
-        .env_remove("OPENBLAS_CORETYPE")
-        .env_remove("OPENBLAS_L2_SIZE")
-        .output()
-        .context("running the Python baseline")?;
-    if !out.status.success() {
-        bail!(
-            "Python baseline failed: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-    }
-    let j: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+    let j = run_python_baseline(
+        "replay_baseline.py",
+        &[bag.as_os_str().to_owned(), repeat.to_string().into()],
+    )?;
     Ok((
         j["fps"].as_f64().unwrap_or(f64::NAN),
         j["pass_s"].as_f64().unwrap_or(f64::NAN),

@@ -5,12 +5,9 @@
 //! Wall time and CPU time are both reported: the JPEG decoder may hand colour conversion to
 //! helper threads, so CPU time (all threads of the process) is the fair "share of one core".
 
-use anyhow::{Context, bail};
 use image::codecs::jpeg::JpegEncoder;
 use serde::Serialize;
 use std::hint::black_box;
-use std::path::PathBuf;
-use std::process::Command;
 use std::time::{Duration, Instant};
 use unitac_driver::decode::{DecodeConfig, FrameDecoder, PixelFormat, yuyv_to_rgb};
 
@@ -185,45 +182,26 @@ pub fn bench_decode(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
     let mut versions = String::new();
     let mut mad = None;
     if with_python {
-        let venv = std::env::var_os("UNITAC_VENV")
-            .map(PathBuf::from)
-            .context("UNITAC_VENV is not set (use scripts/unitac)")?;
-        let root = std::env::var_os("UNITAC_ROOT")
-            .map(PathBuf::from)
-            .context("UNITAC_ROOT is not set")?;
         let dir = std::env::temp_dir().join(format!("unitac-bench-decode-{}", std::process::id()));
         std::fs::create_dir_all(&dir)?;
         for (i, j) in jpegs.iter().enumerate() {
             std::fs::write(dir.join(format!("frame_{i}.jpg")), j)?;
         }
         std::fs::write(dir.join("yuyv.raw"), &yuyv)?;
-        let out = Command::new(venv.join("bin/python"))
-            .arg(root.join("bench/decode_baseline.py"))
-            .arg(&dir)
-            .args([
-                n.to_string(),
-                format!("{crop}"),
-                cfg.out_width.to_string(),
-                cfg.out_height.to_string(),
-                "320".into(),
-                "240".into(),
-                repeat.to_string(),
-            ])
-            .env("OMP_NUM_THREADS", "1")
-            .env("OPENBLAS_NUM_THREADS", "1")
-            .env_remove("OPENBLAS_CORETYPE")
-            .env_remove("OPENBLAS_L2_SIZE")
-            .output()
-            .context("running the Python baseline")?;
+        let args: Vec<std::ffi::OsString> = vec![
+            dir.clone().into_os_string(),
+            n.to_string().into(),
+            format!("{crop}").into(),
+            cfg.out_width.to_string().into(),
+            cfg.out_height.to_string().into(),
+            "320".into(),
+            "240".into(),
+            repeat.to_string().into(),
+        ];
+        let j = crate::bench::run_python_baseline("decode_baseline.py", &args);
         let py_out = std::fs::read(dir.join("py_out.raw")).ok();
         std::fs::remove_dir_all(&dir).ok();
-        if !out.status.success() {
-            bail!(
-                "Python baseline failed: {}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-        }
-        let j: serde_json::Value = serde_json::from_slice(&out.stdout)?;
+        let j = j?;
         versions = format!("numpy {} opencv {}", j["numpy"], j["opencv"]);
         if let Some(p) = py_out.filter(|p| p.len() == rust_out.len()) {
             let sum: f64 = p
