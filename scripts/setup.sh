@@ -81,8 +81,9 @@ if [ "$(cat "$BUILD/msgs/.stamp" 2>/dev/null)" != "$msgs_key" ]; then
   cmake --build "$BUILD/msgs/build" -j2 >>"$BUILD/msgs-cmake.log" 2>&1 \
     && cmake --install "$BUILD/msgs/build" >>"$BUILD/msgs-cmake.log" 2>&1 \
     || { tail -50 "$BUILD/msgs-cmake.log" >&2; exit 1; }
-  # r2r caches generated bindings keyed on the environment, not on the message files.
-  if [ -d target ]; then cargo clean -q -p r2r_msg_gen 2>/dev/null || true; fi
+  # r2r caches generated bindings in its OUT_DIR keyed on the environment, not on the message
+  # files: drop both crates' build outputs so the bindings are generated again.
+  if [ -d "${CARGO_TARGET_DIR:-target}" ]; then cargo clean -q -p r2r -p r2r_msg_gen 2>/dev/null || true; fi
   echo "$msgs_key" >"$BUILD/msgs/.stamp"
 fi
 # --- 5. reference model bundle ----------------------------------------------------------------

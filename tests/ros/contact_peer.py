@@ -4,12 +4,19 @@
                                     NS/image: 15 frames of background, then a bright disc for 10
                                     frames, then background; collect NS/contact_state and
                                     NS/contact_episode; print a JSON summary
-  contact_peer.py listen NS SECONDS EPISODES
-                                    subscribe to NS/image_raw, NS/contact_state,
-                                    NS/contact_episode and /diagnostics until EPISODES episodes
-                                    arrived (then 0.5 s more) or SECONDS passed; print a summary
+  contact_peer.py listen NS SECONDS [OPTIONS_JSON]
+                                    subscribe to everything the nodes publish in NS (images,
+                                    contact states/episodes/clips, properties, comparisons,
+                                    latents) plus /diagnostics and /clock until the counts in
+                                    {"until": {...}} arrived (then 0.5 s more) or SECONDS passed;
+                                    {"stop_pid", "stop_after", "stop_seconds"} stall a process
+                                    (SIGSTOP/SIGCONT) meanwhile; print a summary
+  contact_peer.py slow NS SECONDS DELAY
+                                    a slow reliable subscriber to NS/image_raw (DELAY s per image)
 """
 import json
+import os
+import signal
 import sys
 import time
 
@@ -19,18 +26,49 @@ from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import Image
-from unitac_msgs.msg import ContactEpisode, ContactState
+from rosgraph_msgs.msg import Clock
+from unitac_msgs.msg import (ContactClip, ContactEpisode, ContactState, PropertyComparison,
+                             TactileLatent, TactileProperties)
 
 
-def collect(node, ns, extra=None):
-    got = {"states": [], "episodes": [], "diag": [], "images": 0, "image_frames": set()}
-    node.create_subscription(ContactState, ns + "/contact_state", lambda m: got["states"].append(
+def stamp_ns(h):
+    return h.stamp.sec * 10**9 + h.stamp.nanosec
+
+
+def collect(node, ns):
+    """Subscribe to everything the nodes publish; return the dict the callbacks fill."""
+    got = {"states": [], "episodes": [], "clips": [], "properties": [], "comparisons": [],
+           "latents": [], "diag": [], "clock": [], "images": 0, "image_frames": set(),
+           "image_times": []}
+    t0 = time.monotonic()
+    got["t0"] = t0
+    sub = node.create_subscription
+    sub(ContactState, ns + "/contact_state", lambda m: got["states"].append(
         {"in_contact": m.in_contact, "area_px": m.area_px, "frame_id": m.header.frame_id,
-         "stamp": m.header.stamp.sec * 10**9 + m.header.stamp.nanosec, "sensor_id": m.sensor_id}), 100)
-    node.create_subscription(ContactEpisode, ns + "/contact_episode", lambda m: got["episodes"].append(
-        {"id": m.episode_id, "frames": m.frame_count, "peak": m.peak_area_px, "frame_id": m.header.frame_id}), 100)
-    node.create_subscription(DiagnosticArray, "/diagnostics", lambda m: got["diag"].extend(
-        {"name": s.name, "values": {kv.key: kv.value for kv in s.values}} for s in m.status), 100)
+         "stamp": stamp_ns(m.header), "sensor_id": m.sensor_id}), 100)
+    sub(ContactEpisode, ns + "/contact_episode", lambda m: got["episodes"].append(
+        {"id": m.episode_id, "frames": m.frame_count, "peak": m.peak_area_px, "label": m.label,
+         "frame_id": m.header.frame_id, "stamp": stamp_ns(m.header)}), 100)
+    sub(ContactClip, ns + "/contact_clip", lambda m: got["clips"].append(
+        {"id": m.episode_id, "label": m.label, "frames": len(m.frames), "peak_index": m.peak_index,
+         "frame_ids": sorted({f.header.frame_id for f in m.frames}),
+         "background": [m.background.width, m.background.height]}), 100)
+    sub(TactileProperties, ns + "/tactile_properties", lambda m: got["properties"].append(
+        {"label": m.label, "episode": m.episode_id, "hardness": m.hardness,
+         "roughness": m.roughness, "texture": m.texture, "model_id": m.model_id,
+         "frame_id": m.header.frame_id, "stamp": stamp_ns(m.header)}), 100)
+    sub(PropertyComparison, ns + "/property_comparison", lambda m: got["comparisons"].append(
+        {"property": m.property, "label_a": m.label_a, "label_b": m.label_b, "winner": m.winner,
+         "sentence": m.sentence, "confidence": m.confidence, "stamp": stamp_ns(m.header)}), 100)
+    sub(TactileLatent, ns + "/tactile_latent", lambda m: got["latents"].append(
+        {"source": m.source, "shape": list(m.shape), "n": len(m.data), "valid": m.valid,
+         "finite": bool(np.all(np.isfinite(np.asarray(m.data, dtype=np.float32)))),
+         "stamp": stamp_ns(m.header)}), 100)
+    sub(DiagnosticArray, "/diagnostics", lambda m: got["diag"].extend(
+        {"name": s.name, "level": int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else int(s.level),
+         "message": s.message, "stamp": stamp_ns(m.header), "t": time.monotonic() - t0,
+         "values": {kv.key: kv.value for kv in s.values}} for s in m.status), 100)
+    sub(Clock, "/clock", lambda m: got["clock"].append(m.clock.sec * 10**9 + m.clock.nanosec), 100)
     return got
 
 
@@ -63,12 +101,21 @@ def images(ns, n):
     end = time.monotonic() + 2.5
     while time.monotonic() < end:
         rclpy.spin_once(node, timeout_sec=0.05)
-    got.pop("image_frames")
-    print(json.dumps(got))
+    print(json.dumps(summary(got)))
     return 0
 
 
-def listen(ns, seconds, episodes):
+def summary(got):
+    got = dict(got)
+    got["image_frames"] = sorted(got["image_frames"])
+    got.pop("t0", None)
+    return got
+
+
+def listen(ns, seconds, until, stop_pid=0, stop_after=0, stop_seconds=0.0):
+    """Collect until every count in `until` (e.g. {"episodes": 2}) is reached (then 0.5 s more)
+    or `seconds` passed. With stop_pid: after `stop_after` images, SIGSTOP that process for
+    `stop_seconds` (a stalled subscriber), then SIGCONT; the window goes into the summary."""
     node = Node("unitac_listen_peer")
     got = collect(node, ns)
     # Subscribe to images (which the sensor node waits for) only once the contact node's
@@ -77,16 +124,45 @@ def listen(ns, seconds, episodes):
     while time.monotonic() < ready and not all(
             node.count_publishers(ns + t) > 0 for t in ("/contact_state", "/contact_episode")):
         rclpy.spin_once(node, timeout_sec=0.05)
-    node.create_subscription(Image, ns + "/image_raw", lambda m: (got.__setitem__("images", got["images"] + 1),
-                                                                 got["image_frames"].add(m.header.frame_id)),
-                             qos_profile_sensor_data)
+
+    def on_image(m):
+        got["images"] += 1
+        got["image_frames"].add(m.header.frame_id)
+        got["image_times"].append(round(time.monotonic() - got["t0"], 4))
+    node.create_subscription(Image, ns + "/image_raw", on_image, qos_profile_sensor_data)
+    end = time.monotonic() + seconds
+    stopped = None
+    while time.monotonic() < end:
+        rclpy.spin_once(node, timeout_sec=0.02)
+        if stop_pid and stopped is None and got["images"] >= stop_after:
+            os.kill(stop_pid, signal.SIGSTOP)
+            stopped = time.monotonic()
+            got["stop_window"] = [stopped - got["t0"], None]
+        if stopped and got["stop_window"][1] is None and time.monotonic() - stopped >= stop_seconds:
+            os.kill(stop_pid, signal.SIGCONT)
+            got["stop_window"][1] = time.monotonic() - got["t0"]
+            end = max(end, time.monotonic() + 3.0)
+        if until and all(len(got[k]) >= v for k, v in until.items()) and (not stop_pid or stopped):
+            end = min(end, time.monotonic() + 0.5)
+    if stopped and got["stop_window"][1] is None:
+        os.kill(stop_pid, signal.SIGCONT)
+    print(json.dumps(summary(got)))
+    return 0
+
+
+def slow(ns, seconds, delay):
+    """A slow reliable image subscriber: `delay` seconds of work per image."""
+    node = Node("unitac_slow_peer")
+    n = [0]
+
+    def on_image(m):
+        n[0] += 1
+        time.sleep(delay)
+    node.create_subscription(Image, ns + "/image_raw", on_image, 10)
     end = time.monotonic() + seconds
     while time.monotonic() < end:
         rclpy.spin_once(node, timeout_sec=0.05)
-        if len(got["episodes"]) >= episodes:
-            end = min(end, time.monotonic() + 0.5)
-    got["image_frames"] = sorted(got["image_frames"])
-    print(json.dumps(got))
+    print(json.dumps({"images": n[0]}))
     return 0
 
 
@@ -95,7 +171,11 @@ def main():
     try:
         if sys.argv[1] == "images":
             return images(sys.argv[2], int(sys.argv[3]))
-        return listen(sys.argv[2], float(sys.argv[3]), int(sys.argv[4]))
+        if sys.argv[1] == "slow":
+            return slow(sys.argv[2], float(sys.argv[3]), float(sys.argv[4]))
+        opts = json.loads(sys.argv[4]) if len(sys.argv) > 4 else {}
+        return listen(sys.argv[2], float(sys.argv[3]), opts.get("until", {}),
+                      opts.get("stop_pid", 0), opts.get("stop_after", 0), opts.get("stop_seconds", 0.0))
     finally:
         rclpy.try_shutdown()
 

@@ -22,7 +22,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use unitac_core::Scene;
 use unitac_core::scene::{SceneContext, SensorArg};
-use unitac_runtime::{KNOWN_STAGES, RunOptions};
+use unitac_runtime::RunOptions;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -206,37 +206,11 @@ impl std::fmt::Display for ConfigError {
 impl std::error::Error for ConfigError {}
 
 fn scene_dirs(extra: Option<PathBuf>) -> Vec<PathBuf> {
-    let mut dirs: Vec<PathBuf> = extra.into_iter().collect();
-    if let Some(d) = std::env::var_os("UNITAC_SCENES") {
-        dirs.push(d.into());
-    }
-    if let Some(root) = std::env::var_os("UNITAC_ROOT") {
-        dirs.push(PathBuf::from(root).join("launch/scenes"));
-    }
-    dirs.push(PathBuf::from("launch/scenes"));
-    // The source tree this binary was built from.
-    dirs.push(PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../launch/scenes"
-    )));
-    dirs
+    unitac_runtime::registry::scene_dirs(extra)
 }
 
 fn scene_context() -> SceneContext {
-    let mut ctx = SceneContext {
-        known_stages: KNOWN_STAGES.iter().map(|s| s.to_string()).collect(),
-        ..Default::default()
-    };
-    let models = std::env::var_os("UNITAC_MODELS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            let root = std::env::var_os("UNITAC_ROOT")
-                .map(PathBuf::from)
-                .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")));
-            root.join(".build/models")
-        });
-    ctx.vars.insert("UNITAC_MODELS".into(), models);
-    ctx
+    unitac_runtime::registry::scene_context()
 }
 
 fn cmd_run(

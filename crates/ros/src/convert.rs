@@ -199,3 +199,69 @@ pub fn winner_from(v: u8) -> Option<Winner> {
         _ => None,
     }
 }
+
+/// Most frames a ContactClip may carry (the contact stage's clip_frames is far below this).
+pub const MAX_CLIP_FRAMES: usize = 256;
+
+pub fn contact_clip(m: &unitac_core::msg::EpisodeClip) -> ros::ContactClip {
+    let last = m.frames.last();
+    let mut header = RosHeader::default();
+    if let Some(f) = last {
+        header.stamp = time(f.stamp);
+        header.frame_id = format!("{}_optical_frame", f.sensor_id);
+    }
+    ros::ContactClip {
+        header,
+        sensor_id: m.sensor_id.clone(),
+        episode_id: m.episode_id,
+        label: m.label.clone(),
+        peak_index: u32::try_from(m.peak_index).unwrap_or(u32::MAX),
+        frames: m.frames.iter().map(crate::image::from_frame).collect(),
+        background: m
+            .background
+            .as_ref()
+            .map(crate::image::from_frame)
+            .unwrap_or_default(),
+    }
+}
+
+/// A clip from the wire: frame count bounded, every image checked, peak index in range.
+pub fn contact_clip_from(m: &ros::ContactClip) -> Result<unitac_core::msg::EpisodeClip, String> {
+    if m.frames.is_empty() || m.frames.len() > MAX_CLIP_FRAMES {
+        return Err(format!(
+            "clip has {} frames (1..={MAX_CLIP_FRAMES})",
+            m.frames.len()
+        ));
+    }
+    let peak_index = m.peak_index as usize;
+    if peak_index >= m.frames.len() {
+        return Err(format!(
+            "peak_index {peak_index} is outside the clip's {} frames",
+            m.frames.len()
+        ));
+    }
+    let frames = m
+        .frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            crate::image::to_frame(f, &m.sensor_id, i as u64).map_err(|e| format!("frame {i}: {e}"))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let background = if m.background.width == 0 {
+        None
+    } else {
+        Some(
+            crate::image::to_frame(&m.background, &m.sensor_id, 0)
+                .map_err(|e| format!("background: {e}"))?,
+        )
+    };
+    Ok(unitac_core::msg::EpisodeClip {
+        sensor_id: m.sensor_id.clone(),
+        episode_id: m.episode_id,
+        label: m.label.clone(),
+        peak_index,
+        frames,
+        background,
+    })
+}

@@ -20,5 +20,18 @@ pub fn spin_until(node: &mut r2r::Node, timeout: Duration, mut done: impl FnMut(
     done()
 }
 
+/// A list parameter: comma-separated, items trimmed, empty items dropped (r2r's derived
+/// parameters have no arrays).
+pub fn list_param(s: &str) -> Vec<String> {
+    s.split(',')
+        .map(str::trim)
+        .filter(|x| !x.is_empty())
+        .map(str::to_string)
+        .collect()
+}
+
+pub mod chain;
 pub mod diagnostics;
+pub mod drops;
 pub mod image;
+pub mod node;

@@ -7,6 +7,14 @@ use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+/// One test at a time: these start several ROS processes each, and on a 2-core machine running
+/// them side by side starves best-effort delivery (the tests would then measure the load).
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
@@ -68,6 +76,7 @@ fn params_file(name: &str, body: &str) -> PathBuf {
 
 #[test]
 fn contact_node_answers_every_image_with_a_contact_state() {
+    let _one = serial();
     let n = ns("contact");
     let p = params_file(
         "contact",
@@ -118,6 +127,7 @@ fn contact_node_answers_every_image_with_a_contact_state() {
 
 #[test]
 fn parameters_from_a_yaml_file_take_effect() {
+    let _one = serial();
     let n = ns("params");
     // An enter area larger than the image: the same disc is never a contact.
     let p = params_file(
@@ -135,6 +145,7 @@ fn parameters_from_a_yaml_file_take_effect() {
 
 #[test]
 fn sensor_and_contact_nodes_find_the_fabric_episodes() {
+    let _one = serial();
     let n = ns("pipeline");
     let sp = params_file(
         "sensor",
@@ -159,7 +170,7 @@ fn sensor_and_contact_nodes_find_the_fabric_episodes() {
         .unwrap();
     let listener = Command::new(python())
         .arg(root().join("tests/ros/contact_peer.py"))
-        .args(["listen", &n, "40", "2"])
+        .args(["listen", &n, "40", r#"{"until": {"episodes": 2}}"#])
         .stdout(Stdio::piped())
         .spawn()
         .unwrap();
@@ -188,4 +199,361 @@ fn sensor_and_contact_nodes_find_the_fabric_episodes() {
             .iter()
             .all(|s| s["frame_id"] == "gsmini_optical_frame")
     );
+}
+
+fn spawn(bin: &str, ns: &str, extra: &[&str]) -> Child {
+    Command::new(bin)
+        .args(["--ros-args", "-r", &format!("__ns:={ns}")])
+        .args(extra)
+        .stdout(Stdio::null())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap()
+}
+
+fn listener(ns: &str, seconds: u32, opts: Value) -> Child {
+    Command::new(python())
+        .arg(root().join("tests/ros/contact_peer.py"))
+        .args(["listen", ns, &seconds.to_string(), &opts.to_string()])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+fn finish(l: Child) -> Value {
+    let out = l.wait_with_output().unwrap();
+    assert!(out.status.success());
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// Diagnostics of node `name` in namespace `ns` (/diagnostics is shared by every test).
+fn diag_of<'a>(got: &'a Value, ns: &str, name: &str) -> Vec<&'a Value> {
+    let want = format!("{name}: {ns}/{name}");
+    got["diag"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|d| d["name"] == want.as_str())
+        .collect()
+}
+
+fn num(v: &Value) -> f64 {
+    v.as_str().unwrap().parse().unwrap()
+}
+
+/// What the fabric scene must produce, however its frames arrived.
+fn check_fabric_outputs(got: &Value, frame_id: &str) {
+    let labels = |k: &str| -> Vec<String> {
+        got[k]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e["label"].as_str().unwrap().to_string())
+            .collect()
+    };
+    assert_eq!(
+        labels("episodes"),
+        ["fabric_a", "fabric_b"],
+        "{}",
+        got["episodes"]
+    );
+    assert_eq!(
+        labels("clips"),
+        ["fabric_a", "fabric_b"],
+        "{}",
+        got["clips"]
+    );
+    for c in got["clips"].as_array().unwrap() {
+        assert_eq!(c["frames"], 8, "{c}");
+        assert_eq!(c["frame_ids"], serde_json::json!([frame_id]));
+        assert_eq!(c["background"], serde_json::json!([320, 240]));
+    }
+    assert_eq!(
+        labels("properties"),
+        ["fabric_a", "fabric_b"],
+        "{}",
+        got["properties"]
+    );
+    let p = got["properties"].as_array().unwrap();
+    let rough = |i: usize| p[i]["roughness"].as_f64().unwrap();
+    assert!(rough(1) < rough(0), "fabric_b is the smoother one: {p:?}");
+    assert!(p.iter().all(|x| x["frame_id"] == frame_id), "{p:?}");
+    let lat = got["latents"].as_array().unwrap();
+    assert_eq!(lat.len(), 2, "one real latent per episode: {lat:?}");
+    assert!(
+        lat.iter()
+            .all(|l| l["source"] == 0 && l["valid"] == true && l["finite"] == true)
+    );
+    assert!(lat.iter().all(|l| l["n"].as_u64().unwrap() > 0));
+    let cmp = got["comparisons"].as_array().unwrap();
+    assert_eq!(cmp.len(), 1, "{cmp:?}");
+    assert_eq!(cmp[0]["property"], "roughness");
+    assert_eq!(cmp[0]["winner"], 0, "fabric_a is rougher: {cmp:?}");
+    assert!(
+        cmp[0]["sentence"]
+            .as_str()
+            .unwrap()
+            .contains("fabric_b is smoother than fabric_a"),
+        "{cmp:?}"
+    );
+}
+
+fn contact_params(name: &str) -> PathBuf {
+    params_file(
+        name,
+        "/**:\n  ros__parameters:\n    sensor_kind: gelsight-mini\n    clip_frames: 8\n    episode_labels: fabric_a,fabric_b\n",
+    )
+}
+
+#[test]
+fn fabric_scene_as_nodes_publishes_properties_and_a_comparison() {
+    let _one = serial();
+    let n = ns("fabric");
+    let sp = params_file(
+        "fsensor",
+        "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: fabric_selection\n    fps: 25.0\n    wait_subscribers: 2\n",
+    );
+    let cp = contact_params("fcontact");
+    let contact = spawn(
+        env!("CARGO_BIN_EXE_unitac_contact_node"),
+        &n,
+        &[
+            "-r",
+            "image:=image_raw",
+            "--params-file",
+            cp.to_str().unwrap(),
+        ],
+    );
+    let inference = spawn(
+        env!("CARGO_BIN_EXE_unitac_inference_node"),
+        &n,
+        &["-p", "scene:=fabric_selection"],
+    );
+    let l = listener(
+        &n,
+        60,
+        serde_json::json!({"until": {"comparisons": 1, "episodes": 2}}),
+    );
+    let sensor = node(env!("CARGO_BIN_EXE_unitac_sensor_node"), &n, sp.to_str());
+    let got = finish(l);
+    stop(sensor);
+    stop(contact);
+    stop(inference);
+    check_fabric_outputs(&got, "gsmini_optical_frame");
+    // Rates: the sensor node's own report (a Python subscriber's count depends on load).
+    let sd = diag_of(&got, &n, "unitac_sensor");
+    assert!(sd.len() >= 3, "{sd:?}");
+    for d in &sd[1..] {
+        let r = num(&d["values"]["rate_hz"]);
+        assert!(
+            (20.0..=30.0).contains(&r),
+            "sensor rate {r} Hz, want 25: {d}"
+        );
+    }
+    // The inference node reports its model timings.
+    let id = diag_of(&got, &n, "unitac_inference");
+    assert!(
+        id.iter().any(|d| d["values"]["encoder"]
+            .as_str()
+            .is_some_and(|v| v.contains("calls, mean") && !v.starts_with("0 calls"))),
+        "{id:?}"
+    );
+    assert!(id.iter().all(|d| d["values"]["errors"] == "0"), "{id:?}");
+}
+
+/// A bag of the mock fabric scene (MCAP, /gs/image_raw, rgb8, bag time = capture time).
+fn fabric_bag(name: &str) -> (PathBuf, i64, i64) {
+    use unitac_bag::{BagWriter, WriteOptions, ros::Image};
+    use unitac_core::Source;
+    let dir = std::env::temp_dir().join(format!("unitac-{}-{name}", std::process::id()));
+    std::fs::remove_dir_all(&dir).ok();
+    let mut w = BagWriter::create(&dir, WriteOptions::default()).unwrap();
+    let t = w
+        .add_topic("/gs/image_raw", "sensor_msgs/msg/Image")
+        .unwrap();
+    let mut cfg = unitac_sim::MockConfig::new(unitac_core::SensorKind::GelsightMini, 7);
+    cfg.sensor_id = "gs".into();
+    let mut mock = unitac_sim::MockSensor::new(
+        cfg,
+        unitac_sim::Scenario::by_name("fabric_selection").unwrap(),
+    );
+    let (mut first, mut last) = (None, 0);
+    while let Some(f) = mock.next_frame().unwrap() {
+        let img = Image {
+            header: unitac_core::msg::Header {
+                stamp: f.stamp,
+                frame_id: "gs_optical_frame".into(),
+            },
+            height: f.height,
+            width: f.width,
+            encoding: "rgb8".into(),
+            is_bigendian: 0,
+            step: f.width * 3,
+            data: f.data().to_vec(),
+        };
+        w.write(t, f.stamp.0, &img).unwrap();
+        first.get_or_insert(f.stamp.0);
+        last = f.stamp.0;
+    }
+    w.finish().unwrap();
+    (dir, first.unwrap(), last)
+}
+
+#[test]
+fn bag_replay_with_sim_time_drives_the_same_pipeline() {
+    let _one = serial();
+    let n = ns("bag");
+    let (bag, t_first, t_last) = fabric_bag("fabric-bag");
+    // Twice the recorded pace: the answers come from the stamps, not from wall time.
+    let sp = params_file(
+        "bsensor",
+        &format!(
+            "/**:\n  ros__parameters:\n    source: bag\n    bag: {}\n    rate: 2.0\n    wait_subscribers: 2\n",
+            bag.display()
+        ),
+    );
+    let cp = contact_params("bcontact");
+    let sim = ["-p", "use_sim_time:=true"];
+    let contact = spawn(
+        env!("CARGO_BIN_EXE_unitac_contact_node"),
+        &n,
+        &[
+            &[
+                "-r",
+                "image:=image_raw",
+                "--params-file",
+                cp.to_str().unwrap(),
+            ][..],
+            &sim,
+        ]
+        .concat(),
+    );
+    let inference = spawn(
+        env!("CARGO_BIN_EXE_unitac_inference_node"),
+        &n,
+        &[&["-p", "scene:=fabric_selection"][..], &sim].concat(),
+    );
+    let l = listener(
+        &n,
+        60,
+        serde_json::json!({"until": {"comparisons": 1, "episodes": 2}}),
+    );
+    let sensor = node(env!("CARGO_BIN_EXE_unitac_sensor_node"), &n, sp.to_str());
+    let got = finish(l);
+    stop(sensor);
+    stop(contact);
+    stop(inference);
+    check_fabric_outputs(&got, "gs_optical_frame");
+    let in_bag = |t: i64| (t_first..=t_last).contains(&t);
+    // Outputs carry the bag's capture stamps.
+    for k in ["episodes", "properties", "latents", "comparisons"] {
+        for e in got[k].as_array().unwrap() {
+            assert!(in_bag(e["stamp"].as_i64().unwrap()), "{k}: {e}");
+        }
+    }
+    // /clock carried bag time, in order.
+    let clock: Vec<i64> = got["clock"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_i64().unwrap())
+        .collect();
+    assert!(clock.len() > 50, "{} /clock messages", clock.len());
+    assert!(clock.iter().all(|&t| in_bag(t)) && clock.windows(2).all(|w| w[0] <= w[1]));
+    // Nodes under use_sim_time stamp their diagnostics with bag time; the sensor node (not under
+    // sim time) with wall time.
+    for prefix in ["unitac_contact", "unitac_inference"] {
+        let d = diag_of(&got, &n, prefix);
+        assert!(!d.is_empty(), "{prefix}");
+        // Before the first /clock message sim time is 0.
+        let stamps: Vec<i64> = d.iter().map(|x| x["stamp"].as_i64().unwrap()).collect();
+        assert!(
+            stamps.iter().all(|&t| t == 0 || in_bag(t)) && stamps.iter().any(|&t| in_bag(t)),
+            "{prefix} diagnostics are not on bag time: {d:?}"
+        );
+    }
+    let sd = diag_of(&got, &n, "unitac_sensor");
+    assert!(sd.iter().all(|x| x["stamp"].as_i64().unwrap() > t_last));
+    std::fs::remove_dir_all(&bag).ok();
+}
+
+#[test]
+fn a_stalled_subscriber_loses_frames_counted_and_blocks_nothing() {
+    let _one = serial();
+    let n = ns("slow");
+    let sp = params_file(
+        "ssensor",
+        "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: fabric_selection\n    fps: 25.0\n    wait_subscribers: 2\n",
+    );
+    let cp = contact_params("scontact");
+    let contact = spawn(
+        env!("CARGO_BIN_EXE_unitac_contact_node"),
+        &n,
+        &[
+            "-r",
+            "image:=image_raw",
+            "--params-file",
+            cp.to_str().unwrap(),
+        ],
+    );
+    // A slow reliable subscriber too: 0.2 s of work per image.
+    let slow = Command::new(python())
+        .arg(root().join("tests/ros/contact_peer.py"))
+        .args(["slow", &n, "14", "0.2"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The listener stalls the contact node (SIGSTOP) for 2 s after 50 images.
+    let l = listener(
+        &n,
+        12,
+        serde_json::json!({"stop_pid": contact.id(), "stop_after": 50, "stop_seconds": 2.0}),
+    );
+    let sensor = node(env!("CARGO_BIN_EXE_unitac_sensor_node"), &n, sp.to_str());
+    let got = finish(l);
+    stop(sensor);
+    stop(contact);
+    let slow_got = finish(slow);
+    let [t_stop, t_cont] = [0, 1].map(|i| got["stop_window"][i].as_f64().unwrap());
+    assert!(t_cont - t_stop >= 1.9, "{}", got["stop_window"]);
+    // The sensor kept its rate while one subscriber was stalled and another was slow.
+    let sd = diag_of(&got, &n, "unitac_sensor");
+    let during: Vec<f64> = sd
+        .iter()
+        .filter(|d| (t_stop + 0.5..t_cont + 1.0).contains(&d["t"].as_f64().unwrap()))
+        .map(|d| num(&d["values"]["rate_hz"]))
+        .collect();
+    assert!(!during.is_empty(), "{sd:?} {}", got["stop_window"]);
+    assert!(
+        during.iter().all(|r| (20.0..=30.0).contains(r)),
+        "{during:?}"
+    );
+    // Frames kept flowing to the other subscribers during the stall.
+    let seen = got["image_times"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|t| (t_stop..t_cont).contains(&t.as_f64().unwrap()))
+        .count();
+    assert!(
+        seen > 0,
+        "no image reached the listener while the contact node was stopped"
+    );
+    // The stalled contact node counted what it lost, as a warning.
+    let cd = diag_of(&got, &n, "unitac_contact");
+    let last = cd.last().expect("contact diagnostics after the stall");
+    let dropped = num(&last["values"]["dropped"]);
+    assert!(
+        dropped >= 10.0,
+        "2 s at 25 fps stalled, {dropped} counted: {last}"
+    );
+    // It cannot have lost more than the sensor published and it did not receive.
+    let s_last = sd.last().unwrap();
+    let published = num(&s_last["values"]["messages_out"])
+        + 25.0 * (last["t"].as_f64().unwrap() - s_last["t"].as_f64().unwrap()).max(0.0)
+        + 2.0;
+    let received = num(&last["values"]["frames_in"]);
+    assert!(dropped + received <= published, "{last} {s_last}");
+    assert_eq!(last["level"], 1, "{last}");
+    assert!(slow_got["images"].as_u64().unwrap() > 0);
 }

@@ -1,9 +1,10 @@
 //! Stage kinds and sources the runner can build from a scene.
 
 use serde::de::DeserializeOwned;
+use std::path::PathBuf;
 use unitac_bag::{BagSource, ReplayOptions};
 use unitac_contact::{ContactParams, ContactStage};
-use unitac_core::scene::{SceneError, SensorArg, SourceKind, StageSpec};
+use unitac_core::scene::{SceneContext, SceneError, SensorArg, SourceKind, StageSpec};
 use unitac_core::{Scene, Source, Stage};
 use unitac_infer::RuntimeConfig;
 use unitac_infer::encoder::{CompareParams, CompareStage, EncoderStage};
@@ -18,14 +19,14 @@ fn sysfs_root() -> std::path::PathBuf {
         .unwrap_or_else(|| "/".into())
 }
 
-/// A live GelSight Mini or DIGIT by serial (or the only one of the scene's kind on the bus).
-/// Per-serial calibration files are read from `UNITAC_CALIBRATION_DIR` when set.
-fn open_v4l(
-    scene: &Scene,
+/// A live GelSight Mini or DIGIT of kind `want` by serial (or the only one of that kind on the
+/// bus). Per-serial calibration files are read from `UNITAC_CALIBRATION_DIR` when set. Errors
+/// are one line and name the field they come from (`source.serial`, `source.sensor`).
+pub fn open_v4l(
+    want: unitac_core::SensorKind,
     serial: Option<&str>,
 ) -> Result<Box<dyn Source>, (&'static str, String)> {
     let root = sysfs_root();
-    let want = scene.source.sensor;
     let name = serial
         .map(|s| format!("v4l:{s}"))
         .unwrap_or_else(|| "v4l".into());
@@ -82,6 +83,43 @@ fn open_v4l(
     let stream = unitac_driver::open_v4l(&root, &serial, cal_dir.as_deref())
         .map_err(|e| ("source.serial", format!("v4l:{serial}: {e}")))?;
     Ok(Box::new(stream))
+}
+
+/// Where scene names are looked up: `extra` first, then `UNITAC_SCENES`, `$UNITAC_ROOT/launch/scenes`,
+/// `./launch/scenes` and the source tree this binary was built from.
+pub fn scene_dirs(extra: Option<PathBuf>) -> Vec<PathBuf> {
+    let mut dirs: Vec<PathBuf> = extra.into_iter().collect();
+    if let Some(d) = std::env::var_os("UNITAC_SCENES") {
+        dirs.push(d.into());
+    }
+    if let Some(root) = std::env::var_os("UNITAC_ROOT") {
+        dirs.push(PathBuf::from(root).join("launch/scenes"));
+    }
+    dirs.push(PathBuf::from("launch/scenes"));
+    dirs.push(PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../launch/scenes"
+    )));
+    dirs
+}
+
+/// What scenes are checked against: the stage kinds built here, and `${UNITAC_MODELS}` (the
+/// environment's, else `$UNITAC_ROOT/.build/models`, else the source tree's).
+pub fn scene_context() -> SceneContext {
+    let mut ctx = SceneContext {
+        known_stages: KNOWN_STAGES.iter().map(|s| s.to_string()).collect(),
+        ..Default::default()
+    };
+    let models = std::env::var_os("UNITAC_MODELS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            let root = std::env::var_os("UNITAC_ROOT")
+                .map(PathBuf::from)
+                .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../..")));
+            root.join(".build/models")
+        });
+    ctx.vars.insert("UNITAC_MODELS".into(), models);
+    ctx
 }
 
 /// Stage kinds a scene may name.
@@ -211,7 +249,7 @@ pub fn build_source(scene: &Scene, arg: Option<&SensorArg>) -> Result<Box<dyn So
                 Some(SensorArg::V4l(s)) => s.clone(),
                 _ => scene.source.serial.clone(),
             };
-            open_v4l(scene, serial.as_deref()).map_err(|(field, msg)| bad(field, msg))
+            open_v4l(scene.source.sensor, serial.as_deref()).map_err(|(field, msg)| bad(field, msg))
         }
         SourceKind::Bag => {
             let path = match arg {

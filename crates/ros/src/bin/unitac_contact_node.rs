@@ -1,19 +1,23 @@
-//! Contact node: sensor_msgs/Image in (best-effort, REP 2003), ContactState per frame and
-//! ContactEpisode on release out (reliable), /diagnostics once a second. A thin driver of the
-//! same `ContactStage` the embedded runtime runs; its clock is the images' capture stamps.
+//! Contact node: sensor_msgs/Image in (best-effort, REP 2003); ContactState per frame,
+//! ContactEpisode on release, ContactClip (the episode's frames, for the inference node) and the
+//! learned background (latched, for the sampler's sensor prior) out, reliable; /diagnostics once
+//! a second. A thin driver of the same `ContactStage` the embedded runtime runs; its clock is the
+//! images' capture stamps, so replays give the same answers as live runs.
 //!
 //! Topics (relative, so namespaces and remaps apply): `image` in; `contact_state`,
-//! `contact_episode` out. Parameters (`--ros-args --params-file x.yaml`): see `Params`.
+//! `contact_episode`, `contact_clip`, `background` out. Parameters
+//! (`--ros-args --params-file x.yaml`): see `Params`.
 
 use futures::{FutureExt, StreamExt};
 use r2r::{QosProfile, RosParams};
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use unitac_contact::{ContactParams, ContactStage};
 use unitac_core::{ManualClock, Msg, SensorKind, Stage};
+use unitac_ros::drops::DropCounter;
+use unitac_ros::node::NodeBase;
 use unitac_ros::{convert, diagnostics, image};
 
-#[derive(RosParams, Debug)]
+#[derive(RosParams, Debug, Clone)]
 struct Params {
     /// Sensor id used in messages (default: the image's frame_id without "_optical_frame")
     sensor_id: String,
@@ -31,6 +35,12 @@ struct Params {
     exit_area_px: f64,
     /// Frames needed to enter contact
     debounce_frames: i32,
+    /// Frames per episode published on contact_clip for the encoder (0: no clips)
+    clip_frames: i32,
+    /// Labels given to episodes in order, comma-separated (e.g. "fabric_a,fabric_b")
+    episode_labels: String,
+    /// Directory of saved backgrounds per sensor (empty: learn at every start)
+    background_dir: String,
 }
 
 impl Default for Params {
@@ -45,6 +55,9 @@ impl Default for Params {
             enter_area_px: f64::from(d.enter_area_px),
             exit_area_px: f64::from(d.exit_area_px),
             debounce_frames: d.debounce_frames as i32,
+            clip_frames: 8,
+            episode_labels: String::new(),
+            background_dir: String::new(),
         }
     }
 }
@@ -60,6 +73,10 @@ impl Params {
             enter_area_px: self.enter_area_px as f32,
             exit_area_px: self.exit_area_px as f32,
             debounce_frames: nonneg(self.debounce_frames, "debounce_frames")?,
+            clip_frames: nonneg(self.clip_frames, "clip_frames")?,
+            episode_labels: unitac_ros::list_param(&self.episode_labels),
+            background_dir: (!self.background_dir.is_empty())
+                .then(|| self.background_dir.clone().into()),
             ..Default::default()
         };
         p.check()?;
@@ -68,54 +85,62 @@ impl Params {
 }
 
 fn run() -> anyhow::Result<()> {
-    let ctx = r2r::Context::create()?;
-    let mut node = r2r::Node::create(ctx, "unitac_contact", "")?;
-    let params = Arc::new(Mutex::new(Params::default()));
-    let (handler, _events) = node.make_derived_parameter_handler(params.clone())?;
-    let mut pool = futures::executor::LocalPool::new();
-    futures::task::LocalSpawnExt::spawn_local(&pool.spawner(), handler)?;
-    pool.run_until_stalled();
-    let (cp, kind, sensor_id) = {
-        let p = params
-            .lock()
-            .map_err(|_| anyhow::anyhow!("parameter lock poisoned"))?;
-        let (cp, kind) = p
-            .contact()
-            .map_err(|e| anyhow::anyhow!("bad parameters: {e}"))?;
-        (cp, kind, p.sensor_id.clone())
-    };
+    let mut base = NodeBase::<Params>::new("unitac_contact")?;
+    let p = base.params()?;
+    let (cp, kind) = p
+        .contact()
+        .map_err(|e| anyhow::anyhow!("bad parameters: {e}"))?;
+    let sensor_id = p.sensor_id;
     let mut stage = ContactStage::new(cp, kind.spec()).map_err(anyhow::Error::msg)?;
 
+    let node = &mut base.node;
     let mut images =
         node.subscribe::<r2r::sensor_msgs::msg::Image>("image", QosProfile::sensor_data())?;
-    let pub_state = node.create_publisher::<r2r::unitac_msgs::msg::ContactState>(
-        "contact_state",
-        QosProfile::default(),
-    )?;
-    let pub_ep = node.create_publisher::<r2r::unitac_msgs::msg::ContactEpisode>(
-        "contact_episode",
-        QosProfile::default(),
-    )?;
-    let pub_diag = node.create_publisher::<r2r::diagnostic_msgs::msg::DiagnosticArray>(
-        "/diagnostics",
-        QosProfile::default(),
+    let reliable = QosProfile::default;
+    let pub_state =
+        node.create_publisher::<r2r::unitac_msgs::msg::ContactState>("contact_state", reliable())?;
+    let pub_ep = node
+        .create_publisher::<r2r::unitac_msgs::msg::ContactEpisode>("contact_episode", reliable())?;
+    let pub_clip =
+        node.create_publisher::<r2r::unitac_msgs::msg::ContactClip>("contact_clip", reliable())?;
+    // Latched: an inference node started later still gets the sensor prior.
+    let pub_bg = node.create_publisher::<r2r::sensor_msgs::msg::Image>(
+        "background",
+        QosProfile::default().keep_last(1).transient_local(),
     )?;
     let mut diag = diagnostics::Updater::new(
         &format!("unitac_contact: {}", node.fully_qualified_name()?),
         &sensor_id,
     );
     let mut counters = diagnostics::Counters::default();
+    let mut drops = DropCounter::default();
     let clock = ManualClock::default();
-    let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        ctrlc::set_handler(move || stop.store(true, std::sync::atomic::Ordering::SeqCst))?;
-    }
     let (mut seq, mut in_contact) = (0u64, false);
-    while !stop.load(std::sync::atomic::Ordering::SeqCst) {
-        node.spin_once(Duration::from_millis(5));
-        pool.run_until_stalled();
-        // Drain everything queued (r2r's subscription buffer is small and drops silently).
+    let publish = |out: Vec<Msg>, in_contact: &mut bool, counters: &mut diagnostics::Counters| {
+        for m in out {
+            let r = match m {
+                Msg::Contact(c) => {
+                    *in_contact = c.in_contact;
+                    pub_state.publish(&convert::contact_state(&c))
+                }
+                Msg::Episode(e) => pub_ep.publish(&convert::contact_episode(&e)),
+                Msg::Clip(c) => pub_clip.publish(&convert::contact_clip(&c)),
+                Msg::Background(f) => pub_bg.publish(&image::from_frame(&f)),
+                _ => continue,
+            };
+            match r {
+                Ok(()) => counters.messages_out += 1,
+                Err(e) => {
+                    counters.errors += 1;
+                    counters.last_error = format!("publish: {e}");
+                }
+            }
+        }
+    };
+    while !base.stopped() {
+        base.spin(Duration::from_millis(5));
+        // Drain everything queued (r2r's subscription buffer is small and drops silently; the
+        // stamp gaps below count what was lost anyway).
         while let Some(Some(img)) = images.next().now_or_never() {
             let id = if sensor_id.is_empty() {
                 img.header
@@ -127,6 +152,7 @@ fn run() -> anyhow::Result<()> {
             };
             seq += 1;
             counters.frames_in += 1;
+            counters.dropped += drops.observe(image::stamp(&img).0);
             let t0 = Instant::now();
             let frame = match image::to_frame(&img, &id, seq) {
                 Ok(f) => f,
@@ -138,22 +164,7 @@ fn run() -> anyhow::Result<()> {
             };
             clock.set(frame.stamp);
             match stage.process(&Msg::Frame(frame), &clock) {
-                Ok(out) => {
-                    for m in out {
-                        match m {
-                            Msg::Contact(c) => {
-                                in_contact = c.in_contact;
-                                pub_state.publish(&convert::contact_state(&c))?;
-                                counters.messages_out += 1;
-                            }
-                            Msg::Episode(e) => {
-                                pub_ep.publish(&convert::contact_episode(&e))?;
-                                counters.messages_out += 1;
-                            }
-                            _ => {}
-                        }
-                    }
-                }
+                Ok(out) => publish(out, &mut in_contact, &mut counters),
                 Err(e) => {
                     counters.errors += 1;
                     counters.last_error = e.to_string();
@@ -161,20 +172,20 @@ fn run() -> anyhow::Result<()> {
             }
             counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
         }
-        let now = convert::time(unitac_core::Clock::now(&unitac_core::SystemClock));
-        if let Some(a) = diag.tick(&counters, now, &[("in_contact", in_contact.to_string())]) {
-            pub_diag.publish(&a)?;
+        let extra = [("in_contact", in_contact.to_string())];
+        if let Some(a) = diag.tick(&counters, base.now(), &extra) {
+            base.publish_diagnostics(&a)?;
         }
     }
+    // Flush an open episode and save the background (background_dir).
+    match stage.finish(&clock) {
+        Ok(out) => publish(out, &mut in_contact, &mut counters),
+        Err(e) => eprintln!("unitac_contact_node: finishing: {e}"),
+    }
+    base.spin(Duration::from_millis(50));
     Ok(())
 }
 
 fn main() -> std::process::ExitCode {
-    match run() {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("unitac_contact_node: {e:#}");
-            std::process::ExitCode::from(1)
-        }
-    }
+    unitac_ros::node::main_of("unitac_contact_node", run)
 }

@@ -1,0 +1,191 @@
+//! Inference node: the inference stages of a scene (touch encoder + property head, Property
+//! Comparison, flow sampler with SPSS) on what the contact node publishes. ContactClip and the
+//! latched background Image in (reliable); TactileProperties, TactileLatent (real and predicted)
+//! and PropertyComparison out (reliable); /diagnostics once a second with model timings.
+//!
+//! The stages, their parameters and model bundles come from the scene file (the same file
+//! `unitac run` reads), so the robot and the embedded runtime run the same configuration.
+//!
+//! Topics (relative): `contact_clip`, `background` in; `tactile_properties`, `tactile_latent`,
+//! `property_comparison` out.
+
+use futures::{FutureExt, StreamExt};
+use r2r::{QosProfile, RosParams};
+use std::path::PathBuf;
+use std::time::Duration;
+use unitac_core::{Msg, Scene, SystemClock};
+use unitac_ros::node::NodeBase;
+use unitac_ros::{chain, convert, diagnostics, image};
+
+/// Stage kinds this node runs (the contact stage runs in the contact node).
+const INFERENCE_STAGES: &[&str] = &["encoder", "compare", "sampler"];
+
+#[derive(RosParams, Debug, Clone)]
+struct Params {
+    /// Scene: a scene name (looked up like `unitac run --scene`) or a path to a scene YAML
+    scene: String,
+    /// Run only these of the scene's inference stages, comma-separated (empty: all of encoder,
+    /// compare, sampler). r2r's derived parameters have no arrays.
+    stages: String,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self {
+            scene: "fabric_selection".into(),
+            stages: String::new(),
+        }
+    }
+}
+
+/// The scene's inference stages, built and checked before the node subscribes to anything.
+fn build(p: &Params) -> anyhow::Result<(Scene, Vec<Box<dyn unitac_core::Stage>>)> {
+    let wanted = unitac_ros::list_param(&p.stages);
+    if let Some(bad) = wanted
+        .iter()
+        .find(|s| !INFERENCE_STAGES.contains(&s.as_str()))
+    {
+        anyhow::bail!(
+            "stages: '{bad}' is not an inference stage ({})",
+            INFERENCE_STAGES.join(", ")
+        );
+    }
+    let dirs = unitac_runtime::registry::scene_dirs(None::<PathBuf>);
+    let path = unitac_core::scene::resolve(&p.scene, &dirs)?;
+    let mut scene = Scene::load(&path, &unitac_runtime::registry::scene_context())?;
+    scene.stages.retain(|s| {
+        INFERENCE_STAGES.contains(&s.kind.as_str())
+            && (wanted.is_empty() || wanted.contains(&s.kind))
+    });
+    let stages = unitac_runtime::build_stages(&scene)?;
+    Ok((scene, stages))
+}
+
+/// Calls and seconds per stage, for the diagnostics' model timings.
+struct Timing(Vec<(String, u64, f64)>);
+
+impl Timing {
+    fn new(stages: &[Box<dyn unitac_core::Stage>]) -> Self {
+        Self(
+            stages
+                .iter()
+                .map(|s| (s.name().to_string(), 0, 0.0))
+                .collect(),
+        )
+    }
+    fn add(&mut self, t: &[(String, f64)]) {
+        for (acc, (_, s)) in self.0.iter_mut().zip(t) {
+            acc.1 += 1;
+            acc.2 += s;
+        }
+    }
+    fn values(&self) -> Vec<(&str, String)> {
+        self.0
+            .iter()
+            .map(|(name, n, s)| {
+                let mean_ms = if *n > 0 { s / *n as f64 * 1e3 } else { 0.0 };
+                (name.as_str(), format!("{n} calls, mean {mean_ms:.3} ms"))
+            })
+            .collect()
+    }
+}
+
+fn run() -> anyhow::Result<()> {
+    let mut base = NodeBase::<Params>::new("unitac_inference")?;
+    let p = base.params()?;
+    let (scene, mut stages) = build(&p)?;
+    if stages.is_empty() {
+        eprintln!(
+            "unitac_inference_node: scene '{}' has no inference stages to run; idle",
+            scene.name
+        );
+    }
+    let node = &mut base.node;
+    let reliable = QosProfile::default;
+    let mut clips = node.subscribe::<r2r::unitac_msgs::msg::ContactClip>(
+        "contact_clip",
+        reliable().keep_last(50),
+    )?;
+    let mut backgrounds = node.subscribe::<r2r::sensor_msgs::msg::Image>(
+        "background",
+        QosProfile::default().keep_last(1).transient_local(),
+    )?;
+    let pub_props = node.create_publisher::<r2r::unitac_msgs::msg::TactileProperties>(
+        "tactile_properties",
+        reliable(),
+    )?;
+    let pub_latent = node
+        .create_publisher::<r2r::unitac_msgs::msg::TactileLatent>("tactile_latent", reliable())?;
+    let pub_cmp = node.create_publisher::<r2r::unitac_msgs::msg::PropertyComparison>(
+        "property_comparison",
+        reliable(),
+    )?;
+    let mut diag = diagnostics::Updater::new(
+        &format!("unitac_inference: {}", node.fully_qualified_name()?),
+        &scene.name,
+    );
+    let mut counters = diagnostics::Counters::default();
+    let mut timing = Timing::new(&stages);
+    let mut handle = |input: Msg, counters: &mut diagnostics::Counters, timing: &mut Timing| {
+        counters.frames_in += 1;
+        let t0 = std::time::Instant::now();
+        // Compute times are real (system clock); stamps come from the inputs.
+        let out = chain::run(&mut stages, input, &SystemClock);
+        counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
+        timing.add(&out.timings);
+        for (stage, e) in out.errors {
+            counters.errors += 1;
+            counters.last_error = format!("{stage}: {e}");
+        }
+        for m in out.produced {
+            let r = match &m {
+                Msg::Properties(x) => pub_props.publish(&convert::tactile_properties(x)),
+                Msg::Latent(x) => pub_latent.publish(&convert::tactile_latent(x)),
+                Msg::Comparison(x) => pub_cmp.publish(&convert::property_comparison(x)),
+                _ => continue,
+            };
+            match r {
+                Ok(()) => counters.messages_out += 1,
+                Err(e) => {
+                    counters.errors += 1;
+                    counters.last_error = format!("publish: {e}");
+                }
+            }
+        }
+    };
+    while !base.stopped() {
+        base.spin(Duration::from_millis(5));
+        while let Some(Some(bg)) = backgrounds.next().now_or_never() {
+            let id = bg
+                .header
+                .frame_id
+                .trim_end_matches("_optical_frame")
+                .to_string();
+            match image::to_frame(&bg, &id, 0) {
+                Ok(f) => handle(Msg::Background(f), &mut counters, &mut timing),
+                Err(e) => {
+                    counters.errors += 1;
+                    counters.last_error = format!("background: {e}");
+                }
+            }
+        }
+        while let Some(Some(c)) = clips.next().now_or_never() {
+            match convert::contact_clip_from(&c) {
+                Ok(clip) => handle(Msg::Clip(clip), &mut counters, &mut timing),
+                Err(e) => {
+                    counters.errors += 1;
+                    counters.last_error = format!("contact_clip: {e}");
+                }
+            }
+        }
+        let extra = timing.values();
+        if let Some(a) = diag.tick(&counters, base.now(), &extra) {
+            base.publish_diagnostics(&a)?;
+        }
+    }
+    Ok(())
+}
+
+fn main() -> std::process::ExitCode {
+    unitac_ros::node::main_of("unitac_inference_node", run)
+}
