@@ -8,6 +8,8 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import unitac_launch  # noqa: E402
 
+SCENE = "cup_deformation"
+
 
 def generate_launch_description():
-    return unitac_launch.description("cup_deformation")
+    return unitac_launch.description(SCENE)

@@ -36,7 +36,8 @@ def main():
     import unitac_launch
     out = {"files": {}, "problems": []}
     for f in sorted(glob.glob(os.path.join(launch_dir, "*.launch.py"))):
-        spec = importlib.util.spec_from_file_location(os.path.basename(f)[:-3], f)
+        name = os.path.basename(f)[: -len(".launch.py")]
+        spec = importlib.util.spec_from_file_location(name, f)
         m = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(m)
         d = m.generate_launch_description()
@@ -44,20 +45,37 @@ def main():
         for a in decls:
             if not a.kwargs.get("description"):
                 out["problems"].append(f"{f}: argument {a.args[0]} has no description")
-        scene = os.path.basename(f)[: -len(".launch.py")]
+        declared = {a.args[0]: a.kwargs.get("default_value") for a in decls}
+        scene = getattr(m, "SCENE", name)
+        if scene is None:  # the scene is an argument
+            if "scene" not in declared:
+                out["problems"].append(f"{f}: no SCENE and no scene argument")
+                continue
+            scene = declared["scene"]
         if not os.path.isfile(os.path.join(launch_dir, "scenes", scene + ".yaml")):
             out["problems"].append(f"{f}: scene {scene} does not exist")
+        overrides = getattr(m, "OVERRIDES", {})
+        for k, v in overrides.items():
+            if declared.get(k) != v:
+                out["problems"].append(f"{f}: override {k}={v} is not the declared default")
         plans = {}
-        for args in [{}, {"inference": "false"}, {"sensor": "false"}, {"source": "v4l"}]:
-            p = unitac_launch.plan(scene, args)
+        for args in [{}, {"inference": "false"}, {"sensor": "false"}, {"source": "v4l"},
+                     {"source": "bag", "bag": "recorded.mcap"}]:
+            p = unitac_launch.plan(scene, {**overrides, **args})
             for n in p["nodes"]:
                 if not os.path.isfile(os.path.join(bin_dir, n["executable"])):
                     out["problems"].append(f"{f}: executable {n['executable']} does not exist")
-                for extra in n["parameters"][1:]:
-                    if not os.path.isfile(extra):
+                for extra in n["parameters"]:
+                    if isinstance(extra, str) and not os.path.isfile(extra):
                         out["problems"].append(f"{f}: params file {extra} does not exist")
-            plans[json.dumps(args)] = {"nodes": [n["executable"] for n in p["nodes"]], "skipped": p["skipped"]}
-        out["files"][scene] = {"arguments": [a.args[0] for a in decls], "plans": plans}
+                for params in n["parameters"]:
+                    if isinstance(params, dict) and "scene" in params and not os.path.isfile(params["scene"]):
+                        out["problems"].append(f"{f}: scene file {params['scene']} does not exist")
+            plans[json.dumps(args)] = {
+                "nodes": [n["executable"] for n in p["nodes"]], "skipped": p["skipped"],
+                "parameters": {n["executable"]: {k: v for d in n["parameters"] if isinstance(d, dict)
+                                                 for k, v in d.items()} for n in p["nodes"]}}
+        out["files"][name] = {"scene": scene, "arguments": list(declared), "plans": plans}
     print(json.dumps(out))
 
 

@@ -25,8 +25,8 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["problems"], serde_json::json!([]), "{j}");
-    for scene in ["fabric_selection", "cup_deformation"] {
-        let f = &j["files"][scene];
+    for file in ["fabric_selection", "cup_deformation", "replay"] {
+        let f = &j["files"][file];
         let args: Vec<&str> = f["arguments"]
             .as_array()
             .unwrap()
@@ -38,32 +38,127 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
             "sensor_kind",
             "sensor_id",
             "serial",
+            "bag",
+            "rate",
+            "use_sim_time",
             "namespace",
             "inference",
+            "sensor",
             "params_file",
         ] {
-            assert!(args.contains(&a), "{scene}: {a} not declared");
+            assert!(args.contains(&a), "{file}: {a} not declared");
         }
-        let nodes = |k: &str| f["plans"][k]["nodes"].clone();
+        let plan = |k: &str| &f["plans"][k];
+        let nodes = |k: &str| plan(k)["nodes"].clone();
+        let params = |k: &str, exe: &str| plan(k)["parameters"][exe].clone();
+        let all = serde_json::json!([
+            "unitac_sensor_node",
+            "unitac_contact_node",
+            "unitac_inference_node"
+        ]);
+        let bag = r#"{"source": "bag", "bag": "recorded.mcap"}"#;
+        assert_eq!(nodes(bag), all, "{file}: {f}");
+        assert_eq!(params(bag, "unitac_sensor_node")["source"], "bag");
+        assert_eq!(params(bag, "unitac_sensor_node")["bag"], "recorded.mcap");
+        // Under a bag, every node but the one publishing /clock runs on bag time.
+        assert!(params(bag, "unitac_sensor_node")["use_sim_time"].is_null());
+        for exe in ["unitac_contact_node", "unitac_inference_node"] {
+            assert_eq!(params(bag, exe)["use_sim_time"], true, "{file} {exe}");
+        }
+        // The inference node reads the scene file the plan came from.
+        let scene = params(bag, "unitac_inference_node")["scene"].clone();
+        assert!(
+            scene
+                .as_str()
+                .unwrap()
+                .ends_with(&format!("scenes/{}.yaml", f["scene"].as_str().unwrap())),
+            "{scene}"
+        );
+        if file == "replay" {
+            // Replay is bag-only: without a bag path it starts no sensor node and says why.
+            assert_eq!(f["scene"], "fabric_selection");
+            assert!(plan("{}")["skipped"].to_string().contains("bag:=PATH"));
+            continue;
+        }
+        assert_eq!(nodes("{}"), all, "{file}: {f}");
+        assert!(params("{}", "unitac_contact_node")["use_sim_time"].is_null());
         assert_eq!(
-            nodes("{}"),
-            serde_json::json!(["unitac_sensor_node", "unitac_contact_node"]),
-            "{f}"
+            nodes(r#"{"inference": "false"}"#),
+            serde_json::json!(["unitac_sensor_node", "unitac_contact_node"])
         );
         assert_eq!(
-            nodes("{\"sensor\": \"false\"}"),
-            serde_json::json!(["unitac_contact_node"])
+            nodes(r#"{"sensor": "false"}"#),
+            serde_json::json!(["unitac_contact_node", "unitac_inference_node"])
         );
-        // A live source is not in this build: the sensor node is left out and said so.
-        let skipped = f["plans"]["{\"source\": \"v4l\"}"]["skipped"].to_string();
-        assert!(skipped.contains("mock source only"), "{skipped}");
+        let v4l = r#"{"source": "v4l"}"#;
+        assert_eq!(nodes(v4l), all);
+        assert_eq!(params(v4l, "unitac_sensor_node")["source"], "v4l");
     }
-    // The fabric scene's inference stages are reported as not yet available, unless turned off.
-    let f = &j["files"]["fabric_selection"]["plans"];
-    assert!(f["{}"]["skipped"].to_string().contains("encoder"));
-    assert!(
-        !f["{\"inference\": \"false\"}"]["skipped"]
-            .to_string()
-            .contains("encoder")
-    );
+    // Scene stage parameters reach the contact node in the form it reads.
+    let c = &j["files"]["fabric_selection"]["plans"]["{}"]["parameters"]["unitac_contact_node"];
+    assert_eq!(c["episode_labels"], "fabric_a,fabric_b", "{c}");
+    assert_eq!(c["clip_frames"], 8, "{c}");
+}
+
+/// The parameters the launch plan gives each node are ones the node accepts (names and types:
+/// r2r refuses a float where an integer is declared): every planned node starts with them and
+/// shuts down cleanly on SIGINT.
+#[test]
+fn planned_parameters_are_accepted_by_the_nodes() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let py = std::env::var_os("UNITAC_VENV")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root.join(".venv"))
+        .join("bin/python");
+    let bin_dir = PathBuf::from(env!("CARGO_BIN_EXE_unitac_contact_node"))
+        .parent()
+        .unwrap()
+        .to_path_buf();
+    let o = Command::new(py)
+        .arg(root.join("tests/ros/check_launch.py"))
+        .arg(root.join("launch"))
+        .arg(&bin_dir)
+        .output()
+        .unwrap();
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let mut started = 0;
+    for file in ["fabric_selection", "cup_deformation"] {
+        let params = j["files"][file]["plans"]["{}"]["parameters"]
+            .as_object()
+            .unwrap();
+        for (exe, p) in params {
+            let mut yaml = String::from("/**:\n  ros__parameters:\n");
+            for (k, v) in p.as_object().unwrap() {
+                yaml.push_str(&format!("    {k}: {v}\n"));
+            }
+            let path = std::env::temp_dir().join(format!(
+                "unitac-{}-{file}-{exe}.yaml",
+                std::process::id()
+            ));
+            std::fs::write(&path, &yaml).unwrap();
+            let ns = format!("__ns:=/plan{}_{file}", std::process::id());
+            let mut c = Command::new(bin_dir.join(exe))
+                .args(["--ros-args", "-r", &ns, "--params-file"])
+                .arg(&path)
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap();
+            std::thread::sleep(std::time::Duration::from_millis(1500));
+            let early = c.try_wait().unwrap();
+            Command::new("kill")
+                .args(["-INT", &c.id().to_string()])
+                .status()
+                .unwrap();
+            let out = c.wait_with_output().unwrap();
+            assert!(
+                early.is_none() && out.status.success(),
+                "{file}: {exe} with\n{yaml}exited {:?}: {}",
+                out.status,
+                String::from_utf8_lossy(&out.stderr)
+            );
+            started += 1;
+        }
+    }
+    assert_eq!(started, 6);
 }
