@@ -131,10 +131,8 @@ fn planned_parameters_are_accepted_by_the_nodes() {
             for (k, v) in p.as_object().unwrap() {
                 yaml.push_str(&format!("    {k}: {v}\n"));
             }
-            let path = std::env::temp_dir().join(format!(
-                "unitac-{}-{file}-{exe}.yaml",
-                std::process::id()
-            ));
+            let path = std::env::temp_dir()
+                .join(format!("unitac-{}-{file}-{exe}.yaml", std::process::id()));
             std::fs::write(&path, &yaml).unwrap();
             let ns = format!("__ns:=/plan{}_{file}", std::process::id());
             let mut c = Command::new(bin_dir.join(exe))
