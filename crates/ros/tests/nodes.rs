@@ -481,9 +481,10 @@ fn bag_replay_with_sim_time_drives_the_same_pipeline() {
 fn a_stalled_subscriber_loses_frames_counted_and_blocks_nothing() {
     let _one = serial();
     let n = ns("slow");
+    // `repeat`: the scenario starts again at its end, so frames flow for the whole test.
     let sp = params_file(
         "ssensor",
-        "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: fabric_selection\n    fps: 25.0\n    wait_subscribers: 2\n",
+        "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: fabric_selection\n    fps: 25.0\n    repeat: true\n    wait_subscribers: 2\n",
     );
     let cp = contact_params("scontact");
     let contact = spawn(

@@ -37,8 +37,8 @@ struct Params {
     seed: i64,
     /// mock: frame rate [Hz]; 0 = the sensor's
     fps: f64,
-    /// mock, bag: start again at the end
-    r#loop: bool,
+    /// mock, bag: start again at the end (`loop` is a Rust keyword r2r cannot name)
+    repeat: bool,
     /// mock, bag: wait (up to 30 s) until this many subscribers matched before the first frame,
     /// so nodes started together see the scenario from its start (0 = do not wait)
     wait_subscribers: i32,
@@ -62,7 +62,7 @@ impl Default for Params {
             scenario: "fabric_selection".into(),
             seed: 7,
             fps: 0.0,
-            r#loop: false,
+            repeat: false,
             wait_subscribers: 0,
             bag: String::new(),
             bag_topic: String::new(),
@@ -187,7 +187,7 @@ fn run_source(base: &mut Base, p: &Params) -> anyhow::Result<()> {
                 base.publish_diagnostics(&a)?;
             }
         }
-        if !p.r#loop || live {
+        if !p.repeat || live {
             break;
         }
         source = open(&cfg)?;
@@ -299,7 +299,7 @@ fn run_bag(base: &mut Base, p: &Params) -> anyhow::Result<()> {
                 f.display()
             );
         }
-        if !p.r#loop {
+        if !p.repeat {
             break;
         }
     }
