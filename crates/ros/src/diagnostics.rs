@@ -14,6 +14,22 @@ pub struct Counters {
     pub dropped: u64,
     pub busy_us: f64,
     pub last_error: String,
+    /// Latencies since the last report [s]: sum, count, max (reset by each report).
+    latency_sum: f64,
+    latency_n: u64,
+    latency_max: f64,
+}
+
+impl Counters {
+    /// Record one latency: the node's clock when an output went out minus the capture stamp of
+    /// the frame it came from [s].
+    pub fn latency(&mut self, seconds: f64) {
+        if seconds.is_finite() {
+            self.latency_sum += seconds;
+            self.latency_n += 1;
+            self.latency_max = self.latency_max.max(seconds);
+        }
+    }
 }
 
 #[derive(Debug)]
@@ -37,7 +53,7 @@ impl Updater {
     /// A DiagnosticArray when a second has passed since the last one.
     pub fn tick(
         &mut self,
-        c: &Counters,
+        c: &mut Counters,
         stamp: r2r::builtin_interfaces::msg::Time,
         extra: &[(&str, String)],
     ) -> Option<DiagnosticArray> {
@@ -67,6 +83,12 @@ impl Updater {
             kv("dropped", c.dropped.to_string()),
             kv("mean_process_us", format!("{mean:.1}")),
         ];
+        if c.latency_n > 0 {
+            let mean = c.latency_sum / c.latency_n as f64;
+            values.push(kv("latency_mean_ms", format!("{:.3}", mean * 1e3)));
+            values.push(kv("latency_max_ms", format!("{:.3}", c.latency_max * 1e3)));
+        }
+        (c.latency_sum, c.latency_n, c.latency_max) = (0.0, 0, 0.0);
         values.extend(extra.iter().map(|(k, v)| kv(k, v.clone())));
         let status = DiagnosticStatus {
             level: level as _,

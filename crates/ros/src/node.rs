@@ -78,6 +78,12 @@ impl<P: RosParams + Default + Clone + Send + 'static> NodeBase<P> {
         r2r::Clock::to_builtin_time(&d)
     }
 
+    /// Seconds from `stamp` (a capture time) to now on the node's clock.
+    pub fn age_s(&self, stamp: unitac_core::Stamp) -> f64 {
+        let now = crate::convert::stamp(&self.now());
+        (now.0 - stamp.0) as f64 * 1e-9
+    }
+
     pub fn publish_diagnostics(&self, a: &DiagnosticArray) -> anyhow::Result<()> {
         self.diagnostics.publish(a)?;
         Ok(())

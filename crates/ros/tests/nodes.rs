@@ -350,6 +350,17 @@ fn fabric_scene_as_nodes_publishes_properties_and_a_comparison() {
             "sensor rate {r} Hz, want 25: {d}"
         );
     }
+    // Latency from capture to ContactState, on the node's clock (wall time here).
+    let cd = diag_of(&got, &n, "unitac_contact");
+    let lat: Vec<f64> = cd
+        .iter()
+        .filter_map(|d| d["values"]["latency_mean_ms"].as_str())
+        .map(|v| v.parse().unwrap())
+        .collect();
+    assert!(
+        !lat.is_empty() && lat.iter().all(|&l| (0.0..500.0).contains(&l)),
+        "{cd:?}"
+    );
     // The inference node reports its model timings.
     let id = diag_of(&got, &n, "unitac_inference");
     assert!(

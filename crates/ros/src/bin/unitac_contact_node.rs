@@ -163,8 +163,12 @@ fn run() -> anyhow::Result<()> {
                 }
             };
             clock.set(frame.stamp);
+            let captured = frame.stamp;
             match stage.process(&Msg::Frame(frame), &clock) {
-                Ok(out) => publish(out, &mut in_contact, &mut counters),
+                Ok(out) => {
+                    publish(out, &mut in_contact, &mut counters);
+                    counters.latency(base.age_s(captured));
+                }
                 Err(e) => {
                     counters.errors += 1;
                     counters.last_error = e.to_string();
@@ -173,7 +177,7 @@ fn run() -> anyhow::Result<()> {
             counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
         }
         let extra = [("in_contact", in_contact.to_string())];
-        if let Some(a) = diag.tick(&counters, base.now(), &extra) {
+        if let Some(a) = diag.tick(&mut counters, base.now(), &extra) {
             base.publish_diagnostics(&a)?;
         }
     }

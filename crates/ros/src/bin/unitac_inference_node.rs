@@ -171,7 +171,13 @@ fn run() -> anyhow::Result<()> {
         }
         while let Some(Some(c)) = clips.next().now_or_never() {
             match convert::contact_clip_from(&c) {
-                Ok(clip) => handle(Msg::Clip(clip), &mut counters, &mut timing),
+                Ok(clip) => {
+                    let captured = clip.frames.last().map(|f| f.stamp);
+                    handle(Msg::Clip(clip), &mut counters, &mut timing);
+                    if let Some(t) = captured {
+                        counters.latency(base.age_s(t));
+                    }
+                }
                 Err(e) => {
                     counters.errors += 1;
                     counters.last_error = format!("contact_clip: {e}");
@@ -179,7 +185,7 @@ fn run() -> anyhow::Result<()> {
             }
         }
         let extra = timing.values();
-        if let Some(a) = diag.tick(&counters, base.now(), &extra) {
+        if let Some(a) = diag.tick(&mut counters, base.now(), &extra) {
             base.publish_diagnostics(&a)?;
         }
     }

@@ -179,11 +179,12 @@ fn run_source(base: &mut Base, p: &Params) -> anyhow::Result<()> {
             }
             let t1 = Instant::now();
             publisher.publish(&image::from_frame(&f))?;
+            counters.latency(base.age_s(f.stamp));
             counters.frames_in += 1;
             counters.messages_out += 1;
             counters.busy_us += t1.elapsed().as_secs_f64() * 1e6;
             k += 1;
-            if let Some(a) = diag.tick(&counters, base.now(), &[("device", device.clone())]) {
+            if let Some(a) = diag.tick(&mut counters, base.now(), &[("device", device.clone())]) {
                 base.publish_diagnostics(&a)?;
             }
         }
@@ -289,7 +290,7 @@ fn run_bag(base: &mut Base, p: &Params) -> anyhow::Result<()> {
             counters.frames_in += 1;
             counters.messages_out += 1;
             counters.busy_us += t1.elapsed().as_secs_f64() * 1e6;
-            if let Some(a) = diag.tick(&counters, base.now(), &[("topic", topic.clone())]) {
+            if let Some(a) = diag.tick(&mut counters, base.now(), &[("topic", topic.clone())]) {
                 base.publish_diagnostics(&a)?;
             }
         }
