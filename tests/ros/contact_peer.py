@@ -144,6 +144,8 @@ def listen(ns, seconds, until, stop_pid=0, stop_after=0, stop_seconds=0.0):
             end = max(end, time.monotonic() + 3.0)
         if until and all(len(got[k]) >= v for k, v in until.items()) and (not stop_pid or stopped):
             end = min(end, time.monotonic() + 0.5)
+    got["topics"] = {name: types for name, types in node.get_topic_names_and_types()
+                     if name.startswith(ns + "/") or name == "/clock"}
     if stopped and got["stop_window"][1] is None:
         os.kill(stop_pid, signal.SIGCONT)
     print(json.dumps(summary(got)))

@@ -242,7 +242,24 @@ fn num(v: &Value) -> f64 {
 }
 
 /// What the fabric scene must produce, however its frames arrived.
-fn check_fabric_outputs(got: &Value, frame_id: &str) {
+fn check_fabric_outputs(got: &Value, ns: &str, frame_id: &str) {
+    for (topic, ty) in [
+        ("image_raw", "sensor_msgs/msg/Image"),
+        ("background", "sensor_msgs/msg/Image"),
+        ("contact_state", "unitac_msgs/msg/ContactState"),
+        ("contact_episode", "unitac_msgs/msg/ContactEpisode"),
+        ("contact_clip", "unitac_msgs/msg/ContactClip"),
+        ("tactile_properties", "unitac_msgs/msg/TactileProperties"),
+        ("tactile_latent", "unitac_msgs/msg/TactileLatent"),
+        ("property_comparison", "unitac_msgs/msg/PropertyComparison"),
+    ] {
+        assert_eq!(
+            got["topics"][format!("{ns}/{topic}")],
+            serde_json::json!([ty]),
+            "{topic}: {}",
+            got["topics"]
+        );
+    }
     let labels = |k: &str| -> Vec<String> {
         got[k]
             .as_array()
@@ -339,7 +356,7 @@ fn fabric_scene_as_nodes_publishes_properties_and_a_comparison() {
     stop(sensor);
     stop(contact);
     stop(inference);
-    check_fabric_outputs(&got, "gsmini_optical_frame");
+    check_fabric_outputs(&got, &n, "gsmini_optical_frame");
     // Rates: the sensor node's own report (a Python subscriber's count depends on load).
     let sd = diag_of(&got, &n, "unitac_sensor");
     assert!(sd.len() >= 3, "{sd:?}");
@@ -454,7 +471,11 @@ fn bag_replay_with_sim_time_drives_the_same_pipeline() {
     stop(sensor);
     stop(contact);
     stop(inference);
-    check_fabric_outputs(&got, "gs_optical_frame");
+    check_fabric_outputs(&got, &n, "gs_optical_frame");
+    assert_eq!(
+        got["topics"]["/clock"],
+        serde_json::json!(["rosgraph_msgs/msg/Clock"])
+    );
     let in_bag = |t: i64| (t_first..=t_last).contains(&t);
     // Outputs carry the bag's capture stamps.
     for k in ["episodes", "properties", "latents", "comparisons"] {
