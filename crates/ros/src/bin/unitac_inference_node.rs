@@ -126,6 +126,7 @@ fn run() -> anyhow::Result<()> {
     );
     let mut counters = diagnostics::Counters::default();
     let mut timing = Timing::new(&stages);
+    let mut last_episode = std::collections::HashMap::<String, u64>::new();
     let mut handle = |input: Msg, counters: &mut diagnostics::Counters, timing: &mut Timing| {
         counters.frames_in += 1;
         let t0 = std::time::Instant::now();
@@ -170,6 +171,11 @@ fn run() -> anyhow::Result<()> {
             }
         }
         while let Some(Some(c)) = clips.next().now_or_never() {
+            // Episode ids count up per sensor: a gap is a clip lost on the way.
+            let last = last_episode.insert(c.sensor_id.clone(), c.episode_id);
+            if let Some(prev) = last.filter(|&p| c.episode_id > p) {
+                counters.dropped += c.episode_id - prev - 1;
+            }
             match convert::contact_clip_from(&c) {
                 Ok(clip) => {
                     let captured = clip.frames.last().map(|f| f.stamp);
