@@ -590,3 +590,37 @@ fn a_stalled_subscriber_loses_frames_counted_and_blocks_nothing() {
     assert_eq!(last["level"], 1, "{last}");
     assert!(slow_got["images"].as_u64().unwrap() > 0);
 }
+
+#[test]
+fn sensor_node_errors_are_one_line_and_exit_1() {
+    let _one = serial();
+    let empty = std::env::temp_dir().join(format!("unitac-{}-nosysfs", std::process::id()));
+    // A bus with no devices on it.
+    std::fs::create_dir_all(empty.join("sys/bus/usb/devices")).unwrap();
+    let n = ns("errors");
+    let cases: [(&[&str], &str); 4] = [
+        (&["-p", "source:=v4l"], "no gelsight-mini sensor found"),
+        (&["-p", "source:=bag"], "needs the parameter bag"),
+        (
+            &["-p", "source:=bag", "-p", "bag:=/nonexistent/bag"],
+            "/nonexistent/bag",
+        ),
+        (&["-p", "source:=usb"], "not one of mock, v4l, bag"),
+    ];
+    for (args, want) in cases {
+        let o = Command::new(env!("CARGO_BIN_EXE_unitac_sensor_node"))
+            .args(["--ros-args", "-r", &format!("__ns:={n}")])
+            .args(args)
+            .env("UNITAC_SYSFS_ROOT", &empty)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        let lines: Vec<&str> = err
+            .lines()
+            .filter(|l| l.starts_with("unitac_sensor_node:"))
+            .collect();
+        assert_eq!(lines.len(), 1, "{args:?}: {err}");
+        assert!(lines[0].contains(want), "{args:?}: {err}");
+    }
+}
