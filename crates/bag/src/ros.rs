@@ -28,6 +28,21 @@ pub struct Image {
     pub data: Vec<u8>,
 }
 
+impl Image {
+    /// An rgb8 Image of a frame: its capture stamp, frame_id `<sensor_id>_optical_frame`.
+    pub fn rgb8(f: &unitac_core::Frame) -> Self {
+        Self {
+            header: Header::optical(f.stamp, &f.sensor_id),
+            height: f.height,
+            width: f.width,
+            encoding: "rgb8".into(),
+            is_bigendian: 0,
+            step: f.width * 3,
+            data: f.data().to_vec(),
+        }
+    }
+}
+
 /// sensor_msgs/msg/CompressedImage.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CompressedImage {

@@ -16,15 +16,9 @@ use unitac_core::msg::{ContactEpisode, ContactState, Header};
 use unitac_core::{Frame, Msg, Source};
 
 fn image_of(f: &Frame) -> Image {
-    Image {
-        header: Header::optical(f.stamp, "gs"),
-        height: f.height,
-        width: f.width,
-        encoding: "rgb8".into(),
-        is_bigendian: 0,
-        step: f.width * 3,
-        data: f.data().to_vec(),
-    }
+    let mut img = Image::rgb8(f);
+    img.header = Header::optical(f.stamp, "gs");
+    img
 }
 
 fn write_frames(path: &Path, frames: &[Frame], opts: WriteOptions) {

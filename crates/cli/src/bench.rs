@@ -223,16 +223,7 @@ fn bench_bag(dir: &std::path::Path, frames: &[Frame]) -> anyhow::Result<std::pat
     )?;
     let t = w.add_topic("/gs/image_raw", "sensor_msgs/msg/Image")?;
     for f in frames {
-        let img = Image {
-            header: unitac_core::msg::Header::optical(f.stamp, &f.sensor_id),
-            height: f.height,
-            width: f.width,
-            encoding: "rgb8".into(),
-            is_bigendian: 0,
-            step: f.width * 3,
-            data: f.data().to_vec(),
-        };
-        w.write(t, f.stamp.0, &img)?;
+        w.write(t, f.stamp.0, &Image::rgb8(f))?;
     }
     Ok(w.finish()?)
 }

@@ -6,7 +6,6 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use unitac_bag::ros::Image;
 use unitac_bag::{BagReader, BagWriter, ReadOptions, WriteOptions};
-use unitac_core::msg::Header;
 use unitac_core::{SensorKind, Source};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
@@ -42,16 +41,7 @@ fn mock_bag(path: &Path) -> Vec<i64> {
     let _ = u;
     let mut stamps = Vec::new();
     while let Some(f) = s.next_frame().unwrap() {
-        let img = Image {
-            header: Header::optical(f.stamp, &f.sensor_id),
-            height: f.height,
-            width: f.width,
-            encoding: "rgb8".into(),
-            is_bigendian: 0,
-            step: f.width * 3,
-            data: f.data().to_vec(),
-        };
-        w.write(t, f.stamp.0, &img).unwrap();
+        w.write(t, f.stamp.0, &Image::rgb8(&f)).unwrap();
         stamps.push(f.stamp.0);
     }
     w.finish().unwrap();

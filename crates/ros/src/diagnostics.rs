@@ -21,6 +21,17 @@ pub struct Counters {
 }
 
 impl Counters {
+    /// Count a publish: one message out, or an error kept as the last error.
+    pub fn published(&mut self, r: r2r::Result<()>) {
+        match r {
+            Ok(()) => self.messages_out += 1,
+            Err(e) => {
+                self.errors += 1;
+                self.last_error = format!("publish: {e}");
+            }
+        }
+    }
+
     /// Record one latency: the node's clock when an output went out minus the capture stamp of
     /// the frame it came from [s].
     pub fn latency(&mut self, seconds: f64) {

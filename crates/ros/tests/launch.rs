@@ -5,8 +5,7 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-#[test]
-fn launch_files_are_consistent_with_scenes_and_executables() {
+fn check_launch() -> (serde_json::Value, PathBuf) {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
     let py = std::env::var_os("UNITAC_VENV")
         .map(PathBuf::from)
@@ -23,7 +22,12 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    (serde_json::from_slice(&o.stdout).unwrap(), bin_dir)
+}
+
+#[test]
+fn launch_files_are_consistent_with_scenes_and_executables() {
+    let (j, _) = check_launch();
     assert_eq!(j["problems"], serde_json::json!([]), "{j}");
     for file in ["fabric_selection", "cup_deformation", "replay"] {
         let f = &j["files"][file];
@@ -105,22 +109,7 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
 /// shuts down cleanly on SIGINT.
 #[test]
 fn planned_parameters_are_accepted_by_the_nodes() {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let py = std::env::var_os("UNITAC_VENV")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root.join(".venv"))
-        .join("bin/python");
-    let bin_dir = PathBuf::from(env!("CARGO_BIN_EXE_unitac_contact_node"))
-        .parent()
-        .unwrap()
-        .to_path_buf();
-    let o = Command::new(py)
-        .arg(root.join("tests/ros/check_launch.py"))
-        .arg(root.join("launch"))
-        .arg(&bin_dir)
-        .output()
-        .unwrap();
-    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (j, bin_dir) = check_launch();
     let mut started = 0;
     for file in ["fabric_selection", "cup_deformation"] {
         let params = j["files"][file]["plans"]["{}"]["parameters"]

@@ -315,11 +315,49 @@ fn check_fabric_outputs(got: &Value, ns: &str, frame_id: &str) {
     );
 }
 
-fn contact_params(name: &str) -> PathBuf {
-    params_file(
-        name,
+/// A contact node for the fabric scene on `image_raw` in `ns`, with extra `--ros-args`.
+fn fabric_contact_node(ns: &str, extra: &[&str]) -> Child {
+    let p = params_file(
+        &format!("contact{}", ns.replace('/', "_")),
         "/**:\n  ros__parameters:\n    sensor_kind: gelsight-mini\n    clip_frames: 8\n    episode_labels: fabric_a,fabric_b\n",
-    )
+    );
+    let args = [
+        &[
+            "-r",
+            "image:=image_raw",
+            "--params-file",
+            p.to_str().unwrap(),
+        ][..],
+        extra,
+    ]
+    .concat();
+    spawn(env!("CARGO_BIN_EXE_unitac_contact_node"), ns, &args)
+}
+
+/// Sensor (with `sensor_params`), contact and inference nodes for the fabric scene in `ns`, the
+/// last two with `extra` arguments; a listener collects until the comparison and both episodes.
+fn run_fabric_nodes(ns: &str, sensor_params: &std::path::Path, extra: &[&str]) -> Value {
+    let contact = fabric_contact_node(ns, extra);
+    let inference = spawn(
+        env!("CARGO_BIN_EXE_unitac_inference_node"),
+        ns,
+        &[&["-p", "scene:=fabric_selection"][..], extra].concat(),
+    );
+    let l = listener(
+        ns,
+        60,
+        serde_json::json!({"until": {"comparisons": 1, "episodes": 2}}),
+    );
+    let sensor = node(
+        env!("CARGO_BIN_EXE_unitac_sensor_node"),
+        ns,
+        sensor_params.to_str(),
+    );
+    let got = finish(l);
+    stop(sensor);
+    stop(contact);
+    stop(inference);
+    got
 }
 
 #[test]
@@ -330,32 +368,7 @@ fn fabric_scene_as_nodes_publishes_properties_and_a_comparison() {
         "fsensor",
         "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: fabric_selection\n    fps: 25.0\n    wait_subscribers: 2\n",
     );
-    let cp = contact_params("fcontact");
-    let contact = spawn(
-        env!("CARGO_BIN_EXE_unitac_contact_node"),
-        &n,
-        &[
-            "-r",
-            "image:=image_raw",
-            "--params-file",
-            cp.to_str().unwrap(),
-        ],
-    );
-    let inference = spawn(
-        env!("CARGO_BIN_EXE_unitac_inference_node"),
-        &n,
-        &["-p", "scene:=fabric_selection"],
-    );
-    let l = listener(
-        &n,
-        60,
-        serde_json::json!({"until": {"comparisons": 1, "episodes": 2}}),
-    );
-    let sensor = node(env!("CARGO_BIN_EXE_unitac_sensor_node"), &n, sp.to_str());
-    let got = finish(l);
-    stop(sensor);
-    stop(contact);
-    stop(inference);
+    let got = run_fabric_nodes(&n, &sp, &[]);
     check_fabric_outputs(&got, &n, "gsmini_optical_frame");
     // Rates: the sensor node's own report (a Python subscriber's count depends on load).
     let sd = diag_of(&got, &n, "unitac_sensor");
@@ -407,19 +420,7 @@ fn fabric_bag(name: &str) -> (PathBuf, i64, i64) {
     );
     let (mut first, mut last) = (None, 0);
     while let Some(f) = mock.next_frame().unwrap() {
-        let img = Image {
-            header: unitac_core::msg::Header {
-                stamp: f.stamp,
-                frame_id: "gs_optical_frame".into(),
-            },
-            height: f.height,
-            width: f.width,
-            encoding: "rgb8".into(),
-            is_bigendian: 0,
-            step: f.width * 3,
-            data: f.data().to_vec(),
-        };
-        w.write(t, f.stamp.0, &img).unwrap();
+        w.write(t, f.stamp.0, &Image::rgb8(&f)).unwrap();
         first.get_or_insert(f.stamp.0);
         last = f.stamp.0;
     }
@@ -440,37 +441,7 @@ fn bag_replay_with_sim_time_drives_the_same_pipeline() {
             bag.display()
         ),
     );
-    let cp = contact_params("bcontact");
-    let sim = ["-p", "use_sim_time:=true"];
-    let contact = spawn(
-        env!("CARGO_BIN_EXE_unitac_contact_node"),
-        &n,
-        &[
-            &[
-                "-r",
-                "image:=image_raw",
-                "--params-file",
-                cp.to_str().unwrap(),
-            ][..],
-            &sim,
-        ]
-        .concat(),
-    );
-    let inference = spawn(
-        env!("CARGO_BIN_EXE_unitac_inference_node"),
-        &n,
-        &[&["-p", "scene:=fabric_selection"][..], &sim].concat(),
-    );
-    let l = listener(
-        &n,
-        60,
-        serde_json::json!({"until": {"comparisons": 1, "episodes": 2}}),
-    );
-    let sensor = node(env!("CARGO_BIN_EXE_unitac_sensor_node"), &n, sp.to_str());
-    let got = finish(l);
-    stop(sensor);
-    stop(contact);
-    stop(inference);
+    let got = run_fabric_nodes(&n, &sp, &["-p", "use_sim_time:=true"]);
     check_fabric_outputs(&got, &n, "gs_optical_frame");
     assert_eq!(
         got["topics"]["/clock"],
@@ -518,17 +489,7 @@ fn a_stalled_subscriber_loses_frames_counted_and_blocks_nothing() {
         "ssensor",
         "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: fabric_selection\n    fps: 25.0\n    repeat: true\n    wait_subscribers: 2\n",
     );
-    let cp = contact_params("scontact");
-    let contact = spawn(
-        env!("CARGO_BIN_EXE_unitac_contact_node"),
-        &n,
-        &[
-            "-r",
-            "image:=image_raw",
-            "--params-file",
-            cp.to_str().unwrap(),
-        ],
-    );
+    let contact = fabric_contact_node(&n, &[]);
     // A slow reliable subscriber too: 0.2 s of work per image.
     let slow = Command::new(python())
         .arg(root().join("tests/ros/contact_peer.py"))

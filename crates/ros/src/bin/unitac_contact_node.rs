@@ -128,13 +128,7 @@ fn run() -> anyhow::Result<()> {
                 Msg::Background(f) => pub_bg.publish(&image::from_frame(&f)),
                 _ => continue,
             };
-            match r {
-                Ok(()) => counters.messages_out += 1,
-                Err(e) => {
-                    counters.errors += 1;
-                    counters.last_error = format!("publish: {e}");
-                }
-            }
+            counters.published(r);
         }
     };
     while !base.stopped() {

@@ -145,13 +145,7 @@ fn run() -> anyhow::Result<()> {
                 Msg::Comparison(x) => pub_cmp.publish(&convert::property_comparison(x)),
                 _ => continue,
             };
-            match r {
-                Ok(()) => counters.messages_out += 1,
-                Err(e) => {
-                    counters.errors += 1;
-                    counters.last_error = format!("publish: {e}");
-                }
-            }
+            counters.published(r);
         }
     };
     while !base.stopped() {
