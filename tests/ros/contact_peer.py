@@ -62,6 +62,7 @@ def collect(node, ns):
          "sentence": m.sentence, "confidence": m.confidence, "stamp": stamp_ns(m.header)}), 100)
     sub(TactileLatent, ns + "/tactile_latent", lambda m: got["latents"].append(
         {"source": m.source, "shape": list(m.shape), "n": len(m.data), "valid": m.valid,
+         "solver": m.solver, "steps": m.steps, "guidance": m.guidance,
          "finite": bool(np.all(np.isfinite(np.asarray(m.data, dtype=np.float32)))),
          "stamp": stamp_ns(m.header)}), 100)
     sub(DiagnosticArray, "/diagnostics", lambda m: got["diag"].extend(

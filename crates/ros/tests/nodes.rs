@@ -585,3 +585,47 @@ fn sensor_node_errors_are_one_line_and_exit_1() {
         assert!(lines[0].contains(want), "{args:?}: {err}");
     }
 }
+
+/// The cup scene's sampler (VTLA-pred) in an inference node started after the background was
+/// learned and published: the latched background still reaches it, and it publishes a valid,
+/// finite predicted latent with the solver settings of the scene.
+#[test]
+fn a_late_inference_node_gets_the_latched_background_and_predicts_a_latent() {
+    let _one = serial();
+    let n = ns("cup");
+    let sp = params_file(
+        "csensor",
+        "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: cup_deformation\n    fps: 25.0\n    repeat: true\n    wait_subscribers: 2\n",
+    );
+    let contact = fabric_contact_node(&n, &[]);
+    let l = listener(&n, 40, serde_json::json!({"until": {"latents": 1}}));
+    let sensor = node(env!("CARGO_BIN_EXE_unitac_sensor_node"), &n, sp.to_str());
+    // 10 learning frames take 0.4 s at 25 fps: by 3 s the background went out long ago.
+    std::thread::sleep(Duration::from_secs(3));
+    let inference = spawn(
+        env!("CARGO_BIN_EXE_unitac_inference_node"),
+        &n,
+        &["-p", "scene:=cup_deformation"],
+    );
+    let got = finish(l);
+    stop(sensor);
+    stop(contact);
+    stop(inference);
+    let lat = got["latents"].as_array().unwrap();
+    assert!(!lat.is_empty(), "{}", got["diag"]);
+    let l0 = &lat[0];
+    assert_eq!(l0["source"], 1, "predicted: {l0}");
+    assert_eq!(l0["valid"], true, "{l0}");
+    assert_eq!(l0["finite"], true, "{l0}");
+    assert!(l0["n"].as_u64().unwrap() > 0);
+    // The scene's solver settings (launch/scenes/cup_deformation.yaml).
+    assert_eq!(
+        (&l0["solver"], &l0["steps"], &l0["guidance"]),
+        (
+            &serde_json::json!("heun"),
+            &serde_json::json!(16),
+            &serde_json::json!(1.5)
+        ),
+        "{l0}"
+    );
+}
