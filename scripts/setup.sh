@@ -61,6 +61,12 @@ if [ "$(cat "$VENV/.unitac-stamp" 2>/dev/null)" != "$venv_key" ]; then
   echo "$venv_key" >"$VENV/.unitac-stamp"
 fi
 
+# The venv and build outputs hold ROS package manifests of their own: a colcon workspace with
+# this repository in its src must not take them for packages to build.
+for d in "$VENV" "$BUILD" "${CARGO_TARGET_DIR:-$ROOT/target}"; do
+  mkdir -p "$d" && [ -f "$d/COLCON_IGNORE" ] || : >"$d/COLCON_IGNORE"
+done
+
 # --- 3. librmw_implementation shim (workaround 2) --------------------------------------------
 SHIM="$BUILD/ros-shim"
 if [ "$(readlink "$SHIM/lib/librmw_implementation.so" 2>/dev/null)" != "$VENV/lib/librmw_fastrtps_cpp.so" ]; then
