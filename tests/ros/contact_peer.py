@@ -9,6 +9,7 @@
                                     contact states/episodes/clips, properties, comparisons,
                                     latents) plus /diagnostics and /clock until the counts in
                                     {"until": {...}} arrived (then 0.5 s more) or SECONDS passed;
+                                    {"wait_for": [topics]} publishers to discover first;
                                     {"stop_pid", "stop_after", "stop_seconds"} stall a process
                                     (SIGSTOP/SIGCONT) meanwhile; print a summary
   contact_peer.py slow NS SECONDS DELAY
@@ -23,7 +24,7 @@ import time
 import numpy as np
 import rclpy
 from rclpy.node import Node
-from rclpy.qos import qos_profile_sensor_data
+from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import Image
 from rosgraph_msgs.msg import Clock
@@ -60,11 +61,13 @@ def collect(node, ns):
     sub(PropertyComparison, ns + "/property_comparison", lambda m: got["comparisons"].append(
         {"property": m.property, "label_a": m.label_a, "label_b": m.label_b, "winner": m.winner,
          "sentence": m.sentence, "confidence": m.confidence, "stamp": stamp_ns(m.header)}), 100)
+    # Transient-local like the inference node's publisher: latents sent before we matched count.
+    latched = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     sub(TactileLatent, ns + "/tactile_latent", lambda m: got["latents"].append(
         {"source": m.source, "shape": list(m.shape), "n": len(m.data), "valid": m.valid,
          "solver": m.solver, "steps": m.steps, "guidance": m.guidance,
          "finite": bool(np.all(np.isfinite(np.asarray(m.data, dtype=np.float32)))),
-         "stamp": stamp_ns(m.header)}), 100)
+         "stamp": stamp_ns(m.header)}), latched)
     sub(DiagnosticArray, "/diagnostics", lambda m: got["diag"].extend(
         {"name": s.name, "level": int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else int(s.level),
          "message": s.message, "stamp": stamp_ns(m.header), "t": time.monotonic() - t0,
@@ -113,17 +116,18 @@ def summary(got):
     return got
 
 
-def listen(ns, seconds, until, stop_pid=0, stop_after=0, stop_seconds=0.0):
+def listen(ns, seconds, until, stop_pid=0, stop_after=0, stop_seconds=0.0,
+           wait_for=("/contact_state", "/contact_episode")):
     """Collect until every count in `until` (e.g. {"episodes": 2}) is reached (then 0.5 s more)
     or `seconds` passed. With stop_pid: after `stop_after` images, SIGSTOP that process for
     `stop_seconds` (a stalled subscriber), then SIGCONT; the window goes into the summary."""
     node = Node("unitac_listen_peer")
     got = collect(node, ns)
-    # Subscribe to images (which the sensor node waits for) only once the contact node's
-    # publishers are discovered, so no episode is published before we can receive it.
+    # Subscribe to images (which the sensor node waits for) only once the publishers of
+    # `wait_for` (the contact node's, by default) are discovered, so nothing is published before
+    # we can receive it.
     ready = time.monotonic() + seconds / 2
-    while time.monotonic() < ready and not all(
-            node.count_publishers(ns + t) > 0 for t in ("/contact_state", "/contact_episode")):
+    while time.monotonic() < ready and not all(node.count_publishers(ns + t) > 0 for t in wait_for):
         rclpy.spin_once(node, timeout_sec=0.05)
 
     def on_image(m):
@@ -178,7 +182,8 @@ def main():
             return slow(sys.argv[2], float(sys.argv[3]), float(sys.argv[4]))
         opts = json.loads(sys.argv[4]) if len(sys.argv) > 4 else {}
         return listen(sys.argv[2], float(sys.argv[3]), opts.get("until", {}),
-                      opts.get("stop_pid", 0), opts.get("stop_after", 0), opts.get("stop_seconds", 0.0))
+                      opts.get("stop_pid", 0), opts.get("stop_after", 0), opts.get("stop_seconds", 0.0),
+                      opts.get("wait_for", ("/contact_state", "/contact_episode")))
     finally:
         rclpy.try_shutdown()
 

@@ -346,7 +346,9 @@ fn run_fabric_nodes(ns: &str, sensor_params: &std::path::Path, extra: &[&str]) -
     let l = listener(
         ns,
         60,
-        serde_json::json!({"until": {"comparisons": 1, "episodes": 2}}),
+        // The inference node's publishers discovered: its clip subscription exists by then.
+        serde_json::json!({"until": {"comparisons": 1, "episodes": 2},
+            "wait_for": ["/contact_state", "/contact_episode", "/property_comparison"]}),
     );
     let sensor = node(
         env!("CARGO_BIN_EXE_unitac_sensor_node"),

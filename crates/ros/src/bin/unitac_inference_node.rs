@@ -114,8 +114,12 @@ fn run() -> anyhow::Result<()> {
         "tactile_properties",
         reliable(),
     )?;
-    let pub_latent = node
-        .create_publisher::<r2r::unitac_msgs::msg::TactileLatent>("tactile_latent", reliable())?;
+    // Transient-local (the last 10): a policy node started later, or one whose subscription was
+    // not matched yet when a predicted latent went out at startup, still gets it.
+    let pub_latent = node.create_publisher::<r2r::unitac_msgs::msg::TactileLatent>(
+        "tactile_latent",
+        reliable().keep_last(10).transient_local(),
+    )?;
     let pub_cmp = node.create_publisher::<r2r::unitac_msgs::msg::PropertyComparison>(
         "property_comparison",
         reliable(),
