@@ -20,6 +20,7 @@ ARGUMENTS = {
     "serial": ("", "Serial of a live sensor (v4l; empty: the only one of sensor_kind connected)"),
     "bag": ("", "Bag path: rosbag2 directory, .mcap or .db3 (bag source; empty: the scene's)"),
     "rate": ("1.0", "Bag playback rate (bag source)"),
+    "image_transport": ("raw", "Images the contact node reads: raw (image_raw) | compressed (image_raw/compressed; JPEG/PNG bags and cameras)"),
     "use_sim_time": ("auto", "Nodes take time from /clock: true | false | auto (true for the bag source)"),
     "namespace": ("", "Namespace of every node"),
     "inference": ("true", "Run the inference node for the scene's encoder/compare/sampler stages (true | false)"),
@@ -95,14 +96,15 @@ def plan(scene_name, args=None):
             skipped.append((k, "no ROS node for this stage kind"))
             continue
         exe, keys = STAGE_NODES[k]
-        params = {"sensor_kind": kind}
+        params = {"sensor_kind": kind, "image_transport": a["image_transport"]}
         if source != "bag":
             params["sensor_id"] = a["sensor_id"]  # bag: the frame_id the bag recorded
         for key, v in (st.get("params") or {}).items():
             if key in keys:
                 params[key] = ros_value(key, v)
         nodes.append({"executable": exe, "name": "unitac_" + k, "namespace": a["namespace"],
-                      "parameters": [params] + timing + extra, "remappings": [("image", "image_raw")]})
+                      "parameters": [params] + timing + extra,
+                      "remappings": [("image", "image_raw"), ("image/compressed", "image_raw/compressed")]})
     if inference:
         nodes.append({"executable": "unitac_inference_node", "name": "unitac_inference",
                       "namespace": a["namespace"], "parameters": [{"scene": scene_path}] + timing + extra,

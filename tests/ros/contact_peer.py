@@ -10,6 +10,7 @@
                                     latents) plus /diagnostics and /clock until the counts in
                                     {"until": {...}} arrived (then 0.5 s more) or SECONDS passed;
                                     {"wait_for": [topics]} publishers to discover first;
+                                    {"compressed": true} images from NS/image_raw/compressed;
                                     {"stop_pid", "stop_after", "stop_seconds"} stall a process
                                     (SIGSTOP/SIGCONT) meanwhile; print a summary
   contact_peer.py slow NS SECONDS DELAY
@@ -26,7 +27,7 @@ import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from diagnostic_msgs.msg import DiagnosticArray
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CompressedImage, Image
 from rosgraph_msgs.msg import Clock
 from unitac_msgs.msg import (ContactClip, ContactEpisode, ContactState, PropertyComparison,
                              TactileLatent, TactileProperties)
@@ -117,7 +118,7 @@ def summary(got):
 
 
 def listen(ns, seconds, until, stop_pid=0, stop_after=0, stop_seconds=0.0,
-           wait_for=("/contact_state", "/contact_episode")):
+           wait_for=("/contact_state", "/contact_episode"), compressed=False):
     """Collect until every count in `until` (e.g. {"episodes": 2}) is reached (then 0.5 s more)
     or `seconds` passed. With stop_pid: after `stop_after` images, SIGSTOP that process for
     `stop_seconds` (a stalled subscriber), then SIGCONT; the window goes into the summary."""
@@ -134,7 +135,10 @@ def listen(ns, seconds, until, stop_pid=0, stop_after=0, stop_seconds=0.0,
         got["images"] += 1
         got["image_frames"].add(m.header.frame_id)
         got["image_times"].append(round(time.monotonic() - got["t0"], 4))
-    node.create_subscription(Image, ns + "/image_raw", on_image, qos_profile_sensor_data)
+    if compressed:
+        node.create_subscription(CompressedImage, ns + "/image_raw/compressed", on_image, qos_profile_sensor_data)
+    else:
+        node.create_subscription(Image, ns + "/image_raw", on_image, qos_profile_sensor_data)
     end = time.monotonic() + seconds
     stopped = None
     while time.monotonic() < end:
@@ -183,7 +187,8 @@ def main():
         opts = json.loads(sys.argv[4]) if len(sys.argv) > 4 else {}
         return listen(sys.argv[2], float(sys.argv[3]), opts.get("until", {}),
                       opts.get("stop_pid", 0), opts.get("stop_after", 0), opts.get("stop_seconds", 0.0),
-                      opts.get("wait_for", ("/contact_state", "/contact_episode")))
+                      opts.get("wait_for", ("/contact_state", "/contact_episode")),
+                      opts.get("compressed", False))
     finally:
         rclpy.try_shutdown()
 

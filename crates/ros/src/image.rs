@@ -61,3 +61,27 @@ pub fn from_frame(f: &Frame) -> Image {
 pub fn stamp(m: &Image) -> Stamp {
     convert::stamp(&m.header.stamp)
 }
+
+/// Largest compressed image accepted [bytes] (a lossless 8192x8192 RGB PNG stays below this).
+pub const MAX_COMPRESSED_BYTES: usize = 256 << 20;
+
+/// sensor_msgs/CompressedImage (jpeg, png; image_transport's "compressed") -> RGB8 frame with the
+/// header's stamp. Sizes bounded before and during decoding.
+pub fn compressed_to_frame(
+    m: &r2r::sensor_msgs::msg::CompressedImage,
+    sensor_id: &str,
+    seq: u64,
+) -> Result<Frame, String> {
+    if m.data.len() > MAX_COMPRESSED_BYTES {
+        return Err(format!(
+            "compressed image of {} bytes is over the {MAX_COMPRESSED_BYTES} byte limit",
+            m.data.len()
+        ));
+    }
+    let view = unitac_bag::ros::CompressedImageView {
+        header: convert::header_from(&m.header),
+        format: m.format.clone(),
+        data: &m.data,
+    };
+    unitac_bag::image::compressed_to_frame(&view, sensor_id, seq).map_err(|e| e.to_string())
+}

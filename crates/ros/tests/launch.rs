@@ -44,6 +44,7 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
             "serial",
             "bag",
             "rate",
+            "image_transport",
             "use_sim_time",
             "namespace",
             "inference",
@@ -102,6 +103,7 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
     let c = &j["files"]["fabric_selection"]["plans"]["{}"]["parameters"]["unitac_contact_node"];
     assert_eq!(c["episode_labels"], "fabric_a,fabric_b", "{c}");
     assert_eq!(c["clip_frames"], 8, "{c}");
+    assert_eq!(c["image_transport"], "raw", "{c}");
 }
 
 /// The parameters the launch plan gives each node are ones the node accepts (names and types:

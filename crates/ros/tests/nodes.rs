@@ -325,6 +325,8 @@ fn fabric_contact_node(ns: &str, extra: &[&str]) -> Child {
         &[
             "-r",
             "image:=image_raw",
+            "-r",
+            "image/compressed:=image_raw/compressed",
             "--params-file",
             p.to_str().unwrap(),
         ][..],
@@ -630,4 +632,92 @@ fn a_late_inference_node_gets_the_latched_background_and_predicts_a_latent() {
         ),
         "{l0}"
     );
+}
+
+/// A JPEG bag (sensor_msgs/CompressedImage, as labs often record): the sensor node republishes it
+/// raw on image_raw/compressed, the contact node reads the compressed transport and finds both
+/// fabric episodes on bag time.
+#[test]
+fn compressed_bag_replays_through_the_compressed_transport() {
+    use unitac_bag::{BagWriter, CompressedImage, WriteOptions};
+    use unitac_core::Source;
+    let _one = serial();
+    let n = ns("jpeg");
+    let dir = std::env::temp_dir().join(format!("unitac-{}-jpeg-bag", std::process::id()));
+    std::fs::remove_dir_all(&dir).ok();
+    let mut w = BagWriter::create(&dir, WriteOptions::default()).unwrap();
+    let t = w
+        .add_topic(
+            "/gs/image_raw/compressed",
+            "sensor_msgs/msg/CompressedImage",
+        )
+        .unwrap();
+    let mut cfg = unitac_sim::MockConfig::new(unitac_core::SensorKind::GelsightMini, 7);
+    cfg.sensor_id = "gs".into();
+    let mut mock = unitac_sim::MockSensor::new(
+        cfg,
+        unitac_sim::Scenario::by_name("fabric_selection").unwrap(),
+    );
+    let (mut first, mut last) = (None, 0);
+    while let Some(f) = mock.next_frame().unwrap() {
+        let mut jpeg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95)
+            .encode(f.data(), f.width, f.height, image::ExtendedColorType::Rgb8)
+            .unwrap();
+        let img = CompressedImage {
+            header: unitac_core::msg::Header::optical(f.stamp, &f.sensor_id),
+            format: "jpeg".into(),
+            data: jpeg,
+        };
+        w.write(t, f.stamp.0, &img).unwrap();
+        first.get_or_insert(f.stamp.0);
+        last = f.stamp.0;
+    }
+    w.finish().unwrap();
+    let first = first.unwrap();
+    let sp = params_file(
+        "jsensor",
+        &format!(
+            "/**:\n  ros__parameters:\n    source: bag\n    bag: {}\n    rate: 2.0\n    wait_subscribers: 2\n",
+            dir.display()
+        ),
+    );
+    let contact = fabric_contact_node(
+        &n,
+        &[
+            "-p",
+            "image_transport:=compressed",
+            "-p",
+            "use_sim_time:=true",
+        ],
+    );
+    let l = listener(
+        &n,
+        40,
+        serde_json::json!({"until": {"episodes": 2}, "compressed": true}),
+    );
+    let sensor = node(env!("CARGO_BIN_EXE_unitac_sensor_node"), &n, sp.to_str());
+    let got = finish(l);
+    stop(sensor);
+    stop(contact);
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(
+        got["topics"][format!("{n}/image_raw/compressed")],
+        serde_json::json!(["sensor_msgs/msg/CompressedImage"]),
+        "{}",
+        got["topics"]
+    );
+    assert_eq!(got["image_frames"], serde_json::json!(["gs_optical_frame"]));
+    let eps = got["episodes"].as_array().unwrap();
+    let labels: Vec<&str> = eps.iter().map(|e| e["label"].as_str().unwrap()).collect();
+    assert_eq!(labels, ["fabric_a", "fabric_b"], "{eps:?}");
+    assert!(
+        eps.iter()
+            .all(|e| (first..=last).contains(&e["stamp"].as_i64().unwrap()))
+    );
+    let states = got["states"].as_array().unwrap();
+    assert!(states.len() > 50, "{} states", states.len());
+    assert!(states.iter().all(|s| s["frame_id"] == "gs_optical_frame"));
+    let cd = diag_of(&got, &n, "unitac_contact");
+    assert!(cd.iter().all(|d| d["values"]["errors"] == "0"), "{cd:?}");
 }

@@ -1,10 +1,10 @@
-//! Contact node: sensor_msgs/Image in (best-effort, REP 2003); ContactState per frame,
+//! Contact node: sensor_msgs/Image in (or CompressedImage: `image_transport`; best-effort, REP 2003); ContactState per frame,
 //! ContactEpisode on release, ContactClip (the episode's frames, for the inference node) and the
 //! learned background (latched, for the sampler's sensor prior) out, reliable; /diagnostics once
 //! a second. A thin driver of the same `ContactStage` the embedded runtime runs; its clock is the
 //! images' capture stamps, so replays give the same answers as live runs.
 //!
-//! Topics (relative, so namespaces and remaps apply): `image` in; `contact_state`,
+//! Topics (relative, so namespaces and remaps apply): `image` (or `image/compressed`) in; `contact_state`,
 //! `contact_episode`, `contact_clip`, `background` out. Parameters
 //! (`--ros-args --params-file x.yaml`): see `Params`.
 
@@ -41,6 +41,9 @@ struct Params {
     episode_labels: String,
     /// Directory of saved backgrounds per sensor (empty: learn at every start)
     background_dir: String,
+    /// raw: sensor_msgs/Image on `image`; compressed: sensor_msgs/CompressedImage (jpeg, png) on
+    /// `image/compressed`, as image_transport names it
+    image_transport: String,
 }
 
 impl Default for Params {
@@ -58,6 +61,7 @@ impl Default for Params {
             clip_frames: 8,
             episode_labels: String::new(),
             background_dir: String::new(),
+            image_transport: "raw".into(),
         }
     }
 }
@@ -94,8 +98,23 @@ fn run() -> anyhow::Result<()> {
     let mut stage = ContactStage::new(cp, kind.spec()).map_err(anyhow::Error::msg)?;
 
     let node = &mut base.node;
-    let mut images =
-        node.subscribe::<r2r::sensor_msgs::msg::Image>("image", QosProfile::sensor_data())?;
+    // One of the two subscriptions, by `image_transport`.
+    let (mut raw, mut compressed) = match p.image_transport.as_str() {
+        "raw" => (
+            Some(
+                node.subscribe::<r2r::sensor_msgs::msg::Image>("image", QosProfile::sensor_data())?,
+            ),
+            None,
+        ),
+        "compressed" => (
+            None,
+            Some(node.subscribe::<r2r::sensor_msgs::msg::CompressedImage>(
+                "image/compressed",
+                QosProfile::sensor_data(),
+            )?),
+        ),
+        other => anyhow::bail!("image_transport must be raw or compressed, got '{other}'"),
+    };
     let reliable = QosProfile::default;
     let pub_state =
         node.create_publisher::<r2r::unitac_msgs::msg::ContactState>("contact_state", reliable())?;
@@ -135,20 +154,34 @@ fn run() -> anyhow::Result<()> {
         base.spin(Duration::from_millis(5));
         // Drain everything queued (r2r's subscription buffer is small and drops silently; the
         // stamp gaps below count what was lost anyway).
-        while let Some(Some(img)) = images.next().now_or_never() {
-            let id = if sensor_id.is_empty() {
-                img.header
-                    .frame_id
-                    .trim_end_matches("_optical_frame")
-                    .to_string()
+        let mut inputs: Vec<(String, Result<unitac_core::Frame, String>)> = Vec::new();
+        let id_of = |frame_id: &str| {
+            if sensor_id.is_empty() {
+                frame_id.trim_end_matches("_optical_frame").to_string()
             } else {
                 sensor_id.clone()
-            };
-            seq += 1;
+            }
+        };
+        if let Some(sub) = raw.as_mut() {
+            while let Some(Some(img)) = sub.next().now_or_never() {
+                seq += 1;
+                let id = id_of(&img.header.frame_id);
+                let f = image::to_frame(&img, &id, seq);
+                inputs.push((id, f));
+            }
+        }
+        if let Some(sub) = compressed.as_mut() {
+            while let Some(Some(img)) = sub.next().now_or_never() {
+                seq += 1;
+                let id = id_of(&img.header.frame_id);
+                let f = image::compressed_to_frame(&img, &id, seq);
+                inputs.push((id, f));
+            }
+        }
+        for (_, f) in inputs {
             counters.frames_in += 1;
-            counters.dropped += drops.observe(image::stamp(&img).0);
             let t0 = Instant::now();
-            let frame = match image::to_frame(&img, &id, seq) {
+            let frame = match f {
                 Ok(f) => f,
                 Err(e) => {
                     counters.errors += 1;
@@ -156,6 +189,7 @@ fn run() -> anyhow::Result<()> {
                     continue;
                 }
             };
+            counters.dropped += drops.observe(frame.stamp.0);
             clock.set(frame.stamp);
             let captured = frame.stamp;
             match stage.process(&Msg::Frame(frame), &clock) {

@@ -8,7 +8,8 @@
 //!   crate). Stamps are the driver's capture times.
 //! - `bag`: a rosbag2 bag's image topic, republished as its raw CDR bytes (no decode, no copy of
 //!   the pixels into a message type) at the bag's pace, with /clock carrying the bag time so
-//!   nodes under `use_sim_time` see bag time.
+//!   nodes under `use_sim_time` see bag time. sensor_msgs/Image goes to `image_raw`,
+//!   CompressedImage to `image_raw/compressed` (image_transport's names).
 
 use r2r::{QosProfile, RosParams};
 use std::path::PathBuf;
@@ -44,7 +45,7 @@ struct Params {
     wait_subscribers: i32,
     /// bag: path of a rosbag2 directory, .mcap or .db3
     bag: String,
-    /// bag: the image topic to publish as image_raw (empty: the first sensor_msgs/Image topic)
+    /// bag: the image topic to republish (empty: the first Image or CompressedImage topic)
     bag_topic: String,
     /// bag: playback rate (1 = recorded pace)
     rate: f64,
@@ -209,33 +210,47 @@ fn run_bag(base: &mut Base, p: &Params) -> anyhow::Result<()> {
     }
     let path = PathBuf::from(&p.bag);
     const IMAGE: &str = "sensor_msgs/msg/Image";
-    // The image topic: the one named, else the first Image topic the bag holds.
-    let topic = if p.bag_topic.is_empty() {
-        let mut r = BagReader::open(&path, ReadOptions::default())?;
-        let mut found = r
-            .declared_topics()
-            .iter()
-            .find(|t| t.type_name == IMAGE)
-            .map(|t| t.name.clone());
-        while found.is_none() {
-            match r.next_with(&mut |t, _, _| (t.type_name == IMAGE).then(|| t.name.clone()))? {
-                Some(Some(name)) => found = Some(name),
-                Some(None) => {}
-                None => break,
-            }
+    const COMPRESSED: &str = "sensor_msgs/msg/CompressedImage";
+    let is_image = |t: &str| t == IMAGE || t == COMPRESSED;
+    // The image topic and its type: the one named, else the first image topic the bag holds.
+    let mut r = BagReader::open(&path, ReadOptions::default())?;
+    let mut found = r
+        .declared_topics()
+        .iter()
+        .find(|t| is_image(&t.type_name) && (p.bag_topic.is_empty() || t.name == p.bag_topic))
+        .map(|t| (t.name.clone(), t.type_name.clone()));
+    while found.is_none() {
+        let next = r.next_with(&mut |t, _, _| {
+            (is_image(&t.type_name) && (p.bag_topic.is_empty() || t.name == p.bag_topic))
+                .then(|| (t.name.clone(), t.type_name.clone()))
+        })?;
+        match next {
+            Some(Some(x)) => found = Some(x),
+            Some(None) => {}
+            None => break,
         }
-        found.ok_or_else(|| {
+    }
+    drop(r);
+    let (topic, type_name) = found.ok_or_else(|| {
+        if p.bag_topic.is_empty() {
+            anyhow::anyhow!("{}: no {IMAGE} or {COMPRESSED} topic", p.bag)
+        } else {
             anyhow::anyhow!(
-                "{}: no {IMAGE} topic (CompressedImage bags: `unitac replay`)",
-                p.bag
+                "{}: no {IMAGE} or {COMPRESSED} topic named {}",
+                p.bag,
+                p.bag_topic
             )
-        })?
+        }
+    })?;
+    // image_transport's names: raw on image_raw, compressed on image_raw/compressed.
+    let out_topic = if type_name == IMAGE {
+        "image_raw"
     } else {
-        p.bag_topic.clone()
+        "image_raw/compressed"
     };
     let publisher =
         base.node
-            .create_publisher_untyped("image_raw", IMAGE, QosProfile::default())?;
+            .create_publisher_untyped(out_topic, &type_name, QosProfile::default())?;
     let clock = base
         .node
         .create_publisher::<r2r::rosgraph_msgs::msg::Clock>("/clock", QosProfile::default())?;
@@ -266,11 +281,11 @@ fn run_bag(base: &mut Base, p: &Params) -> anyhow::Result<()> {
                 buf.extend_from_slice(data);
                 (t.type_name.clone(), log_time)
             })?;
-            let Some((type_name, log_time)) = next else {
+            let Some((msg_type, log_time)) = next else {
                 break;
             };
-            if type_name != IMAGE && !type_name.is_empty() {
-                anyhow::bail!("{topic} is a {type_name}, not a {IMAGE}");
+            if msg_type != type_name && !msg_type.is_empty() {
+                anyhow::bail!("{topic} changes type from {type_name} to {msg_type}");
             }
             let start = *first.get_or_insert(log_time);
             let due =
