@@ -1,8 +1,8 @@
 //! sensor_msgs/Image <-> Frame. Sizes are bounded; unsupported encodings are errors.
 
 use r2r::sensor_msgs::msg::Image;
+use unitac_core::Frame;
 use unitac_core::frame::MAX_SIDE;
-use unitac_core::{Frame, Stamp};
 
 use crate::convert;
 
@@ -55,11 +55,6 @@ pub fn from_frame(f: &Frame) -> Image {
     m.step = f.width * 3;
     m.data = f.data().to_vec();
     m
-}
-
-/// Stamp of an image header.
-pub fn stamp(m: &Image) -> Stamp {
-    convert::stamp(&m.header.stamp)
 }
 
 /// Largest compressed image accepted [bytes] (a lossless 8192x8192 RGB PNG stays below this).

@@ -74,6 +74,28 @@ fn params_file(name: &str, body: &str) -> PathBuf {
     p
 }
 
+/// Sensor node parameters: the mock sensor as `gsmini` at 25 fps, starting once the contact node
+/// and the listener subscribed; `repeat` starts the scenario again at its end.
+fn mock_sensor_params(name: &str, scenario: &str, repeat: bool) -> PathBuf {
+    params_file(
+        name,
+        &format!(
+            "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: {scenario}\n    fps: 25.0\n    repeat: {repeat}\n    wait_subscribers: 2\n"
+        ),
+    )
+}
+
+/// Sensor node parameters: replay `bag` at twice the recorded pace once two subscribers matched.
+fn bag_sensor_params(name: &str, bag: &std::path::Path) -> PathBuf {
+    params_file(
+        name,
+        &format!(
+            "/**:\n  ros__parameters:\n    source: bag\n    bag: {}\n    rate: 2.0\n    wait_subscribers: 2\n",
+            bag.display()
+        ),
+    )
+}
+
 #[test]
 fn contact_node_answers_every_image_with_a_contact_state() {
     let _one = serial();
@@ -147,10 +169,7 @@ fn parameters_from_a_yaml_file_take_effect() {
 fn sensor_and_contact_nodes_find_the_fabric_episodes() {
     let _one = serial();
     let n = ns("pipeline");
-    let sp = params_file(
-        "sensor",
-        "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: fabric_selection\n    fps: 25.0\n    wait_subscribers: 2\n",
-    );
+    let sp = mock_sensor_params("sensor", "fabric_selection", false);
     let cp = params_file(
         "cnode",
         "/**:\n  ros__parameters:\n    sensor_kind: gelsight-mini\n",
@@ -368,10 +387,7 @@ fn run_fabric_nodes(ns: &str, sensor_params: &std::path::Path, extra: &[&str]) -
 fn fabric_scene_as_nodes_publishes_properties_and_a_comparison() {
     let _one = serial();
     let n = ns("fabric");
-    let sp = params_file(
-        "fsensor",
-        "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: fabric_selection\n    fps: 25.0\n    wait_subscribers: 2\n",
-    );
+    let sp = mock_sensor_params("fsensor", "fabric_selection", false);
     let got = run_fabric_nodes(&n, &sp, &[]);
     check_fabric_outputs(&got, &n, "gsmini_optical_frame");
     // Rates: the sensor node's own report (a Python subscriber's count depends on load).
@@ -406,16 +422,21 @@ fn fabric_scene_as_nodes_publishes_properties_and_a_comparison() {
     assert!(id.iter().all(|d| d["values"]["errors"] == "0"), "{id:?}");
 }
 
-/// A bag of the mock fabric scene (MCAP, /gs/image_raw, rgb8, bag time = capture time).
-fn fabric_bag(name: &str) -> (PathBuf, i64, i64) {
-    use unitac_bag::{BagWriter, WriteOptions, ros::Image};
+/// A bag of the mock fabric scene (MCAP, sensor id `gs`, bag time = capture time): each frame
+/// written as `encode` makes it, on `topic` of `type_name`. Returns the bag and its first and
+/// last stamps.
+fn fabric_bag<M: unitac_bag::RosMessage>(
+    name: &str,
+    topic: &str,
+    type_name: &str,
+    encode: impl Fn(&unitac_core::Frame) -> M,
+) -> (PathBuf, i64, i64) {
+    use unitac_bag::{BagWriter, WriteOptions};
     use unitac_core::Source;
     let dir = std::env::temp_dir().join(format!("unitac-{}-{name}", std::process::id()));
     std::fs::remove_dir_all(&dir).ok();
     let mut w = BagWriter::create(&dir, WriteOptions::default()).unwrap();
-    let t = w
-        .add_topic("/gs/image_raw", "sensor_msgs/msg/Image")
-        .unwrap();
+    let t = w.add_topic(topic, type_name).unwrap();
     let mut cfg = unitac_sim::MockConfig::new(unitac_core::SensorKind::GelsightMini, 7);
     cfg.sensor_id = "gs".into();
     let mut mock = unitac_sim::MockSensor::new(
@@ -424,7 +445,7 @@ fn fabric_bag(name: &str) -> (PathBuf, i64, i64) {
     );
     let (mut first, mut last) = (None, 0);
     while let Some(f) = mock.next_frame().unwrap() {
-        w.write(t, f.stamp.0, &Image::rgb8(&f)).unwrap();
+        w.write(t, f.stamp.0, &encode(&f)).unwrap();
         first.get_or_insert(f.stamp.0);
         last = f.stamp.0;
     }
@@ -436,15 +457,14 @@ fn fabric_bag(name: &str) -> (PathBuf, i64, i64) {
 fn bag_replay_with_sim_time_drives_the_same_pipeline() {
     let _one = serial();
     let n = ns("bag");
-    let (bag, t_first, t_last) = fabric_bag("fabric-bag");
-    // Twice the recorded pace: the answers come from the stamps, not from wall time.
-    let sp = params_file(
-        "bsensor",
-        &format!(
-            "/**:\n  ros__parameters:\n    source: bag\n    bag: {}\n    rate: 2.0\n    wait_subscribers: 2\n",
-            bag.display()
-        ),
+    let (bag, t_first, t_last) = fabric_bag(
+        "fabric-bag",
+        "/gs/image_raw",
+        "sensor_msgs/msg/Image",
+        unitac_bag::Image::rgb8,
     );
+    // Twice the recorded pace: the answers come from the stamps, not from wall time.
+    let sp = bag_sensor_params("bsensor", &bag);
     let got = run_fabric_nodes(&n, &sp, &["-p", "use_sim_time:=true"]);
     check_fabric_outputs(&got, &n, "gs_optical_frame");
     assert_eq!(
@@ -489,10 +509,7 @@ fn a_stalled_subscriber_loses_frames_counted_and_blocks_nothing() {
     let _one = serial();
     let n = ns("slow");
     // `repeat`: the scenario starts again at its end, so frames flow for the whole test.
-    let sp = params_file(
-        "ssensor",
-        "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: fabric_selection\n    fps: 25.0\n    repeat: true\n    wait_subscribers: 2\n",
-    );
+    let sp = mock_sensor_params("ssensor", "fabric_selection", true);
     let contact = fabric_contact_node(&n, &[]);
     // A slow reliable subscriber too: 0.2 s of work per image.
     let slow = Command::new(python())
@@ -597,10 +614,7 @@ fn sensor_node_errors_are_one_line_and_exit_1() {
 fn a_late_inference_node_gets_the_latched_background_and_predicts_a_latent() {
     let _one = serial();
     let n = ns("cup");
-    let sp = params_file(
-        "csensor",
-        "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: cup_deformation\n    fps: 25.0\n    repeat: true\n    wait_subscribers: 2\n",
-    );
+    let sp = mock_sensor_params("csensor", "cup_deformation", true);
     let contact = fabric_contact_node(&n, &[]);
     let l = listener(&n, 40, serde_json::json!({"until": {"latents": 1}}));
     let sensor = node(env!("CARGO_BIN_EXE_unitac_sensor_node"), &n, sp.to_str());
@@ -639,49 +653,25 @@ fn a_late_inference_node_gets_the_latched_background_and_predicts_a_latent() {
 /// fabric episodes on bag time.
 #[test]
 fn compressed_bag_replays_through_the_compressed_transport() {
-    use unitac_bag::{BagWriter, CompressedImage, WriteOptions};
-    use unitac_core::Source;
     let _one = serial();
     let n = ns("jpeg");
-    let dir = std::env::temp_dir().join(format!("unitac-{}-jpeg-bag", std::process::id()));
-    std::fs::remove_dir_all(&dir).ok();
-    let mut w = BagWriter::create(&dir, WriteOptions::default()).unwrap();
-    let t = w
-        .add_topic(
-            "/gs/image_raw/compressed",
-            "sensor_msgs/msg/CompressedImage",
-        )
-        .unwrap();
-    let mut cfg = unitac_sim::MockConfig::new(unitac_core::SensorKind::GelsightMini, 7);
-    cfg.sensor_id = "gs".into();
-    let mut mock = unitac_sim::MockSensor::new(
-        cfg,
-        unitac_sim::Scenario::by_name("fabric_selection").unwrap(),
+    let (dir, first, last) = fabric_bag(
+        "jpeg-bag",
+        "/gs/image_raw/compressed",
+        "sensor_msgs/msg/CompressedImage",
+        |f| {
+            let mut jpeg = Vec::new();
+            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95)
+                .encode(f.data(), f.width, f.height, image::ExtendedColorType::Rgb8)
+                .unwrap();
+            unitac_bag::CompressedImage {
+                header: unitac_core::msg::Header::optical(f.stamp, &f.sensor_id),
+                format: "jpeg".into(),
+                data: jpeg,
+            }
+        },
     );
-    let (mut first, mut last) = (None, 0);
-    while let Some(f) = mock.next_frame().unwrap() {
-        let mut jpeg = Vec::new();
-        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95)
-            .encode(f.data(), f.width, f.height, image::ExtendedColorType::Rgb8)
-            .unwrap();
-        let img = CompressedImage {
-            header: unitac_core::msg::Header::optical(f.stamp, &f.sensor_id),
-            format: "jpeg".into(),
-            data: jpeg,
-        };
-        w.write(t, f.stamp.0, &img).unwrap();
-        first.get_or_insert(f.stamp.0);
-        last = f.stamp.0;
-    }
-    w.finish().unwrap();
-    let first = first.unwrap();
-    let sp = params_file(
-        "jsensor",
-        &format!(
-            "/**:\n  ros__parameters:\n    source: bag\n    bag: {}\n    rate: 2.0\n    wait_subscribers: 2\n",
-            dir.display()
-        ),
-    );
+    let sp = bag_sensor_params("jsensor", &dir);
     let contact = fabric_contact_node(
         &n,
         &[

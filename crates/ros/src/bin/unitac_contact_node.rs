@@ -88,6 +88,26 @@ impl Params {
     }
 }
 
+/// Everything queued on `sub`, converted (r2r's subscription buffer is small and drops silently).
+fn drain<T>(
+    sub: &mut (impl futures::Stream<Item = T> + Unpin),
+    out: &mut Vec<Result<unitac_core::Frame, String>>,
+    mut convert: impl FnMut(&T) -> Result<unitac_core::Frame, String>,
+) {
+    while let Some(Some(m)) = sub.next().now_or_never() {
+        out.push(convert(&m));
+    }
+}
+
+/// The sensor id of an image: the configured one, else its frame_id without "_optical_frame".
+fn id_of(configured: &str, frame_id: &str) -> String {
+    if configured.is_empty() {
+        frame_id.trim_end_matches("_optical_frame").to_string()
+    } else {
+        configured.to_string()
+    }
+}
+
 fn run() -> anyhow::Result<()> {
     let mut base = NodeBase::<Params>::new("unitac_contact")?;
     let p = base.params()?;
@@ -154,31 +174,20 @@ fn run() -> anyhow::Result<()> {
         base.spin(Duration::from_millis(5));
         // Drain everything queued (r2r's subscription buffer is small and drops silently; the
         // stamp gaps below count what was lost anyway).
-        let mut inputs: Vec<(String, Result<unitac_core::Frame, String>)> = Vec::new();
-        let id_of = |frame_id: &str| {
-            if sensor_id.is_empty() {
-                frame_id.trim_end_matches("_optical_frame").to_string()
-            } else {
-                sensor_id.clone()
-            }
-        };
+        let mut inputs = Vec::new();
         if let Some(sub) = raw.as_mut() {
-            while let Some(Some(img)) = sub.next().now_or_never() {
+            drain(sub, &mut inputs, |m| {
                 seq += 1;
-                let id = id_of(&img.header.frame_id);
-                let f = image::to_frame(&img, &id, seq);
-                inputs.push((id, f));
-            }
+                image::to_frame(m, &id_of(&sensor_id, &m.header.frame_id), seq)
+            });
         }
         if let Some(sub) = compressed.as_mut() {
-            while let Some(Some(img)) = sub.next().now_or_never() {
+            drain(sub, &mut inputs, |m| {
                 seq += 1;
-                let id = id_of(&img.header.frame_id);
-                let f = image::compressed_to_frame(&img, &id, seq);
-                inputs.push((id, f));
-            }
+                image::compressed_to_frame(m, &id_of(&sensor_id, &m.header.frame_id), seq)
+            });
         }
-        for (_, f) in inputs {
+        for f in inputs {
             counters.frames_in += 1;
             let t0 = Instant::now();
             let frame = match f {

@@ -214,16 +214,13 @@ fn run_bag(base: &mut Base, p: &Params) -> anyhow::Result<()> {
     let is_image = |t: &str| t == IMAGE || t == COMPRESSED;
     // The image topic and its type: the one named, else the first image topic the bag holds.
     let mut r = BagReader::open(&path, ReadOptions::default())?;
-    let mut found = r
-        .declared_topics()
-        .iter()
-        .find(|t| is_image(&t.type_name) && (p.bag_topic.is_empty() || t.name == p.bag_topic))
-        .map(|t| (t.name.clone(), t.type_name.clone()));
+    let wanted = |t: &unitac_bag::TopicInfo| {
+        (is_image(&t.type_name) && (p.bag_topic.is_empty() || t.name == p.bag_topic))
+            .then(|| (t.name.clone(), t.type_name.clone()))
+    };
+    let mut found = r.declared_topics().iter().find_map(wanted);
     while found.is_none() {
-        let next = r.next_with(&mut |t, _, _| {
-            (is_image(&t.type_name) && (p.bag_topic.is_empty() || t.name == p.bag_topic))
-                .then(|| (t.name.clone(), t.type_name.clone()))
-        })?;
+        let next = r.next_with(&mut |t, _, _| wanted(t))?;
         match next {
             Some(Some(x)) => found = Some(x),
             Some(None) => {}
