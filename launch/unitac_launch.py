@@ -28,15 +28,12 @@ ARGUMENTS = {
     "params_file": ("", "Extra --params-file YAML applied to every node"),
 }
 
-# Stage kind -> node executable, and the stage parameters that node takes from the scene.
-STAGE_NODES = {
-    "contact": ("unitac_contact_node", ["learn_frames", "noise_k", "min_threshold", "enter_area_px",
-                                        "exit_area_px", "debounce_frames", "clip_frames",
-                                        "episode_labels", "background_dir"]),
-}
-# These run in one inference node, which reads them (models included) from the scene file itself.
+# Stage kind -> the node that runs it. Nodes read their stages' parameters from the scene file
+# themselves, through the same registry and typed structs as `unitac run`; nothing is copied here,
+# so nothing can be dropped. Override a stage parameter with `<stage>.<key>` in params_file.
+STAGE_NODES = {"contact": "unitac_contact_node"}
+# These run in one inference node.
 INFERENCE_STAGES = {"encoder", "compare", "sampler"}
-FLOAT_PARAMS = {"noise_k", "min_threshold", "enter_area_px", "exit_area_px"}
 
 
 def load_scene(name):
@@ -45,39 +42,30 @@ def load_scene(name):
         return yaml.safe_load(f), os.path.abspath(path)
 
 
-def ros_value(key, v):
-    """A scene value as the node's parameter: lists (r2r has no array parameters) become
-    comma-separated strings, the float parameters floats (YAML `100` would be an integer)."""
-    if isinstance(v, list):
-        return ",".join(str(x) for x in v)
-    if key in FLOAT_PARAMS:
-        return float(v)
-    return v
-
-
 def plan(scene_name, args=None):
     """Node specs for a scene: [{"executable", "name", "namespace", "parameters", "remappings"}],
-    plus "skipped": [(what, why)]."""
+    plus "skipped": [(what, why)]. An argument that is not declared is an error (ValueError)."""
+    unknown = sorted(set(args or {}) - set(ARGUMENTS) - {"scene"})
+    if unknown:
+        raise ValueError(f"unknown launch argument(s) {', '.join(unknown)} (known: {', '.join(ARGUMENTS)})")
     a = {k: v[0] for k, v in ARGUMENTS.items()}
     a.update(args or {})
     scene, scene_path = load_scene(scene_name)
     src = scene["source"]
     source = a["source"] or src["kind"]
-    kind = a["sensor_kind"] or src.get("sensor", "gelsight-mini")
     sim_time = a["use_sim_time"] == "true" or (a["use_sim_time"] == "auto" and source == "bag")
     extra = [a["params_file"]] if a["params_file"] else []
     timing = [{"use_sim_time": True}] if sim_time else []
+    # Only what the arguments change; everything else comes from the scene file.
+    sensor_kind = {"sensor_kind": a["sensor_kind"]} if a["sensor_kind"] else {}
     nodes, skipped = [], []
     if a["sensor"] == "true":
-        p = {"source": source, "sensor_kind": kind}
-        if source == "mock":
-            p.update({"sensor_id": a["sensor_id"], "scenario": src.get("scenario", scene["scene"]),
-                      "seed": int(src.get("seed", 0))})
-            if "fps" in src:
-                p["fps"] = float(src["fps"])
-        elif source == "v4l":
-            p.update({"sensor_id": a["sensor_id"], "serial": a["serial"] or (src.get("serial") or "")})
-        elif source == "bag":
+        p = {"scene": scene_path, "source": source, **sensor_kind}
+        if source in ("mock", "v4l"):
+            p["sensor_id"] = a["sensor_id"]
+        if source == "v4l" and a["serial"]:
+            p["serial"] = a["serial"]
+        if source == "bag":
             p.update({"bag": a["bag"] or (src.get("path") or ""), "rate": float(a["rate"])})
         if source not in ("mock", "v4l", "bag"):
             skipped.append(("source", f"unknown source '{source}' (mock, v4l, bag)"))
@@ -95,14 +83,10 @@ def plan(scene_name, args=None):
         if k not in STAGE_NODES:
             skipped.append((k, "no ROS node for this stage kind"))
             continue
-        exe, keys = STAGE_NODES[k]
-        params = {"sensor_kind": kind, "image_transport": a["image_transport"]}
+        params = {"scene": scene_path, "image_transport": a["image_transport"], **sensor_kind}
         if source != "bag":
             params["sensor_id"] = a["sensor_id"]  # bag: the frame_id the bag recorded
-        for key, v in (st.get("params") or {}).items():
-            if key in keys:
-                params[key] = ros_value(key, v)
-        nodes.append({"executable": exe, "name": "unitac_" + k, "namespace": a["namespace"],
+        nodes.append({"executable": STAGE_NODES[k], "name": "unitac_" + k, "namespace": a["namespace"],
                       "parameters": [params] + timing + extra,
                       "remappings": [("image", "image_raw"), ("image/compressed", "image_raw/compressed")]})
     if inference:
@@ -127,6 +111,9 @@ def description(scene_name=None, overrides=None):
         declared[k] = (v, declared[k][1])
 
     def build(context):
+        unknown = sorted(set(getattr(context, "launch_configurations", {})) - set(declared))
+        if unknown:
+            raise ValueError(f"unknown launch argument(s) {', '.join(unknown)} (known: {', '.join(declared)})")
         args = {k: LaunchConfiguration(k).perform(context) for k in declared}
         p = plan(args.pop("scene", None) or scene_name, args)
         actions = [LogInfo(msg=f"unitac {p['scene']}: {k} not started: {why}") for k, why in p["skipped"]]

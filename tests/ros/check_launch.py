@@ -76,6 +76,11 @@ def main():
                 "parameters": {n["executable"]: {k: v for d in n["parameters"] if isinstance(d, dict)
                                                  for k, v in d.items()} for n in p["nodes"]}}
         out["files"][name] = {"scene": scene, "arguments": list(declared), "plans": plans}
+    try:
+        unitac_launch.plan("fabric_selection", {"noise_k": "4"})
+        out["unknown_argument"] = "accepted"
+    except ValueError as e:
+        out["unknown_argument"] = str(e)
     print(json.dumps(out))
 
 

@@ -6,30 +6,31 @@
 //! [`unitac_core::Source`] for the runtime. Topics of types this crate does not know are skipped
 //! with one warning each; the reader still hands out their raw bytes to whoever asks.
 //!
-//! [`replay`] drives stages synchronously, one frame at a time, with a [`ManualClock`] set to the
-//! frame stamps, the same order of messages the runtime uses (each stage sees its input and the
-//! outputs of the stages before it). Nothing in it reads the wall clock except the optional
+//! [`replay`] drives stages synchronously, one frame at a time, through `unitac_core::Chain` (the
+//! chain driver every transport uses: each stage's clock is its input's stamp; each stage sees
+//! its input and the outputs of the stages before it) and paces with `unitac_core::Pacer`. Nothing in it reads the wall clock except the optional
 //! pacing, which only decides when a frame is processed, never what comes out: two replays of a
 //! bag give the same events and, with an output bag, the same bytes.
 
 use crate::BagError;
 use crate::image::{compressed_to_frame, image_to_frame};
 use crate::read::{BagReader, ReadOptions, TopicInfo};
-use crate::ros::{CompressedImageView, ImageView, RosMessage, is_known_type};
+use crate::ros::{CompressedImageView, Image, ImageView, RosMessage, is_known_type};
 use crate::write::{BagWriter, TopicId};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
 use unitac_core::msg::{
     ContactEpisode, ContactState, GripperCommand, PolicyStatus, PropertyComparison, TactileLatent,
     TactileProperties,
 };
-use unitac_core::{Clock, Frame, ManualClock, Msg, Source, SourceError, Stage, Stamp};
+use unitac_core::{Chain, Frame, Msg, Pacer, Source, SourceError, Stamp};
 
 const IMAGE: &str = "sensor_msgs/msg/Image";
 const COMPRESSED: &str = "sensor_msgs/msg/CompressedImage";
+/// Topic of the frames `unitac run --out` records.
+pub const FRAME_TOPIC: &str = "/unitac/image_raw";
 
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ReplayOptions {
@@ -255,6 +256,17 @@ impl Source for BagSource {
             Ok(Some(item)) => item.frame.map(Some).map_err(|e| {
                 SourceError::Frame(format!("{} at {} ns: {e}", item.topic.name, item.log_time))
             }),
+            // A bag that replays nothing is not a replay that ended well.
+            Ok(None) if self.st.seq == 0 => Err(SourceError::Fatal(format!(
+                "{}: no image messages (sensor_msgs/Image or CompressedImage){}",
+                self.path.display(),
+                self.st
+                    .opts
+                    .topic
+                    .as_deref()
+                    .map(|t| format!(" on {t}"))
+                    .unwrap_or_default()
+            ))),
             Ok(None) => Ok(None),
             Err(e) => Err(SourceError::Fatal(e.to_string())),
         }
@@ -266,15 +278,6 @@ impl Source for BagSource {
 
 // ---------------------------------------------------------------------------------------------
 // The replay loop
-
-/// How fast to replay.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Pace {
-    /// As fast as possible.
-    Fast,
-    /// Stream time / wall time (1.0 = real time).
-    Rate(f64),
-}
 
 /// What one image message gave.
 #[derive(Debug)]
@@ -346,6 +349,14 @@ impl OutputBag {
         let id = self.topic(&topic.name, &topic.type_name)?;
         self.writer.write_raw(id, log_time, raw)
     }
+    /// Write a frame as a sensor_msgs/Image (rgb8) on `/unitac/image_raw`, stamped with its
+    /// capture time (log time = capture time): what `unitac run --out` records.
+    pub fn write_frame(&mut self, f: &Frame) -> Result<(), BagError> {
+        let id = self.topic(FRAME_TOPIC, IMAGE)?;
+        self.writer
+            .write_raw(id, f.stamp.0, &Image::rgb8(f).to_cdr())
+    }
+
     /// Write an event (frames and clips are not ROS messages and are skipped).
     pub fn write_event(&mut self, m: &Msg) -> Result<(), BagError> {
         let Some((name, ty)) = output_topic(m) else {
@@ -370,89 +381,47 @@ impl OutputBag {
     }
 }
 
-/// Push one message through the stages (runtime order: a stage's outputs, then its input, go on
-/// to the next stage). Returns every message that leaves the last stage, and the first error.
-fn run_stages(
-    stages: &mut [Box<dyn Stage>],
-    input: Vec<Msg>,
-    clock: &dyn Clock,
-    finishing: Option<usize>,
-) -> (Vec<Msg>, Option<String>) {
-    let mut msgs = input;
-    let mut error = None;
-    for (i, stage) in stages.iter_mut().enumerate() {
-        let mut next = Vec::with_capacity(msgs.len() + 1);
-        for m in msgs {
-            match stage.process(&m, clock) {
-                Ok(outs) => next.extend(outs),
-                Err(e) => {
-                    error.get_or_insert_with(|| format!("{}: {e}", stage.name()));
-                }
-            }
-            next.push(m);
-        }
-        if finishing == Some(i) {
-            match stage.finish(clock) {
-                Ok(outs) => next.extend(outs),
-                Err(e) => {
-                    error.get_or_insert_with(|| format!("{} finish: {e}", stage.name()));
-                }
-            }
-        }
-        msgs = next;
-    }
-    (msgs, error)
-}
-
-/// Replay `source` through `stages`. `on_image` sees every image message with what it produced;
+/// Replay `source` through `chain` (the one chain driver; each stage's clock is its input's
+/// stamp), paced by `pacer`. `on_image` sees every image message with what it produced;
 /// `on_finish` sees the events the stages emit when the input ends (e.g. an open episode).
 /// With `out`, the replayed image messages and every event go into that bag.
+#[allow(clippy::too_many_arguments)]
 pub fn replay(
     source: &mut BagSource,
-    stages: &mut [Box<dyn Stage>],
+    chain: &mut Chain,
     mut out: Option<&mut OutputBag>,
-    pace: Pace,
+    pacer: &mut Pacer,
     stop: &AtomicBool,
     mut on_image: impl FnMut(&ImageResult),
     mut on_finish: impl FnMut(&Msg),
 ) -> Result<ReplayReport, BagError> {
-    let clock = ManualClock::default();
     let mut report = ReplayReport::default();
     source.keep_raw(out.is_some());
-    let mut now = Stamp::ZERO;
-    let t0 = Instant::now();
-    let mut first: Option<i64> = None;
     while let Some(item) = source.next_image()? {
         if stop.load(Ordering::SeqCst) {
             report.stopped = true;
             break;
         }
-        if let Pace::Rate(r) = pace {
-            let f0 = *first.get_or_insert(item.log_time);
-            let due = (item.log_time.saturating_sub(f0)) as f64 * 1e-9 / r.max(1e-6);
-            let due = Duration::from_secs_f64(due.clamp(0.0, 1e7));
-            while let Some(wait) = due.checked_sub(t0.elapsed()) {
-                if stop.load(Ordering::SeqCst) {
-                    break;
-                }
-                std::thread::sleep(wait.min(Duration::from_millis(50)));
-            }
-        }
+        pacer.wait(Stamp(item.log_time), |d| {
+            std::thread::sleep(d);
+            !stop.load(Ordering::SeqCst)
+        });
         report.images += 1;
         if let Some(o) = out.as_deref_mut() {
             o.write_input(&item.topic, item.log_time, &item.raw)?;
         }
         let result = match item.frame {
             Ok(frame) => {
-                now = now.max(frame.stamp);
-                clock.set(now);
                 let stamp = frame.stamp.0;
-                let (msgs, error) = run_stages(stages, vec![Msg::Frame(frame)], &clock, None);
+                let r = chain.run(Msg::Frame(frame));
                 ImageResult {
                     stamp,
                     topic: Arc::clone(&item.topic),
-                    events: msgs.into_iter().filter(|m| !m.is_frame()).collect(),
-                    error,
+                    events: r.produced.into_iter().filter(|m| !m.is_frame()).collect(),
+                    error: r
+                        .errors
+                        .first()
+                        .map(|e| format!("{}: {}", e.stage, e.error)),
                 }
             }
             Err(e) => ImageResult {
@@ -474,19 +443,17 @@ pub fn replay(
         on_image(&result);
     }
     // Finish each stage in order; later stages see what earlier ones flushed.
-    for i in 0..stages.len() {
-        let (msgs, error) = run_stages(&mut stages[i..], Vec::new(), &clock, Some(0));
-        if let Some(e) = error {
-            tracing::warn!("{e}");
-            report.errors += 1;
+    let end = chain.finish();
+    for e in &end.errors {
+        tracing::warn!("{e}");
+        report.errors += 1;
+    }
+    for m in end.produced.iter().filter(|m| !m.is_frame()) {
+        *report.events.entry(m.kind().to_string()).or_default() += 1;
+        if let Some(o) = out.as_deref_mut() {
+            o.write_event(m)?;
         }
-        for m in msgs.iter().filter(|m| !m.is_frame()) {
-            *report.events.entry(m.kind().to_string()).or_default() += 1;
-            if let Some(o) = out.as_deref_mut() {
-                o.write_event(m)?;
-            }
-            on_finish(m);
-        }
+        on_finish(m);
     }
     report.topic = source.topic().map(str::to_string);
     report.skipped_topics = source.skipped_topics().cloned().collect();

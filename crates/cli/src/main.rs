@@ -20,8 +20,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use unitac_core::Scene;
-use unitac_core::scene::{SceneContext, SensorArg};
+use unitac_core::Msg;
+use unitac_core::scene::SensorArg;
 use unitac_runtime::RunOptions;
 
 #[derive(Parser, Debug)]
@@ -60,6 +60,15 @@ enum Cmd {
         /// Extra directory to look for scenes in (searched first).
         #[arg(long)]
         scene_dir: Option<PathBuf>,
+        /// Record the frames and every event into this MCAP bag (a rosbag2 directory, or a bare
+        /// file if it ends in .mcap): replay it with `unitac replay --scene` or the ROS sensor
+        /// node. With --fast every frame of the source is recorded.
+        #[arg(long, value_name = "OUT_BAG")]
+        out: Option<PathBuf>,
+        /// Print each stage's effective parameters (one line per stage, exactly as the stages
+        /// are built) and exit without running.
+        #[arg(long)]
+        print_params: bool,
     },
     /// Detect contact in image files against a background image: one line per frame (JSON with
     /// --json). Coordinates are in the input image's pixels. A bad file gets an error line and the
@@ -103,9 +112,17 @@ enum Cmd {
         out: Option<PathBuf>,
         #[arg(long)]
         json: bool,
-        /// Sensor kind of the bag's images: gelsight-mini | digit | generic.
+        /// Sensor kind of the bag's images: gelsight-mini | digit | generic (without --scene).
         #[arg(long, default_value = "gelsight-mini")]
         sensor: unitac_core::SensorKind,
+        /// Run this scene's stages (name or path; its sensor kind) instead of the default contact
+        /// stage: the same stages and params `unitac run` and the ROS nodes build.
+        #[arg(long)]
+        scene: Option<String>,
+        /// Print every event the stages produce as a JSON line (as `unitac run --events`)
+        /// instead of one line per image message.
+        #[arg(long, conflicts_with = "json")]
+        events: bool,
     },
     /// Measure quality against ground truth (mock sensor): `eval contact`.
     Eval {
@@ -206,13 +223,10 @@ impl std::fmt::Display for ConfigError {
 impl std::error::Error for ConfigError {}
 
 fn scene_dirs(extra: Option<PathBuf>) -> Vec<PathBuf> {
-    unitac_runtime::registry::scene_dirs(extra)
+    unitac_pipeline::scene_dirs(extra)
 }
 
-fn scene_context() -> SceneContext {
-    unitac_runtime::registry::scene_context()
-}
-
+#[allow(clippy::too_many_arguments)] // one per flag of `unitac run`
 fn cmd_run(
     scene: &str,
     sensor: Option<SensorArg>,
@@ -221,12 +235,19 @@ fn cmd_run(
     fast: bool,
     max_frames: Option<u64>,
     scene_dir: Option<PathBuf>,
+    out_bag: Option<PathBuf>,
+    print_params: bool,
 ) -> anyhow::Result<bool> {
     let cfg = |e: unitac_core::SceneError| anyhow::Error::new(ConfigError(e.to_string()));
-    let path = unitac_core::scene::resolve(scene, &scene_dirs(scene_dir)).map_err(cfg)?;
-    let scene = Scene::load(&path, &scene_context()).map_err(cfg)?;
-    let stages = unitac_runtime::build_stages(&scene).map_err(cfg)?;
-    let source = unitac_runtime::build_source(&scene, sensor.as_ref()).map_err(cfg)?;
+    let scene = unitac_pipeline::load_scene(scene, scene_dir).map_err(cfg)?;
+    if print_params {
+        for line in unitac_pipeline::effective_params(&scene).map_err(cfg)? {
+            println!("{line}");
+        }
+        return Ok(true);
+    }
+    let stages = unitac_pipeline::build_stages(&scene).map_err(cfg)?;
+    let source = unitac_pipeline::build_source(&scene, sensor.as_ref()).map_err(cfg)?;
 
     let stop = Arc::new(AtomicBool::new(false));
     {
@@ -240,11 +261,25 @@ fn cmd_run(
         max_frames,
         stop,
     };
+    let mut bag = match &out_bag {
+        Some(p) => Some(unitac_bag::replay::OutputBag::new(
+            unitac_bag::BagWriter::create(p, unitac_bag::WriteOptions::default())
+                .map_err(|e| anyhow::Error::new(ConfigError(format!("--out: {e}"))))?,
+        )),
+        None => None,
+    };
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
-    let mut write_err = None;
+    let (mut write_err, mut bag_err) = (None, None);
     let report = unitac_runtime::run(&scene, source, stages, &opts, |m| {
-        if events && write_err.is_none() {
+        if let (Some(b), None) = (bag.as_mut(), &bag_err) {
+            let r = match m {
+                Msg::Frame(f) => b.write_frame(f),
+                other => b.write_event(other),
+            };
+            bag_err = r.err();
+        }
+        if events && !m.is_frame() && write_err.is_none() {
             if let Err(e) = writeln!(out, "{}", m.to_json()) {
                 write_err = Some(e);
             }
@@ -252,6 +287,15 @@ fn cmd_run(
     });
     if let Some(e) = write_err {
         return Err(e).context("writing events to stdout");
+    }
+    if let Some(e) = bag_err {
+        return Err(e).context("recording the output bag");
+    }
+    if let Some(b) = bag {
+        b.finish().context("finishing the output bag")?;
+    }
+    if let Some(reason) = report.ended.strip_prefix("source_failed: ") {
+        eprintln!("unitac: {reason}");
     }
     if json {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;
@@ -360,7 +404,19 @@ fn main() -> ExitCode {
             fast,
             max_frames,
             scene_dir,
-        } => cmd_run(&scene, sensor, json, events, fast, max_frames, scene_dir),
+            out,
+            print_params,
+        } => cmd_run(
+            &scene,
+            sensor,
+            json,
+            events,
+            fast,
+            max_frames,
+            scene_dir,
+            out,
+            print_params,
+        ),
         Cmd::Contact {
             sensor,
             background,
@@ -383,6 +439,8 @@ fn main() -> ExitCode {
             out,
             json,
             sensor,
+            scene,
+            events,
         } => replay::cmd_replay(replay::Args {
             bag,
             topic,
@@ -393,6 +451,8 @@ fn main() -> ExitCode {
             out,
             json,
             sensor,
+            scene,
+            events,
         }),
         Cmd::Eval {
             what: EvalTarget::Contact,

@@ -1,4 +1,5 @@
-//! `unitac replay`: a bag through the contact stage, one JSON line per image message.
+//! `unitac replay`: a bag through the contact stage (or a scene's stages), one JSON line per
+//! image message (or per event).
 //! The logic is unitac_bag::replay; this file parses flags and formats lines.
 
 use crate::ConfigError;
@@ -7,10 +8,10 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use unitac_bag::replay::{ImageResult, OutputBag, Pace, replay};
+use unitac_bag::replay::{ImageResult, OutputBag, replay};
 use unitac_bag::{BagError, BagSource, BagWriter, ReplayOptions, WriteOptions};
 use unitac_contact::{ContactParams, ContactStage};
-use unitac_core::{Msg, SensorKind, Stage};
+use unitac_core::{Chain, Msg, Pacer, SensorKind, Stage};
 
 #[derive(Debug)]
 pub struct Args {
@@ -23,6 +24,8 @@ pub struct Args {
     pub out: Option<PathBuf>,
     pub json: bool,
     pub sensor: SensorKind,
+    pub scene: Option<String>,
+    pub events: bool,
 }
 
 fn config(msg: String) -> anyhow::Error {
@@ -62,11 +65,9 @@ fn open_error(path: &Path, e: BagError) -> anyhow::Error {
 }
 
 pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
-    let pace = match (a.fast, a.rate) {
-        (true, _) => Pace::Fast,
-        (false, Some(r)) if r.is_finite() && r > 0.0 => Pace::Rate(r),
-        (false, Some(r)) => return Err(config(format!("--rate {r}: must be > 0"))),
-        (false, None) => Pace::Rate(1.0),
+    let mut pacer = match (a.fast, a.rate) {
+        (true, _) => Pacer::fast(),
+        (false, r) => Pacer::new(Some(r.unwrap_or(1.0))).map_err(|e| config(format!("--{e}")))?,
     };
     if !(a.start.is_finite() && a.start >= 0.0) {
         return Err(config(format!("--start {}: must be >= 0 seconds", a.start)));
@@ -81,8 +82,18 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
         },
     )
     .map_err(|e| open_error(&a.bag, e))?;
-    let stage = ContactStage::new(ContactParams::default(), a.sensor.spec()).map_err(config)?;
-    let mut stages: Vec<Box<dyn Stage>> = vec![Box::new(stage)];
+    let stages: Vec<Box<dyn Stage>> = match &a.scene {
+        Some(name) => {
+            let scene =
+                unitac_pipeline::load_scene(name, None).map_err(|e| config(e.to_string()))?;
+            unitac_pipeline::build_stages(&scene).map_err(|e| config(e.to_string()))?
+        }
+        None => vec![Box::new(
+            ContactStage::new(ContactParams::default(), a.sensor.spec())
+                .map_err(|e| config(e.to_string()))?,
+        )],
+    };
+    let mut chain = Chain::new(stages);
     let mut out = match &a.out {
         Some(p) => Some(OutputBag::new(
             BagWriter::create(p, WriteOptions::default()).map_err(|e| config(e.to_string()))?,
@@ -102,13 +113,22 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
     let mut flushed = Vec::new();
     let report = replay(
         &mut source,
-        &mut stages,
+        &mut chain,
         out.as_mut(),
-        pace,
+        &mut pacer,
         &stop,
         |r| {
-            if a.json && write_err.is_none() {
-                if let Err(e) = writeln!(w, "{}", line(r)) {
+            if write_err.is_none() {
+                let written = if a.events {
+                    r.events
+                        .iter()
+                        .try_for_each(|m| writeln!(w, "{}", m.to_json()))
+                } else if a.json {
+                    writeln!(w, "{}", line(r))
+                } else {
+                    Ok(())
+                };
+                if let Err(e) = written {
                     write_err = Some(e);
                     stop.store(true, Ordering::SeqCst);
                 }
@@ -118,14 +138,17 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
                 _ => None,
             }));
         },
-        |m| {
-            if let Msg::Episode(e) = m {
-                flushed.push(e.clone());
-            }
-        },
+        |m| flushed.push(m.clone()),
     )
     .with_context(|| format!("replaying {}", a.bag.display()))?;
-    episodes.extend(flushed);
+    for m in &flushed {
+        if a.events && write_err.is_none() {
+            write_err = writeln!(w, "{}", m.to_json()).err();
+        }
+        if let Msg::Episode(e) = m {
+            episodes.push(e.clone());
+        }
+    }
     if let Some(e) = write_err {
         return Err(e).context("writing to stdout");
     }
@@ -133,7 +156,7 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
         Some(o) => Some(o.finish().context("finishing the output bag")?),
         None => None,
     };
-    if !a.json {
+    if !a.json && !a.events {
         writeln!(
             w,
             "replayed {} image messages from {} ({}), {} errors",

@@ -3,7 +3,7 @@
 use serde::Deserialize;
 
 /// Unknown keys are errors; every value is range-checked by [`ContactParams::check`].
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ContactParams {
     /// Frames averaged into the initial background (no contact allowed meanwhile).

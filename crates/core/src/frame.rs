@@ -118,3 +118,38 @@ mod tests {
         assert_eq!(f.pixel(2, 0), None);
     }
 }
+
+/// Suffix of a sensor's optical frame (REP 103): `<sensor_id>_optical_frame`.
+pub const OPTICAL_FRAME_SUFFIX: &str = "_optical_frame";
+
+/// The frame_id of everything a sensor produces: `<sensor_id>_optical_frame`.
+pub fn optical_frame_id(sensor_id: &str) -> String {
+    format!("{sensor_id}{OPTICAL_FRAME_SUFFIX}")
+}
+
+/// The sensor id of a message: `configured` when set (non-empty), else its frame_id without
+/// `_optical_frame`, else `fallback` (an empty frame_id).
+pub fn sensor_id_of(configured: Option<&str>, frame_id: &str, fallback: &str) -> String {
+    if let Some(c) = configured.filter(|c| !c.is_empty()) {
+        return c.to_string();
+    }
+    let id = frame_id
+        .strip_suffix(OPTICAL_FRAME_SUFFIX)
+        .unwrap_or(frame_id);
+    if id.is_empty() { fallback } else { id }.to_string()
+}
+
+#[cfg(test)]
+mod frame_id_tests {
+    use super::*;
+
+    #[test]
+    fn optical_frame_ids_round_trip() {
+        assert_eq!(optical_frame_id("gsmini"), "gsmini_optical_frame");
+        assert_eq!(sensor_id_of(None, "gsmini_optical_frame", "x"), "gsmini");
+        assert_eq!(sensor_id_of(Some(""), "cam", "x"), "cam");
+        assert_eq!(sensor_id_of(Some("d1"), "gsmini_optical_frame", "x"), "d1");
+        assert_eq!(sensor_id_of(None, "", "bag"), "bag");
+        assert_eq!(sensor_id_of(None, "_optical_frame", "bag"), "bag");
+    }
+}

@@ -4,16 +4,20 @@
 //! except through [`clock::SystemClock`]. Stages take a `&dyn Clock` so the same code runs live,
 //! in replay and in tests with identical output for identical input.
 
+pub mod chain;
 pub mod clock;
 pub mod frame;
 pub mod msg;
+pub mod pace;
 pub mod scene;
 pub mod sensor;
 pub mod stage;
 
+pub use chain::{Chain, StageRunner};
 pub use clock::{Clock, ManualClock, Stamp, SystemClock};
-pub use frame::{Frame, FrameError};
+pub use frame::{Frame, FrameError, optical_frame_id, sensor_id_of};
 pub use msg::Msg;
+pub use pace::Pacer;
 pub use scene::{Scene, SceneError};
 pub use sensor::{SensorKind, SensorSpec};
 pub use stage::{Source, SourceError, Stage, StageError};

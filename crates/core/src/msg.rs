@@ -23,7 +23,7 @@ impl Header {
     }
     /// `<sensor>_optical_frame` (REP 103), the frame_id of everything a sensor produces.
     pub fn optical(stamp: Stamp, sensor_id: &str) -> Self {
-        Self::new(stamp, format!("{sensor_id}_optical_frame"))
+        Self::new(stamp, crate::frame::optical_frame_id(sensor_id))
     }
 }
 

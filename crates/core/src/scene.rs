@@ -80,6 +80,10 @@ pub struct SourceSpec {
     /// Serial of a live sensor (v4l).
     #[serde(default)]
     pub serial: Option<String>,
+    /// Sensor id of the frames (frame_id `<sensor_id>_optical_frame`): default `mock_<sensor>`
+    /// for the mock sensor, the serial for a live one, the recorded frame_id for a bag.
+    #[serde(default)]
+    pub sensor_id: Option<String>,
     /// Bag path (bag).
     #[serde(default)]
     pub path: Option<PathBuf>,

@@ -177,7 +177,7 @@ impl Stage for EncoderStage {
     }
 }
 
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CompareParams {
     /// hardness | roughness | texture

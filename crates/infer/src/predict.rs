@@ -16,7 +16,7 @@ use std::time::Instant;
 use unitac_core::msg::{Header, LatentSource, TactileLatent};
 use unitac_core::{Clock, Frame, Msg, Stage, StageError};
 
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SamplerParams {
     pub solver: String,

@@ -26,7 +26,7 @@ pub enum InferError {
 
 /// Where models run. Only CPU can be tested on this project's machines (no GPU in CI); CUDA and
 /// TensorRT are registered through ort when the loaded library (onnxruntime-gpu) has them.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum ExecutionProvider {
     #[default]
@@ -35,7 +35,7 @@ pub enum ExecutionProvider {
     Tensorrt,
 }
 
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RuntimeConfig {
     /// libonnxruntime.so path; None = `$UNITAC_ORT_LIB`.

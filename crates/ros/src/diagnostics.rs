@@ -4,6 +4,9 @@
 use r2r::diagnostic_msgs::msg::{DiagnosticArray, DiagnosticStatus, KeyValue};
 use std::time::Instant;
 
+/// A latency beyond this is not a latency but a stamp from another time line [s].
+pub const MAX_LATENCY_S: f64 = 60.0;
+
 /// Counters a node keeps for its diagnostics.
 #[derive(Debug, Default, Clone)]
 pub struct Counters {
@@ -14,6 +17,9 @@ pub struct Counters {
     pub dropped: u64,
     pub busy_us: f64,
     pub last_error: String,
+    /// Latencies that made no sense (a stamp more than a minute from the node's clock: a bag
+    /// replayed without sim time, a stamp in the future); counted, never averaged in.
+    pub latency_out_of_range: u64,
     /// Latencies since the last report [s]: sum, count, max (reset by each report).
     latency_sum: f64,
     latency_n: u64,
@@ -21,6 +27,12 @@ pub struct Counters {
 }
 
 impl Counters {
+    /// Count an input that was rejected (bad stamp, undecodable, refused by a stage).
+    pub fn error(&mut self, e: impl Into<String>) {
+        self.errors += 1;
+        self.last_error = e.into();
+    }
+
     /// Count a publish: one message out, or an error kept as the last error.
     pub fn published(&mut self, r: r2r::Result<()>) {
         match r {
@@ -35,7 +47,9 @@ impl Counters {
     /// Record one latency: the node's clock when an output went out minus the capture stamp of
     /// the frame it came from [s].
     pub fn latency(&mut self, seconds: f64) {
-        if seconds.is_finite() {
+        if !(-1.0..=MAX_LATENCY_S).contains(&seconds) {
+            self.latency_out_of_range += 1;
+        } else {
             self.latency_sum += seconds;
             self.latency_n += 1;
             self.latency_max = self.latency_max.max(seconds);
@@ -92,6 +106,7 @@ impl Updater {
             kv("messages_out", c.messages_out.to_string()),
             kv("errors", c.errors.to_string()),
             kv("dropped", c.dropped.to_string()),
+            kv("latency_out_of_range", c.latency_out_of_range.to_string()),
             kv("mean_process_us", format!("{mean:.1}")),
         ];
         if c.latency_n > 0 {

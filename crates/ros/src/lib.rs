@@ -30,8 +30,34 @@ pub fn list_param(s: &str) -> Vec<String> {
         .collect()
 }
 
-pub mod chain;
 pub mod diagnostics;
 pub mod drops;
 pub mod image;
 pub mod node;
+
+/// The stages of `scene` (a name or a path) whose kind is in `kinds`, built by the same registry
+/// `unitac run` uses, from the scene's params with the node's `<stage>.<key>` overrides applied.
+/// `sensor_kind` (non-empty) replaces the scene's sensor. The effective params go to stderr, one
+/// line per stage (`<node>: effective params: <kind>: ...`), so a test can compare them with
+/// `unitac scene params`.
+pub fn scene_stages(
+    node: &str,
+    scene: &str,
+    sensor_kind: &str,
+    kinds: &[&str],
+    overrides: &[(String, serde_yaml::Value)],
+) -> anyhow::Result<(unitac_core::Scene, Vec<Box<dyn unitac_core::Stage>>)> {
+    let mut s = unitac_pipeline::load_scene(scene, None)?;
+    if !sensor_kind.is_empty() {
+        s.source.sensor = sensor_kind
+            .parse()
+            .map_err(|e| anyhow::anyhow!("sensor_kind: {e}"))?;
+    }
+    s.stages.retain(|st| kinds.contains(&st.kind.as_str()));
+    unitac_pipeline::overrides::apply(&mut s, kinds, overrides)?;
+    for line in unitac_pipeline::effective_params(&s)? {
+        eprintln!("{node}: effective params: {line}");
+    }
+    let stages = unitac_pipeline::build_stages(&s)?;
+    Ok((s, stages))
+}

@@ -1,10 +1,16 @@
 //! What every UniTac node does the same way: create the node, read its parameters from
 //! `--ros-args` (derive-based, `--params-file` included), keep the parameter services and the
 //! /clock subscription (`use_sim_time`) served, stop on Ctrl-C, and publish /diagnostics.
+//!
+//! Parameters a node is given are checked by name before it starts: the node's own (its derived
+//! `Params`), `use_sim_time`, and `<stage>.<key>` for the stages it runs (overrides of the scene
+//! file's stage params, checked later against the stage's typed params). Anything else is an
+//! error: r2r itself would keep an unknown or misspelt key silently.
 
 use futures::executor::LocalPool;
+use indexmap::IndexMap;
 use r2r::diagnostic_msgs::msg::DiagnosticArray;
-use r2r::{QosProfile, RosParams};
+use r2r::{ParameterValue, QosProfile, RosParams};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -17,13 +23,16 @@ pub struct NodeBase<P> {
     stop: Arc<AtomicBool>,
     clock: Arc<Mutex<r2r::Clock>>,
     diagnostics: r2r::Publisher<DiagnosticArray>,
+    overrides: Vec<(String, serde_yaml::Value)>,
 }
 
 impl<P: RosParams + Default + Clone + Send + 'static> NodeBase<P> {
-    /// Create node `name`; parameters are read before this returns.
-    pub fn new(name: &str) -> anyhow::Result<Self> {
+    /// Create node `name`; parameters are read and checked before this returns. `stage_kinds`:
+    /// the scene stages this node runs (their `<kind>.<key>` overrides are accepted).
+    pub fn new(name: &str, stage_kinds: &[&str]) -> anyhow::Result<Self> {
         let ctx = r2r::Context::create()?;
         let mut node = r2r::Node::create(ctx, name, "")?;
+        let overrides = check_given_params(&node, &P::default(), stage_kinds)?;
         let params = Arc::new(Mutex::new(P::default()));
         let (handler, _events) = node.make_derived_parameter_handler(params.clone())?;
         let pool = LocalPool::new();
@@ -42,6 +51,7 @@ impl<P: RosParams + Default + Clone + Send + 'static> NodeBase<P> {
             stop,
             clock,
             diagnostics,
+            overrides,
         };
         base.pool.run_until_stalled();
         Ok(base)
@@ -54,6 +64,11 @@ impl<P: RosParams + Default + Clone + Send + 'static> NodeBase<P> {
             .lock()
             .map_err(|_| anyhow::anyhow!("parameter lock poisoned"))?;
         Ok(g.clone())
+    }
+
+    /// The `<stage>.<key>` parameters given, for `unitac_pipeline::overrides::apply`.
+    pub fn stage_overrides(&self) -> &[(String, serde_yaml::Value)] {
+        &self.overrides
     }
 
     /// Whether the node was asked to stop (SIGINT / SIGTERM through ctrlc).
@@ -100,6 +115,63 @@ impl<P: RosParams + Default + Clone + Send + 'static> NodeBase<P> {
         }
         done()
     }
+}
+
+/// A ROS parameter value as the YAML value a scene file would hold (`None`: not set).
+pub fn yaml_value(v: &ParameterValue) -> Option<serde_yaml::Value> {
+    use serde_yaml::Value as Y;
+    let seq = |v: Vec<Y>| Some(Y::Sequence(v));
+    match v {
+        ParameterValue::NotSet => None,
+        ParameterValue::Bool(b) => Some(Y::Bool(*b)),
+        ParameterValue::Integer(i) => Some(Y::from(*i)),
+        ParameterValue::Double(d) => Some(Y::from(*d)),
+        ParameterValue::String(s) => Some(Y::String(s.clone())),
+        ParameterValue::BoolArray(a) => seq(a.iter().map(|b| Y::Bool(*b)).collect()),
+        ParameterValue::ByteArray(a) => seq(a.iter().map(|b| Y::from(*b)).collect()),
+        ParameterValue::IntegerArray(a) => seq(a.iter().map(|i| Y::from(*i)).collect()),
+        ParameterValue::DoubleArray(a) => seq(a.iter().map(|d| Y::from(*d)).collect()),
+        ParameterValue::StringArray(a) => seq(a.iter().map(|s| Y::String(s.clone())).collect()),
+    }
+}
+
+/// Every parameter given to `node` (command line, params files) must be one of `declared`'s,
+/// `use_sim_time`, or a `<stage>.<key>` override for a stage in `stage_kinds`; returns the
+/// overrides. One line naming the first unknown parameter and what is accepted otherwise.
+fn check_given_params<P: RosParams + Clone>(
+    node: &r2r::Node,
+    declared: &P,
+    stage_kinds: &[&str],
+) -> anyhow::Result<Vec<(String, serde_yaml::Value)>> {
+    let mut names = IndexMap::new();
+    declared.clone().register_parameters("", None, &mut names)?;
+    let given = node
+        .params
+        .lock()
+        .map_err(|_| anyhow::anyhow!("parameter lock poisoned"))?
+        .iter()
+        .map(|(k, p)| (k.clone(), p.value.clone()))
+        .collect::<Vec<_>>();
+    let mut overrides = Vec::new();
+    for (key, value) in given {
+        if names.contains_key(&key) || key == "use_sim_time" {
+            continue;
+        }
+        let stage = key.split_once('.').map(|(k, _)| k);
+        if stage.is_some_and(|k| stage_kinds.contains(&k)) {
+            if let Some(v) = yaml_value(&value) {
+                overrides.push((key, v));
+            }
+            continue;
+        }
+        let mut known: Vec<String> = names.keys().cloned().collect();
+        known.extend(stage_kinds.iter().map(|k| format!("{k}.<key>")));
+        anyhow::bail!(
+            "unknown parameter '{key}' (this node takes: {}, use_sim_time)",
+            known.join(", ")
+        );
+    }
+    Ok(overrides)
 }
 
 /// `main` of a node binary: run it, print the error on one line, exit 1 on failure.

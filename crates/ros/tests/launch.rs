@@ -99,11 +99,23 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
         assert_eq!(nodes(v4l), all);
         assert_eq!(params(v4l, "unitac_sensor_node")["source"], "v4l");
     }
-    // Scene stage parameters reach the contact node in the form it reads.
+    // Stage parameters are not copied (and so cannot be dropped): the contact node gets the
+    // scene file and reads its stage from there, as `unitac run` does.
     let c = &j["files"]["fabric_selection"]["plans"]["{}"]["parameters"]["unitac_contact_node"];
-    assert_eq!(c["episode_labels"], "fabric_a,fabric_b", "{c}");
-    assert_eq!(c["clip_frames"], 8, "{c}");
-    assert_eq!(c["image_transport"], "raw", "{c}");
+    let keys: Vec<&str> = c.as_object().unwrap().keys().map(String::as_str).collect();
+    assert_eq!(keys, ["image_transport", "scene", "sensor_id"], "{c}");
+    assert!(
+        c["scene"]
+            .as_str()
+            .unwrap()
+            .ends_with("launch/scenes/fabric_selection.yaml")
+    );
+    // An argument the launch files do not declare is an error, not ignored.
+    let e = j["unknown_argument"].as_str().unwrap();
+    assert!(
+        e.contains("unknown launch argument") && e.contains("noise_k"),
+        "{e}"
+    );
 }
 
 /// The parameters the launch plan gives each node are ones the node accepts (names and types:

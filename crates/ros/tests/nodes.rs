@@ -74,13 +74,14 @@ fn params_file(name: &str, body: &str) -> PathBuf {
     p
 }
 
-/// Sensor node parameters: the mock sensor as `gsmini` at 25 fps, starting once the contact node
-/// and the listener subscribed; `repeat` starts the scenario again at its end.
-fn mock_sensor_params(name: &str, scenario: &str, repeat: bool) -> PathBuf {
+/// Sensor node parameters: the mock sensor of `scene` (its scenario, seed and rate) as
+/// `gsmini`, starting once the contact node and the listener subscribed; `repeat` starts the
+/// scenario again at its end.
+fn mock_sensor_params(name: &str, scene: &str, repeat: bool) -> PathBuf {
     params_file(
         name,
         &format!(
-            "/**:\n  ros__parameters:\n    sensor_id: gsmini\n    scenario: {scenario}\n    fps: 25.0\n    repeat: {repeat}\n    wait_subscribers: 2\n"
+            "/**:\n  ros__parameters:\n    scene: {scene}\n    sensor_id: gsmini\n    repeat: {repeat}\n    wait_subscribers: 2\n"
         ),
     )
 }
@@ -102,7 +103,7 @@ fn contact_node_answers_every_image_with_a_contact_state() {
     let n = ns("contact");
     let p = params_file(
         "contact",
-        "/**:\n  ros__parameters:\n    sensor_kind: generic\n    enter_area_px: 100.0\n    exit_area_px: 50.0\n",
+        "/**:\n  ros__parameters:\n    sensor_kind: generic\n    contact.enter_area_px: 100.0\n    contact.exit_area_px: 50.0\n",
     );
     let c = node(env!("CARGO_BIN_EXE_unitac_contact_node"), &n, p.to_str());
     let got = peer(&["images", &n, "40"]);
@@ -154,7 +155,7 @@ fn parameters_from_a_yaml_file_take_effect() {
     // An enter area larger than the image: the same disc is never a contact.
     let p = params_file(
         "params",
-        "/**:\n  ros__parameters:\n    sensor_kind: generic\n    enter_area_px: 100000.0\n    exit_area_px: 50.0\n",
+        "/**:\n  ros__parameters:\n    sensor_kind: generic\n    contact.enter_area_px: 100000.0\n    contact.exit_area_px: 50.0\n",
     );
     let c = node(env!("CARGO_BIN_EXE_unitac_contact_node"), &n, p.to_str());
     let got = peer(&["images", &n, "40"]);
@@ -172,7 +173,7 @@ fn sensor_and_contact_nodes_find_the_fabric_episodes() {
     let sp = mock_sensor_params("sensor", "fabric_selection", false);
     let cp = params_file(
         "cnode",
-        "/**:\n  ros__parameters:\n    sensor_kind: gelsight-mini\n",
+        "/**:\n  ros__parameters:\n    scene: fabric_selection\n",
     );
     let contact = Command::new(env!("CARGO_BIN_EXE_unitac_contact_node"))
         .args([
@@ -338,7 +339,7 @@ fn check_fabric_outputs(got: &Value, ns: &str, frame_id: &str) {
 fn fabric_contact_node(ns: &str, extra: &[&str]) -> Child {
     let p = params_file(
         &format!("contact{}", ns.replace('/', "_")),
-        "/**:\n  ros__parameters:\n    sensor_kind: gelsight-mini\n    clip_frames: 8\n    episode_labels: fabric_a,fabric_b\n",
+        "/**:\n  ros__parameters:\n    scene: fabric_selection\n",
     );
     let args = [
         &[

@@ -12,9 +12,9 @@
 //! replay, frames are lossless too, so a replay's output depends only on its input.
 
 pub mod edge;
-pub mod registry;
+pub mod report;
 pub mod run;
 
 pub use edge::{Edge, FramePolicy};
-pub use registry::{KNOWN_STAGES, build_source, build_stages};
-pub use run::{RunOptions, RunReport, StageReport, run};
+pub use report::{RunReport, StageReport};
+pub use run::{RunOptions, run};

@@ -1,13 +1,13 @@
 //! Wiring and running: source thread -> stage threads -> collector.
 
 use crate::edge::{Edge, FramePolicy};
-use serde::Serialize;
+use crate::report::{RunReport, StageReport};
 use std::collections::BTreeMap;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::time::{Duration, Instant};
-use unitac_core::msg::{ContactEpisode, PropertyComparison, TactileProperties};
-use unitac_core::{Clock, ManualClock, Msg, Scene, Source, SourceError, Stage, Stamp, SystemClock};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+use unitac_core::chain::{RunnerStats, StageRunner};
+use unitac_core::{Msg, Pacer, Scene, Source, SourceError, Stage, Stamp};
 
 /// Events of these kinds are kept whole in the report (up to this many each).
 const MAX_KEPT_EVENTS: usize = 10_000;
@@ -34,204 +34,42 @@ impl Default for RunOptions {
     }
 }
 
-#[derive(Debug, Default)]
-struct Counters {
-    input: AtomicU64,
-    output: AtomicU64,
-    errors: AtomicU64,
-    busy_ns: AtomicU64,
-    max_ns: AtomicU64,
-}
-
-#[derive(Debug, Clone, Serialize, PartialEq)]
-pub struct StageReport {
-    pub name: String,
-    /// Messages in (frames and events).
-    pub input: u64,
-    /// Messages the stage produced.
-    pub output: u64,
-    /// Frames dropped on the edge into this stage.
-    pub dropped: u64,
-    /// Inputs the stage rejected (bad input, model errors), each logged.
-    pub errors: u64,
-    /// Time inside `process`, total and per call.
-    pub busy_s: f64,
-    pub mean_us: f64,
-    pub max_us: f64,
-}
-
-#[derive(Debug, Clone, Serialize)]
-pub struct RunReport {
-    pub scene: String,
-    pub source: String,
-    pub frame_policy: FramePolicy,
-    pub frames: u64,
-    pub source_errors: u64,
-    /// Why the run ended: "source_end", "max_frames", "stopped", or "source_failed: ...".
-    pub ended: String,
-    pub wall_s: f64,
-    /// Capture stamp of the first frame (episode times in the text summary are relative to it).
-    pub stream_start: Stamp,
-    /// Stream time from first to last frame.
-    pub stream_s: f64,
-    pub stages: Vec<StageReport>,
-    /// Count of every event kind that reached the end of the chain.
-    pub event_counts: BTreeMap<String, u64>,
-    pub episodes: Vec<ContactEpisode>,
-    pub properties: Vec<TactileProperties>,
-    pub comparisons: Vec<PropertyComparison>,
-    /// Tactile latents without their data (source, shape, solver, validity, guard report).
-    pub latents: Vec<serde_json::Value>,
-}
-
-impl RunReport {
-    /// Human summary, a few lines.
-    pub fn text(&self) -> String {
-        use std::fmt::Write;
-        let mut s = String::new();
-        let _ = writeln!(
-            s,
-            "scene {} on {} ({} frames, {:.2} s of stream in {:.2} s, ended: {})",
-            self.scene, self.source, self.frames, self.stream_s, self.wall_s, self.ended
-        );
-        for st in &self.stages {
-            let _ = writeln!(
-                s,
-                "  stage {:<10} in {:>6} out {:>6} dropped {:>4} errors {:>4}  mean {:>8.1} us  max {:>8.1} us",
-                st.name, st.input, st.output, st.dropped, st.errors, st.mean_us, st.max_us
-            );
-        }
-        for e in &self.episodes {
-            let _ = writeln!(
-                s,
-                "  episode {} {:<10} {:.2}-{:.2} s  {} frames  peak {:.0} px ({:.1} mm^2)",
-                e.episode_id,
-                if e.label.is_empty() { "-" } else { &e.label },
-                e.start.secs_since(self.stream_start),
-                e.end.secs_since(self.stream_start),
-                e.frame_count,
-                e.peak_area_px,
-                e.peak_area_mm2
-            );
-        }
-        for p in &self.properties {
-            let _ = writeln!(
-                s,
-                "  properties {} {:<10} hardness {:.2}±{:.2}  roughness {:.2}±{:.2}  texture {:.2}±{:.2}",
-                p.episode_id,
-                p.label,
-                p.hardness,
-                p.hardness_std,
-                p.roughness,
-                p.roughness_std,
-                p.texture,
-                p.texture_std
-            );
-        }
-        for l in &self.latents {
-            let _ = writeln!(
-                s,
-                "  latent {} {} shape {} solver {} steps {} s {} valid {}{}",
-                l["source"].as_str().unwrap_or(""),
-                l["sensor_id"].as_str().unwrap_or(""),
-                l["shape"],
-                l["solver"].as_str().unwrap_or("-"),
-                l["steps"],
-                l["guidance"],
-                l["valid"],
-                l["guard_report"]
-                    .as_str()
-                    .filter(|r| !r.is_empty())
-                    .map(|r| format!(" ({r})"))
-                    .unwrap_or_default()
-            );
-        }
-        for c in &self.comparisons {
-            let _ = writeln!(s, "  comparison ({}): {}", c.property, c.sentence);
-        }
-        if self.stages.is_empty() {
-            let _ = writeln!(s, "  (the scene runs no stages)");
-        }
-        s
-    }
-}
-
-fn stage_loop(
-    mut stage: Box<dyn Stage>,
-    input: &Edge,
-    output: &Edge,
-    counters: &Counters,
-    replay: bool,
-) {
-    let name = stage.name().to_string();
-    let span = tracing::info_span!("stage", name = %name);
+/// One stage's thread: every input through the stage's runner (the one chain driver: outputs,
+/// then the input, on the input-stamp clock), then its `finish`, then the next edge is closed.
+fn stage_loop(stage: Box<dyn Stage>, input: &Edge, output: &Edge) -> RunnerStats {
+    let mut runner = StageRunner::new(stage);
+    let span = tracing::info_span!("stage", name = %runner.name());
     let _guard = span.enter();
-    let manual = ManualClock::default();
-    let clock: &dyn Clock = if replay { &manual } else { &SystemClock };
-    let mut logged = 0u32;
-    let mut last = Stamp::ZERO;
+    let mut open = true;
     while let Some(msg) = input.pop() {
-        counters.input.fetch_add(1, Ordering::Relaxed);
-        if replay {
-            last = last.max(msg.stamp());
-            manual.set(last);
-        }
-        let t0 = Instant::now();
-        let result = {
-            let _p = tracing::trace_span!("process", kind = msg.kind()).entered();
-            stage.process(&msg, clock)
-        };
-        let ns = u64::try_from(t0.elapsed().as_nanos()).unwrap_or(u64::MAX);
-        counters.busy_ns.fetch_add(ns, Ordering::Relaxed);
-        counters.max_ns.fetch_max(ns, Ordering::Relaxed);
-        let mut ok = true;
-        match result {
-            Ok(outs) => {
-                counters
-                    .output
-                    .fetch_add(outs.len() as u64, Ordering::Relaxed);
-                for o in outs {
-                    ok &= output.push(o);
-                }
-            }
-            Err(e) => {
-                counters.errors.fetch_add(1, Ordering::Relaxed);
-                if logged < 10 {
-                    tracing::warn!(stage = %name, "input {} at {:?} rejected: {e}", msg.kind(), msg.stamp());
-                    logged += 1;
-                }
+        let rejected = runner.feed(msg, &mut |o| open &= output.push(o));
+        if let Some(r) = rejected {
+            if runner.stats().errors <= 10 {
+                tracing::warn!("{r}");
             }
         }
-        ok &= output.push(msg);
-        if !ok {
+        if !open {
             break;
         }
     }
-    match stage.finish(clock) {
-        Ok(outs) => {
-            counters
-                .output
-                .fetch_add(outs.len() as u64, Ordering::Relaxed);
-            for o in outs {
-                output.push(o);
-            }
-        }
-        Err(e) => {
-            counters.errors.fetch_add(1, Ordering::Relaxed);
-            tracing::warn!(stage = %name, "finish failed: {e}");
-        }
+    if let Some(r) = runner.finish(&mut |o| {
+        output.push(o);
+    }) {
+        tracing::warn!("{r}");
     }
     output.close();
+    runner.stats().clone()
 }
 
 /// Run `stages` on `source` until the source ends, `max_frames` is reached or `stop` is set.
-/// `on_event` sees every non-frame message that leaves the last stage, in order.
+/// `on_message` sees every message that leaves the last stage, in order, frames included (with
+/// a lossless `--fast` replay that is every frame of the source: `unitac run --out` records them).
 pub fn run(
     scene: &Scene,
     mut source: Box<dyn Source>,
     stages: Vec<Box<dyn Stage>>,
     opts: &RunOptions,
-    mut on_event: impl FnMut(&Msg),
+    mut on_message: impl FnMut(&Msg),
 ) -> RunReport {
     let replay = source.is_replay();
     let policy = if replay && !opts.realtime {
@@ -250,31 +88,32 @@ pub fn run(
         })
         .collect();
     let names: Vec<String> = stages.iter().map(|s| s.name().to_string()).collect();
-    let counters: Vec<Arc<Counters>> = (0..n).map(|_| Arc::new(Counters::default())).collect();
     let source_name = source.name().to_string();
     let started = Instant::now();
 
     let mut handles = Vec::new();
     for (i, stage) in stages.into_iter().enumerate() {
-        let (input, output, c) = (
-            Arc::clone(&edges[i]),
-            Arc::clone(&edges[i + 1]),
-            Arc::clone(&counters[i]),
-        );
+        let (input, output) = (Arc::clone(&edges[i]), Arc::clone(&edges[i + 1]));
         handles.push(std::thread::spawn(move || {
-            stage_loop(stage, &input, &output, &c, replay)
+            stage_loop(stage, &input, &output)
         }));
     }
 
     // Source thread.
     let first_edge = Arc::clone(&edges[0]);
     let stop = Arc::clone(&opts.stop);
-    let (realtime, max_frames) = (opts.realtime, opts.max_frames);
+    let max_frames = opts.max_frames;
+    // Replay sources (mock, bag) are paced to their stamps unless --fast; live ones come at
+    // their own pace.
+    let mut pacer = if replay && opts.realtime {
+        Pacer::real_time()
+    } else {
+        Pacer::fast()
+    };
     let source_thread = std::thread::spawn(move || {
         let _span = tracing::info_span!("source").entered();
         let (mut frames, mut errors, mut in_a_row) = (0u64, 0u64, 0u32);
         let (mut first, mut last) = (None::<Stamp>, Stamp::ZERO);
-        let t0 = Instant::now();
         let ended = loop {
             if stop.load(Ordering::SeqCst) {
                 break "stopped".to_string();
@@ -285,17 +124,12 @@ pub fn run(
             match source.next_frame() {
                 Ok(Some(f)) => {
                     in_a_row = 0;
-                    let f0 = *first.get_or_insert(f.stamp);
+                    first.get_or_insert(f.stamp);
                     last = f.stamp;
-                    if replay && realtime {
-                        let due = Duration::from_secs_f64(f.stamp.secs_since(f0).max(0.0));
-                        while let Some(wait) = due.checked_sub(t0.elapsed()) {
-                            if stop.load(Ordering::SeqCst) {
-                                break;
-                            }
-                            std::thread::sleep(wait.min(Duration::from_millis(50)));
-                        }
-                    }
+                    pacer.wait(f.stamp, |d| {
+                        std::thread::sleep(d);
+                        !stop.load(Ordering::SeqCst)
+                    });
                     frames += 1;
                     if !first_edge.push(Msg::Frame(f)) {
                         break "stopped".to_string();
@@ -331,11 +165,11 @@ pub fn run(
     let mut latents = Vec::new();
     let tail = Arc::clone(&edges[n]);
     while let Some(m) = tail.pop() {
+        on_message(&m);
         if m.is_frame() {
             continue;
         }
         *event_counts.entry(m.kind().to_string()).or_default() += 1;
-        on_event(&m);
         match m {
             Msg::Episode(e) if episodes.len() < MAX_KEPT_EVENTS => episodes.push(e),
             Msg::Properties(p) if properties.len() < MAX_KEPT_EVENTS => properties.push(p),
@@ -360,32 +194,16 @@ pub fn run(
                 0.0,
             )
         });
-    for h in handles {
-        if h.join().is_err() {
-            tracing::error!("a stage thread panicked");
-        }
-    }
     let stages = names
         .into_iter()
-        .zip(&counters)
+        .zip(handles)
         .enumerate()
-        .map(|(i, (name, c))| {
-            let input = c.input.load(Ordering::Relaxed);
-            let busy = c.busy_ns.load(Ordering::Relaxed) as f64;
-            StageReport {
-                name,
-                input,
-                output: c.output.load(Ordering::Relaxed),
-                dropped: edges[i].dropped(),
-                errors: c.errors.load(Ordering::Relaxed),
-                busy_s: busy * 1e-9,
-                mean_us: if input > 0 {
-                    busy / input as f64 * 1e-3
-                } else {
-                    0.0
-                },
-                max_us: c.max_ns.load(Ordering::Relaxed) as f64 * 1e-3,
-            }
+        .map(|(i, (name, h))| {
+            let c = h.join().unwrap_or_else(|_| {
+                tracing::error!("stage {name}: its thread panicked");
+                RunnerStats::default()
+            });
+            StageReport::new(name, &c, edges[i].dropped())
         })
         .collect();
     RunReport {

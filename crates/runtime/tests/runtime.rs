@@ -7,7 +7,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 use unitac_core::scene::SceneContext;
 use unitac_core::{Clock, Frame, Msg, Scene, Source, SourceError, Stage, StageError, Stamp};
-use unitac_runtime::{FramePolicy, KNOWN_STAGES, RunOptions, build_source, build_stages, run};
+use unitac_pipeline::{KNOWN_STAGES, build_source, build_stages};
+use unitac_runtime::{FramePolicy, RunOptions, run};
 
 fn scene(text: &str) -> Scene {
     let ctx = SceneContext {
@@ -169,7 +170,9 @@ fn events_json(max_frames: Option<u64>) -> Vec<String> {
         build_stages(&sc).unwrap(),
         &opts,
         |m| {
-            out.push(m.to_json().to_string());
+            if !m.is_frame() {
+                out.push(m.to_json().to_string());
+            }
         },
     );
     assert_eq!(report.frame_policy, FramePolicy::Lossless);

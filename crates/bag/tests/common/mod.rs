@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use unitac_bag::replay::{ImageResult, OutputBag, Pace, ReplayReport, replay};
+use unitac_bag::replay::{ImageResult, OutputBag, ReplayReport, replay};
 use unitac_bag::{BagSource, ReplayOptions};
 use unitac_contact::{ContactParams, ContactStage};
 use unitac_core::{Frame, Msg, SensorKind, Source, Stage};
@@ -74,7 +74,7 @@ pub fn replay_contact(
     out: Option<&Path>,
 ) -> (Vec<Line>, ReplayReport) {
     let mut src = BagSource::open(bag, opts).unwrap();
-    let mut stages = contact_stage();
+    let mut chain = unitac_core::Chain::new(contact_stage());
     let mut out = out.map(|p| {
         OutputBag::new(
             unitac_bag::BagWriter::create(p, unitac_bag::WriteOptions::default()).unwrap(),
@@ -84,9 +84,9 @@ pub fn replay_contact(
     let stop = std::sync::atomic::AtomicBool::new(false);
     let report = replay(
         &mut src,
-        &mut stages,
+        &mut chain,
         out.as_mut(),
-        Pace::Fast,
+        &mut unitac_core::Pacer::fast(),
         &stop,
         |r: &ImageResult| lines.push((r.stamp, r.events.clone(), r.error.clone())),
         |_| {},

@@ -11,36 +11,22 @@
 use futures::{FutureExt, StreamExt};
 use r2r::{QosProfile, RosParams};
 use std::time::{Duration, Instant};
-use unitac_contact::{ContactParams, ContactStage};
-use unitac_core::{ManualClock, Msg, SensorKind, Stage};
+use unitac_core::{Chain, Msg, sensor_id_of};
 use unitac_ros::drops::DropCounter;
 use unitac_ros::node::NodeBase;
 use unitac_ros::{convert, diagnostics, image};
 
+/// The node's own parameters. The contact stage's parameters come from the scene file's contact
+/// stage, as `unitac run` reads them; override one with `contact.<key>` (e.g.
+/// `-p contact.noise_k:=4.0`, or in a params file); an unknown key is an error.
 #[derive(RosParams, Debug, Clone)]
 struct Params {
+    /// Scene: a scene name (looked up like `unitac run --scene`) or a path to a scene YAML
+    scene: String,
     /// Sensor id used in messages (default: the image's frame_id without "_optical_frame")
     sensor_id: String,
-    /// gelsight-mini | digit | generic (mm per pixel, marker masking)
+    /// gelsight-mini | digit | generic (empty: the scene's sensor)
     sensor_kind: String,
-    /// Frames averaged into the initial background
-    learn_frames: i32,
-    /// Threshold in units of the measured noise sigma
-    noise_k: f64,
-    /// Lower bound of the threshold [DN, summed over channels]
-    min_threshold: f64,
-    /// Contact starts at this area [px]
-    enter_area_px: f64,
-    /// Contact ends below this area [px]
-    exit_area_px: f64,
-    /// Frames needed to enter contact
-    debounce_frames: i32,
-    /// Frames per episode published on contact_clip for the encoder (0: no clips)
-    clip_frames: i32,
-    /// Labels given to episodes in order, comma-separated (e.g. "fabric_a,fabric_b")
-    episode_labels: String,
-    /// Directory of saved backgrounds per sensor (empty: learn at every start)
-    background_dir: String,
     /// raw: sensor_msgs/Image on `image`; compressed: sensor_msgs/CompressedImage (jpeg, png) on
     /// `image/compressed`, as image_transport names it
     image_transport: String,
@@ -48,74 +34,59 @@ struct Params {
 
 impl Default for Params {
     fn default() -> Self {
-        let d = ContactParams::default();
         Self {
+            scene: "fabric_selection".into(),
             sensor_id: String::new(),
-            sensor_kind: "gelsight-mini".into(),
-            learn_frames: d.learn_frames as i32,
-            noise_k: f64::from(d.noise_k),
-            min_threshold: f64::from(d.min_threshold),
-            enter_area_px: f64::from(d.enter_area_px),
-            exit_area_px: f64::from(d.exit_area_px),
-            debounce_frames: d.debounce_frames as i32,
-            clip_frames: 8,
-            episode_labels: String::new(),
-            background_dir: String::new(),
+            sensor_kind: String::new(),
             image_transport: "raw".into(),
         }
     }
 }
 
-impl Params {
-    fn contact(&self) -> Result<(ContactParams, SensorKind), String> {
-        let kind: SensorKind = self.sensor_kind.parse()?;
-        let nonneg = |v: i32, n: &str| u32::try_from(v).map_err(|_| format!("{n} must be >= 0"));
-        let p = ContactParams {
-            learn_frames: nonneg(self.learn_frames, "learn_frames")?,
-            noise_k: self.noise_k as f32,
-            min_threshold: self.min_threshold as f32,
-            enter_area_px: self.enter_area_px as f32,
-            exit_area_px: self.exit_area_px as f32,
-            debounce_frames: nonneg(self.debounce_frames, "debounce_frames")?,
-            clip_frames: nonneg(self.clip_frames, "clip_frames")?,
-            episode_labels: unitac_ros::list_param(&self.episode_labels),
-            background_dir: (!self.background_dir.is_empty())
-                .then(|| self.background_dir.clone().into()),
-            ..Default::default()
-        };
-        p.check()?;
-        Ok((p, kind))
+/// Stage kinds this node runs.
+const STAGES: &[&str] = &["contact"];
+
+/// An image received: its header stamp (checked) and the converted frame.
+struct Received {
+    stamp: Result<unitac_core::Stamp, String>,
+    frame: Result<unitac_core::Frame, String>,
+}
+
+/// A header stamp as a capture time, or why it cannot be one (ROS time is unsigned; nanosec
+/// below 1e9). Never rewritten silently.
+fn checked_stamp(t: &r2r::builtin_interfaces::msg::Time) -> Result<unitac_core::Stamp, String> {
+    if t.sec < 0 || t.nanosec > 999_999_999 {
+        return Err(format!(
+            "header stamp {}.{:09} is not a valid ROS time",
+            t.sec, t.nanosec
+        ));
     }
+    Ok(convert::stamp(t))
 }
 
 /// Everything queued on `sub`, converted (r2r's subscription buffer is small and drops silently).
 fn drain<T>(
     sub: &mut (impl futures::Stream<Item = T> + Unpin),
-    out: &mut Vec<Result<unitac_core::Frame, String>>,
-    mut convert: impl FnMut(&T) -> Result<unitac_core::Frame, String>,
+    out: &mut Vec<Received>,
+    mut convert: impl FnMut(&T) -> Received,
 ) {
     while let Some(Some(m)) = sub.next().now_or_never() {
         out.push(convert(&m));
     }
 }
 
-/// The sensor id of an image: the configured one, else its frame_id without "_optical_frame".
-fn id_of(configured: &str, frame_id: &str) -> String {
-    if configured.is_empty() {
-        frame_id.trim_end_matches("_optical_frame").to_string()
-    } else {
-        configured.to_string()
-    }
-}
-
 fn run() -> anyhow::Result<()> {
-    let mut base = NodeBase::<Params>::new("unitac_contact")?;
+    let mut base = NodeBase::<Params>::new("unitac_contact", STAGES)?;
     let p = base.params()?;
-    let (cp, kind) = p
-        .contact()
-        .map_err(|e| anyhow::anyhow!("bad parameters: {e}"))?;
+    let (_, stages) = unitac_ros::scene_stages(
+        "unitac_contact_node",
+        &p.scene,
+        &p.sensor_kind,
+        STAGES,
+        base.stage_overrides(),
+    )?;
+    let mut chain = Chain::new(stages);
     let sensor_id = p.sensor_id;
-    let mut stage = ContactStage::new(cp, kind.spec()).map_err(anyhow::Error::msg)?;
 
     let node = &mut base.node;
     // One of the two subscriptions, by `image_transport`.
@@ -153,7 +124,6 @@ fn run() -> anyhow::Result<()> {
     );
     let mut counters = diagnostics::Counters::default();
     let mut drops = DropCounter::default();
-    let clock = ManualClock::default();
     let (mut seq, mut in_contact) = (0u64, false);
     let publish = |out: Vec<Msg>, in_contact: &mut bool, counters: &mut diagnostics::Counters| {
         for m in out {
@@ -175,42 +145,55 @@ fn run() -> anyhow::Result<()> {
         // Drain everything queued (r2r's subscription buffer is small and drops silently; the
         // stamp gaps below count what was lost anyway).
         let mut inputs = Vec::new();
+        let id = |frame_id: &str| sensor_id_of(Some(&sensor_id), frame_id, "sensor");
         if let Some(sub) = raw.as_mut() {
             drain(sub, &mut inputs, |m| {
                 seq += 1;
-                image::to_frame(m, &id_of(&sensor_id, &m.header.frame_id), seq)
+                Received {
+                    stamp: checked_stamp(&m.header.stamp),
+                    frame: image::to_frame(m, &id(&m.header.frame_id), seq)
+                        .map_err(|e| e.to_string()),
+                }
             });
         }
         if let Some(sub) = compressed.as_mut() {
             drain(sub, &mut inputs, |m| {
                 seq += 1;
-                image::compressed_to_frame(m, &id_of(&sensor_id, &m.header.frame_id), seq)
+                Received {
+                    stamp: checked_stamp(&m.header.stamp),
+                    frame: image::compressed_to_frame(m, &id(&m.header.frame_id), seq)
+                        .map_err(|e| e.to_string()),
+                }
             });
         }
-        for f in inputs {
+        for r in inputs {
+            // Each frame is counted once: in, and then either processed, or an error (a bad
+            // stamp, an undecodable image, a frame the stage rejects). Only stamp gaps between
+            // frames that arrived count as drops.
             counters.frames_in += 1;
             let t0 = Instant::now();
-            let frame = match f {
-                Ok(f) => f,
-                Err(e) => {
-                    counters.errors += 1;
-                    counters.last_error = e;
+            let frame = match (r.stamp, r.frame) {
+                (Ok(stamp), Ok(f)) => {
+                    counters.dropped += drops.observe(stamp.0);
+                    f
+                }
+                (Err(e), _) => {
+                    counters.error(e);
+                    continue;
+                }
+                (Ok(stamp), Err(e)) => {
+                    drops.observe(stamp.0);
+                    counters.error(e);
                     continue;
                 }
             };
-            counters.dropped += drops.observe(frame.stamp.0);
-            clock.set(frame.stamp);
             let captured = frame.stamp;
-            match stage.process(&Msg::Frame(frame), &clock) {
-                Ok(out) => {
-                    publish(out, &mut in_contact, &mut counters);
-                    counters.latency(base.age_s(captured));
-                }
-                Err(e) => {
-                    counters.errors += 1;
-                    counters.last_error = e.to_string();
-                }
+            let out = chain.run(Msg::Frame(frame));
+            for e in out.errors {
+                counters.error(e.to_string());
             }
+            publish(out.produced, &mut in_contact, &mut counters);
+            counters.latency(base.age_s(captured));
             counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
         }
         let extra = [("in_contact", in_contact.to_string())];
@@ -219,10 +202,11 @@ fn run() -> anyhow::Result<()> {
         }
     }
     // Flush an open episode and save the background (background_dir).
-    match stage.finish(&clock) {
-        Ok(out) => publish(out, &mut in_contact, &mut counters),
-        Err(e) => eprintln!("unitac_contact_node: finishing: {e}"),
+    let end = chain.finish();
+    for e in &end.errors {
+        eprintln!("unitac_contact_node: finishing: {e}");
     }
+    publish(end.produced, &mut in_contact, &mut counters);
     base.spin(Duration::from_millis(50));
     Ok(())
 }

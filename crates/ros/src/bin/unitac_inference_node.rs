@@ -4,18 +4,20 @@
 //! and PropertyComparison out (reliable); /diagnostics once a second with model timings.
 //!
 //! The stages, their parameters and model bundles come from the scene file (the same file
-//! `unitac run` reads), so the robot and the embedded runtime run the same configuration.
+//! `unitac run` reads, through the same registry), so the robot and the embedded runtime run the
+//! same configuration; `encoder.<key>`, `compare.<key>`, `sampler.<key>` parameters override
+//! the scene's stage params (an unknown key is an error). Each stage's clock is its input's
+//! stamp, as in every transport.
 //!
 //! Topics (relative): `contact_clip`, `background` in; `tactile_properties`, `tactile_latent`,
 //! `property_comparison` out.
 
 use futures::{FutureExt, StreamExt};
 use r2r::{QosProfile, RosParams};
-use std::path::PathBuf;
 use std::time::Duration;
-use unitac_core::{Msg, Scene, SystemClock};
+use unitac_core::{Chain, Msg, Scene, sensor_id_of};
 use unitac_ros::node::NodeBase;
-use unitac_ros::{chain, convert, diagnostics, image};
+use unitac_ros::{convert, diagnostics, image};
 
 /// Stage kinds this node runs (the contact stage runs in the contact node).
 const INFERENCE_STAGES: &[&str] = &["encoder", "compare", "sampler"];
@@ -38,8 +40,12 @@ impl Default for Params {
     }
 }
 
-/// The scene's inference stages, built and checked before the node subscribes to anything.
-fn build(p: &Params) -> anyhow::Result<(Scene, Vec<Box<dyn unitac_core::Stage>>)> {
+/// The scene's inference stages (those `stages` names, else all), built and checked before the
+/// node subscribes to anything.
+fn build(
+    p: &Params,
+    overrides: &[(String, serde_yaml::Value)],
+) -> anyhow::Result<(Scene, Vec<Box<dyn unitac_core::Stage>>)> {
     let wanted = unitac_ros::list_param(&p.stages);
     if let Some(bad) = wanted
         .iter()
@@ -50,34 +56,30 @@ fn build(p: &Params) -> anyhow::Result<(Scene, Vec<Box<dyn unitac_core::Stage>>)
             INFERENCE_STAGES.join(", ")
         );
     }
-    let dirs = unitac_runtime::registry::scene_dirs(None::<PathBuf>);
-    let path = unitac_core::scene::resolve(&p.scene, &dirs)?;
-    let mut scene = Scene::load(&path, &unitac_runtime::registry::scene_context())?;
-    scene.stages.retain(|s| {
-        INFERENCE_STAGES.contains(&s.kind.as_str())
-            && (wanted.is_empty() || wanted.contains(&s.kind))
-    });
-    let stages = unitac_runtime::build_stages(&scene)?;
-    Ok((scene, stages))
+    let kinds: Vec<&str> = INFERENCE_STAGES
+        .iter()
+        .copied()
+        .filter(|k| wanted.is_empty() || wanted.iter().any(|w| w == k))
+        .collect();
+    unitac_ros::scene_stages("unitac_inference_node", &p.scene, "", &kinds, overrides)
 }
 
 /// Calls and seconds per stage, for the diagnostics' model timings.
 struct Timing(Vec<(String, u64, f64)>);
 
 impl Timing {
-    fn new(stages: &[Box<dyn unitac_core::Stage>]) -> Self {
+    /// From the chain's per-stage counters.
+    fn of(chain: &Chain) -> Self {
         Self(
-            stages
+            chain
+                .runners()
                 .iter()
-                .map(|s| (s.name().to_string(), 0, 0.0))
+                .map(|r| {
+                    let s = r.stats();
+                    (r.name().to_string(), s.input, s.busy_ns as f64 * 1e-9)
+                })
                 .collect(),
         )
-    }
-    fn add(&mut self, t: &[(String, f64)]) {
-        for (acc, (_, s)) in self.0.iter_mut().zip(t) {
-            acc.1 += 1;
-            acc.2 += s;
-        }
     }
     fn values(&self) -> Vec<(&str, String)> {
         self.0
@@ -91,10 +93,11 @@ impl Timing {
 }
 
 fn run() -> anyhow::Result<()> {
-    let mut base = NodeBase::<Params>::new("unitac_inference")?;
+    let mut base = NodeBase::<Params>::new("unitac_inference", INFERENCE_STAGES)?;
     let p = base.params()?;
-    let (scene, mut stages) = build(&p)?;
-    if stages.is_empty() {
+    let (scene, stages) = build(&p, base.stage_overrides())?;
+    let mut chain = Chain::new(stages);
+    if chain.is_empty() {
         eprintln!(
             "unitac_inference_node: scene '{}' has no inference stages to run; idle",
             scene.name
@@ -129,18 +132,15 @@ fn run() -> anyhow::Result<()> {
         &scene.name,
     );
     let mut counters = diagnostics::Counters::default();
-    let mut timing = Timing::new(&stages);
     let mut last_episode = std::collections::HashMap::<String, u64>::new();
-    let mut handle = |input: Msg, counters: &mut diagnostics::Counters, timing: &mut Timing| {
+    let handle = |input: Msg, counters: &mut diagnostics::Counters, chain: &mut Chain| {
         counters.frames_in += 1;
         let t0 = std::time::Instant::now();
-        // Compute times are real (system clock); stamps come from the inputs.
-        let out = chain::run(&mut stages, input, &SystemClock);
+        // The clock rule of every transport: each stage sees its input's stamp.
+        let out = chain.run(input);
         counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
-        timing.add(&out.timings);
-        for (stage, e) in out.errors {
-            counters.errors += 1;
-            counters.last_error = format!("{stage}: {e}");
+        for e in out.errors {
+            counters.error(e.to_string());
         }
         for m in out.produced {
             let r = match &m {
@@ -155,17 +155,10 @@ fn run() -> anyhow::Result<()> {
     while !base.stopped() {
         base.spin(Duration::from_millis(5));
         while let Some(Some(bg)) = backgrounds.next().now_or_never() {
-            let id = bg
-                .header
-                .frame_id
-                .trim_end_matches("_optical_frame")
-                .to_string();
+            let id = sensor_id_of(None, &bg.header.frame_id, "sensor");
             match image::to_frame(&bg, &id, 0) {
-                Ok(f) => handle(Msg::Background(f), &mut counters, &mut timing),
-                Err(e) => {
-                    counters.errors += 1;
-                    counters.last_error = format!("background: {e}");
-                }
+                Ok(f) => handle(Msg::Background(f), &mut counters, &mut chain),
+                Err(e) => counters.error(format!("background: {e}")),
             }
         }
         while let Some(Some(c)) = clips.next().now_or_never() {
@@ -177,17 +170,15 @@ fn run() -> anyhow::Result<()> {
             match convert::contact_clip_from(&c) {
                 Ok(clip) => {
                     let captured = clip.frames.last().map(|f| f.stamp);
-                    handle(Msg::Clip(clip), &mut counters, &mut timing);
+                    handle(Msg::Clip(clip), &mut counters, &mut chain);
                     if let Some(t) = captured {
                         counters.latency(base.age_s(t));
                     }
                 }
-                Err(e) => {
-                    counters.errors += 1;
-                    counters.last_error = format!("contact_clip: {e}");
-                }
+                Err(e) => counters.error(format!("contact_clip: {e}")),
             }
         }
+        let timing = Timing::of(&chain);
         let extra = timing.values();
         if let Some(a) = diag.tick(&mut counters, base.now(), &extra) {
             base.publish_diagnostics(&a)?;

@@ -12,57 +12,52 @@
 //!   CompressedImage to `image_raw/compressed` (image_transport's names).
 
 use r2r::{QosProfile, RosParams};
-use std::path::PathBuf;
 use std::time::{Duration, Instant};
-use unitac_core::{SensorKind, Source, SourceError};
+use unitac_core::scene::SourceKind;
+use unitac_core::{Pacer, Scene, SourceError};
 use unitac_ros::node::NodeBase;
 use unitac_ros::{convert, diagnostics, image};
-use unitac_sim::{MockConfig, MockSensor, Scenario};
 
 /// Consecutive frame errors after which a live source is given up (about 40 s at 25 fps).
 const MAX_ERRORS_IN_A_ROW: u32 = 1000;
 
+/// The source comes from the scene file's `source:` (kind, sensor, scenario, seed, fps, serial,
+/// path), built by the same registry `unitac run` uses; these parameters override it.
 #[derive(RosParams, Debug, Clone)]
 struct Params {
-    /// mock | v4l | bag
+    /// Scene: a scene name (looked up like `unitac run --scene`) or a path to a scene YAML
+    scene: String,
+    /// mock | v4l | bag (empty: the scene's source)
     source: String,
-    /// gelsight-mini | digit | generic
+    /// gelsight-mini | digit | generic (empty: the scene's sensor)
     sensor_kind: String,
-    /// Sensor id (frame_id prefix); empty = mock_<kind> (mock), the serial (v4l)
+    /// Sensor id: frame_id is `<sensor_id>_optical_frame` (empty: the scene's, else mock_<kind>
+    /// for the mock sensor, the serial for a live one)
     sensor_id: String,
-    /// v4l: serial of the sensor (empty: the only one of sensor_kind on the bus)
+    /// Serial of a live sensor (v4l; empty: the scene's, else the only one of its kind)
     serial: String,
-    /// mock: scenario (fabric_selection | cup_deformation | idle)
-    scenario: String,
-    /// mock: noise seed
-    seed: i64,
-    /// mock: frame rate [Hz]; 0 = the sensor's
-    fps: f64,
-    /// mock, bag: start again at the end (`loop` is a Rust keyword r2r cannot name)
+    /// Start the scenario (mock) or the bag again at its end
     repeat: bool,
-    /// mock, bag: wait (up to 30 s) until this many subscribers matched before the first frame,
-    /// so nodes started together see the scenario from its start (0 = do not wait)
+    /// Wait until this many subscribers matched before the first frame (mock, bag; 0: no wait)
     wait_subscribers: i32,
-    /// bag: path of a rosbag2 directory, .mcap or .db3
+    /// Bag path: rosbag2 directory, .mcap or .db3 (bag source; empty: the scene's)
     bag: String,
-    /// bag: the image topic to republish (empty: the first Image or CompressedImage topic)
+    /// Image topic in the bag (empty: the first Image or CompressedImage topic)
     bag_topic: String,
-    /// bag: playback rate (1 = recorded pace)
+    /// Playback rate: bag time per wall time (bag source)
     rate: f64,
-    /// bag: publish /clock with the bag time
+    /// Publish /clock with the bag's time (bag source; for nodes under use_sim_time)
     publish_clock: bool,
 }
 
 impl Default for Params {
     fn default() -> Self {
         Self {
-            source: "mock".into(),
-            sensor_kind: "gelsight-mini".into(),
+            scene: "fabric_selection".into(),
+            source: String::new(),
+            sensor_kind: String::new(),
             sensor_id: String::new(),
             serial: String::new(),
-            scenario: "fabric_selection".into(),
-            seed: 7,
-            fps: 0.0,
             repeat: false,
             wait_subscribers: 0,
             bag: String::new(),
@@ -88,35 +83,41 @@ fn wait_for_subscribers(
 }
 
 /// Mock and V4L2: frames from a `Source`, converted to rgb8 Images.
-fn run_source(base: &mut Base, p: &Params) -> anyhow::Result<()> {
-    let kind: SensorKind = p.sensor_kind.parse().map_err(anyhow::Error::msg)?;
-    let live = p.source == "v4l";
-    let mut cfg = MockConfig::new(kind, u64::try_from(p.seed).unwrap_or(0));
+/// The scene with this node's overrides applied (source kind, sensor, id, serial, bag).
+fn scene_of(p: &Params) -> anyhow::Result<Scene> {
+    let mut scene = unitac_pipeline::load_scene(&p.scene, None)?;
+    let src = &mut scene.source;
+    if !p.source.is_empty() {
+        src.kind = match p.source.as_str() {
+            "mock" => SourceKind::Mock,
+            "v4l" => SourceKind::V4l,
+            "bag" => SourceKind::Bag,
+            other => anyhow::bail!("source '{other}' is not one of mock, v4l, bag"),
+        };
+    }
+    if !p.sensor_kind.is_empty() {
+        src.sensor = p.sensor_kind.parse().map_err(anyhow::Error::msg)?;
+    }
     if !p.sensor_id.is_empty() {
-        cfg.sensor_id = p.sensor_id.clone();
+        src.sensor_id = Some(p.sensor_id.clone());
     }
-    if p.fps > 0.0 && p.fps <= 1000.0 {
-        cfg.fps = p.fps;
+    if !p.serial.is_empty() {
+        src.serial = Some(p.serial.clone());
     }
-    let scenario = Scenario::by_name(&p.scenario)?;
-    let open = |cfg: &MockConfig| -> anyhow::Result<Box<dyn Source>> {
-        if live {
-            let serial = (!p.serial.is_empty()).then_some(p.serial.as_str());
-            unitac_runtime::registry::open_v4l(kind, serial)
-                .map_err(|(field, msg)| anyhow::anyhow!("{field}: {msg}"))
-        } else {
-            Ok(Box::new(MockSensor::new(cfg.clone(), scenario.clone())))
-        }
-    };
-    let mut source = open(&cfg)?;
+    if !p.bag.is_empty() {
+        src.path = Some(p.bag.clone().into());
+    }
+    Ok(scene)
+}
+
+fn run_source(base: &mut Base, p: &Params, scene: &Scene) -> anyhow::Result<()> {
+    let live = scene.source.kind == SourceKind::V4l;
+    let open = || unitac_pipeline::build_source(scene, None).map_err(anyhow::Error::from);
+    let mut source = open()?;
     let publisher = base
         .node
         .create_publisher::<r2r::sensor_msgs::msg::Image>("image_raw", QosProfile::default())?;
-    let hardware_id = if live {
-        p.serial.clone()
-    } else {
-        cfg.sensor_id.clone()
-    };
+    let hardware_id = source.name().to_string();
     let mut diag = diagnostics::Updater::new(
         &format!("unitac_sensor: {}", base.node.fully_qualified_name()?),
         &hardware_id,
@@ -132,10 +133,9 @@ fn run_source(base: &mut Base, p: &Params) -> anyhow::Result<()> {
     let (mut errors_in_a_row, mut device) = (0u32, "streaming".to_string());
     let mut last_seq: Option<u64> = None;
     'outer: loop {
-        let t0 = Instant::now();
         // Mock stamps are wall-clock capture times: the mock's frame times shifted to now.
-        let offset = unitac_core::Clock::now(&unitac_core::SystemClock).0 - unitac_sim::EPOCH.0;
-        let mut k = 0u64;
+        let mut offset = None::<i64>;
+        let mut pacer = Pacer::real_time();
         loop {
             if base.stopped() {
                 break 'outer;
@@ -170,11 +170,14 @@ fn run_source(base: &mut Base, p: &Params) -> anyhow::Result<()> {
             }
             last_seq = Some(f.seq);
             if !live {
-                let due = Duration::from_secs_f64(k as f64 / cfg.fps);
-                while t0.elapsed() < due && !base.stopped() {
-                    base.spin(Duration::from_millis(1).min(due.saturating_sub(t0.elapsed())));
-                }
-                f.stamp = f.stamp.saturating_add_nanos(offset);
+                pacer.wait(f.stamp, |d| {
+                    base.spin(d.min(Duration::from_millis(1)));
+                    !base.stopped()
+                });
+                let off = *offset.get_or_insert_with(|| {
+                    unitac_core::Clock::now(&unitac_core::SystemClock).0 - f.stamp.0
+                });
+                f.stamp = f.stamp.saturating_add_nanos(off);
             } else {
                 base.spin(Duration::ZERO);
             }
@@ -184,7 +187,6 @@ fn run_source(base: &mut Base, p: &Params) -> anyhow::Result<()> {
             counters.frames_in += 1;
             counters.messages_out += 1;
             counters.busy_us += t1.elapsed().as_secs_f64() * 1e6;
-            k += 1;
             if let Some(a) = diag.tick(&mut counters, base.now(), &[("device", device.clone())]) {
                 base.publish_diagnostics(&a)?;
             }
@@ -192,7 +194,7 @@ fn run_source(base: &mut Base, p: &Params) -> anyhow::Result<()> {
         if !p.repeat || live {
             break;
         }
-        source = open(&cfg)?;
+        source = open()?;
         last_seq = None;
     }
     linger(base);
@@ -200,15 +202,12 @@ fn run_source(base: &mut Base, p: &Params) -> anyhow::Result<()> {
 }
 
 /// Bag: the image topic's messages as raw CDR, paced by their bag times, with /clock.
-fn run_bag(base: &mut Base, p: &Params) -> anyhow::Result<()> {
+fn run_bag(base: &mut Base, p: &Params, scene: &Scene) -> anyhow::Result<()> {
     use unitac_bag::{BagReader, ReadOptions};
-    if p.bag.is_empty() {
+    let Some(path) = scene.source.path.clone() else {
         anyhow::bail!("source 'bag' needs the parameter bag (a rosbag2 directory, .mcap or .db3)");
-    }
-    if !(p.rate > 0.0 && p.rate <= 1000.0) {
-        anyhow::bail!("rate must be in (0, 1000], got {}", p.rate);
-    }
-    let path = PathBuf::from(&p.bag);
+    };
+    let mut pacer = Pacer::new(Some(p.rate)).map_err(anyhow::Error::msg)?;
     const IMAGE: &str = "sensor_msgs/msg/Image";
     const COMPRESSED: &str = "sensor_msgs/msg/CompressedImage";
     let is_image = |t: &str| t == IMAGE || t == COMPRESSED;
@@ -230,11 +229,11 @@ fn run_bag(base: &mut Base, p: &Params) -> anyhow::Result<()> {
     drop(r);
     let (topic, type_name) = found.ok_or_else(|| {
         if p.bag_topic.is_empty() {
-            anyhow::anyhow!("{}: no {IMAGE} or {COMPRESSED} topic", p.bag)
+            anyhow::anyhow!("{}: no {IMAGE} or {COMPRESSED} topic", path.display())
         } else {
             anyhow::anyhow!(
                 "{}: no {IMAGE} or {COMPRESSED} topic named {}",
-                p.bag,
+                path.display(),
                 p.bag_topic
             )
         }
@@ -253,7 +252,7 @@ fn run_bag(base: &mut Base, p: &Params) -> anyhow::Result<()> {
         .create_publisher::<r2r::rosgraph_msgs::msg::Clock>("/clock", QosProfile::default())?;
     let mut diag = diagnostics::Updater::new(
         &format!("unitac_sensor: {}", base.node.fully_qualified_name()?),
-        &p.bag,
+        &path.display().to_string(),
     );
     let mut counters = diagnostics::Counters::default();
     wait_for_subscribers(base, p.wait_subscribers, || {
@@ -267,7 +266,7 @@ fn run_bag(base: &mut Base, p: &Params) -> anyhow::Result<()> {
     };
     'outer: loop {
         let mut reader = BagReader::open(&path, opts.clone())?;
-        let (t0, mut first) = (Instant::now(), None::<i64>);
+        pacer.restart();
         let mut buf = Vec::new();
         loop {
             if base.stopped() {
@@ -284,13 +283,10 @@ fn run_bag(base: &mut Base, p: &Params) -> anyhow::Result<()> {
             if msg_type != type_name && !msg_type.is_empty() {
                 anyhow::bail!("{topic} changes type from {type_name} to {msg_type}");
             }
-            let start = *first.get_or_insert(log_time);
-            let due =
-                Duration::from_nanos(u64::try_from(log_time.saturating_sub(start)).unwrap_or(0))
-                    .div_f64(p.rate);
-            while t0.elapsed() < due && !base.stopped() {
-                base.spin(Duration::from_millis(1).min(due.saturating_sub(t0.elapsed())));
-            }
+            pacer.wait(unitac_core::Stamp(log_time), |d| {
+                base.spin(d.min(Duration::from_millis(1)));
+                !base.stopped()
+            });
             if p.publish_clock {
                 let c = r2r::rosgraph_msgs::msg::Clock {
                     clock: convert::time(unitac_core::Stamp(log_time)),
@@ -329,12 +325,12 @@ fn linger(base: &mut Base) {
 }
 
 fn run() -> anyhow::Result<()> {
-    let mut base = Base::new("unitac_sensor")?;
+    let mut base = Base::new("unitac_sensor", &[])?;
     let p = base.params()?;
-    match p.source.as_str() {
-        "mock" | "v4l" => run_source(&mut base, &p),
-        "bag" => run_bag(&mut base, &p),
-        other => anyhow::bail!("source '{other}' is not one of mock, v4l, bag"),
+    let scene = scene_of(&p)?;
+    match scene.source.kind {
+        SourceKind::Mock | SourceKind::V4l => run_source(&mut base, &p, &scene),
+        SourceKind::Bag => run_bag(&mut base, &p, &scene),
     }
 }
 

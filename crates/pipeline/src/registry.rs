@@ -1,4 +1,4 @@
-//! Stage kinds and sources the runner can build from a scene.
+//! Stage kinds and sources a scene can name, and how each is built.
 
 use serde::de::DeserializeOwned;
 use std::path::PathBuf;
@@ -6,6 +6,7 @@ use unitac_bag::{BagSource, ReplayOptions};
 use unitac_contact::{ContactParams, ContactStage};
 use unitac_core::scene::{SceneContext, SceneError, SensorArg, SourceKind, StageSpec};
 use unitac_core::{Scene, Source, Stage};
+
 use unitac_infer::RuntimeConfig;
 use unitac_infer::encoder::{CompareParams, CompareStage, EncoderStage};
 use unitac_infer::predict::{SamplerParams, SamplerStage};
@@ -144,10 +145,64 @@ fn params<T: DeserializeOwned + Default>(
     })
 }
 
-/// Build every stage of the scene, in order. Fails before anything runs.
-pub fn build_stages(scene: &Scene) -> Result<Vec<Box<dyn Stage>>, SceneError> {
+/// A stage of a scene with its typed parameters, checked, before anything is loaded. The one
+/// place scene params become the structs the stages take, for every transport.
+#[derive(Debug, Clone, PartialEq)]
+pub enum StageConfig {
+    Contact {
+        params: ContactParams,
+        sensor: unitac_core::SensorSpec,
+    },
+    Encoder {
+        runtime: RuntimeConfig,
+        bundle: PathBuf,
+    },
+    Compare(CompareParams),
+    Sampler {
+        params: SamplerParams,
+        bundle: PathBuf,
+    },
+}
+
+impl StageConfig {
+    /// The scene's stage kind.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            StageConfig::Contact { .. } => "contact",
+            StageConfig::Encoder { .. } => "encoder",
+            StageConfig::Compare(_) => "compare",
+            StageConfig::Sampler { .. } => "sampler",
+        }
+    }
+}
+
+/// The model bundle directory of a stage that names exactly one model.
+fn bundle_of(
+    scene: &Scene,
+    st: &StageSpec,
+    bad: &dyn Fn(String) -> SceneError,
+) -> Result<PathBuf, SceneError> {
+    let [name] = st.models.as_slice() else {
+        return Err(bad(format!(
+            "a {} stage names exactly one model bundle in models:",
+            st.kind
+        )));
+    };
+    // Scene::load checked that the file exists; the bundle is the manifest's directory.
+    let manifest = scene
+        .models
+        .get(name)
+        .ok_or_else(|| bad(format!("model '{name}' not loaded")))?;
+    Ok(manifest
+        .parent()
+        .unwrap_or(std::path::Path::new("."))
+        .to_path_buf())
+}
+
+/// Every stage's typed parameters, in order; fails on the first bad one (one line).
+pub fn stage_configs(scene: &Scene) -> Result<Vec<StageConfig>, SceneError> {
     let spec = scene.source.sensor.spec();
-    let mut out: Vec<Box<dyn Stage>> = Vec::new();
+    let mut out = Vec::new();
     for (i, st) in scene.stages.iter().enumerate() {
         let index = i + 1;
         let bad = |msg: String| SceneError::BadValue {
@@ -155,54 +210,24 @@ pub fn build_stages(scene: &Scene) -> Result<Vec<Box<dyn Stage>>, SceneError> {
             field: format!("stages[{index}].params ({})", st.kind),
             msg,
         };
-        match st.kind.as_str() {
+        out.push(match st.kind.as_str() {
             "contact" => {
-                let p: ContactParams = params(scene, index, st)?;
-                out.push(Box::new(ContactStage::new(p, spec).map_err(bad)?));
+                let params: ContactParams = params(scene, index, st)?;
+                params.check().map_err(|e| bad(e.to_string()))?;
+                StageConfig::Contact {
+                    params,
+                    sensor: spec,
+                }
             }
-            "encoder" => {
-                let cfg: RuntimeConfig = params(scene, index, st)?;
-                let [name] = st.models.as_slice() else {
-                    return Err(bad(
-                        "an encoder stage names exactly one model bundle in models:".into(),
-                    ));
-                };
-                // Scene::load checked that the file exists; the bundle is the manifest's directory.
-                let manifest = scene
-                    .models
-                    .get(name)
-                    .ok_or_else(|| bad(format!("model '{name}' not loaded")))?;
-                let dir = manifest.parent().unwrap_or(std::path::Path::new("."));
-                let stage = EncoderStage::new(dir, &cfg).map_err(|e| SceneError::BadValue {
-                    path: scene.path.clone(),
-                    field: format!("stages[{index}] ({}) model '{name}'", st.kind),
-                    msg: e.to_string(),
-                })?;
-                out.push(Box::new(stage));
-            }
-            "sampler" => {
-                let p: SamplerParams = params(scene, index, st)?;
-                let [name] = st.models.as_slice() else {
-                    return Err(bad(
-                        "a sampler stage names exactly one model bundle in models:".into(),
-                    ));
-                };
-                let manifest = scene
-                    .models
-                    .get(name)
-                    .ok_or_else(|| bad(format!("model '{name}' not loaded")))?;
-                let dir = manifest.parent().unwrap_or(std::path::Path::new("."));
-                let stage = SamplerStage::new(dir, p).map_err(|e| SceneError::BadValue {
-                    path: scene.path.clone(),
-                    field: format!("stages[{index}] ({}) model '{name}'", st.kind),
-                    msg: e.to_string(),
-                })?;
-                out.push(Box::new(stage));
-            }
-            "compare" => {
-                let p: CompareParams = params(scene, index, st)?;
-                out.push(Box::new(CompareStage::new(p).map_err(bad)?));
-            }
+            "encoder" => StageConfig::Encoder {
+                runtime: params(scene, index, st)?,
+                bundle: bundle_of(scene, st, &bad)?,
+            },
+            "sampler" => StageConfig::Sampler {
+                params: params(scene, index, st)?,
+                bundle: bundle_of(scene, st, &bad)?,
+            },
+            "compare" => StageConfig::Compare(params(scene, index, st)?),
             other => {
                 return Err(SceneError::UnknownStage {
                     path: scene.path.clone(),
@@ -211,9 +236,41 @@ pub fn build_stages(scene: &Scene) -> Result<Vec<Box<dyn Stage>>, SceneError> {
                     known: KNOWN_STAGES.join(", "),
                 });
             }
-        }
+        });
     }
     Ok(out)
+}
+
+/// Build one stage (loads its models).
+pub fn build_stage(scene: &Scene, cfg: StageConfig) -> Result<Box<dyn Stage>, SceneError> {
+    let kind = cfg.kind();
+    let bad = |msg: String| SceneError::BadValue {
+        path: scene.path.clone(),
+        field: format!("stage {kind}"),
+        msg,
+    };
+    Ok(match cfg {
+        StageConfig::Contact { params, sensor } => {
+            Box::new(ContactStage::new(params, sensor).map_err(|e| bad(e.to_string()))?)
+        }
+        StageConfig::Encoder { runtime, bundle } => Box::new(
+            EncoderStage::new(&bundle, &runtime)
+                .map_err(|e| bad(format!("model {}: {e}", bundle.display())))?,
+        ),
+        StageConfig::Sampler { params, bundle } => Box::new(
+            SamplerStage::new(&bundle, params)
+                .map_err(|e| bad(format!("model {}: {e}", bundle.display())))?,
+        ),
+        StageConfig::Compare(p) => Box::new(CompareStage::new(p).map_err(|e| bad(e.to_string()))?),
+    })
+}
+
+/// Build every stage of the scene, in order. Fails before anything runs.
+pub fn build_stages(scene: &Scene) -> Result<Vec<Box<dyn Stage>>, SceneError> {
+    stage_configs(scene)?
+        .into_iter()
+        .map(|c| build_stage(scene, c))
+        .collect()
 }
 
 /// The frame source: the scene's, or the command line's `--sensor` override.
@@ -242,6 +299,9 @@ pub fn build_source(scene: &Scene, arg: Option<&SensorArg>) -> Result<Box<dyn So
             if let Some(fps) = scene.source.fps {
                 cfg.fps = fps;
             }
+            if let Some(id) = scene.source.sensor_id.clone() {
+                cfg.sensor_id = id;
+            }
             Ok(Box::new(MockSensor::new(cfg, scenario)))
         }
         SourceKind::V4l => {
@@ -261,7 +321,7 @@ pub fn build_source(scene: &Scene, arg: Option<&SensorArg>) -> Result<Box<dyn So
                     .ok_or_else(|| bad("source.path", "a bag source needs a path".into()))?,
             };
             let opts = ReplayOptions {
-                sensor_id: scene.source.serial.clone(),
+                sensor_id: scene.source.sensor_id.clone(),
                 ..ReplayOptions::default()
             };
             let src =

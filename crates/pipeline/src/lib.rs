@@ -1,0 +1,40 @@
+//! Scene -> source + stages, for every transport.
+//!
+//! The embedded runtime (`unitac run`), bag replay (`unitac replay`) and the ROS nodes all build
+//! what they run here, from the same scene file and the same typed parameter structs:
+//! - [`load_scene`] finds and checks a scene by name or path;
+//! - [`overrides::apply`] merges per-stage overrides (ROS parameters such as `contact.noise_k`,
+//!   params files) into the scene, rejecting an unknown stage, an unknown key or a mistyped value
+//!   with one line;
+//! - [`registry::stage_configs`] turns each stage's `params:` into its typed struct
+//!   ([`StageConfig`]), [`registry::build_stages`] builds the stages, [`registry::build_source`]
+//!   the frame source (mock sensor, V4L2 sensor, bag).
+//!
+//! Driving the stages is not done here: every transport uses `unitac_core::chain` (the one chain
+//! driver) and `unitac_core::pace` (the one pacer).
+
+pub mod overrides;
+pub mod registry;
+
+pub use registry::{
+    KNOWN_STAGES, StageConfig, build_source, build_stage, build_stages, open_v4l, scene_context,
+    scene_dirs, stage_configs,
+};
+
+use std::path::PathBuf;
+use unitac_core::{Scene, SceneError};
+
+/// A scene by name (looked up in [`scene_dirs`], `extra_dir` first) or by path, loaded and checked.
+pub fn load_scene(name: &str, extra_dir: Option<PathBuf>) -> Result<Scene, SceneError> {
+    let path = unitac_core::scene::resolve(name, &scene_dirs(extra_dir))?;
+    Scene::load(&path, &scene_context())
+}
+
+/// Each stage's effective configuration, one line per stage (`kind: {typed params}`), exactly as
+/// the stages will be built from `scene`. Transports print it so a test can prove they agree.
+pub fn effective_params(scene: &Scene) -> Result<Vec<String>, SceneError> {
+    Ok(stage_configs(scene)?
+        .iter()
+        .map(|c| format!("{}: {c:?}", c.kind()))
+        .collect())
+}

@@ -1,0 +1,265 @@
+//! Every key of every stage's params struct reaches the stage identically under `unitac run`
+//! and under the ROS nodes, from a scene file and from `<stage>.<key>` ROS parameters; unknown or
+//! mistyped keys are one-line errors (exit 1). The nodes print the effective params the stages
+//! are built from (`<node>: effective params: <kind>: ...`); `unitac run --print-params` prints
+//! `unitac_pipeline::effective_params`, which is what this test compares against.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use serde_json::{Value, json};
+use std::io::BufRead;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+use unitac_contact::ContactParams;
+use unitac_infer::RuntimeConfig;
+use unitac_infer::encoder::CompareParams;
+use unitac_infer::predict::SamplerParams;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("unitac-params-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// A value of the same type as `d` that differs from it (and passes the stages' range checks);
+/// `special` first.
+fn other(key: &str, d: &Value, special: &Value) -> Value {
+    if let Some(v) = special.get(key) {
+        return v.clone();
+    }
+    match d {
+        Value::Bool(b) => json!(!b),
+        Value::Number(n) if n.is_u64() => json!(n.as_u64().unwrap() + 1),
+        Value::Number(n) => {
+            let f = n.as_f64().unwrap();
+            json!(if f > 0.0 && f < 1.0 {
+                f / 2.0
+            } else {
+                f * 1.5 + 0.5
+            })
+        }
+        _ => panic!("{key}: default {d} needs a value in the test's table"),
+    }
+}
+
+/// Non-default values for every key of `default` (serialized); fails if one is missing or equal.
+fn non_default(default: Value, special: Value) -> serde_json::Map<String, Value> {
+    let mut out = serde_json::Map::new();
+    for (k, d) in default.as_object().unwrap() {
+        let v = other(k, d, &special);
+        assert_ne!(&v, d, "{k}: the test value must differ from the default");
+        out.insert(k.clone(), v);
+    }
+    out
+}
+
+/// (contact, encoder, compare, sampler) params with every key set to a non-default value.
+fn full_params() -> [serde_json::Map<String, Value>; 4] {
+    let bg = tmp("backgrounds");
+    std::fs::create_dir_all(&bg).unwrap();
+    let contact = non_default(
+        serde_json::to_value(ContactParams::default()).unwrap(),
+        json!({"mask_markers": true, "background_dir": bg, "episode_labels": ["x", "y"],
+               "clip_frames": 6}),
+    );
+    let runtime = json!({"library": std::env::var("UNITAC_ORT_LIB").unwrap_or_default(),
+                         "provider": "cuda", "intra_threads": 2});
+    let encoder = non_default(
+        serde_json::to_value(RuntimeConfig::default()).unwrap(),
+        runtime.clone(),
+    );
+    let compare = non_default(
+        serde_json::to_value(CompareParams::default()).unwrap(),
+        json!({"property": "hardness", "pairs": [["x", "y"]]}),
+    );
+    let mut sampler_special = json!({"solver": "midpoint", "condition": [0.1, 0.2, 0.3],
+                                     "budget_ms": 50.0});
+    sampler_special
+        .as_object_mut()
+        .unwrap()
+        .extend(runtime.as_object().unwrap().clone());
+    let sampler = non_default(
+        serde_json::to_value(SamplerParams::default()).unwrap(),
+        sampler_special,
+    );
+    [contact, encoder, compare, sampler]
+}
+
+/// A scene with the four stages and these params (empty maps: the defaults).
+fn scene(name: &str, p: &[serde_json::Map<String, Value>; 4]) -> PathBuf {
+    let stages = json!([
+        {"kind": "contact", "params": p[0]},
+        {"kind": "encoder", "models": ["reference"], "params": p[1]},
+        {"kind": "compare", "params": p[2]},
+        {"kind": "sampler", "models": ["reference"], "params": p[3]},
+    ]);
+    let yaml = format!(
+        "scene: {name}\nsource: {{kind: mock, sensor: digit, scenario: fabric_selection}}\n\
+         models:\n  reference: ${{UNITAC_MODELS}}/reference/manifest.json\nstages: {stages}\n"
+    );
+    let path = tmp(&format!("{name}.yaml"));
+    std::fs::write(&path, yaml).unwrap();
+    path
+}
+
+/// What `unitac run --print-params` prints for `scene`.
+fn run_lines(scene: &Path) -> Vec<String> {
+    let s = unitac_pipeline::load_scene(scene.to_str().unwrap(), None).unwrap();
+    unitac_pipeline::effective_params(&s).unwrap()
+}
+
+/// A ROS parameter value (YAML flow) for a JSON value.
+fn ros_yaml(v: &Value) -> String {
+    match v {
+        Value::String(s) => format!("\"{s}\""),
+        other => other.to_string(),
+    }
+}
+
+/// Start `exe` with `params` (a ros__parameters body); the effective-params lines it prints (it
+/// is stopped once it printed `want` of them or exited), its exit status if it exited, and stderr.
+fn node_lines(
+    exe: &str,
+    name: &str,
+    params: &str,
+    want: usize,
+) -> (Vec<String>, Option<i32>, String) {
+    let file = tmp(&format!("{name}.params.yaml"));
+    std::fs::write(&file, format!("/**:\n  ros__parameters:\n{params}")).unwrap();
+    let mut c = Command::new(exe)
+        .args([
+            "--ros-args",
+            "-r",
+            &format!("__ns:=/p{}_{name}", std::process::id()),
+        ])
+        .arg("--params-file")
+        .arg(&file)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let err = c.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+            if tx.send(l).is_err() {
+                break;
+            }
+        }
+    });
+    let (mut lines, mut all) = (Vec::new(), String::new());
+    while let Ok(l) = rx.recv_timeout(Duration::from_secs(30)) {
+        all.push_str(&l);
+        all.push('\n');
+        if let Some((_, rest)) = l.split_once(": effective params: ") {
+            lines.push(rest.to_string());
+            if lines.len() == want {
+                break;
+            }
+        }
+    }
+    let status = c.try_wait().unwrap().and_then(|s| s.code());
+    if status.is_none() {
+        c.kill().ok();
+    }
+    c.wait().ok();
+    (lines, status, all)
+}
+
+const CONTACT: &str = env!("CARGO_BIN_EXE_unitac_contact_node");
+const INFERENCE: &str = env!("CARGO_BIN_EXE_unitac_inference_node");
+
+#[test]
+fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
+    let full = full_params();
+    let full_scene = scene("full", &full);
+    let want = run_lines(&full_scene);
+    assert_eq!(want.len(), 4, "{want:?}");
+    // The values really are the non-default ones (not the defaults the scene left out).
+    let defaults = run_lines(&scene("defaults", &Default::default()));
+    for (w, d) in want.iter().zip(&defaults) {
+        assert_ne!(w, d);
+    }
+
+    // 1. The same scene file: the nodes build exactly what `unitac run` builds.
+    let (contact, _, log) = node_lines(
+        CONTACT,
+        "c1",
+        &format!("    scene: {}\n", full_scene.display()),
+        1,
+    );
+    assert_eq!(contact, want[..1], "{log}");
+    let (infer, _, log) = node_lines(
+        INFERENCE,
+        "i1",
+        &format!("    scene: {}\n", full_scene.display()),
+        3,
+    );
+    assert_eq!(infer, want[1..], "{log}");
+
+    // 2. A scene with default params plus `<stage>.<key>` ROS parameters for every key ROS can
+    // carry (nested lists such as compare.pairs cannot be ROS parameters: scene file only).
+    let mut base: [serde_json::Map<String, Value>; 4] = Default::default();
+    base[2].insert("pairs".into(), full[2]["pairs"].clone());
+    let default_scene = scene("overridden", &base);
+    let overrides = |kind: &str, p: &serde_json::Map<String, Value>| -> String {
+        p.iter()
+            .filter(|(k, _)| !(kind == "compare" && *k == "pairs"))
+            .map(|(k, v)| format!("    {kind}.{k}: {}\n", ros_yaml(v)))
+            .collect()
+    };
+    let head = format!("    scene: {}\n", default_scene.display());
+    let (contact, _, log) = node_lines(
+        CONTACT,
+        "c2",
+        &(head.clone() + &overrides("contact", &full[0])),
+        1,
+    );
+    assert_eq!(contact, want[..1], "{log}");
+    let body = overrides("encoder", &full[1])
+        + &overrides("compare", &full[2])
+        + &overrides("sampler", &full[3]);
+    let (infer, _, log) = node_lines(INFERENCE, "i2", &(head + &body), 3);
+    assert_eq!(infer, want[1..], "{log}");
+}
+
+#[test]
+fn unknown_and_mistyped_parameters_stop_a_node_with_one_line() {
+    for (exe, name, params, expect) in [
+        (CONTACT, "u1", "    contact.no_such_key: 1\n", "no_such_key"),
+        (CONTACT, "u2", "    contact.noise_k: \"loud\"\n", "noise_k"),
+        (
+            CONTACT,
+            "u3",
+            "    noise_k: 3.0\n",
+            "unknown parameter 'noise_k'",
+        ),
+        (
+            CONTACT,
+            "u4",
+            "    sampler.steps: 4\n",
+            "unknown parameter 'sampler.steps'",
+        ),
+        (
+            INFERENCE,
+            "u5",
+            "    sampler.no_such_key: 1\n",
+            "no_such_key",
+        ),
+        (
+            INFERENCE,
+            "u6",
+            "    encoder.provider: \"gpu\"\n",
+            "provider",
+        ),
+    ] {
+        let (_, status, log) = node_lines(exe, name, params, usize::MAX);
+        assert_eq!(status, Some(1), "{name}: {log}");
+        let errors: Vec<&str> = log
+            .lines()
+            .filter(|l| !l.contains("effective params"))
+            .collect();
+        assert_eq!(errors.len(), 1, "{name}: {log}");
+        assert!(errors[0].contains(expect), "{name}: {log}");
+    }
+}
