@@ -7,6 +7,7 @@
 pub mod chain;
 pub mod clock;
 pub mod frame;
+pub mod golden;
 pub mod msg;
 pub mod pace;
 pub mod scene;

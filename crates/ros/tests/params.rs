@@ -158,11 +158,22 @@ fn node_lines(
             }
         }
     }
-    let status = c.try_wait().unwrap().and_then(|s| s.code());
+    // Exited (stderr closed) or still running: give it a moment to be reaped, then stop it.
+    let mut status = None;
+    for _ in 0..40 {
+        if let Some(s) = c.try_wait().unwrap() {
+            status = s.code();
+            break;
+        }
+        if lines.len() == want {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
     if status.is_none() {
         c.kill().ok();
+        c.wait().ok();
     }
-    c.wait().ok();
     (lines, status, all)
 }
 

@@ -148,20 +148,24 @@ fn run() -> anyhow::Result<()> {
         let id = |frame_id: &str| sensor_id_of(Some(&sensor_id), frame_id, "sensor");
         if let Some(sub) = raw.as_mut() {
             drain(sub, &mut inputs, |m| {
+                // Images are numbered from 0 in arrival order, as a bag replay numbers them.
+                let n = seq;
                 seq += 1;
                 Received {
                     stamp: checked_stamp(&m.header.stamp),
-                    frame: image::to_frame(m, &id(&m.header.frame_id), seq)
+                    frame: image::to_frame(m, &id(&m.header.frame_id), n)
                         .map_err(|e| e.to_string()),
                 }
             });
         }
         if let Some(sub) = compressed.as_mut() {
             drain(sub, &mut inputs, |m| {
+                // Images are numbered from 0 in arrival order, as a bag replay numbers them.
+                let n = seq;
                 seq += 1;
                 Received {
                     stamp: checked_stamp(&m.header.stamp),
-                    frame: image::compressed_to_frame(m, &id(&m.header.frame_id), seq)
+                    frame: image::compressed_to_frame(m, &id(&m.header.frame_id), n)
                         .map_err(|e| e.to_string()),
                 }
             });

@@ -1,0 +1,197 @@
+//! Golden outputs over ROS: the bag `unitac run --out` records of each scene on the mock sensor,
+//! replayed by the sensor node (with /clock) into the contact and inference nodes under
+//! use_sim_time, gives the same contact states, episodes, properties, comparisons and latents as
+//! the committed tests/golden/<scene>.jsonl (which the embedded runtime and `unitac replay`
+//! reproduce: crates/cli/tests/golden.rs). An rclpy observer (tests/ros/golden_peer.py) records
+//! the messages' CDR; they are decoded with the project's codecs and compared field by field
+//! (floats within unitac_core::golden::FLOAT_TOLERANCE).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+use unitac_bag::RosMessage;
+use unitac_core::Msg;
+use unitac_core::golden::{diff, parse_lines};
+use unitac_core::msg::{
+    ContactEpisode, ContactState, PropertyComparison, TactileLatent, TactileProperties,
+};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn python() -> PathBuf {
+    std::env::var_os("UNITAC_VENV")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join(".venv"))
+        .join("bin/python")
+}
+
+/// The `unitac` binary of this build (cargo test --workspace builds it next to the tests).
+fn unitac() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let p = exe.parent().unwrap().parent().unwrap().join("unitac");
+    assert!(
+        p.is_file(),
+        "{} missing: build the workspace (cargo test --workspace)",
+        p.display()
+    );
+    p
+}
+
+fn node(bin: &str, ns: &str, params: &[String]) -> Child {
+    let mut c = Command::new(bin);
+    c.args([
+        "--ros-args",
+        "-r",
+        &format!("__ns:={ns}"),
+        "-r",
+        "image:=image_raw",
+    ]);
+    for p in params {
+        c.args(["-p", p]);
+    }
+    c.stdout(Stdio::null())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .unwrap()
+}
+
+fn stop(mut c: Child) {
+    Command::new("kill")
+        .args(["-INT", &c.id().to_string()])
+        .status()
+        .ok();
+    let t = Instant::now();
+    while t.elapsed() < Duration::from_secs(5) {
+        if c.try_wait().unwrap().is_some() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    c.kill().ok();
+    c.wait().ok();
+}
+
+fn hex(s: &str) -> Vec<u8> {
+    (0..s.len() / 2)
+        .map(|i| u8::from_str_radix(&s[2 * i..2 * i + 2], 16).unwrap())
+        .collect()
+}
+
+/// One observed message as the event JSON `unitac run --events` prints.
+fn event(topic: &str, cdr: &[u8]) -> serde_json::Value {
+    let m = match topic {
+        "contact_state" => Msg::Contact(ContactState::from_cdr(cdr).unwrap()),
+        "contact_episode" => Msg::Episode(ContactEpisode::from_cdr(cdr).unwrap()),
+        "tactile_properties" => Msg::Properties(TactileProperties::from_cdr(cdr).unwrap()),
+        "property_comparison" => Msg::Comparison(PropertyComparison::from_cdr(cdr).unwrap()),
+        "tactile_latent" => Msg::Latent(TactileLatent::from_cdr(cdr).unwrap()),
+        other => panic!("{other}"),
+    };
+    m.to_json()
+}
+
+fn check_scene(scene: &str) {
+    let golden = parse_lines(
+        &std::fs::read_to_string(root().join(format!("tests/golden/{scene}.jsonl"))).unwrap(),
+    )
+    .unwrap();
+    // The golden events the nodes publish, by topic (= event type), in order.
+    let mut want: BTreeMap<String, Vec<serde_json::Value>> = BTreeMap::new();
+    for e in &golden {
+        let ty = e["type"].as_str().unwrap();
+        if [
+            "contact_state",
+            "contact_episode",
+            "tactile_properties",
+            "property_comparison",
+            "tactile_latent",
+        ]
+        .contains(&ty)
+        {
+            want.entry(ty.to_string()).or_default().push(e.clone());
+        }
+    }
+    // Record the scene's run (the same frames the goldens came from).
+    let dir = std::env::temp_dir().join(format!("unitac-rosgolden-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bag = dir.join(format!("{scene}.mcap"));
+    let o = Command::new(unitac())
+        .args(["run", "--scene", scene, "--fast", "--out"])
+        .arg(&bag)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let ns = format!("/g{}_{scene}", std::process::id());
+    let scene_p = format!("scene:={scene}");
+    let sim = "use_sim_time:=true".to_string();
+    let contact = node(
+        env!("CARGO_BIN_EXE_unitac_contact_node"),
+        &ns,
+        &[scene_p.clone(), sim.clone()],
+    );
+    let inference = node(
+        env!("CARGO_BIN_EXE_unitac_inference_node"),
+        &ns,
+        &[scene_p.clone(), sim],
+    );
+    let until: serde_json::Map<String, serde_json::Value> = want
+        .iter()
+        .map(|(k, v)| (k.clone(), v.len().into()))
+        .collect();
+    let mut peer = Command::new(python())
+        .arg(root().join("tests/ros/golden_peer.py"))
+        .args([&ns, "90", &serde_json::Value::Object(until).to_string()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Start the bag once the observer sees the contact node (nothing is lost before discovery).
+    let mut ready = String::new();
+    std::io::BufRead::read_line(
+        &mut std::io::BufReader::new(peer.stderr.take().unwrap()),
+        &mut ready,
+    )
+    .unwrap();
+    assert_eq!(ready.trim(), "ready");
+    let sensor = node(
+        env!("CARGO_BIN_EXE_unitac_sensor_node"),
+        &ns,
+        &[
+            scene_p,
+            "source:=bag".into(),
+            format!("bag:={}", bag.display()),
+            "rate:=1.0".into(),
+            "wait_subscribers:=1".into(),
+        ],
+    );
+    let out = peer.wait_with_output().unwrap();
+    stop(sensor);
+    stop(contact);
+    stop(inference);
+    std::fs::remove_dir_all(&dir).ok();
+    let mut got: BTreeMap<String, Vec<serde_json::Value>> = BTreeMap::new();
+    for l in String::from_utf8_lossy(&out.stdout).lines() {
+        let j: serde_json::Value = serde_json::from_str(l).unwrap();
+        let topic = j["topic"].as_str().unwrap();
+        got.entry(topic.to_string())
+            .or_default()
+            .push(event(topic, &hex(j["cdr"].as_str().unwrap())));
+    }
+    for (ty, w) in &want {
+        let g = got.get(ty).cloned().unwrap_or_default();
+        if let Some(d) = diff(w, &g) {
+            panic!("{scene}: {ty} over ROS differs from tests/golden/{scene}.jsonl: {d}");
+        }
+    }
+}
+
+#[test]
+fn ros_nodes_replaying_the_recorded_bag_reproduce_the_goldens() {
+    check_scene("fabric_selection");
+    check_scene("cup_deformation");
+}
