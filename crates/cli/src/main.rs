@@ -448,12 +448,9 @@ fn main() -> ExitCode {
                 }
                 BenchTarget::Decode => decode_bench::bench_decode(frames, repeat, !no_python)
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
-                BenchTarget::Render => {
-                    let r = unitac_sim::bench::render_bench(repeat);
-                    serde_json::to_string(&r)
-                        .map(|j| (j, r.text()))
-                        .map_err(anyhow::Error::from)
-                }
+                BenchTarget::Render => unitac_sim::bench::render_bench(repeat)
+                    .map_err(anyhow::Error::from)
+                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
             };
             text.map(|(j, t)| {
                 if json {

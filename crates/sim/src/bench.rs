@@ -3,7 +3,7 @@
 use serde::Serialize;
 use std::hint::black_box;
 use std::time::Instant;
-use unitac_core::{SensorKind, SensorSpec};
+use unitac_core::{FrameError, SensorKind, SensorSpec};
 
 use crate::{MockConfig, MockSensor, Scenario};
 
@@ -92,7 +92,7 @@ fn row(name: &str, s: &MockSensor, repeat: usize) -> RenderRow {
 
 /// Time GelSight Mini and DIGIT at 320x240 and DIGIT's VGA mode (640x480), each over the whole
 /// fabric scenario, `repeat` passes.
-pub fn render_bench(repeat: usize) -> RenderBench {
+pub fn render_bench(repeat: usize) -> Result<RenderBench, FrameError> {
     let repeat = repeat.max(1);
     let mut rows = Vec::new();
     for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
@@ -111,15 +111,15 @@ pub fn render_bench(repeat: usize) -> RenderBench {
     };
     let mut cfg = MockConfig::new(SensorKind::Digit, 5);
     cfg.fps = vga.fps;
-    let s = MockSensor::with_spec(cfg, vga, Scenario::fabric_selection());
+    let s = MockSensor::with_spec(cfg, vga, Scenario::fabric_selection())?;
     rows.push(row("digit-vga", &s, repeat));
-    RenderBench {
+    Ok(RenderBench {
         rows,
         published_ms_640x480: [28.0, 45.0],
         note: "one core; frame + ground-truth mask; published CPU GelSight-style optical \
                simulators take 28-45 ms per 640x480 frame (mock-sensor issue)"
             .into(),
-    }
+    })
 }
 
 impl RenderBench {

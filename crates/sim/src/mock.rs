@@ -4,7 +4,7 @@
 //! Frames are a pure function of (scenario, sensor, seed, frame index), so the same seed gives the
 //! same bytes. [`MockSensor`] implements the runtime's `Source`.
 
-use unitac_core::{Frame, SensorKind, SensorSpec, Source, SourceError, Stamp};
+use unitac_core::{Frame, FrameError, SensorKind, SensorSpec, Source, SourceError, Stamp};
 
 use crate::render::Renderer;
 use crate::scenario::Scenario;
@@ -109,25 +109,48 @@ pub struct MockSensor {
     cfg: MockConfig,
     scenario: Scenario,
     renderer: Renderer,
+    /// A black frame of the output size, checked against the frame bounds once; every rendered
+    /// frame starts as a copy of it.
+    blank: Frame,
     index: u64,
     total: u64,
 }
 
 impl MockSensor {
+    /// A mock sensor at its kind's output size.
     pub fn new(cfg: MockConfig, scenario: Scenario) -> Self {
         let spec = cfg.sensor.spec();
-        Self::with_spec(cfg, spec, scenario)
+        let blank = Frame::black_of(cfg.sensor, &cfg.sensor_id);
+        Self::build(cfg, spec, scenario, blank)
     }
 
     /// A mock sensor with its own output size (e.g. DIGIT's VGA mode, 640x480 at 0.02 mm/px).
-    /// The spec's size must be within `unitac_core::frame::MAX_SIDE`.
-    pub fn with_spec(cfg: MockConfig, spec: SensorSpec, scenario: Scenario) -> Self {
+    /// A size outside `unitac_core::frame::MAX_SIDE` per side is an error.
+    pub fn with_spec(
+        cfg: MockConfig,
+        spec: SensorSpec,
+        scenario: Scenario,
+    ) -> Result<Self, FrameError> {
+        let len = Frame::byte_len(spec.width, spec.height)?;
+        let blank = Frame::new(
+            &cfg.sensor_id,
+            0,
+            EPOCH,
+            spec.width,
+            spec.height,
+            vec![0; len],
+        )?;
+        Ok(Self::build(cfg, spec, scenario, blank))
+    }
+
+    fn build(cfg: MockConfig, spec: SensorSpec, scenario: Scenario, blank: Frame) -> Self {
         let total = (scenario.duration_s() * cfg.fps).floor() as u64;
         let renderer = Renderer::new(spec, cfg.noise_dn, cfg.markers);
         Self {
             cfg,
             scenario,
             renderer,
+            blank,
             index: 0,
             total,
         }
@@ -154,25 +177,16 @@ impl MockSensor {
         let gain = self.cfg.drift.gain(t);
         let touching = obj.filter(|_| approach > 0.0);
         let depth = touching.map_or(0.0, |o| o.gel_depth(approach));
-        let spec = self.renderer.spec();
-        let mut data = vec![0u8; spec.width as usize * spec.height as usize * 3];
+        let mut frame = self.blank.clone();
+        frame.seq = index;
+        frame.stamp =
+            EPOCH.saturating_add_nanos((index as f64 * 1e9 / self.cfg.fps).round() as i64);
         let contact = self.renderer.render_into(
-            &mut data,
+            frame.data_mut(),
             touching.map(|o| (o, depth)),
             gain,
             self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15),
         );
-        let stamp = EPOCH.saturating_add_nanos((index as f64 * 1e9 / self.cfg.fps).round() as i64);
-        let frame = Frame::new(
-            &self.cfg.sensor_id,
-            index,
-            stamp,
-            spec.width,
-            spec.height,
-            data,
-        );
-        // The size comes from our own spec, which is within bounds.
-        let frame = frame.unwrap_or_else(|_| unreachable_frame(&self.cfg.sensor_id));
         let truth = GroundTruth {
             penetration_mm: depth.max(0.0),
             label: obj.map(|o| o.label.clone()).unwrap_or_default(),
@@ -194,11 +208,6 @@ impl MockSensor {
         self.index += 1;
         Some(out)
     }
-}
-
-fn unreachable_frame(id: &str) -> Frame {
-    // 1x1 black frame; only reachable if a SensorSpec were out of bounds.
-    Frame::new(id, 0, Stamp::ZERO, 1, 1, vec![0, 0, 0]).unwrap_or_else(|_| unreachable_frame(id))
 }
 
 impl Source for MockSensor {
@@ -305,6 +314,33 @@ mod tests {
         };
         assert!(lum(&g, 12, 12) * 2 < lum(&g, 24, 12));
         assert!(lum(&d, 12, 12) * 10 > lum(&d, 24, 12) * 8);
+    }
+
+    #[test]
+    fn a_spec_outside_the_frame_bounds_is_refused_at_construction() {
+        let cfg = MockConfig::new(SensorKind::Digit, 1);
+        let spec = SensorKind::Digit.spec();
+        for (width, height) in [(0, 240), (320, unitac_core::frame::MAX_SIDE + 1)] {
+            let bad = SensorSpec {
+                width,
+                height,
+                ..spec
+            };
+            let err = MockSensor::with_spec(cfg.clone(), bad, Scenario::fabric_selection());
+            assert_eq!(
+                err.err(),
+                Some(FrameError::BadSize { width, height }),
+                "{width}x{height}"
+            );
+        }
+        let vga = SensorSpec {
+            width: 640,
+            height: 480,
+            ..spec
+        };
+        let s = MockSensor::with_spec(cfg, vga, Scenario::fabric_selection()).unwrap();
+        let (f, t) = s.render(0);
+        assert_eq!((f.width, f.height, t.mask.len()), (640, 480, 640 * 480));
     }
 
     #[test]
