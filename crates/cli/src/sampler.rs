@@ -132,8 +132,10 @@ fn timed(
         times.push(t0.elapsed().as_secs_f64() * 1e6);
         last = Some(out);
     }
-    times.sort_by(f64::total_cmp);
-    Ok((times[times.len() / 2], last.context("no run")?))
+    Ok((
+        unitac_core::timing(times).median_us,
+        last.context("no run")?,
+    ))
 }
 
 fn truth(case: &mut Case, s: f64) -> anyhow::Result<Vec<f64>> {
@@ -493,8 +495,7 @@ fn encoder_latency(reps: usize) -> anyhow::Result<f64> {
         enc.encode(&clip).map_err(|e| anyhow::anyhow!("{e}"))?;
         t.push(t0.elapsed().as_secs_f64() * 1e6);
     }
-    t.sort_by(f64::total_cmp);
-    Ok(t[t.len() / 2])
+    Ok(unitac_core::timing(t).median_us)
 }
 
 impl Bench {

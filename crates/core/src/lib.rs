@@ -10,6 +10,7 @@ pub mod msg;
 pub mod scene;
 pub mod sensor;
 pub mod stage;
+pub mod timing;
 
 pub use clock::{Clock, ManualClock, Stamp, SystemClock};
 pub use frame::{Frame, FrameError};
@@ -17,3 +18,4 @@ pub use msg::Msg;
 pub use scene::{Scene, SceneError};
 pub use sensor::{SensorKind, SensorSpec};
 pub use stage::{Source, SourceError, Stage, StageError};
+pub use timing::{Timing, timing};

@@ -3,29 +3,9 @@
 use serde::Serialize;
 use std::hint::black_box;
 use std::time::Instant;
-use unitac_core::{FrameError, SensorKind, SensorSpec};
+use unitac_core::{FrameError, SensorKind, SensorSpec, Timing, timing};
 
 use crate::{MockConfig, MockSensor, Scenario};
-
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Timing {
-    /// Fastest frame (least disturbed by other load on the machine).
-    pub min_us: f64,
-    pub median_us: f64,
-    pub mean_us: f64,
-    pub p90_us: f64,
-}
-
-fn timing(mut v: Vec<f64>) -> Timing {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    Timing {
-        min_us: v.first().copied().unwrap_or(0.0),
-        median_us: v.get(n / 2).copied().unwrap_or(0.0),
-        mean_us: v.iter().sum::<f64>() / n.max(1) as f64,
-        p90_us: v.get(n * 9 / 10).copied().unwrap_or(0.0),
-    }
-}
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RenderRow {
