@@ -672,7 +672,10 @@ impl Stage for ContactStage {
                     self.sensor_id.clone_from(&f.sensor_id);
                     if let Err(e) = self.load_saved_background(f) {
                         self.sensor_id.clear();
-                        return Err(StageError::Other(format!("saved background not used: {e}")));
+                        return Err(StageError::Storage {
+                            what: "saved background not used",
+                            source: e.into(),
+                        });
                     }
                 }
                 let mut out = self.det.step(f)?;
@@ -692,8 +695,10 @@ impl Stage for ContactStage {
         let out = self.det.flush(&self.sensor_id);
         if let (Some(dir), Some(bg)) = (&self.det.p.background_dir, self.det.background()) {
             let path = Background::path_for(dir, &self.sensor_id);
-            bg.save(&path)
-                .map_err(|e| StageError::Other(e.to_string()))?;
+            bg.save(&path).map_err(|e| StageError::Storage {
+                what: "saving the background",
+                source: Box::new(e),
+            })?;
         }
         Ok(out)
     }

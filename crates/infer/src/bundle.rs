@@ -204,7 +204,10 @@ impl Bundle {
             std::fs::read_to_string(&path).map_err(|e| err(format!("manifest.json: {e}")))?;
         let manifest: Manifest =
             serde_json::from_str(&text).map_err(|e| err(format!("manifest.json: {e}")))?;
-        manifest.preprocess.check().map_err(err)?;
+        manifest
+            .preprocess
+            .check()
+            .map_err(|e| err(e.to_string()))?;
         Ok(Bundle {
             dir: dir.to_path_buf(),
             manifest,

@@ -3,6 +3,7 @@
 use crate::encoder::PROPERTIES;
 use serde::Deserialize;
 use std::collections::VecDeque;
+use thiserror::Error;
 use unitac_core::msg::{Header, PropertyComparison, TactileProperties, Winner};
 use unitac_core::{Clock, Msg, Stage, StageError};
 
@@ -55,14 +56,23 @@ fn normal_cdf(x: f64) -> f64 {
     }
 }
 
+/// Parameters the comparison stage cannot run with.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum CompareError {
+    #[error("property '{0}' is not one of {PROPERTIES:?}")]
+    UnknownProperty(String),
+    #[error("tie_margin must be >= 0 (got {0})")]
+    TieMargin(f32),
+}
+
 impl CompareStage {
-    pub fn new(p: CompareParams) -> Result<Self, String> {
+    pub fn new(p: CompareParams) -> Result<Self, CompareError> {
         let index = PROPERTIES
             .iter()
             .position(|&q| q == p.property)
-            .ok_or_else(|| format!("property '{}' is not one of {PROPERTIES:?}", p.property))?;
+            .ok_or_else(|| CompareError::UnknownProperty(p.property.clone()))?;
         if !(p.tie_margin.is_finite() && p.tie_margin >= 0.0) {
-            return Err("tie_margin must be >= 0".into());
+            return Err(CompareError::TieMargin(p.tie_margin));
         }
         Ok(Self {
             p,
@@ -237,12 +247,21 @@ mod tests {
         };
         assert_eq!(k.winner, Winner::Tie);
         assert!(k.confidence < 0.6);
-        assert!(
+        assert_eq!(
             CompareStage::new(CompareParams {
                 property: "colour".into(),
                 ..Default::default()
             })
-            .is_err()
+            .err(),
+            Some(CompareError::UnknownProperty("colour".into()))
+        );
+        assert_eq!(
+            CompareStage::new(CompareParams {
+                tie_margin: -0.1,
+                ..Default::default()
+            })
+            .err(),
+            Some(CompareError::TieMargin(-0.1))
         );
         assert!((normal_cdf(0.0) - 0.5).abs() < 1e-7 && (normal_cdf(1.96) - 0.975).abs() < 1e-4);
     }

@@ -201,7 +201,9 @@ pub fn build_stages(scene: &Scene) -> Result<Vec<Box<dyn Stage>>, SceneError> {
             }
             "compare" => {
                 let p: CompareParams = params(scene, index, st)?;
-                out.push(Box::new(CompareStage::new(p).map_err(bad)?));
+                out.push(Box::new(
+                    CompareStage::new(p).map_err(|e| bad(e.to_string()))?,
+                ));
             }
             other => {
                 return Err(SceneError::UnknownStage {

@@ -11,7 +11,7 @@ use thiserror::Error;
 pub mod integrate;
 pub mod model;
 
-pub use integrate::{Method, Substep};
+pub use integrate::{Method, Substep, UnknownMethod};
 pub use model::{Cup, GEL_DOME_MM, Gel, Gripper, static_finger_for, static_wall};
 
 /// What the gripper is told to do.
@@ -301,6 +301,14 @@ pub fn grip_cup(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn method_names_parse_back_and_an_unknown_one_is_a_typed_error() {
+        for m in Method::ALL {
+            assert_eq!(m.as_str().parse::<Method>(), Ok(m));
+        }
+        assert_eq!("rk4".parse::<Method>(), Err(UnknownMethod("rk4".into())));
+    }
 
     fn free(method: Method, cup: Cup, h: f64, steps: usize) -> (f64, Vec<f64>) {
         let mut cfg = WorldConfig::new(cup).with_method(method, Substep::Off);

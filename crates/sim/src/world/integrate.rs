@@ -18,6 +18,7 @@
 //! change within a step and the moving finger).
 
 use serde::Serialize;
+use thiserror::Error;
 
 use super::World;
 
@@ -73,13 +74,18 @@ impl std::fmt::Display for Method {
     }
 }
 
+/// A method name that is none of [`Method::ALL`].
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("unknown method '{0}' (explicit_euler, semi_implicit_euler, backward_euler)")]
+pub struct UnknownMethod(pub String);
+
 impl std::str::FromStr for Method {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownMethod;
+    fn from_str(s: &str) -> Result<Self, UnknownMethod> {
         Method::ALL
             .into_iter()
             .find(|m| m.as_str() == s)
-            .ok_or_else(|| format!("unknown method '{s}'"))
+            .ok_or_else(|| UnknownMethod(s.to_string()))
     }
 }
 
