@@ -37,12 +37,12 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Cmd {
-    /// Run a scene (launch/scenes/<NAME>.yaml) in one process, without ROS.
+    /// Run a scene (launch/scenes/NAME.yaml) in one process, without ROS.
     Run {
         /// Scene name (looked up in the scene directories) or path to a scene file.
         #[arg(long)]
         scene: String,
-        /// Frame source, overriding the scene's: mock | v4l[:<serial>] | bag:<path>.
+        /// Frame source, overriding the scene's: mock | v4l | v4l:SERIAL | bag:PATH.
         #[arg(long)]
         sensor: Option<SensorArg>,
         /// Print the summary as one JSON object instead of text.

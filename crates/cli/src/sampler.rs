@@ -27,7 +27,7 @@ pub struct Row {
     pub steps: u32,
     pub guidance: f64,
     pub model_calls: u32,
-    /// Median wall time per sample [us], batched guidance, one thread.
+    /// Median wall time per sample \[us], batched guidance, one thread.
     pub time_us: f64,
     /// RMS error of the sample against the exact (Gaussian) or fine-step (transformer) answer.
     pub error: f64,
@@ -118,7 +118,7 @@ fn off() -> Guards {
     }
 }
 
-/// Timed sample: (median time [us], outcome of the last run).
+/// Timed sample: (median time \[us], outcome of the last run).
 fn timed(
     case: &mut Case,
     cfg: &SampleConfig,

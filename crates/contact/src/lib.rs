@@ -48,7 +48,7 @@ pub struct Measurement {
     pub strength: f32,
     /// Per-channel illumination gain against the background.
     pub gain: [f32; 3],
-    /// Cell threshold used [DN].
+    /// Cell threshold used \[DN].
     pub threshold: f32,
 }
 
@@ -140,7 +140,7 @@ impl ContactDetector {
     pub fn background_frame(&self, sensor_id: &str) -> Option<Frame> {
         self.background().and_then(|b| b.frame(sensor_id))
     }
-    /// Measured per-channel noise sigma of one detection cell [DN].
+    /// Measured per-channel noise sigma of one detection cell \[DN].
     pub fn cell_sigma(&self) -> f32 {
         self.background().map_or(0.0, |b| b.cell_sigma)
     }

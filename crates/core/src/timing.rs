@@ -18,7 +18,7 @@ pub struct Timing {
     pub p90_us: f64,
 }
 
-/// Summarise samples [us]; NaN samples sort last (`f64::total_cmp`).
+/// Summarise samples \[us]; NaN samples sort last (`f64::total_cmp`).
 pub fn timing(mut samples_us: Vec<f64>) -> Timing {
     samples_us.sort_by(f64::total_cmp);
     let n = samples_us.len();

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 /// Largest manifest accepted [bytes].
 const MAX_MANIFEST_BYTES: u64 = 1 << 20;
-/// Largest tensor a model may return [elements].
+/// Largest tensor a model may return \[elements].
 pub const MAX_OUTPUT_ELEMENTS: usize = 64 << 20;
 
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]

@@ -35,7 +35,7 @@ pub struct EncoderStage {
     pre: Preprocess,
     encoder: Model,
     head: Model,
-    /// Latencies of the last episodes (encoder + head) [s].
+    /// Latencies of the last episodes (encoder + head) \[s].
     pub latencies: Vec<f64>,
 }
 

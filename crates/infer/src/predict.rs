@@ -26,7 +26,7 @@ pub struct SamplerParams {
     pub seed: u64,
     /// Target (hardness, roughness, texture) of the object whose touch is predicted, 0..1.
     pub condition: [f32; 3],
-    /// Pick solver and steps to fit this compute budget per latent [ms] instead (live use: the
+    /// Pick solver and steps to fit this compute budget per latent \[ms] instead (live use: the
     /// choice depends on the measured model-call time, so it is not for byte-exact replays).
     pub budget_ms: Option<f64>,
     #[serde(flatten)]

@@ -29,7 +29,7 @@ pub struct Preprocess {
     /// texture survives only when the square is not shrunk too much.
     #[serde(default)]
     pub crop_size: u32,
-    /// Output side [px].
+    /// Output side \[px].
     pub size: u32,
     /// value = (pixel / 255 - mean) / std
     pub mean: f32,

@@ -33,7 +33,7 @@ impl Counters {
     }
 
     /// Record one latency: the node's clock when an output went out minus the capture stamp of
-    /// the frame it came from [s].
+    /// the frame it came from \[s].
     pub fn latency(&mut self, seconds: f64) {
         if seconds.is_finite() {
             self.latency_sum += seconds;

@@ -57,7 +57,7 @@ pub fn from_frame(f: &Frame) -> Image {
     m
 }
 
-/// Largest compressed image accepted [bytes] (a lossless 8192x8192 RGB PNG stays below this).
+/// Largest compressed image accepted \[bytes] (a lossless 8192x8192 RGB PNG stays below this).
 pub const MAX_COMPRESSED_BYTES: usize = 256 << 20;
 
 /// sensor_msgs/CompressedImage (jpeg, png; image_transport's "compressed") -> RGB8 frame with the

@@ -24,7 +24,7 @@ pub struct RenderRow {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RenderBench {
     pub rows: Vec<RenderRow>,
-    /// Published CPU GelSight-style optical simulators: per 640x480 frame [ms].
+    /// Published CPU GelSight-style optical simulators: per 640x480 frame \[ms].
     pub published_ms_640x480: [f64; 2],
     pub note: String,
 }

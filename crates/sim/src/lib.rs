@@ -4,7 +4,7 @@
 //! - [`mock`]: the mock sensor as a frame source (scenario, frame rate, stamps, ground truth).
 //! - `render`: the photometric model of a gel sensor that draws each frame.
 //! - [`world`]: the gripper / gel / cup model and its integrators.
-//! - [`numerics`], [`bench`], [`plot`]: the integrator study, the renderer benchmark, its charts.
+//! - [`numerics`], [`bench`](mod@bench), [`plot`]: the integrator study, the renderer benchmark, its charts.
 
 pub mod bench;
 pub mod mock;

@@ -15,7 +15,7 @@ pub const EPOCH: Stamp = Stamp(1_700_000_000_000_000_000);
 /// What the world knew when a frame was rendered.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GroundTruth {
-    /// Indenter penetration into the gel [mm] (0 = not touching).
+    /// Indenter penetration into the gel \[mm] (0 = not touching).
     pub penetration_mm: f64,
     /// Label of the object being touched ("" when none).
     pub label: String,
@@ -25,9 +25,9 @@ pub struct GroundTruth {
     pub mask: Vec<bool>,
     /// Global illumination gain applied to this frame (drift, exposure steps).
     pub gain: f64,
-    /// Grip force per finger [N] when the world drives the scenario (0 otherwise).
+    /// Grip force per finger \[N] when the world drives the scenario (0 otherwise).
     pub force_n: f64,
-    /// Cup deformation (loss of diameter) [mm] when the world drives the scenario (0 otherwise).
+    /// Cup deformation (loss of diameter) \[mm] when the world drives the scenario (0 otherwise).
     pub deformation_mm: f64,
 }
 
@@ -37,13 +37,13 @@ pub struct GroundTruth {
 pub struct Drift {
     /// Relative gain at t = 0 that decays away (LED warm-up), e.g. -0.08.
     pub warmup: f64,
-    /// Warm-up time constant [s].
+    /// Warm-up time constant \[s].
     pub warmup_tau_s: f64,
     /// Relative amplitude of a slow sinusoidal wander, e.g. 0.01.
     pub wander: f64,
-    /// Wander period [s].
+    /// Wander period \[s].
     pub wander_period_s: f64,
-    /// Exposure steps: from time t [s] on, multiply by gain.
+    /// Exposure steps: from time t \[s] on, multiply by gain.
     pub steps: Vec<(f64, f64)>,
 }
 
@@ -82,7 +82,7 @@ pub struct MockConfig {
     pub sensor_id: String,
     pub fps: f64,
     pub seed: u64,
-    /// Per-pixel noise sigma [DN].
+    /// Per-pixel noise sigma \[DN].
     pub noise_dn: f64,
     pub drift: Drift,
     /// Black marker dots on the gel that move with it (GelSight Mini has them; DIGIT does not).

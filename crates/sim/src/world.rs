@@ -17,9 +17,9 @@ pub use model::{Cup, GEL_DOME_MM, Gel, Gripper, static_finger_for, static_wall};
 /// What the gripper is told to do.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub enum Command {
-    /// Finger position [mm] (closing, 0 = touching the undeformed cup).
+    /// Finger position \[mm] (closing, 0 = touching the undeformed cup).
     Position(f64),
-    /// Grip force per finger [N].
+    /// Grip force per finger \[N].
     Force(f64),
 }
 
@@ -32,7 +32,7 @@ pub struct WorldConfig {
     pub substep: Substep,
     /// Sub-steps allowed per step before the world reports that it cannot keep the bound.
     pub max_substeps: u32,
-    /// Finger position at t = 0 [mm] (negative: open, not touching).
+    /// Finger position at t = 0 \[mm] (negative: open, not touching).
     pub start_mm: f64,
 }
 
@@ -73,21 +73,21 @@ pub enum WorldError {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
 pub struct WorldTruth {
     pub t_s: f64,
-    /// Finger position [mm] (closing, 0 = touching the undeformed cup).
+    /// Finger position \[mm] (closing, 0 = touching the undeformed cup).
     pub finger_mm: f64,
-    /// Gripper opening [mm]: cup diameter - 2 x finger position.
+    /// Gripper opening \[mm]: cup diameter - 2 x finger position.
     pub width_mm: f64,
-    /// Force between gel and cup [N] per finger.
+    /// Force between gel and cup \[N] per finger.
     pub force_n: f64,
-    /// Loss of cup diameter [mm] (2 x wall deformation).
+    /// Loss of cup diameter \[mm] (2 x wall deformation).
     pub deformation_mm: f64,
-    /// Gel penetration [mm]; negative is the gap to the wall.
+    /// Gel penetration \[mm]; negative is the gap to the wall.
     pub penetration_mm: f64,
     /// Wall velocity [mm/s].
     pub wall_velocity_mm_s: f64,
     /// Integrator steps this world step took.
     pub substeps: u32,
-    /// Largest force at the end of any of those sub-steps [N] (a peak inside the step).
+    /// Largest force at the end of any of those sub-steps \[N] (a peak inside the step).
     pub step_peak_force_n: f64,
 }
 
@@ -132,7 +132,7 @@ impl World {
         self.newton_max_iters
     }
 
-    /// Total mechanical energy of wall and gels [mJ].
+    /// Total mechanical energy of wall and gels \[mJ].
     pub fn energy(&self) -> f64 {
         0.5 * self.cfg.cup.mass() * self.v * self.v
             + self.cfg.cup.spring_energy(self.x)
@@ -174,7 +174,7 @@ impl World {
         self.step_finger(h, p1)
     }
 
-    /// Advance by `h` seconds while the finger moves linearly to `p1` [mm] (a prescribed motion,
+    /// Advance by `h` seconds while the finger moves linearly to `p1` \[mm] (a prescribed motion,
     /// as the numerics report uses so every method sees the same input).
     pub fn step_finger(&mut self, h: f64, p1: f64) -> Result<WorldTruth, WorldError> {
         if !(h.is_finite() && h > 0.0) {
@@ -231,7 +231,7 @@ pub struct GripSample {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GripRun {
     pub samples: Vec<GripSample>,
-    /// Time the target deformation (or the force limit) was reached [s], and the hold's end.
+    /// Time the target deformation (or the force limit) was reached \[s], and the hold's end.
     pub closed_s: f64,
     pub hold_end_s: f64,
     pub final_deformation_mm: f64,
@@ -240,7 +240,7 @@ pub struct GripRun {
 
 /// The paper's cup task, closed loop: close at the speed limit until the cup is compressed by
 /// `target_mm` (ground-truth deformation) or the force limit is hit, hold for `hold_s`, open
-/// back to the start. Control period `dt` [s]; one sample per control period.
+/// back to the start. Control period `dt` \[s]; one sample per control period.
 pub fn grip_cup(
     cfg: WorldConfig,
     target_mm: f64,

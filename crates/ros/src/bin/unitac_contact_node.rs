@@ -29,9 +29,9 @@ struct Params {
     noise_k: f64,
     /// Lower bound of the threshold [DN, summed over channels]
     min_threshold: f64,
-    /// Contact starts at this area [px]
+    /// Contact starts at this area (px)
     enter_area_px: f64,
-    /// Contact ends below this area [px]
+    /// Contact ends below this area (px)
     exit_area_px: f64,
     /// Frames needed to enter contact
     debounce_frames: i32,

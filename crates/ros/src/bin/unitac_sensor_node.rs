@@ -28,7 +28,7 @@ struct Params {
     source: String,
     /// gelsight-mini | digit | generic
     sensor_kind: String,
-    /// Sensor id (frame_id prefix); empty = mock_<kind> (mock), the serial (v4l)
+    /// Sensor id (frame_id prefix); empty = mock_KIND (mock), the serial (v4l)
     sensor_id: String,
     /// v4l: serial of the sensor (empty: the only one of sensor_kind on the bus)
     serial: String,
@@ -36,7 +36,7 @@ struct Params {
     scenario: String,
     /// mock: noise seed
     seed: i64,
-    /// mock: frame rate [Hz]; 0 = the sensor's
+    /// mock: frame rate (Hz); 0 = the sensor's
     fps: f64,
     /// mock, bag: start again at the end (`loop` is a Rust keyword r2r cannot name)
     repeat: bool,

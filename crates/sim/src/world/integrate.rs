@@ -45,7 +45,7 @@ impl Method {
         }
     }
 
-    /// Largest stable step [s] for a linear oscillator of mass `m` [N s^2/mm], stiffness `k`
+    /// Largest stable step \[s] for a linear oscillator of mass `m` [N s^2/mm], stiffness `k`
     /// [N/mm] and damping `c` [N s/mm] (see the module docs). `f64::INFINITY` when any step is
     /// stable, 0 when none is.
     pub fn stable_step(self, m: f64, k: f64, c: f64) -> f64 {
@@ -124,7 +124,7 @@ impl World {
         }
     }
 
-    /// The method's stability bound [s] linearised at the current state.
+    /// The method's stability bound \[s] linearised at the current state.
     pub fn stable_step(&self) -> f64 {
         let (k, c) = self.tangent(self.x, self.p);
         self.cfg.method.stable_step(self.cfg.cup.mass(), k, c)

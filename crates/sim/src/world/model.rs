@@ -3,11 +3,11 @@
 //!
 //! # Model (per side; the two fingers are symmetric)
 //! Units: mm, N, s; masses are given in kg and used as N s^2/mm (x 1e-3).
-//! - finger position `p` [mm], closing positive, 0 = the gel surface touches the undeformed wall.
+//! - finger position `p` \[mm], closing positive, 0 = the gel surface touches the undeformed wall.
 //!   The gripper moves it kinematically: toward a position target at no more than its speed
 //!   limit, or (force command) at a speed proportional to the force error, also limited; it stalls
 //!   at its force limit.
-//! - wall deformation `x` [mm] (inward) and velocity `v`: `m x'' = F_gel - (k x + k3 x^3 + c v)`.
+//! - wall deformation `x` \[mm] (inward) and velocity `v`: `m x'' = F_gel - (k x + k3 x^3 + c v)`.
 //! - gel penetration `d = p - x`; the gel pushes with `F_gel = kg d^1.5 + cg d'` while `d > 0`
 //!   (Hertz-like elastomer with a little viscosity), never pulls.
 //!
@@ -28,11 +28,11 @@ pub struct Cup {
     pub k3_n_per_mm3: f64,
     /// Damping ratio of the wall's own mode at its linear stiffness.
     pub damping_ratio: f64,
-    /// Moving mass of one wall side [kg].
+    /// Moving mass of one wall side \[kg].
     pub wall_mass_kg: f64,
 }
 
-/// Radius of the gel's dome [mm]: the cup wall (curved one way) on the domed gel looks to the
+/// Radius of the gel's dome \[mm]: the cup wall (curved one way) on the domed gel looks to the
 /// renderer like a sphere of radius 1 / (1/R_cup + 1/R_dome).
 pub const GEL_DOME_MM: f64 = 17.0;
 
@@ -74,7 +74,7 @@ impl Cup {
     pub fn damping(&self) -> f64 {
         2.0 * self.damping_ratio * (self.k_n_per_mm * self.mass()).sqrt()
     }
-    /// Wall spring force at deformation x [mm] and its derivative.
+    /// Wall spring force at deformation x \[mm] and its derivative.
     pub fn spring(&self, x: f64) -> (f64, f64) {
         (
             self.k_n_per_mm * x + self.k3_n_per_mm3 * x * x * x,
@@ -111,7 +111,7 @@ impl Default for Gel {
 }
 
 impl Gel {
-    /// Elastic force [N] and tangent stiffness [N/mm] at penetration d [mm].
+    /// Elastic force \[N] and tangent stiffness [N/mm] at penetration d \[mm].
     pub fn elastic(&self, d: f64) -> (f64, f64) {
         if d <= 0.0 {
             return (0.0, 0.0);
@@ -119,14 +119,14 @@ impl Gel {
         let s = d.sqrt();
         (self.k_n_per_mm15 * d * s, 1.5 * self.k_n_per_mm15 * s)
     }
-    /// Force on the wall [N] at penetration d and penetration rate dd [mm/s]; never pulls.
+    /// Force on the wall \[N] at penetration d and penetration rate dd [mm/s]; never pulls.
     pub fn force(&self, d: f64, dd: f64) -> f64 {
         if d <= 0.0 {
             return 0.0;
         }
         (self.elastic(d).0 + self.c_n_s_per_mm * dd).max(0.0)
     }
-    /// Stored elastic energy [mJ].
+    /// Stored elastic energy \[mJ].
     pub fn energy(&self, d: f64) -> f64 {
         if d <= 0.0 {
             0.0
@@ -141,7 +141,7 @@ impl Gel {
 pub struct Gripper {
     /// Speed limit per finger [mm/s].
     pub speed_mm_s: f64,
-    /// Force limit per finger [N]: closing stalls above it.
+    /// Force limit per finger \[N]: closing stalls above it.
     pub max_force_n: f64,
     /// Force-command admittance: closing speed per newton of force error [mm/s/N].
     pub force_gain: f64,
@@ -157,7 +157,7 @@ impl Default for Gripper {
     }
 }
 
-/// Static equilibrium: wall deformation x [mm] with the finger held at p (gel force = wall
+/// Static equilibrium: wall deformation x \[mm] with the finger held at p (gel force = wall
 /// spring force), by bisection (both sides are monotone in x).
 pub fn static_wall(cup: &Cup, gel: &Gel, p: f64) -> f64 {
     if p <= 0.0 {
@@ -176,7 +176,7 @@ pub fn static_wall(cup: &Cup, gel: &Gel, p: f64) -> f64 {
     0.5 * (lo + hi)
 }
 
-/// Finger position [mm] at which the static deformation (2 x) reaches `target_mm`, or the gel
+/// Finger position \[mm] at which the static deformation (2 x) reaches `target_mm`, or the gel
 /// force reaches `max_force_n`, whichever comes first.
 pub fn static_finger_for(cup: &Cup, gel: &Gel, target_mm: f64, max_force_n: f64) -> f64 {
     let x_target = 0.5 * target_mm;
