@@ -10,6 +10,7 @@ mod devices;
 mod eval;
 mod images;
 mod plot;
+mod progress;
 mod replay;
 mod sampler;
 
@@ -318,10 +319,13 @@ fn cmd_contact(
 }
 
 fn report_sim(json: bool, out: &std::path::Path) -> anyhow::Result<bool> {
-    use unitac_sim::numerics::{NumericsOptions, report};
+    use unitac_sim::numerics::{NumericsOptions, report_steps, report_with_progress};
     std::fs::create_dir_all(out)
         .map_err(|e| anyhow::Error::new(ConfigError(format!("--out {}: {e}", out.display()))))?;
-    let r = report(&NumericsOptions::default());
+    let opts = NumericsOptions::default();
+    let bar = progress::bar(report_steps(&opts), "integrator study");
+    let r = report_with_progress(&opts, &mut |done, _| bar.set_position(done));
+    bar.finish_and_clear();
     let files = r.write_plots(out)?;
     if json {
         let mut v = serde_json::to_value(&r)?;
@@ -438,6 +442,7 @@ fn main() -> ExitCode {
             no_python,
         } => {
             let (frames, repeat) = (frames.clamp(1, 10_000), repeat.clamp(1, 1000));
+            let spinner = progress::spinner(&format!("bench {what:?}").to_lowercase());
             let text = match what {
                 BenchTarget::Contact => bench::bench_contact(frames, repeat, !no_python)
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
@@ -452,6 +457,7 @@ fn main() -> ExitCode {
                     .map_err(anyhow::Error::from)
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
             };
+            spinner.finish_and_clear();
             text.map(|(j, t)| {
                 if json {
                     println!("{j}");

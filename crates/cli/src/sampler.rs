@@ -160,7 +160,12 @@ fn truth(case: &mut Case, s: f64) -> anyhow::Result<Vec<f64>> {
 
 pub fn table(reps: usize) -> anyhow::Result<Vec<Row>> {
     let mut rows = Vec::new();
-    for mut case in cases()? {
+    let cases = cases()?;
+    let bar = crate::progress::bar(
+        (cases.len() * GUIDANCE.len() * Solver::ALL.len() * STEPS.len()) as u64,
+        "sampler table",
+    );
+    for mut case in cases {
         for s in GUIDANCE {
             let exact = truth(&mut case, s)?;
             for solver in Solver::ALL {
@@ -190,10 +195,12 @@ pub fn table(reps: usize) -> anyhow::Result<Vec<Row>> {
                         error: rms(&out.x, &exact),
                         guard,
                     });
+                    bar.inc(1);
                 }
             }
         }
     }
+    bar.finish_and_clear();
     Ok(rows)
 }
 

@@ -242,6 +242,21 @@ fn rel(a: f64, b: f64) -> f64 {
 }
 
 pub fn report(opts: &NumericsOptions) -> NumericsReport {
+    report_with_progress(opts, &mut |_, _| {})
+}
+
+/// Units of work [`report_with_progress`] reports: one per cup, one per stability-map column.
+pub fn report_steps(opts: &NumericsOptions) -> u64 {
+    (opts.cups.len() + Method::ALL.len() * opts.map_stiffness.len()) as u64
+}
+
+/// [`report`], calling `progress(done, total)` after each unit of [`report_steps`].
+pub fn report_with_progress(
+    opts: &NumericsOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> NumericsReport {
+    let total = report_steps(opts);
+    let mut done = 0;
     let mut references = Vec::new();
     let mut accuracy = Vec::new();
     for cup in &opts.cups {
@@ -323,6 +338,8 @@ pub fn report(opts: &NumericsOptions) -> NumericsReport {
             });
         }
         references.push(reference);
+        done += 1;
+        progress(done, total);
     }
     let mut stability = Vec::new();
     for m in Method::ALL {
@@ -344,6 +361,8 @@ pub fn report(opts: &NumericsOptions) -> NumericsReport {
                     observed_stable: o.stable(),
                 });
             }
+            done += 1;
+            progress(done, total);
         }
     }
     let map_disagreements = stability
