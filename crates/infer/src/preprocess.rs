@@ -157,6 +157,36 @@ mod tests {
     }
 
     #[test]
+    fn unsupported_settings_are_typed_errors() {
+        let r = Preprocess::reference();
+        assert_eq!(r.check(), Ok(()));
+        let bad = |f: fn(&mut Preprocess)| {
+            let mut p = Preprocess::reference();
+            f(&mut p);
+            p.check()
+        };
+        assert_eq!(
+            bad(|p| p.crop = "letterbox".into()),
+            Err(PreprocessError::Crop("letterbox".into()))
+        );
+        assert_eq!(
+            bad(|p| p.sampling = "uniform".into()),
+            Err(PreprocessError::Sampling("uniform".into()))
+        );
+        assert_eq!(
+            bad(|p| p.clip_frames = 0),
+            Err(PreprocessError::Size {
+                size: 64,
+                clip_frames: 0
+            })
+        );
+        assert!(matches!(
+            bad(|p| p.std = 0.0),
+            Err(PreprocessError::Normalisation { .. })
+        ));
+    }
+
+    #[test]
     fn crops_the_centre_and_averages_blocks() {
         // 6x4 image: centre square is x 1..5; left half of it dark, right half bright.
         let mut d = Vec::new();
