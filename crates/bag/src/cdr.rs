@@ -6,7 +6,7 @@
 //! the NUL; a sequence is a u32 element count, then the elements; fixed arrays have no count.
 //!
 //! Every length read from a payload is checked twice before anything is allocated: against a
-//! fixed limit (see [`Limits`]) and against the bytes that are actually left, so a hostile message
+//! fixed limit (the `MAX_*` constants) and against the bytes that are actually left, so a hostile message
 //! can make us allocate at most about its own size.
 
 use thiserror::Error;

@@ -5,7 +5,7 @@
 //! - [`image`]: Image / CompressedImage to a core RGB8 [`unitac_core::Frame`];
 //! - [`read`]: a rosbag2 directory (metadata.yaml + .mcap or .db3) or a bare .mcap, streamed with
 //!   bounded memory; truncated files are read up to their last complete record;
-//! - [`write`]: rosbag2-compatible MCAP (profile ros2, ros2msg schemas, cdr) plus metadata.yaml;
+//! - [`write`](mod@write): rosbag2-compatible MCAP (profile ros2, ros2msg schemas, cdr) plus metadata.yaml;
 //! - [`replay`]: a bag as a runtime [`unitac_core::Source`], and the replay loop behind
 //!   `unitac replay` (stages driven by the bag's stamps, optional output bag).
 

@@ -29,7 +29,7 @@ const READ_BLOCK: usize = 1 << 20;
 /// sqlite rows fetched per query.
 const SQLITE_PAGE: i64 = 64;
 
-/// A callback that sees one message with its payload borrowed: (topic, log time [ns], CDR).
+/// A callback that sees one message with its payload borrowed: (topic, log time \[ns], CDR).
 pub type Visit<'f, R> = dyn FnMut(&Arc<TopicInfo>, i64, &[u8]) -> R + 'f;
 
 /// A topic as the bag declares it.

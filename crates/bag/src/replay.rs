@@ -48,7 +48,7 @@ pub struct ReplayOptions {
 #[derive(Debug)]
 pub struct ImageItem {
     pub topic: Arc<TopicInfo>,
-    /// Log time in the bag, shifted by the loop offset [ns].
+    /// Log time in the bag, shifted by the loop offset \[ns].
     pub log_time: i64,
     /// The CDR payload as recorded (empty unless [`BagSource::keep_raw`] was set).
     pub raw: Vec<u8>,
@@ -282,7 +282,7 @@ impl Source for BagSource {
 /// What one image message gave.
 #[derive(Debug)]
 pub struct ImageResult {
-    /// Frame stamp (log time when the frame could not be decoded) [ns].
+    /// Frame stamp (log time when the frame could not be decoded) \[ns].
     pub stamp: i64,
     pub topic: Arc<TopicInfo>,
     /// Events the stages produced for this frame, in order.

@@ -229,7 +229,7 @@ impl BagWriter {
         Ok(TopicId(self.topics.len() - 1))
     }
 
-    /// Write one serialized message (CDR payload) at `log_time` [ns].
+    /// Write one serialized message (CDR payload) at `log_time` \[ns].
     pub fn write_raw(
         &mut self,
         topic: TopicId,

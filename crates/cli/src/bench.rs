@@ -9,14 +9,8 @@ use std::path::PathBuf;
 use std::process::Command;
 use std::time::Instant;
 use unitac_contact::{ContactDetector, ContactParams};
-use unitac_core::{Frame, SensorKind};
+use unitac_core::{Frame, SensorKind, Timing, timing};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
-
-#[derive(Debug, Serialize)]
-pub struct Timing {
-    pub median_us: f64,
-    pub mean_us: f64,
-}
 
 #[derive(Debug, Serialize)]
 pub struct ContactBench {
@@ -29,15 +23,6 @@ pub struct ContactBench {
     /// One read pass over the frame's bytes.
     pub floor: Timing,
     pub note: String,
-}
-
-fn timing(mut v: Vec<f64>) -> Timing {
-    v.sort_by(f64::total_cmp);
-    let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
-    Timing {
-        median_us: v.get(v.len() / 2).copied().unwrap_or(0.0),
-        mean_us: mean,
-    }
 }
 
 /// Run `bench/<script>` with the project's Python on one thread (as a user would run the
@@ -103,9 +88,12 @@ fn python_baseline(
     let j = run_python_baseline("contact_baseline.py", &args);
     std::fs::remove_dir_all(&dir).ok();
     let j = j?;
+    let f = |k: &str| j[k].as_f64().unwrap_or(f64::NAN);
     let t = Timing {
-        median_us: j["median_us"].as_f64().unwrap_or(f64::NAN),
-        mean_us: j["mean_us"].as_f64().unwrap_or(f64::NAN),
+        min_us: f("min_us"),
+        median_us: f("median_us"),
+        mean_us: f("mean_us"),
+        p90_us: f("p90_us"),
     };
     Ok((t, format!("numpy {} opencv {}", j["numpy"], j["opencv"])))
 }
@@ -204,11 +192,6 @@ pub struct ReplayBench {
     pub ratio: Option<f64>,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
-}
-
 /// Write the mock fabric frames as an uncompressed rgb8 MCAP bag (rosbag2's default: no
 /// compression).
 fn bench_bag(dir: &std::path::Path, frames: &[Frame]) -> anyhow::Result<std::path::PathBuf> {
@@ -279,7 +262,7 @@ pub fn bench_replay(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
             count = k;
             read.push(rust_pass(&bag, false)?.1);
         }
-        let rust_pass_s = median(full);
+        let rust_pass_s = timing(full).median_us;
         let (python_fps, python_pass_s, versions) = if with_python {
             let (fps, pass, v) = python_replay(&bag, repeat)?;
             (Some(fps), Some(pass), v)
@@ -295,7 +278,7 @@ pub fn bench_replay(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
             passes: repeat,
             rust_fps,
             rust_pass_s,
-            rust_read_fps: count as f64 / median(read),
+            rust_read_fps: count as f64 / timing(read).median_us,
             python_fps,
             python_pass_s,
             python_versions: versions,

@@ -114,6 +114,7 @@ pub fn fabrics(out: &Path, train: usize, test: usize, seed: u64) -> anyhow::Resu
     let mut bgs = std::io::BufWriter::new(std::fs::File::create(out.join("backgrounds.f32"))?);
     let mut labels = std::io::BufWriter::new(std::fs::File::create(out.join("labels.jsonl"))?);
     let mut rng = SplitMix64::new(seed);
+    let bar = crate::progress::bar((train + test) as u64, "fabrics");
     for i in 0..train + test {
         let (obj, depth, s) = fabric(&mut rng, &format!("fabric_{i}"));
         let (x, b) = clip_of(
@@ -131,7 +132,9 @@ pub fn fabrics(out: &Path, train: usize, test: usize, seed: u64) -> anyhow::Resu
             "period_mm": obj.period_mm, "depth_mm": depth, "split": split, "sensor": "gelsight-mini",
         });
         writeln!(labels, "{line}")?;
+        bar.inc(1);
     }
+    bar.finish();
     clips.flush()?;
     bgs.flush()?;
     labels.flush()?;

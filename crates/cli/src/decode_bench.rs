@@ -60,15 +60,16 @@ fn cpu_now() -> Duration {
     )
 }
 
-fn timing(wall: &mut [f64], cpu: &mut [f64]) -> Timing {
-    wall.sort_by(f64::total_cmp);
-    cpu.sort_by(f64::total_cmp);
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+fn timing(wall: &mut Vec<f64>, cpu: &mut Vec<f64>) -> Timing {
+    let (w, c) = (
+        unitac_core::timing(std::mem::take(wall)),
+        unitac_core::timing(std::mem::take(cpu)),
+    );
     Timing {
-        median_us: wall.get(wall.len() / 2).copied().unwrap_or(0.0),
-        mean_us: mean(wall),
-        cpu_median_us: cpu.get(cpu.len() / 2).copied().unwrap_or(0.0),
-        cpu_mean_us: mean(cpu),
+        median_us: w.median_us,
+        mean_us: w.mean_us,
+        cpu_median_us: c.median_us,
+        cpu_mean_us: c.mean_us,
     }
 }
 

@@ -11,9 +11,9 @@ use unitac_contact::{ContactDetector, ContactParams};
 use unitac_core::{Msg, SensorKind};
 use unitac_sim::{Drift, MockConfig, MockSensor, Scenario};
 
-/// Penetration above which a frame must be detected [mm].
+/// Penetration above which a frame must be detected \[mm].
 pub const POSITIVE_MM: f64 = 0.05;
-/// Hold depths of the sweep [mm].
+/// Hold depths of the sweep \[mm].
 pub const DEPTHS: [f64; 10] = [0.01, 0.02, 0.03, 0.05, 0.08, 0.12, 0.2, 0.35, 0.6, 1.0];
 
 #[derive(Debug, Serialize)]

@@ -5,7 +5,7 @@ use std::path::Path;
 use unitac_core::frame::MAX_SIDE;
 use unitac_core::{Frame, Stamp};
 
-/// Largest image file read [bytes].
+/// Largest image file read \[bytes].
 const MAX_FILE_BYTES: u64 = 64 << 20;
 
 /// PNG or JPEG (8- or 16-bit, gray, RGB or RGBA) -> RGB8 frame. Errors name the file.

@@ -10,6 +10,7 @@ mod devices;
 mod eval;
 mod images;
 mod plot;
+mod progress;
 mod replay;
 mod sampler;
 
@@ -37,12 +38,12 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Cmd {
-    /// Run a scene (launch/scenes/<NAME>.yaml) in one process, without ROS.
+    /// Run a scene (launch/scenes/NAME.yaml) in one process, without ROS.
     Run {
         /// Scene name (looked up in the scene directories) or path to a scene file.
         #[arg(long)]
         scene: String,
-        /// Frame source, overriding the scene's: mock | v4l[:<serial>] | bag:<path>.
+        /// Frame source, overriding the scene's: mock | v4l | v4l:SERIAL | bag:PATH.
         #[arg(long)]
         sensor: Option<SensorArg>,
         /// Print the summary as one JSON object instead of text.
@@ -362,10 +363,13 @@ fn cmd_contact(
 }
 
 fn report_sim(json: bool, out: &std::path::Path) -> anyhow::Result<bool> {
-    use unitac_sim::numerics::{NumericsOptions, report};
+    use unitac_sim::numerics::{NumericsOptions, report_steps, report_with_progress};
     std::fs::create_dir_all(out)
         .map_err(|e| anyhow::Error::new(ConfigError(format!("--out {}: {e}", out.display()))))?;
-    let r = report(&NumericsOptions::default());
+    let opts = NumericsOptions::default();
+    let bar = progress::bar(report_steps(&opts), "integrator study");
+    let r = report_with_progress(&opts, &mut |done, _| bar.set_position(done));
+    bar.finish_and_clear();
     let files = r.write_plots(out)?;
     if json {
         let mut v = serde_json::to_value(&r)?;
@@ -498,6 +502,7 @@ fn main() -> ExitCode {
             no_python,
         } => {
             let (frames, repeat) = (frames.clamp(1, 10_000), repeat.clamp(1, 1000));
+            let spinner = progress::spinner(&format!("bench {what:?}").to_lowercase());
             let text = match what {
                 BenchTarget::Contact => bench::bench_contact(frames, repeat, !no_python)
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
@@ -508,13 +513,11 @@ fn main() -> ExitCode {
                 }
                 BenchTarget::Decode => decode_bench::bench_decode(frames, repeat, !no_python)
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
-                BenchTarget::Render => {
-                    let r = unitac_sim::bench::render_bench(repeat);
-                    serde_json::to_string(&r)
-                        .map(|j| (j, r.text()))
-                        .map_err(anyhow::Error::from)
-                }
+                BenchTarget::Render => unitac_sim::bench::render_bench(repeat)
+                    .map_err(anyhow::Error::from)
+                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
             };
+            spinner.finish_and_clear();
             text.map(|(j, t)| {
                 if json {
                     println!("{j}");

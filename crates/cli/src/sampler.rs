@@ -27,7 +27,7 @@ pub struct Row {
     pub steps: u32,
     pub guidance: f64,
     pub model_calls: u32,
-    /// Median wall time per sample [us], batched guidance, one thread.
+    /// Median wall time per sample \[us], batched guidance, one thread.
     pub time_us: f64,
     /// RMS error of the sample against the exact (Gaussian) or fine-step (transformer) answer.
     pub error: f64,
@@ -118,7 +118,7 @@ fn off() -> Guards {
     }
 }
 
-/// Timed sample: (median time [us], outcome of the last run).
+/// Timed sample: (median time \[us], outcome of the last run).
 fn timed(
     case: &mut Case,
     cfg: &SampleConfig,
@@ -132,8 +132,10 @@ fn timed(
         times.push(t0.elapsed().as_secs_f64() * 1e6);
         last = Some(out);
     }
-    times.sort_by(f64::total_cmp);
-    Ok((times[times.len() / 2], last.context("no run")?))
+    Ok((
+        unitac_core::timing(times).median_us,
+        last.context("no run")?,
+    ))
 }
 
 fn truth(case: &mut Case, s: f64) -> anyhow::Result<Vec<f64>> {
@@ -158,7 +160,12 @@ fn truth(case: &mut Case, s: f64) -> anyhow::Result<Vec<f64>> {
 
 pub fn table(reps: usize) -> anyhow::Result<Vec<Row>> {
     let mut rows = Vec::new();
-    for mut case in cases()? {
+    let cases = cases()?;
+    let bar = crate::progress::bar(
+        (cases.len() * GUIDANCE.len() * Solver::ALL.len() * STEPS.len()) as u64,
+        "sampler table",
+    );
+    for mut case in cases {
         for s in GUIDANCE {
             let exact = truth(&mut case, s)?;
             for solver in Solver::ALL {
@@ -188,10 +195,12 @@ pub fn table(reps: usize) -> anyhow::Result<Vec<Row>> {
                         error: rms(&out.x, &exact),
                         guard,
                     });
+                    bar.inc(1);
                 }
             }
         }
     }
+    bar.finish_and_clear();
     Ok(rows)
 }
 
@@ -493,8 +502,7 @@ fn encoder_latency(reps: usize) -> anyhow::Result<f64> {
         enc.encode(&clip).map_err(|e| anyhow::anyhow!("{e}"))?;
         t.push(t0.elapsed().as_secs_f64() * 1e6);
     }
-    t.sort_by(f64::total_cmp);
-    Ok(t[t.len() / 2])
+    Ok(unitac_core::timing(t).median_us)
 }
 
 impl Bench {

@@ -197,24 +197,3 @@ fn all_good_files_exit_0_and_bad_background_exits_2() {
         "one pixel is below the minimum contact area"
     );
 }
-
-/// Writes sample frames for a person to look at (UNITAC_SAMPLES=dir); not an assertion.
-#[test]
-fn write_samples_when_asked() {
-    let Some(out) = std::env::var_os("UNITAC_SAMPLES") else {
-        return;
-    };
-    let out = PathBuf::from(out);
-    std::fs::create_dir_all(&out).unwrap();
-    for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
-        let s = MockSensor::new(MockConfig::new(kind, 3), Scenario::fabric_selection());
-        let t = Scenario::fabric_selection()
-            .first_hold_time("fabric_a")
-            .unwrap()
-            * s.config().fps;
-        save_rgb(
-            &out.join(format!("{}_press.png", kind.as_str())),
-            &s.render(t as u64).0,
-        );
-    }
-}

@@ -17,11 +17,11 @@ const VERSION: u32 = 1;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Background {
     pub geo: Geometry,
-    /// Block means, RGB, [DN].
+    /// Block means, RGB, \[DN].
     pub grid: Vec<f32>,
-    /// Full-resolution mean, RGB, [DN].
+    /// Full-resolution mean, RGB, \[DN].
     pub full: Vec<f32>,
-    /// Noise sigma per channel of one grid cell [DN].
+    /// Noise sigma per channel of one grid cell \[DN].
     pub cell_sigma: f32,
     pub captured_at: Stamp,
 }

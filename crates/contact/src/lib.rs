@@ -48,7 +48,7 @@ pub struct Measurement {
     pub strength: f32,
     /// Per-channel illumination gain against the background.
     pub gain: [f32; 3],
-    /// Cell threshold used [DN].
+    /// Cell threshold used \[DN].
     pub threshold: f32,
 }
 
@@ -140,7 +140,7 @@ impl ContactDetector {
     pub fn background_frame(&self, sensor_id: &str) -> Option<Frame> {
         self.background().and_then(|b| b.frame(sensor_id))
     }
-    /// Measured per-channel noise sigma of one detection cell [DN].
+    /// Measured per-channel noise sigma of one detection cell \[DN].
     pub fn cell_sigma(&self) -> f32 {
         self.background().map_or(0.0, |b| b.cell_sigma)
     }
@@ -672,7 +672,10 @@ impl Stage for ContactStage {
                     self.sensor_id.clone_from(&f.sensor_id);
                     if let Err(e) = self.load_saved_background(f) {
                         self.sensor_id.clear();
-                        return Err(StageError::Other(format!("saved background not used: {e}")));
+                        return Err(StageError::Storage {
+                            what: "saved background not used",
+                            source: e.into(),
+                        });
                     }
                 }
                 let mut out = self.det.step(f)?;
@@ -692,8 +695,10 @@ impl Stage for ContactStage {
         let out = self.det.flush(&self.sensor_id);
         if let (Some(dir), Some(bg)) = (&self.det.p.background_dir, self.det.background()) {
             let path = Background::path_for(dir, &self.sensor_id);
-            bg.save(&path)
-                .map_err(|e| StageError::Other(e.to_string()))?;
+            bg.save(&path).map_err(|e| StageError::Storage {
+                what: "saving the background",
+                source: Box::new(e),
+            })?;
         }
         Ok(out)
     }

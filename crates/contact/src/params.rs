@@ -15,16 +15,16 @@ pub struct ContactParams {
     pub noise_k: f32,
     /// Lower bound of that threshold [DN, summed over channels].
     pub min_threshold: f32,
-    /// Noise sigma per channel [DN] assumed when there was no sequence to measure it from
+    /// Noise sigma per channel \[DN] assumed when there was no sequence to measure it from
     /// (a single background image, as in `unitac contact`).
     pub default_noise_dn: f32,
     /// Contact starts when the contact area reaches this [px of the input image] ...
     pub enter_area_px: f32,
-    /// ... and ends when it falls below this [px].
+    /// ... and ends when it falls below this \[px].
     pub exit_area_px: f32,
-    /// Connected regions smaller than this are ignored [px].
+    /// Connected regions smaller than this are ignored \[px].
     pub min_component_px: f32,
-    /// Morphological opening radius [px] (removes specks), then closing radius [px] (fills the
+    /// Morphological opening radius \[px] (removes specks), then closing radius \[px] (fills the
     /// dark line a real contact can show, and masked marker dots). Rounded to grid cells, at least
     /// one cell when non-zero.
     pub open_radius_px: u32,

@@ -31,7 +31,7 @@ pub struct RunnerStats {
     pub output: u64,
     /// Inputs the stage rejected (and a failed `finish`).
     pub errors: u64,
-    /// Wall time inside `process`/`finish` [ns]: total and the longest call.
+    /// Wall time inside `process`/`finish` \[ns]: total and the longest call.
     pub busy_ns: u64,
     pub max_ns: u64,
 }

@@ -1,6 +1,7 @@
 //! A tactile frame: RGB8 pixels plus where and when they were captured.
 
 use crate::clock::Stamp;
+use crate::sensor::SensorKind;
 use thiserror::Error;
 
 /// Largest accepted frame side, in pixels. GelSight Mini's native 3280x2464 fits; anything larger
@@ -70,8 +71,26 @@ impl Frame {
         Ok(width as usize * height as usize * 3)
     }
 
+    /// A black frame at the output size of a built-in sensor kind, seq 0, stamp 0. Those sizes
+    /// are constants within the bounds (see the test), so this cannot fail.
+    pub fn black_of(kind: SensorKind, sensor_id: impl Into<String>) -> Self {
+        let spec = kind.spec();
+        Self {
+            sensor_id: sensor_id.into(),
+            seq: 0,
+            stamp: Stamp::ZERO,
+            width: spec.width,
+            height: spec.height,
+            data: vec![0; spec.width as usize * spec.height as usize * 3],
+        }
+    }
+
     pub fn data(&self) -> &[u8] {
         &self.data
+    }
+    /// The pixels, to write in place (the length, and so the size, cannot change).
+    pub fn data_mut(&mut self) -> &mut [u8] {
+        &mut self.data
     }
     pub fn into_data(self) -> Vec<u8> {
         self.data
@@ -109,6 +128,23 @@ mod tests {
             Frame::byte_len(MAX_SIDE + 1, 1),
             Err(FrameError::BadSize { .. })
         ));
+    }
+
+    #[test]
+    fn built_in_sizes_are_within_bounds() {
+        for kind in SensorKind::ALL {
+            let f = Frame::black_of(kind, "s");
+            let spec = kind.spec();
+            let rebuilt = Frame::new(
+                "s",
+                0,
+                Stamp::ZERO,
+                spec.width,
+                spec.height,
+                f.data().to_vec(),
+            );
+            assert_eq!(rebuilt, Ok(f), "{kind}");
+        }
     }
 
     #[test]

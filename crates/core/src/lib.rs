@@ -13,6 +13,7 @@ pub mod pace;
 pub mod scene;
 pub mod sensor;
 pub mod stage;
+pub mod timing;
 
 pub use chain::{Chain, StageRunner};
 pub use clock::{Clock, ManualClock, Stamp, SystemClock};
@@ -22,3 +23,4 @@ pub use pace::Pacer;
 pub use scene::{Scene, SceneError};
 pub use sensor::{SensorKind, SensorSpec};
 pub use stage::{Source, SourceError, Stage, StageError};
+pub use timing::{Timing, timing};

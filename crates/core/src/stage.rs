@@ -19,8 +19,14 @@ pub enum StageError {
     Frame(#[from] FrameError),
     #[error("model: {0}")]
     Model(String),
-    #[error("{0}")]
-    Other(String),
+    /// State the stage keeps outside the process (e.g. a saved background) could not be read or
+    /// written; `what` says which and what for.
+    #[error("{what}: {source}")]
+    Storage {
+        what: &'static str,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
 }
 
 pub trait Stage: Send {

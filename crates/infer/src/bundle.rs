@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 /// Largest manifest accepted [bytes].
 const MAX_MANIFEST_BYTES: u64 = 1 << 20;
-/// Largest tensor a model may return [elements].
+/// Largest tensor a model may return \[elements].
 pub const MAX_OUTPUT_ELEMENTS: usize = 64 << 20;
 
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -204,7 +204,10 @@ impl Bundle {
             std::fs::read_to_string(&path).map_err(|e| err(format!("manifest.json: {e}")))?;
         let manifest: Manifest =
             serde_json::from_str(&text).map_err(|e| err(format!("manifest.json: {e}")))?;
-        manifest.preprocess.check().map_err(err)?;
+        manifest
+            .preprocess
+            .check()
+            .map_err(|e| err(e.to_string()))?;
         Ok(Bundle {
             dir: dir.to_path_buf(),
             manifest,

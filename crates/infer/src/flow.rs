@@ -16,6 +16,7 @@ use crate::bundle::Model;
 use crate::runtime::InferError;
 use serde::Serialize;
 use std::time::Instant;
+use thiserror::Error;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -43,13 +44,18 @@ impl Solver {
     }
 }
 
+/// A solver name that is none of [`Solver::ALL`].
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("unknown solver '{0}' (euler, midpoint, heun)")]
+pub struct UnknownSolver(pub String);
+
 impl std::str::FromStr for Solver {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = UnknownSolver;
+    fn from_str(s: &str) -> Result<Self, UnknownSolver> {
         Solver::ALL
             .into_iter()
             .find(|v| v.as_str() == s)
-            .ok_or_else(|| format!("unknown solver '{s}' (euler, midpoint, heun)"))
+            .ok_or_else(|| UnknownSolver(s.to_string()))
     }
 }
 

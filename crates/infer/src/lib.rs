@@ -4,7 +4,8 @@
 //! - [`bundle`]: a model bundle (manifest + .onnx files), every declared input/output checked
 //!   against the file on load, only the models a scene uses loaded.
 //! - [`preprocess`]: clip frames -> encoder tensors, as the manifest says.
-//! - [`encoder`]: touch encoder + property head on contact-episode clips, and Property Comparison.
+//! - [`encoder`]: touch encoder + property head on contact-episode clips.
+//! - [`compare`]: Property Comparison between touched objects.
 //! - [`flow`]: rectified-flow sampling with sensor-prior guidance (SPSS), guards, exact Gaussian
 //!   oracle.
 //!
@@ -13,6 +14,7 @@
 //! `time_convention` (see ../shared notes on the flow sampler).
 
 pub mod bundle;
+pub mod compare;
 pub mod encoder;
 pub mod flow;
 pub mod predict;

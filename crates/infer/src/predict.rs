@@ -26,7 +26,7 @@ pub struct SamplerParams {
     pub seed: u64,
     /// Target (hardness, roughness, texture) of the object whose touch is predicted, 0..1.
     pub condition: [f32; 3],
-    /// Pick solver and steps to fit this compute budget per latent [ms] instead (live use: the
+    /// Pick solver and steps to fit this compute budget per latent \[ms] instead (live use: the
     /// choice depends on the measured model-call time, so it is not for byte-exact replays).
     pub budget_ms: Option<f64>,
     #[serde(flatten)]
@@ -94,7 +94,7 @@ impl SamplerStage {
             dir: bundle_dir.to_path_buf(),
             msg,
         };
-        let solver: Solver = p.solver.parse().map_err(bad)?;
+        let solver: Solver = p.solver.parse().map_err(|e| bad(format!("{e}")))?;
         let ok_guidance = p.guidance.is_finite() && (0.0..=100.0).contains(&p.guidance);
         if !ok_guidance || !(1..=10_000).contains(&p.steps) {
             return Err(bad(
@@ -132,12 +132,11 @@ impl SamplerStage {
                 velocity.eval(&vec![0.0; 2 * d], &[0.5, 0.5], &vec![0.0; 2 * c], 2)?;
                 t.push(t0.elapsed().as_secs_f64() * 1e6);
             }
-            t.sort_by(f64::total_cmp);
-            let (s, n) = choose_for_budget(ms * 1e3, t[4], p.guidance, velocity.sigma_min)
+            let call_us = unitac_core::timing(t).median_us;
+            let (s, n) = choose_for_budget(ms * 1e3, call_us, p.guidance, velocity.sigma_min)
                 .ok_or_else(|| {
                     bad(format!(
-                        "a budget of {ms} ms does not fit a stable solve (one call: {:.0} us)",
-                        t[4]
+                        "a budget of {ms} ms does not fit a stable solve (one call: {call_us:.0} us)"
                     ))
                 })?;
             cfg.solver = s;

@@ -2,7 +2,23 @@
 //! manifest declares. Pure and deterministic; the dataset exporter and the encoder stage share it.
 
 use serde::Deserialize;
+use thiserror::Error;
 use unitac_core::Frame;
+
+/// A manifest's preprocessing this crate cannot follow.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum PreprocessError {
+    #[error("preprocess.crop '{0}' is not supported (center_square)")]
+    Crop(String),
+    #[error("preprocess.sampling '{0}' is not supported (peak_centred)")]
+    Sampling(String),
+    #[error(
+        "preprocess.size must be 8..=1024 and clip_frames 1..=64 (got {size} and {clip_frames})"
+    )]
+    Size { size: u32, clip_frames: u32 },
+    #[error("preprocess.std must be > 0 and mean finite (got std {std}, mean {mean})")]
+    Normalisation { mean: f32, std: f32 },
+}
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -13,7 +29,7 @@ pub struct Preprocess {
     /// texture survives only when the square is not shrunk too much.
     #[serde(default)]
     pub crop_size: u32,
-    /// Output side [px].
+    /// Output side \[px].
     pub size: u32,
     /// value = (pixel / 255 - mean) / std
     pub mean: f32,
@@ -39,24 +55,24 @@ impl Preprocess {
         }
     }
 
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), PreprocessError> {
         if self.crop != "center_square" {
-            return Err(format!(
-                "preprocess.crop '{}' is not supported (center_square)",
-                self.crop
-            ));
+            return Err(PreprocessError::Crop(self.crop.clone()));
         }
         if self.sampling != "peak_centred" {
-            return Err(format!(
-                "preprocess.sampling '{}' is not supported (peak_centred)",
-                self.sampling
-            ));
+            return Err(PreprocessError::Sampling(self.sampling.clone()));
         }
         if !(8..=1024).contains(&self.size) || !(1..=64).contains(&self.clip_frames) {
-            return Err("preprocess.size must be 8..=1024 and clip_frames 1..=64".into());
+            return Err(PreprocessError::Size {
+                size: self.size,
+                clip_frames: self.clip_frames,
+            });
         }
         if !(self.std.is_finite() && self.std > 0.0 && self.mean.is_finite()) {
-            return Err("preprocess.std must be > 0".into());
+            return Err(PreprocessError::Normalisation {
+                mean: self.mean,
+                std: self.std,
+            });
         }
         Ok(())
     }
@@ -138,6 +154,36 @@ mod tests {
             clip_frames: 3,
             sampling: "peak_centred".into(),
         }
+    }
+
+    #[test]
+    fn unsupported_settings_are_typed_errors() {
+        let r = Preprocess::reference();
+        assert_eq!(r.check(), Ok(()));
+        let bad = |f: fn(&mut Preprocess)| {
+            let mut p = Preprocess::reference();
+            f(&mut p);
+            p.check()
+        };
+        assert_eq!(
+            bad(|p| p.crop = "letterbox".into()),
+            Err(PreprocessError::Crop("letterbox".into()))
+        );
+        assert_eq!(
+            bad(|p| p.sampling = "uniform".into()),
+            Err(PreprocessError::Sampling("uniform".into()))
+        );
+        assert_eq!(
+            bad(|p| p.clip_frames = 0),
+            Err(PreprocessError::Size {
+                size: 64,
+                clip_frames: 0
+            })
+        );
+        assert!(matches!(
+            bad(|p| p.std = 0.0),
+            Err(PreprocessError::Normalisation { .. })
+        ));
     }
 
     #[test]

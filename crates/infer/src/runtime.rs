@@ -10,10 +10,22 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 use thiserror::Error;
 
+/// Why the ONNX Runtime library could not be used (kept for the life of the process: the first
+/// attempt decides).
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum LibraryError {
+    #[error("no library given and UNITAC_ORT_LIB is not set (run scripts/setup.sh)")]
+    NotConfigured,
+    #[error("{} does not exist", .0.display())]
+    Missing(PathBuf),
+    #[error("{}: {msg}", path.display())]
+    Load { path: PathBuf, msg: String },
+}
+
 #[derive(Debug, Error)]
 pub enum InferError {
     #[error("ONNX Runtime library: {0}")]
-    Library(String),
+    Library(#[from] LibraryError),
     #[error("model bundle {dir}: {msg}")]
     Bundle { dir: PathBuf, msg: String },
     #[error("model '{model}': {msg}")]
@@ -55,7 +67,7 @@ impl Default for RuntimeConfig {
     }
 }
 
-static ENV: OnceLock<Result<ort::environment::Environment, String>> = OnceLock::new();
+static ENV: OnceLock<Result<ort::environment::Environment, LibraryError>> = OnceLock::new();
 
 /// The process's ONNX Runtime environment, created on first use from `library` (or
 /// `$UNITAC_ORT_LIB`).
@@ -66,17 +78,19 @@ pub fn environment(
         let path = library
             .map(Path::to_path_buf)
             .or_else(|| std::env::var_os("UNITAC_ORT_LIB").map(PathBuf::from))
-            .ok_or_else(|| {
-                "no library given and UNITAC_ORT_LIB is not set (run scripts/setup.sh)".to_string()
-            })?;
+            .ok_or(LibraryError::NotConfigured)?;
         if !path.is_file() {
-            return Err(format!("{} does not exist", path.display()));
+            return Err(LibraryError::Missing(path));
         }
-        let builder = ort::init_from(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let load = |msg: String| LibraryError::Load {
+            path: path.clone(),
+            msg,
+        };
+        let builder = ort::init_from(&path).map_err(|e| load(e.to_string()))?;
         builder
             .with_name("unitac")
             .build()
-            .map_err(|e| format!("{}: {e}", path.display()))
+            .map_err(|e| load(e.to_string()))
     });
     r.as_ref().map_err(|e| InferError::Library(e.clone()))
 }

@@ -4,7 +4,7 @@
 use r2r::diagnostic_msgs::msg::{DiagnosticArray, DiagnosticStatus, KeyValue};
 use std::time::Instant;
 
-/// A latency beyond this is not a latency but a stamp from another time line [s].
+/// A latency beyond this is not a latency but a stamp from another time line \[s].
 pub const MAX_LATENCY_S: f64 = 60.0;
 
 /// Counters a node keeps for its diagnostics.
@@ -45,7 +45,7 @@ impl Counters {
     }
 
     /// Record one latency: the node's clock when an output went out minus the capture stamp of
-    /// the frame it came from [s].
+    /// the frame it came from \[s].
     pub fn latency(&mut self, seconds: f64) {
         if !(-1.0..=MAX_LATENCY_S).contains(&seconds) {
             self.latency_out_of_range += 1;

@@ -27,7 +27,7 @@ pub struct DropCounter {
 }
 
 impl DropCounter {
-    /// The current period estimate [ns], once there are enough regular intervals.
+    /// The current period estimate \[ns], once there are enough regular intervals.
     pub fn period_ns(&self) -> Option<i64> {
         if self.intervals.len() < MIN_INTERVALS {
             return None;

@@ -3,29 +3,9 @@
 use serde::Serialize;
 use std::hint::black_box;
 use std::time::Instant;
-use unitac_core::{SensorKind, SensorSpec};
+use unitac_core::{FrameError, SensorKind, SensorSpec, Timing, timing};
 
 use crate::{MockConfig, MockSensor, Scenario};
-
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Timing {
-    /// Fastest frame (least disturbed by other load on the machine).
-    pub min_us: f64,
-    pub median_us: f64,
-    pub mean_us: f64,
-    pub p90_us: f64,
-}
-
-fn timing(mut v: Vec<f64>) -> Timing {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    Timing {
-        min_us: v.first().copied().unwrap_or(0.0),
-        median_us: v.get(n / 2).copied().unwrap_or(0.0),
-        mean_us: v.iter().sum::<f64>() / n.max(1) as f64,
-        p90_us: v.get(n * 9 / 10).copied().unwrap_or(0.0),
-    }
-}
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RenderRow {
@@ -44,7 +24,7 @@ pub struct RenderRow {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RenderBench {
     pub rows: Vec<RenderRow>,
-    /// Published CPU GelSight-style optical simulators: per 640x480 frame [ms].
+    /// Published CPU GelSight-style optical simulators: per 640x480 frame \[ms].
     pub published_ms_640x480: [f64; 2],
     pub note: String,
 }
@@ -92,7 +72,7 @@ fn row(name: &str, s: &MockSensor, repeat: usize) -> RenderRow {
 
 /// Time GelSight Mini and DIGIT at 320x240 and DIGIT's VGA mode (640x480), each over the whole
 /// fabric scenario, `repeat` passes.
-pub fn render_bench(repeat: usize) -> RenderBench {
+pub fn render_bench(repeat: usize) -> Result<RenderBench, FrameError> {
     let repeat = repeat.max(1);
     let mut rows = Vec::new();
     for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
@@ -111,15 +91,15 @@ pub fn render_bench(repeat: usize) -> RenderBench {
     };
     let mut cfg = MockConfig::new(SensorKind::Digit, 5);
     cfg.fps = vga.fps;
-    let s = MockSensor::with_spec(cfg, vga, Scenario::fabric_selection());
+    let s = MockSensor::with_spec(cfg, vga, Scenario::fabric_selection())?;
     rows.push(row("digit-vga", &s, repeat));
-    RenderBench {
+    Ok(RenderBench {
         rows,
         published_ms_640x480: [28.0, 45.0],
         note: "one core; frame + ground-truth mask; published CPU GelSight-style optical \
                simulators take 28-45 ms per 640x480 frame (mock-sensor issue)"
             .into(),
-    }
+    })
 }
 
 impl RenderBench {

@@ -14,26 +14,26 @@ use std::time::Instant;
 use crate::plot::{BLACK, Canvas, GREY, LogAxes, Marker, PlotError, Rgb};
 use crate::world::{Cup, Gel, Method, Substep, World, WorldConfig, static_finger_for, static_wall};
 
-/// Target deformation [mm] and force limit [N] of the task.
+/// Target deformation \[mm] and force limit \[N] of the task.
 pub const TARGET_MM: f64 = 10.0;
 pub const MAX_FORCE_N: f64 = 20.0;
-/// Closing speed [mm/s], hold [s], start [mm].
+/// Closing speed [mm/s], hold \[s], start \[mm].
 pub const SPEED_MM_S: f64 = 40.0;
 pub const HOLD_S: f64 = 0.3;
 pub const START_MM: f64 = -0.4;
-/// Reference step [s].
+/// Reference step \[s].
 pub const REF_STEP_S: f64 = 1e-7;
-/// Step sizes of the accuracy runs [s].
+/// Step sizes of the accuracy runs \[s].
 pub const STEPS_S: [f64; 9] = [1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5, 3e-6, 1e-6];
-/// The world's default control step [s] (sub-stepped inside).
+/// The world's default control step \[s] (sub-stepped inside).
 pub const DEFAULT_STEP_S: f64 = 1e-3;
 
 /// The prescribed task for one cup.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Task {
-    /// Final finger position [mm].
+    /// Final finger position \[mm].
     pub finger_mm: f64,
-    /// End of the closing ramp and of the run [s].
+    /// End of the closing ramp and of the run \[s].
     pub close_s: f64,
     pub end_s: f64,
 }
@@ -62,13 +62,13 @@ impl Task {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Outcome {
     pub final_deformation_mm: f64,
-    /// Deformation the moment the finger stops (the end of the closing ramp) [mm]: still
+    /// Deformation the moment the finger stops (the end of the closing ramp) \[mm]: still
     /// dynamic, unlike the final one, which the hold lets settle to the static equilibrium.
     pub stop_deformation_mm: f64,
     pub peak_force_n: f64,
     /// Integrator steps taken (sub-steps included).
     pub steps: u64,
-    /// Largest |x - x_static| in the first and the second half of the hold [mm] (a growing
+    /// Largest |x - x_static| in the first and the second half of the hold \[mm] (a growing
     /// oscillation = unstable).
     pub hold_swing_first_mm: f64,
     pub hold_swing_second_mm: f64,
@@ -86,7 +86,7 @@ impl Outcome {
     }
 }
 
-/// Run the task on `cup` with `method` at step `h` [s].
+/// Run the task on `cup` with `method` at step `h` \[s].
 pub fn run_task(cup: &Cup, method: Method, substep: Substep, h: f64) -> Outcome {
     let task = Task::for_cup(cup);
     let mut cfg = WorldConfig::new(cup.clone()).with_method(method, substep);
@@ -146,11 +146,11 @@ pub struct AccuracyRow {
     pub final_deformation_mm: f64,
     pub stop_deformation_mm: f64,
     pub peak_force_n: f64,
-    /// |final deformation - reference| [mm] (NaN when diverged).
+    /// |final deformation - reference| \[mm] (NaN when diverged).
     pub err_deformation_mm: f64,
-    /// |deformation when the finger stops - reference| [mm].
+    /// |deformation when the finger stops - reference| \[mm].
     pub err_stop_deformation_mm: f64,
-    /// |peak force - reference| [N].
+    /// |peak force - reference| \[N].
     pub err_force_n: f64,
     /// Largest of the three relative errors.
     pub rel_err: f64,
@@ -171,7 +171,7 @@ pub struct Reference {
     pub self_err_deformation_mm: f64,
     pub self_err_stop_deformation_mm: f64,
     pub self_err_force_n: f64,
-    /// Stability bounds at the end state [s].
+    /// Stability bounds at the end state \[s].
     pub bound_explicit_s: f64,
     pub bound_semi_implicit_s: f64,
     pub wall_s: f64,
@@ -242,6 +242,21 @@ fn rel(a: f64, b: f64) -> f64 {
 }
 
 pub fn report(opts: &NumericsOptions) -> NumericsReport {
+    report_with_progress(opts, &mut |_, _| {})
+}
+
+/// Units of work [`report_with_progress`] reports: one per cup, one per stability-map column.
+pub fn report_steps(opts: &NumericsOptions) -> u64 {
+    (opts.cups.len() + Method::ALL.len() * opts.map_stiffness.len()) as u64
+}
+
+/// [`report`], calling `progress(done, total)` after each unit of [`report_steps`].
+pub fn report_with_progress(
+    opts: &NumericsOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> NumericsReport {
+    let total = report_steps(opts);
+    let mut done = 0;
     let mut references = Vec::new();
     let mut accuracy = Vec::new();
     for cup in &opts.cups {
@@ -323,6 +338,8 @@ pub fn report(opts: &NumericsOptions) -> NumericsReport {
             });
         }
         references.push(reference);
+        done += 1;
+        progress(done, total);
     }
     let mut stability = Vec::new();
     for m in Method::ALL {
@@ -344,6 +361,8 @@ pub fn report(opts: &NumericsOptions) -> NumericsReport {
                     observed_stable: o.stable(),
                 });
             }
+            done += 1;
+            progress(done, total);
         }
     }
     let map_disagreements = stability

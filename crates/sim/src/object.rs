@@ -42,17 +42,17 @@ pub const BUMP_ASPECT: f64 = 0.35;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Object {
     pub label: String,
-    /// Indenter radius of curvature [mm] (see [`Shape`]).
+    /// Indenter radius of curvature \[mm] (see [`Shape`]).
     pub radius_mm: f64,
-    /// Surface texture amplitude [mm] (rougher = larger).
+    /// Surface texture amplitude \[mm] (rougher = larger).
     pub roughness_mm: f64,
-    /// Texture period [mm].
+    /// Texture period \[mm].
     pub period_mm: f64,
     pub shape: Shape,
     /// Share of the approach the gel takes, in (0, 1]: 1 = rigid, smaller = softer (see the
     /// module docs).
     pub hardness: f64,
-    /// Radius of texture bumps (knots, pile, weave crossings) [mm]; 0 = none.
+    /// Radius of texture bumps (knots, pile, weave crossings) \[mm]; 0 = none.
     pub bump_mm: f64,
     /// Bumps per mm^2 (on a jittered grid; at most one bump per cell).
     pub bump_density: f64,
@@ -91,18 +91,18 @@ impl Object {
         self.hardness = clamp_hardness(hardness);
         self
     }
-    /// Texture bumps of this radius [mm] and density [1/mm^2].
+    /// Texture bumps of this radius \[mm] and density [1/mm^2].
     pub fn with_bumps(mut self, radius_mm: f64, per_mm2: f64) -> Self {
         self.bump_mm = radius_mm.max(0.0);
         self.bump_density = per_mm2.max(0.0);
         self
     }
 
-    /// Gel penetration [mm] for an approach of `depth` mm (the soft object takes the rest).
+    /// Gel penetration \[mm] for an approach of `depth` mm (the soft object takes the rest).
     pub fn gel_depth(&self, depth: f64) -> f64 {
         depth * clamp_hardness(self.hardness)
     }
-    /// Radius of curvature the gel sees [mm] (softer objects flatten: R / h).
+    /// Radius of curvature the gel sees \[mm] (softer objects flatten: R / h).
     pub fn effective_radius_mm(&self) -> f64 {
         self.radius_mm / clamp_hardness(self.hardness)
     }
@@ -123,7 +123,7 @@ impl Object {
         )
     }
 
-    /// Height and gradient of the bump field at (x, y) [mm]: one dome (1 - d^2/r^2)^2 per grid
+    /// Height and gradient of the bump field at (x, y) \[mm]: one dome (1 - d^2/r^2)^2 per grid
     /// cell of side 1/sqrt(density), placed at a hashed offset that keeps it inside its cell.
     pub fn bump(&self, x_mm: f64, y_mm: f64) -> (f64, f64, f64) {
         let r = self.bump_mm;
@@ -149,8 +149,8 @@ impl Object {
         (amp * s * s, g * dx, g * dy)
     }
 
-    /// Gap g(x, y) between the object's surface and its lowest point [mm] at offset (dx, dy)
-    /// [mm] from the contact centre, with its gradient, as the gel sees it (hardness applied).
+    /// Gap g(x, y) between the object's surface and its lowest point \[mm] at offset (dx, dy)
+    /// \[mm] from the contact centre, with its gradient, as the gel sees it (hardness applied).
     /// Returns (g, dg/dx, dg/dy).
     pub fn gap(&self, dx: f64, dy: f64) -> (f64, f64, f64) {
         let r = self.effective_radius_mm();
@@ -171,7 +171,7 @@ impl Object {
         }
     }
 
-    /// Half-width of the contact [mm] at gel depth `d` (radius for sphere and flat punch,
+    /// Half-width of the contact \[mm] at gel depth `d` (radius for sphere and flat punch,
     /// half-width of the band for an edge).
     pub fn contact_half_width_mm(&self, d: f64) -> f64 {
         if d <= 0.0 {

@@ -130,7 +130,7 @@ impl Scenario {
         }
     }
 
-    /// One press per depth [mm] on `object`: free 0.8 s, press 0.4 s, hold 0.8 s, release 0.3 s.
+    /// One press per depth \[mm] on `object`: free 0.8 s, press 0.4 s, hold 0.8 s, release 0.3 s.
     pub fn press_sweep(object: &Object, depths: &[f64]) -> Scenario {
         let mut phases = vec![free(1.0)];
         for &d in depths {
@@ -244,7 +244,7 @@ impl Scenario {
         self.phases.iter().map(|p| p.duration_s).sum()
     }
 
-    /// Indenter depth [mm] (negative = above the gel) and object at time t.
+    /// Indenter depth \[mm] (negative = above the gel) and object at time t.
     pub fn at(&self, t: f64) -> (f64, Option<&Object>) {
         let mut t0 = 0.0;
         for p in &self.phases {

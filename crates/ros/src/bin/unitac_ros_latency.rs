@@ -4,7 +4,7 @@
 //! node keeps the capture stamp). Run a contact node in the same namespace first, or use
 //! scripts/bench-ros-latency, which does both.
 //!
-//! usage: unitac_ros_latency RATE_HZ COUNT  (prints one JSON line: p50, p99, max [ms], received)
+//! usage: unitac_ros_latency RATE_HZ COUNT  (prints one JSON line: p50, p99, max (ms), received)
 
 use futures::{FutureExt, StreamExt};
 use r2r::QosProfile;

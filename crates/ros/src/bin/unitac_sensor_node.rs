@@ -31,7 +31,7 @@ struct Params {
     source: String,
     /// gelsight-mini | digit | generic (empty: the scene's sensor)
     sensor_kind: String,
-    /// Sensor id: frame_id is `<sensor_id>_optical_frame` (empty: the scene's, else mock_<kind>
+    /// Sensor id: frame_id is `<sensor_id>_optical_frame` (empty: the scene's, else mock_KIND
     /// for the mock sensor, the serial for a live one)
     sensor_id: String,
     /// Serial of a live sensor (v4l; empty: the scene's, else the only one of its kind)
