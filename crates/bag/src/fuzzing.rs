@@ -35,7 +35,10 @@ pub fn cdr(data: &[u8]) {
     let _ = CompressedImage::from_cdr(data);
     // Every message of msg/unitac_msgs, from the same definition as its codec.
     macro_rules! decode_each {
-        (messages { $( $msg:ident [$to:ident, $from:ident] { $($fields:tt)* } )* } enums { $($e:tt)* }) => {
+        (
+            messages { $( $msg:ident [$to:ident, $from:ident] { $($fields:tt)* } )* }
+            enums { $($e:tt)* }
+        ) => {
             $( let _ = <unitac_core::msg::$msg as RosMessage>::from_cdr(data); )*
         };
     }

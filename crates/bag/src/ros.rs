@@ -238,13 +238,19 @@ macro_rules! primitive_fields {
             fn write_field(&self, w: &mut CdrWriter) {
                 w.$m(*self);
             }
-            fn read_field(r: &mut CdrReader<'_>, what: &'static str, _: usize) -> Result<Self, CdrError> {
+            fn read_field(
+                r: &mut CdrReader<'_>,
+                what: &'static str,
+                _: usize,
+            ) -> Result<Self, CdrError> {
                 r.$m(what)
             }
         }
     )*};
 }
-primitive_fields!(bool => bool, u8 => u8, u32 => u32, i32 => i32, u64 => u64, f32 => f32, f64 => f64);
+primitive_fields!(
+    bool => bool, u8 => u8, u32 => u32, i32 => i32, u64 => u64, f32 => f32, f64 => f64,
+);
 
 impl CdrField for String {
     fn write_field(&self, w: &mut CdrWriter) {
@@ -323,7 +329,9 @@ fn limit(max: Option<usize>) -> usize {
 
 macro_rules! unitac_codecs {
     (
-        messages { $( $msg:ident [$to:ident, $from:ident] { $( $f:ident : $t:ty => $max:expr ),* $(,)? } )* }
+        messages {
+            $( $msg:ident [$to:ident, $from:ident] { $( $f:ident : $t:ty => $max:expr ),* $(,)? } )*
+        }
         enums { $( $e:ty ),* $(,)? }
     ) => {
         $(
@@ -348,7 +356,11 @@ macro_rules! unitac_codecs {
                 fn write_field(&self, w: &mut CdrWriter) {
                     w.u8(u8::from(*self));
                 }
-                fn read_field(r: &mut CdrReader<'_>, what: &'static str, _: usize) -> Result<Self, CdrError> {
+                fn read_field(
+                    r: &mut CdrReader<'_>,
+                    what: &'static str,
+                    _: usize,
+                ) -> Result<Self, CdrError> {
                     <$e>::try_from(r.u8(what)?).map_err(|e| CdrError::BadEnum { what, value: e.0 })
                 }
             }

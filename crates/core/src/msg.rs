@@ -8,8 +8,8 @@
 //! ([`Winner`], [`LatentSource`], [`GripperMode`]), and a [`Message`] impl. The same definition
 //! reaches the two other places a message is spelled out through
 //! [`for_each_message!`](crate::for_each_message): crates/bag expands it into the CDR codecs
-//! (`RosMessage`), crates/ros into the r2r conversions. So adding a field to a message is one edit, in its `.msg` file (plus the stage that fills it
-//! in and the tests that set it).
+//! (`RosMessage`), crates/ros into the r2r conversions. So adding a field to a message is one
+//! edit, in its `.msg` file (plus the stage that fills it in and the tests that set it).
 //!
 //! Why the `.msg` files and not a Rust list checked against them: rclpy peers, `colcon` and the
 //! bags need the `.msg` files anyway, so making them the source leaves nothing to keep in step.

@@ -158,7 +158,8 @@ fn lines_it_cannot_map_are_errors_with_file_and_line() {
 fn constants_make_an_enum_named_after_the_field() {
     let d = parse(&with_text(
         "Light",
-        "# A light.\nuint8 COLOUR_RED=0\nuint8 COLOUR_DARK_GREEN=5\nuint8 colour  # which\nbool on\n",
+        "# A light.\nuint8 COLOUR_RED=0\nuint8 COLOUR_DARK_GREEN=5\n\
+         uint8 colour  # which\nbool on\n",
     ))
     .unwrap();
     assert_eq!(d.doc, "A light.");

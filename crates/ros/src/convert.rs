@@ -176,7 +176,9 @@ fn limit(max: Option<usize>) -> usize {
 
 macro_rules! unitac_conversions {
     (
-        messages { $( $msg:ident [$to:ident, $from:ident] { $( $f:ident : $t:ty => $max:expr ),* $(,)? } )* }
+        messages {
+            $( $msg:ident [$to:ident, $from:ident] { $( $f:ident : $t:ty => $max:expr ),* $(,)? } )*
+        }
         enums { $( $e:ty ),* $(,)? }
     ) => {
         $(
@@ -187,7 +189,10 @@ macro_rules! unitac_conversions {
                 }
             }
 
-            #[doc = concat!("r2r to `unitac_core::msg::", stringify!($msg), "`: bounds, enum values and the message's checks.")]
+            #[doc = concat!(
+                "r2r to `unitac_core::msg::", stringify!($msg),
+                "`: bounds, enum values and the message's checks."
+            )]
             pub fn $from(m: &ros::$msg) -> Result<unitac_core::msg::$msg, ConvertError> {
                 let v = unitac_core::msg::$msg {
                     $( $f: <$t as RosField>::from_ros(&m.$f, stringify!($f), limit($max))?, )*
