@@ -474,7 +474,7 @@ pub fn schema_text(type_name: &str) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use unitac_core::msg::{GripperMode, LatentSource, Winner};
+    use unitac_core::msg::samples;
 
     fn header() -> Header {
         Header::new(Stamp(1_700_000_000_123_456_789), "gelsight_optical_frame")
@@ -503,108 +503,6 @@ mod tests {
         }
     }
 
-    #[test]
-    fn project_messages_round_trip() {
-        let c = ContactState {
-            header: header(),
-            sensor_id: "gs".into(),
-            frame_seq: 5,
-            in_contact: true,
-            area_px: 1.5,
-            area_mm2: 0.25,
-            centroid_px: [3.0, 4.0],
-            bbox_px: [1, 2, 3, 4],
-            strength: 0.5,
-            episode_id: 2,
-            background_age_s: 1.25,
-        };
-        assert_eq!(ContactState::from_cdr(&c.to_cdr()).unwrap(), c);
-        let l = TactileLatent {
-            header: header(),
-            source: LatentSource::Predicted,
-            sensor_id: "gs".into(),
-            shape: vec![2, 3],
-            data: vec![0.5; 6],
-            model_id: "m".into(),
-            solver: "heun".into(),
-            steps: 8,
-            guidance: 1.5,
-            elapsed_s: 0.01,
-            valid: true,
-            guard_report: String::new(),
-        };
-        assert_eq!(TactileLatent::from_cdr(&l.to_cdr()).unwrap(), l);
-        let mut bad = l.to_cdr();
-        bad[4 + 12 + 23] = 9; // the source byte, right after the header (stamp 8, len 4, 23 bytes)
-        assert!(TactileLatent::from_cdr(&bad).is_err());
-    }
-
-    fn every_message() -> (
-        ContactEpisode,
-        TactileProperties,
-        PropertyComparison,
-        GripperCommand,
-        PolicyStatus,
-    ) {
-        (
-            ContactEpisode {
-                header: header(),
-                sensor_id: "gs".into(),
-                episode_id: 3,
-                start: Stamp(5),
-                end: Stamp(1_000_000_007),
-                frame_count: 9,
-                peak_area_px: 10.5,
-                peak_area_mm2: 0.5,
-                peak_frame_seq: 4,
-                label: "fabric_a".into(),
-            },
-            TactileProperties {
-                header: header(),
-                sensor_id: "gs".into(),
-                episode_id: 3,
-                label: "cup".into(),
-                hardness: 0.1,
-                hardness_std: 0.2,
-                roughness: 0.3,
-                roughness_std: 0.4,
-                texture: 0.5,
-                texture_std: 0.6,
-                model_id: "m@12ab".into(),
-            },
-            PropertyComparison {
-                header: header(),
-                property: "roughness".into(),
-                episode_a: 1,
-                label_a: "a".into(),
-                episode_b: 2,
-                label_b: "b".into(),
-                winner: Winner::Tie,
-                score_a: 0.5,
-                score_b: 0.5,
-                margin: 0.0,
-                confidence: 0.5,
-                sentence: "A and B are as rough".into(),
-            },
-            GripperCommand {
-                header: header(),
-                mode: GripperMode::Force,
-                position_m: 0.02,
-                speed_m_s: 0.05,
-                force_n: 4.5,
-                reason: "press".into(),
-            },
-            PolicyStatus {
-                header: header(),
-                scene: "cup_deformation".into(),
-                mode: "vtla_real".into(),
-                phase: "press".into(),
-                safety_ok: false,
-                message: "force limit".into(),
-            },
-        )
-    }
-
     /// Round trip, and every cut of the payload is an error (never a panic).
     fn round_trip<M: RosMessage + PartialEq + std::fmt::Debug>(m: &M) {
         let b = m.to_cdr();
@@ -614,29 +512,43 @@ mod tests {
         }
     }
 
+    /// Every message of msg/unitac_msgs, through the same definition as the codecs.
     #[test]
     fn every_generated_codec_round_trips() {
-        let (e, p, c, g, s) = every_message();
-        round_trip(&e);
-        round_trip(&p);
-        round_trip(&c);
-        round_trip(&g);
-        round_trip(&s);
+        macro_rules! round_trip_each {
+            (
+                messages { $( $msg:ident [$to:ident, $from:ident] { $($fields:tt)* } )* }
+                enums { $($e:tt)* }
+            ) => {
+                $( round_trip(&samples::$to()); )*
+            };
+        }
+        unitac_core::for_each_message!(round_trip_each);
         assert_eq!(KNOWN_TYPES.len(), 4 + 7);
         for (t, text) in KNOWN_TYPES {
             assert!(schema_text(t).unwrap().starts_with(text.trim_end()), "{t}");
         }
+        // A latent's source byte comes right after the header (stamp 8, length 4, 17 bytes).
+        let mut bad = samples::tactile_latent().to_cdr();
+        bad[4 + 12 + 17] = 9;
+        assert_eq!(
+            TactileLatent::from_cdr(&bad),
+            Err(CdrError::BadEnum {
+                what: "source",
+                value: 9
+            })
+        );
     }
 
     /// The generated layout is the one the hand-written codec had (and rosbags reads: see
     /// tests/interop.rs): fields in .msg order, fixed arrays without a count, enums as one byte.
     #[test]
     fn generated_layout_is_field_by_field() {
-        let (_, _, cmp, cmd, _) = every_message();
+        let (cmp, cmd) = (samples::property_comparison(), samples::gripper_command());
         let mut w = CdrWriter::new();
         w.i32(1_700_000_000);
         w.u32(123_456_789);
-        w.string("gelsight_optical_frame");
+        w.string("gs_optical_frame");
         w.string("roughness");
         w.u64(1);
         w.string("a");
@@ -652,7 +564,7 @@ mod tests {
         let mut w = CdrWriter::new();
         w.i32(1_700_000_000);
         w.u32(123_456_789);
-        w.string("gelsight_optical_frame");
+        w.string("gs_optical_frame");
         w.u8(1);
         for v in [0.02, 0.05, 4.5] {
             w.f64(v);
@@ -663,10 +575,10 @@ mod tests {
 
     #[test]
     fn enum_values_bounds_and_checks_are_errors() {
-        let (_, _, cmp, cmd, _) = every_message();
-        // The mode byte comes right after the header (4 + 8 + 4 + 23 bytes).
+        let (cmp, cmd) = (samples::property_comparison(), samples::gripper_command());
+        // The mode byte comes right after the header (4 + 8 + 4 + 17 bytes).
         let mut bad = cmd.to_cdr();
-        bad[4 + 12 + 23] = 3;
+        bad[4 + 12 + 17] = 3;
         assert_eq!(
             GripperCommand::from_cdr(&bad),
             Err(CdrError::BadEnum {
@@ -696,18 +608,9 @@ mod tests {
         );
 
         let latent = |shape: Vec<u32>, n: usize| TactileLatent {
-            header: header(),
-            source: LatentSource::Real,
-            sensor_id: "gs".into(),
             shape,
             data: vec![1.0; n],
-            model_id: String::new(),
-            solver: String::new(),
-            steps: 0,
-            guidance: 0.0,
-            elapsed_s: 0.0,
-            valid: true,
-            guard_report: String::new(),
+            ..samples::tactile_latent()
         };
         // Shape and data disagree: the message's own check.
         assert!(matches!(

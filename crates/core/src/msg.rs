@@ -100,6 +100,8 @@ pub struct UnknownValue(pub u8);
 
 include!(concat!(env!("OUT_DIR"), "/msg_generated.rs"));
 
+pub mod samples;
+
 impl TactileLatent {
     /// At most [`MAX_LATENT_DIMS`] dimensions, and as many values as the shape says.
     pub fn check_shape(&self) -> Result<(), MsgError> {
@@ -239,18 +241,9 @@ mod tests {
 
     fn latent(shape: Vec<u32>, n: usize) -> TactileLatent {
         TactileLatent {
-            header: Header::new(Stamp(1), "gs_optical_frame"),
-            source: LatentSource::Real,
-            sensor_id: "gs".into(),
             shape,
             data: vec![0.5; n],
-            model_id: String::new(),
-            solver: String::new(),
-            steps: 0,
-            guidance: 0.0,
-            elapsed_s: 0.0,
-            valid: true,
-            guard_report: String::new(),
+            ..samples::tactile_latent()
         }
     }
 

@@ -292,72 +292,28 @@ pub fn contact_clip_from(m: &ros::ContactClip) -> Result<EpisodeClip, ConvertErr
 #[cfg(test)]
 mod tests {
     use super::*;
-    use unitac_core::msg::{
-        ContactState, GripperCommand, GripperMode, LatentSource, PropertyComparison, TactileLatent,
-        Winner,
-    };
+    use unitac_core::msg::samples::{self, contact_state as state, tactile_latent as latent};
 
-    fn state() -> ContactState {
-        ContactState {
-            header: Header::new(Stamp(1_700_000_000_123_456_789), "gs_optical_frame"),
-            sensor_id: "gs".into(),
-            frame_seq: 5,
-            in_contact: true,
-            area_px: 1.5,
-            area_mm2: 0.25,
-            centroid_px: [3.0, 4.0],
-            bbox_px: [1, 2, 3, 4],
-            strength: 0.5,
-            episode_id: 2,
-            background_age_s: 1.25,
-        }
-    }
-
-    fn latent() -> TactileLatent {
-        TactileLatent {
-            header: Header::new(Stamp(7), "gs_optical_frame"),
-            source: LatentSource::Predicted,
-            sensor_id: "gs".into(),
-            shape: vec![2, 3],
-            data: vec![0.5; 6],
-            model_id: "m".into(),
-            solver: "heun".into(),
-            steps: 8,
-            guidance: 1.5,
-            elapsed_s: 0.01,
-            valid: true,
-            guard_report: String::new(),
-        }
-    }
-
+    /// Every message of msg/unitac_msgs, through the same definition as the conversions.
     #[test]
     fn generated_conversions_round_trip() {
-        let s = state();
-        let r = contact_state(&s);
+        macro_rules! round_trip_each {
+            (
+                messages { $( $msg:ident [$to:ident, $from:ident] { $($fields:tt)* } )* }
+                enums { $($e:tt)* }
+            ) => {
+                $( assert_eq!($from(&$to(&samples::$to())), Ok(samples::$to())); )*
+            };
+        }
+        unitac_core::for_each_message!(round_trip_each);
+        let r = contact_state(&state());
         assert_eq!(r.centroid_px, vec![3.0, 4.0]);
         assert_eq!(r.header.stamp.sec, 1_700_000_000);
-        assert_eq!(contact_state_from(&r), Ok(s));
-        let l = latent();
-        let r = tactile_latent(&l);
-        assert_eq!(r.source, 1);
-        assert_eq!(tactile_latent_from(&r), Ok(l));
-        let c = PropertyComparison {
-            header: Header::new(Stamp(3), "base"),
-            property: "hardness".into(),
-            episode_a: 1,
-            label_a: "a".into(),
-            episode_b: 2,
-            label_b: "b".into(),
-            winner: Winner::B,
-            score_a: 0.1,
-            score_b: 0.9,
-            margin: -0.8,
-            confidence: 0.95,
-            sentence: "B is harder than A".into(),
-        };
-        let r = property_comparison(&c);
-        assert_eq!(r.winner, 1);
-        assert_eq!(property_comparison_from(&r), Ok(c));
+        assert_eq!(tactile_latent(&latent()).source, 1);
+        assert_eq!(
+            property_comparison(&samples::property_comparison()).winner,
+            2
+        );
     }
 
     #[test]
@@ -410,14 +366,7 @@ mod tests {
             })
         ));
 
-        let mut g = gripper_command(&GripperCommand {
-            header: Header::new(Stamp(1), "base"),
-            mode: GripperMode::Stop,
-            position_m: 0.0,
-            speed_m_s: 0.0,
-            force_n: 0.0,
-            reason: String::new(),
-        });
+        let mut g = gripper_command(&samples::gripper_command());
         g.mode = 9;
         assert_eq!(
             gripper_command_from(&g).unwrap_err().to_string(),
