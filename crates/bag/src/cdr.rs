@@ -48,6 +48,9 @@ pub enum CdrError {
     BadEnum { what: &'static str, value: u8 },
     #[error("{0} trailing bytes after the message")]
     Trailing(usize),
+    /// The fields decoded but break a rule of the message (e.g. a latent's shape vs its data).
+    #[error(transparent)]
+    Check(#[from] unitac_core::msg::MsgError),
 }
 
 /// Writes one CDR payload; starts with the encapsulation header.

@@ -3,10 +3,6 @@
 //! panicking and without allocating more than a small multiple of its input.
 
 use crate::ros::{CompressedImage, Image, RosMessage};
-use unitac_core::msg::{
-    ContactEpisode, ContactState, GripperCommand, PolicyStatus, PropertyComparison, TactileLatent,
-    TactileProperties,
-};
 
 /// Parse an MCAP stream; decode every message that claims a known type.
 pub fn mcap(data: &[u8]) {
@@ -37,13 +33,16 @@ fn cdr_as(type_name: &str, data: &[u8]) {
 pub fn cdr(data: &[u8]) {
     cdr_as("sensor_msgs/msg/Image", data);
     let _ = CompressedImage::from_cdr(data);
-    let _ = ContactState::from_cdr(data);
-    let _ = ContactEpisode::from_cdr(data);
-    let _ = TactileProperties::from_cdr(data);
-    let _ = PropertyComparison::from_cdr(data);
-    let _ = TactileLatent::from_cdr(data);
-    let _ = GripperCommand::from_cdr(data);
-    let _ = PolicyStatus::from_cdr(data);
+    // Every message of msg/unitac_msgs, from the same definition as its codec.
+    macro_rules! decode_each {
+        (
+            messages { $( $msg:ident [$to:ident, $from:ident] { $($fields:tt)* } )* }
+            enums { $($e:tt)* }
+        ) => {
+            $( let _ = <unitac_core::msg::$msg as RosMessage>::from_cdr(data); )*
+        };
+    }
+    unitac_core::for_each_message!(decode_each);
 }
 
 /// Parse the bytes as metadata.yaml.

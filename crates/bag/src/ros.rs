@@ -1,19 +1,19 @@
 //! ROS 2 messages this crate reads and writes, their CDR form and their `ros2msg` schema text.
 //!
-//! sensor_msgs/Image and sensor_msgs/CompressedImage are defined here; the project's messages are
-//! the Rust mirrors in `unitac_core::msg`, whose schema text comes straight from the `.msg` files
-//! in msg/unitac_msgs (one source of truth: a field added there and not here fails the round-trip
-//! tests against rosbags).
+//! sensor_msgs/Image and sensor_msgs/CompressedImage are written by hand here. The project's
+//! messages are the Rust mirrors in `unitac_core::msg`, generated from the `.msg` files in
+//! msg/unitac_msgs; their codecs below are generated from the same definition
+//! (`unitac_core::for_each_message!`), one [`CdrField`] call per field, with the `.msg` text as
+//! their schema. A field added to a `.msg` file needs no edit here.
 
 use crate::cdr::{CdrError, CdrReader, CdrWriter, MAX_IMAGE_BYTES, MAX_SEQUENCE};
 use unitac_core::Stamp;
 use unitac_core::msg::{
-    ContactEpisode, ContactState, GripperCommand, GripperMode, Header, LatentSource, PolicyStatus,
-    PropertyComparison, TactileLatent, TactileProperties, Winner,
+    ContactEpisode, ContactState, GripperCommand, Header, Message, PolicyStatus,
+    PropertyComparison, TactileLatent, TactileProperties,
 };
 
-/// Most dimensions in a TactileLatent's shape.
-pub const MAX_LATENT_DIMS: usize = 16;
+pub use unitac_core::msg::MAX_LATENT_DIMS;
 
 /// sensor_msgs/msg/Image.
 #[derive(Debug, Clone, PartialEq)]
@@ -221,259 +221,164 @@ impl RosMessage for CompressedImage {
     }
 }
 
-impl RosMessage for ContactState {
-    const TYPE: &'static str = "unitac_msgs/msg/ContactState";
-    fn write_cdr(&self, w: &mut CdrWriter) {
-        self.header.write_cdr(w);
-        w.string(&self.sensor_id);
-        w.u64(self.frame_seq);
-        w.bool(self.in_contact);
-        w.f32(self.area_px);
-        w.f32(self.area_mm2);
-        for &c in &self.centroid_px {
-            w.f32(c);
-        }
-        for &b in &self.bbox_px {
-            w.u32(b);
-        }
-        w.f32(self.strength);
-        w.u64(self.episode_id);
-        w.f64(self.background_age_s);
-    }
-    fn read_cdr(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
-        Ok(ContactState {
-            header: Header::read_cdr(r)?,
-            sensor_id: r.string("sensor_id")?,
-            frame_seq: r.u64("frame_seq")?,
-            in_contact: r.bool("in_contact")?,
-            area_px: r.f32("area_px")?,
-            area_mm2: r.f32("area_mm2")?,
-            centroid_px: [r.f32("centroid_px")?, r.f32("centroid_px")?],
-            bbox_px: [
-                r.u32("bbox_px")?,
-                r.u32("bbox_px")?,
-                r.u32("bbox_px")?,
-                r.u32("bbox_px")?,
-            ],
-            strength: r.f32("strength")?,
-            episode_id: r.u64("episode_id")?,
-            background_age_s: r.f64("background_age_s")?,
-        })
-    }
+// ---------------------------------------------------------------------------------------------
+// msg/unitac_msgs: one `CdrField` call per field, generated from the .msg files (see
+// `unitac_core::msg`), so a field added there is encoded, decoded and bounded here with no edit.
+
+/// A field type's CDR form; the generated codecs call this once per field, in `.msg` order.
+pub trait CdrField: Sized {
+    fn write_field(&self, w: &mut CdrWriter);
+    /// `max`: the most elements of a sequence (other types ignore it).
+    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError>;
 }
 
-impl RosMessage for ContactEpisode {
-    const TYPE: &'static str = "unitac_msgs/msg/ContactEpisode";
-    fn write_cdr(&self, w: &mut CdrWriter) {
-        self.header.write_cdr(w);
-        w.string(&self.sensor_id);
-        w.u64(self.episode_id);
-        write_time(w, self.start);
-        write_time(w, self.end);
-        w.u32(self.frame_count);
-        w.f32(self.peak_area_px);
-        w.f32(self.peak_area_mm2);
-        w.u64(self.peak_frame_seq);
-        w.string(&self.label);
-    }
-    fn read_cdr(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
-        Ok(ContactEpisode {
-            header: Header::read_cdr(r)?,
-            sensor_id: r.string("sensor_id")?,
-            episode_id: r.u64("episode_id")?,
-            start: read_time(r, "start")?,
-            end: read_time(r, "end")?,
-            frame_count: r.u32("frame_count")?,
-            peak_area_px: r.f32("peak_area_px")?,
-            peak_area_mm2: r.f32("peak_area_mm2")?,
-            peak_frame_seq: r.u64("peak_frame_seq")?,
-            label: r.string("label")?,
-        })
-    }
-}
-
-impl RosMessage for TactileProperties {
-    const TYPE: &'static str = "unitac_msgs/msg/TactileProperties";
-    fn write_cdr(&self, w: &mut CdrWriter) {
-        self.header.write_cdr(w);
-        w.string(&self.sensor_id);
-        w.u64(self.episode_id);
-        w.string(&self.label);
-        for v in [
-            self.hardness,
-            self.hardness_std,
-            self.roughness,
-            self.roughness_std,
-            self.texture,
-            self.texture_std,
-        ] {
-            w.f32(v);
-        }
-        w.string(&self.model_id);
-    }
-    fn read_cdr(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
-        Ok(TactileProperties {
-            header: Header::read_cdr(r)?,
-            sensor_id: r.string("sensor_id")?,
-            episode_id: r.u64("episode_id")?,
-            label: r.string("label")?,
-            hardness: r.f32("hardness")?,
-            hardness_std: r.f32("hardness_std")?,
-            roughness: r.f32("roughness")?,
-            roughness_std: r.f32("roughness_std")?,
-            texture: r.f32("texture")?,
-            texture_std: r.f32("texture_std")?,
-            model_id: r.string("model_id")?,
-        })
-    }
-}
-
-fn winner(v: u8) -> Result<Winner, CdrError> {
-    match v {
-        0 => Ok(Winner::A),
-        1 => Ok(Winner::B),
-        2 => Ok(Winner::Tie),
-        value => Err(CdrError::BadEnum {
-            what: "winner",
-            value,
-        }),
-    }
-}
-
-impl RosMessage for PropertyComparison {
-    const TYPE: &'static str = "unitac_msgs/msg/PropertyComparison";
-    fn write_cdr(&self, w: &mut CdrWriter) {
-        self.header.write_cdr(w);
-        w.string(&self.property);
-        w.u64(self.episode_a);
-        w.string(&self.label_a);
-        w.u64(self.episode_b);
-        w.string(&self.label_b);
-        w.u8(self.winner as u8);
-        w.f32(self.score_a);
-        w.f32(self.score_b);
-        w.f32(self.margin);
-        w.f32(self.confidence);
-        w.string(&self.sentence);
-    }
-    fn read_cdr(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
-        Ok(PropertyComparison {
-            header: Header::read_cdr(r)?,
-            property: r.string("property")?,
-            episode_a: r.u64("episode_a")?,
-            label_a: r.string("label_a")?,
-            episode_b: r.u64("episode_b")?,
-            label_b: r.string("label_b")?,
-            winner: winner(r.u8("winner")?)?,
-            score_a: r.f32("score_a")?,
-            score_b: r.f32("score_b")?,
-            margin: r.f32("margin")?,
-            confidence: r.f32("confidence")?,
-            sentence: r.string("sentence")?,
-        })
-    }
-}
-
-impl RosMessage for TactileLatent {
-    const TYPE: &'static str = "unitac_msgs/msg/TactileLatent";
-    fn write_cdr(&self, w: &mut CdrWriter) {
-        self.header.write_cdr(w);
-        w.u8(self.source as u8);
-        w.string(&self.sensor_id);
-        w.seq_u32(&self.shape);
-        w.seq_f32(&self.data);
-        w.string(&self.model_id);
-        w.string(&self.solver);
-        w.u32(self.steps);
-        w.f32(self.guidance);
-        w.f64(self.elapsed_s);
-        w.bool(self.valid);
-        w.string(&self.guard_report);
-    }
-    fn read_cdr(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
-        let header = Header::read_cdr(r)?;
-        let source = match r.u8("source")? {
-            0 => LatentSource::Real,
-            1 => LatentSource::Predicted,
-            value => {
-                return Err(CdrError::BadEnum {
-                    what: "source",
-                    value,
-                });
+macro_rules! primitive_fields {
+    ($($t:ty => $m:ident),* $(,)?) => {$(
+        impl CdrField for $t {
+            fn write_field(&self, w: &mut CdrWriter) {
+                w.$m(*self);
             }
-        };
-        Ok(TactileLatent {
-            header,
-            source,
-            sensor_id: r.string("sensor_id")?,
-            shape: r.seq_u32("shape", MAX_LATENT_DIMS)?,
-            data: r.seq_f32("data", MAX_SEQUENCE)?,
-            model_id: r.string("model_id")?,
-            solver: r.string("solver")?,
-            steps: r.u32("steps")?,
-            guidance: r.f32("guidance")?,
-            elapsed_s: r.f64("elapsed_s")?,
-            valid: r.bool("valid")?,
-            guard_report: r.string("guard_report")?,
-        })
-    }
-}
-
-impl RosMessage for GripperCommand {
-    const TYPE: &'static str = "unitac_msgs/msg/GripperCommand";
-    fn write_cdr(&self, w: &mut CdrWriter) {
-        self.header.write_cdr(w);
-        w.u8(self.mode as u8);
-        w.f64(self.position_m);
-        w.f64(self.speed_m_s);
-        w.f64(self.force_n);
-        w.string(&self.reason);
-    }
-    fn read_cdr(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
-        let header = Header::read_cdr(r)?;
-        let mode = match r.u8("mode")? {
-            0 => GripperMode::Position,
-            1 => GripperMode::Force,
-            2 => GripperMode::Stop,
-            value => {
-                return Err(CdrError::BadEnum {
-                    what: "mode",
-                    value,
-                });
+            fn read_field(
+                r: &mut CdrReader<'_>,
+                what: &'static str,
+                _: usize,
+            ) -> Result<Self, CdrError> {
+                r.$m(what)
             }
-        };
-        Ok(GripperCommand {
-            header,
-            mode,
-            position_m: r.f64("position_m")?,
-            speed_m_s: r.f64("speed_m_s")?,
-            force_n: r.f64("force_n")?,
-            reason: r.string("reason")?,
-        })
+        }
+    )*};
+}
+primitive_fields!(
+    bool => bool, u8 => u8, u32 => u32, i32 => i32, u64 => u64, f32 => f32, f64 => f64,
+);
+
+impl CdrField for String {
+    fn write_field(&self, w: &mut CdrWriter) {
+        w.string(self);
+    }
+    fn read_field(r: &mut CdrReader<'_>, what: &'static str, _: usize) -> Result<Self, CdrError> {
+        r.string(what)
     }
 }
 
-impl RosMessage for PolicyStatus {
-    const TYPE: &'static str = "unitac_msgs/msg/PolicyStatus";
-    fn write_cdr(&self, w: &mut CdrWriter) {
-        self.header.write_cdr(w);
-        w.string(&self.scene);
-        w.string(&self.mode);
-        w.string(&self.phase);
-        w.bool(self.safety_ok);
-        w.string(&self.message);
+impl CdrField for Stamp {
+    fn write_field(&self, w: &mut CdrWriter) {
+        write_time(w, *self);
     }
-    fn read_cdr(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
-        Ok(PolicyStatus {
-            header: Header::read_cdr(r)?,
-            scene: r.string("scene")?,
-            mode: r.string("mode")?,
-            phase: r.string("phase")?,
-            safety_ok: r.bool("safety_ok")?,
-            message: r.string("message")?,
-        })
+    fn read_field(r: &mut CdrReader<'_>, what: &'static str, _: usize) -> Result<Self, CdrError> {
+        read_time(r, what)
     }
 }
+
+impl CdrField for Header {
+    fn write_field(&self, w: &mut CdrWriter) {
+        self.write_cdr(w);
+    }
+    fn read_field(r: &mut CdrReader<'_>, _: &'static str, _: usize) -> Result<Self, CdrError> {
+        Header::read_cdr(r)
+    }
+}
+
+/// Fixed arrays (`float32[2]`): the elements, no count.
+impl<T: CdrField + Copy + Default, const N: usize> CdrField for [T; N] {
+    fn write_field(&self, w: &mut CdrWriter) {
+        for x in self {
+            x.write_field(w);
+        }
+    }
+    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
+        let mut a = [T::default(); N];
+        for x in &mut a {
+            *x = T::read_field(r, what, max)?;
+        }
+        Ok(a)
+    }
+}
+
+impl CdrField for Vec<u32> {
+    fn write_field(&self, w: &mut CdrWriter) {
+        w.seq_u32(self);
+    }
+    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
+        r.seq_u32(what, max)
+    }
+}
+
+impl CdrField for Vec<f32> {
+    fn write_field(&self, w: &mut CdrWriter) {
+        w.seq_f32(self);
+    }
+    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
+        r.seq_f32(what, max)
+    }
+}
+
+impl CdrField for Vec<u8> {
+    fn write_field(&self, w: &mut CdrWriter) {
+        w.bytes(self);
+    }
+    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
+        r.bytes(what, max).map(<[u8]>::to_vec)
+    }
+}
+
+/// A field's sequence bound: its own, or [`MAX_SEQUENCE`].
+fn limit(max: Option<usize>) -> usize {
+    max.unwrap_or(MAX_SEQUENCE)
+}
+
+macro_rules! unitac_codecs {
+    (
+        messages {
+            $( $msg:ident [$to:ident, $from:ident] { $( $f:ident : $t:ty => $max:expr ),* $(,)? } )*
+        }
+        enums { $( $e:ty ),* $(,)? }
+    ) => {
+        $(
+            impl RosMessage for $msg {
+                const TYPE: &'static str = <$msg as Message>::ROS_TYPE;
+                fn write_cdr(&self, w: &mut CdrWriter) {
+                    $( self.$f.write_field(w); )*
+                }
+                fn read_cdr(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
+                    let m = $msg {
+                        $( $f: <$t as CdrField>::read_field(r, stringify!($f), limit($max))?, )*
+                    };
+                    m.check()?;
+                    Ok(m)
+                }
+            }
+        )*
+
+        $(
+            /// A `uint8` with the message's constants; any other value is an error.
+            impl CdrField for $e {
+                fn write_field(&self, w: &mut CdrWriter) {
+                    w.u8(u8::from(*self));
+                }
+                fn read_field(
+                    r: &mut CdrReader<'_>,
+                    what: &'static str,
+                    _: usize,
+                ) -> Result<Self, CdrError> {
+                    <$e>::try_from(r.u8(what)?).map_err(|e| CdrError::BadEnum { what, value: e.0 })
+                }
+            }
+        )*
+
+        /// The .msg text of every type this crate knows (type name as `pkg/msg/Type`), in a fixed
+        /// order.
+        pub const KNOWN_TYPES: &[(&str, &str)] = &[
+            ("builtin_interfaces/msg/Time", TIME_MSG),
+            ("std_msgs/msg/Header", HEADER_MSG),
+            ("sensor_msgs/msg/Image", IMAGE_MSG),
+            ("sensor_msgs/msg/CompressedImage", COMPRESSED_IMAGE_MSG),
+            $( (<$msg as Message>::ROS_TYPE, <$msg as Message>::MSG_TEXT), )*
+        ];
+    };
+}
+
+unitac_core::for_each_message!(unitac_codecs);
 
 // ---------------------------------------------------------------------------------------------
 // Schemas (ros2msg: the .msg text, then each dependency after a line of 80 '=' and `MSG: pkg/Type`)
@@ -483,42 +388,6 @@ const HEADER_MSG: &str = "builtin_interfaces/Time stamp\nstring frame_id\n";
 const IMAGE_MSG: &str = "std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\n\
 uint8 is_bigendian\nuint32 step\nuint8[] data\n";
 const COMPRESSED_IMAGE_MSG: &str = "std_msgs/Header header\nstring format\nuint8[] data\n";
-
-/// The .msg text of every type this crate knows (type name as `pkg/msg/Type`), in a fixed order.
-pub const KNOWN_TYPES: &[(&str, &str)] = &[
-    ("builtin_interfaces/msg/Time", TIME_MSG),
-    ("std_msgs/msg/Header", HEADER_MSG),
-    ("sensor_msgs/msg/Image", IMAGE_MSG),
-    ("sensor_msgs/msg/CompressedImage", COMPRESSED_IMAGE_MSG),
-    (
-        "unitac_msgs/msg/ContactState",
-        include_str!("../../../msg/unitac_msgs/msg/ContactState.msg"),
-    ),
-    (
-        "unitac_msgs/msg/ContactEpisode",
-        include_str!("../../../msg/unitac_msgs/msg/ContactEpisode.msg"),
-    ),
-    (
-        "unitac_msgs/msg/TactileProperties",
-        include_str!("../../../msg/unitac_msgs/msg/TactileProperties.msg"),
-    ),
-    (
-        "unitac_msgs/msg/PropertyComparison",
-        include_str!("../../../msg/unitac_msgs/msg/PropertyComparison.msg"),
-    ),
-    (
-        "unitac_msgs/msg/TactileLatent",
-        include_str!("../../../msg/unitac_msgs/msg/TactileLatent.msg"),
-    ),
-    (
-        "unitac_msgs/msg/GripperCommand",
-        include_str!("../../../msg/unitac_msgs/msg/GripperCommand.msg"),
-    ),
-    (
-        "unitac_msgs/msg/PolicyStatus",
-        include_str!("../../../msg/unitac_msgs/msg/PolicyStatus.msg"),
-    ),
-];
 
 /// True if this crate can decode messages of this type.
 pub fn is_known_type(type_name: &str) -> bool {
@@ -605,6 +474,7 @@ pub fn schema_text(type_name: &str) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use unitac_core::msg::samples;
 
     fn header() -> Header {
         Header::new(Stamp(1_700_000_000_123_456_789), "gelsight_optical_frame")
@@ -633,40 +503,131 @@ mod tests {
         }
     }
 
+    /// Round trip, and every cut of the payload is an error (never a panic).
+    fn round_trip<M: RosMessage + PartialEq + std::fmt::Debug>(m: &M) {
+        let b = m.to_cdr();
+        assert_eq!(&M::from_cdr(&b).unwrap(), m, "{}", M::TYPE);
+        for n in 0..b.len().saturating_sub(3) {
+            assert!(M::from_cdr(&b[..n]).is_err(), "{} cut at {n}", M::TYPE);
+        }
+    }
+
+    /// Every message of msg/unitac_msgs, through the same definition as the codecs.
     #[test]
-    fn project_messages_round_trip() {
-        let c = ContactState {
-            header: header(),
-            sensor_id: "gs".into(),
-            frame_seq: 5,
-            in_contact: true,
-            area_px: 1.5,
-            area_mm2: 0.25,
-            centroid_px: [3.0, 4.0],
-            bbox_px: [1, 2, 3, 4],
-            strength: 0.5,
-            episode_id: 2,
-            background_age_s: 1.25,
+    fn every_generated_codec_round_trips() {
+        macro_rules! round_trip_each {
+            (
+                messages { $( $msg:ident [$to:ident, $from:ident] { $($fields:tt)* } )* }
+                enums { $($e:tt)* }
+            ) => {
+                $( round_trip(&samples::$to()); )*
+            };
+        }
+        unitac_core::for_each_message!(round_trip_each);
+        assert_eq!(KNOWN_TYPES.len(), 4 + 7);
+        for (t, text) in KNOWN_TYPES {
+            assert!(schema_text(t).unwrap().starts_with(text.trim_end()), "{t}");
+        }
+        // A latent's source byte comes right after the header (stamp 8, length 4, 17 bytes).
+        let mut bad = samples::tactile_latent().to_cdr();
+        bad[4 + 12 + 17] = 9;
+        assert_eq!(
+            TactileLatent::from_cdr(&bad),
+            Err(CdrError::BadEnum {
+                what: "source",
+                value: 9
+            })
+        );
+    }
+
+    /// The generated layout is the one the hand-written codec had (and rosbags reads: see
+    /// tests/interop.rs): fields in .msg order, fixed arrays without a count, enums as one byte.
+    #[test]
+    fn generated_layout_is_field_by_field() {
+        let (cmp, cmd) = (samples::property_comparison(), samples::gripper_command());
+        let mut w = CdrWriter::new();
+        w.i32(1_700_000_000);
+        w.u32(123_456_789);
+        w.string("gs_optical_frame");
+        w.string("roughness");
+        w.u64(1);
+        w.string("a");
+        w.u64(2);
+        w.string("b");
+        w.u8(2);
+        for v in [0.5, 0.5, 0.0, 0.5] {
+            w.f32(v);
+        }
+        w.string("A and B are as rough");
+        assert_eq!(cmp.to_cdr(), w.finish());
+
+        let mut w = CdrWriter::new();
+        w.i32(1_700_000_000);
+        w.u32(123_456_789);
+        w.string("gs_optical_frame");
+        w.u8(1);
+        for v in [0.02, 0.05, 4.5] {
+            w.f64(v);
+        }
+        w.string("press");
+        assert_eq!(cmd.to_cdr(), w.finish());
+    }
+
+    #[test]
+    fn enum_values_bounds_and_checks_are_errors() {
+        let (cmp, cmd) = (samples::property_comparison(), samples::gripper_command());
+        // The mode byte comes right after the header (4 + 8 + 4 + 17 bytes).
+        let mut bad = cmd.to_cdr();
+        bad[4 + 12 + 17] = 3;
+        assert_eq!(
+            GripperCommand::from_cdr(&bad),
+            Err(CdrError::BadEnum {
+                what: "mode",
+                value: 3
+            })
+        );
+        // The winner byte comes after everything up to label_b.
+        let mut w = CdrWriter::new();
+        cmp.header.write_cdr(&mut w);
+        w.string(&cmp.property);
+        w.u64(cmp.episode_a);
+        w.string(&cmp.label_a);
+        w.u64(cmp.episode_b);
+        w.string(&cmp.label_b);
+        let pos = w.finish().len();
+        let b = cmp.to_cdr();
+        assert_eq!(b[pos], 2);
+        let mut bad = b.clone();
+        bad[pos] = 7;
+        assert_eq!(
+            PropertyComparison::from_cdr(&bad),
+            Err(CdrError::BadEnum {
+                what: "winner",
+                value: 7
+            })
+        );
+
+        let latent = |shape: Vec<u32>, n: usize| TactileLatent {
+            shape,
+            data: vec![1.0; n],
+            ..samples::tactile_latent()
         };
-        assert_eq!(ContactState::from_cdr(&c.to_cdr()).unwrap(), c);
-        let l = TactileLatent {
-            header: header(),
-            source: LatentSource::Predicted,
-            sensor_id: "gs".into(),
-            shape: vec![2, 3],
-            data: vec![0.5; 6],
-            model_id: "m".into(),
-            solver: "heun".into(),
-            steps: 8,
-            guidance: 1.5,
-            elapsed_s: 0.01,
-            valid: true,
-            guard_report: String::new(),
-        };
-        assert_eq!(TactileLatent::from_cdr(&l.to_cdr()).unwrap(), l);
-        let mut bad = l.to_cdr();
-        bad[4 + 12 + 23] = 9; // the source byte, right after the header (stamp 8, len 4, 23 bytes)
-        assert!(TactileLatent::from_cdr(&bad).is_err());
+        // Shape and data disagree: the message's own check.
+        assert!(matches!(
+            TactileLatent::from_cdr(&latent(vec![2, 3], 5).to_cdr()),
+            Err(CdrError::Check(_))
+        ));
+        // One dimension too many: refused by the reader's bound, before the data.
+        assert_eq!(
+            TactileLatent::from_cdr(&latent(vec![1; MAX_LATENT_DIMS + 1], 1).to_cdr()),
+            Err(CdrError::TooLong {
+                what: "shape",
+                len: MAX_LATENT_DIMS + 1,
+                max: MAX_LATENT_DIMS
+            })
+        );
+        let ok = latent(vec![1; MAX_LATENT_DIMS], 1);
+        assert_eq!(TactileLatent::from_cdr(&ok.to_cdr()).unwrap(), ok);
     }
 
     #[test]

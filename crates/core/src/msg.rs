@@ -1,12 +1,46 @@
 //! Rust mirror of msg/unitac_msgs, and [`Msg`], what flows between stages.
 //!
-//! Field meanings and units are documented once, in the `.msg` files; the names match them so the
-//! ROS conversion in crates/ros is a plain field copy. These types serialize to JSON for the
-//! command line and the golden files.
+//! # One definition: the `.msg` files
+//! Every message of msg/unitac_msgs (but ContactClip, whose Rust side is [`EpisodeClip`]) is
+//! generated at build time from its `.msg` file by crates/core/build.rs (the generator is
+//! crates/core/build/msggen.rs): the struct with the same field names in the same order (field
+//! docs are the `.msg` comments), an enum for each `uint8` field that has `FIELD_*` constants
+//! ([`Winner`], [`LatentSource`], [`GripperMode`]), and a [`Message`] impl. The same definition
+//! reaches the two other places a message is spelled out through
+//! [`for_each_message!`](crate::for_each_message): crates/bag expands it into the CDR codecs
+//! (`RosMessage`), crates/ros into the r2r conversions. So adding a field to a message is one
+//! edit, in its `.msg` file (plus the stage that fills it in and the tests that set it).
+//!
+//! Why the `.msg` files and not a Rust list checked against them: rclpy peers, `colcon` and the
+//! bags need the `.msg` files anyway, so making them the source leaves nothing to keep in step.
+//! What they cannot say sits in four small tables at the top of msggen.rs: enum names, sequence
+//! bounds ([`MAX_LATENT_DIMS`]), hand-written checks ([`TactileLatent::check_shape`]), and
+//! ContactClip's exclusion. `cargo doc -p unitac-core` shows the generated types.
+//!
+//! `for_each_message!(callback)` calls `callback!` with
+//! ```text
+//! messages {
+//!     ContactState [contact_state, contact_state_from] {
+//!         header: $crate::msg::Header => None,
+//!         centroid_px: [f32; 2] => None,
+//!         ...
+//!     }
+//!     TactileLatent [tactile_latent, tactile_latent_from] {
+//!         shape: Vec<u32> => Some($crate::msg::MAX_LATENT_DIMS),
+//!         ...
+//!     }
+//! }
+//! enums { $crate::msg::Winner, $crate::msg::LatentSource, $crate::msg::GripperMode, }
+//! ```
+//! (message, the snake-case names for conversion functions, then each field with its Rust type and
+//! its sequence bound, `None` for the codec's default).
+//!
+//! These types serialize to JSON for the command line and the golden files.
 
 use crate::clock::Stamp;
 use crate::frame::Frame;
 use serde::{Deserialize, Serialize};
+use thiserror::Error;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Header {
@@ -27,123 +61,67 @@ impl Header {
     }
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ContactState {
-    pub header: Header,
-    pub sensor_id: String,
-    pub frame_seq: u64,
-    pub in_contact: bool,
-    pub area_px: f32,
-    pub area_mm2: f32,
-    pub centroid_px: [f32; 2],
-    pub bbox_px: [u32; 4],
-    pub strength: f32,
-    pub episode_id: u64,
-    pub background_age_s: f64,
+/// Most dimensions in a TactileLatent's shape.
+pub const MAX_LATENT_DIMS: usize = 16;
+
+/// A project message (msg/unitac_msgs): its ROS type name, its `.msg` text, and the checks a
+/// decoder runs beyond the field types.
+pub trait Message: Sized {
+    /// e.g. `unitac_msgs/msg/ContactState`.
+    const ROS_TYPE: &'static str;
+    /// The `.msg` file, verbatim (the `ros2msg` schema text of bags).
+    const MSG_TEXT: &'static str;
+    /// Checks beyond the field types (see `CHECKS` in crates/core/build/msggen.rs). Every decoder
+    /// (CDR in crates/bag, r2r in crates/ros) runs it on what it decoded.
+    fn check(&self) -> Result<(), MsgError> {
+        Ok(())
+    }
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ContactEpisode {
-    pub header: Header,
-    pub sensor_id: String,
-    pub episode_id: u64,
-    pub start: Stamp,
-    pub end: Stamp,
-    pub frame_count: u32,
-    pub peak_area_px: f32,
-    pub peak_area_mm2: f32,
-    pub peak_frame_seq: u64,
-    pub label: String,
+/// A decoded message that breaks a rule its field types cannot express.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum MsgError {
+    #[error("shape has {0} dimensions (at most {MAX_LATENT_DIMS})")]
+    TooManyDims(usize),
+    #[error("shape {shape:?} needs {needs} values, data has {data}")]
+    ShapeMismatch {
+        shape: Vec<u32>,
+        needs: u64,
+        data: usize,
+    },
+    #[error("shape {0:?} needs more values than a u64 counts")]
+    ShapeOverflow(Vec<u32>),
 }
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct TactileProperties {
-    pub header: Header,
-    pub sensor_id: String,
-    pub episode_id: u64,
-    pub label: String,
-    pub hardness: f32,
-    pub hardness_std: f32,
-    pub roughness: f32,
-    pub roughness_std: f32,
-    pub texture: f32,
-    pub texture_std: f32,
-    pub model_id: String,
-}
+/// A wire value that is none of an enum's constants.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Error)]
+#[error("unknown value {0}")]
+pub struct UnknownValue(pub u8);
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Winner {
-    A = 0,
-    B = 1,
-    Tie = 2,
-}
+include!(concat!(env!("OUT_DIR"), "/msg_generated.rs"));
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct PropertyComparison {
-    pub header: Header,
-    pub property: String,
-    pub episode_a: u64,
-    pub label_a: String,
-    pub episode_b: u64,
-    pub label_b: String,
-    pub winner: Winner,
-    pub score_a: f32,
-    pub score_b: f32,
-    pub margin: f32,
-    pub confidence: f32,
-    pub sentence: String,
-}
+pub mod samples;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum LatentSource {
-    Real = 0,
-    Predicted = 1,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct TactileLatent {
-    pub header: Header,
-    pub source: LatentSource,
-    pub sensor_id: String,
-    pub shape: Vec<u32>,
-    pub data: Vec<f32>,
-    pub model_id: String,
-    pub solver: String,
-    pub steps: u32,
-    pub guidance: f32,
-    pub elapsed_s: f64,
-    pub valid: bool,
-    pub guard_report: String,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum GripperMode {
-    Position = 0,
-    Force = 1,
-    Stop = 2,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct GripperCommand {
-    pub header: Header,
-    pub mode: GripperMode,
-    pub position_m: f64,
-    pub speed_m_s: f64,
-    pub force_n: f64,
-    pub reason: String,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct PolicyStatus {
-    pub header: Header,
-    pub scene: String,
-    pub mode: String,
-    pub phase: String,
-    pub safety_ok: bool,
-    pub message: String,
+impl TactileLatent {
+    /// At most [`MAX_LATENT_DIMS`] dimensions, and as many values as the shape says.
+    pub fn check_shape(&self) -> Result<(), MsgError> {
+        if self.shape.len() > MAX_LATENT_DIMS {
+            return Err(MsgError::TooManyDims(self.shape.len()));
+        }
+        let needs = self
+            .shape
+            .iter()
+            .try_fold(1u64, |n, &d| n.checked_mul(u64::from(d)))
+            .ok_or_else(|| MsgError::ShapeOverflow(self.shape.clone()))?;
+        if needs != self.data.len() as u64 {
+            return Err(MsgError::ShapeMismatch {
+                shape: self.shape.clone(),
+                needs,
+                data: self.data.len(),
+            });
+        }
+        Ok(())
+    }
 }
 
 /// The frames of one contact episode, centred on its peak (for the touch encoder). Bounded by the
@@ -259,5 +237,55 @@ mod tests {
         assert_eq!(j["phase"], "press");
         assert_eq!(j["header"]["stamp"], 1);
         assert!(!m.is_frame());
+    }
+
+    fn latent(shape: Vec<u32>, n: usize) -> TactileLatent {
+        TactileLatent {
+            shape,
+            data: vec![0.5; n],
+            ..samples::tactile_latent()
+        }
+    }
+
+    #[test]
+    fn latent_shape_must_match_data() {
+        assert_eq!(latent(vec![2, 3], 6).check(), Ok(()));
+        assert_eq!(latent(vec![], 1).check(), Ok(()));
+        assert_eq!(
+            latent(vec![2, 3], 5).check(),
+            Err(MsgError::ShapeMismatch {
+                shape: vec![2, 3],
+                needs: 6,
+                data: 5
+            })
+        );
+        assert_eq!(
+            latent(vec![1; MAX_LATENT_DIMS + 1], 1).check(),
+            Err(MsgError::TooManyDims(MAX_LATENT_DIMS + 1))
+        );
+        // Overflow is an error, not a wrap (or a panic in debug builds).
+        let big = latent(vec![u32::MAX; 3], 0);
+        assert_eq!(big.check(), Err(MsgError::ShapeOverflow(vec![u32::MAX; 3])));
+        assert_eq!(
+            latent(vec![2, 3], 5).check().unwrap_err().to_string(),
+            "shape [2, 3] needs 6 values, data has 5"
+        );
+    }
+
+    #[test]
+    fn enums_from_constants_keep_wire_values_and_json_names() {
+        assert_eq!(u8::from(Winner::Tie), 2);
+        assert_eq!(Winner::try_from(1), Ok(Winner::B));
+        assert_eq!(Winner::try_from(3), Err(UnknownValue(3)));
+        assert_eq!(GripperMode::try_from(2), Ok(GripperMode::Stop));
+        assert_eq!(LatentSource::try_from(1), Ok(LatentSource::Predicted));
+        assert_eq!(serde_json::to_value(Winner::Tie).unwrap(), "tie");
+        assert_eq!(
+            serde_json::to_value(LatentSource::Predicted).unwrap(),
+            "predicted"
+        );
+        // Messages without extra rules check fine.
+        assert_eq!(ContactState::ROS_TYPE, "unitac_msgs/msg/ContactState");
+        assert!(PolicyStatus::MSG_TEXT.contains("bool safety_ok"));
     }
 }

@@ -1,14 +1,50 @@
 //! Conversions between `unitac-core` messages and the generated `unitac_msgs` types.
-//! Field names match one to one (msg/unitac_msgs is the source of truth for units).
+//!
+//! The per-message functions (`contact_state` / `contact_state_from`, `tactile_latent` /
+//! `tactile_latent_from`, ... one pair per message of msg/unitac_msgs) are generated from the
+//! `.msg` files through `unitac_core::for_each_message!`: one [`RosField`] call per field, then the
+//! message's own checks ([`unitac_core::msg::Message::check`]). Decoding applies the same bounds as
+//! the CDR codec in crates/bag (sequence lengths, string lengths, fixed array sizes, enum values),
+//! so a message is accepted here exactly when a bag would accept it. ContactClip carries images
+//! and is converted by hand ([`contact_clip`], [`contact_clip_from`]).
 
 use r2r::builtin_interfaces::msg::Time;
 use r2r::std_msgs::msg::Header as RosHeader;
 use r2r::unitac_msgs::msg as ros;
+use thiserror::Error;
+use unitac_bag::cdr::{MAX_SEQUENCE, MAX_STRING};
 use unitac_core::Stamp;
-use unitac_core::msg::{
-    ContactEpisode, ContactState, GripperCommand, GripperMode, Header, LatentSource, PolicyStatus,
-    PropertyComparison, TactileLatent, TactileProperties, Winner,
-};
+use unitac_core::msg::{EpisodeClip, Header, Message, MsgError};
+
+/// Most frames a ContactClip may carry (the contact stage's clip_frames is far below this).
+pub const MAX_CLIP_FRAMES: usize = 256;
+
+/// A `unitac_msgs` message that does not make a valid core message.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum ConvertError {
+    #[error("{field}: expected {expected} elements, got {got}")]
+    FixedLength {
+        field: &'static str,
+        expected: usize,
+        got: usize,
+    },
+    #[error("{field}: length {len} is over the limit {max}")]
+    TooLong {
+        field: &'static str,
+        len: usize,
+        max: usize,
+    },
+    #[error("{field}: unknown value {value}")]
+    BadEnum { field: &'static str, value: u8 },
+    #[error(transparent)]
+    Check(#[from] MsgError),
+    #[error("clip has {0} frames (1..={MAX_CLIP_FRAMES})")]
+    ClipFrames(usize),
+    #[error("peak_index {index} is outside the clip's {frames} frames")]
+    PeakIndex { index: usize, frames: usize },
+    #[error("{what}: {reason}")]
+    Image { what: String, reason: String },
+}
 
 pub fn time(t: Stamp) -> Time {
     let (sec, nanosec) = t.to_sec_nanosec();
@@ -30,185 +66,165 @@ pub fn header_from(h: &RosHeader) -> Header {
     }
 }
 
-/// Fixed-size ROS arrays arrive as Vec; take exactly N or fail.
-fn fixed<T: Copy + Default, const N: usize>(v: &[T], field: &str) -> Result<[T; N], String> {
-    <[T; N]>::try_from(v).map_err(|_| format!("{field}: expected {N} elements, got {}", v.len()))
+/// A field type's r2r form; the generated conversions call this once per field.
+pub trait RosField: Sized {
+    type Ros;
+    fn to_ros(&self) -> Self::Ros;
+    /// `max`: the most elements of a sequence (other types ignore it).
+    fn from_ros(v: &Self::Ros, field: &'static str, max: usize) -> Result<Self, ConvertError>;
 }
 
-pub fn contact_state(m: &ContactState) -> ros::ContactState {
-    ros::ContactState {
-        header: header(&m.header),
-        sensor_id: m.sensor_id.clone(),
-        frame_seq: m.frame_seq,
-        in_contact: m.in_contact,
-        area_px: m.area_px,
-        area_mm2: m.area_mm2,
-        centroid_px: m.centroid_px.to_vec(),
-        bbox_px: m.bbox_px.to_vec(),
-        strength: m.strength,
-        episode_id: m.episode_id,
-        background_age_s: m.background_age_s,
+macro_rules! primitive_fields {
+    ($($t:ty),* $(,)?) => {$(
+        impl RosField for $t {
+            type Ros = $t;
+            fn to_ros(&self) -> $t {
+                *self
+            }
+            fn from_ros(v: &$t, _: &'static str, _: usize) -> Result<Self, ConvertError> {
+                Ok(*v)
+            }
+        }
+    )*};
+}
+primitive_fields!(bool, u8, u32, i32, u64, f32, f64);
+
+/// Strings: as long as the CDR reader allows (its limit counts the NUL).
+impl RosField for String {
+    type Ros = String;
+    fn to_ros(&self) -> String {
+        self.clone()
+    }
+    fn from_ros(v: &String, field: &'static str, _: usize) -> Result<Self, ConvertError> {
+        if v.len() >= MAX_STRING {
+            return Err(ConvertError::TooLong {
+                field,
+                len: v.len() + 1,
+                max: MAX_STRING,
+            });
+        }
+        Ok(v.clone())
     }
 }
 
-pub fn contact_state_from(m: &ros::ContactState) -> Result<ContactState, String> {
-    Ok(ContactState {
-        header: header_from(&m.header),
-        sensor_id: m.sensor_id.clone(),
-        frame_seq: m.frame_seq,
-        in_contact: m.in_contact,
-        area_px: m.area_px,
-        area_mm2: m.area_mm2,
-        centroid_px: fixed(&m.centroid_px, "centroid_px")?,
-        bbox_px: fixed(&m.bbox_px, "bbox_px")?,
-        strength: m.strength,
-        episode_id: m.episode_id,
-        background_age_s: m.background_age_s,
-    })
-}
-
-pub fn contact_episode(m: &ContactEpisode) -> ros::ContactEpisode {
-    ros::ContactEpisode {
-        header: header(&m.header),
-        sensor_id: m.sensor_id.clone(),
-        episode_id: m.episode_id,
-        start: time(m.start),
-        end: time(m.end),
-        frame_count: m.frame_count,
-        peak_area_px: m.peak_area_px,
-        peak_area_mm2: m.peak_area_mm2,
-        peak_frame_seq: m.peak_frame_seq,
-        label: m.label.clone(),
+impl RosField for Stamp {
+    type Ros = Time;
+    fn to_ros(&self) -> Time {
+        time(*self)
+    }
+    fn from_ros(v: &Time, _: &'static str, _: usize) -> Result<Self, ConvertError> {
+        Ok(stamp(v))
     }
 }
 
-pub fn tactile_properties(m: &TactileProperties) -> ros::TactileProperties {
-    ros::TactileProperties {
-        header: header(&m.header),
-        sensor_id: m.sensor_id.clone(),
-        episode_id: m.episode_id,
-        label: m.label.clone(),
-        hardness: m.hardness,
-        hardness_std: m.hardness_std,
-        roughness: m.roughness,
-        roughness_std: m.roughness_std,
-        texture: m.texture,
-        texture_std: m.texture_std,
-        model_id: m.model_id.clone(),
+impl RosField for Header {
+    type Ros = RosHeader;
+    fn to_ros(&self) -> RosHeader {
+        header(self)
+    }
+    fn from_ros(v: &RosHeader, field: &'static str, max: usize) -> Result<Self, ConvertError> {
+        Ok(Header {
+            stamp: stamp(&v.stamp),
+            frame_id: String::from_ros(&v.frame_id, field, max)?,
+        })
     }
 }
 
-pub fn property_comparison(m: &PropertyComparison) -> ros::PropertyComparison {
-    ros::PropertyComparison {
-        header: header(&m.header),
-        property: m.property.clone(),
-        episode_a: m.episode_a,
-        label_a: m.label_a.clone(),
-        episode_b: m.episode_b,
-        label_b: m.label_b.clone(),
-        winner: m.winner as u8,
-        score_a: m.score_a,
-        score_b: m.score_b,
-        margin: m.margin,
-        confidence: m.confidence,
-        sentence: m.sentence.clone(),
+/// Fixed-size ROS arrays arrive as Vec: exactly N elements or an error.
+impl<T: RosField + Copy + Default, const N: usize> RosField for [T; N] {
+    type Ros = Vec<T::Ros>;
+    fn to_ros(&self) -> Vec<T::Ros> {
+        self.iter().map(T::to_ros).collect()
+    }
+    fn from_ros(v: &Vec<T::Ros>, field: &'static str, max: usize) -> Result<Self, ConvertError> {
+        if v.len() != N {
+            return Err(ConvertError::FixedLength {
+                field,
+                expected: N,
+                got: v.len(),
+            });
+        }
+        let mut a = [T::default(); N];
+        for (x, r) in a.iter_mut().zip(v) {
+            *x = T::from_ros(r, field, max)?;
+        }
+        Ok(a)
     }
 }
 
-pub fn tactile_latent_from(m: &ros::TactileLatent) -> Result<TactileLatent, String> {
-    let source = match m.source {
-        0 => LatentSource::Real,
-        1 => LatentSource::Predicted,
-        s => return Err(format!("source: unknown value {s}")),
+impl<T: RosField> RosField for Vec<T> {
+    type Ros = Vec<T::Ros>;
+    fn to_ros(&self) -> Vec<T::Ros> {
+        self.iter().map(T::to_ros).collect()
+    }
+    fn from_ros(v: &Vec<T::Ros>, field: &'static str, max: usize) -> Result<Self, ConvertError> {
+        if v.len() > max {
+            return Err(ConvertError::TooLong {
+                field,
+                len: v.len(),
+                max,
+            });
+        }
+        v.iter().map(|r| T::from_ros(r, field, max)).collect()
+    }
+}
+
+/// A field's sequence bound: its own, or the CDR reader's default.
+fn limit(max: Option<usize>) -> usize {
+    max.unwrap_or(MAX_SEQUENCE)
+}
+
+macro_rules! unitac_conversions {
+    (
+        messages {
+            $( $msg:ident [$to:ident, $from:ident] { $( $f:ident : $t:ty => $max:expr ),* $(,)? } )*
+        }
+        enums { $( $e:ty ),* $(,)? }
+    ) => {
+        $(
+            #[doc = concat!("`unitac_core::msg::", stringify!($msg), "` to r2r.")]
+            pub fn $to(m: &unitac_core::msg::$msg) -> ros::$msg {
+                ros::$msg {
+                    $( $f: m.$f.to_ros(), )*
+                }
+            }
+
+            #[doc = concat!(
+                "r2r to `unitac_core::msg::", stringify!($msg),
+                "`: bounds, enum values and the message's checks."
+            )]
+            pub fn $from(m: &ros::$msg) -> Result<unitac_core::msg::$msg, ConvertError> {
+                let v = unitac_core::msg::$msg {
+                    $( $f: <$t as RosField>::from_ros(&m.$f, stringify!($f), limit($max))?, )*
+                };
+                v.check()?;
+                Ok(v)
+            }
+        )*
+
+        $(
+            /// A `uint8` with the message's constants; any other value is an error.
+            impl RosField for $e {
+                type Ros = u8;
+                fn to_ros(&self) -> u8 {
+                    u8::from(*self)
+                }
+                fn from_ros(v: &u8, field: &'static str, _: usize) -> Result<Self, ConvertError> {
+                    <$e>::try_from(*v).map_err(|e| ConvertError::BadEnum { field, value: e.0 })
+                }
+            }
+        )*
     };
-    let n: u64 = m.shape.iter().map(|&d| u64::from(d)).product();
-    if n != m.data.len() as u64 {
-        return Err(format!(
-            "shape {:?} needs {n} values, data has {}",
-            m.shape,
-            m.data.len()
-        ));
-    }
-    Ok(TactileLatent {
-        header: header_from(&m.header),
-        source,
-        sensor_id: m.sensor_id.clone(),
-        shape: m.shape.clone(),
-        data: m.data.clone(),
-        model_id: m.model_id.clone(),
-        solver: m.solver.clone(),
-        steps: m.steps,
-        guidance: m.guidance,
-        elapsed_s: m.elapsed_s,
-        valid: m.valid,
-        guard_report: m.guard_report.clone(),
-    })
 }
 
-pub fn tactile_latent(m: &TactileLatent) -> ros::TactileLatent {
-    ros::TactileLatent {
-        header: header(&m.header),
-        source: m.source as u8,
-        sensor_id: m.sensor_id.clone(),
-        shape: m.shape.clone(),
-        data: m.data.clone(),
-        model_id: m.model_id.clone(),
-        solver: m.solver.clone(),
-        steps: m.steps,
-        guidance: m.guidance,
-        elapsed_s: m.elapsed_s,
-        valid: m.valid,
-        guard_report: m.guard_report.clone(),
-    }
-}
+unitac_core::for_each_message!(unitac_conversions);
 
-pub fn gripper_command_from(m: &ros::GripperCommand) -> Result<GripperCommand, String> {
-    let mode = match m.mode {
-        0 => GripperMode::Position,
-        1 => GripperMode::Force,
-        2 => GripperMode::Stop,
-        x => return Err(format!("mode: unknown value {x}")),
-    };
-    Ok(GripperCommand {
-        header: header_from(&m.header),
-        mode,
-        position_m: m.position_m,
-        speed_m_s: m.speed_m_s,
-        force_n: m.force_n,
-        reason: m.reason.clone(),
-    })
-}
-
-pub fn policy_status(m: &PolicyStatus) -> ros::PolicyStatus {
-    ros::PolicyStatus {
-        header: header(&m.header),
-        scene: m.scene.clone(),
-        mode: m.mode.clone(),
-        phase: m.phase.clone(),
-        safety_ok: m.safety_ok,
-        message: m.message.clone(),
-    }
-}
-
-/// Winner from its wire value.
-pub fn winner_from(v: u8) -> Option<Winner> {
-    match v {
-        0 => Some(Winner::A),
-        1 => Some(Winner::B),
-        2 => Some(Winner::Tie),
-        _ => None,
-    }
-}
-
-/// Most frames a ContactClip may carry (the contact stage's clip_frames is far below this).
-pub const MAX_CLIP_FRAMES: usize = 256;
-
-pub fn contact_clip(m: &unitac_core::msg::EpisodeClip) -> ros::ContactClip {
+pub fn contact_clip(m: &EpisodeClip) -> ros::ContactClip {
     let last = m.frames.last();
     let mut header = RosHeader::default();
     if let Some(f) = last {
         header.stamp = time(f.stamp);
-        header.frame_id = format!("{}_optical_frame", f.sensor_id);
+        header.frame_id = unitac_core::optical_frame_id(&f.sensor_id);
     }
     ros::ContactClip {
         header,
@@ -226,42 +242,171 @@ pub fn contact_clip(m: &unitac_core::msg::EpisodeClip) -> ros::ContactClip {
 }
 
 /// A clip from the wire: frame count bounded, every image checked, peak index in range.
-pub fn contact_clip_from(m: &ros::ContactClip) -> Result<unitac_core::msg::EpisodeClip, String> {
-    if m.frames.is_empty() || m.frames.len() > MAX_CLIP_FRAMES {
-        return Err(format!(
-            "clip has {} frames (1..={MAX_CLIP_FRAMES})",
-            m.frames.len()
-        ));
+pub fn contact_clip_from(m: &ros::ContactClip) -> Result<EpisodeClip, ConvertError> {
+    // Every field named: a field added to ContactClip.msg fails to compile here until handled.
+    let ros::ContactClip {
+        header: _,
+        sensor_id,
+        episode_id,
+        label,
+        peak_index,
+        frames,
+        background,
+    } = m;
+    if frames.is_empty() || frames.len() > MAX_CLIP_FRAMES {
+        return Err(ConvertError::ClipFrames(frames.len()));
     }
-    let peak_index = m.peak_index as usize;
-    if peak_index >= m.frames.len() {
-        return Err(format!(
-            "peak_index {peak_index} is outside the clip's {} frames",
-            m.frames.len()
-        ));
+    let peak_index = *peak_index as usize;
+    if peak_index >= frames.len() {
+        return Err(ConvertError::PeakIndex {
+            index: peak_index,
+            frames: frames.len(),
+        });
     }
-    let frames = m
-        .frames
+    let sensor_id = String::from_ros(sensor_id, "sensor_id", 0)?;
+    let label = String::from_ros(label, "label", 0)?;
+    let image = |what: String, img: &r2r::sensor_msgs::msg::Image, seq| {
+        crate::image::to_frame(img, &sensor_id, seq).map_err(|reason| ConvertError::Image {
+            what,
+            reason: reason.to_string(),
+        })
+    };
+    let frames = frames
         .iter()
         .enumerate()
-        .map(|(i, f)| {
-            crate::image::to_frame(f, &m.sensor_id, i as u64).map_err(|e| format!("frame {i}: {e}"))
-        })
+        .map(|(i, f)| image(format!("frame {i}"), f, i as u64))
         .collect::<Result<Vec<_>, _>>()?;
-    let background = if m.background.width == 0 {
+    let background = if background.width == 0 {
         None
     } else {
-        Some(
-            crate::image::to_frame(&m.background, &m.sensor_id, 0)
-                .map_err(|e| format!("background: {e}"))?,
-        )
+        Some(image("background".into(), background, 0)?)
     };
-    Ok(unitac_core::msg::EpisodeClip {
-        sensor_id: m.sensor_id.clone(),
-        episode_id: m.episode_id,
-        label: m.label.clone(),
+    Ok(EpisodeClip {
+        sensor_id,
+        episode_id: *episode_id,
+        label,
         peak_index,
         frames,
         background,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use unitac_core::msg::samples::{self, contact_state as state, tactile_latent as latent};
+
+    /// Every message of msg/unitac_msgs, through the same definition as the conversions.
+    #[test]
+    fn generated_conversions_round_trip() {
+        macro_rules! round_trip_each {
+            (
+                messages { $( $msg:ident [$to:ident, $from:ident] { $($fields:tt)* } )* }
+                enums { $($e:tt)* }
+            ) => {
+                $( assert_eq!($from(&$to(&samples::$to())), Ok(samples::$to())); )*
+            };
+        }
+        unitac_core::for_each_message!(round_trip_each);
+        let r = contact_state(&state());
+        assert_eq!(r.centroid_px, vec![3.0, 4.0]);
+        assert_eq!(r.header.stamp.sec, 1_700_000_000);
+        assert_eq!(tactile_latent(&latent()).source, 1);
+        assert_eq!(
+            property_comparison(&samples::property_comparison()).winner,
+            2
+        );
+    }
+
+    #[test]
+    fn bad_fields_are_typed_errors() {
+        let mut r = contact_state(&state());
+        r.centroid_px.push(1.0);
+        assert_eq!(
+            contact_state_from(&r),
+            Err(ConvertError::FixedLength {
+                field: "centroid_px",
+                expected: 2,
+                got: 3
+            })
+        );
+
+        let mut r = tactile_latent(&latent());
+        r.source = 5;
+        assert_eq!(
+            tactile_latent_from(&r),
+            Err(ConvertError::BadEnum {
+                field: "source",
+                value: 5
+            })
+        );
+        let mut r = tactile_latent(&latent());
+        r.data.pop();
+        let e = tactile_latent_from(&r).unwrap_err();
+        assert!(matches!(
+            e,
+            ConvertError::Check(MsgError::ShapeMismatch { .. })
+        ));
+        assert_eq!(e.to_string(), "shape [2, 3] needs 6 values, data has 5");
+        let mut r = tactile_latent(&latent());
+        r.shape = vec![1; 17];
+        assert_eq!(
+            tactile_latent_from(&r),
+            Err(ConvertError::TooLong {
+                field: "shape",
+                len: 17,
+                max: 16
+            })
+        );
+        let mut r = tactile_latent(&latent());
+        r.model_id = "x".repeat(MAX_STRING);
+        assert!(matches!(
+            tactile_latent_from(&r),
+            Err(ConvertError::TooLong {
+                field: "model_id",
+                ..
+            })
+        ));
+
+        let mut g = gripper_command(&samples::gripper_command());
+        g.mode = 9;
+        assert_eq!(
+            gripper_command_from(&g).unwrap_err().to_string(),
+            "mode: unknown value 9"
+        );
+    }
+
+    #[test]
+    fn clips_are_bounded() {
+        let empty = ros::ContactClip::default();
+        assert_eq!(contact_clip_from(&empty), Err(ConvertError::ClipFrames(0)));
+        let frame = unitac_core::Frame::new("gs", 0, Stamp(5), 2, 2, vec![9; 12]).unwrap();
+        let clip = EpisodeClip {
+            sensor_id: "gs".into(),
+            episode_id: 4,
+            label: "cup".into(),
+            peak_index: 1,
+            frames: vec![frame.clone(), frame],
+            background: None,
+        };
+        let mut r = contact_clip(&clip);
+        assert_eq!(r.header.frame_id, "gs_optical_frame");
+        let back = contact_clip_from(&r).unwrap();
+        assert_eq!((back.peak_index, back.frames.len()), (1, 2));
+        assert_eq!(back.frames[1].data(), clip.frames[1].data());
+        r.peak_index = 2;
+        assert_eq!(
+            contact_clip_from(&r),
+            Err(ConvertError::PeakIndex {
+                index: 2,
+                frames: 2
+            })
+        );
+        r.peak_index = 0;
+        r.frames[1].encoding = "rgb16".into();
+        assert!(matches!(
+            contact_clip_from(&r),
+            Err(ConvertError::Image { ref what, .. }) if what == "frame 1"
+        ));
+    }
 }

@@ -100,7 +100,7 @@ fn echo(prefix: &str) -> anyhow::Result<()> {
             if !got1 {
                 match convert::tactile_latent_from(&m) {
                     Ok(l) => println!("{}", Msg::Latent(l).to_json()),
-                    Err(e) => err = Some(e),
+                    Err(e) => err = Some(e.to_string()),
                 }
                 got1 = true;
             }
@@ -109,7 +109,7 @@ fn echo(prefix: &str) -> anyhow::Result<()> {
             if !got2 {
                 match convert::gripper_command_from(&m) {
                     Ok(c) => println!("{}", Msg::Command(c).to_json()),
-                    Err(e) => err = Some(e),
+                    Err(e) => err = Some(e.to_string()),
                 }
                 got2 = true;
             }
