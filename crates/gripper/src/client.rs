@@ -18,9 +18,10 @@ pub trait Link: Send {
 }
 
 impl<P: serialport::SerialPort + ?Sized> Link for Box<P> {
+    /// A tty write is unbuffered; no `flush` (serialport maps it to tcdrain, which on some USB
+    /// adapters waits milliseconds longer than the bytes take).
     fn write_all(&mut self, bytes: &[u8]) -> io::Result<()> {
-        io::Write::write_all(self.as_mut(), bytes)?;
-        io::Write::flush(self.as_mut())
+        io::Write::write_all(self.as_mut(), bytes)
     }
     fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
         self.set_timeout(timeout.max(Duration::from_micros(100)))?;

@@ -21,6 +21,8 @@ pub enum PortError {
          sudo usermod -aG dialout $USER, then log in again)"
     )]
     Permission { path: PathBuf },
+    #[error("{path}: not a serial port")]
+    NotSerial { path: PathBuf },
     #[error("{path}: device busy (another program has it open?)")]
     Busy { path: PathBuf },
     #[error("{path}: {what}")]
@@ -90,6 +92,11 @@ fn classify(path: &Path, e: serialport::Error) -> PortError {
         }
         (Some(io::ErrorKind::ResourceBusy), _) => PortError::Busy { path },
         _ if e.description.contains("ermission") => PortError::Permission { path },
+        _ if e.description.contains("Not a typewriter")
+            || e.description.contains("Inappropriate ioctl") =>
+        {
+            PortError::NotSerial { path }
+        }
         _ if e.description.contains("busy") => PortError::Busy { path },
         _ => PortError::Other {
             path,
@@ -109,6 +116,24 @@ mod tests {
             panic!("expected NotFound, got {e:?}");
         };
         assert_eq!(path, Path::new("/dev/does-not-exist-gripper"));
+    }
+
+    #[test]
+    fn errors_say_what_to_do() {
+        let io = |k| serialport::Error::new(serialport::ErrorKind::Io(k), "x");
+        let p = Path::new("/dev/ttyUSB0");
+        let e = classify(p, io(io::ErrorKind::PermissionDenied));
+        assert!(matches!(e, PortError::Permission { .. }));
+        assert!(e.to_string().contains("dialout"), "{e}");
+        let e = classify(p, io(io::ErrorKind::ResourceBusy));
+        assert!(matches!(e, PortError::Busy { .. }));
+        let e = classify(
+            Path::new("/dev/null"),
+            serialport::Error::new(serialport::ErrorKind::Unknown, "Not a typewriter"),
+        );
+        assert_eq!(e.to_string(), "/dev/null: not a serial port");
+        let e = open(Path::new("/dev/null"), 115_200).err();
+        assert!(matches!(e, Some(PortError::NotSerial { .. })), "{e:?}");
     }
 
     #[test]

@@ -5,7 +5,8 @@
 //! A pty moves bytes instantly; the device paces itself at the configured baud rate (8N1, 10 bits
 //! a character): a request counts as received one request-length after it arrived (no earlier
 //! than 3.5 characters after the previous reply ended), the reply starts 3.5 characters later and
-//! its bytes are released at one character time each. Faults are injected per reply.
+//! is released in two pieces, each when its last byte would have been on the wire. Faults are
+//! injected per reply.
 
 pub mod physics;
 pub mod registers;
@@ -221,7 +222,9 @@ fn sleep_until(t: Instant, spin: bool) {
     }
 }
 
-/// Write `bytes` so that byte i is complete at `start + (i + 1) x char_time`.
+/// Write `bytes` so that they are complete when the wire would have carried them: the first half
+/// at `start + len/2 x char_time`, the rest at `start + len x char_time` (two writes, so the driver
+/// sees a frame arrive in pieces, as from a USB adapter, without a wake-up per byte).
 fn send_paced(
     w: &mut impl Write,
     bytes: &[u8],
@@ -230,21 +233,13 @@ fn send_paced(
     spin: bool,
 ) -> io::Result<Instant> {
     let mut sent = 0usize;
-    while sent < bytes.len() {
-        let now = Instant::now();
-        let due = if now <= start {
-            0
-        } else {
-            ((now - start).as_secs_f64() / char_time.as_secs_f64()).floor() as usize
+    for end in [bytes.len() / 2, bytes.len()] {
+        if end <= sent {
+            continue;
         }
-        .min(bytes.len());
-        if due > sent {
-            w.write_all(&bytes[sent..due])?;
-            w.flush()?;
-            sent = due;
-        } else {
-            sleep_until(start + char_time * (sent as u32 + 1), spin);
-        }
+        sleep_until(start + char_time * end as u32, spin);
+        w.write_all(&bytes[sent..end])?;
+        sent = end;
     }
     Ok(start + char_time * bytes.len() as u32)
 }
@@ -350,10 +345,7 @@ fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<
                 send_paced(&mut p.master, &bytes, start, char_time, cfg.spin)
             } else {
                 sleep_until(start, cfg.spin);
-                p.master
-                    .write_all(&bytes)
-                    .and_then(|()| p.master.flush())
-                    .map(|()| Instant::now())
+                p.master.write_all(&bytes).map(|()| Instant::now())
             };
             match sent {
                 Ok(end) => last_tx_end = end,
