@@ -27,6 +27,9 @@ pub enum Action {
     /// Command -> status round trips per second against the wire limit, and the simulated
     /// device on a pty paced and unpaced.
     Bench,
+    /// Run a simulated gripper for --seconds, reachable at --port (a symlink to its pty, like a
+    /// /dev/serial/by-id name), for a driver or node in another process.
+    Simulate,
 }
 
 #[derive(clap::Args, Debug)]
@@ -63,14 +66,13 @@ pub fn run(a: GripperArgs) -> anyhow::Result<bool> {
     if a.action == Action::Bench {
         return run_bench(&a);
     }
+    if a.action == Action::Simulate {
+        return simulate(&a);
+    }
     let _sim;
     let port = if a.port == "sim" {
-        let mut cfg = DeviceConfig::new(a.model);
-        cfg.object = Some(SimObject {
-            width_m: a.model.calibration().limits.max_opening_m * 0.5,
-            stiffness_n_per_m: 20_000.0,
-        });
-        let dev = SimDevice::spawn(cfg).context("starting the simulated gripper")?;
+        let dev =
+            SimDevice::spawn(sim_config(a.model)).context("starting the simulated gripper")?;
         let p = dev.path();
         _sim = Some(dev);
         p
@@ -90,7 +92,7 @@ pub fn run(a: GripperArgs) -> anyhow::Result<bool> {
     let speed = a.speed.unwrap_or(lim.max_speed_m_s / 2.0);
     let force = a.force.unwrap_or(lim.min_force_n);
     match a.action {
-        Action::Status | Action::Bench => {}
+        Action::Status | Action::Bench | Action::Simulate => {}
         Action::Activate => {
             g.activate()?;
             wait(&g, deadline, &cfg, |s| s.activation == Activation::Active)?;
@@ -129,6 +131,37 @@ pub fn run(a: GripperArgs) -> anyhow::Result<bool> {
         println!("{} on {}: {}", a.model, port.display(), describe(&s));
     }
     Ok(!matches!(s.fault, Some(Fault::Major { .. })))
+}
+
+/// The simulated device of `--port sim` and `simulate`: an object half the stroke wide.
+fn sim_config(model: Model) -> DeviceConfig {
+    let mut cfg = DeviceConfig::new(model);
+    cfg.object = Some(SimObject {
+        width_m: model.calibration().limits.max_opening_m * 0.5,
+        stiffness_n_per_m: 20_000.0,
+    });
+    cfg
+}
+
+fn simulate(a: &GripperArgs) -> anyhow::Result<bool> {
+    let mut cfg = sim_config(a.model);
+    cfg.slave = a.slave.unwrap_or(cfg.slave);
+    cfg.baud = a.baud.unwrap_or(cfg.baud);
+    let link = PathBuf::from(&a.port);
+    cfg.link = Some(link.clone());
+    let dev = SimDevice::spawn(cfg.clone())
+        .with_context(|| format!("starting the simulated gripper at {}", link.display()))?;
+    println!(
+        "simulated {} (slave {}, {} baud) at {}",
+        a.model,
+        cfg.slave,
+        cfg.baud,
+        unitac_gripper::device::describe(&dev.path())
+    );
+    std::thread::sleep(Duration::from_secs_f64(a.seconds));
+    drop(dev);
+    let _ = std::fs::remove_file(&link);
+    Ok(true)
 }
 
 /// Wait for `done`, turning a silent or missing device into a message that says what to check.

@@ -327,3 +327,17 @@ fn missing_port_is_a_link_fault_naming_the_port() {
         |g| matches!(&g.state().fault, Some(Fault::Link { what }) if what.contains("/dev/ttyUSB-unitac-none: no such serial device")),
     );
 }
+
+#[test]
+fn every_model_activates_and_reaches_a_position_in_si_units() {
+    for model in Model::ALL {
+        let dev = device(model, false, None);
+        let mut g = driver(&dev, model);
+        g.activate().unwrap();
+        wait_for("active", &g, |g| g.state().activation == Activation::Active);
+        let half = g.limits().max_opening_m / 2.0;
+        g.command(cmd(half, g.limits().max_force_n)).unwrap();
+        wait_for(model.name(), &g, reached(half));
+        assert_eq!(dev.snapshot().activations, 1, "{model}");
+    }
+}
