@@ -7,7 +7,7 @@
 
 use crate::client::{ClientConfig, LinkStats, RtuClient};
 use crate::gripper::{Fault, GripCommand, Gripper, GripperError, GripperState, Limits};
-use crate::model::Model;
+use crate::model::{Calibration, Model};
 use crate::port::{self, BY_ID};
 use crate::protocol::{Session, Wants};
 use serde::Serialize;
@@ -32,6 +32,8 @@ pub struct DriverConfig {
     pub reopen_after: u32,
     /// Directory of stable device names.
     pub by_id_dir: PathBuf,
+    /// Raw <-> SI maps and limits (default: the model's; a unit's own after calibration).
+    pub calibration: Calibration,
 }
 
 impl DriverConfig {
@@ -46,6 +48,7 @@ impl DriverConfig {
             retries: 1,
             reopen_after: 20,
             by_id_dir: PathBuf::from(BY_ID),
+            calibration: model.calibration(),
         }
     }
 }
@@ -135,7 +138,7 @@ impl Gripper for SerialGripper {
         self.cfg.model.name()
     }
     fn limits(&self) -> Limits {
-        self.cfg.model.calibration().limits
+        self.cfg.calibration.limits
     }
     fn activate(&mut self) -> Result<(), GripperError> {
         self.alive()?;
@@ -215,7 +218,7 @@ fn run(cfg: DriverConfig, port: PathBuf, shared: Arc<Shared>) {
     } else {
         Duration::ZERO
     };
-    let mut session = Session::new(cfg.model);
+    let mut session = Session::with_calibration(cfg.model, cfg.calibration);
     let mut client: Option<RtuClient<Box<dyn serialport::SerialPort>>> = None;
     let mut backoff = Duration::from_millis(50);
     let mut next = Instant::now();

@@ -77,6 +77,9 @@ pub struct GripperState {
     pub motion: Motion,
     /// Fingertip distance [m] (None until read).
     pub opening_m: Option<f64>,
+    /// The position register as the device reports it (Robotiq gPO 0-255, DH 0-1000), for
+    /// calibration.
+    pub raw_position: Option<u16>,
     /// The device's echo of the requested opening [m].
     pub target_m: Option<f64>,
     /// Grip force estimate [N] (Robotiq: from the motor current, a rough figure; sim: exact).

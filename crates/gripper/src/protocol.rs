@@ -144,9 +144,14 @@ pub struct Session {
 
 impl Session {
     pub fn new(model: Model) -> Self {
+        Self::with_calibration(model, model.calibration())
+    }
+
+    /// A session with a unit's own calibration (see the README's checklist).
+    pub fn with_calibration(model: Model, cal: Calibration) -> Self {
         Self {
             model,
-            cal: model.calibration(),
+            cal,
             phase: Phase::Probe,
             written: None,
             in_flight: None,
@@ -163,7 +168,7 @@ impl Session {
 
     /// Start over with a status read (after the port was re-opened).
     pub fn reset(&mut self) {
-        *self = Session::new(self.model);
+        *self = Session::with_calibration(self.model, self.cal);
     }
 
     /// The next request.
@@ -332,6 +337,7 @@ impl Session {
             _ => self.was_caught,
         };
         state.opening_m = Some(c.position.to_si(f64::from(s.po)));
+        state.raw_position = Some(u16::from(s.po));
         state.target_m = Some(c.position.to_si(f64::from(s.pr)));
         state.current_a = Some(f64::from(s.cu) * 0.01);
         state.force_n = None;
@@ -394,6 +400,7 @@ impl Session {
                     _ => Motion::Unknown,
                 };
                 state.opening_m = Some(self.cal.position.to_si(f64::from(pos)));
+                state.raw_position = Some(pos);
                 state.target_m = self.dh_written[2].map(|v| self.cal.position.to_si(f64::from(v)));
                 state.fault = None;
             }

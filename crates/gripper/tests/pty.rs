@@ -88,6 +88,8 @@ fn robotiq_activation_position_and_force() {
     // Position: 70 mm, no object in the way.
     g.command(cmd(0.070, 50.0)).unwrap();
     wait_for("70 mm", &g, reached(0.070));
+    // 15 mm closed of 85 mm over 227 counts (the assumed calibration): count 40.
+    assert_eq!(g.state().raw_position, Some(40));
 
     // Close on the 50 mm object at 100 N: stops where the contact force is 100 N (45 mm).
     g.command(cmd(0.0, 100.0)).unwrap();
@@ -192,8 +194,9 @@ fn link_faults_are_retried_or_reported_and_never_block() {
             let _ = g.state();
             g.command(cmd(0.08, 50.0)).unwrap();
         }
+        // A blocking call would wait for at least one 30 ms exchange: 100 calls, >= 3 s.
         assert!(
-            t.elapsed() < Duration::from_millis(200),
+            t.elapsed() < Duration::from_secs(1),
             "{what}: calls blocked"
         );
         dev.faults(|f| *f = Default::default());
