@@ -344,3 +344,51 @@ fn every_model_activates_and_reaches_a_position_in_si_units() {
         assert_eq!(dev.snapshot().activations, 1, "{model}");
     }
 }
+
+/// The cup trial's swap: the same world gripper in-process and behind a simulated Robotiq on a
+/// pty, closed on the same cup at the same force limit, end in the same place.
+#[test]
+fn sim_world_gripper_in_process_and_over_the_pty_agree() {
+    use unitac_gripper::sim_world::{SimWorldGripper, WorldFingers};
+    use unitac_sim::{Cup, World, WorldConfig};
+    let world = || World::new(WorldConfig::new(Cup::paper(60.0)));
+    let limits = Model::Robotiq2F85.calibration().limits;
+    let close = GripCommand {
+        opening_m: 0.0,
+        speed_m_s: 0.15,
+        force_n: 20.0,
+    };
+
+    let mut local = SimWorldGripper::new(world(), limits);
+    local.command(close).unwrap();
+    for _ in 0..5000 {
+        local.advance(0.002).unwrap();
+    }
+    let l = local.state();
+    assert_eq!(l.motion, Motion::Caught);
+
+    let mut cfg = DeviceConfig::new(Model::Robotiq2F85);
+    cfg.start_active = true;
+    let fingers = WorldFingers::new(world(), limits.max_opening_m);
+    let dev = SimDevice::spawn_with(cfg, Box::new(fingers)).unwrap();
+    let mut g = driver(&dev, Model::Robotiq2F85);
+    wait_for("active", &g, |g| g.state().activation == Activation::Active);
+    g.command(close).unwrap();
+    wait_for("caught over the pty", &g, |g| {
+        g.state().motion == Motion::Caught
+    });
+    std::thread::sleep(Duration::from_secs(2));
+    let remote = dev.snapshot().fingers;
+    let (lo, lf) = (l.opening_m.unwrap(), l.force_n.unwrap());
+    assert!(
+        (remote.opening_m - lo).abs() < 0.0005,
+        "{} vs {lo}",
+        remote.opening_m
+    );
+    assert!(
+        (remote.force_n - lf).abs() < 1.0,
+        "{} vs {lf}",
+        remote.force_n
+    );
+    assert!((19.0..21.5).contains(&lf), "force {lf}");
+}

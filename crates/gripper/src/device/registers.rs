@@ -230,8 +230,12 @@ impl Registers for RobotiqRegs {
         if self.act && self.sta == 3 && self.gto && !major {
             let target = c.position.to_si(f64::from(self.pr));
             let count = c.limits.max_opening_m / 255.0;
+            // An object once detected stays detected until the next command (the force may
+            // dip under the limit while the grip settles).
             self.obj = if f.stalled {
                 if f.closing { 2 } else { 1 }
+            } else if self.obj == 1 || self.obj == 2 {
+                self.obj
             } else if (f.opening_m - target).abs() <= count {
                 3
             } else {
