@@ -8,6 +8,7 @@ mod dataset;
 mod decode_bench;
 mod devices;
 mod eval;
+mod gripper;
 mod images;
 mod plot;
 mod progress;
@@ -180,6 +181,8 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
+    /// Bring-up of a serial gripper: `gripper --port P --model M activate|open|close|status|bench`.
+    Gripper(gripper::GripperArgs),
     /// List the scenes found in the scene directories.
     Scenes {
         #[arg(long)]
@@ -549,6 +552,7 @@ fn main() -> ExitCode {
                 Ok(true)
             }
         }
+        Cmd::Gripper(args) => gripper::run(args),
         Cmd::Scenes { scene_dir } => {
             let mut names: Vec<String> = scene_dirs(scene_dir)
                 .iter()

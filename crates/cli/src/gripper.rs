@@ -1,0 +1,273 @@
+//! `unitac gripper`: bring-up of a serial gripper (Robotiq 2F, DH AG/PGE) from the command line.
+//!
+//! `--port sim` runs the action against a simulated device on a pseudo-terminal instead.
+
+use anyhow::{Context, bail};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use unitac_gripper::bench::{self, BenchResult};
+use unitac_gripper::client::{ClientConfig, RtuClient};
+use unitac_gripper::device::physics::SimObject;
+use unitac_gripper::device::{DeviceConfig, SimDevice};
+use unitac_gripper::{
+    Activation, DriverConfig, Fault, GripCommand, Gripper, GripperState, Model, Motion,
+    SerialGripper,
+};
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Action {
+    /// Activate (Robotiq rACT, DH initialise) unless already active; wait until done.
+    Activate,
+    /// Open fully and wait until there.
+    Open,
+    /// Close (stops on an object at --force) and wait until stopped.
+    Close,
+    /// Print the state once.
+    Status,
+    /// Command -> status round trips per second against the wire limit, and the simulated
+    /// device on a pty paced and unpaced.
+    Bench,
+    /// Run a simulated gripper for --seconds, reachable at --port (a symlink to its pty, like a
+    /// /dev/serial/by-id name), for a driver or node in another process.
+    Simulate,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct GripperArgs {
+    /// Serial port, best its stable name (/dev/serial/by-id/...); `sim` for a simulated device.
+    #[arg(long)]
+    pub port: String,
+    /// robotiq_2f85 | robotiq_2f140 | dh_ag95 | dh_pge50
+    #[arg(long)]
+    pub model: Model,
+    /// Modbus slave id (default: the model's factory id, Robotiq 9, DH 1).
+    #[arg(long)]
+    pub slave: Option<u8>,
+    #[arg(long)]
+    pub baud: Option<u32>,
+    /// Grip force limit for open/close [N] (default: the model's minimum).
+    #[arg(long)]
+    pub force: Option<f64>,
+    /// Finger speed for open/close [m/s] (default: half the model's maximum).
+    #[arg(long)]
+    pub speed: Option<f64>,
+    /// How long to wait for the action (activate/open/close) or to run the bench [s].
+    #[arg(long, default_value_t = 5.0)]
+    pub seconds: f64,
+    #[arg(long)]
+    pub json: bool,
+    pub action: Action,
+}
+
+pub fn run(a: GripperArgs) -> anyhow::Result<bool> {
+    if !(a.seconds.is_finite() && a.seconds > 0.0 && a.seconds <= 3600.0) {
+        bail!("--seconds must be in (0, 3600]");
+    }
+    if a.action == Action::Bench {
+        return run_bench(&a);
+    }
+    if a.action == Action::Simulate {
+        return simulate(&a);
+    }
+    let _sim;
+    let port = if a.port == "sim" {
+        let dev =
+            SimDevice::spawn(sim_config(a.model)).context("starting the simulated gripper")?;
+        let p = dev.path();
+        _sim = Some(dev);
+        p
+    } else {
+        _sim = None;
+        PathBuf::from(&a.port)
+    };
+    let mut cfg = DriverConfig::new(&port, a.model);
+    cfg.slave = a.slave.unwrap_or(cfg.slave);
+    cfg.baud = a.baud.unwrap_or(cfg.baud);
+    // Open once here so a wrong port or a permission problem is reported at once, as such.
+    drop(unitac_gripper::port::open(&port, cfg.baud)?);
+    let mut g = SerialGripper::start(cfg.clone())?;
+    let deadline = Instant::now() + Duration::from_secs_f64(a.seconds);
+    wait(&g, deadline, &cfg, |s| s.activation != Activation::Unknown)?;
+    let lim = g.limits();
+    let speed = a.speed.unwrap_or(lim.max_speed_m_s / 2.0);
+    let force = a.force.unwrap_or(lim.min_force_n);
+    match a.action {
+        Action::Status | Action::Bench | Action::Simulate => {}
+        Action::Activate => {
+            g.activate()?;
+            wait(&g, deadline, &cfg, |s| s.activation == Activation::Active)?;
+        }
+        Action::Open | Action::Close => {
+            if g.state().activation != Activation::Active {
+                bail!(
+                    "the gripper is not activated ({:?}); run `unitac gripper ... activate` first",
+                    g.state().activation
+                );
+            }
+            let opening_m = if a.action == Action::Open {
+                lim.max_opening_m
+            } else {
+                0.0
+            };
+            g.command(GripCommand {
+                opening_m,
+                speed_m_s: speed,
+                force_n: force,
+            })?;
+            let start = g.state().updates;
+            wait(&g, deadline, &cfg, |s| {
+                s.updates > start + 2
+                    && matches!(
+                        s.motion,
+                        Motion::Reached | Motion::Caught | Motion::CaughtOpening | Motion::Dropped
+                    )
+            })?;
+        }
+    }
+    let s = g.state();
+    if a.json {
+        println!("{}", serde_json::to_string(&s)?);
+    } else {
+        println!("{} on {}: {}", a.model, port.display(), describe(&s));
+    }
+    Ok(!matches!(s.fault, Some(Fault::Major { .. })))
+}
+
+/// The simulated device of `--port sim` and `simulate`: an object half the stroke wide.
+fn sim_config(model: Model) -> DeviceConfig {
+    let mut cfg = DeviceConfig::new(model);
+    cfg.object = Some(SimObject {
+        width_m: model.calibration().limits.max_opening_m * 0.5,
+        stiffness_n_per_m: 20_000.0,
+    });
+    cfg
+}
+
+fn simulate(a: &GripperArgs) -> anyhow::Result<bool> {
+    let mut cfg = sim_config(a.model);
+    cfg.slave = a.slave.unwrap_or(cfg.slave);
+    cfg.baud = a.baud.unwrap_or(cfg.baud);
+    let link = PathBuf::from(&a.port);
+    cfg.link = Some(link.clone());
+    let dev = SimDevice::spawn(cfg.clone())
+        .with_context(|| format!("starting the simulated gripper at {}", link.display()))?;
+    println!(
+        "simulated {} (slave {}, {} baud) at {}",
+        a.model,
+        cfg.slave,
+        cfg.baud,
+        unitac_gripper::device::describe(&dev.path())
+    );
+    std::thread::sleep(Duration::from_secs_f64(a.seconds));
+    drop(dev);
+    let _ = std::fs::remove_file(&link);
+    Ok(true)
+}
+
+/// Wait for `done`, turning a silent or missing device into a message that says what to check.
+fn wait(
+    g: &SerialGripper,
+    deadline: Instant,
+    cfg: &DriverConfig,
+    done: impl Fn(&GripperState) -> bool,
+) -> anyhow::Result<()> {
+    loop {
+        let s = g.state();
+        if done(&s) {
+            return Ok(());
+        }
+        if Instant::now() >= deadline {
+            let st = g.stats();
+            if s.updates == 0 {
+                bail!(
+                    "no reply from slave {} on {} at {} baud ({}): check the gripper's power, \
+                     the RS-485 wiring (A/B swapped?), --slave and --baud",
+                    cfg.slave,
+                    st.port.display(),
+                    cfg.baud,
+                    st.last_error.unwrap_or_else(|| "nothing received".into())
+                );
+            }
+            bail!("timed out: {}", describe(&s));
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+fn describe(s: &GripperState) -> String {
+    let mm = |m: Option<f64>| m.map_or("?".into(), |v| format!("{:.1} mm", v * 1e3));
+    let mut out = format!(
+        "{:?}, {:?}, opening {} (target {})",
+        s.activation,
+        s.motion,
+        mm(s.opening_m),
+        mm(s.target_m)
+    )
+    .to_lowercase();
+    if let Some(c) = s.current_a {
+        out += &format!(", current {c:.2} A");
+    }
+    if let Some(f) = s.force_n {
+        out += &format!(", force {f:.1} N");
+    }
+    out += &match &s.fault {
+        None => ", no fault".into(),
+        Some(Fault::Minor { code, what }) => format!(", minor fault 0x{code:02X}: {what}"),
+        Some(Fault::Major { code, what }) => {
+            format!(", MAJOR fault 0x{code:02X}: {what} (clear it by re-activating)")
+        }
+        Some(Fault::Link { what }) => format!(", link fault: {what}"),
+    };
+    out
+}
+
+fn run_bench(a: &GripperArgs) -> anyhow::Result<bool> {
+    let baud = a.baud.unwrap_or(a.model.default_baud());
+    let d = Duration::from_secs_f64(a.seconds);
+    let mut results: Vec<BenchResult> = Vec::new();
+    if a.port != "sim" {
+        let p = unitac_gripper::port::open(&PathBuf::from(&a.port), baud)?;
+        let mut c = RtuClient::new(
+            p,
+            ClientConfig {
+                retries: 0,
+                ..ClientConfig::new(a.slave.unwrap_or(a.model.default_slave()), baud)
+            },
+        );
+        let label = format!("{} on {}", a.model, a.port);
+        results.push(
+            bench::run(&label, &mut c, &bench::cycle(a.model), d)
+                .with_context(|| format!("{label}: the device does not answer"))?,
+        );
+    }
+    for paced in [true, false] {
+        results.push(bench::run_sim(a.model, baud, paced, d).map_err(anyhow::Error::msg)?);
+    }
+    if a.json {
+        println!("{}", serde_json::to_string(&results)?);
+        return Ok(true);
+    }
+    println!(
+        "{:<48} {:>9} {:>11} {:>7} {:>9} {:>9} {:>8}",
+        "link", "cycles/s", "wire limit", "ratio", "p50 ms", "p99 ms", "failures"
+    );
+    for r in &results {
+        let ms = |x: Option<f64>| x.map_or("-".into(), |v| format!("{v:.3}"));
+        println!(
+            "{:<48} {:>9.1} {:>11.1} {:>6.1}% {:>9} {:>9} {:>8}",
+            r.label,
+            r.rate_hz,
+            r.wire_limit_hz,
+            100.0 * r.ratio,
+            ms(r.rtt_p50_ms),
+            ms(r.rtt_p99_ms),
+            r.failures
+        );
+    }
+    println!(
+        "wire limit: one command -> status cycle ({} frame(s)) at {baud} baud, 8N1, with a \
+         3.5-character silence after every frame; the unpaced row is the pty's own rate",
+        bench::cycle(a.model).len()
+    );
+    Ok(true)
+}

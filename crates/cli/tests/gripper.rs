@@ -1,0 +1,120 @@
+//! `unitac gripper` against the simulated device (`--port sim`) and bad ports.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::process::{Command, Output};
+
+fn unitac(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .arg("gripper")
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn text(o: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn activate_and_status_on_the_simulated_gripper() {
+    let o = unitac(&["--port", "sim", "--model", "robotiq_2f85", "status"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        out.contains("robotiq_2f85 on /dev/pts/") && out.contains("inactive"),
+        "{out}"
+    );
+    let o = unitac(&["--port", "sim", "--model", "dh_ag95", "--json", "activate"]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(v["activation"], "active");
+    assert_eq!(v["fault"], serde_json::Value::Null);
+}
+
+#[test]
+fn bad_ports_get_messages_that_say_what_is_wrong() {
+    let o = unitac(&[
+        "--port",
+        "/dev/ttyUSB-unitac-none",
+        "--model",
+        "robotiq_2f85",
+        "status",
+    ]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        err.contains("/dev/ttyUSB-unitac-none: no such serial device"),
+        "{err}"
+    );
+    let o = unitac(&["--port", "/dev/null", "--model", "dh_ag95", "status"]);
+    let (_, err) = text(&o);
+    assert!(err.contains("/dev/null: not a serial port"), "{err}");
+    let o = unitac(&["--port", "sim", "--model", "robotiq_3f", "status"]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(err.contains("known: robotiq_2f85"), "{err}");
+}
+
+#[test]
+fn a_simulated_gripper_in_one_process_is_driven_from_another() {
+    let link = std::env::temp_dir().join(format!("unitac-gripper-cli-{}", std::process::id()));
+    let mut sim = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args([
+            "gripper",
+            "--port",
+            link.to_str().unwrap(),
+            "--model",
+            "robotiq_2f85",
+        ])
+        .args(["--seconds", "20", "simulate"])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while !link.exists() && t0.elapsed() < std::time::Duration::from_secs(10) {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let port = link.to_str().unwrap();
+    let o = unitac(&["--port", port, "--model", "robotiq_2f85", "activate"]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    // Close on the simulated 42.5 mm object at 100 N: stops where the contact force is 100 N.
+    let o = unitac(&[
+        "--port",
+        port,
+        "--model",
+        "robotiq_2f85",
+        "--force",
+        "100",
+        "--json",
+        "close",
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(v["motion"], "caught", "{out}");
+    let opening = v["opening_m"].as_f64().unwrap();
+    assert!(
+        (opening - (0.0425 - 100.0 / 20_000.0)).abs() < 0.0008,
+        "{opening}"
+    );
+    // A new process reads it still caught: nothing was reset on start.
+    let o = unitac(&[
+        "--port",
+        port,
+        "--model",
+        "robotiq_2f85",
+        "--json",
+        "status",
+    ]);
+    let v: serde_json::Value = serde_json::from_str(text(&o).0.trim()).unwrap();
+    assert_eq!(v["motion"], "caught");
+    assert_eq!(v["activation"], "active");
+    sim.kill().unwrap();
+    let _ = sim.wait();
+    let _ = std::fs::remove_file(&link);
+}

@@ -1,0 +1,169 @@
+//! Command -> status round trips per second, against the limit the wire sets.
+//!
+//! Wire limit of one cycle at `baud` (8N1: 10 bits a character): the request and reply bytes plus
+//! a 3.5-character silence after each frame. Robotiq: one 0x17 exchange (19-byte request writing
+//! three registers and reading three, 11-byte reply) = 37 character times = 3.212 ms at 115200
+//! baud, 311.4 cycles/s. DH: a 0x06 write (8 + 8 bytes) and a 0x03 read of three registers (8 + 11
+//! bytes) = 49 character times, 235.1 cycles/s.
+
+use crate::client::{ClientConfig, Link, ModbusError, RtuClient};
+use crate::device::{DeviceConfig, SimDevice};
+use crate::frame::{Request, Response};
+use crate::model::{Family, Model};
+use crate::port;
+use crate::protocol::{dh, robotiq};
+use serde::Serialize;
+use std::time::{Duration, Instant};
+
+/// The requests of one command -> status cycle of `model`.
+pub fn cycle(model: Model) -> Vec<Request> {
+    match model.family() {
+        Family::Robotiq => vec![Request::ReadWrite {
+            read_addr: robotiq::STATUS,
+            read_qty: 3,
+            write_addr: robotiq::CMD,
+            values: robotiq::command_regs(robotiq::ACT | robotiq::GTO, 0, 255, 0),
+        }],
+        Family::Dh => vec![
+            Request::WriteSingle {
+                addr: dh::POSITION,
+                value: 1000,
+            },
+            Request::ReadHolding {
+                addr: dh::INIT_STATE,
+                qty: 3,
+            },
+        ],
+    }
+}
+
+/// Bytes of the reply to `req`.
+pub fn reply_len(req: &Request) -> usize {
+    match req {
+        Request::ReadHolding { qty, .. }
+        | Request::ReadInput { qty, .. }
+        | Request::ReadWrite { read_qty: qty, .. } => 5 + 2 * usize::from(*qty),
+        Request::WriteSingle { .. } | Request::WriteMultiple { .. } => 8,
+    }
+}
+
+/// Seconds one cycle takes on the wire at `baud`.
+pub fn wire_time(cycle: &[Request], baud: u32) -> f64 {
+    let chars: f64 = cycle
+        .iter()
+        .map(|r| {
+            let req = r.encode(0).map_or(0, |b| b.len());
+            (req + reply_len(r)) as f64 + 2.0 * 3.5
+        })
+        .sum();
+    chars * 10.0 / f64::from(baud.max(1))
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchResult {
+    pub label: String,
+    pub cycles: u64,
+    pub failures: u64,
+    pub seconds: f64,
+    pub rate_hz: f64,
+    pub wire_limit_hz: f64,
+    /// rate / wire limit.
+    pub ratio: f64,
+    pub rtt_p50_ms: Option<f64>,
+    pub rtt_p99_ms: Option<f64>,
+}
+
+/// Run `cycle` back to back for `duration` over `client`.
+pub fn run<L: Link>(
+    label: &str,
+    client: &mut RtuClient<L>,
+    cycle: &[Request],
+    duration: Duration,
+) -> Result<BenchResult, ModbusError> {
+    let baud = client.config().baud;
+    // One cycle first: a device that does not answer is an error, not a rate of zero.
+    for r in cycle {
+        client.call(r)?;
+    }
+    let t0 = Instant::now();
+    let (mut cycles, mut failures) = (0u64, 0u64);
+    while t0.elapsed() < duration {
+        let mut ok = true;
+        for r in cycle {
+            match client.call(r) {
+                Ok(Response::Exception { .. }) | Err(_) => ok = false,
+                Ok(_) => {}
+            }
+        }
+        if ok {
+            cycles += 1;
+        } else {
+            failures += 1;
+        }
+    }
+    let seconds = t0.elapsed().as_secs_f64();
+    let rate = cycles as f64 / seconds;
+    let limit = 1.0 / wire_time(cycle, baud);
+    let s = client.stats();
+    Ok(BenchResult {
+        label: label.into(),
+        cycles,
+        failures,
+        seconds,
+        rate_hz: rate,
+        wire_limit_hz: limit,
+        ratio: rate / limit,
+        rtt_p50_ms: s.rtt_percentile(0.5).map(|x| x * 1e3),
+        rtt_p99_ms: s.rtt_percentile(0.99).map(|x| x * 1e3),
+    })
+}
+
+/// The same cycle against a simulated `model` on a pty, paced at `baud` or not.
+pub fn run_sim(
+    model: Model,
+    baud: u32,
+    paced: bool,
+    duration: Duration,
+) -> Result<BenchResult, String> {
+    let mut cfg = DeviceConfig::new(model);
+    cfg.baud = baud;
+    cfg.paced = paced;
+    cfg.spin = paced;
+    cfg.start_active = true;
+    let dev = SimDevice::spawn(cfg).map_err(|e| format!("sim device: {e}"))?;
+    let p = port::open(&dev.path(), baud).map_err(|e| e.to_string())?;
+    let mut client = RtuClient::new(
+        p,
+        ClientConfig {
+            timeout: Duration::from_millis(100),
+            retries: 0,
+            ..ClientConfig::new(model.default_slave(), baud)
+        },
+    );
+    let label = format!(
+        "sim {} on a pty, {}",
+        model,
+        if paced {
+            format!("paced at {baud} baud")
+        } else {
+            "unpaced".into()
+        }
+    );
+    run(&label, &mut client, &cycle(model), duration).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wire_limits_from_frame_sizes() {
+        let r = cycle(Model::Robotiq2F85);
+        assert_eq!(r[0].encode(9).unwrap().len(), 19);
+        assert_eq!(reply_len(&r[0]), 11);
+        let hz = 1.0 / wire_time(&r, 115_200);
+        assert!((hz - 115_200.0 / 370.0).abs() < 1e-9, "{hz}");
+        let d = 1.0 / wire_time(&cycle(Model::DhAg95), 115_200);
+        assert!((d - 115_200.0 / 490.0).abs() < 1e-9, "{d}");
+    }
+}
