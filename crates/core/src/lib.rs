@@ -7,6 +7,7 @@
 pub mod clock;
 pub mod frame;
 pub mod msg;
+pub mod pixel;
 pub mod scene;
 pub mod sensor;
 pub mod stage;
