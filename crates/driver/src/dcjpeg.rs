@@ -546,10 +546,12 @@ impl DcDecoder {
         // MCU rows and columns that hold the region.
         let (mc0, mc1) = (roi.0 / hd.hmax, roi.2.div_ceil(hd.hmax).min(hd.mcux));
         let (mr0, mr1) = (roi.1 / hd.vmax, roi.3.div_ceil(hd.vmax).min(hd.mcuy));
-        for set in &mut self.planes {
+        // Sized, not cleared: only blocks decoded in this frame are read back (the region's
+        // MCUs are always decoded), so no per-frame memset. The second set only with restarts.
+        let sets = if hd.restart_interval > 0 { 2 } else { 1 };
+        for set in self.planes.iter_mut().take(sets) {
             set.resize(hd.comps.len(), Vec::new());
             for (p, c) in set.iter_mut().zip(&hd.comps) {
-                p.clear();
                 p.resize(hd.mcux * c.h * hd.mcuy * c.v, 0);
             }
         }

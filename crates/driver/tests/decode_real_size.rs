@@ -228,10 +228,12 @@ fn encode_with_restarts(w: u32, h: u32, rgb: &[u8], interval: u16) -> Vec<u8> {
 #[test]
 fn restart_markers_decode_on_two_threads_to_the_same_image_as_one() {
     use unitac_driver::dcjpeg::{BlockRect, DcDecoder};
+    // One decoder for all sizes: its reused buffers hold the previous (larger) frame's blocks,
+    // which must never show through.
+    let mut two = DcDecoder::new();
     for (w, h, interval) in [(3280u32, 2464u32, 205u16), (640, 480, 7), (333, 250, 1)] {
         let jpeg = encode_with_restarts(w, h, &gel_image(w, h), interval);
         assert!(jpeg.windows(2).any(|p| p == [0xFF, 0xDD]), "no DRI");
-        let mut two = DcDecoder::new();
         let a = two.decode(&jpeg, 8192, None).unwrap().rgb.to_vec();
         assert_eq!(two.stats.threads, 2, "{w}x{h}");
         assert_eq!(two.stats.intervals_skipped, 0);
