@@ -9,10 +9,13 @@
 
 use crate::ros::{CompressedImageView, ImageView};
 use unitac_core::frame::MAX_SIDE;
+use unitac_core::pixel::{Yuv422, yuv422_to_rgb_into};
 use unitac_core::{Frame, FrameError, Stamp};
 
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 pub enum ImageError {
+    #[error(transparent)]
+    Pixel(#[from] unitac_core::pixel::PixelError),
     #[error(
         "image encoding '{0}' is not supported (rgb8, bgr8, rgba8, bgra8, mono8, yuv422, yuyv)"
     )]
@@ -78,23 +81,6 @@ impl Enc {
     }
 }
 
-#[inline]
-fn clamp8(v: i32) -> u8 {
-    v.clamp(0, 255) as u8
-}
-
-#[inline]
-fn yuv_to_rgb(y: u8, u: u8, v: u8) -> [u8; 3] {
-    let c = 298 * (i32::from(y) - 16);
-    let d = i32::from(u) - 128;
-    let e = i32::from(v) - 128;
-    [
-        clamp8((c + 409 * e + 128) >> 8),
-        clamp8((c - 100 * d - 208 * e + 128) >> 8),
-        clamp8((c + 516 * d + 128) >> 8),
-    ]
-}
-
 /// Decode a raw image to an RGB8 frame carrying the image's header stamp.
 pub fn image_to_frame(img: &ImageView<'_>, sensor_id: &str, seq: u64) -> Result<Frame, ImageError> {
     let enc =
@@ -125,6 +111,24 @@ pub fn image_to_frame(img: &ImageView<'_>, sensor_id: &str, seq: u64) -> Result<
     if matches!(enc, Enc::Yuyv | Enc::Uyvy) && w % 2 == 1 {
         return Err(ImageError::OddWidth(img.width));
     }
+    // Packed 4:2:2: the one converter the driver uses too.
+    let yuv = match enc {
+        Enc::Yuyv => Some(Yuv422::Yuyv),
+        Enc::Uyvy => Some(Yuv422::Uyvy),
+        _ => None,
+    };
+    if let Some(order) = yuv {
+        let mut out = vec![0u8; out_len];
+        yuv422_to_rgb_into(order, img.data, img.width, img.height, step, &mut out)?;
+        return Ok(Frame::new(
+            sensor_id,
+            seq,
+            img.header.stamp,
+            img.width,
+            img.height,
+            out,
+        )?);
+    }
     let mut out = Vec::with_capacity(out_len);
     if enc == Enc::Rgb8 && step == row {
         out.extend_from_slice(img.data);
@@ -153,18 +157,8 @@ pub fn image_to_frame(img: &ImageView<'_>, sensor_id: &str, seq: u64) -> Result<
                         out.extend_from_slice(&[g, g, g]);
                     }
                 }
-                Enc::Yuyv => {
-                    for q in src.chunks_exact(4) {
-                        out.extend_from_slice(&yuv_to_rgb(q[0], q[1], q[3]));
-                        out.extend_from_slice(&yuv_to_rgb(q[2], q[1], q[3]));
-                    }
-                }
-                Enc::Uyvy => {
-                    for q in src.chunks_exact(4) {
-                        out.extend_from_slice(&yuv_to_rgb(q[1], q[0], q[2]));
-                        out.extend_from_slice(&yuv_to_rgb(q[3], q[0], q[2]));
-                    }
-                }
+                // Converted above.
+                Enc::Yuyv | Enc::Uyvy => {}
             }
         }
     }

@@ -488,8 +488,10 @@ impl McapState {
                 };
                 let len = r.u64()?;
                 let body = r.take(len)?;
-                self.chunk = decompress_chunk(&header, body)?;
+                // Into the previous chunk's buffer: no allocation (and no fresh pages to fault
+                // in) per chunk.
                 self.chunk_pos = 0;
+                decompress_chunk(&header, body, &mut self.chunk)?;
             }
             // The summary repeats what the data section said.
             OP_DATA_END | OP_FOOTER => self.end = true,
@@ -528,8 +530,10 @@ impl McapState {
     }
 }
 
-/// Decompress a chunk's records, refusing sizes over the limit before allocating.
-fn decompress_chunk(h: &ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
+/// Decompress a chunk's records into `out` (its allocation reused), refusing sizes over the
+/// limit before allocating. On error `out` is left empty.
+fn decompress_chunk(h: &ChunkHeader, data: &[u8], out: &mut Vec<u8>) -> Result<(), String> {
+    out.clear();
     let size = usize::try_from(h.uncompressed_size)
         .ok()
         .filter(|&n| n <= MAX_RECORD_BYTES)
@@ -539,34 +543,46 @@ fn decompress_chunk(h: &ChunkHeader, data: &[u8]) -> Result<Vec<u8>, String> {
                 h.uncompressed_size
             )
         })?;
-    let out = match h.compression.as_str() {
-        "" => data.to_vec(),
-        "zstd" => zstd::bulk::decompress(data, size).map_err(|e| format!("zstd chunk: {e}"))?,
-        "lz4" => {
-            let mut out = Vec::new();
-            lz4::Decoder::new(data)
-                .and_then(|d| d.take(size as u64 + 1).read_to_end(&mut out))
-                .map_err(|e| format!("lz4 chunk: {e}"))?;
-            out
+    let r = match h.compression.as_str() {
+        "" => {
+            out.extend_from_slice(data);
+            Ok(())
         }
-        other => return Err(format!("chunk compression '{other}' is not supported")),
+        "zstd" => {
+            out.reserve(size);
+            zstd::bulk::Decompressor::new()
+                .and_then(|mut d| d.decompress_to_buffer(data, out))
+                .map(|_| ())
+                .map_err(|e| format!("zstd chunk: {e}"))
+        }
+        "lz4" => lz4::Decoder::new(data)
+            .and_then(|d| d.take(size as u64 + 1).read_to_end(out))
+            .map(|_| ())
+            .map_err(|e| format!("lz4 chunk: {e}")),
+        other => Err(format!("chunk compression '{other}' is not supported")),
     };
-    if out.len() != size {
-        return Err(format!(
-            "chunk holds {} bytes after decompression, its header says {size}",
-            out.len()
-        ));
-    }
-    if h.uncompressed_crc != 0 {
-        let crc = crc32fast::hash(&out);
-        if crc != h.uncompressed_crc {
+    let check = r.and_then(|()| {
+        if out.len() != size {
             return Err(format!(
-                "chunk CRC {crc:08x} does not match its header ({:08x})",
-                h.uncompressed_crc
+                "chunk holds {} bytes after decompression, its header says {size}",
+                out.len()
             ));
         }
+        if h.uncompressed_crc != 0 {
+            let crc = crc32fast::hash(out);
+            if crc != h.uncompressed_crc {
+                return Err(format!(
+                    "chunk CRC {crc:08x} does not match its header ({:08x})",
+                    h.uncompressed_crc
+                ));
+            }
+        }
+        Ok(())
+    });
+    if check.is_err() {
+        out.clear();
     }
-    Ok(out)
+    check
 }
 
 impl McapFile {

@@ -10,6 +10,7 @@ pub mod frame;
 pub mod golden;
 pub mod msg;
 pub mod pace;
+pub mod pixel;
 pub mod scene;
 pub mod sensor;
 pub mod stage;

@@ -9,6 +9,7 @@
 //! Anything else returns [`DcError::Unsupported`] and the caller falls back to `jpeg-decoder`.
 //! MJPEG frames without Huffman tables get the standard tables of ITU T.81 Annex K.3.
 
+use std::sync::Arc;
 use thiserror::Error;
 
 #[derive(Debug, Error, PartialEq, Eq)]
@@ -56,19 +57,38 @@ const STD_AC_CHROMA_VALS: [u8; 162] = [
     0xf9, 0xfa,
 ];
 
+/// Bits of the one-step code lookup (codes up to this length decode in one table read).
 const LOOKAHEAD: u32 = 9;
-const FAST_BITS: u32 = 11;
+/// Bits of the DC lookup that yields code and value in one read.
+const DC_BITS: u32 = 11;
+/// Bits of the AC lookup that skips as many whole (code, value) symbols as fit in one read.
+const AC_BITS: u32 = 12;
 
+/// A Huffman table with the lookups the DC-only walk needs.
 #[derive(Debug, Clone)]
 struct Huffman {
-    /// (length, symbol) for every 9-bit prefix; length 0 = longer code.
+    /// (length, symbol) for every LOOKAHEAD-bit prefix; length 0 = longer code.
     lut: Vec<(u8, u8)>,
-    /// AC only: for every FAST_BITS prefix, code and skipped value bits in one step:
-    /// (total bits, coefficient positions advanced, end of block); total 0 = slow path.
-    fast_ac: Vec<(u8, u8, bool)>,
+    /// DC: for every DC_BITS prefix, (code + value bits, value); 0 bits = slow path.
+    fast_dc: Vec<(u8, i16)>,
+    /// AC: for every AC_BITS prefix, the whole symbols it holds: bits (0..=7), coefficient
+    /// positions advanced (8..=15), ends with end-of-block (16); 0 = slow path.
+    multi_ac: Vec<u32>,
     maxcode: [i32; 17],
     valoffset: [i32; 17],
     vals: Vec<u8>,
+}
+
+/// EXTEND (T.81 F.2.2.1): `v` read in `s` bits to a signed value.
+#[inline(always)]
+fn extend(v: i32, s: u32) -> i32 {
+    if s == 0 {
+        0
+    } else if v < (1 << (s - 1)) {
+        v - (1 << s) + 1
+    } else {
+        v
+    }
 }
 
 impl Huffman {
@@ -104,41 +124,86 @@ impl Huffman {
             }
             code <<= 1;
         }
-        // Fused AC entries: code length + value bits fit in FAST_BITS.
-        let mut fast_ac = vec![(0u8, 0u8, false); 1 << FAST_BITS];
-        let mut code: u32 = 0;
-        let mut k = 0usize;
-        for len in 1..=16u32 {
-            for _ in 0..bits[len as usize - 1] {
-                let rs = vals[k];
-                let (r, sz) = (u32::from(rs >> 4), u32::from(rs & 15));
-                let total = len + sz;
-                if total <= FAST_BITS {
-                    let entry = if sz == 0 && r == 0 {
-                        (len as u8, 0, true)
-                    } else if sz == 0 {
-                        (len as u8, 16, false)
-                    } else {
-                        (total as u8, (r + 1) as u8, false)
-                    };
-                    let shift = FAST_BITS - len;
-                    let start = (code << shift) as usize;
-                    for e in fast_ac.iter_mut().skip(start).take(1 << shift) {
-                        *e = entry;
-                    }
-                }
-                code += 1;
-                k += 1;
-            }
-            code <<= 1;
-        }
-        Ok(Self {
+        let mut h = Self {
             lut,
-            fast_ac,
+            fast_dc: Vec::new(),
+            multi_ac: Vec::new(),
             maxcode,
             valoffset,
             vals: vals[..total].to_vec(),
-        })
+        };
+        h.fast_dc = (0..1u32 << DC_BITS)
+            .map(|i| match h.symbol_at(i, DC_BITS) {
+                Some((len, s)) if s <= 11 && len + u32::from(s) <= DC_BITS => {
+                    let s = u32::from(s);
+                    let v = (i >> (DC_BITS - len - s)) & ((1 << s) - 1);
+                    ((len + s) as u8, extend(v as i32, s) as i16)
+                }
+                _ => (0, 0),
+            })
+            .collect();
+        h.multi_ac = (0..1u32 << AC_BITS).map(|i| h.multi_entry(i)).collect();
+        Ok(h)
+    }
+
+    /// The code at the top of a `width`-bit window: (code length, symbol), if it fits.
+    fn symbol_at(&self, window: u32, width: u32) -> Option<(u32, u8)> {
+        for len in 1..=width.min(16) {
+            let c = (window >> (width - len)) as i32;
+            if c <= self.maxcode[len as usize] {
+                let i = usize::try_from(c + self.valoffset[len as usize]).ok()?;
+                return self.vals.get(i).map(|&v| (len, v));
+            }
+        }
+        None
+    }
+
+    /// Whole AC symbols (code and value bits) at the top of an AC_BITS window, stopping after
+    /// an end-of-block.
+    fn multi_entry(&self, window: u32) -> u32 {
+        let (mut used, mut adv) = (0u32, 0u32);
+        while used < AC_BITS {
+            let rest = AC_BITS - used;
+            let w = window & ((1 << rest) - 1);
+            let Some((len, rs)) = self.symbol_at(w, rest) else {
+                break;
+            };
+            let (r, s) = (u32::from(rs >> 4), u32::from(rs & 15));
+            if len + s > rest {
+                break;
+            }
+            used += len + s;
+            if s == 0 && r != 15 {
+                return used | adv << 8 | 1 << 16;
+            }
+            adv += if s == 0 { 16 } else { r + 1 };
+            if adv >= 64 {
+                break;
+            }
+        }
+        if adv == 0 { 0 } else { used | adv << 8 }
+    }
+}
+
+/// Tables built from the last frames' DHT segments (MJPEG repeats the same ones every frame).
+#[derive(Debug, Default, Clone)]
+struct TableCache {
+    entries: Vec<(Vec<u8>, Arc<Huffman>)>,
+}
+
+impl TableCache {
+    const MAX: usize = 8;
+    /// `key` = class/id byte, BITS, HUFFVAL of one table.
+    fn get(&mut self, key: &[u8], bits: &[u8; 16], vals: &[u8]) -> Result<Arc<Huffman>, DcError> {
+        if let Some((_, t)) = self.entries.iter().find(|(k, _)| k == key) {
+            return Ok(t.clone());
+        }
+        let t = Arc::new(Huffman::new(bits, vals)?);
+        if self.entries.len() >= Self::MAX {
+            self.entries.remove(0);
+        }
+        self.entries.push((key.to_vec(), t.clone()));
+        Ok(t)
     }
 }
 
@@ -160,8 +225,28 @@ impl<'a> Bits<'a> {
             marker: false,
         }
     }
+    /// Fill the accumulator to at least 57 bits: eight bytes at once when none of them is 0xFF
+    /// (no stuffing, no marker), byte by byte otherwise; zeros after a marker or the end.
     #[inline(always)]
     fn refill(&mut self) {
+        if !self.marker
+            && let Some(w) = self.data.get(self.pos..self.pos + 8)
+        {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(w);
+            let w = u64::from_be_bytes(b);
+            let inv = !w;
+            let has_ff = inv.wrapping_sub(0x0101_0101_0101_0101) & w & 0x8080_8080_8080_8080;
+            if has_ff == 0 {
+                let bytes = (64 - self.n) >> 3;
+                // The bits of a partly taken byte are the stream's own: the next refill ORs
+                // the same bits at the same place.
+                self.acc |= w >> self.n;
+                self.n += bytes * 8;
+                self.pos += bytes as usize;
+                return;
+            }
+        }
         while self.n <= 56 {
             let mut b = 0u8;
             if !self.marker {
@@ -180,9 +265,16 @@ impl<'a> Bits<'a> {
                     None => self.marker = true,
                 }
             }
-            self.acc |= u64::from(b) << (56 - self.n);
+            // Clear what a previous 8-byte read left below the valid bits, then put the byte.
+            let shift = 56 - self.n;
+            self.acc = (self.acc & !(0xFFu64 << shift)) | u64::from(b) << shift;
             self.n += 8;
         }
+    }
+    #[inline(always)]
+    fn consume(&mut self, k: u32) {
+        self.acc <<= k;
+        self.n -= k;
     }
     #[inline(always)]
     fn decode(&mut self, h: &Huffman) -> Result<u8, DcError> {
@@ -192,16 +284,14 @@ impl<'a> Bits<'a> {
         let look = (self.acc >> (64 - LOOKAHEAD)) as usize;
         let (len, sym) = h.lut[look];
         if len > 0 {
-            self.acc <<= len;
-            self.n -= u32::from(len);
+            self.consume(u32::from(len));
             return Ok(sym);
         }
         let code16 = (self.acc >> 48) as i32;
         for len in (LOOKAHEAD + 1)..=16 {
             let c = code16 >> (16 - len);
             if c <= h.maxcode[len as usize] {
-                self.acc <<= len;
-                self.n -= len;
+                self.consume(len);
                 let i = c + h.valoffset[len as usize];
                 return match usize::try_from(i).ok().and_then(|i| h.vals.get(i)) {
                     Some(&v) => Ok(v),
@@ -211,6 +301,7 @@ impl<'a> Bits<'a> {
         }
         corrupt("bad Huffman code")
     }
+    /// Read `s` (<= 16) bits as a signed coefficient.
     #[inline(always)]
     fn receive(&mut self, s: u8) -> i32 {
         if s == 0 {
@@ -221,14 +312,8 @@ impl<'a> Bits<'a> {
         }
         let s = u32::from(s.min(16));
         let v = (self.acc >> (64 - s)) as i32;
-        self.acc <<= s;
-        self.n -= s;
-        // EXTEND (F.2.2.1)
-        if v < (1 << (s - 1)) {
-            v - (1 << s) + 1
-        } else {
-            v
-        }
+        self.consume(s);
+        extend(v, s)
     }
     #[inline(always)]
     fn skip(&mut self, s: u8) {
@@ -238,9 +323,66 @@ impl<'a> Bits<'a> {
         if self.n < 16 {
             self.refill();
         }
-        let s = u32::from(s.min(16));
-        self.acc <<= s;
-        self.n -= s;
+        self.consume(u32::from(s.min(16)));
+    }
+    /// Next DC difference.
+    #[inline(always)]
+    fn dc_diff(&mut self, h: &Huffman) -> Result<i32, DcError> {
+        if self.n < 32 {
+            self.refill();
+        }
+        let (t, v) = h.fast_dc[(self.acc >> (64 - DC_BITS)) as usize];
+        if t > 0 {
+            self.consume(u32::from(t));
+            return Ok(i32::from(v));
+        }
+        let s = self.decode(h)?;
+        if s > 11 {
+            return corrupt("DC magnitude");
+        }
+        Ok(self.receive(s))
+    }
+    /// Walk the AC codes of one block without keeping them.
+    #[inline(always)]
+    fn skip_ac(&mut self, h: &Huffman) -> Result<(), DcError> {
+        let mut k = 1u32;
+        loop {
+            if self.n < 32 {
+                self.refill();
+            }
+            let e = h.multi_ac[(self.acc >> (64 - AC_BITS)) as usize];
+            if e != 0 {
+                let nk = k + (e >> 8 & 0xFF);
+                if e >> 16 != 0 {
+                    if nk <= 64 {
+                        self.consume(e & 0xFF);
+                        return Ok(());
+                    }
+                } else if nk < 64 {
+                    self.consume(e & 0xFF);
+                    k = nk;
+                    continue;
+                } else if nk == 64 {
+                    self.consume(e & 0xFF);
+                    return Ok(());
+                }
+            }
+            // One symbol at a time (long codes, or a block that ends inside the window).
+            let rs = self.decode(h)?;
+            let (r, s) = (u32::from(rs >> 4), rs & 15);
+            if s == 0 {
+                if r != 15 {
+                    return Ok(());
+                }
+                k += 16;
+            } else {
+                k += r + 1;
+                self.skip(s);
+            }
+            if k >= 64 {
+                return Ok(());
+            }
+        }
     }
     /// At a restart interval: drop the buffered bits and step over the RSTn marker.
     fn restart(&mut self) -> Result<(), DcError> {
@@ -257,7 +399,6 @@ impl<'a> Bits<'a> {
         corrupt("missing restart marker")
     }
 }
-
 #[derive(Debug, Clone, Copy, Default)]
 struct Comp {
     id: u8,
@@ -311,261 +452,477 @@ pub fn jpeg_size(data: &[u8]) -> Result<(u32, u32), DcError> {
     }
 }
 
-/// Decode at 1/8 scale (one pixel per 8x8 block of the image).
+/// A region of the 1/8-scale image in its pixels (one pixel per 8x8 block), ends exclusive.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BlockRect {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+/// What the last [`DcDecoder::decode`] did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct DcStats {
+    /// Restart intervals in the frame (0: no restart markers).
+    pub restart_intervals: u32,
+    /// Intervals stepped over without entropy decoding (wholly outside the region asked for).
+    pub intervals_skipped: u32,
+    /// Threads that entropy-decoded (2 only with restart markers).
+    pub threads: u32,
+    /// MCUs entropy-decoded.
+    pub mcus_decoded: u32,
+}
+
+/// The decoded 1/8-scale image, borrowed from the decoder (valid until the next decode).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DcFrame<'a> {
+    pub full_width: u32,
+    pub full_height: u32,
+    pub width: u32,
+    pub height: u32,
+    /// `width * height * 3` bytes; only the region asked for is guaranteed filled.
+    pub rgb: &'a [u8],
+}
+
+#[derive(Debug, Clone)]
+struct ScanComp {
+    h: usize,
+    v: usize,
+    q: i32,
+    dc: Arc<Huffman>,
+    ac: Arc<Huffman>,
+}
+
+#[derive(Debug)]
+struct Header {
+    width: usize,
+    height: usize,
+    comps: Vec<ScanComp>,
+    hmax: usize,
+    vmax: usize,
+    mcux: usize,
+    mcuy: usize,
+    restart_interval: usize,
+    scan_start: usize,
+}
+
+/// Reusable DC-only decoder: keeps its Huffman tables (built once per distinct DHT), its
+/// coefficient planes and its output between frames, so a stream allocates nothing per frame.
+#[derive(Debug, Default, Clone)]
+pub struct DcDecoder {
+    cache: TableCache,
+    /// One plane set per decoding thread (with restart markers the second thread writes its
+    /// own set; the colour conversion takes each MCU from the set that decoded it).
+    planes: [Vec<Vec<u8>>; 2],
+    rgb: Vec<u8>,
+    marks: Vec<usize>,
+    /// Use a second thread when restart markers allow it (default on).
+    pub single_thread: bool,
+    pub stats: DcStats,
+}
+
+impl DcDecoder {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Decode at 1/8 scale. With `roi`, only the MCUs that hold it are decoded where the stream
+    /// allows: decoding stops after its last MCU row, and with restart markers the intervals
+    /// wholly outside it are stepped over and the rest split between two threads.
+    pub fn decode(
+        &mut self,
+        data: &[u8],
+        max_side: u32,
+        roi: Option<BlockRect>,
+    ) -> Result<DcFrame<'_>, DcError> {
+        let hd = self.header(data, max_side)?;
+        let (ow, oh) = (hd.width.div_ceil(8), hd.height.div_ceil(8));
+        let roi = roi.map_or((0, 0, ow, oh), |r| {
+            let x1 = (r.x1 as usize).min(ow);
+            let y1 = (r.y1 as usize).min(oh);
+            ((r.x0 as usize).min(x1), (r.y0 as usize).min(y1), x1, y1)
+        });
+        // MCU rows and columns that hold the region.
+        let (mc0, mc1) = (roi.0 / hd.hmax, roi.2.div_ceil(hd.hmax).min(hd.mcux));
+        let (mr0, mr1) = (roi.1 / hd.vmax, roi.3.div_ceil(hd.vmax).min(hd.mcuy));
+        // Sized, not cleared: only blocks decoded in this frame are read back (the region's
+        // MCUs are always decoded), so no per-frame memset. The second set only with restarts.
+        let sets = if hd.restart_interval > 0 { 2 } else { 1 };
+        for set in self.planes.iter_mut().take(sets) {
+            set.resize(hd.comps.len(), Vec::new());
+            for (p, c) in set.iter_mut().zip(&hd.comps) {
+                p.resize(hd.mcux * c.h * hd.mcuy * c.v, 0);
+            }
+        }
+        self.stats = DcStats {
+            threads: 1,
+            ..DcStats::default()
+        };
+        let total = hd.mcux * hd.mcuy;
+        let mut split = total;
+        if hd.restart_interval > 0 && self.find_restarts(data, &hd, total) {
+            let ri = hd.restart_interval;
+            let needed: Vec<usize> = (0..self.marks.len())
+                .filter(|&i| {
+                    let (a, b) = (i * ri, ((i + 1) * ri).min(total));
+                    (a / hd.mcux..=(b - 1) / hd.mcux).any(|r| {
+                        let c0 = if r == a / hd.mcux { a % hd.mcux } else { 0 };
+                        let c1 = if r == (b - 1) / hd.mcux {
+                            (b - 1) % hd.mcux
+                        } else {
+                            hd.mcux - 1
+                        };
+                        (mr0..mr1).contains(&r) && c0 < mc1 && c1 >= mc0
+                    })
+                })
+                .collect();
+            self.stats.restart_intervals = self.marks.len() as u32;
+            self.stats.intervals_skipped = (self.marks.len() - needed.len()) as u32;
+            let half = if self.single_thread || needed.len() < 2 {
+                needed.len()
+            } else {
+                needed.len() / 2
+            };
+            let (first, second) = needed.split_at(half);
+            if let Some(&i) = second.first() {
+                split = i * ri;
+            }
+            let marks = &self.marks;
+            let [p0, p1] = &mut self.planes;
+            let run = |list: &[usize], planes: &mut Vec<Vec<u8>>| -> Result<u32, DcError> {
+                let mut n = 0;
+                for &i in list {
+                    let (a, b) = (i * ri, ((i + 1) * ri).min(total));
+                    let mut bits = Bits::new(data, marks[i]);
+                    decode_mcus(&hd, &mut bits, a, b, planes)?;
+                    n += (b - a) as u32;
+                }
+                Ok(n)
+            };
+            let (n0, n1) = if second.is_empty() {
+                (run(first, p0)?, 0)
+            } else {
+                self.stats.threads = 2;
+                std::thread::scope(|s| {
+                    let other = s.spawn(|| run(second, p1));
+                    let mine = run(first, p0);
+                    let theirs = other
+                        .join()
+                        .unwrap_or_else(|_| corrupt("decoder thread failed"));
+                    Ok::<_, DcError>((mine?, theirs?))
+                })?
+            };
+            self.stats.mcus_decoded = n0 + n1;
+        } else {
+            // No restart markers: every MCU before the region's last row must be parsed.
+            let end = (mr1 * hd.mcux).min(total);
+            let mut bits = Bits::new(data, hd.scan_start);
+            decode_mcus(&hd, &mut bits, 0, end, &mut self.planes[0])?;
+            self.stats.mcus_decoded = end as u32;
+        }
+        self.rgb.resize(ow * oh * 3, 0);
+        to_rgb(&hd, &self.planes, split, roi, &mut self.rgb);
+        Ok(DcFrame {
+            full_width: hd.width as u32,
+            full_height: hd.height as u32,
+            width: ow as u32,
+            height: oh as u32,
+            rgb: &self.rgb,
+        })
+    }
+
+    /// Start offsets of all restart intervals in `marks`; false if the markers do not match the
+    /// interval count (the sequential walk then reports the error).
+    fn find_restarts(&mut self, data: &[u8], hd: &Header, total: usize) -> bool {
+        let want = total.div_ceil(hd.restart_interval);
+        self.marks.clear();
+        self.marks.push(hd.scan_start);
+        let mut i = hd.scan_start;
+        while self.marks.len() < want {
+            // Eight bytes at a time while none is 0xFF.
+            while let Some(w) = data.get(i..i + 8) {
+                let mut b = [0u8; 8];
+                b.copy_from_slice(w);
+                let w = u64::from_ne_bytes(b);
+                if (!w).wrapping_sub(0x0101_0101_0101_0101) & w & 0x8080_8080_8080_8080 != 0 {
+                    break;
+                }
+                i += 8;
+            }
+            match (data.get(i), data.get(i + 1)) {
+                (Some(0xFF), Some(0xD0..=0xD7)) => {
+                    i += 2;
+                    self.marks.push(i);
+                }
+                (Some(0xFF), Some(0xD9)) | (_, None) => return false,
+                _ => i += 1,
+            }
+        }
+        true
+    }
+
+    fn header(&mut self, data: &[u8], max_side: u32) -> Result<Header, DcError> {
+        if data.get(..2) != Some(&[0xFF, 0xD8][..]) {
+            return corrupt("no SOI");
+        }
+        let mut pos = 2;
+        let mut q0 = [0i32; 4];
+        let mut dc_tabs: [Option<Arc<Huffman>>; 4] = [None, None, None, None];
+        let mut ac_tabs: [Option<Arc<Huffman>>; 4] = [None, None, None, None];
+        let mut comps: Vec<Comp> = Vec::new();
+        let (mut width, mut height) = (0usize, 0usize);
+        let mut restart_interval = 0usize;
+        loop {
+            while data.get(pos) == Some(&0xFF) && data.get(pos + 1) == Some(&0xFF) {
+                pos += 1;
+            }
+            let (Some(&0xFF), Some(&m)) = (data.get(pos), data.get(pos + 1)) else {
+                return corrupt("marker expected");
+            };
+            if m == 0xD9 {
+                return corrupt("EOI before scan");
+            }
+            let len = u16_at(data, pos + 2)?;
+            let seg = data
+                .get(pos + 4..pos + 2 + len)
+                .ok_or_else(|| DcError::Corrupt("truncated segment".into()))?;
+            match m {
+                0xDB => {
+                    let mut i = 0;
+                    while i < seg.len() {
+                        let pq = seg[i] >> 4;
+                        let tq = usize::from(seg[i] & 15);
+                        if tq > 3 {
+                            return corrupt("DQT id");
+                        }
+                        let n = if pq == 0 { 64 } else { 128 };
+                        let t = seg
+                            .get(i + 1..i + 1 + n)
+                            .ok_or_else(|| DcError::Corrupt("DQT".into()))?;
+                        q0[tq] = if pq == 0 {
+                            i32::from(t[0])
+                        } else {
+                            i32::from(t[0]) << 8 | i32::from(t[1])
+                        };
+                        i += 1 + n;
+                    }
+                }
+                0xC4 => {
+                    let mut i = 0;
+                    while i < seg.len() {
+                        let class = seg[i] >> 4;
+                        let id = usize::from(seg[i] & 15);
+                        let bits: [u8; 16] = seg
+                            .get(i + 1..i + 17)
+                            .and_then(|b| b.try_into().ok())
+                            .ok_or_else(|| DcError::Corrupt("DHT".into()))?;
+                        let n: usize = bits.iter().map(|&b| usize::from(b)).sum();
+                        let vals = seg
+                            .get(i + 17..i + 17 + n)
+                            .ok_or_else(|| DcError::Corrupt("DHT values".into()))?;
+                        let t = self.cache.get(&seg[i..i + 17 + n], &bits, vals)?;
+                        match (class, id) {
+                            (0, 0..=3) => dc_tabs[id] = Some(t),
+                            (1, 0..=3) => ac_tabs[id] = Some(t),
+                            _ => return corrupt("DHT class/id"),
+                        }
+                        i += 17 + n;
+                    }
+                }
+                0xC0 | 0xC1 => {
+                    if seg.first() != Some(&8) {
+                        return Err(DcError::Unsupported("precision is not 8 bits".into()));
+                    }
+                    height = u16_at(seg, 1)?;
+                    width = u16_at(seg, 3)?;
+                    let nc = usize::from(*seg.get(5).unwrap_or(&0));
+                    if width == 0
+                        || height == 0
+                        || width > max_side as usize
+                        || height > max_side as usize
+                    {
+                        return corrupt("frame size");
+                    }
+                    if nc != 1 && nc != 3 {
+                        return Err(DcError::Unsupported(format!("{nc} components")));
+                    }
+                    comps.clear();
+                    for c in 0..nc {
+                        let s = seg
+                            .get(6 + 3 * c..9 + 3 * c)
+                            .ok_or_else(|| DcError::Corrupt("SOF".into()))?;
+                        let (h, v) = (usize::from(s[1] >> 4), usize::from(s[1] & 15));
+                        if !(1..=2).contains(&h) || !(1..=2).contains(&v) || s[2] > 3 {
+                            return Err(DcError::Unsupported(format!("sampling {h}x{v}")));
+                        }
+                        comps.push(Comp {
+                            id: s[0],
+                            h,
+                            v,
+                            tq: usize::from(s[2]),
+                            ..Comp::default()
+                        });
+                    }
+                }
+                0xC2 | 0xC3 | 0xC5..=0xC7 | 0xC9..=0xCB | 0xCD..=0xCF => {
+                    return Err(DcError::Unsupported(format!("SOF{}", m - 0xC0)));
+                }
+                0xDD => restart_interval = u16_at(seg, 0)?,
+                0xDA => {
+                    let ns = usize::from(*seg.first().unwrap_or(&0));
+                    if comps.is_empty() || ns != comps.len() {
+                        return Err(DcError::Unsupported("not one interleaved scan".into()));
+                    }
+                    for k in 0..ns {
+                        let s = seg
+                            .get(1 + 2 * k..3 + 2 * k)
+                            .ok_or_else(|| DcError::Corrupt("SOS".into()))?;
+                        let c = comps
+                            .iter_mut()
+                            .find(|c| c.id == s[0])
+                            .ok_or_else(|| DcError::Corrupt("SOS component".into()))?;
+                        c.td = usize::from(s[1] >> 4).min(3);
+                        c.ta = usize::from(s[1] & 15).min(3);
+                    }
+                    pos += 2 + len;
+                    break;
+                }
+                _ => {}
+            }
+            pos += 2 + len;
+        }
+        // MJPEG (AVI1) frames may carry no Huffman tables: use the standard ones.
+        if dc_tabs[0].is_none() {
+            dc_tabs[0] = Some(self.std_table(0x00, &STD_DC_BITS, &STD_DC_VALS)?);
+            dc_tabs[1] = Some(self.std_table(0x01, &STD_DC_CHROMA_BITS, &STD_DC_VALS)?);
+        }
+        if ac_tabs[0].is_none() {
+            ac_tabs[0] = Some(self.std_table(0x10, &STD_AC_LUMA_BITS, &STD_AC_LUMA_VALS)?);
+            ac_tabs[1] = Some(self.std_table(0x11, &STD_AC_CHROMA_BITS, &STD_AC_CHROMA_VALS)?);
+        }
+        if comps.len() == 1 {
+            comps[0].h = 1;
+            comps[0].v = 1;
+        }
+        let hmax = comps.iter().map(|c| c.h).max().unwrap_or(1);
+        let vmax = comps.iter().map(|c| c.v).max().unwrap_or(1);
+        let mut scan = Vec::with_capacity(comps.len());
+        for c in &comps {
+            let (Some(dc), Some(ac)) = (dc_tabs[c.td].clone(), ac_tabs[c.ta].clone()) else {
+                return corrupt("scan uses a missing Huffman table");
+            };
+            scan.push(ScanComp {
+                h: c.h,
+                v: c.v,
+                q: q0[c.tq],
+                dc,
+                ac,
+            });
+        }
+        Ok(Header {
+            width,
+            height,
+            comps: scan,
+            hmax,
+            vmax,
+            mcux: width.div_ceil(8 * hmax),
+            mcuy: height.div_ceil(8 * vmax),
+            restart_interval,
+            scan_start: pos,
+        })
+    }
+
+    fn std_table(&mut self, tc: u8, bits: &[u8; 16], vals: &[u8]) -> Result<Arc<Huffman>, DcError> {
+        let mut key = vec![tc];
+        key.extend_from_slice(bits);
+        key.extend_from_slice(vals);
+        self.cache.get(&key, bits, vals)
+    }
+}
+
+/// Entropy-decode MCUs `from..to` (one restart interval, or the whole scan with its restarts),
+/// storing each block's DC value (dequantised, /8, +128) in `planes`.
+fn decode_mcus(
+    hd: &Header,
+    bits: &mut Bits<'_>,
+    from: usize,
+    to: usize,
+    planes: &mut [Vec<u8>],
+) -> Result<(), DcError> {
+    let mut pred = [0i32; 3];
+    let ri = hd.restart_interval;
+    for m in from..to {
+        if ri > 0 && m > from && m % ri == 0 {
+            bits.restart()?;
+            pred = [0; 3];
+        }
+        let (my, mx) = (m / hd.mcux, m % hd.mcux);
+        for (ci, c) in hd.comps.iter().enumerate() {
+            let pw = hd.mcux * c.h;
+            for by in 0..c.v {
+                for bx in 0..c.h {
+                    pred[ci] += bits.dc_diff(&c.dc)?;
+                    bits.skip_ac(&c.ac)?;
+                    let v = ((pred[ci] * c.q + 4) >> 3) + 128;
+                    let idx = (my * c.v + by) * pw + mx * c.h + bx;
+                    if let Some(p) = planes[ci].get_mut(idx) {
+                        *p = v.clamp(0, 255) as u8;
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// YCbCr planes (MCU `< split` from set 0, the rest from set 1) to RGB8 inside `roi`.
+fn to_rgb(
+    hd: &Header,
+    planes: &[Vec<Vec<u8>>; 2],
+    split: usize,
+    roi: (usize, usize, usize, usize),
+    rgb: &mut [u8],
+) {
+    let ow = hd.width.div_ceil(8);
+    let (x0, y0, x1, y1) = roi;
+    for y in y0..y1 {
+        let row_mcu = y / hd.vmax * hd.mcux;
+        let xs = split.saturating_sub(row_mcu).min(hd.mcux) * hd.hmax;
+        let line = &mut rgb[(y * ow + x0) * 3..(y * ow + x1) * 3];
+        if hd.comps.len() == 1 {
+            for (x, d) in (x0..x1).zip(line.chunks_exact_mut(3)) {
+                let g = planes[usize::from(x >= xs)][0][y * hd.mcux + x];
+                d.copy_from_slice(&[g, g, g]);
+            }
+            continue;
+        }
+        let (cy, cb, cr) = (&hd.comps[0], &hd.comps[1], &hd.comps[2]);
+        let row = |c: &ScanComp| y * c.v / hd.vmax * hd.mcux * c.h;
+        let (ry, rb, rr) = (row(cy), row(cb), row(cr));
+        for (x, d) in (x0..x1).zip(line.chunks_exact_mut(3)) {
+            let p = &planes[usize::from(x >= xs)];
+            let l = i32::from(p[0][ry + x * cy.h / hd.hmax]) << 16;
+            let b = i32::from(p[1][rb + x * cb.h / hd.hmax]) - 128;
+            let r = i32::from(p[2][rr + x * cr.h / hd.hmax]) - 128;
+            let px = |v: i32| ((v + 32_768) >> 16).clamp(0, 255) as u8;
+            d[0] = px(l + 91_881 * r);
+            d[1] = px(l - 22_554 * b - 46_802 * r);
+            d[2] = px(l + 116_130 * b);
+        }
+    }
+}
+
+/// Decode a whole frame at 1/8 scale (one pixel per 8x8 block) with a fresh decoder.
 pub fn decode_dc(data: &[u8], max_side: u32) -> Result<DcImage, DcError> {
-    if data.get(..2) != Some(&[0xFF, 0xD8][..]) {
-        return corrupt("no SOI");
-    }
-    let mut pos = 2;
-    let mut q0 = [0i32; 4];
-    let mut dc_tabs: [Option<Huffman>; 4] = [None, None, None, None];
-    let mut ac_tabs: [Option<Huffman>; 4] = [None, None, None, None];
-    let mut comps: Vec<Comp> = Vec::new();
-    let (mut width, mut height) = (0usize, 0usize);
-    let mut restart_interval = 0usize;
-    loop {
-        while data.get(pos) == Some(&0xFF) && data.get(pos + 1) == Some(&0xFF) {
-            pos += 1;
-        }
-        let (Some(&0xFF), Some(&m)) = (data.get(pos), data.get(pos + 1)) else {
-            return corrupt("marker expected");
-        };
-        if m == 0xD9 {
-            return corrupt("EOI before scan");
-        }
-        let len = u16_at(data, pos + 2)?;
-        let seg = data
-            .get(pos + 4..pos + 2 + len)
-            .ok_or_else(|| DcError::Corrupt("truncated segment".into()))?;
-        match m {
-            0xDB => {
-                let mut i = 0;
-                while i < seg.len() {
-                    let pq = seg[i] >> 4;
-                    let tq = usize::from(seg[i] & 15);
-                    if tq > 3 {
-                        return corrupt("DQT id");
-                    }
-                    let n = if pq == 0 { 64 } else { 128 };
-                    let t = seg
-                        .get(i + 1..i + 1 + n)
-                        .ok_or_else(|| DcError::Corrupt("DQT".into()))?;
-                    q0[tq] = if pq == 0 {
-                        i32::from(t[0])
-                    } else {
-                        i32::from(t[0]) << 8 | i32::from(t[1])
-                    };
-                    i += 1 + n;
-                }
-            }
-            0xC4 => {
-                let mut i = 0;
-                while i < seg.len() {
-                    let class = seg[i] >> 4;
-                    let id = usize::from(seg[i] & 15);
-                    let bits: [u8; 16] = seg
-                        .get(i + 1..i + 17)
-                        .and_then(|b| b.try_into().ok())
-                        .ok_or_else(|| DcError::Corrupt("DHT".into()))?;
-                    let n: usize = bits.iter().map(|&b| usize::from(b)).sum();
-                    let vals = seg
-                        .get(i + 17..i + 17 + n)
-                        .ok_or_else(|| DcError::Corrupt("DHT values".into()))?;
-                    let t = Huffman::new(&bits, vals)?;
-                    match (class, id) {
-                        (0, 0..=3) => dc_tabs[id] = Some(t),
-                        (1, 0..=3) => ac_tabs[id] = Some(t),
-                        _ => return corrupt("DHT class/id"),
-                    }
-                    i += 17 + n;
-                }
-            }
-            0xC0 | 0xC1 => {
-                if seg.first() != Some(&8) {
-                    return Err(DcError::Unsupported("precision is not 8 bits".into()));
-                }
-                height = u16_at(seg, 1)?;
-                width = u16_at(seg, 3)?;
-                let nc = usize::from(*seg.get(5).unwrap_or(&0));
-                if width == 0
-                    || height == 0
-                    || width > max_side as usize
-                    || height > max_side as usize
-                {
-                    return corrupt("frame size");
-                }
-                if nc != 1 && nc != 3 {
-                    return Err(DcError::Unsupported(format!("{nc} components")));
-                }
-                for c in 0..nc {
-                    let s = seg
-                        .get(6 + 3 * c..9 + 3 * c)
-                        .ok_or_else(|| DcError::Corrupt("SOF".into()))?;
-                    let (h, v) = (usize::from(s[1] >> 4), usize::from(s[1] & 15));
-                    if !(1..=2).contains(&h) || !(1..=2).contains(&v) || s[2] > 3 {
-                        return Err(DcError::Unsupported(format!("sampling {h}x{v}")));
-                    }
-                    comps.push(Comp {
-                        id: s[0],
-                        h,
-                        v,
-                        tq: usize::from(s[2]),
-                        ..Comp::default()
-                    });
-                }
-            }
-            0xC2 | 0xC3 | 0xC5..=0xC7 | 0xC9..=0xCB | 0xCD..=0xCF => {
-                return Err(DcError::Unsupported(format!("SOF{}", m - 0xC0)));
-            }
-            0xDD => restart_interval = u16_at(seg, 0)?,
-            0xDA => {
-                let ns = usize::from(*seg.first().unwrap_or(&0));
-                if comps.is_empty() || ns != comps.len() {
-                    return Err(DcError::Unsupported("not one interleaved scan".into()));
-                }
-                for k in 0..ns {
-                    let s = seg
-                        .get(1 + 2 * k..3 + 2 * k)
-                        .ok_or_else(|| DcError::Corrupt("SOS".into()))?;
-                    let c = comps
-                        .iter_mut()
-                        .find(|c| c.id == s[0])
-                        .ok_or_else(|| DcError::Corrupt("SOS component".into()))?;
-                    c.td = usize::from(s[1] >> 4).min(3);
-                    c.ta = usize::from(s[1] & 15).min(3);
-                }
-                pos += 2 + len;
-                break;
-            }
-            _ => {}
-        }
-        pos += 2 + len;
-    }
-    // MJPEG (AVI1) frames may carry no Huffman tables: use the standard ones.
-    if dc_tabs[0].is_none() {
-        dc_tabs[0] = Some(Huffman::new(&STD_DC_BITS, &STD_DC_VALS)?);
-        dc_tabs[1] = Some(Huffman::new(&STD_DC_CHROMA_BITS, &STD_DC_VALS)?);
-    }
-    if ac_tabs[0].is_none() {
-        ac_tabs[0] = Some(Huffman::new(&STD_AC_LUMA_BITS, &STD_AC_LUMA_VALS)?);
-        ac_tabs[1] = Some(Huffman::new(&STD_AC_CHROMA_BITS, &STD_AC_CHROMA_VALS)?);
-    }
-    let single = comps.len() == 1;
-    if single {
-        comps[0].h = 1;
-        comps[0].v = 1;
-    }
-    let hmax = comps.iter().map(|c| c.h).max().unwrap_or(1);
-    let vmax = comps.iter().map(|c| c.v).max().unwrap_or(1);
-    let mcux = width.div_ceil(8 * hmax);
-    let mcuy = height.div_ceil(8 * vmax);
-    let mut planes: Vec<Vec<u8>> = comps
-        .iter()
-        .map(|c| vec![0u8; mcux * c.h * mcuy * c.v])
-        .collect();
-    let mut tabs = Vec::with_capacity(comps.len());
-    for c in &comps {
-        let (Some(dc), Some(ac)) = (dc_tabs[c.td].as_ref(), ac_tabs[c.ta].as_ref()) else {
-            return corrupt("scan uses a missing Huffman table");
-        };
-        tabs.push((dc, ac, q0[c.tq]));
-    }
-    let mut pred = vec![0i32; comps.len()];
-    let mut bits = Bits::new(data, pos);
-    let mut left = restart_interval;
-    for my in 0..mcuy {
-        for mx in 0..mcux {
-            if restart_interval > 0 {
-                if left == 0 {
-                    bits.restart()?;
-                    pred.iter_mut().for_each(|p| *p = 0);
-                    left = restart_interval;
-                }
-                left -= 1;
-            }
-            for (ci, c) in comps.iter().enumerate() {
-                let (dc, ac, q) = tabs[ci];
-                let pw = mcux * c.h;
-                for by in 0..c.v {
-                    for bx in 0..c.h {
-                        let s = bits.decode(dc)?;
-                        if s > 11 {
-                            return corrupt("DC magnitude");
-                        }
-                        pred[ci] += bits.receive(s);
-                        let mut k = 1;
-                        while k < 64 {
-                            if bits.n < 16 {
-                                bits.refill();
-                            }
-                            let (total, adv, eob) =
-                                ac.fast_ac[(bits.acc >> (64 - FAST_BITS)) as usize];
-                            if total > 0 {
-                                bits.acc <<= total;
-                                bits.n -= u32::from(total);
-                                if eob {
-                                    break;
-                                }
-                                k += usize::from(adv);
-                                continue;
-                            }
-                            let rs = bits.decode(ac)?;
-                            let (r, s) = (rs >> 4, rs & 15);
-                            if s == 0 {
-                                if r == 15 {
-                                    k += 16;
-                                    continue;
-                                }
-                                break;
-                            }
-                            k += usize::from(r) + 1;
-                            bits.skip(s);
-                        }
-                        let v = ((pred[ci] * q + 4) >> 3) + 128;
-                        let idx = (my * c.v + by) * pw + mx * c.h + bx;
-                        if let Some(p) = planes[ci].get_mut(idx) {
-                            *p = v.clamp(0, 255) as u8;
-                        }
-                    }
-                }
-            }
-        }
-    }
-    let (ow, oh) = (width.div_ceil(8), height.div_ceil(8));
-    let mut rgb = vec![0u8; ow * oh * 3];
-    if single {
-        let pw = mcux;
-        for y in 0..oh {
-            for x in 0..ow {
-                let g = planes[0][y * pw + x];
-                rgb[(y * ow + x) * 3..(y * ow + x) * 3 + 3].copy_from_slice(&[g, g, g]);
-            }
-        }
-    } else {
-        let (cy_, cb_, cr_) = (&comps[0], &comps[1], &comps[2]);
-        let (pwy, pwb, pwr) = (mcux * cy_.h, mcux * cb_.h, mcux * cr_.h);
-        for y in 0..oh {
-            let yy = y * cy_.v / vmax;
-            let yb = y * cb_.v / vmax;
-            let yr = y * cr_.v / vmax;
-            for x in 0..ow {
-                let l = i32::from(planes[0][yy * pwy + x * cy_.h / hmax]) << 16;
-                let cb = i32::from(planes[1][yb * pwb + x * cb_.h / hmax]) - 128;
-                let cr = i32::from(planes[2][yr * pwr + x * cr_.h / hmax]) - 128;
-                let o = (y * ow + x) * 3;
-                let px = |v: i32| ((v + 32_768) >> 16).clamp(0, 255) as u8;
-                rgb[o] = px(l + 91_881 * cr);
-                rgb[o + 1] = px(l - 22_554 * cb - 46_802 * cr);
-                rgb[o + 2] = px(l + 116_130 * cb);
-            }
-        }
-    }
+    let mut d = DcDecoder::new();
+    let f = d.decode(data, max_side, None)?;
     Ok(DcImage {
-        full_width: width as u32,
-        full_height: height as u32,
-        width: ow as u32,
-        height: oh as u32,
-        rgb,
+        full_width: f.full_width,
+        full_height: f.full_height,
+        width: f.width,
+        height: f.height,
+        rgb: f.rgb.to_vec(),
     })
 }
 

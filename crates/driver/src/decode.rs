@@ -11,6 +11,7 @@
 
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
+use unitac_core::pixel::{self, PixelError, Yuv422};
 
 /// Largest raw buffer accepted from a device or a file (a 3280x2464 MJPEG is about 1-3 MB).
 pub const MAX_RAW_BYTES: usize = 32 << 20;
@@ -51,6 +52,8 @@ pub enum DecodeError {
 pub enum PixelFormat {
     /// YUV 4:2:2 packed Y0 U Y1 V, BT.601 limited range.
     Yuyv,
+    /// YUV 4:2:2 packed U Y0 V Y1, BT.601 limited range.
+    Uyvy,
     /// Motion JPEG: one baseline JPEG per buffer (Huffman tables may be omitted).
     Mjpg,
 }
@@ -59,12 +62,14 @@ impl PixelFormat {
     pub fn fourcc(self) -> [u8; 4] {
         match self {
             PixelFormat::Yuyv => *b"YUYV",
+            PixelFormat::Uyvy => *b"UYVY",
             PixelFormat::Mjpg => *b"MJPG",
         }
     }
     pub fn from_fourcc(cc: [u8; 4]) -> Option<Self> {
         match &cc {
             b"YUYV" => Some(PixelFormat::Yuyv),
+            b"UYVY" => Some(PixelFormat::Uyvy),
             b"MJPG" => Some(PixelFormat::Mjpg),
             _ => None,
         }
@@ -224,48 +229,33 @@ pub struct Rgb {
 
 /// YUYV (BT.601 limited range, as UVC cameras send it) to RGB8.
 pub fn yuyv_to_rgb(buf: &[u8], width: u32, height: u32) -> Result<Rgb, DecodeError> {
+    yuv422_to_rgb(Yuv422::Yuyv, buf, width, height)
+}
+
+/// Packed 4:2:2 (YUYV or UYVY) to RGB8 with the shared converter of `unitac_core::pixel`.
+/// Drivers may report a bytesused larger than the image (padding): extra bytes are ignored.
+pub fn yuv422_to_rgb(
+    order: Yuv422,
+    buf: &[u8],
+    width: u32,
+    height: u32,
+) -> Result<Rgb, DecodeError> {
     check_size(width, height)?;
-    if width % 2 != 0 {
-        return Err(DecodeError::OddYuyvWidth(width));
-    }
-    let expected = width as usize * height as usize * 2;
-    // Drivers may report a bytesused larger than the image (padding): extra bytes are ignored.
-    let Some(src) = buf.get(..expected) else {
-        return Err(DecodeError::ShortYuyv {
+    let data = pixel::yuv422_to_rgb(order, buf, width, height).map_err(|e| match e {
+        PixelError::OddWidth(w) => DecodeError::OddYuyvWidth(w),
+        PixelError::Short { expected, got, .. } => DecodeError::ShortYuyv {
             width,
             height,
             expected,
-            got: buf.len(),
-        });
-    };
-    let mut out = vec![0u8; width as usize * height as usize * 3];
-    for (s, d) in src.chunks_exact(4).zip(out.chunks_exact_mut(6)) {
-        let (y0, u, y1, v) = (s[0], s[1], s[2], s[3]);
-        let (rv, guv, bu) = chroma(u, v);
-        put_rgb(&mut d[0..3], y0, rv, guv, bu);
-        put_rgb(&mut d[3..6], y1, rv, guv, bu);
-    }
+            got,
+        },
+        _ => DecodeError::BadSize { width, height },
+    })?;
     Ok(Rgb {
         width,
         height,
-        data: out,
+        data,
     })
-}
-
-/// Fixed-point BT.601 limited-range coefficients (<< 16).
-#[inline]
-fn chroma(u: u8, v: u8) -> (i32, i32, i32) {
-    let d = i32::from(u) - 128;
-    let e = i32::from(v) - 128;
-    (104_597 * e, -25_675 * d - 53_279 * e, 132_201 * d)
-}
-
-#[inline]
-fn put_rgb(d: &mut [u8], y: u8, rv: i32, guv: i32, bu: i32) {
-    let c = (i32::from(y) - 16) * 76_309 + 32_768;
-    d[0] = ((c + rv) >> 16).clamp(0, 255) as u8;
-    d[1] = ((c + guv) >> 16).clamp(0, 255) as u8;
-    d[2] = ((c + bu) >> 16).clamp(0, 255) as u8;
 }
 
 /// Per-frame statistics of the decoder.
@@ -275,13 +265,15 @@ pub struct DecodeCounters {
     pub errors: u64,
 }
 
-/// Reusable decoder for one stream: checks the configuration once, keeps counters.
+/// Reusable decoder for one stream: checks the configuration once, keeps counters and the
+/// DC-only JPEG decoder's tables and buffers (nothing full-size is allocated per frame).
 #[derive(Debug, Clone)]
 pub struct FrameDecoder {
     cfg: DecodeConfig,
     pub counters: DecodeCounters,
     /// DCT scale denominator (1, 2, 4, 8) used for the last MJPEG frame.
     pub last_jpeg_scale: u32,
+    dc: crate::dcjpeg::DcDecoder,
 }
 
 impl FrameDecoder {
@@ -291,10 +283,20 @@ impl FrameDecoder {
             cfg,
             counters: DecodeCounters::default(),
             last_jpeg_scale: 1,
+            dc: crate::dcjpeg::DcDecoder::new(),
         })
     }
     pub fn config(&self) -> &DecodeConfig {
         &self.cfg
+    }
+    /// What the DC-only JPEG path did on the last 1/8-scale frame (restart intervals skipped,
+    /// threads).
+    pub fn dc_stats(&self) -> crate::dcjpeg::DcStats {
+        self.dc.stats
+    }
+    /// Keep the DC-only JPEG path on one thread (it uses two only when restart markers allow).
+    pub fn set_single_thread(&mut self, on: bool) {
+        self.dc.single_thread = on;
     }
 
     /// Decode one raw buffer of the negotiated format and size into the published frame.
@@ -327,22 +329,79 @@ impl FrameDecoder {
             });
         }
         check_size(width, height)?;
+        let (tw, th) = self.cfg.pre_rotation_size();
         let full = match format {
-            PixelFormat::Yuyv => yuyv_to_rgb(buf, width, height)?,
+            PixelFormat::Yuyv => yuv422_to_rgb(Yuv422::Yuyv, buf, width, height)?,
+            PixelFormat::Uyvy => yuv422_to_rgb(Yuv422::Uyvy, buf, width, height)?,
             PixelFormat::Mjpg => {
+                if choose_jpeg_scale(width, height, &self.cfg) == 8
+                    && let Some(out) = self.decode_dc_region(buf, width, height, tw, th)?
+                {
+                    self.last_jpeg_scale = 8;
+                    return Ok(self.orient(out));
+                }
                 let (img, scale) = decode_jpeg_scaled(buf, width, height, &self.cfg)?;
                 self.last_jpeg_scale = scale;
                 img
             }
         };
-        let (tw, th) = self.cfg.pre_rotation_size();
-        let resized = crop_resize(&full, &self.cfg.crop, tw, th)?;
-        Ok(orient(
-            resized,
+        let resized = if self.cfg.crop == Crop::NONE && (full.width, full.height) == (tw, th) {
+            full
+        } else {
+            crop_resize(&full, &self.cfg.crop, tw, th)?
+        };
+        Ok(self.orient(resized))
+    }
+
+    fn orient(&self, img: Rgb) -> Rgb {
+        orient(
+            img,
             self.cfg.rotation,
             self.cfg.flip_horizontal,
             self.cfg.flip_vertical,
-        ))
+        )
+    }
+
+    /// The 1/8-scale DC-only path, decoding only the blocks the crop + resize reads. `None`:
+    /// a JPEG kind it does not handle (the caller falls back to `jpeg-decoder`).
+    fn decode_dc_region(
+        &mut self,
+        buf: &[u8],
+        width: u32,
+        height: u32,
+        tw: u32,
+        th: u32,
+    ) -> Result<Option<Rgb>, DecodeError> {
+        let (sw, sh) = (width.div_ceil(8), height.div_ceil(8));
+        let c = &self.cfg.crop;
+        // The bilinear taps reach at most one pixel past the crop on each side.
+        let lo = |f: f64, n: u32| ((f * f64::from(n)).floor() as u32).saturating_sub(1);
+        let hi = |f: f64, n: u32| (((1.0 - f) * f64::from(n)).ceil() as u32 + 2).min(n);
+        let roi = crate::dcjpeg::BlockRect {
+            x0: lo(c.left, sw),
+            y0: lo(c.top, sh),
+            x1: hi(c.right, sw),
+            y1: hi(c.bottom, sh),
+        };
+        let img = match self.dc.decode(buf, MAX_SIDE, Some(roi)) {
+            Ok(img) => img,
+            Err(crate::dcjpeg::DcError::Corrupt(m)) => return Err(DecodeError::Jpeg(m)),
+            Err(crate::dcjpeg::DcError::Unsupported(_)) => return Ok(None),
+        };
+        if (img.full_width, img.full_height) != (width, height) {
+            return Err(DecodeError::WrongJpegSize {
+                got_w: img.full_width,
+                got_h: img.full_height,
+                want_w: width,
+                want_h: height,
+            });
+        }
+        let view = RgbView {
+            width: img.width,
+            height: img.height,
+            data: img.rgb,
+        };
+        crop_resize_view(view, c, tw, th).map(Some)
     }
 }
 
@@ -445,9 +504,32 @@ pub fn decode_jpeg_scaled(
     ))
 }
 
+/// A borrowed RGB8 image (row-major, no padding).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RgbView<'a> {
+    pub width: u32,
+    pub height: u32,
+    pub data: &'a [u8],
+}
+
 /// Crop by fractions and resize to `tw`x`th` (bilinear at pixel centres; the source is at most
 /// about twice the target per axis here, where bilinear is a 2x2 box filter).
 pub fn crop_resize(src: &Rgb, crop: &Crop, tw: u32, th: u32) -> Result<Rgb, DecodeError> {
+    let view = RgbView {
+        width: src.width,
+        height: src.height,
+        data: &src.data,
+    };
+    crop_resize_view(view, crop, tw, th)
+}
+
+/// [`crop_resize`] of a borrowed image.
+pub fn crop_resize_view(
+    src: RgbView<'_>,
+    crop: &Crop,
+    tw: u32,
+    th: u32,
+) -> Result<Rgb, DecodeError> {
     crop.check()?;
     check_size(tw, th)?;
     let sw = f64::from(src.width);
@@ -463,7 +545,11 @@ pub fn crop_resize(src: &Rgb, crop: &Crop, tw: u32, th: u32) -> Result<Rgb, Deco
         )));
     }
     if x0 == 0.0 && y0 == 0.0 && src.width == tw && src.height == th {
-        return Ok(src.clone());
+        return Ok(Rgb {
+            width: tw,
+            height: th,
+            data: src.data.to_vec(),
+        });
     }
     let sx = cw / f64::from(tw);
     let sy = ch / f64::from(th);
@@ -587,6 +673,30 @@ mod tests {
         let mut padded = buf.clone();
         padded.extend_from_slice(&[0; 64]);
         assert!(yuyv_to_rgb(&padded, 320, 240).is_ok());
+    }
+
+    #[test]
+    fn uyvy_is_yuyv_with_the_bytes_swapped_per_pair() {
+        let yuyv: Vec<u8> = (0..320u32 * 240 / 2)
+            .flat_map(|i| {
+                [
+                    (16 + i % 200) as u8,
+                    (90 + i % 50) as u8,
+                    (20 + i % 190) as u8,
+                    150,
+                ]
+            })
+            .collect();
+        let uyvy: Vec<u8> = yuyv
+            .chunks_exact(4)
+            .flat_map(|q| [q[1], q[0], q[3], q[2]])
+            .collect();
+        let mut d = FrameDecoder::new(DecodeConfig::plain(320, 240)).unwrap();
+        let a = d.decode(PixelFormat::Yuyv, 320, 240, &yuyv).unwrap();
+        let b = d.decode(PixelFormat::Uyvy, 320, 240, &uyvy).unwrap();
+        assert_eq!(a, b);
+        assert_eq!(PixelFormat::from_fourcc(*b"UYVY"), Some(PixelFormat::Uyvy));
+        assert_eq!(PixelFormat::Uyvy.fourcc(), *b"UYVY");
     }
 
     #[test]

@@ -8,7 +8,8 @@
 //!   drop counting, stale-buffer flush).
 //! - [`controls`]: DIGIT LEDs, GelSight Mini exposure / white balance / gain, verified.
 //! - [`stream`]: the `Source` for the runtime, with reconnect by serial.
-//! - [`v4l_backend`]: the real V4L2 device (the only module that touches hardware).
+//! - [`usb`]: libusb (rusb): USB reset of a stalled sensor (the software replug), hotplug events.
+//! - [`v4l_backend`]: the real V4L2 device and backend (with `usb`, the only hardware modules).
 //!
 //! No ROS, no ONNX Runtime here.
 
@@ -19,6 +20,7 @@ pub mod dcjpeg;
 pub mod decode;
 pub mod discover;
 pub mod stream;
+pub mod usb;
 pub mod v4l_backend;
 
 pub use calib::Calibration;

@@ -8,6 +8,13 @@
 //! `Streaming` again, with the same sensor id, settings written again and the published sequence
 //! going on. While the device is away, `next_frame` returns `SourceError::Unavailable` once per
 //! `report_every` so the caller can log it and see its stop flag.
+//!
+//! A stalled stream (device present, no frame for `stall_after`: the GelSight Mini failure users
+//! fix by pulling the cable) is recovered in software: the node is closed, the backend resets
+//! the USB device (the software replug; [`Backend::reset_usb`]), and the stream re-opens it by
+//! serial and writes the settings again, counted in `stalls` / `usb_resets` / `stall_recoveries`.
+//! While lost, a backend with USB hotplug events ([`Backend::wait_usb_event`]) wakes the retry
+//! as soon as a device arrives instead of waiting out the backoff.
 
 use crate::calib::Calibration;
 use crate::capture::{
@@ -25,6 +32,23 @@ pub trait Backend: Send {
     /// Open the capture node of the sensor with this serial. `DeviceError::Gone` if it is not
     /// on the bus (the stream keeps retrying).
     fn open(&mut self, serial: &str) -> Result<OpenedDevice, DeviceError>;
+
+    /// Reset the USB device of the sensor with this serial (the software replug: it drops off
+    /// the bus and enumerates again). Called with the capture node closed. Default: not
+    /// supported (the stream then only re-opens the node).
+    fn reset_usb(&mut self, serial: &str) -> Result<(), DeviceError> {
+        Err(DeviceError::Unsupported(format!(
+            "USB reset of {serial}: no USB access in this backend"
+        )))
+    }
+
+    /// Wait at most `max` for a USB arrival or removal event. `Some(true)`: an event came (try
+    /// to open now), `Some(false)`: none within `max`, `None`: no hotplug events here (the
+    /// caller sleeps and polls).
+    fn wait_usb_event(&mut self, max: Duration) -> Option<bool> {
+        let _ = max;
+        None
+    }
 }
 
 /// What `Backend::open` returns.
@@ -102,6 +126,15 @@ pub struct StreamCounters {
     pub open_failures: u64,
     pub control_mismatches: u64,
     pub clock_resyncs: u64,
+    /// Times the device was open but sent no frame for `stall_after`.
+    pub stalls: u64,
+    /// USB resets done for stalls (0 where the backend cannot reset).
+    pub usb_resets: u64,
+    pub usb_reset_failures: u64,
+    /// Stalls after which the device streamed again.
+    pub stall_recoveries: u64,
+    /// USB hotplug events that woke a reconnect.
+    pub hotplug_events: u64,
 }
 
 /// Settings of a stream.
@@ -115,6 +148,8 @@ pub struct StreamConfig {
     pub frame_timeout: Duration,
     /// Consecutive timeouts after which the device is closed and re-opened.
     pub timeouts_before_reopen: u32,
+    /// No frame for this long with the device open = a stall: close, USB reset, re-open.
+    pub stall_after: Duration,
     pub backoff_initial: Duration,
     pub backoff_max: Duration,
     /// While the device is away, how often `next_frame` returns `Unavailable`.
@@ -126,7 +161,7 @@ impl StreamConfig {
         let spec = calibration.kind.spec();
         // MJPEG first for both models: a third of the USB bandwidth of YUYV ("Not enough
         // bandwidth" with several cameras on one root port); GelSight Mini offers only MJPEG.
-        let formats = vec![PixelFormat::Mjpg, PixelFormat::Yuyv];
+        let formats = vec![PixelFormat::Mjpg, PixelFormat::Yuyv, PixelFormat::Uyvy];
         Self {
             serial: serial.to_string(),
             request: ModeRequest {
@@ -138,6 +173,7 @@ impl StreamConfig {
             calibration,
             frame_timeout: Duration::from_secs(1),
             timeouts_before_reopen: 3,
+            stall_after: Duration::from_secs(3),
             backoff_initial: Duration::from_millis(100),
             backoff_max: Duration::from_secs(2),
             report_every: Duration::from_secs(2),
@@ -165,6 +201,10 @@ pub struct SensorStream<B: Backend, C: DriverClock> {
     seq: SequenceTracker,
     flush: StaleFlush,
     timeouts_in_a_row: u32,
+    /// Monotonic time of the last buffer (or of the start).
+    last_buffer_at: Duration,
+    /// A stall reset is waiting for the device to stream again.
+    recovering_stall: bool,
     counters: StreamCounters,
     last_mismatches: Vec<ControlMismatch>,
     lost_reported_at: Option<Duration>,
@@ -202,6 +242,8 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
             seq: SequenceTracker::default(),
             flush: StaleFlush::default(),
             timeouts_in_a_row: 0,
+            last_buffer_at: Duration::ZERO,
+            recovering_stall: false,
             counters: StreamCounters::default(),
             last_mismatches: Vec::new(),
             lost_reported_at: None,
@@ -306,6 +348,7 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
             .start(self.clock.realtime(), self.clock.monotonic());
         self.seq.restart();
         self.timeouts_in_a_row = 0;
+        self.last_buffer_at = self.clock.monotonic();
         Ok(dev)
     }
 
@@ -329,6 +372,33 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
         SourceError::Unavailable(format!("{}: {why}", self.name))
     }
 
+    /// The device is open but silent: close it, reset its USB device, re-open by serial.
+    fn stall(&mut self, why: &str) -> SourceError {
+        self.counters.stalls += 1;
+        // Close the node first (dropping the device unmaps its buffers and closes it).
+        self.state = State::Lost {
+            attempt: 0,
+            next_try: self.clock.monotonic(),
+        };
+        match self.backend.reset_usb(&self.cfg.serial) {
+            Ok(()) => {
+                self.counters.usb_resets += 1;
+                tracing::warn!("{}: {why}; USB device reset, re-opening", self.name);
+            }
+            Err(DeviceError::Unsupported(m)) => {
+                tracing::warn!("{}: {why}; re-opening ({m})", self.name);
+            }
+            Err(e) => {
+                self.counters.usb_reset_failures += 1;
+                tracing::warn!("{}: {why}; USB reset failed ({e}), re-opening", self.name);
+            }
+        }
+        self.recovering_stall = true;
+        self.counters.disconnects += 1;
+        self.lost_reported_at = Some(self.clock.monotonic());
+        SourceError::Unavailable(format!("{}: {why}", self.name))
+    }
+
     /// One step while lost: wait for the next try (bounded by `report_every`), try to open.
     fn try_reconnect(&mut self) -> Result<(), SourceError> {
         let State::Lost { attempt, next_try } = self.state else {
@@ -336,7 +406,11 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
         };
         let now = self.clock.monotonic();
         if next_try > now {
-            self.clock.sleep(next_try - now);
+            match self.backend.wait_usb_event(next_try - now) {
+                Some(true) => self.counters.hotplug_events += 1,
+                Some(false) => {}
+                None => self.clock.sleep(next_try - now),
+            }
         }
         match self.connect() {
             Ok(dev) => {
@@ -389,9 +463,12 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
             Err(DeviceError::Timeout(d)) => {
                 self.counters.timeouts += 1;
                 self.timeouts_in_a_row += 1;
-                if self.timeouts_in_a_row >= self.cfg.timeouts_before_reopen {
-                    return Err(self.lose(&format!(
-                        "{} timeouts of {d:?} in a row",
+                let silent = self.clock.monotonic().saturating_sub(self.last_buffer_at);
+                if silent >= self.cfg.stall_after
+                    || self.timeouts_in_a_row >= self.cfg.timeouts_before_reopen
+                {
+                    return Err(self.stall(&format!(
+                        "no frame for {silent:?} ({} timeouts of {d:?} in a row)",
                         self.timeouts_in_a_row
                     )));
                 }
@@ -400,6 +477,11 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
             Err(e) => return Err(SourceError::Frame(e.to_string())),
         };
         self.timeouts_in_a_row = 0;
+        self.last_buffer_at = self.clock.monotonic();
+        if self.recovering_stall {
+            self.recovering_stall = false;
+            self.counters.stall_recoveries += 1;
+        }
         if self.flush.is_stale(buf.timestamp) {
             return Ok(None);
         }

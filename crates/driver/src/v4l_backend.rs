@@ -8,6 +8,7 @@ use crate::capture::{CaptureDevice, DeviceError, Mode, RawBuffer};
 use crate::decode::PixelFormat;
 use crate::discover::{DiscoverError, find_by_serial};
 use crate::stream::{Backend, OpenedDevice};
+use crate::usb::Usb;
 use std::io;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -199,33 +200,76 @@ impl CaptureDevice for V4lDevice {
     }
 }
 
-/// Opens sensors by serial through sysfs discovery under `root` ("/" on a robot).
-#[derive(Debug, Clone)]
+/// Opens sensors by serial through sysfs discovery under `root` ("/" on a robot); resets them
+/// and waits for hotplug events through libusb (`crate::usb`) when `root` is the real "/".
+#[derive(Debug)]
 pub struct V4lBackend {
     pub root: PathBuf,
+    /// `None` under a test sysfs root, or where libusb cannot start (no USB reset, sysfs polling).
+    usb: Option<Usb>,
 }
 
 impl V4lBackend {
     pub fn new(root: impl Into<PathBuf>) -> Self {
-        Self { root: root.into() }
+        let root = root.into();
+        let usb = if root == Path::new("/") {
+            Usb::new()
+                .map_err(|e| tracing::warn!("libusb unavailable ({e}): no USB reset on stalls"))
+                .ok()
+        } else {
+            None
+        };
+        Self { root, usb }
+    }
+    /// Whether stalls can be fixed by a USB reset here, and arrivals wake reconnects.
+    pub fn usb_features(&self) -> (bool, bool) {
+        (
+            self.usb.is_some(),
+            self.usb.as_ref().is_some_and(Usb::has_hotplug),
+        )
+    }
+}
+
+fn not_found(e: DiscoverError) -> DeviceError {
+    match e {
+        // Not on the bus (yet): keep retrying.
+        DiscoverError::NotFound(..)
+        | DiscoverError::FirmwareUpdateMode(_)
+        | DiscoverError::NoCaptureNode(_)
+        | DiscoverError::Io { .. } => DeviceError::Gone(e.to_string()),
+        DiscoverError::Ambiguous { .. } => DeviceError::Unsupported(e.to_string()),
     }
 }
 
 impl Backend for V4lBackend {
     fn open(&mut self, serial: &str) -> Result<OpenedDevice, DeviceError> {
-        let (found, node) = find_by_serial(&self.root, serial).map_err(|e| match e {
-            // Not on the bus (yet): keep retrying.
-            DiscoverError::NotFound(..)
-            | DiscoverError::FirmwareUpdateMode(_)
-            | DiscoverError::NoCaptureNode(_)
-            | DiscoverError::Io { .. } => DeviceError::Gone(e.to_string()),
-            DiscoverError::Ambiguous { .. } => DeviceError::Unsupported(e.to_string()),
-        })?;
+        let (found, node) = find_by_serial(&self.root, serial).map_err(not_found)?;
         let device = V4lDevice::open(&node)?;
         Ok(OpenedDevice {
             device: Box::new(device),
             firmware: found.firmware,
         })
+    }
+
+    fn reset_usb(&mut self, serial: &str) -> Result<(), DeviceError> {
+        let Some(usb) = &self.usb else {
+            return Err(DeviceError::Unsupported("no libusb access".into()));
+        };
+        let port = match find_by_serial(&self.root, serial) {
+            Ok((found, _)) => found.port,
+            // Found on the bus but without a capture node (a stalled UVC function can lose it).
+            Err(DiscoverError::NoCaptureNode(_)) => crate::discover::discover(&self.root)
+                .ok()
+                .and_then(|d| d.sensors.into_iter().find(|s| s.serial == serial))
+                .map(|s| s.port)
+                .ok_or_else(|| DeviceError::Gone(format!("{serial} not on the bus")))?,
+            Err(e) => return Err(not_found(e)),
+        };
+        usb.reset_port(&port)
+    }
+
+    fn wait_usb_event(&mut self, max: Duration) -> Option<bool> {
+        self.usb.as_mut()?.wait_event(max)
     }
 }
 

@@ -213,3 +213,90 @@ fn dc_only_path_rejects_truncated_and_corrupt_data() {
     let _ = unitac_driver::dcjpeg::decode_dc(&small, 8192);
     assert!(unitac_driver::dcjpeg::decode_dc(&jpeg, 100).is_err());
 }
+
+/// The same scene from an encoder that writes restart markers (`interval` MCUs each).
+fn encode_with_restarts(w: u32, h: u32, rgb: &[u8], interval: u16) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut enc = jpeg_encoder::Encoder::new(&mut out, 85);
+    enc.set_sampling_factor(jpeg_encoder::SamplingFactor::F_2_2);
+    enc.set_restart_interval(interval);
+    enc.encode(rgb, w as u16, h as u16, jpeg_encoder::ColorType::Rgb)
+        .unwrap();
+    out
+}
+
+#[test]
+fn restart_markers_decode_on_two_threads_to_the_same_image_as_one() {
+    use unitac_driver::dcjpeg::{BlockRect, DcDecoder};
+    // One decoder for all sizes: its reused buffers hold the previous (larger) frame's blocks,
+    // which must never show through.
+    let mut two = DcDecoder::new();
+    for (w, h, interval) in [(3280u32, 2464u32, 205u16), (640, 480, 7), (333, 250, 1)] {
+        let jpeg = encode_with_restarts(w, h, &gel_image(w, h), interval);
+        assert!(jpeg.windows(2).any(|p| p == [0xFF, 0xDD]), "no DRI");
+        let a = two.decode(&jpeg, 8192, None).unwrap().rgb.to_vec();
+        assert_eq!(two.stats.threads, 2, "{w}x{h}");
+        assert_eq!(two.stats.intervals_skipped, 0);
+        let mcus = w.div_ceil(16) * h.div_ceil(16);
+        assert_eq!(
+            two.stats.restart_intervals,
+            mcus.div_ceil(u32::from(interval))
+        );
+        assert_eq!(two.stats.mcus_decoded, mcus);
+        let mut one = DcDecoder::new();
+        one.single_thread = true;
+        let b = one.decode(&jpeg, 8192, None).unwrap().rgb.to_vec();
+        assert_eq!(one.stats.threads, 1);
+        assert_eq!(a, b, "{w}x{h}: two threads differ from one");
+        // And both agree with jpeg-decoder's own 1/8 decode.
+        let mut dec = jpeg_decoder::Decoder::new(&jpeg[..]);
+        dec.read_info().unwrap();
+        dec.scale(w.div_ceil(8) as u16, h.div_ceil(8) as u16)
+            .unwrap();
+        let reference = dec.decode().unwrap();
+        // (Rounding of the colour conversion and chroma placement differ; a restart interval
+        // decoded from the wrong place would be off by tens of DN.)
+        let mad = mean_abs_diff(&a, &reference);
+        assert!(mad < 2.0, "{w}x{h}: mean abs diff {mad}");
+        // A region: intervals outside it are skipped, the region itself is the same bytes.
+        let (ow, oh) = (w.div_ceil(8), h.div_ceil(8));
+        let roi = BlockRect {
+            x0: ow / 4,
+            y0: oh / 4,
+            x1: ow * 3 / 4,
+            y1: oh * 3 / 4,
+        };
+        let c = two.decode(&jpeg, 8192, Some(roi)).unwrap().rgb.to_vec();
+        assert!(two.stats.intervals_skipped > 0, "{w}x{h}: nothing skipped");
+        assert!(two.stats.mcus_decoded < mcus);
+        for y in roi.y0..roi.y1 {
+            let r = ((y * ow + roi.x0) * 3) as usize..((y * ow + roi.x1) * 3) as usize;
+            assert_eq!(c[r.clone()], a[r], "{w}x{h}: row {y}");
+        }
+    }
+}
+
+#[test]
+fn the_crop_region_path_gives_the_same_bytes_as_decoding_everything() {
+    let (w, h) = (3280, 2464);
+    let img = gel_image(w, h);
+    for jpeg in [encode(w, h, &img), encode_with_restarts(w, h, &img, 205)] {
+        let cfg = DecodeConfig::gelsight_mini();
+        let mut d = FrameDecoder::new(cfg).unwrap();
+        let out = d.decode(PixelFormat::Mjpg, w, h, &jpeg).unwrap();
+        assert_eq!(d.last_jpeg_scale, 8);
+        // Stops after the crop's last MCU row, or skips whole restart intervals.
+        let mut everything = unitac_driver::dcjpeg::DcDecoder::new();
+        let full = everything.decode(&jpeg, 8192, None).unwrap();
+        let full = Rgb {
+            width: full.width,
+            height: full.height,
+            data: full.rgb.to_vec(),
+        };
+        assert!(d.dc_stats().mcus_decoded < everything.stats.mcus_decoded);
+        let reference = crop_resize(&full, &cfg.crop, 320, 240).unwrap();
+        assert_eq!(out.data, reference.data);
+        // The decoder's buffers are reused: a second frame gives the same bytes again.
+        assert_eq!(d.decode(PixelFormat::Mjpg, w, h, &jpeg).unwrap(), out);
+    }
+}

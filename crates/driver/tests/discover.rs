@@ -114,7 +114,16 @@ fn udev_rules_cover_both_models_and_only_capture_nodes_get_links() {
         .lines()
         .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
         .collect();
-    assert_eq!(lines.len(), 6);
+    assert_eq!(lines.len(), 7);
+    // Both sensors' USB devices are writable (USB reset of a stalled sensor through libusb).
+    for vid in ["\"2833\"", "\"0c45\""] {
+        assert!(
+            lines
+                .iter()
+                .any(|l| l.contains("SUBSYSTEM==\"usb\"") && l.contains(vid) && l.contains("MODE")),
+            "no usb_device rule for {vid}"
+        );
+    }
     for l in &lines {
         // Every rule is keyed on a vendor id the driver knows.
         assert!(

@@ -349,3 +349,98 @@ fn vanishing_and_returning_100_times_keeps_one_handle_and_the_settings() {
     assert_eq!((c.disconnects, c.reconnects), (100, 100));
     assert_eq!(c.dropped, 0);
 }
+
+#[test]
+fn a_stalled_stream_is_reset_over_usb_reopened_and_its_settings_restored() {
+    let (world, clock) = (gelsight_world(), FakeClock::new());
+    let mut s = gelsight_stream(&world, &clock);
+    let first = s.next_frame().unwrap().unwrap();
+    world.lock().unwrap().stalled = true;
+    let stalled_at = clock.mono();
+    // Two 1 s timeouts are per-frame errors; the third (3 s without a frame) is the stall.
+    assert!(matches!(s.next_frame(), Err(SourceError::Frame(_))));
+    assert!(matches!(s.next_frame(), Err(SourceError::Frame(_))));
+    assert_eq!(world.lock().unwrap().usb_resets, 0);
+    assert!(matches!(s.next_frame(), Err(SourceError::Unavailable(_))));
+    assert!(clock.mono() - stalled_at >= Duration::from_secs(3));
+    {
+        let w = world.lock().unwrap();
+        assert_eq!(w.usb_resets, 1);
+        assert_eq!(w.resets_with_open_node, 0);
+        assert_eq!(w.open_handles, 0);
+        // The reset power-cycled the camera: settings at defaults until the stream restores them.
+        assert_eq!(w.controls[&cid::GAIN], 10);
+    }
+    let f = s.next_frame().unwrap().unwrap();
+    assert_eq!(f.sensor_id, first.sensor_id);
+    assert!(f.seq > first.seq);
+    assert!(gelsight_settings_in_effect(&world));
+    assert_eq!(world.lock().unwrap().open_handles, 1);
+    let c = s.counters();
+    assert_eq!(
+        (c.stalls, c.usb_resets, c.stall_recoveries, c.reconnects),
+        (1, 1, 1, 1)
+    );
+    assert_eq!(c.hotplug_events, 0);
+}
+
+#[test]
+fn without_usb_access_a_stall_falls_back_to_reopening_the_node() {
+    let (world, clock) = (digit_world(), FakeClock::new());
+    world.lock().unwrap().can_reset = false;
+    let mut s = digit_stream(&world, &clock);
+    s.next_frame().unwrap().unwrap();
+    world.lock().unwrap().stalled = true;
+    for _ in 0..2 {
+        assert!(matches!(s.next_frame(), Err(SourceError::Frame(_))));
+    }
+    assert!(matches!(s.next_frame(), Err(SourceError::Unavailable(_))));
+    // Re-opening the node does not cure this stall: the stream keeps trying, counting each.
+    world.lock().unwrap().stalled = false;
+    assert!(s.next_frame().unwrap().is_some());
+    let c = s.counters();
+    assert_eq!(
+        (
+            c.stalls,
+            c.usb_resets,
+            c.usb_reset_failures,
+            c.stall_recoveries
+        ),
+        (1, 0, 0, 1)
+    );
+    assert_eq!(world.lock().unwrap().usb_resets, 0);
+}
+
+#[test]
+fn a_hotplug_arrival_wakes_the_reconnect_before_the_backoff_ends() {
+    let (world, clock) = (gelsight_world(), FakeClock::new());
+    {
+        let mut w = world.lock().unwrap();
+        w.hotplug = Some(Default::default());
+        // Re-enumeration takes four open attempts; the arrival event comes with the last.
+        w.reenumerate_opens = 4;
+    }
+    let mut s = gelsight_stream(&world, &clock);
+    s.next_frame().unwrap().unwrap();
+    world.lock().unwrap().stalled = true;
+    world.lock().unwrap().open_attempts.clear();
+    let f = loop {
+        match s.next_frame() {
+            Ok(Some(f)) => break f,
+            Ok(None) => {}
+            Err(_) => {}
+        }
+    };
+    assert_eq!(f.sensor_id, "28J3-CWXU");
+    let attempts = world.lock().unwrap().open_attempts.clone();
+    let gaps: Vec<u128> = attempts
+        .windows(2)
+        .map(|w| (w[1] - w[0]).as_millis())
+        .collect();
+    // Backoff 100, 200, 400 ms between the failing attempts (waiting on events that do not
+    // come), then the arrival wakes the last attempt after 1 ms instead of 800 ms.
+    assert_eq!(gaps, [100, 200, 400, 1]);
+    let c = s.counters();
+    assert_eq!((c.hotplug_events, c.stall_recoveries), (1, 1));
+    assert!(world.lock().unwrap().hotplug_waits >= 4);
+}

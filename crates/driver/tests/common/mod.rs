@@ -94,6 +94,20 @@ pub struct World {
     pub frame_interval: Duration,
     /// Hold a real file descriptor per open device (to check the process's fd count).
     pub hold_fd: bool,
+    /// The fake USB layer: a stalled device is present but its node delivers no buffers
+    /// (every wait times out) until a USB reset.
+    pub stalled: bool,
+    /// USB resets asked for, and those asked while a node was still open (must stay 0).
+    pub usb_resets: u64,
+    pub resets_with_open_node: u64,
+    /// Whether the backend can reset (a backend without USB access cannot).
+    pub can_reset: bool,
+    /// After a reset the device re-enumerates: this many open attempts find it gone.
+    pub reenumerate_opens: u32,
+    pub reenumerating: u32,
+    /// Hotplug events: `None` = the backend has none (polling); else the queued arrivals.
+    pub hotplug: Option<std::collections::VecDeque<()>>,
+    pub hotplug_waits: u64,
 }
 
 impl World {
@@ -114,6 +128,14 @@ impl World {
             control_writes: 0,
             frame_interval: Duration::from_millis(40),
             hold_fd: false,
+            stalled: false,
+            usb_resets: 0,
+            resets_with_open_node: 0,
+            can_reset: true,
+            reenumerate_opens: 1,
+            reenumerating: 0,
+            hotplug: None,
+            hotplug_waits: 0,
         }))
     }
 }
@@ -129,6 +151,15 @@ impl Backend for FakeBackend {
         w.open_attempts.push(self.clock.mono());
         if !w.present || w.serial != serial {
             return Err(DeviceError::Gone(format!("no sensor {serial}")));
+        }
+        if w.reenumerating > 0 {
+            w.reenumerating -= 1;
+            if w.reenumerating == 0
+                && let Some(q) = w.hotplug.as_mut()
+            {
+                q.push_back(());
+            }
+            return Err(DeviceError::Gone(format!("{serial} re-enumerating")));
         }
         w.opens += 1;
         w.open_handles += 1;
@@ -149,6 +180,40 @@ impl Backend for FakeBackend {
             }),
             firmware: w.firmware.clone(),
         })
+    }
+
+    fn reset_usb(&mut self, serial: &str) -> Result<(), DeviceError> {
+        let mut w = self.world.lock().unwrap();
+        if !w.can_reset {
+            return Err(DeviceError::Unsupported("no USB access".into()));
+        }
+        if !w.present || w.serial != serial {
+            return Err(DeviceError::Gone(format!("no sensor {serial}")));
+        }
+        if w.open_handles != 0 {
+            w.resets_with_open_node += 1;
+        }
+        w.usb_resets += 1;
+        // The software replug: the stall is gone, the device drops off the bus and comes back
+        // power-cycled (controls at defaults).
+        w.stalled = false;
+        w.reenumerating = w.reenumerate_opens;
+        w.controls = w.defaults.clone();
+        Ok(())
+    }
+
+    fn wait_usb_event(&mut self, max: Duration) -> Option<bool> {
+        let mut w = self.world.lock().unwrap();
+        w.hotplug_waits += 1;
+        let q = w.hotplug.as_mut()?;
+        if q.pop_front().is_some() {
+            drop(w);
+            self.clock.advance(Duration::from_millis(1));
+            return Some(true);
+        }
+        drop(w);
+        self.clock.advance(max);
+        Some(false)
     }
 }
 
@@ -188,6 +253,11 @@ impl CaptureDevice for FakeDevice {
         let started = self
             .started_at
             .ok_or(DeviceError::Io("not started".into()))?;
+        if w.stalled {
+            drop(w);
+            self.clock.advance(timeout);
+            return Err(DeviceError::Timeout(timeout));
+        }
         let mut next = w.script.pop_front().unwrap_or(Next::Good {
             age: Duration::from_millis(5),
         });
