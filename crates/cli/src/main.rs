@@ -271,7 +271,7 @@ fn cmd_contact(
     let bg = images::read_frame(background, sensor.as_str(), 0)
         .map_err(|e| anyhow::Error::new(ConfigError(format!("background {e:#}"))))?;
     let mut det = ContactDetector::new(ContactParams::default(), sensor.spec())
-        .map_err(|e| anyhow::Error::new(ConfigError(e)))?;
+        .map_err(|e| anyhow::Error::new(ConfigError(e.to_string())))?;
     det.set_background_frame(&bg);
     let enter = det.params().enter_area_px;
     let stdout = std::io::stdout();

@@ -81,7 +81,8 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
         },
     )
     .map_err(|e| open_error(&a.bag, e))?;
-    let stage = ContactStage::new(ContactParams::default(), a.sensor.spec()).map_err(config)?;
+    let stage = ContactStage::new(ContactParams::default(), a.sensor.spec())
+        .map_err(|e| config(e.to_string()))?;
     let mut stages: Vec<Box<dyn Stage>> = vec![Box::new(stage)];
     let mut out = match &a.out {
         Some(p) => Some(OutputBag::new(

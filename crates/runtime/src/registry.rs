@@ -158,7 +158,9 @@ pub fn build_stages(scene: &Scene) -> Result<Vec<Box<dyn Stage>>, SceneError> {
         match st.kind.as_str() {
             "contact" => {
                 let p: ContactParams = params(scene, index, st)?;
-                out.push(Box::new(ContactStage::new(p, spec).map_err(bad)?));
+                out.push(Box::new(
+                    ContactStage::new(p, spec).map_err(|e| bad(e.to_string()))?,
+                ));
             }
             "encoder" => {
                 let cfg: RuntimeConfig = params(scene, index, st)?;

@@ -83,7 +83,7 @@ impl Params {
                 .then(|| self.background_dir.clone().into()),
             ..Default::default()
         };
-        p.check()?;
+        p.check().map_err(|e| e.to_string())?;
         Ok((p, kind))
     }
 }
