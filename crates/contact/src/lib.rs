@@ -23,8 +23,10 @@ mod episodes;
 pub mod grid;
 mod params;
 mod stage;
+mod store;
 
 pub use background::{Background, BackgroundFileError, Learner};
 pub use detector::{ContactDetector, Measurement};
 pub use params::{ContactParams, MAX_CLIP_FRAMES, ParamsError};
 pub use stage::ContactStage;
+pub use store::{BackgroundStore, DirStore};

@@ -1,9 +1,10 @@
 //! The detector as a runtime [`Stage`]: frames in; ContactState per frame, ContactEpisode (and
 //! EpisodeClip) on release, and the background announced downstream when it is learned.
+//! Saved backgrounds come from an injected [`BackgroundStore`]: the stage does no file I/O.
 
-use crate::background::{Background, BackgroundFileError};
 use crate::detector::ContactDetector;
 use crate::params::{ContactParams, ParamsError};
+use crate::store::{BackgroundStore, DirStore};
 use unitac_core::{Clock, Frame, Msg, SensorSpec, Stage, StageError};
 
 /// The detector as a runtime stage: consumes frames, emits ContactState per frame and
@@ -14,14 +15,37 @@ pub struct ContactStage {
     sensor_id: String,
     /// Whether the current background was announced downstream (Msg::Background).
     announced: bool,
+    store: Option<Box<dyn BackgroundStore>>,
+    /// Whether the store was asked (once, on the first frame).
+    store_asked: bool,
+    /// Why the saved background was not used (asked once, on the first frame).
+    store_error: Option<String>,
 }
 
 impl ContactStage {
+    /// A stage whose saved backgrounds, if `background_dir` is set, are files in that directory
+    /// ([`DirStore`]).
     pub fn new(p: ContactParams, spec: SensorSpec) -> Result<Self, ParamsError> {
+        let store = p
+            .background_dir
+            .clone()
+            .map(|d| Box::new(DirStore::new(d)) as Box<dyn BackgroundStore>);
+        Self::with_store(p, spec, store)
+    }
+
+    /// A stage with its own store of saved backgrounds (None: always learn, never save).
+    pub fn with_store(
+        p: ContactParams,
+        spec: SensorSpec,
+        store: Option<Box<dyn BackgroundStore>>,
+    ) -> Result<Self, ParamsError> {
         Ok(Self {
             det: ContactDetector::new(p, spec)?,
             sensor_id: String::new(),
             announced: false,
+            store,
+            store_asked: false,
+            store_error: None,
         })
     }
     pub fn detector(&self) -> &ContactDetector {
@@ -30,23 +54,27 @@ impl ContactStage {
     pub fn detector_mut(&mut self) -> &mut ContactDetector {
         &mut self.det
     }
-}
+    /// Why the saved background could not be used, if it could not (the stage learned instead).
+    pub fn store_error(&self) -> Option<&str> {
+        self.store_error.as_deref()
+    }
 
-impl ContactStage {
-    /// Load `<background_dir>/<serial>.unitac-bg` once the first frame tells the serial and size.
-    /// A missing file means "learn"; an unreadable or mismatched one is logged by the caller
-    /// through the returned error and the stage learns instead.
-    fn load_saved_background(&mut self, f: &Frame) -> Result<(), BackgroundFileError> {
-        let Some(dir) = self.det.params().background_dir.clone() else {
-            return Ok(());
+    /// Ask the store once, on the first frame (which tells the serial and size). Nothing saved
+    /// means "learn"; an unreadable or mismatched background is warned about and the stage
+    /// learns instead.
+    fn load_saved_background(&mut self, f: &Frame) {
+        let Some(store) = self.store.as_mut() else {
+            return;
         };
-        let path = Background::path_for(&dir, &f.sensor_id);
-        if !path.exists() {
-            return Ok(());
+        let stride = self.det.params().stride;
+        match store.load(&f.sensor_id, f.width, f.height, stride) {
+            Ok(Some(bg)) => self.det.set_background(bg),
+            Ok(None) => {}
+            Err(e) => {
+                tracing::warn!("contact: saved background not used, learning instead: {e}");
+                self.store_error = Some(e.to_string());
+            }
         }
-        let bg = Background::load(&path, f.width, f.height, self.det.params().stride)?;
-        self.det.set_background(bg);
-        Ok(())
     }
 }
 
@@ -57,12 +85,10 @@ impl Stage for ContactStage {
     fn process(&mut self, input: &Msg, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
         match input {
             Msg::Frame(f) => {
-                if self.sensor_id.is_empty() {
+                if !self.store_asked {
+                    self.store_asked = true;
                     self.sensor_id.clone_from(&f.sensor_id);
-                    if let Err(e) = self.load_saved_background(f) {
-                        self.sensor_id.clear();
-                        return Err(StageError::Other(format!("saved background not used: {e}")));
-                    }
+                    self.load_saved_background(f);
                 }
                 let mut out = self.det.step(f)?;
                 if self.det.is_learned() != self.announced {
@@ -76,12 +102,12 @@ impl Stage for ContactStage {
             _ => Ok(Vec::new()),
         }
     }
-    /// Closes an open episode and, with `background_dir`, saves the current background.
+    /// Closes an open episode and hands the current background to the store.
     fn finish(&mut self, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
         let out = self.det.flush(&self.sensor_id);
-        if let (Some(dir), Some(bg)) = (&self.det.params().background_dir, self.det.background()) {
-            let path = Background::path_for(dir, &self.sensor_id);
-            bg.save(&path)
+        if let (Some(store), Some(bg)) = (self.store.as_mut(), self.det.background()) {
+            store
+                .save(&self.sensor_id, bg)
                 .map_err(|e| StageError::Other(e.to_string()))?;
         }
         Ok(out)
