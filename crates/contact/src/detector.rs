@@ -58,6 +58,10 @@ pub struct ContactDetector {
     s: Scratch,
     episodes: Episodes,
     idle_frames: u64,
+    /// A frame size other than the background's, and how many frames in a row had it.
+    pending_size: Option<((u32, u32), u32)>,
+    /// How often the background was learned again for a new frame size.
+    size_changes: u64,
 }
 
 impl ContactDetector {
@@ -75,6 +79,8 @@ impl ContactDetector {
             s: Scratch::default(),
             episodes: Episodes::default(),
             idle_frames: 0,
+            pending_size: None,
+            size_changes: 0,
         })
     }
 
@@ -130,6 +136,7 @@ impl ContactDetector {
     /// Use a background captured elsewhere (a saved file, a single image).
     pub fn set_background(&mut self, bg: Background) {
         self.geo = Some(bg.geo);
+        self.pending_size = None;
         let markers = if self.mask_markers {
             marker_cells(&bg)
         } else {
@@ -148,27 +155,79 @@ impl ContactDetector {
         self.set_background(l.finish(f.stamp, sigma));
     }
 
-    fn check_size(&mut self, f: &Frame) -> Result<Geometry, StageError> {
+    /// How often the background was learned again because the frames changed size.
+    pub fn size_changes(&self) -> u64 {
+        self.size_changes
+    }
+
+    fn size_error(&self, f: &Frame, g: Geometry) -> StageError {
+        let seen = match self.pending_size {
+            Some((s, n)) if s == (f.width, f.height) => n,
+            _ => 0,
+        };
+        StageError::BadInput(format!(
+            "frame {} is {}x{}, the background is {}x{} (learned again after {} frames in a row \
+             of a new size; {seen} so far)",
+            f.seq, f.width, f.height, g.width, g.height, self.p.new_size_frames
+        ))
+    }
+
+    /// The grid of a frame of the background's size (or of any size before there is one); an
+    /// error for another size. Changes nothing.
+    fn geometry_of(&self, f: &Frame) -> Result<Geometry, StageError> {
         match self.geo {
+            Some(g) if (g.width, g.height) == (f.width, f.height) => Ok(g),
+            Some(g) => Err(self.size_error(f, g)),
+            None => Ok(Geometry::new(f.width, f.height, self.p.stride)),
+        }
+    }
+
+    /// The first frame sets the size. A frame of another size is an error that changes nothing
+    /// but a count, until `new_size_frames` in a row have one new size: then an open episode is
+    /// closed (returned) and the background is learned again at the new size.
+    fn admit_size(&mut self, f: &Frame) -> Result<(Geometry, Vec<Msg>), StageError> {
+        let size = (f.width, f.height);
+        let g = match self.geo {
+            Some(g) => g,
             None => {
                 let g = Geometry::new(f.width, f.height, self.p.stride);
                 self.geo = Some(g);
-                Ok(g)
+                return Ok((g, Vec::new()));
             }
-            Some(g) if (g.width, g.height) != (f.width, f.height) => {
-                Err(StageError::BadInput(format!(
-                    "frame {} is {}x{}, the background is {}x{}",
-                    f.seq, f.width, f.height, g.width, g.height
-                )))
-            }
-            Some(g) => Ok(g),
+        };
+        if (g.width, g.height) == size {
+            self.pending_size = None;
+            return Ok((g, Vec::new()));
         }
+        let n = match self.pending_size {
+            Some((s, n)) if s == size => n + 1,
+            _ => 1,
+        };
+        self.pending_size = Some((size, n));
+        if n < self.p.new_size_frames {
+            return Err(self.size_error(f, g));
+        }
+        tracing::warn!(
+            "contact: {} frames in a row are {}x{}, the background was {}x{}: learning it again",
+            n,
+            f.width,
+            f.height,
+            g.width,
+            g.height
+        );
+        self.pending_size = None;
+        self.size_changes += 1;
+        let out = self.flush(&f.sensor_id);
+        self.recapture();
+        let g = Geometry::new(f.width, f.height, self.p.stride);
+        self.geo = Some(g);
+        Ok((g, out))
     }
 
     /// Measure a frame against the background without changing the detector's state (scratch
     /// buffers aside). The mask of contact cells is left in the scratch buffer.
     pub fn measure(&mut self, f: &Frame) -> Result<Measurement, StageError> {
-        let geo = self.check_size(f)?;
+        let geo = self.geometry_of(f)?;
         let Some(Model::Ready { bg, markers }) = &self.model else {
             return Err(StageError::BadInput("background not learned yet".into()));
         };
@@ -325,7 +384,7 @@ impl ContactDetector {
 
     /// One frame in, zero or more events out. Nothing comes out while the background is learned.
     pub fn step(&mut self, f: &Frame) -> Result<Vec<Msg>, StageError> {
-        let geo = self.check_size(f)?;
+        let (geo, closed) = self.admit_size(f)?;
         if !self.is_learned() {
             let mut learner = match self.model.take() {
                 Some(Model::Learning(l)) => l,
@@ -338,7 +397,7 @@ impl ContactDetector {
             } else {
                 self.model = Some(Model::Learning(learner));
             }
-            return Ok(Vec::new());
+            return Ok(closed);
         }
         let m = self.measure(f)?;
         let model = &self.model;
@@ -365,6 +424,9 @@ impl ContactDetector {
             background_age_s: bg_age,
         };
         out.insert(0, Msg::Contact(state));
+        if !closed.is_empty() {
+            out.splice(0..0, closed);
+        }
         Ok(out)
     }
 

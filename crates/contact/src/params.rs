@@ -40,6 +40,10 @@ pub struct ContactParams {
     pub mask_markers: Option<bool>,
     /// Frames whose share of saturated (>= 250) or dark (<= 5) pixels exceeds this are rejected.
     pub max_bad_pixel_share: f32,
+    /// A frame of another size than the background's is rejected (an error, nothing else
+    /// changes); this many in a row of one new size and the background is learned again at that
+    /// size (the sensor changed resolution).
+    pub new_size_frames: u32,
     /// Frames kept per episode for the encoder (0 = no clips are emitted).
     pub clip_frames: u32,
     /// Directory of saved backgrounds (`<serial>.unitac-bg`): loaded when the stage starts if one
@@ -67,6 +71,7 @@ impl Default for ContactParams {
             ema_alpha: 0.02,
             mask_markers: None,
             max_bad_pixel_share: 0.5,
+            new_size_frames: 5,
             clip_frames: 0,
             background_dir: None,
             episode_labels: Vec::new(),
@@ -170,6 +175,13 @@ impl ContactParams {
                 "max_bad_pixel_share",
                 self.max_bad_pixel_share,
                 "(0, 1]",
+            ));
+        }
+        if !(1..=1000).contains(&self.new_size_frames) {
+            return Err(out_of_range(
+                "new_size_frames",
+                self.new_size_frames,
+                "1..=1000",
             ));
         }
         if self.clip_frames > MAX_CLIP_FRAMES {

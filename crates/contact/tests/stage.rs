@@ -109,3 +109,54 @@ fn the_store_is_asked_once_and_given_the_background_at_the_end() {
     assert_eq!(loads.load(Ordering::SeqCst), 1);
     assert_eq!(saves.load(Ordering::SeqCst), 1);
 }
+
+/// Frames of `w` x `h` from a DIGIT-like mock sensor, without contact.
+fn sized_frames(w: u32, h: u32, range: std::ops::Range<u64>) -> Vec<Frame> {
+    let spec = unitac_core::SensorSpec {
+        width: w,
+        height: h,
+        mm_per_px: 0.0405 * 320.0 / f64::from(w),
+        ..SensorKind::Digit.spec()
+    };
+    let s = MockSensor::with_spec(
+        MockConfig::new(SensorKind::Digit, 4),
+        spec,
+        Scenario::idle(3.0),
+    );
+    range.map(|k| s.render(k).0).collect()
+}
+
+#[test]
+fn a_sustained_new_frame_size_is_learned_again_and_an_odd_frame_is_only_rejected() {
+    let p = ContactParams::default();
+    let (learn, n) = (p.learn_frames as usize, p.new_size_frames as usize);
+    let mut stage = ContactStage::new(p, SensorKind::Digit.spec()).unwrap();
+    // One 32x24 frame first, then 60 of 64x48 (issue 16: the first frame locked the size).
+    let mut frames = sized_frames(32, 24, 0..1);
+    frames.extend(sized_frames(64, 48, 1..61));
+    let (errors, states, bgs) = feed(&mut stage, frames);
+    assert_eq!(errors, n - 1, "rejected until {n} in a row");
+    assert_eq!(states, 60 - (n - 1) - learn);
+    assert_eq!(bgs, 1, "the new background is announced");
+    assert_eq!(stage.detector().size_changes(), 1);
+    let bg = stage.detector().background().unwrap();
+    assert_eq!((bg.geo.width, bg.geo.height), (64, 48));
+
+    // Odd frames in between good ones are rejected and change nothing.
+    let before = bg.clone();
+    let mut odd = Vec::new();
+    for k in 61..80 {
+        odd.extend(sized_frames(64, 48, k..k + 1));
+        if k % 3 == 0 {
+            odd.extend(sized_frames(32, 24, k..k + 1));
+        }
+    }
+    let (errors, states, bgs) = feed(&mut stage, odd);
+    assert_eq!((errors, states, bgs), (6, 19, 0));
+    assert_eq!(stage.detector().size_changes(), 1);
+    let after = stage.detector().background().unwrap();
+    assert_eq!(
+        (after.geo, after.captured_at),
+        (before.geo, before.captured_at)
+    );
+}
