@@ -3,8 +3,9 @@
 
 use crate::background::{Background, Learner};
 use crate::episodes::Episodes;
-use crate::grid::{BitMask, Geometry, block_means, keep_components};
+use crate::grid::{BitMask, Geometry, block_means, box_mean3, keep_components};
 use crate::params::{ContactParams, ParamsError};
+use crate::shading::{self, ShadingScratch};
 use unitac_core::msg::{ContactState, Header};
 use unitac_core::{Frame, Msg, SensorKind, SensorSpec, StageError};
 
@@ -13,6 +14,16 @@ const GAIN_RANGE: (f32, f32) = (0.2, 5.0);
 /// Every n-th grid cell is sampled for the gain and the saturation check (13 is prime, so the
 /// samples do not line up in columns): ~1500 samples on a 160x120 grid.
 const SAMPLE_STEP: usize = 13;
+
+/// Largest per-channel noise [DN] left on the difference before thresholding: noisier frames
+/// are averaged over a box of cells first.
+const SMOOTH_TARGET_DN: f32 = 2.0;
+/// Largest box radius [cells] of that averaging.
+const MAX_SMOOTHING: u32 = 4;
+/// Contact components smaller than this share of the largest are dropped.
+const SHARE_OF_LARGEST: f32 = 0.1;
+/// Frame area the pixel parameters are given for (320 x 240).
+const REFERENCE_PX: f32 = 320.0 * 240.0;
 
 /// Measurement of one frame against the background.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -29,6 +40,17 @@ pub struct Measurement {
     pub gain: [f32; 3],
     /// Cell threshold used [DN].
     pub threshold: f32,
+    /// Noise sigma per channel of one cell of the frame - background difference, measured on
+    /// this frame after the smooth shading was removed [DN].
+    pub noise: [f32; 3],
+    /// Radius [cells] of the box the difference was averaged over before thresholding (0 on
+    /// clean frames; larger on noisy ones).
+    pub smoothing: u32,
+    /// Share of the shading-fit lattice left out as not smooth (the press, moved markers).
+    pub rejected: f32,
+    /// Whether the area reaches `enter_area_px` (scaled to the frame size): what a single frame
+    /// says, before hysteresis and debounce.
+    pub contact: bool,
 }
 
 #[derive(Debug, Default)]
@@ -40,6 +62,9 @@ struct Scratch {
     labels: Vec<u32>,
     stack: Vec<usize>,
     ratios: [Vec<f32>; 3],
+    diff: Vec<f32>,
+    tmp: Vec<f32>,
+    shading: ShadingScratch,
 }
 
 #[derive(Debug)]
@@ -100,12 +125,11 @@ impl ContactDetector {
     pub fn background_frame(&self, sensor_id: &str) -> Option<Frame> {
         self.background().and_then(|b| b.frame(sensor_id))
     }
-    /// Measured per-channel noise sigma of one detection cell [DN].
+    /// Per-channel noise sigma of one detection cell [DN] measured while the background was
+    /// learned (`default_noise_dn` for a single image). Detection itself uses the noise measured
+    /// on each frame ([`Measurement::noise`]).
     pub fn cell_sigma(&self) -> f32 {
         self.background().map_or(0.0, |b| b.cell_sigma)
-    }
-    pub fn threshold(&self) -> f32 {
-        (self.p.noise_k * 3.0 * self.cell_sigma()).max(self.p.min_threshold)
     }
 
     /// The contact mask of the last measured frame, in input pixels (row-major; empty before the
@@ -147,12 +171,30 @@ impl ContactDetector {
 
     /// Use one image as the background; the noise is taken from `default_noise_dn`.
     pub fn set_background_frame(&mut self, f: &Frame) {
-        let geo = Geometry::new(f.width, f.height, self.p.stride);
+        let geo = self.geometry_for(f.width, f.height);
         let mut l = Learner::new(geo);
         l.add(f);
         // Block means of s*s pixels have sigma / s per channel.
         let sigma = self.p.default_noise_dn / geo.stride as f32;
         self.set_background(l.finish(f.stamp, sigma));
+    }
+
+    /// Linear scale of the pixel parameters for a frame of this size: 1 at 320x240 (and
+    /// smaller), 2 at 640x480, ...; always 1 with `scale_with_size: false`.
+    pub fn size_scale(&self, width: u32, height: u32) -> f32 {
+        if !self.p.scale_with_size {
+            return 1.0;
+        }
+        ((width as f32 * height as f32) / REFERENCE_PX)
+            .sqrt()
+            .round()
+            .max(1.0)
+    }
+
+    /// The detection grid of a frame size: `stride` times the size scale.
+    pub fn geometry_for(&self, width: u32, height: u32) -> Geometry {
+        let k = self.size_scale(width, height) as u32;
+        Geometry::new(width, height, self.p.stride.saturating_mul(k))
     }
 
     /// How often the background was learned again because the frames changed size.
@@ -178,7 +220,7 @@ impl ContactDetector {
         match self.geo {
             Some(g) if (g.width, g.height) == (f.width, f.height) => Ok(g),
             Some(g) => Err(self.size_error(f, g)),
-            None => Ok(Geometry::new(f.width, f.height, self.p.stride)),
+            None => Ok(self.geometry_for(f.width, f.height)),
         }
     }
 
@@ -190,7 +232,7 @@ impl ContactDetector {
         let g = match self.geo {
             Some(g) => g,
             None => {
-                let g = Geometry::new(f.width, f.height, self.p.stride);
+                let g = self.geometry_for(f.width, f.height);
                 self.geo = Some(g);
                 return Ok((g, Vec::new()));
             }
@@ -219,7 +261,7 @@ impl ContactDetector {
         self.size_changes += 1;
         let out = self.flush(&f.sensor_id);
         self.recapture();
-        let g = Geometry::new(f.width, f.height, self.p.stride);
+        let g = self.geometry_for(f.width, f.height);
         self.geo = Some(g);
         Ok((g, out))
     }
@@ -231,7 +273,7 @@ impl ContactDetector {
         let Some(Model::Ready { bg, markers }) = &self.model else {
             return Err(StageError::BadInput("background not learned yet".into()));
         };
-        let thr = (self.p.noise_k * 3.0 * bg.cell_sigma).max(self.p.min_threshold);
+        let k = self.size_scale(geo.width, geo.height);
         let s = &mut self.s;
         block_means(f, &geo, &mut s.grid);
 
@@ -287,32 +329,65 @@ impl ContactDetector {
             }
         }
 
-        // 2. Residual and threshold, straight into a packed mask.
+        // 2. Signed difference per channel; masked marker cells count as unchanged.
+        s.diff.clear();
+        s.diff.resize(geo.cells() * 3, 0.0);
+        let per_cell = s
+            .diff
+            .chunks_exact_mut(3)
+            .zip(s.grid.chunks_exact(3))
+            .zip(bg.grid.chunks_exact(3))
+            .zip(markers);
+        for (((d, g), b), &marker) in per_cell {
+            if marker == 0 {
+                d[0] = g[0] - gain[0] * b[0];
+                d[1] = g[1] - gain[1] * b[1];
+                d[2] = g[2] - gain[2] * b[2];
+            }
+        }
+
+        // 3. The smooth shading out, and the noise of what is left, from this frame.
+        let fit = shading::fit(&s.diff, markers, geo.gw, geo.gh, &mut s.shading);
+        let sigma: f32 = fit.sigma.iter().sum();
+        // A field far below the noise is not worth a pass over the grid.
+        if fit.peak > 0.5 * sigma {
+            fit.remove(&mut s.diff, geo.gw, geo.gh, &s.shading);
+        }
+        // Noisy frames: average the difference over a box of cells, so that the per-channel
+        // noise left is at most SMOOTH_TARGET_DN (presses are larger than the box).
+        let mut r = 0u32;
+        while sigma / 3.0 / (2 * r + 1) as f32 > SMOOTH_TARGET_DN && r < MAX_SMOOTHING {
+            r += 1;
+        }
+        box_mean3(&mut s.diff, geo.gw, geo.gh, r as usize, &mut s.tmp);
+        let thr = (self.p.noise_k * sigma / (2 * r + 1) as f32).max(self.p.min_threshold);
+
+        // 4. Residual and threshold, straight into a packed mask.
         s.resid.clear();
         s.resid.resize(geo.cells(), 0.0);
         s.bits.reset(geo.gw, geo.gh);
-        let per_cell = s
-            .grid
+        for (i, ((d, &marker), res)) in s
+            .diff
             .chunks_exact(3)
-            .zip(bg.grid.chunks_exact(3))
-            .zip(markers);
-        for (i, (((g, b), &marker), r)) in per_cell.zip(s.resid.iter_mut()).enumerate() {
-            let d = (g[0] - gain[0] * b[0]).abs()
-                + (g[1] - gain[1] * b[1]).abs()
-                + (g[2] - gain[2] * b[2]).abs();
-            *r = d;
-            if d > thr && marker == 0 {
+            .zip(markers)
+            .zip(s.resid.iter_mut())
+            .enumerate()
+        {
+            let v = d[0].abs() + d[1].abs() + d[2].abs();
+            *res = v;
+            if v > thr && marker == 0 {
                 s.bits.set(i % geo.gw, i / geo.gw);
             }
         }
 
-        // 3. Morphology and components.
+        // 5. Morphology, then the coherent regions: components over the minimum size and not
+        // much smaller than the largest, so scattered specks never add up to a contact.
         let st = geo.stride;
         let cells = |px: u32| {
             if px == 0 {
                 0
             } else {
-                ((px as f32 / st as f32).round() as u32).max(1)
+                ((px as f32 * k / st as f32).round() as u32).max(1)
             }
         };
         if !s.bits.is_empty() {
@@ -320,12 +395,13 @@ impl ContactDetector {
                 .open_close(cells(self.p.open_radius_px), cells(self.p.close_radius_px));
         }
         s.bits.to_bytes(&mut s.mask);
-        let min_cells = (self.p.min_component_px / geo.cell_px()).ceil() as usize;
+        let min_cells = (self.p.min_component_px * k * k / geo.cell_px()).ceil() as usize;
         keep_components(
             &mut s.mask,
             geo.gw,
             geo.gh,
             min_cells.max(1),
+            SHARE_OF_LARGEST,
             &mut s.labels,
             &mut s.stack,
         );
@@ -351,6 +427,7 @@ impl ContactDetector {
                 bb[3].max(gy + 1),
             ];
         }
+        let (noise, smoothing, rejected) = (fit.sigma, r, fit.rejected);
         if n == 0 {
             return Ok(Measurement {
                 area_px: 0.0,
@@ -359,13 +436,18 @@ impl ContactDetector {
                 strength: 0.0,
                 gain,
                 threshold: thr,
+                noise,
+                smoothing,
+                rejected,
+                contact: false,
             });
         }
         let half = (st as f64 - 1.0) / 2.0;
         let nf = n as f64;
         let mean_ratio = (sr / nf) as f32;
+        let area_px = n as f32 * geo.cell_px();
         Ok(Measurement {
-            area_px: n as f32 * geo.cell_px(),
+            area_px,
             centroid: [
                 (sx / nf * f64::from(st) + half) as f32,
                 (sy / nf * f64::from(st) + half) as f32,
@@ -379,6 +461,10 @@ impl ContactDetector {
             strength: 1.0 - (-(mean_ratio - 1.0) / 3.0).exp(),
             gain,
             threshold: thr,
+            noise,
+            smoothing,
+            rejected,
+            contact: area_px >= self.p.enter_area_px * k * k,
         })
     }
 
@@ -401,9 +487,12 @@ impl ContactDetector {
         }
         let m = self.measure(f)?;
         let model = &self.model;
-        let (raw, mut out) = self.episodes.update(f, m.area_px, &self.p, &self.spec, || {
-            background_of(model).and_then(|b| b.frame(&f.sensor_id))
-        });
+        let k = self.size_scale(geo.width, geo.height);
+        let (raw, mut out) = self
+            .episodes
+            .update(f, m.area_px, k * k, &self.p, &self.spec, || {
+                background_of(model).and_then(|b| b.frame(&f.sensor_id))
+            });
         if !self.episodes.in_contact() && !raw {
             self.update_background(f);
         }

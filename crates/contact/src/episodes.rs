@@ -64,20 +64,24 @@ impl Episodes {
     }
 
     /// One measured frame: returns whether this frame's area alone says "contact" (before
-    /// debounce) and the messages of an episode that just ended. `background` gives the
-    /// non-contact frame for a clip; it is called only when a clip is emitted.
+    /// debounce) and the messages of an episode that just ended. The enter and exit areas are
+    /// multiplied by `area_scale` (frames larger than the parameters' reference size).
+    /// `background` gives the non-contact frame for a clip; it is called only when a clip is
+    /// emitted.
+    #[allow(clippy::too_many_arguments)]
     pub fn update(
         &mut self,
         f: &Frame,
         area_px: f32,
+        area_scale: f32,
         p: &ContactParams,
         spec: &SensorSpec,
         background: impl FnOnce() -> Option<Frame>,
     ) -> (bool, Vec<Msg>) {
         let raw = if self.in_contact {
-            area_px >= p.exit_area_px
+            area_px >= p.exit_area_px * area_scale
         } else {
-            area_px >= p.enter_area_px
+            area_px >= p.enter_area_px * area_scale
         };
         let mut out = Vec::new();
         if raw != self.in_contact {

@@ -1,27 +1,33 @@
-//! Contact detection by background subtraction, as a pure [`Stage`].
+//! Contact detection by background subtraction, as a pure [`Stage`](unitac_core::Stage).
 //!
-//! Per frame, on a grid of block means (stride 2 by default):
+//! Per frame, on a grid of block means (stride 2 at 320x240; the pixel parameters scale with the
+//! frame, so 640x480 uses stride 4):
 //! 1. compensate global illumination changes: per-channel gain = median of frame / background over
 //!    a sample of cells (robust to a contact covering less than half the gel), so LED warm-up and
 //!    exposure steps do not fire contacts;
-//! 2. residual = sum over channels of |frame - gain * background|, thresholded at `noise_k` times the
-//!    noise measured while learning the background (never below `min_threshold`);
-//! 3. marker dots masked (GelSight Mini), opening then closing, connected components below
-//!    `min_component_px` dropped;
-//! 4. area (px and mm^2), centroid and bounding box in the INPUT image's pixels, strength score;
-//! 5. hysteresis (enter / exit area) and debounce (k frames) into contact episodes, with a bounded
-//!    clip of the episode's frames for the encoder;
-//! 6. the background follows slow changes by an EMA only while there is no contact, and only in
+//! 2. remove the smooth shading of the signed difference (a robust quartic fit, [`shading`]) and
+//!    measure the noise from the frame itself (neighbouring-cell differences), so one background
+//!    image is enough and uneven LED drift or gel stretch is not contact;
+//! 3. on noisy frames average the difference over a box of cells; threshold the summed absolute
+//!    difference at `noise_k` times the measured noise (never below `min_threshold`);
+//! 4. marker dots masked (GelSight Mini), opening then closing, then the coherent regions only:
+//!    components over `min_component_px` and not much smaller than the largest;
+//! 5. area (px and mm^2), centroid and bounding box in the INPUT image's pixels, strength score;
+//! 6. hysteresis (enter / exit area) and debounce (k frames) into contact episodes
+//!    ([`episodes`](crate::ContactStage)), with a bounded clip of the episode's frames;
+//! 7. the background follows slow changes by an EMA only while there is no contact, and only in
 //!    cells outside the current mask: a held contact is never absorbed.
 //!
-//! Saturated or dark frames, and frames whose gain is implausible, are rejected with an error and
-//! leave the detector's state as it was.
+//! Saturated or dark frames, frames whose gain is implausible and frames of another size are
+//! rejected with an error and leave the detector's state as it was (a sustained new size is
+//! learned again). Saved backgrounds come through a [`BackgroundStore`]; the stage does no I/O.
 
 pub mod background;
 mod detector;
 mod episodes;
 pub mod grid;
 mod params;
+pub mod shading;
 mod stage;
 mod store;
 

@@ -44,6 +44,9 @@ pub struct ContactParams {
     /// changes); this many in a row of one new size and the background is learned again at that
     /// size (the sensor changed resolution).
     pub new_size_frames: u32,
+    /// The pixel parameters (areas, radii, stride) are for a 320x240 frame and scale with the
+    /// frame: x2 linear (x4 area) at 640x480. False: taken as they are at every size.
+    pub scale_with_size: bool,
     /// Frames kept per episode for the encoder (0 = no clips are emitted).
     pub clip_frames: u32,
     /// Directory of saved backgrounds (`<serial>.unitac-bg`): loaded when the stage starts if one
@@ -72,6 +75,7 @@ impl Default for ContactParams {
             mask_markers: None,
             max_bad_pixel_share: 0.5,
             new_size_frames: 5,
+            scale_with_size: true,
             clip_frames: 0,
             background_dir: None,
             episode_labels: Vec::new(),

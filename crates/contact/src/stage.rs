@@ -66,7 +66,7 @@ impl ContactStage {
         let Some(store) = self.store.as_mut() else {
             return;
         };
-        let stride = self.det.params().stride;
+        let stride = self.det.geometry_for(f.width, f.height).stride;
         match store.load(&f.sensor_id, f.width, f.height, stride) {
             Ok(Some(bg)) => self.det.set_background(bg),
             Ok(None) => {}

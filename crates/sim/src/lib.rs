@@ -7,6 +7,7 @@
 //! same bytes. [`MockSensor`] implements the runtime's `Source`.
 
 pub mod bench;
+pub mod degrade;
 pub mod numerics;
 mod object;
 pub mod plot;
