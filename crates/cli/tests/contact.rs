@@ -161,6 +161,17 @@ fn all_good_files_exit_0_and_bad_background_exits_2() {
     assert_eq!(code, Some(0));
     assert_eq!(lines[0]["contact"], false);
     assert_eq!(lines[0]["area_px"], 0.0);
+    // The camera noise is estimated from the two frames (the mock renders 1 DN per channel).
+    let noise: Vec<f64> = lines[0]["noise_dn"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        noise.len() == 3 && noise.iter().all(|n| (0.7..1.4).contains(n)),
+        "{noise:?}"
+    );
     let (code, lines, stderr) = run(&[
         "contact",
         "--sensor",
@@ -196,27 +207,6 @@ fn all_good_files_exit_0_and_bad_background_exits_2() {
         lines[0]["contact"], false,
         "one pixel is below the minimum contact area"
     );
-}
-
-/// Writes sample frames for a person to look at (UNITAC_SAMPLES=dir); not an assertion.
-#[test]
-fn write_samples_when_asked() {
-    let Some(out) = std::env::var_os("UNITAC_SAMPLES") else {
-        return;
-    };
-    let out = PathBuf::from(out);
-    std::fs::create_dir_all(&out).unwrap();
-    for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
-        let s = MockSensor::new(MockConfig::new(kind, 3), Scenario::fabric_selection());
-        let t = Scenario::fabric_selection()
-            .first_hold_time("fabric_a")
-            .unwrap()
-            * s.config().fps;
-        save_rgb(
-            &out.join(format!("{}_press.png", kind.as_str())),
-            &s.render(t as u64).0,
-        );
-    }
 }
 
 /// A sensor that changes resolution (issue 16): a bag whose first image is 32x24 and the next 60

@@ -15,6 +15,9 @@
 //! surface on every cell is four multiply-adds per channel (Horner in x, the row's coefficients
 //! computed once per row).
 
+// Gaussian elimination and the symmetric fill read as index arithmetic on small fixed matrices.
+#![allow(clippy::needless_range_loop)]
+
 /// Terms of the quartic surface.
 const TERMS: usize = 15;
 /// Iterations of fit + rejection.
