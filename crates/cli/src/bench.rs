@@ -12,16 +12,25 @@ use unitac_contact::{ContactDetector, ContactParams};
 use unitac_core::{Frame, SensorKind, Timing, timing};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
+/// One frame size of `unitac bench contact`.
 #[derive(Debug, Serialize)]
 pub struct ContactBench {
     pub frame: String,
     pub frames_timed: usize,
     pub rust: Timing,
     pub python: Option<Timing>,
-    pub python_versions: String,
     pub ratio_median: Option<f64>,
     /// One read pass over the frame's bytes.
     pub floor: Timing,
+    /// Rust median over the floor median: how far from "just reading the frame".
+    pub over_floor: f64,
+}
+
+/// `unitac bench contact`: 320x240 and 640x480 in one run.
+#[derive(Debug, Serialize)]
+pub struct ContactBenches {
+    pub sizes: Vec<ContactBench>,
+    pub python_versions: String,
     pub note: String,
 }
 
@@ -55,14 +64,27 @@ pub fn run_python_baseline(
     Ok(serde_json::from_slice(&out.stdout)?)
 }
 
-fn frames(n: usize) -> Vec<Frame> {
-    let mut s = MockSensor::new(
+fn frames(n: usize) -> anyhow::Result<Vec<Frame>> {
+    frames_at(n, 1)
+}
+
+/// Mock GelSight Mini frames of the fabric scene at `scale` x 320x240.
+fn frames_at(n: usize, scale: u32) -> anyhow::Result<Vec<Frame>> {
+    let spec = SensorKind::GelsightMini.spec();
+    let spec = unitac_core::SensorSpec {
+        width: spec.width * scale,
+        height: spec.height * scale,
+        mm_per_px: spec.mm_per_px / f64::from(scale),
+        ..spec
+    };
+    let mut s = MockSensor::with_spec(
         MockConfig::new(SensorKind::GelsightMini, 5),
+        spec,
         Scenario::fabric_selection(),
-    );
-    std::iter::from_fn(|| s.next_with_truth().map(|(f, _)| f))
+    )?;
+    Ok(std::iter::from_fn(|| s.next_with_truth().map(|(f, _)| f))
         .take(n)
-        .collect()
+        .collect())
 }
 
 fn python_baseline(
@@ -98,8 +120,13 @@ fn python_baseline(
     Ok((t, format!("numpy {} opencv {}", j["numpy"], j["opencv"])))
 }
 
-pub fn bench_contact(n: usize, repeat: usize, with_python: bool) -> anyhow::Result<ContactBench> {
-    let frames = frames(n.max(20));
+fn bench_contact_at(
+    n: usize,
+    repeat: usize,
+    with_python: bool,
+    scale: u32,
+) -> anyhow::Result<(ContactBench, String)> {
+    let frames = frames_at(n.max(20), scale)?;
     let bg = frames.first().context("no frames")?.clone();
     let mut det = ContactDetector::new(ContactParams::default(), SensorKind::GelsightMini.spec())
         .map_err(anyhow::Error::msg)?;
@@ -122,6 +149,7 @@ pub fn bench_contact(n: usize, repeat: usize, with_python: bool) -> anyhow::Resu
         }
     }
     let rust = timing(rust);
+    let floor = timing(floor);
     let (python, versions) = if with_python {
         let (t, v) = python_baseline(&frames, &bg, repeat)?;
         (Some(t), v)
@@ -129,45 +157,66 @@ pub fn bench_contact(n: usize, repeat: usize, with_python: bool) -> anyhow::Resu
         (None, String::new())
     };
     let ratio = python.as_ref().map(|p| p.median_us / rust.median_us);
-    Ok(ContactBench {
-        frame: format!(
-            "{}x{} RGB8 (GelSight Mini mock, fabric scene)",
-            bg.width, bg.height
-        ),
-        frames_timed: frames.len() * repeat,
-        rust,
-        python,
+    Ok((
+        ContactBench {
+            frame: format!(
+                "{}x{} RGB8 (GelSight Mini mock, fabric scene)",
+                bg.width, bg.height
+            ),
+            frames_timed: frames.len() * repeat,
+            over_floor: rust.median_us / floor.median_us.max(1e-3),
+            rust,
+            python,
+            ratio_median: ratio,
+            floor,
+        },
+        versions,
+    ))
+}
+
+pub fn bench_contact(n: usize, repeat: usize, with_python: bool) -> anyhow::Result<ContactBenches> {
+    let mut sizes = Vec::new();
+    let mut versions = String::new();
+    for scale in [1, 2] {
+        let (b, v) = bench_contact_at(n, repeat, with_python, scale)?;
+        sizes.push(b);
+        versions = v;
+    }
+    Ok(ContactBenches {
+        sizes,
         python_versions: versions,
-        ratio_median: ratio,
-        floor: timing(floor),
-        note: "Rust does more per frame than the baseline: drift compensation, noise-adaptive \
-               threshold, marker masking, components, hysteresis, episodes, background EMA"
+        note: "Rust does more per frame than the baseline: drift and shading compensation, \
+               noise estimated from each frame, marker masking, coherent components, hysteresis, \
+               episodes, background EMA"
             .into(),
     })
 }
 
-impl ContactBench {
+impl ContactBenches {
     pub fn text(&self) -> String {
-        let mut s = format!(
-            "contact detection per {} frame, one core, {} frames\n",
-            self.frame, self.frames_timed
-        );
-        s += &format!(
-            "  unitac (Rust)          median {:>8.1} us  mean {:>8.1} us\n",
-            self.rust.median_us, self.rust.mean_us
-        );
-        if let Some(p) = &self.python {
+        let mut s = String::new();
+        for b in &self.sizes {
             s += &format!(
-                "  numpy + OpenCV (gs_sdk) median {:>8.1} us  mean {:>8.1} us  [{}]\n",
-                p.median_us, p.mean_us, self.python_versions
+                "contact detection per {} frame, one core, {} frames\n",
+                b.frame, b.frames_timed
             );
-        }
-        s += &format!(
-            "  floor (one read pass)  median {:>8.1} us\n",
-            self.floor.median_us
-        );
-        if let Some(r) = self.ratio_median {
-            s += &format!("  speed-up (median): {r:.1}x\n");
+            s += &format!(
+                "  unitac (Rust)           median {:>8.1} us  mean {:>8.1} us\n",
+                b.rust.median_us, b.rust.mean_us
+            );
+            if let Some(p) = &b.python {
+                s += &format!(
+                    "  numpy + OpenCV (gs_sdk) median {:>8.1} us  mean {:>8.1} us  [{}]\n",
+                    p.median_us, p.mean_us, self.python_versions
+                );
+            }
+            s += &format!(
+                "  floor (one read pass)   median {:>8.1} us  (unitac is {:.1}x the floor)\n",
+                b.floor.median_us, b.over_floor
+            );
+            if let Some(r) = b.ratio_median {
+                s += &format!("  speed-up (median): {r:.1}x\n");
+            }
         }
         s
     }
@@ -242,7 +291,7 @@ fn rust_pass(bag: &std::path::Path, detect: bool) -> anyhow::Result<(usize, f64)
 }
 
 pub fn bench_replay(n: usize, repeat: usize, with_python: bool) -> anyhow::Result<ReplayBench> {
-    let frames = frames(n.max(20));
+    let frames = frames(n.max(20))?;
     let (w, h) = frames
         .first()
         .map(|f| (f.width, f.height))

@@ -319,9 +319,14 @@ fn cmd_contact(
     let bg = images::read_frame(background, sensor.as_str(), 0)
         .map_err(|e| anyhow::Error::new(ConfigError(format!("background {e:#}"))))?;
     let mut det = ContactDetector::new(ContactParams::default(), sensor.spec())
-        .map_err(|e| anyhow::Error::new(ConfigError(e)))?;
+        .map_err(|e| anyhow::Error::new(ConfigError(e.to_string())))?;
     det.set_background_frame(&bg);
-    let enter = det.params().enter_area_px;
+    // Camera noise per channel [DN] from the difference of two single frames, per pixel.
+    let stride = det.geometry_for(bg.width, bg.height).stride as f32;
+    let noise_dn = |m: &unitac_contact::Measurement| {
+        m.noise
+            .map(|s| (s * stride / std::f32::consts::SQRT_2 * 100.0).round() / 100.0)
+    };
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let mut all_ok = true;
@@ -331,22 +336,24 @@ fn cmd_contact(
             .and_then(|f| det.measure(&f).map_err(|e| anyhow::anyhow!("{file}: {e}")));
         let line = match result {
             Ok(m) => {
-                let contact = m.area_px >= enter;
+                let contact = m.contact;
                 if json {
                     serde_json::json!({
                         "file": file, "contact": contact, "area_px": m.area_px,
                         "centroid": m.centroid, "bbox": m.bbox, "score": m.strength,
+                        "noise_dn": noise_dn(&m),
                     })
                     .to_string()
                 } else {
                     format!(
-                        "{file}: contact {} area {:.0} px centroid ({:.1}, {:.1}) bbox {:?} score {:.2}",
+                        "{file}: contact {} area {:.0} px centroid ({:.1}, {:.1}) bbox {:?} score {:.2} noise {:?} DN",
                         if contact { "yes" } else { "no" },
                         m.area_px,
                         m.centroid[0],
                         m.centroid[1],
                         m.bbox,
-                        m.strength
+                        m.strength,
+                        noise_dn(&m)
                     )
                 }
             }

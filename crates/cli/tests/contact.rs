@@ -161,6 +161,17 @@ fn all_good_files_exit_0_and_bad_background_exits_2() {
     assert_eq!(code, Some(0));
     assert_eq!(lines[0]["contact"], false);
     assert_eq!(lines[0]["area_px"], 0.0);
+    // The camera noise is estimated from the two frames (the mock renders 1 DN per channel).
+    let noise: Vec<f64> = lines[0]["noise_dn"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert!(
+        noise.len() == 3 && noise.iter().all(|n| (0.7..1.4).contains(n)),
+        "{noise:?}"
+    );
     let (code, lines, stderr) = run(&[
         "contact",
         "--sensor",
@@ -196,4 +207,68 @@ fn all_good_files_exit_0_and_bad_background_exits_2() {
         lines[0]["contact"], false,
         "one pixel is below the minimum contact area"
     );
+}
+
+/// A sensor that changes resolution (issue 16): a bag whose first image is 32x24 and the next 60
+/// are 64x48. The odd first frame does not lock the stage: the new size is learned after a few
+/// frames, and contact states come out for the rest.
+#[test]
+fn replay_learns_a_new_frame_size() {
+    use unitac_bag::{BagWriter, Image, WriteOptions};
+    let d = dir().join("resize");
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    let bag = d.join("bag");
+    let spec = |w, h| unitac_core::SensorSpec {
+        width: w,
+        height: h,
+        mm_per_px: 0.0405 * 320.0 / f64::from(w),
+        ..SensorKind::Digit.spec()
+    };
+    let small = MockSensor::with_spec(
+        MockConfig::new(SensorKind::Digit, 4),
+        spec(32, 24),
+        Scenario::idle(1.0),
+    )
+    .unwrap();
+    let large = MockSensor::with_spec(
+        MockConfig::new(SensorKind::Digit, 4),
+        spec(64, 48),
+        Scenario::idle(2.0),
+    )
+    .unwrap();
+    let mut w = BagWriter::create(&bag, WriteOptions::default()).unwrap();
+    let t = w
+        .add_topic("/digit/image_raw", "sensor_msgs/msg/Image")
+        .unwrap();
+    let first = small.render(0).0;
+    w.write(t, first.stamp.0, &Image::rgb8(&first)).unwrap();
+    for k in 1..=60 {
+        let f = large.render(k).0;
+        w.write(t, f.stamp.0, &Image::rgb8(&f)).unwrap();
+    }
+    let path = w.finish().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args([
+            "replay",
+            path.to_str().unwrap(),
+            "--fast",
+            "--json",
+            "--sensor",
+            "digit",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let lines: Vec<Value> = String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 61);
+    let errors = lines.iter().filter(|l| l.get("error").is_some()).count();
+    let states = lines.iter().filter(|l| l["contact"].is_boolean()).count();
+    // new_size_frames (5) in a row re-learn: 4 rejected, then 10 learning frames.
+    assert_eq!((errors, states), (4, 60 - 4 - 10), "{lines:?}");
+    assert!(lines.iter().all(|l| l["contact"] != true));
 }

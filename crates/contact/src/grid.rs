@@ -216,13 +216,83 @@ pub fn open_close(
     mask.copy_from_slice(&out);
 }
 
-/// Keep 4-connected components of at least `min_cells`; returns how many cells were kept.
-/// `labels` and `stack` are scratch buffers.
+/// Box mean of radius `r` cells over an RGB-interleaved `gw` x `gh` grid, in place (separable,
+/// running sums; windows are cut at the border and divided by the cells they hold).
+pub fn box_mean3(data: &mut [f32], gw: usize, gh: usize, r: usize, tmp: &mut Vec<f32>) {
+    if r == 0 || gw == 0 || gh == 0 || data.len() < gw * gh * 3 {
+        return;
+    }
+    tmp.clear();
+    tmp.resize(gw * gh * 3, 0.0);
+    // Rows into tmp.
+    for (src, dst) in data.chunks_exact(gw * 3).zip(tmp.chunks_exact_mut(gw * 3)) {
+        let mut acc = [0f32; 3];
+        let mut n = 0f32;
+        for x in 0..r.min(gw) {
+            for c in 0..3 {
+                acc[c] += src[x * 3 + c];
+            }
+            n += 1.0;
+        }
+        for x in 0..gw {
+            if x + r < gw {
+                for c in 0..3 {
+                    acc[c] += src[(x + r) * 3 + c];
+                }
+                n += 1.0;
+            }
+            if x > r {
+                for c in 0..3 {
+                    acc[c] -= src[(x - r - 1) * 3 + c];
+                }
+                n -= 1.0;
+            }
+            for c in 0..3 {
+                dst[x * 3 + c] = acc[c] / n;
+            }
+        }
+    }
+    // Columns back into data, a whole row of accumulators at a time.
+    let w3 = gw * 3;
+    let mut acc = vec![0f32; w3];
+    let mut n = 0f32;
+    for y in 0..r.min(gh) {
+        for (a, v) in acc.iter_mut().zip(&tmp[y * w3..(y + 1) * w3]) {
+            *a += v;
+        }
+        n += 1.0;
+    }
+    for y in 0..gh {
+        if y + r < gh {
+            let row = &tmp[(y + r) * w3..(y + r + 1) * w3];
+            for (a, v) in acc.iter_mut().zip(row) {
+                *a += v;
+            }
+            n += 1.0;
+        }
+        if y > r {
+            let row = &tmp[(y - r - 1) * w3..(y - r) * w3];
+            for (a, v) in acc.iter_mut().zip(row) {
+                *a -= v;
+            }
+            n -= 1.0;
+        }
+        let inv = 1.0 / n;
+        for (d, a) in data[y * w3..(y + 1) * w3].iter_mut().zip(&acc) {
+            *d = a * inv;
+        }
+    }
+}
+
+/// Keep the 4-connected components of at least `min_cells` that are also at least
+/// `share_of_largest` times the largest one (0 keeps every component over `min_cells`); returns
+/// how many cells were kept. `labels` and `stack` are scratch buffers.
 pub fn keep_components(
     mask: &mut [u8],
     gw: usize,
     gh: usize,
     min_cells: usize,
+    share_of_largest: f32,
     labels: &mut Vec<u32>,
     stack: &mut Vec<usize>,
 ) -> usize {
@@ -262,6 +332,8 @@ pub fn keep_components(
         }
         sizes.push(n);
     }
+    let largest = sizes.iter().copied().max().unwrap_or(0);
+    let min_cells = min_cells.max((share_of_largest * largest as f32).ceil() as usize);
     let mut kept = 0;
     for (m, &l) in mask.iter_mut().zip(labels.iter()) {
         if *m != 0 {
@@ -371,6 +443,30 @@ mod tests {
     }
 
     #[test]
+    fn box_mean_matches_a_direct_mean() {
+        let (gw, gh, r) = (9, 7, 2);
+        let data: Vec<f32> = (0..gw * gh * 3).map(|i| ((i * 37) % 23) as f32).collect();
+        let mut got = data.clone();
+        box_mean3(&mut got, gw, gh, r, &mut Vec::new());
+        for y in 0..gh {
+            for x in 0..gw {
+                for c in 0..3 {
+                    let (mut s, mut n) = (0.0, 0.0);
+                    for yy in y.saturating_sub(r)..(y + r + 1).min(gh) {
+                        for xx in x.saturating_sub(r)..(x + r + 1).min(gw) {
+                            s += data[(yy * gw + xx) * 3 + c];
+                            n += 1.0;
+                        }
+                    }
+                    let want: f32 = s / n;
+                    let g = got[(y * gw + x) * 3 + c];
+                    assert!((g - want).abs() < 1e-3, "({x}, {y}, {c}): {g} vs {want}");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn small_components_are_dropped() {
         let (gw, gh) = (8, 3);
         let mut m = vec![0u8; gw * gh];
@@ -379,7 +475,14 @@ mod tests {
         }
         m[7] = 1; // 1 cell
         let (mut l, mut s) = (Vec::new(), Vec::new());
-        assert_eq!(keep_components(&mut m, gw, gh, 2, &mut l, &mut s), 4);
+        let mut m2 = m.clone();
+        assert_eq!(keep_components(&mut m, gw, gh, 2, 0.0, &mut l, &mut s), 4);
         assert_eq!(m[7], 0);
+        // Relative to the largest (4 cells) at share 0.6: 3 cells stay, 2 go.
+        m2[6] = 1;
+        m2[5] = 1;
+        assert_eq!(keep_components(&mut m2, gw, gh, 1, 0.6, &mut l, &mut s), 7);
+        m2[5] = 0;
+        assert_eq!(keep_components(&mut m2, gw, gh, 1, 0.6, &mut l, &mut s), 4);
     }
 }

@@ -40,6 +40,13 @@ pub struct ContactParams {
     pub mask_markers: Option<bool>,
     /// Frames whose share of saturated (>= 250) or dark (<= 5) pixels exceeds this are rejected.
     pub max_bad_pixel_share: f32,
+    /// A frame of another size than the background's is rejected (an error, nothing else
+    /// changes); this many in a row of one new size and the background is learned again at that
+    /// size (the sensor changed resolution).
+    pub new_size_frames: u32,
+    /// The pixel parameters (areas, radii, stride) are for a 320x240 frame and scale with the
+    /// frame: x2 linear (x4 area) at 640x480. False: taken as they are at every size.
+    pub scale_with_size: bool,
     /// Frames kept per episode for the encoder (0 = no clips are emitted).
     pub clip_frames: u32,
     /// Directory of saved backgrounds (`<serial>.unitac-bg`): loaded when the stage starts if one
@@ -67,6 +74,8 @@ impl Default for ContactParams {
             ema_alpha: 0.02,
             mask_markers: None,
             max_bad_pixel_share: 0.5,
+            new_size_frames: 5,
+            scale_with_size: true,
             clip_frames: 0,
             background_dir: None,
             episode_labels: Vec::new(),
@@ -77,57 +86,110 @@ impl Default for ContactParams {
 /// Largest episode clip (frames), whatever the scene says: bounds memory per episode.
 pub const MAX_CLIP_FRAMES: u32 = 256;
 
+/// A parameter out of its range (scene file, ROS parameter, code).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ParamsError {
+    #[error("{name} {value} is outside {range}")]
+    OutOfRange {
+        name: &'static str,
+        value: String,
+        range: &'static str,
+    },
+    #[error("need 0 <= exit_area_px <= enter_area_px, got exit {exit} and enter {enter}")]
+    AreaBand { enter: f32, exit: f32 },
+}
+
+fn out_of_range(name: &'static str, value: impl ToString, range: &'static str) -> ParamsError {
+    ParamsError::OutOfRange {
+        name,
+        value: value.to_string(),
+        range,
+    }
+}
+
 impl ContactParams {
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), ParamsError> {
         let finite_pos = |v: f32| v.is_finite() && v > 0.0;
         if !(1..=1000).contains(&self.learn_frames) {
-            return Err(format!(
-                "learn_frames {} is outside 1..=1000",
-                self.learn_frames
-            ));
+            return Err(out_of_range("learn_frames", self.learn_frames, "1..=1000"));
         }
         if !(1..=16).contains(&self.stride) {
-            return Err(format!("stride {} is outside 1..=16", self.stride));
+            return Err(out_of_range("stride", self.stride, "1..=16"));
         }
-        if !(finite_pos(self.noise_k)
-            && self.min_threshold.is_finite()
-            && self.min_threshold >= 0.0)
-        {
-            return Err("noise_k must be > 0 and min_threshold >= 0".into());
+        if !finite_pos(self.noise_k) {
+            return Err(out_of_range("noise_k", self.noise_k, "(0, inf)"));
+        }
+        if !(self.min_threshold.is_finite() && self.min_threshold >= 0.0) {
+            return Err(out_of_range(
+                "min_threshold",
+                self.min_threshold,
+                "[0, inf)",
+            ));
         }
         if !finite_pos(self.default_noise_dn) {
-            return Err("default_noise_dn must be > 0".into());
+            return Err(out_of_range(
+                "default_noise_dn",
+                self.default_noise_dn,
+                "(0, inf)",
+            ));
         }
         if !(self.exit_area_px.is_finite()
             && self.exit_area_px >= 0.0
             && self.exit_area_px <= self.enter_area_px
             && self.enter_area_px.is_finite())
         {
-            return Err("need 0 <= exit_area_px <= enter_area_px".into());
+            return Err(ParamsError::AreaBand {
+                enter: self.enter_area_px,
+                exit: self.exit_area_px,
+            });
         }
         if !(self.min_component_px.is_finite() && self.min_component_px >= 0.0) {
-            return Err("min_component_px must be >= 0".into());
+            return Err(out_of_range(
+                "min_component_px",
+                self.min_component_px,
+                "[0, inf)",
+            ));
         }
-        if self.open_radius_px > 32 || self.close_radius_px > 32 {
-            return Err("open_radius_px and close_radius_px must be <= 32".into());
+        if self.open_radius_px > 32 {
+            return Err(out_of_range(
+                "open_radius_px",
+                self.open_radius_px,
+                "0..=32",
+            ));
+        }
+        if self.close_radius_px > 32 {
+            return Err(out_of_range(
+                "close_radius_px",
+                self.close_radius_px,
+                "0..=32",
+            ));
         }
         if !(self.ema_alpha >= 0.0 && self.ema_alpha < 1.0) {
-            return Err(format!("ema_alpha {} is outside [0, 1)", self.ema_alpha));
+            return Err(out_of_range("ema_alpha", self.ema_alpha, "[0, 1)"));
         }
         if self.debounce_frames > 1000 {
-            return Err(format!(
-                "debounce_frames {} is above 1000",
-                self.debounce_frames
+            return Err(out_of_range(
+                "debounce_frames",
+                self.debounce_frames,
+                "0..=1000",
             ));
         }
         if !(self.max_bad_pixel_share > 0.0 && self.max_bad_pixel_share <= 1.0) {
-            return Err("max_bad_pixel_share must be in (0, 1]".into());
+            return Err(out_of_range(
+                "max_bad_pixel_share",
+                self.max_bad_pixel_share,
+                "(0, 1]",
+            ));
+        }
+        if !(1..=1000).contains(&self.new_size_frames) {
+            return Err(out_of_range(
+                "new_size_frames",
+                self.new_size_frames,
+                "1..=1000",
+            ));
         }
         if self.clip_frames > MAX_CLIP_FRAMES {
-            return Err(format!(
-                "clip_frames {} is above {MAX_CLIP_FRAMES}",
-                self.clip_frames
-            ));
+            return Err(out_of_range("clip_frames", self.clip_frames, "0..=256"));
         }
         Ok(())
     }

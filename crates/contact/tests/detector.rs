@@ -317,9 +317,10 @@ fn markers_are_masked_on_gelsight() {
     };
     let (with, without) = (area(true), area(false));
     let t = truth.contact_px as f32;
-    // Moving markers outside the contact add false area unless masked.
+    // Moving markers add area unless masked (outside the contact only where they join it: the
+    // scattered ones are not a coherent region anyway).
     assert!(
-        (with - t).abs() < (without - t).abs(),
+        (with - t).abs() < 0.1 * t && without >= with,
         "masked {with}, unmasked {without}, truth {t}"
     );
 }

@@ -7,6 +7,7 @@
 //! - [`numerics`], [`bench`](mod@bench), [`plot`]: the integrator study, the renderer benchmark, its charts.
 
 pub mod bench;
+pub mod degrade;
 pub mod mock;
 pub mod numerics;
 mod object;

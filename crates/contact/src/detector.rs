@@ -1,0 +1,612 @@
+//! The per-frame detector: a frame against the background model, into a contact mask, area,
+//! centroid, bounding box and strength, then the episode state machine.
+
+use crate::background::{Background, Learner};
+use crate::episodes::Episodes;
+use crate::grid::{BitMask, Geometry, block_means, box_mean3, keep_components};
+use crate::params::{ContactParams, ParamsError};
+use crate::shading::{self, ShadingScratch};
+use unitac_core::msg::{ContactState, Header};
+use unitac_core::{Frame, Msg, SensorKind, SensorSpec, StageError};
+
+/// Plausible range of the per-channel illumination gain against the background.
+const GAIN_RANGE: (f32, f32) = (0.2, 5.0);
+/// Every n-th grid cell is sampled for the gain and the saturation check (13 is prime, so the
+/// samples do not line up in columns): ~1500 samples on a 160x120 grid.
+const SAMPLE_STEP: usize = 13;
+
+/// Largest per-channel noise [DN] left on the difference before thresholding: noisier frames
+/// are averaged over a box of cells first.
+const SMOOTH_TARGET_DN: f32 = 2.0;
+/// Largest box radius [cells] of that averaging.
+const MAX_SMOOTHING: u32 = 4;
+/// Contact components smaller than this share of the largest are dropped.
+const SHARE_OF_LARGEST: f32 = 0.1;
+/// Frame area the pixel parameters are given for (320 x 240).
+const REFERENCE_PX: f32 = 320.0 * 240.0;
+
+/// Measurement of one frame against the background.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measurement {
+    /// Contact area [input px].
+    pub area_px: f32,
+    /// Centroid [input px] (x, y); zeros when empty.
+    pub centroid: [f32; 2],
+    /// Bounding box [input px] x0, y0, x1, y1 (exclusive); zeros when empty.
+    pub bbox: [u32; 4],
+    /// 0..1, monotone in the mean residual over the contact.
+    pub strength: f32,
+    /// Per-channel illumination gain against the background.
+    pub gain: [f32; 3],
+    /// Cell threshold used [DN].
+    pub threshold: f32,
+    /// Noise sigma per channel of one cell of the frame - background difference, measured on
+    /// this frame after the smooth shading was removed [DN].
+    pub noise: [f32; 3],
+    /// Radius [cells] of the box the difference was averaged over before thresholding (0 on
+    /// clean frames; larger on noisy ones).
+    pub smoothing: u32,
+    /// Share of the shading-fit lattice left out as not smooth (the press, moved markers).
+    pub rejected: f32,
+    /// Whether the area reaches `enter_area_px` (scaled to the frame size): what a single frame
+    /// says, before hysteresis and debounce.
+    pub contact: bool,
+}
+
+#[derive(Debug, Default)]
+struct Scratch {
+    grid: Vec<f32>,
+    mask: Vec<u8>,
+    resid: Vec<f32>,
+    bits: BitMask,
+    labels: Vec<u32>,
+    stack: Vec<usize>,
+    ratios: [Vec<f32>; 3],
+    diff: Vec<f32>,
+    tmp: Vec<f32>,
+    shading: ShadingScratch,
+}
+
+#[derive(Debug)]
+enum Model {
+    Learning(Learner),
+    Ready { bg: Background, markers: Vec<u8> },
+}
+
+#[derive(Debug)]
+pub struct ContactDetector {
+    p: ContactParams,
+    spec: SensorSpec,
+    mask_markers: bool,
+    geo: Option<Geometry>,
+    model: Option<Model>,
+    s: Scratch,
+    episodes: Episodes,
+    idle_frames: u64,
+    /// A frame size other than the background's, and how many frames in a row had it.
+    pending_size: Option<((u32, u32), u32)>,
+    /// How often the background was learned again for a new frame size.
+    size_changes: u64,
+}
+
+impl ContactDetector {
+    pub fn new(p: ContactParams, spec: SensorSpec) -> Result<Self, ParamsError> {
+        p.check()?;
+        let mask_markers = p
+            .mask_markers
+            .unwrap_or(spec.kind == SensorKind::GelsightMini);
+        Ok(Self {
+            p,
+            spec,
+            mask_markers,
+            geo: None,
+            model: None,
+            s: Scratch::default(),
+            episodes: Episodes::default(),
+            idle_frames: 0,
+            pending_size: None,
+            size_changes: 0,
+        })
+    }
+
+    pub fn params(&self) -> &ContactParams {
+        &self.p
+    }
+    pub fn is_learned(&self) -> bool {
+        matches!(self.model, Some(Model::Ready { .. }))
+    }
+    pub fn in_contact(&self) -> bool {
+        self.episodes.in_contact()
+    }
+    pub fn background(&self) -> Option<&Background> {
+        background_of(&self.model)
+    }
+    /// The current non-contact frame (the sensor prior for inference), once learned.
+    pub fn background_frame(&self, sensor_id: &str) -> Option<Frame> {
+        self.background().and_then(|b| b.frame(sensor_id))
+    }
+    /// Per-channel noise sigma of one detection cell [DN] measured while the background was
+    /// learned (`default_noise_dn` for a single image). Detection itself uses the noise measured
+    /// on each frame ([`Measurement::noise`]).
+    pub fn cell_sigma(&self) -> f32 {
+        self.background().map_or(0.0, |b| b.cell_sigma)
+    }
+
+    /// The contact mask of the last measured frame, in input pixels (row-major; empty before the
+    /// first measurement). Pixels in the right/bottom remainder of a stride are never set.
+    pub fn mask_px(&self) -> Vec<bool> {
+        let Some(g) = self.geo else { return Vec::new() };
+        if self.s.mask.len() != g.cells() {
+            return Vec::new();
+        }
+        let (w, st) = (g.width as usize, g.stride as usize);
+        let mut out = vec![false; w * g.height as usize];
+        for (i, _) in self.s.mask.iter().enumerate().filter(|(_, m)| **m != 0) {
+            let (gx, gy) = (i % g.gw, i / g.gw);
+            for y in gy * st..(gy + 1) * st {
+                out[y * w + gx * st..y * w + (gx + 1) * st].fill(true);
+            }
+        }
+        out
+    }
+
+    /// Forget the background and learn it again from the next frames (e.g. after the gel was
+    /// changed). Episode numbering goes on.
+    pub fn recapture(&mut self) {
+        self.model = None;
+        self.episodes.reset();
+    }
+
+    /// Use a background captured elsewhere (a saved file, a single image).
+    pub fn set_background(&mut self, bg: Background) {
+        self.geo = Some(bg.geo);
+        self.pending_size = None;
+        let markers = if self.mask_markers {
+            marker_cells(&bg)
+        } else {
+            vec![0; bg.geo.cells()]
+        };
+        self.model = Some(Model::Ready { bg, markers });
+    }
+
+    /// Use one image as the background; the noise is taken from `default_noise_dn`.
+    pub fn set_background_frame(&mut self, f: &Frame) {
+        let geo = self.geometry_for(f.width, f.height);
+        let mut l = Learner::new(geo);
+        l.add(f);
+        // Block means of s*s pixels have sigma / s per channel.
+        let sigma = self.p.default_noise_dn / geo.stride as f32;
+        self.set_background(l.finish(f.stamp, sigma));
+    }
+
+    /// Linear scale of the pixel parameters for a frame of this size: 1 at 320x240 (and
+    /// smaller), 2 at 640x480, ...; always 1 with `scale_with_size: false`.
+    pub fn size_scale(&self, width: u32, height: u32) -> f32 {
+        if !self.p.scale_with_size {
+            return 1.0;
+        }
+        ((width as f32 * height as f32) / REFERENCE_PX)
+            .sqrt()
+            .round()
+            .max(1.0)
+    }
+
+    /// The detection grid of a frame size: `stride` times the size scale.
+    pub fn geometry_for(&self, width: u32, height: u32) -> Geometry {
+        let k = self.size_scale(width, height) as u32;
+        Geometry::new(width, height, self.p.stride.saturating_mul(k))
+    }
+
+    /// How often the background was learned again because the frames changed size.
+    pub fn size_changes(&self) -> u64 {
+        self.size_changes
+    }
+
+    fn size_error(&self, f: &Frame, g: Geometry) -> StageError {
+        let seen = match self.pending_size {
+            Some((s, n)) if s == (f.width, f.height) => n,
+            _ => 0,
+        };
+        StageError::BadInput(format!(
+            "frame {} is {}x{}, the background is {}x{} (learned again after {} frames in a row \
+             of a new size; {seen} so far)",
+            f.seq, f.width, f.height, g.width, g.height, self.p.new_size_frames
+        ))
+    }
+
+    /// The grid of a frame of the background's size (or of any size before there is one); an
+    /// error for another size. Changes nothing.
+    fn geometry_of(&self, f: &Frame) -> Result<Geometry, StageError> {
+        match self.geo {
+            Some(g) if (g.width, g.height) == (f.width, f.height) => Ok(g),
+            Some(g) => Err(self.size_error(f, g)),
+            None => Ok(self.geometry_for(f.width, f.height)),
+        }
+    }
+
+    /// The first frame sets the size. A frame of another size is an error that changes nothing
+    /// but a count, until `new_size_frames` in a row have one new size: then an open episode is
+    /// closed (returned) and the background is learned again at the new size.
+    fn admit_size(&mut self, f: &Frame) -> Result<(Geometry, Vec<Msg>), StageError> {
+        let size = (f.width, f.height);
+        let g = match self.geo {
+            Some(g) => g,
+            None => {
+                let g = self.geometry_for(f.width, f.height);
+                self.geo = Some(g);
+                return Ok((g, Vec::new()));
+            }
+        };
+        if (g.width, g.height) == size {
+            self.pending_size = None;
+            return Ok((g, Vec::new()));
+        }
+        let n = match self.pending_size {
+            Some((s, n)) if s == size => n + 1,
+            _ => 1,
+        };
+        self.pending_size = Some((size, n));
+        if n < self.p.new_size_frames {
+            return Err(self.size_error(f, g));
+        }
+        tracing::warn!(
+            "contact: {} frames in a row are {}x{}, the background was {}x{}: learning it again",
+            n,
+            f.width,
+            f.height,
+            g.width,
+            g.height
+        );
+        self.pending_size = None;
+        self.size_changes += 1;
+        let out = self.flush(&f.sensor_id);
+        self.recapture();
+        let g = self.geometry_for(f.width, f.height);
+        self.geo = Some(g);
+        Ok((g, out))
+    }
+
+    /// Measure a frame against the background without changing the detector's state (scratch
+    /// buffers aside). The mask of contact cells is left in the scratch buffer.
+    pub fn measure(&mut self, f: &Frame) -> Result<Measurement, StageError> {
+        let geo = self.geometry_of(f)?;
+        let Some(Model::Ready { bg, markers }) = &self.model else {
+            return Err(StageError::BadInput("background not learned yet".into()));
+        };
+        let k = self.size_scale(geo.width, geo.height);
+        let s = &mut self.s;
+        block_means(f, &geo, &mut s.grid);
+
+        // 1. Frame quality and illumination gain, on a sample of cells.
+        let (mut sat, mut dark, mut sampled) = (0usize, 0usize, 0usize);
+        for r in s.ratios.iter_mut() {
+            r.clear();
+        }
+        for i in (0..geo.cells()).step_by(SAMPLE_STEP) {
+            let (g, b) = (&s.grid[i * 3..i * 3 + 3], &bg.grid[i * 3..i * 3 + 3]);
+            sampled += 1;
+            if g.iter().any(|&v| v >= 250.0) {
+                sat += 1;
+            }
+            if g.iter().all(|&v| v <= 5.0) {
+                dark += 1;
+            }
+            if markers[i] == 0 {
+                for c in 0..3 {
+                    if b[c] > 10.0 && g[c] < 250.0 {
+                        s.ratios[c].push(g[c] / b[c]);
+                    }
+                }
+            }
+        }
+        let share = |n: usize| n as f32 / sampled.max(1) as f32;
+        if share(sat) > self.p.max_bad_pixel_share {
+            return Err(StageError::BadInput(format!(
+                "frame {} is saturated ({:.0} % of the gel at 250 DN or more)",
+                f.seq,
+                100.0 * share(sat)
+            )));
+        }
+        if share(dark) > self.p.max_bad_pixel_share {
+            return Err(StageError::BadInput(format!(
+                "frame {} is dark ({:.0} % of the gel at 5 DN or less)",
+                f.seq,
+                100.0 * share(dark)
+            )));
+        }
+        let mut gain = [1.0f32; 3];
+        for (c, (g, r)) in gain.iter_mut().zip(s.ratios.iter_mut()).enumerate() {
+            if !r.is_empty() {
+                let mid = r.len() / 2;
+                let (_, m, _) = r.select_nth_unstable_by(mid, f32::total_cmp);
+                *g = *m;
+            }
+            if !(GAIN_RANGE.0..=GAIN_RANGE.1).contains(g) {
+                return Err(StageError::BadInput(format!(
+                    "frame {}: illumination gain {g:.2} on channel {c} is implausible",
+                    f.seq
+                )));
+            }
+        }
+
+        // 2. Signed difference per channel; masked marker cells count as unchanged.
+        s.diff.clear();
+        s.diff.resize(geo.cells() * 3, 0.0);
+        let per_cell = s
+            .diff
+            .chunks_exact_mut(3)
+            .zip(s.grid.chunks_exact(3))
+            .zip(bg.grid.chunks_exact(3))
+            .zip(markers);
+        for (((d, g), b), &marker) in per_cell {
+            if marker == 0 {
+                d[0] = g[0] - gain[0] * b[0];
+                d[1] = g[1] - gain[1] * b[1];
+                d[2] = g[2] - gain[2] * b[2];
+            }
+        }
+
+        // 3. The smooth shading out, and the noise of what is left, from this frame.
+        let fit = shading::fit(&s.diff, markers, geo.gw, geo.gh, &mut s.shading);
+        let sigma: f32 = fit.sigma.iter().sum();
+        // A field far below the noise is not worth a pass over the grid.
+        if fit.peak > 0.5 * sigma {
+            fit.remove(&mut s.diff, geo.gw, geo.gh, &s.shading);
+        }
+        // Noisy frames: average the difference over a box of cells, so that the per-channel
+        // noise left is at most SMOOTH_TARGET_DN (presses are larger than the box).
+        let mut r = 0u32;
+        while sigma / 3.0 / (2 * r + 1) as f32 > SMOOTH_TARGET_DN && r < MAX_SMOOTHING {
+            r += 1;
+        }
+        box_mean3(&mut s.diff, geo.gw, geo.gh, r as usize, &mut s.tmp);
+        let thr = (self.p.noise_k * sigma / (2 * r + 1) as f32).max(self.p.min_threshold);
+
+        // 4. Residual and threshold, straight into a packed mask.
+        s.resid.clear();
+        s.resid.resize(geo.cells(), 0.0);
+        s.bits.reset(geo.gw, geo.gh);
+        for (i, ((d, &marker), res)) in s
+            .diff
+            .chunks_exact(3)
+            .zip(markers)
+            .zip(s.resid.iter_mut())
+            .enumerate()
+        {
+            let v = d[0].abs() + d[1].abs() + d[2].abs();
+            *res = v;
+            if v > thr && marker == 0 {
+                s.bits.set(i % geo.gw, i / geo.gw);
+            }
+        }
+
+        // 5. Morphology, then the coherent regions: components over the minimum size and not
+        // much smaller than the largest, so scattered specks never add up to a contact.
+        let st = geo.stride;
+        let cells = |px: u32| {
+            if px == 0 {
+                0
+            } else {
+                ((px as f32 * k / st as f32).round() as u32).max(1)
+            }
+        };
+        if !s.bits.is_empty() {
+            s.bits
+                .open_close(cells(self.p.open_radius_px), cells(self.p.close_radius_px));
+        }
+        s.bits.to_bytes(&mut s.mask);
+        let min_cells = (self.p.min_component_px * k * k / geo.cell_px()).ceil() as usize;
+        keep_components(
+            &mut s.mask,
+            geo.gw,
+            geo.gh,
+            min_cells.max(1),
+            SHARE_OF_LARGEST,
+            &mut s.labels,
+            &mut s.stack,
+        );
+
+        // 4. Geometry in input pixels.
+        let (mut n, mut sx, mut sy, mut sr) = (0u64, 0f64, 0f64, 0f64);
+        let mut bb = [u32::MAX, u32::MAX, 0u32, 0u32];
+        for (i, &m) in s.mask.iter().enumerate() {
+            if m == 0 {
+                continue;
+            }
+            let (gx, gy) = ((i % geo.gw) as u32, (i / geo.gw) as u32);
+            n += 1;
+            sx += f64::from(gx);
+            sy += f64::from(gy);
+            // Closing can add masked marker cells with no residual of their own: count them at
+            // the threshold.
+            sr += f64::from((s.resid[i] / thr).max(1.0));
+            bb = [
+                bb[0].min(gx),
+                bb[1].min(gy),
+                bb[2].max(gx + 1),
+                bb[3].max(gy + 1),
+            ];
+        }
+        let (noise, smoothing, rejected) = (fit.sigma, r, fit.rejected);
+        if n == 0 {
+            return Ok(Measurement {
+                area_px: 0.0,
+                centroid: [0.0; 2],
+                bbox: [0; 4],
+                strength: 0.0,
+                gain,
+                threshold: thr,
+                noise,
+                smoothing,
+                rejected,
+                contact: false,
+            });
+        }
+        let half = (st as f64 - 1.0) / 2.0;
+        let nf = n as f64;
+        let mean_ratio = (sr / nf) as f32;
+        let area_px = n as f32 * geo.cell_px();
+        Ok(Measurement {
+            area_px,
+            centroid: [
+                (sx / nf * f64::from(st) + half) as f32,
+                (sy / nf * f64::from(st) + half) as f32,
+            ],
+            bbox: [
+                bb[0] * st,
+                bb[1] * st,
+                (bb[2] * st).min(geo.width),
+                (bb[3] * st).min(geo.height),
+            ],
+            strength: 1.0 - (-(mean_ratio - 1.0) / 3.0).exp(),
+            gain,
+            threshold: thr,
+            noise,
+            smoothing,
+            rejected,
+            contact: area_px >= self.p.enter_area_px * k * k,
+        })
+    }
+
+    /// One frame in, zero or more events out. Nothing comes out while the background is learned.
+    pub fn step(&mut self, f: &Frame) -> Result<Vec<Msg>, StageError> {
+        let (geo, closed) = self.admit_size(f)?;
+        if !self.is_learned() {
+            let mut learner = match self.model.take() {
+                Some(Model::Learning(l)) => l,
+                _ => Learner::new(geo),
+            };
+            learner.add(f);
+            if learner.frames() >= self.p.learn_frames {
+                let sigma = self.p.default_noise_dn / geo.stride as f32;
+                self.set_background(learner.finish(f.stamp, sigma));
+            } else {
+                self.model = Some(Model::Learning(learner));
+            }
+            return Ok(closed);
+        }
+        let m = self.measure(f)?;
+        let model = &self.model;
+        let k = self.size_scale(geo.width, geo.height);
+        let (raw, mut out) = self
+            .episodes
+            .update(f, m.area_px, k * k, &self.p, &self.spec, || {
+                background_of(model).and_then(|b| b.frame(&f.sensor_id))
+            });
+        if !self.episodes.in_contact() && !raw {
+            self.update_background(f);
+        }
+        let bg_age = self
+            .background()
+            .map_or(0.0, |b| f.stamp.secs_since(b.captured_at));
+        let state = ContactState {
+            header: Header::optical(f.stamp, &f.sensor_id),
+            sensor_id: f.sensor_id.clone(),
+            frame_seq: f.seq,
+            in_contact: self.episodes.in_contact(),
+            area_px: m.area_px,
+            area_mm2: m.area_px * self.spec.mm2_per_px() as f32,
+            centroid_px: m.centroid,
+            bbox_px: m.bbox,
+            strength: m.strength,
+            episode_id: self.episodes.last_episode(),
+            background_age_s: bg_age,
+        };
+        out.insert(0, Msg::Contact(state));
+        if !closed.is_empty() {
+            out.splice(0..0, closed);
+        }
+        Ok(out)
+    }
+
+    /// EMA on the cells outside the current mask (scratch from `measure`), and every 8th idle
+    /// frame on the full-resolution background.
+    fn update_background(&mut self, f: &Frame) {
+        let a = self.p.ema_alpha;
+        if a <= 0.0 {
+            return;
+        }
+        self.idle_frames += 1;
+        let Some(Model::Ready { bg, .. }) = self.model.as_mut() else {
+            return;
+        };
+        for (i, &m) in self.s.mask.iter().enumerate() {
+            if m == 0 {
+                for c in 0..3 {
+                    let (b, g) = (&mut bg.grid[i * 3 + c], self.s.grid[i * 3 + c]);
+                    *b += a * (g - *b);
+                }
+            }
+        }
+        if self.idle_frames % 8 == 0 {
+            let a8 = (a * 8.0).min(0.5);
+            for (b, &v) in bg.full.iter_mut().zip(f.data()) {
+                *b += a8 * (f32::from(v) - *b);
+            }
+        }
+    }
+
+    /// Close an open episode (end of input).
+    pub fn flush(&mut self, sensor_id: &str) -> Vec<Msg> {
+        let model = &self.model;
+        self.episodes.close(sensor_id, &self.p, &self.spec, || {
+            background_of(model).and_then(|b| b.frame(sensor_id))
+        })
+    }
+}
+
+fn background_of(model: &Option<Model>) -> Option<&Background> {
+    match model {
+        Some(Model::Ready { bg, .. }) => Some(bg),
+        _ => None,
+    }
+}
+
+/// Marker dots: background cells much darker than the gel around them, dilated by one cell
+/// (markers move a little with the gel).
+fn marker_cells(bg: &Background) -> Vec<u8> {
+    let g = bg.geo;
+    let lum: Vec<f32> = bg
+        .grid
+        .chunks_exact(3)
+        .map(|p| p[0] + p[1] + p[2])
+        .collect();
+    let mut sorted = lum.clone();
+    let mid = sorted.len() / 2;
+    let median = if sorted.is_empty() {
+        0.0
+    } else {
+        *sorted.select_nth_unstable_by(mid, f32::total_cmp).1
+    };
+    let mut m: Vec<u8> = lum.iter().map(|&l| u8::from(l < 0.7 * median)).collect();
+    // Only small dark spots are markers; a mask covering much of the gel means it is not a marker
+    // gel (or the background is odd): then mask nothing.
+    if m.iter().filter(|&&v| v != 0).count() * 5 > m.len() {
+        return vec![0; g.cells()];
+    }
+    let mut out = m.clone();
+    for y in 0..g.gh {
+        for x in 0..g.gw {
+            if m[y * g.gw + x] == 0 {
+                continue;
+            }
+            for (dx, dy) in [
+                (-1i64, 0i64),
+                (1, 0),
+                (0, -1),
+                (0, 1),
+                (-1, -1),
+                (1, 1),
+                (-1, 1),
+                (1, -1),
+            ] {
+                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                if nx >= 0 && ny >= 0 && (nx as usize) < g.gw && (ny as usize) < g.gh {
+                    out[ny as usize * g.gw + nx as usize] = 1;
+                }
+            }
+        }
+    }
+    m.clear();
+    out
+}

@@ -1,0 +1,361 @@
+//! Smooth shading against deformation, and the noise of the difference, from the frame itself.
+//!
+//! Between the background and a frame the whole gel changes a little and unevenly (LED drift
+//! across the gel, gel stretch, exposure): a low-frequency field of some DN. A press is compact
+//! and strong. The field is fitted per channel as a quartic surface in the image coordinates (15
+//! terms) to the signed difference on a sparse lattice of cells, by iteratively reweighted least
+//! squares with hard rejection: cells far from the current fit (the press, moving markers) are
+//! left out of the next fit, so the press never bends the surface towards itself, and a quartic
+//! cannot follow a compact press anyway. The noise comes from the same frame: a robust sigma per
+//! channel from differences of neighbouring cells (a low quantile), with no assumption about
+//! the sensor.
+//!
+//! Cost: the fitting lattice holds ~600 cells whatever the frame size (an odd step each way,
+//! rows staggered; the noise is measured on ~2,000); the normal matrix (15 x 15) of the whole lattice is built once per frame size and
+//! only the rejected rows are taken out of it per frame; at most three iterations (fewer when the
+//! inliers stop changing). Subtracting the surface is four multiply-adds per channel per cell
+//! (Horner in x, the row's coefficients computed once per row), skipped when the fitted field is
+//! below half the noise.
+
+// Gaussian elimination and the symmetric fill read as index arithmetic on small fixed matrices.
+#![allow(clippy::needless_range_loop)]
+
+/// Terms of the quartic surface.
+const TERMS: usize = 15;
+/// Iterations of fit + rejection.
+const ITERATIONS: usize = 3;
+/// Cells further than this many (summed) sigmas from the fit are left out of the next fit.
+const REJECT_K: f32 = 3.0;
+/// Target size of the fitting lattice (cells).
+const LATTICE_CELLS: usize = 600;
+/// Target size of the lattice the noise is measured on (cells).
+const NOISE_CELLS: usize = 2000;
+/// Smallest per-channel sigma reported [DN] (an exactly repeated frame has none).
+const MIN_SIGMA: f32 = 0.05;
+
+/// Fitted shading and noise of one frame's difference.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ShadingFit {
+    /// Quartic coefficients per channel, in `basis` order.
+    pub coef: [[f32; TERMS]; 3],
+    /// Robust noise sigma per channel of one cell of the difference [DN].
+    pub sigma: [f32; 3],
+    /// Share of the lattice cells left out of the final fit (the press, markers that moved).
+    pub rejected: f32,
+    /// Largest sum over channels of |fitted field| on the lattice [DN].
+    pub peak: f32,
+}
+
+/// Scratch buffers of the fit, reused across frames.
+#[derive(Debug, Default)]
+pub struct ShadingScratch {
+    /// Lattice cell indices and their basis rows.
+    idx: Vec<usize>,
+    /// The denser lattice the noise is measured on.
+    noise_idx: Vec<usize>,
+    rows: Vec<[f32; TERMS]>,
+    inlier: Vec<bool>,
+    abs: [Vec<f32>; 3],
+    /// The geometry the lattice was built for (gw, gh).
+    built: (usize, usize),
+    /// Normal matrix of the whole lattice (upper triangle), built with it.
+    full: [[f64; TERMS]; TERMS],
+    /// u of every cell column.
+    us: Vec<f32>,
+}
+
+/// About `cells` cells spread over the grid: an odd step, and rows staggered, so that the lattice
+/// does not alias with a regular pattern of the gel (marker dots every few cells).
+fn lattice(gw: usize, gh: usize, cells: usize) -> Vec<usize> {
+    let k = ((gw * gh) as f64 / cells as f64).sqrt().floor().max(1.0) as usize | 1;
+    let mut out = Vec::new();
+    for (row, y) in (k / 2..gh).step_by(k).enumerate() {
+        for x in ((row * 3 + k / 2) % k..gw).step_by(k) {
+            out.push(y * gw + x);
+        }
+    }
+    out
+}
+
+/// Normalised coordinates: u across the width in [-1, 1], v with the same scale.
+fn coords(x: usize, y: usize, gw: usize, gh: usize) -> (f32, f32) {
+    let half = gw.max(2) as f32 / 2.0;
+    (
+        (x as f32 + 0.5 - half) / half,
+        (y as f32 + 0.5 - gh as f32 / 2.0) / half,
+    )
+}
+
+fn basis(u: f32, v: f32) -> [f32; TERMS] {
+    [
+        1.0,
+        u,
+        v,
+        u * u,
+        u * v,
+        v * v,
+        u * u * u,
+        u * u * v,
+        u * v * v,
+        v * v * v,
+        u * u * u * u,
+        u * u * u * v,
+        u * u * v * v,
+        u * v * v * v,
+        v * v * v * v,
+    ]
+}
+
+/// `a += w * row row^T` on the upper triangle.
+fn add_outer(a: &mut [[f64; TERMS]; TERMS], row: &[f32; TERMS], w: f64) {
+    for (j, &rj) in row.iter().enumerate() {
+        let rj = w * f64::from(rj);
+        for (k, &rk) in row.iter().enumerate().skip(j) {
+            a[j][k] += rj * f64::from(rk);
+        }
+    }
+}
+
+/// Solve the symmetric positive (semi-)definite system `a x = b` for three right-hand sides by
+/// Gaussian elimination with partial pivoting; near-singular pivots give zero coefficients.
+fn solve(mut a: [[f64; TERMS]; TERMS], mut b: [[f64; 3]; TERMS]) -> [[f32; TERMS]; 3] {
+    for col in 0..TERMS {
+        let piv = (col..TERMS)
+            .max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))
+            .unwrap_or(col);
+        a.swap(col, piv);
+        b.swap(col, piv);
+        let p = a[col][col];
+        if p.abs() < 1e-9 {
+            continue;
+        }
+        for row in col + 1..TERMS {
+            let f = a[row][col] / p;
+            if f == 0.0 {
+                continue;
+            }
+            for k in col..TERMS {
+                a[row][k] -= f * a[col][k];
+            }
+            for c in 0..3 {
+                b[row][c] -= f * b[col][c];
+            }
+        }
+    }
+    let mut x = [[0f64; 3]; TERMS];
+    for row in (0..TERMS).rev() {
+        let p = a[row][row];
+        if p.abs() < 1e-9 {
+            continue;
+        }
+        for c in 0..3 {
+            let mut s = b[row][c];
+            for k in row + 1..TERMS {
+                s -= a[row][k] * x[k][c];
+            }
+            x[row][c] = s / p;
+        }
+    }
+    let mut out = [[0f32; TERMS]; 3];
+    for (t, xr) in x.iter().enumerate() {
+        for c in 0..3 {
+            out[c][t] = xr[c] as f32;
+        }
+    }
+    out
+}
+
+/// Robust sigma of zero-mean Gaussian values from their absolute values: the 30th percentile
+/// of |x| is 0.3853 sigma. A low quantile, so that a press covering much of the gel (its cells
+/// all far out) inflates it little.
+fn robust_sigma(abs: &mut [f32]) -> f32 {
+    if abs.is_empty() {
+        return 0.0;
+    }
+    let k = abs.len() * 3 / 10;
+    *abs.select_nth_unstable_by(k, f32::total_cmp).1 / 0.3853
+}
+
+/// Fit the shading of `diff` (signed difference, RGB interleaved, `gw` x `gh` cells), leaving out
+/// cells where `skip` is non-zero (masked markers).
+pub fn fit(diff: &[f32], skip: &[u8], gw: usize, gh: usize, s: &mut ShadingScratch) -> ShadingFit {
+    if s.built != (gw, gh) {
+        s.idx = lattice(gw, gh, LATTICE_CELLS);
+        s.noise_idx = lattice(gw, gh, NOISE_CELLS);
+        s.rows = s
+            .idx
+            .iter()
+            .map(|&i| {
+                let (u, v) = coords(i % gw, i / gw, gw, gh);
+                basis(u, v)
+            })
+            .collect();
+        s.full = [[0f64; TERMS]; TERMS];
+        for row in &s.rows {
+            add_outer(&mut s.full, row, 1.0);
+        }
+        s.us = (0..gw).map(|x| coords(x, 0, gw, gh).0).collect();
+        s.built = (gw, gh);
+    }
+    s.inlier.clear();
+    s.inlier
+        .extend(s.idx.iter().map(|&i| skip.get(i).is_none_or(|&m| m == 0)));
+    let mut fit = ShadingFit::default();
+    // The noise, from differences of horizontally neighbouring cells at the lattice: shading and
+    // the inside of a press change little from one cell to the next, so even a press covering
+    // half of the gel barely moves a low quantile of them.
+    for v in s.abs.iter_mut() {
+        v.clear();
+    }
+    for &i in &s.noise_idx {
+        let j = i + 1;
+        if j % gw == 0 || j >= gw * gh {
+            continue;
+        }
+        let masked = |k: usize| skip.get(k).is_some_and(|&m| m != 0);
+        if masked(i) || masked(j) {
+            continue;
+        }
+        for c in 0..3 {
+            s.abs[c].push((diff[j * 3 + c] - diff[i * 3 + c]).abs());
+        }
+    }
+    for c in 0..3 {
+        fit.sigma[c] = (robust_sigma(&mut s.abs[c]) / std::f32::consts::SQRT_2).max(MIN_SIGMA);
+    }
+    let limit = REJECT_K * (fit.sigma[0] + fit.sigma[1] + fit.sigma[2]);
+    for it in 0..ITERATIONS {
+        // The normal matrix is the lattice's less the rows left out (few, usually).
+        let mut a = s.full;
+        let mut b = [[0f64; 3]; TERMS];
+        for ((&i, row), &ok) in s.idx.iter().zip(&s.rows).zip(&s.inlier) {
+            if !ok {
+                add_outer(&mut a, row, -1.0);
+                continue;
+            }
+            let d = [
+                f64::from(diff[i * 3]),
+                f64::from(diff[i * 3 + 1]),
+                f64::from(diff[i * 3 + 2]),
+            ];
+            for (bj, &rj) in b.iter_mut().zip(row) {
+                let rj = f64::from(rj);
+                bj[0] += rj * d[0];
+                bj[1] += rj * d[1];
+                bj[2] += rj * d[2];
+            }
+        }
+        for j in 0..TERMS {
+            for k in 0..j {
+                a[j][k] = a[k][j];
+            }
+        }
+        fit.coef = solve(a, b);
+        // Residuals at the lattice, then the new inliers.
+        let mut rejected = 0usize;
+        let mut changed = false;
+        fit.peak = 0.0;
+        for ((&i, row), ok) in s.idx.iter().zip(&s.rows).zip(s.inlier.iter_mut()) {
+            let (mut e, mut field) = (0f32, 0f32);
+            for c in 0..3 {
+                let model: f32 = row.iter().zip(&fit.coef[c]).map(|(r, k)| r * k).sum();
+                e += (diff[i * 3 + c] - model).abs();
+                field += model.abs();
+            }
+            fit.peak = fit.peak.max(field);
+            let masked = skip.get(i).is_some_and(|&m| m != 0);
+            let now = !masked && e < limit;
+            changed |= now != *ok;
+            *ok = now;
+            rejected += usize::from(!now);
+        }
+        fit.rejected = rejected as f32 / s.idx.len().max(1) as f32;
+        // The same inliers would give the same fit again.
+        if !changed || it + 1 == ITERATIONS {
+            break;
+        }
+    }
+    fit
+}
+
+impl ShadingFit {
+    /// Subtract the fitted field from `diff` in place (`s`: the scratch `fit` used).
+    pub fn remove(&self, diff: &mut [f32], gw: usize, gh: usize, s: &ShadingScratch) {
+        let c = &self.coef;
+        for (y, row) in diff.chunks_exact_mut(gw * 3).enumerate().take(gh) {
+            let (_, v) = coords(0, y, gw, gh);
+            // Per channel: p0 + p1 u + p2 u^2 + p3 u^3 + p4 u^4.
+            let mut p = [[0f32; 5]; 3];
+            for ch in 0..3 {
+                let k = &c[ch];
+                p[ch] = [
+                    k[0] + v * (k[2] + v * (k[5] + v * (k[9] + v * k[14]))),
+                    k[1] + v * (k[4] + v * (k[8] + v * k[13])),
+                    k[3] + v * (k[7] + v * k[12]),
+                    k[6] + v * k[11],
+                    k[10],
+                ];
+            }
+            for (cell, &u) in row.chunks_exact_mut(3).zip(&s.us) {
+                for ch in 0..3 {
+                    let q = &p[ch];
+                    cell[ch] -= q[0] + u * (q[1] + u * (q[2] + u * (q[3] + u * q[4])));
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A smooth field plus a compact strong press: the fit follows the field, not the press,
+    /// and the noise estimate is the noise.
+    #[test]
+    fn fit_follows_shading_not_the_press() {
+        let (gw, gh) = (160, 120);
+        let mut seed = 7u64;
+        let mut noise = || {
+            let mut s = 0.0f32;
+            for _ in 0..4 {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                s += (seed >> 40) as f32 / (1u64 << 24) as f32;
+            }
+            (s - 2.0) * 3f32.sqrt()
+        };
+        let mut diff = vec![0f32; gw * gh * 3];
+        let field = |x: usize, y: usize, c: usize| {
+            let (u, v) = (x as f32 / gw as f32, y as f32 / gh as f32);
+            (c as f32 + 1.0) * 4.0 * (-((u - 0.3).powi(2) + (v - 0.6).powi(2)) / 0.18).exp()
+        };
+        for y in 0..gh {
+            for x in 0..gw {
+                let press = (x as f32 - 100.0).hypot(y as f32 - 50.0) < 20.0;
+                for c in 0..3 {
+                    diff[(y * gw + x) * 3 + c] =
+                        field(x, y, c) + 2.0 * noise() + if press { 30.0 } else { 0.0 };
+                }
+            }
+        }
+        let mut s = ShadingScratch::default();
+        let f = fit(&diff, &[], gw, gh, &mut s);
+        for c in 0..3 {
+            assert!((f.sigma[c] - 2.0).abs() < 0.4, "{:?}", f.sigma);
+        }
+        assert!(f.rejected > 0.03 && f.rejected < 0.15, "{}", f.rejected);
+        f.remove(&mut diff, gw, gh, &s);
+        // The field is gone outside the press (within the noise) and the press is still there.
+        let at = |x: usize, y: usize| diff[(y * gw + x) * 3 + 2];
+        let off: Vec<f32> = (0..gh)
+            .step_by(7)
+            .flat_map(|y| (0..60).step_by(7).map(move |x| (x, y)))
+            .map(|(x, y)| at(x, y))
+            .collect();
+        let mean_off = off.iter().sum::<f32>() / off.len() as f32;
+        assert!(mean_off.abs() < 1.0, "{mean_off}");
+        assert!(at(100, 50) > 22.0, "{}", at(100, 50));
+    }
+}

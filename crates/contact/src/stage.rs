@@ -1,0 +1,118 @@
+//! The detector as a runtime [`Stage`]: frames in; ContactState per frame, ContactEpisode (and
+//! EpisodeClip) on release, and the background announced downstream when it is learned.
+//! Saved backgrounds come from an injected [`BackgroundStore`]: the stage does no file I/O.
+
+use crate::detector::ContactDetector;
+use crate::params::{ContactParams, ParamsError};
+use crate::store::{BackgroundStore, DirStore};
+use unitac_core::{Clock, Frame, Msg, SensorSpec, Stage, StageError};
+
+/// The detector as a runtime stage: consumes frames, emits ContactState per frame and
+/// ContactEpisode (plus an EpisodeClip when `clip_frames` > 0) on release.
+#[derive(Debug)]
+pub struct ContactStage {
+    det: ContactDetector,
+    sensor_id: String,
+    /// Whether the current background was announced downstream (Msg::Background).
+    announced: bool,
+    store: Option<Box<dyn BackgroundStore>>,
+    /// Whether the store was asked (once, on the first frame).
+    store_asked: bool,
+    /// Why the saved background was not used (asked once, on the first frame).
+    store_error: Option<String>,
+}
+
+impl ContactStage {
+    /// A stage whose saved backgrounds, if `background_dir` is set, are files in that directory
+    /// ([`DirStore`]).
+    pub fn new(p: ContactParams, spec: SensorSpec) -> Result<Self, ParamsError> {
+        let store = p
+            .background_dir
+            .clone()
+            .map(|d| Box::new(DirStore::new(d)) as Box<dyn BackgroundStore>);
+        Self::with_store(p, spec, store)
+    }
+
+    /// A stage with its own store of saved backgrounds (None: always learn, never save).
+    pub fn with_store(
+        p: ContactParams,
+        spec: SensorSpec,
+        store: Option<Box<dyn BackgroundStore>>,
+    ) -> Result<Self, ParamsError> {
+        Ok(Self {
+            det: ContactDetector::new(p, spec)?,
+            sensor_id: String::new(),
+            announced: false,
+            store,
+            store_asked: false,
+            store_error: None,
+        })
+    }
+    pub fn detector(&self) -> &ContactDetector {
+        &self.det
+    }
+    pub fn detector_mut(&mut self) -> &mut ContactDetector {
+        &mut self.det
+    }
+    /// Why the saved background could not be used, if it could not (the stage learned instead).
+    pub fn store_error(&self) -> Option<&str> {
+        self.store_error.as_deref()
+    }
+
+    /// Ask the store once, on the first frame (which tells the serial and size). Nothing saved
+    /// means "learn"; an unreadable or mismatched background is warned about and the stage
+    /// learns instead.
+    fn load_saved_background(&mut self, f: &Frame) {
+        let Some(store) = self.store.as_mut() else {
+            return;
+        };
+        let stride = self.det.geometry_for(f.width, f.height).stride;
+        match store.load(&f.sensor_id, f.width, f.height, stride) {
+            Ok(Some(bg)) => self.det.set_background(bg),
+            Ok(None) => {}
+            Err(e) => {
+                tracing::warn!("contact: saved background not used, learning instead: {e}");
+                self.store_error = Some(e.to_string());
+            }
+        }
+    }
+}
+
+impl Stage for ContactStage {
+    fn name(&self) -> &str {
+        "contact"
+    }
+    fn process(&mut self, input: &Msg, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
+        match input {
+            Msg::Frame(f) => {
+                if !self.store_asked {
+                    self.store_asked = true;
+                    self.sensor_id.clone_from(&f.sensor_id);
+                    self.load_saved_background(f);
+                }
+                let mut out = self.det.step(f)?;
+                if self.det.is_learned() != self.announced {
+                    self.announced = self.det.is_learned();
+                    if let Some(bg) = self.det.background_frame(&f.sensor_id) {
+                        out.insert(0, Msg::Background(bg));
+                    }
+                }
+                Ok(out)
+            }
+            _ => Ok(Vec::new()),
+        }
+    }
+    /// Closes an open episode and hands the current background to the store.
+    fn finish(&mut self, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
+        let out = self.det.flush(&self.sensor_id);
+        if let (Some(store), Some(bg)) = (self.store.as_mut(), self.det.background()) {
+            store
+                .save(&self.sensor_id, bg)
+                .map_err(|e| StageError::Storage {
+                    what: "saving the background",
+                    source: Box::new(e),
+                })?;
+        }
+        Ok(out)
+    }
+}
