@@ -114,11 +114,16 @@ impl ContactParams {
         if !(self.ema_alpha >= 0.0 && self.ema_alpha < 1.0) {
             return Err(format!("ema_alpha {} is outside [0, 1)", self.ema_alpha));
         }
-        if self.debounce_frames > 1000 {
+        if self.debounce_frames > 1000 || self.exit_debounce_frames > 1000 {
             return Err(format!(
-                "debounce_frames {} is above 1000",
-                self.debounce_frames
+                "debounce_frames {} and exit_debounce_frames {} must be <= 1000",
+                self.debounce_frames, self.exit_debounce_frames
             ));
+        }
+        if let Some(d) = &self.background_dir {
+            if !d.is_dir() {
+                return Err(format!("background_dir {} is not a directory", d.display()));
+            }
         }
         if !(self.max_bad_pixel_share > 0.0 && self.max_bad_pixel_share <= 1.0) {
             return Err("max_bad_pixel_share must be in (0, 1]".into());

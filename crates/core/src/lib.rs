@@ -10,6 +10,7 @@ pub mod msg;
 pub mod scene;
 pub mod sensor;
 pub mod stage;
+pub mod yaml;
 
 pub use clock::{Clock, ManualClock, Stamp, SystemClock};
 pub use frame::{Frame, FrameError};
