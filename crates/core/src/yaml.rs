@@ -12,6 +12,10 @@ use thiserror::Error;
 
 /// Deepest flow nesting (`[` / `{`) accepted; real files use 2 or 3.
 pub const MAX_FLOW_DEPTH: usize = 64;
+/// Most nodes (lines, collection starts, entries) accepted: serde_yaml keeps every parser event
+/// in memory (about 250 bytes each) before deserializing, so 4 MiB of `[[1]], [[1]], ...` cost
+/// 1 GB and 1.1 s. A metadata.yaml of 1 000 topics has about 30 000.
+pub const MAX_NODES: usize = 200_000;
 
 /// Why YAML text was refused before parsing.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
@@ -22,6 +26,8 @@ pub enum YamlBoundError {
         "flow collections ([...] / {{...}}) nested more than {MAX_FLOW_DEPTH} deep at line {line}"
     )]
     TooDeep { line: usize },
+    #[error("more than {MAX_NODES} YAML nodes (at line {line})")]
+    TooManyNodes { line: usize },
 }
 
 /// Refuse `text` if it is longer than `max_bytes` or nests flow collections deeper than
@@ -39,7 +45,9 @@ pub fn check(text: &str, max_bytes: usize) -> Result<(), YamlBoundError> {
     let mut quote: Option<u8> = None;
     // Inside a block scalar (`|` / `>`): lines indented more than this belong to it.
     let mut block_scalar: Option<usize> = None;
+    let mut nodes = 0usize;
     for (n, line) in text.lines().enumerate() {
+        nodes += 1;
         let b = line.as_bytes();
         let indent = b.iter().take_while(|&&c| c == b' ').count();
         if let Some(parent) = block_scalar {
@@ -67,6 +75,15 @@ pub fn check(text: &str, max_bytes: usize) -> Result<(), YamlBoundError> {
                 continue;
             }
             let at_node_start = matches!(prev, b' ' | b'\t' | b'[' | b'{' | b',' | b':' | b'-');
+            let indicator = (matches!(c, b'-' | b'?' | b':')
+                && matches!(b.get(i + 1), None | Some(b' ' | b'\t')))
+                || (c == b',' && depth > 0);
+            if indicator || (matches!(c, b'[' | b'{') && (depth > 0 || at_node_start)) {
+                nodes += 1;
+                if nodes > MAX_NODES {
+                    return Err(YamlBoundError::TooManyNodes { line: n + 1 });
+                }
+            }
             match c {
                 b'#' if matches!(prev, b' ' | b'\t') => break,
                 b'\'' | b'"' if at_node_start => quote = Some(c),
@@ -114,6 +131,22 @@ mod tests {
             check("abc", 2),
             Err(YamlBoundError::TooLarge { len: 3, max: 2 })
         ));
+    }
+
+    #[test]
+    fn node_count_is_bounded() {
+        let wide = format!("a: [{}]\n", vec!["[[1]]"; MAX_NODES / 2].join(", "));
+        assert!(matches!(
+            check(&wide, 4 << 20),
+            Err(YamlBoundError::TooManyNodes { line: 1 })
+        ));
+        let dashes = "- ".repeat(MAX_NODES + 1);
+        assert!(matches!(
+            check(&dashes, 4 << 20),
+            Err(YamlBoundError::TooManyNodes { line: 1 })
+        ));
+        let ok = format!("a: [{}]\n", vec!["[[1]]"; MAX_NODES / 4].join(", "));
+        assert_eq!(check(&ok, 4 << 20), Ok(()));
     }
 
     #[test]
