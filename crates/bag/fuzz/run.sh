@@ -24,5 +24,8 @@ cp -n corpus/cdr/* work/cdr/ && cp -n corpus/metadata/* work/metadata/
 for t in mcap cdr metadata; do
   # A crash or out-of-memory input lands in artifacts/<target>/: copy it to regressions/ and
   # tests/hostile.rs::fuzz_regressions replays it in CI.
-  cargo +nightly fuzz run "$t" "work/$t" -- -max_total_time="$SECONDS_EACH" -rss_limit_mb=1024 -max_len=1048576
+  # -timeout: one input may take 5 s (libFuzzer's default, 1200 s, hid quadratic YAML nesting);
+  # tests/hostile.rs::fuzz_smoke_seeded_corpus uses the same limit.
+  cargo +nightly fuzz run "$t" "work/$t" -- -max_total_time="$SECONDS_EACH" -timeout=5 \
+    -rss_limit_mb=1024 -max_len=1048576 -print_final_stats=1
 done

@@ -7,6 +7,7 @@
 use serde::Deserialize;
 use std::fmt::Write as _;
 use std::path::{Component, Path};
+use thiserror::Error;
 
 /// Largest metadata.yaml read.
 pub const MAX_METADATA_BYTES: usize = 4 << 20;
@@ -62,38 +63,51 @@ pub struct TopicMetadata {
     pub offered_qos_profiles: serde_yaml::Value,
 }
 
-/// Parse metadata.yaml text. Errors are one line, for the user.
-pub fn parse(text: &str) -> Result<BagInfo, String> {
-    if text.len() > MAX_METADATA_BYTES {
-        return Err(format!(
-            "{} bytes, over the limit {MAX_METADATA_BYTES}",
-            text.len()
-        ));
-    }
-    let f: File = serde_yaml::from_str(text).map_err(|e| {
-        e.to_string()
-            .split_whitespace()
-            .collect::<Vec<_>>()
-            .join(" ")
-    })?;
+/// Why a metadata.yaml was refused (one line each).
+#[derive(Debug, Error)]
+pub enum MetadataError {
+    #[error("{0}")]
+    Bounds(#[from] unitac_core::yaml::YamlBoundError),
+    #[error("{}", one_line(&.0.to_string()))]
+    Yaml(#[from] serde_yaml::Error),
+    #[error("{0} topics, over the limit {MAX_TOPICS}")]
+    TooManyTopics(usize),
+    #[error("{0} files, over the limit {MAX_FILES}")]
+    TooManyFiles(usize),
+    #[error("file '{0}' is not a relative path inside the bag directory")]
+    NotRelative(String),
+    #[error("file '{0}' is listed more than once")]
+    Duplicate(String),
+}
+
+fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Parse metadata.yaml text.
+pub fn parse(text: &str) -> Result<BagInfo, MetadataError> {
+    unitac_core::yaml::check(text, MAX_METADATA_BYTES)?;
+    let f: File = serde_yaml::from_str(text)?;
     let info = f.rosbag2_bagfile_information;
     if info.topics_with_message_count.len() > MAX_TOPICS {
-        return Err(format!(
-            "{} topics, over the limit {MAX_TOPICS}",
-            info.topics_with_message_count.len()
+        return Err(MetadataError::TooManyTopics(
+            info.topics_with_message_count.len(),
         ));
     }
     if info.relative_file_paths.len() > MAX_FILES {
-        return Err(format!(
-            "{} files, over the limit {MAX_FILES}",
-            info.relative_file_paths.len()
-        ));
+        return Err(MetadataError::TooManyFiles(info.relative_file_paths.len()));
     }
+    let mut seen = std::collections::BTreeSet::new();
     for p in &info.relative_file_paths {
         if !is_plain_relative(p) {
-            return Err(format!(
-                "file '{p}' is not a relative path inside the bag directory"
-            ));
+            return Err(MetadataError::NotRelative(p.clone()));
+        }
+        let normal: std::path::PathBuf = Path::new(p)
+            .components()
+            .filter(|c| matches!(c, Component::Normal(_)))
+            .collect();
+        if !seen.insert(normal) {
+            return Err(MetadataError::Duplicate(p.clone()));
         }
     }
     Ok(info)
@@ -213,6 +227,7 @@ pub fn render(bag: &WrittenBag) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use unitac_core::yaml::YamlBoundError;
 
     #[test]
     fn written_metadata_parses_back() {
@@ -240,13 +255,23 @@ mod tests {
     #[test]
     fn hostile_metadata_is_rejected() {
         let escape = "rosbag2_bagfile_information:\n  version: 5\n  relative_file_paths: ['../../etc/passwd']\n";
-        assert!(parse(escape).unwrap_err().contains("not a relative path"));
+        assert!(
+            parse(escape)
+                .unwrap_err()
+                .to_string()
+                .contains("not a relative path")
+        );
         let abs =
             "rosbag2_bagfile_information:\n  version: 5\n  relative_file_paths: ['/etc/passwd']\n";
         assert!(parse(abs).is_err());
         assert!(parse("{").is_err());
         assert!(parse("rosbag2_bagfile_information: 3").is_err());
+        let twice = "rosbag2_bagfile_information:\n  version: 9\n  relative_file_paths: [a.mcap, ./a.mcap]\n";
+        assert!(matches!(parse(twice), Err(MetadataError::Duplicate(_))));
         let big = "#".repeat(MAX_METADATA_BYTES + 1);
-        assert!(parse(&big).unwrap_err().contains("over the limit"));
+        assert!(matches!(
+            parse(&big),
+            Err(MetadataError::Bounds(YamlBoundError::TooLarge { .. }))
+        ));
     }
 }

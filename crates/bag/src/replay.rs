@@ -52,7 +52,18 @@ pub struct ImageItem {
     pub log_time: i64,
     /// The CDR payload as recorded (empty unless [`BagSource::keep_raw`] was set).
     pub raw: Vec<u8>,
-    pub frame: Result<Frame, String>,
+    pub frame: Result<Frame, FrameError>,
+}
+
+/// Why an image message gave no frame.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    #[error("{0}")]
+    Cdr(#[from] crate::CdrError),
+    #[error("{0}")]
+    Image(#[from] crate::ImageError),
+    #[error("message of {len} bytes is over the limit {max}: skipped unread")]
+    TooLarge { len: u64, max: usize },
 }
 
 /// A bag replayed as a stream of frames.
@@ -136,9 +147,29 @@ impl BagSource {
     pub fn next_image(&mut self) -> Result<Option<ImageItem>, BagError> {
         loop {
             let st = &mut self.st;
-            let next = self
+            let read = self
                 .reader
-                .next_with(&mut |topic, log_time, data| st.visit(topic, log_time, data))?;
+                .next_with(&mut |topic, log_time, data| st.visit(topic, log_time, data));
+            let next = match read {
+                Ok(n) => n,
+                // Not read at all (sqlite): one error item if it is ours, and reading goes on.
+                Err(BagError::TooLarge {
+                    topic,
+                    log_time,
+                    len,
+                    max,
+                    ..
+                }) => Some(self.st.accept(&topic, log_time).then(|| {
+                    self.st.seq += 1;
+                    ImageItem {
+                        log_time: log_time.saturating_add(self.st.offset),
+                        topic,
+                        raw: Vec::new(),
+                        frame: Err(FrameError::TooLarge { len, max }),
+                    }
+                })),
+                Err(e) => return Err(e),
+            };
             match next {
                 Some(Some(item)) => return Ok(Some(item)),
                 Some(None) => continue,
@@ -167,43 +198,11 @@ impl BagSource {
 impl SourceState {
     /// One message of the bag: an image item, or None if it is not for us.
     fn visit(&mut self, topic: &Arc<TopicInfo>, log_time: i64, data: &[u8]) -> Option<ImageItem> {
-        let ty = topic.type_name.as_str();
-        if !is_known_type(ty) {
-            if self.warned.insert(topic.name.clone()) {
-                tracing::warn!(
-                    "{}: topic {} has type '{}', unknown here: skipped",
-                    self.path.display(),
-                    topic.name,
-                    ty
-                );
-            }
+        if !self.accept(topic, log_time) {
             return None;
         }
-        if ty != IMAGE && ty != COMPRESSED {
-            return None;
-        }
-        match &self.topic {
-            None => self.topic = Some(topic.name.clone()),
-            Some(t) if *t != topic.name => return None,
-            Some(_) => {}
-        }
-        let first = *self.first_log.get_or_insert(log_time);
-        if self.opts.start_s > 0.0
-            && (log_time.saturating_sub(first) as f64) < self.opts.start_s * 1e9
-        {
-            return None;
-        }
-        self.pass_first.get_or_insert(log_time);
-        if self.pass_images > 0 {
-            let gap = log_time - self.pass_last;
-            if gap > 0 {
-                self.last_gap = gap;
-            }
-        }
-        self.pass_last = log_time;
-        self.pass_images += 1;
         // Sequence numbers count the topic's image messages from 0 (gaps: undecodable ones).
-        let frame = self.decode(ty, data, log_time);
+        let frame = self.decode(&topic.type_name, data, log_time);
         self.seq += 1;
         Some(ImageItem {
             topic: Arc::clone(topic),
@@ -215,6 +214,47 @@ impl SourceState {
             },
             frame,
         })
+    }
+
+    /// Whether a message is an image of the replayed topic (after `start_s`); counts it in the
+    /// pass if so.
+    fn accept(&mut self, topic: &Arc<TopicInfo>, log_time: i64) -> bool {
+        let ty = topic.type_name.as_str();
+        if !is_known_type(ty) {
+            if self.warned.insert(topic.name.clone()) {
+                tracing::warn!(
+                    "{}: topic {} has type '{}', unknown here: skipped",
+                    self.path.display(),
+                    topic.name,
+                    ty
+                );
+            }
+            return false;
+        }
+        if ty != IMAGE && ty != COMPRESSED {
+            return false;
+        }
+        match &self.topic {
+            None => self.topic = Some(topic.name.clone()),
+            Some(t) if *t != topic.name => return false,
+            Some(_) => {}
+        }
+        let first = *self.first_log.get_or_insert(log_time);
+        if self.opts.start_s > 0.0
+            && (log_time.saturating_sub(first) as f64) < self.opts.start_s * 1e9
+        {
+            return false;
+        }
+        self.pass_first.get_or_insert(log_time);
+        if self.pass_images > 0 {
+            let gap = log_time - self.pass_last;
+            if gap > 0 {
+                self.last_gap = gap;
+            }
+        }
+        self.pass_last = log_time;
+        self.pass_images += 1;
+        true
     }
 
     fn sensor_id(&self, frame_id: &str) -> String {
@@ -229,15 +269,13 @@ impl SourceState {
         }
     }
 
-    fn decode(&self, ty: &str, data: &[u8], log_time: i64) -> Result<Frame, String> {
+    fn decode(&self, ty: &str, data: &[u8], log_time: i64) -> Result<Frame, FrameError> {
         let mut f = if ty == IMAGE {
-            let img = ImageView::from_cdr(data).map_err(|e| e.to_string())?;
-            image_to_frame(&img, &self.sensor_id(&img.header.frame_id), self.seq)
-                .map_err(|e| e.to_string())?
+            let img = ImageView::from_cdr(data)?;
+            image_to_frame(&img, &self.sensor_id(&img.header.frame_id), self.seq)?
         } else {
-            let img = CompressedImageView::from_cdr(data).map_err(|e| e.to_string())?;
-            compressed_to_frame(&img, &self.sensor_id(&img.header.frame_id), self.seq)
-                .map_err(|e| e.to_string())?
+            let img = CompressedImageView::from_cdr(data)?;
+            compressed_to_frame(&img, &self.sensor_id(&img.header.frame_id), self.seq)?
         };
         if f.stamp == Stamp::ZERO {
             f.stamp = Stamp(log_time);
@@ -408,7 +446,10 @@ pub fn replay(
         });
         report.images += 1;
         if let Some(o) = out.as_deref_mut() {
-            o.write_input(&item.topic, item.log_time, &item.raw)?;
+            // A message skipped unread has no bytes to copy.
+            if !matches!(item.frame, Err(FrameError::TooLarge { .. })) {
+                o.write_input(&item.topic, item.log_time, &item.raw)?;
+            }
         }
         let result = match item.frame {
             Ok(frame) => {
@@ -428,7 +469,7 @@ pub fn replay(
                 stamp: item.log_time,
                 topic: Arc::clone(&item.topic),
                 events: Vec::new(),
-                error: Some(e),
+                error: Some(e.to_string()),
             },
         };
         if result.error.is_some() {

@@ -99,6 +99,15 @@ impl std::fmt::Debug for BagWriter {
     }
 }
 
+/// The cause of an MCAP writer error: its `Io` variant displays only "I/O error from writing,
+/// or reading a compression stream", which hides a full disk.
+fn mcap_cause(e: mcap::McapError) -> String {
+    match e {
+        mcap::McapError::Io(io) => io.to_string(),
+        other => other.to_string(),
+    }
+}
+
 impl BagWriter {
     /// Create a new bag. `path` ending in `.mcap` is a bare file; anything else is a rosbag2
     /// directory `<path>/` with `<name>_0.mcap` and metadata.yaml. Existing bags are not
@@ -144,7 +153,7 @@ impl BagWriter {
             .create(BufWriter::new(file))
             .map_err(|e| BagError::Write {
                 path: file_path.clone(),
-                msg: e.to_string(),
+                msg: mcap_cause(e),
             })?;
         let w = Self {
             dir,
@@ -204,7 +213,7 @@ impl BagWriter {
                 let id = self
                     .mcap()?
                     .add_schema(type_name, "ros2msg", schema.as_bytes())
-                    .map_err(|e| self.werr(e))?;
+                    .map_err(|e| self.werr(mcap_cause(e)))?;
                 self.schemas.insert(type_name.to_string(), id);
                 id
             }
@@ -218,7 +227,7 @@ impl BagWriter {
         let channel = self
             .mcap()?
             .add_channel(schema_id, name, "cdr", &meta)
-            .map_err(|e| self.werr(e))?;
+            .map_err(|e| self.werr(mcap_cause(e)))?;
         self.topics.push(Topic {
             channel,
             name: name.to_string(),
@@ -258,12 +267,11 @@ impl BagWriter {
             .write_to_known_channel(&header, data)
             .map_err(|e| BagError::Write {
                 path,
-                msg: e.to_string(),
+                msg: mcap_cause(e),
             })?;
         self.pending += data.len() as u64 + 32;
         if self.pending >= chunk_size {
-            self.pending = 0;
-            self.mcap()?.flush().map_err(|e| self.werr(e))?;
+            self.flush()?;
         }
         Ok(())
     }
@@ -278,10 +286,13 @@ impl BagWriter {
         self.write_raw(topic, log_time, &msg.to_cdr())
     }
 
-    /// Close the last chunk and flush it to the file (the bag stays open).
+    /// Close the last chunk and flush it to the file (the bag stays open), then rewrite
+    /// metadata.yaml with the messages on disk: a recorder killed after this leaves metadata
+    /// that counts what `unitac bag repair` will recover.
     pub fn flush(&mut self) -> Result<(), BagError> {
         self.pending = 0;
-        self.mcap()?.flush().map_err(|e| self.werr(e))
+        self.mcap()?.flush().map_err(|e| self.werr(mcap_cause(e)))?;
+        self.write_metadata()
     }
 
     fn write_metadata(&self) -> Result<(), BagError> {
@@ -330,7 +341,7 @@ impl BagWriter {
     /// Write the summary and footer, and the final metadata.yaml. Returns the bag path.
     pub fn finish(mut self) -> Result<PathBuf, BagError> {
         if let Some(mut w) = self.writer.take() {
-            w.finish().map_err(|e| self.werr(e))?;
+            w.finish().map_err(|e| self.werr(mcap_cause(e)))?;
             let mut inner = w.into_inner();
             inner.flush().map_err(|e| self.werr(e))?;
         }

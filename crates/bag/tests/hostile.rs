@@ -203,7 +203,13 @@ impl Rng {
 fn mutate(rng: &mut Rng, seed: &[u8]) -> Vec<u8> {
     let mut v = seed.to_vec();
     for _ in 0..1 + rng.below(8) {
-        match rng.below(6) {
+        match rng.below(7) {
+            6 => {
+                // Deep nesting (YAML flow collections): quadratic in libyaml without the bound.
+                let i = rng.below(v.len() + 1);
+                let n = 1 + rng.below(100_000);
+                v.splice(i..i, std::iter::repeat_n(b'[', n));
+            }
             0 if !v.is_empty() => {
                 let i = rng.below(v.len());
                 v[i] ^= 1 << rng.below(8);
@@ -240,6 +246,9 @@ fn mutate(rng: &mut Rng, seed: &[u8]) -> Vec<u8> {
     v
 }
 
+/// Seconds one input may take in the smoke (crates/bag/fuzz/run.sh uses the same -timeout).
+const SMOKE_TIMEOUT_S: u64 = 5;
+
 #[test]
 fn fuzz_smoke_seeded_corpus() {
     let dir = tmpdir("fuzzsmoke");
@@ -266,10 +275,30 @@ fn fuzz_smoke_seeded_corpus() {
         b"rosbag2_bagfile_information:\n  version: 5\n  storage_identifier: sqlite3\n  relative_file_paths: [a_0.db3]\n".to_vec(),
     ];
     let mut rng = Rng(0x5eed_u64);
+    // Per-input time limit, as run.sh gives libFuzzer (-timeout): a hang guard, not a benchmark.
+    // An input over it is written out so it can be replayed.
+    let limit = std::time::Duration::from_secs(SMOKE_TIMEOUT_S);
+    let timed = |target: &str, f: fn(&[u8]), input: Vec<u8>| {
+        let t0 = std::time::Instant::now();
+        f(&input);
+        let took = t0.elapsed();
+        if took > limit {
+            let p = std::env::temp_dir().join(format!("unitac-fuzz-slow-{target}"));
+            std::fs::write(&p, &input).unwrap();
+            panic!(
+                "{target}: one input took {took:?} (> {limit:?}); saved to {}",
+                p.display()
+            );
+        }
+    };
     for i in 0..3000 {
-        fuzzing::mcap(&mutate(&mut rng, &mcaps[i % 3]));
-        fuzzing::cdr(&mutate(&mut rng, &cdrs[i % cdrs.len()]));
-        fuzzing::metadata(&mutate(&mut rng, &meta[i % 2]));
+        timed("mcap", fuzzing::mcap, mutate(&mut rng, &mcaps[i % 3]));
+        timed("cdr", fuzzing::cdr, mutate(&mut rng, &cdrs[i % cdrs.len()]));
+        timed(
+            "metadata",
+            fuzzing::metadata,
+            mutate(&mut rng, &meta[i % 2]),
+        );
     }
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -332,4 +361,97 @@ fn fuzz_regressions_child() {
         n += 1;
     }
     assert!(n >= 1);
+}
+
+/// Issue 16 item 5: an oversized sqlite message is not read (its length is checked in the
+/// query), it is one error item, and the replay goes on to the next message.
+#[test]
+fn oversized_sqlite_message_is_skipped_unread() {
+    use unitac_bag::read::MAX_RECORD_BYTES;
+    use unitac_bag::replay::FrameError;
+    let dir = tmpdir("bigrow");
+    let db = dir.join("big.db3");
+    {
+        let c = rusqlite::Connection::open(&db).unwrap();
+        c.execute_batch(
+            "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, \
+             serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, \
+             timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+             INSERT INTO topics VALUES (1, '/img', 'sensor_msgs/msg/Image', 'cdr', '');",
+        )
+        .unwrap();
+        for i in 1..=3i64 {
+            let img = Image {
+                header: Header::new(Stamp(i), "x"),
+                height: 4,
+                width: 8,
+                encoding: "mono8".into(),
+                is_bigendian: 0,
+                step: 8,
+                data: vec![i as u8; 32],
+            };
+            if i == 2 {
+                c.execute(
+                    "INSERT INTO messages VALUES (?1, 1, ?1, zeroblob(?2))",
+                    rusqlite::params![i, MAX_RECORD_BYTES as i64 + 1],
+                )
+                .unwrap();
+            } else {
+                c.execute(
+                    "INSERT INTO messages VALUES (?1, 1, ?1, ?2)",
+                    rusqlite::params![i, img.to_cdr()],
+                )
+                .unwrap();
+            }
+        }
+    }
+    let before = vm_hwm_kib();
+    let mut src = unitac_bag::BagSource::open(&db, unitac_bag::ReplayOptions::default()).unwrap();
+    let mut got = Vec::new();
+    while let Some(item) = src.next_image().unwrap() {
+        got.push(item.frame.map(|f| f.stamp.0));
+    }
+    let grew_mib = vm_hwm_kib().saturating_sub(before) / 1024;
+    assert_eq!(got.len(), 3, "{got:?}");
+    assert_eq!(got[0].as_ref().unwrap(), &1);
+    assert!(
+        matches!(&got[1], Err(FrameError::TooLarge { len, .. }) if *len == MAX_RECORD_BYTES as u64 + 1),
+        "{:?}",
+        got[1]
+    );
+    assert_eq!(got[2].as_ref().unwrap(), &3);
+    assert!(grew_mib < 64, "peak memory grew by {grew_mib} MiB");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 16 item 2: a metadata.yaml nested 100 000 deep inside offered_qos_profiles (200 KB)
+/// took 30 s to refuse; the depth bound refuses it before parsing.
+#[test]
+fn deeply_nested_metadata_is_refused_before_parsing() {
+    let dir = tmpdir("deepmeta");
+    let bag = dir.join("deep");
+    small_bag(&dir.join("deep.mcap"), 2, Compression::None);
+    std::fs::create_dir_all(&bag).unwrap();
+    std::fs::rename(dir.join("deep.mcap"), bag.join("deep_0.mcap")).unwrap();
+    std::fs::write(
+        bag.join("metadata.yaml"),
+        format!(
+            "rosbag2_bagfile_information:\n  version: 9\n  relative_file_paths: [deep_0.mcap]\n  \
+             topics_with_message_count:\n    - topic_metadata: {{name: /img, type: sensor_msgs/msg/Image, \
+             offered_qos_profiles: {}{}}}\n",
+            "[".repeat(100_000),
+            "]".repeat(100_000)
+        ),
+    )
+    .unwrap();
+    let t0 = std::time::Instant::now();
+    let e = BagReader::open(&bag, ReadOptions::default()).unwrap_err();
+    assert!(
+        e.to_string().contains("nested more than 64 deep at line 5"),
+        "{e}"
+    );
+    // A hang guard, not a benchmark: 30 s before the bound.
+    assert!(t0.elapsed().as_secs() < 5, "{:?}", t0.elapsed());
+    std::fs::remove_dir_all(&dir).ok();
 }

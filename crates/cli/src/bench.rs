@@ -267,7 +267,7 @@ fn rust_pass(bag: &std::path::Path, detect: bool) -> anyhow::Result<(usize, f64)
     let mut det: Option<ContactDetector> = None;
     let mut n = 0;
     while let Some(item) = src.next_image()? {
-        let f = item.frame.map_err(anyhow::Error::msg)?;
+        let f = item.frame?;
         if detect {
             let d = match &mut det {
                 Some(d) => d,

@@ -1,7 +1,9 @@
 //! `unitac`: the command line of the UniTac robot stack (embedded runtime, no ROS).
 //!
-//! Exit codes: 0 success; 1 the run failed (e.g. the source died); 2 bad usage or configuration
-//! (unknown scene, unknown stage, missing model, bad value), reported as one line on stderr.
+//! Exit codes (the table in crates/cli/README.md): 0 success; 1 the run failed or produced
+//! errors (the source died, a bag is corrupt past its start, images failed, stdout closed or
+//! full); 2 bad usage or configuration (unknown scene, unknown stage, missing model, bad value,
+//! a file or bag that cannot be opened). The reason is one line on stderr.
 
 mod bench;
 mod dataset;
@@ -126,6 +128,12 @@ enum Cmd {
         #[arg(long, conflicts_with = "json")]
         events: bool,
     },
+    /// Bag tools: `bag repair IN OUT` rewrites a cut recording (recorder killed, disk full) into
+    /// a bag that ros2 bag, rosbags and Foxglove open, with every message that can be recovered.
+    Bag {
+        #[command(subcommand)]
+        cmd: BagCmd,
+    },
     /// Measure quality against ground truth (mock sensor): `eval contact`.
     Eval {
         what: EvalTarget,
@@ -190,6 +198,17 @@ enum Cmd {
     },
 }
 
+#[derive(Subcommand, Debug)]
+enum BagCmd {
+    /// Copy every readable message of IN into a new bag OUT (IN is not modified). Exit 1 if a
+    /// corrupt record stopped the copy early (what came before it is in OUT).
+    Repair {
+        input: PathBuf,
+        /// New bag: a directory, or a bare file if it ends in .mcap. Never overwritten.
+        output: PathBuf,
+    },
+}
+
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum EvalTarget {
     Contact,
@@ -226,6 +245,15 @@ impl std::fmt::Display for ConfigError {
 }
 impl std::error::Error for ConfigError {}
 
+/// Write to stdout and flush: a closed pipe (`| head`) or a full disk is an error (exit 1, one
+/// line), never a panic as `print!` would give.
+fn emit(text: impl std::fmt::Display) -> anyhow::Result<()> {
+    let mut o = std::io::stdout().lock();
+    write!(o, "{text}")
+        .and_then(|()| o.flush())
+        .context("writing to stdout")
+}
+
 fn scene_dirs(extra: Option<PathBuf>) -> Vec<PathBuf> {
     unitac_pipeline::scene_dirs(extra)
 }
@@ -244,9 +272,15 @@ fn cmd_run(
 ) -> anyhow::Result<bool> {
     let cfg = |e: unitac_core::SceneError| anyhow::Error::new(ConfigError(e.to_string()));
     let scene = unitac_pipeline::load_scene(scene, scene_dir).map_err(cfg)?;
+    if scene.stages.is_empty() {
+        return Err(anyhow::Error::new(ConfigError(format!(
+            "{}: stages: the list is empty; a scene runs at least one stage",
+            scene.path.display()
+        ))));
+    }
     if print_params {
         for line in unitac_pipeline::effective_params(&scene).map_err(cfg)? {
-            println!("{line}");
+            emit(format_args!("{line}\n"))?;
         }
         return Ok(true);
     }
@@ -306,7 +340,19 @@ fn cmd_run(
     } else {
         write!(out, "{}", report.text())?;
     }
-    Ok(!report.ended.starts_with("source_failed"))
+    // The summary goes to stdout; the reason a run failed also goes to stderr, one line.
+    if let Some(reason) = report.ended.strip_prefix("source_failed: ") {
+        eprintln!("unitac: {}: {reason}", report.source);
+        return Ok(false);
+    }
+    if report.frames == 0 {
+        eprintln!(
+            "unitac: {} gave no frame ({}): nothing was run",
+            report.source, report.ended
+        );
+        return Ok(false);
+    }
+    Ok(true)
 }
 
 fn cmd_contact(
@@ -316,7 +362,7 @@ fn cmd_contact(
     json: bool,
 ) -> anyhow::Result<bool> {
     use unitac_contact::{ContactDetector, ContactParams};
-    let bg = images::read_frame(background, sensor.as_str(), 0)
+    let bg = images::read_frame(background, sensor.as_str(), 0, None)
         .map_err(|e| anyhow::Error::new(ConfigError(format!("background {e:#}"))))?;
     let mut det = ContactDetector::new(ContactParams::default(), sensor.spec())
         .map_err(|e| anyhow::Error::new(ConfigError(e.to_string())))?;
@@ -327,12 +373,13 @@ fn cmd_contact(
         m.noise
             .map(|s| (s * stride / std::f32::consts::SQRT_2 * 100.0).round() / 100.0)
     };
+    let size = (bg.width, bg.height);
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let mut all_ok = true;
     for (i, path) in frames.iter().enumerate() {
         let file = path.display().to_string();
-        let result = images::read_frame(path, sensor.as_str(), i as u64 + 1)
+        let result = images::read_frame(path, sensor.as_str(), i as u64 + 1, Some(size))
             .and_then(|f| det.measure(&f).map_err(|e| anyhow::anyhow!("{file}: {e}")));
         let line = match result {
             Ok(m) => {
@@ -384,11 +431,11 @@ fn report_sim(json: bool, out: &std::path::Path) -> anyhow::Result<bool> {
     if json {
         let mut v = serde_json::to_value(&r)?;
         v["plots"] = serde_json::json!(files);
-        println!("{v}");
+        emit(format_args!("{v}\n"))?;
     } else {
-        print!("{}", r.text());
+        emit(r.text())?;
         for f in &files {
-            println!("wrote {}", f.display());
+            emit(format_args!("wrote {}\n", f.display()))?;
         }
     }
     Ok(true)
@@ -468,15 +515,18 @@ fn main() -> ExitCode {
             scene,
             events,
         }),
+        Cmd::Bag {
+            cmd: BagCmd::Repair { input, output },
+        } => replay::cmd_repair(&input, &output),
         Cmd::Eval {
             what: EvalTarget::Contact,
             json,
             idle_minutes,
         } => eval::eval_contact(idle_minutes.clamp(0.0, 600.0) * 60.0).and_then(|r| {
             if json {
-                println!("{}", serde_json::to_string(&r)?);
+                emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
             } else {
-                print!("{}", r.text());
+                emit(r.text())?;
             }
             Ok(true)
         }),
@@ -494,9 +544,9 @@ fn main() -> ExitCode {
                 ReportTarget::Sampler => {
                     sampler::report(&out, repeat.clamp(1, 1000)).and_then(|r| {
                         if json {
-                            println!("{}", serde_json::to_string(&r)?);
+                            emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
                         } else {
-                            print!("{}", r.text());
+                            emit(r.text())?;
                         }
                         Ok(true)
                     })
@@ -528,13 +578,13 @@ fn main() -> ExitCode {
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
             };
             spinner.finish_and_clear();
-            text.map(|(j, t)| {
+            text.and_then(|(j, t)| {
                 if json {
-                    println!("{j}");
+                    emit(format_args!("{j}\n"))?;
                 } else {
-                    print!("{t}");
+                    emit(t)?;
                 }
-                true
+                Ok(true)
             })
         }
         Cmd::Dataset {
@@ -551,12 +601,11 @@ fn main() -> ExitCode {
             let r = devices::devices(&root);
             if json {
                 serde_json::to_string(&r)
-                    .map(|j| println!("{j}"))
-                    .map(|()| true)
                     .map_err(anyhow::Error::from)
+                    .and_then(|j| emit(format_args!("{j}\n")))
+                    .map(|()| true)
             } else {
-                print!("{}", r.text());
-                Ok(true)
+                emit(r.text()).map(|()| true)
             }
         }
         Cmd::Gripper(args) => gripper::run(args),
@@ -567,10 +616,7 @@ fn main() -> ExitCode {
                 .collect();
             names.sort();
             names.dedup();
-            for n in names {
-                println!("{n}");
-            }
-            Ok(true)
+            emit(names.iter().map(|n| format!("{n}\n")).collect::<String>()).map(|()| true)
         }
     };
     match result {

@@ -1,6 +1,6 @@
 //! `unitac replay`: a bag through the contact stage (or a scene's stages), one JSON line per
-//! image message (or per event).
-//! The logic is unitac_bag::replay; this file parses flags and formats lines.
+//! image message (or per event), and `unitac bag repair`. The logic is
+//! unitac_bag::{replay, repair}; this file parses flags and formats lines.
 
 use crate::ConfigError;
 use anyhow::Context;
@@ -54,11 +54,20 @@ pub fn line(r: &ImageResult) -> serde_json::Value {
     v
 }
 
+/// Episodes listed in the text summary; the rest are counted (`--loop` runs forever).
+const MAX_LISTED_EPISODES: usize = 100;
+/// Image errors printed on stderr one per line; the rest are counted.
+const MAX_ERROR_LINES: u64 = 20;
+
+/// The bag rule: a bag that cannot be opened (missing, not a bag, bad metadata.yaml, a listed
+/// file missing, unsupported) is exit 2 like any bad argument; what goes wrong while reading is
+/// exit 1. Either way the reason is one line on stderr.
 fn open_error(path: &Path, e: BagError) -> anyhow::Error {
     match e {
         BagError::Io { .. }
         | BagError::NotABag(_)
         | BagError::Metadata { .. }
+        | BagError::MissingFile(_)
         | BagError::Unsupported { .. } => config(e.to_string()),
         other => anyhow::Error::new(other).context(format!("reading {}", path.display())),
     }
@@ -110,7 +119,10 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
     let mut w = stdout.lock();
     let mut write_err = None;
     let mut episodes = Vec::new();
+    let mut episode_count = 0u64;
     let mut flushed = Vec::new();
+    let mut error_lines = 0u64;
+    let mut first_error = None;
     let report = replay(
         &mut source,
         &mut chain,
@@ -133,10 +145,21 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
                     stop.store(true, Ordering::SeqCst);
                 }
             }
-            episodes.extend(r.events.iter().filter_map(|m| match m {
-                Msg::Episode(e) => Some(e.clone()),
-                _ => None,
-            }));
+            if let Some(e) = &r.error {
+                first_error.get_or_insert_with(|| e.clone());
+                error_lines += 1;
+                if error_lines <= MAX_ERROR_LINES {
+                    eprintln!("unitac: error: {} at {} ns: {e}", r.topic.name, r.stamp);
+                }
+            }
+            for m in &r.events {
+                if let Msg::Episode(e) = m {
+                    episode_count += 1;
+                    if episodes.len() < MAX_LISTED_EPISODES {
+                        episodes.push(e.clone());
+                    }
+                }
+            }
         },
         |m| flushed.push(m.clone()),
     )
@@ -146,7 +169,10 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
             write_err = writeln!(w, "{}", m.to_json()).err();
         }
         if let Msg::Episode(e) = m {
-            episodes.push(e.clone());
+            episode_count += 1;
+            if episodes.len() < MAX_LISTED_EPISODES {
+                episodes.push(e.clone());
+            }
         }
     }
     if let Some(e) = write_err {
@@ -176,6 +202,13 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
                 e.peak_area_px
             )?;
         }
+        if episode_count > episodes.len() as u64 {
+            writeln!(
+                w,
+                "  ... and {} more episodes",
+                episode_count - episodes.len() as u64
+            )?;
+        }
         for (k, n) in &report.events {
             writeln!(w, "  {k}: {n}")?;
         }
@@ -198,6 +231,69 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
                 .unwrap_or_default(),
             a.bag.display()
         );
+        return Ok(false);
+    }
+    if report.errors > 0 {
+        if error_lines > MAX_ERROR_LINES {
+            eprintln!(
+                "unitac: ... {} more image errors",
+                error_lines - MAX_ERROR_LINES
+            );
+        }
+        eprintln!(
+            "unitac: {} of {} image messages failed{}",
+            report.errors,
+            report.images,
+            first_error
+                .map(|e| format!(" (first: {e})"))
+                .unwrap_or_default()
+        );
+        return Ok(false);
+    }
+    Ok(true)
+}
+
+/// `unitac bag repair IN OUT`.
+pub fn cmd_repair(input: &Path, output: &Path) -> anyhow::Result<bool> {
+    if output.exists() {
+        return Err(config(format!(
+            "{}: already exists; not overwriting a bag",
+            output.display()
+        )));
+    }
+    let r = unitac_bag::repair(input, output).map_err(|e| match e {
+        BagError::Write { .. } => anyhow::Error::new(e),
+        other => open_error(input, other),
+    })?;
+    let mut w = std::io::stdout().lock();
+    writeln!(
+        w,
+        "repaired {} -> {}: {} messages",
+        input.display(),
+        r.output.display(),
+        r.messages()
+    )?;
+    for (t, n) in &r.topics {
+        writeln!(w, "  {t}: {n}")?;
+    }
+    for f in &r.truncated {
+        writeln!(
+            w,
+            "  {} was cut short: copied up to its last complete record",
+            f.display()
+        )?;
+    }
+    for t in &r.skipped_topics {
+        eprintln!("unitac: warning: {t}: no schema in the bag or here; topic left out");
+    }
+    if r.skipped_messages > 0 {
+        eprintln!(
+            "unitac: warning: {} messages over the size limit left out",
+            r.skipped_messages
+        );
+    }
+    if let Some(e) = &r.stopped_by {
+        eprintln!("unitac: {e}: stopped there; everything before it is in the repaired bag");
         return Ok(false);
     }
     Ok(true)

@@ -160,7 +160,11 @@ fn missing_model_and_bad_values_are_exit_2() {
         &unitac(&["run", "--scene", p.to_str().unwrap()]),
         "unknown field `strid`",
     );
-    std::fs::write(&p, "scene: m\nsource: {kind: mock, scenario: juggling}\n").unwrap();
+    std::fs::write(
+        &p,
+        "scene: m\nsource: {kind: mock, scenario: juggling}\nstages: [{kind: contact}]\n",
+    )
+    .unwrap();
     assert_config_error(
         &unitac(&["run", "--scene", p.to_str().unwrap()]),
         "unknown mock scenario 'juggling'",

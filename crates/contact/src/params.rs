@@ -97,6 +97,8 @@ pub enum ParamsError {
     },
     #[error("need 0 <= exit_area_px <= enter_area_px, got exit {exit} and enter {enter}")]
     AreaBand { enter: f32, exit: f32 },
+    #[error("background_dir {} is not a directory", .0.display())]
+    NotADirectory(std::path::PathBuf),
 }
 
 fn out_of_range(name: &'static str, value: impl ToString, range: &'static str) -> ParamsError {
@@ -173,6 +175,18 @@ impl ContactParams {
                 self.debounce_frames,
                 "0..=1000",
             ));
+        }
+        if self.exit_debounce_frames > 1000 {
+            return Err(out_of_range(
+                "exit_debounce_frames",
+                self.exit_debounce_frames,
+                "0..=1000",
+            ));
+        }
+        if let Some(d) = &self.background_dir {
+            if !d.is_dir() {
+                return Err(ParamsError::NotADirectory(d.clone()));
+            }
         }
         if !(self.max_bad_pixel_share > 0.0 && self.max_bad_pixel_share <= 1.0) {
             return Err(out_of_range(

@@ -15,6 +15,7 @@ pub mod scene;
 pub mod sensor;
 pub mod stage;
 pub mod timing;
+pub mod yaml;
 
 pub use chain::{Chain, StageRunner};
 pub use clock::{Clock, ManualClock, Stamp, SystemClock};

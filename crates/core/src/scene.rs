@@ -12,6 +12,8 @@ use thiserror::Error;
 
 /// Largest scene file accepted (it is configuration, not data).
 pub const MAX_SCENE_BYTES: u64 = 1 << 20;
+/// Slowest source frame rate accepted [Hz]: below it a run of any sensible length sees no frame.
+pub const MIN_FPS: f64 = 1.0;
 
 #[derive(Debug, Error)]
 pub enum SceneError {
@@ -54,6 +56,20 @@ pub enum SceneError {
         msg: String,
     },
 }
+
+/// A model path that names an unknown `${VAR}` or leaves one open.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum ExpandError {
+    #[error("unclosed ${{ in '{0}'")]
+    Unclosed(String),
+    #[error("unknown variable ${{{name}}} in '{path}'")]
+    UnknownVar { name: String, path: String },
+}
+
+/// A `--sensor` value that is none of the known forms.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("'{0}' is not one of: mock, v4l, v4l:<serial>, bag:<path>")]
+pub struct SensorArgError(String);
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -167,6 +183,9 @@ pub struct SceneContext {
     pub known_stages: Vec<String>,
     /// `${NAME}` prefixes allowed in model paths (e.g. `UNITAC_MODELS` -> the model directory).
     pub vars: BTreeMap<String, PathBuf>,
+    /// Stage kind -> the kind whose output it consumes, which must come earlier in the list
+    /// (e.g. `encoder` -> `contact`: an encoder before the contact stage never sees a clip).
+    pub needs: BTreeMap<String, String>,
 }
 
 /// Find `name` (a path, or a scene name looked up as `<dir>/<name>.yaml`).
@@ -239,6 +258,10 @@ impl Scene {
     /// Parse and check scene text; `path` names the file in errors and anchors relative model paths.
     pub fn parse(text: &str, path: &Path, ctx: &SceneContext) -> Result<Scene, SceneError> {
         let p = || path.to_path_buf();
+        crate::yaml::check(text, MAX_SCENE_BYTES as usize).map_err(|e| SceneError::Parse {
+            path: p(),
+            msg: e.to_string(),
+        })?;
         let file: SceneFile = serde_yaml::from_str(text).map_err(|e| SceneError::Parse {
             path: p(),
             msg: one_line(&e.to_string()),
@@ -261,8 +284,11 @@ impl Scene {
             ));
         }
         if let Some(fps) = file.source.fps {
-            if !(fps.is_finite() && fps > 0.0 && fps <= 1000.0) {
-                return Err(bad("source.fps", format!("{fps} is outside (0, 1000]")));
+            if !(fps.is_finite() && (MIN_FPS..=1000.0).contains(&fps)) {
+                return Err(bad(
+                    "source.fps",
+                    format!("{fps} is outside [{MIN_FPS}, 1000]"),
+                ));
             }
         }
         if !(1..=1024).contains(&file.edges.frame_capacity) {
@@ -282,6 +308,20 @@ impl Scene {
                 return Err(bad("source.path", "a bag source needs a path".into()));
             }
             _ => {}
+        }
+
+        for (index, st) in file.stages.iter().enumerate() {
+            if let Some(need) = ctx.needs.get(&st.kind) {
+                if !file.stages[..index].iter().any(|s| &s.kind == need) {
+                    return Err(bad(
+                        &format!("stages[{}]", index + 1),
+                        format!(
+                            "{} consumes the output of a {need} stage, which must come before it",
+                            st.kind
+                        ),
+                    ));
+                }
+            }
         }
 
         let base = path.parent().unwrap_or(Path::new("."));
@@ -304,8 +344,8 @@ impl Scene {
                         model: m.clone(),
                     });
                 };
-                let resolved =
-                    expand(rel, base, &ctx.vars).map_err(|msg| bad(&format!("models.{m}"), msg))?;
+                let resolved = expand(rel, base, &ctx.vars)
+                    .map_err(|e| bad(&format!("models.{m}"), e.to_string()))?;
                 if !resolved.is_file() {
                     return Err(SceneError::MissingModel {
                         path: p(),
@@ -329,15 +369,16 @@ impl Scene {
 }
 
 /// `${NAME}/rest` -> vars[NAME]/rest; a relative path -> base/path.
-fn expand(p: &Path, base: &Path, vars: &BTreeMap<String, PathBuf>) -> Result<PathBuf, String> {
+fn expand(p: &Path, base: &Path, vars: &BTreeMap<String, PathBuf>) -> Result<PathBuf, ExpandError> {
     let s = p.to_string_lossy();
     if let Some(rest) = s.strip_prefix("${") {
         let (name, tail) = rest
             .split_once('}')
-            .ok_or_else(|| format!("unclosed ${{ in '{s}'"))?;
-        let root = vars
-            .get(name)
-            .ok_or_else(|| format!("unknown variable ${{{name}}} in '{s}'"))?;
+            .ok_or_else(|| ExpandError::Unclosed(s.to_string()))?;
+        let root = vars.get(name).ok_or_else(|| ExpandError::UnknownVar {
+            name: name.to_string(),
+            path: s.to_string(),
+        })?;
         return Ok(root.join(tail.trim_start_matches('/')));
     }
     Ok(if p.is_absolute() {
@@ -360,16 +401,14 @@ pub enum SensorArg {
 }
 
 impl std::str::FromStr for SensorArg {
-    type Err = String;
+    type Err = SensorArgError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s.split_once(':') {
             None if s == "mock" => Ok(SensorArg::Mock),
             None if s == "v4l" => Ok(SensorArg::V4l(None)),
             Some(("v4l", serial)) if !serial.is_empty() => Ok(SensorArg::V4l(Some(serial.into()))),
             Some(("bag", path)) if !path.is_empty() => Ok(SensorArg::Bag(path.into())),
-            _ => Err(format!(
-                "'{s}' is not one of: mock, v4l, v4l:<serial>, bag:<path>"
-            )),
+            _ => Err(SensorArgError(s.to_string())),
         }
     }
 }
@@ -381,7 +420,7 @@ mod tests {
     fn ctx() -> SceneContext {
         SceneContext {
             known_stages: vec!["contact".into()],
-            vars: BTreeMap::new(),
+            ..SceneContext::default()
         }
     }
 
@@ -465,6 +504,40 @@ mod tests {
         assert!(e.to_string().contains("sead"), "{e}");
         let e = Scene::parse("scene: [", Path::new("x.yaml"), &ctx()).unwrap_err();
         assert!(matches!(e, SceneError::Parse { .. }));
+    }
+
+    #[test]
+    fn deep_nesting_and_stage_order_and_slow_sources_are_refused() {
+        // Issue 16 item 2: 100 000 levels took 30 s inside serde_yaml; refused before parsing.
+        let deep = format!(
+            "{OK}    params: {{a: {}{}}}\n",
+            "[".repeat(100_000),
+            "]".repeat(100_000)
+        );
+        let e = Scene::parse(&deep, Path::new("x.yaml"), &ctx()).unwrap_err();
+        assert!(
+            e.to_string().contains("nested more than 64 deep at line 5"),
+            "{e}"
+        );
+        // Issue 16 item 11: an encoder before the contact stage never sees a clip.
+        let mut c = ctx();
+        c.known_stages.push("encoder".into());
+        c.needs.insert("encoder".into(), "contact".into());
+        let t = "scene: d\nsource: {kind: mock}\nstages:\n  - kind: encoder\n  - kind: contact\n";
+        let e = Scene::parse(t, Path::new("x.yaml"), &c).unwrap_err();
+        assert!(
+            matches!(&e, SceneError::BadValue { field, .. } if field == "stages[1]"),
+            "{e}"
+        );
+        let t = "scene: d\nsource: {kind: mock}\nstages:\n  - kind: contact\n  - kind: encoder\n";
+        assert!(Scene::parse(t, Path::new("x.yaml"), &c).is_ok());
+        let e = Scene::parse(
+            &OK.replace("seed: 3", "fps: 0.001"),
+            Path::new("x.yaml"),
+            &ctx(),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("0.001 is outside [1, 1000]"), "{e}");
     }
 
     #[test]

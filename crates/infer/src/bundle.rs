@@ -186,6 +186,61 @@ fn check_io(
     }
 }
 
+/// The clip the preprocessing makes must be the one the encoder declares: `clip` is
+/// [batch, clip_frames, 3, size, size] and `background` [batch, 3, size, size] (fixed dimensions
+/// only; a symbolic one matches anything). Checked when the bundle opens, so a mismatch is one
+/// line at load instead of an ONNX Runtime error on every episode (and, for a large `size`, a
+/// large allocation per episode first).
+fn check_encoder_inputs(m: &Manifest) -> Result<(), String> {
+    let Some(enc) = m.models.get("encoder") else {
+        return Ok(());
+    };
+    let (t, s) = (
+        i64::from(m.preprocess.clip_frames),
+        i64::from(m.preprocess.size),
+    );
+    let want: [(&str, Vec<Option<i64>>); 2] = [
+        ("clip", vec![None, Some(t), Some(3), Some(s), Some(s)]),
+        ("background", vec![None, Some(3), Some(s), Some(s)]),
+    ];
+    let mut problems = Vec::new();
+    for (i, (role, dims)) in want.iter().enumerate() {
+        let Some(spec) = enc.inputs.get(i) else {
+            problems.push(format!("encoder has no input {} ({role})", i + 1));
+            continue;
+        };
+        let fits = spec.shape.len() == dims.len()
+            && spec.shape.iter().zip(dims).all(|(d, w)| match (d, w) {
+                (Dim::Fixed(d), Some(w)) => d == w,
+                _ => true,
+            });
+        if !fits {
+            let shape: Vec<String> = spec
+                .shape
+                .iter()
+                .map(|d| match d {
+                    Dim::Fixed(v) => v.to_string(),
+                    Dim::Symbolic(n) => n.clone(),
+                })
+                .collect();
+            problems.push(format!(
+                "encoder input '{}' is [{}], preprocess (clip_frames {t}, size {s}) makes [{}]",
+                spec.name,
+                shape.join(", "),
+                dims.iter()
+                    .map(|d| d.map_or("batch".to_string(), |v| v.to_string()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+    }
+    if problems.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("manifest.json: {}", problems.join("; ")))
+    }
+}
+
 impl Bundle {
     pub fn open(dir: &Path) -> Result<Bundle, InferError> {
         let err = |msg: String| InferError::Bundle {
@@ -208,6 +263,7 @@ impl Bundle {
             .preprocess
             .check()
             .map_err(|e| err(e.to_string()))?;
+        check_encoder_inputs(&manifest).map_err(err)?;
         Ok(Bundle {
             dir: dir.to_path_buf(),
             manifest,

@@ -77,6 +77,9 @@ pub fn choose_for_budget(
     }
 }
 
+/// Largest compute budget per latent a scene may ask for [ms].
+pub const MAX_BUDGET_MS: f64 = 60_000.0;
+
 #[derive(Debug)]
 pub struct SamplerStage {
     p: SamplerParams,
@@ -100,6 +103,19 @@ impl SamplerStage {
             return Err(bad(
                 "guidance must be in [0, 100] and steps in 1..=10000".into()
             ));
+        }
+        if !p.condition.iter().all(|c| (0.0..=1.0).contains(c)) {
+            return Err(bad(format!(
+                "condition {:?} must be three values in [0, 1]",
+                p.condition
+            )));
+        }
+        if let Some(ms) = p.budget_ms {
+            if !(ms.is_finite() && ms > 0.0 && ms <= MAX_BUDGET_MS) {
+                return Err(bad(format!(
+                    "budget_ms {ms:e} is outside (0, {MAX_BUDGET_MS}]"
+                )));
+            }
         }
         let bundle = Bundle::open(bundle_dir)?;
         let mut models = bundle

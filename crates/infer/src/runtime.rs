@@ -118,15 +118,13 @@ pub fn session(
     }
     b = match cfg.provider {
         ExecutionProvider::Cpu => b,
+        // A provider that cannot be registered is an error, never a silent fall-back to CPU.
         ExecutionProvider::Cuda => b
-            .with_execution_providers([ort::ep::CUDA::default().build()])
-            .map_err(|e| err(e.to_string()))?,
+            .with_execution_providers([ort::ep::CUDA::default().build().error_on_failure()])
+            .map_err(|e| err(format!("provider cuda is not available: {e}")))?,
         ExecutionProvider::Tensorrt => b
-            .with_execution_providers([
-                ort::ep::TensorRT::default().build(),
-                ort::ep::CUDA::default().build(),
-            ])
-            .map_err(|e| err(e.to_string()))?,
+            .with_execution_providers([ort::ep::TensorRT::default().build().error_on_failure()])
+            .map_err(|e| err(format!("provider tensorrt is not available: {e}")))?,
     };
     b.commit_from_file(path).map_err(|e| err(e.to_string()))
 }

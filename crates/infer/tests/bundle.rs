@@ -110,3 +110,23 @@ fn edit_text(d: &std::path::Path) {
     )
     .unwrap();
 }
+
+/// Issue 16 item 6: preprocessing that does not make the clip the encoder declares is one line
+/// when the bundle opens (it used to load, then fail in ONNX Runtime on every episode).
+#[test]
+fn preprocess_must_match_the_encoder_input_shape() {
+    for (key, value, want) in [
+        ("size", 32, "size 32"),
+        ("clip_frames", 2, "clip_frames 2"),
+        ("size", 1024, "size 1024"),
+    ] {
+        let d = common::copy_reference(&format!("pre-{key}-{value}"));
+        edit(&d, |m| m["preprocess"][key] = value.into());
+        let e = Bundle::open(&d).unwrap_err().to_string();
+        assert!(
+            e.contains("encoder input 'clip' is [batch, 4, 3, 64, 64]") && e.contains(want),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+    }
+}

@@ -109,6 +109,10 @@ pub fn scene_dirs(extra: Option<PathBuf>) -> Vec<PathBuf> {
 pub fn scene_context() -> SceneContext {
     let mut ctx = SceneContext {
         known_stages: KNOWN_STAGES.iter().map(|s| s.to_string()).collect(),
+        needs: STAGE_NEEDS
+            .iter()
+            .map(|(a, b)| (a.to_string(), b.to_string()))
+            .collect(),
         ..Default::default()
     };
     let models = std::env::var_os("UNITAC_MODELS")
@@ -125,6 +129,13 @@ pub fn scene_context() -> SceneContext {
 
 /// Stage kinds a scene may name.
 pub const KNOWN_STAGES: &[&str] = &["contact", "encoder", "compare", "sampler"];
+/// Stage kind -> the kind it takes its input from (clips and backgrounds come from contact,
+/// properties from encoder); the scene must list that one first.
+pub const STAGE_NEEDS: &[(&str, &str)] = &[
+    ("encoder", "contact"),
+    ("sampler", "contact"),
+    ("compare", "encoder"),
+];
 
 fn params<T: DeserializeOwned + Default>(
     scene: &Scene,
