@@ -1,9 +1,11 @@
 """rclpy peer for the contact-node tests (crates/ros/tests/nodes.rs).
 
-  contact_peer.py images NS N       publish N sensor_msgs/Image (rgb8, 64x48, best effort) into
+  contact_peer.py images NS N [FAULTS_JSON]
+                                    publish N sensor_msgs/Image (rgb8, 64x48, best effort) into
                                     NS/image: 15 frames of background, then a bright disc for 10
                                     frames, then background; collect NS/contact_state and
-                                    NS/contact_episode; print a JSON summary
+                                    NS/contact_episode; print a JSON summary. FAULTS_JSON:
+                                    {"negative_sec"|"big_nanosec"|"bad_encoding": [k...]}
   contact_peer.py listen NS SECONDS [OPTIONS_JSON]
                                     subscribe to everything the nodes publish in NS (images,
                                     contact states/episodes/clips, properties, comparisons,
@@ -77,7 +79,10 @@ def collect(node, ns):
     return got
 
 
-def images(ns, n):
+def images(ns, n, faults=None):
+    """`faults`: {"negative_sec": [k...], "big_nanosec": [k...], "bad_encoding": [k...]}: those
+    images get an invalid stamp or an encoding no node takes."""
+    faults = faults or {}
     node = Node("unitac_contact_peer")
     got = collect(node, ns)
     pub = node.create_publisher(Image, ns + "/image", qos_profile_sensor_data)
@@ -98,6 +103,12 @@ def images(ns, n):
         m.header.stamp.nanosec = (k % 25) * 40_000_000
         m.header.frame_id = "gs1_optical_frame"
         m.height, m.width, m.encoding, m.step = h, w, "rgb8", w * 3
+        if k in faults.get("negative_sec", []):
+            m.header.stamp.sec = -1
+        if k in faults.get("big_nanosec", []):
+            m.header.stamp.nanosec = 2_000_000_000
+        if k in faults.get("bad_encoding", []):
+            m.encoding = "32FC1"
         m.data = np.clip(img, 0, 255).astype(np.uint8).tobytes()
         pub.publish(m)
         end = time.monotonic() + 0.04  # 25 fps
@@ -181,7 +192,8 @@ def main():
     rclpy.init()
     try:
         if sys.argv[1] == "images":
-            return images(sys.argv[2], int(sys.argv[3]))
+            faults = json.loads(sys.argv[4]) if len(sys.argv) > 4 else {}
+            return images(sys.argv[2], int(sys.argv[3]), faults)
         if sys.argv[1] == "slow":
             return slow(sys.argv[2], float(sys.argv[3]), float(sys.argv[4]))
         opts = json.loads(sys.argv[4]) if len(sys.argv) > 4 else {}

@@ -22,6 +22,9 @@ pub struct DropCounter {
     last_ns: Option<i64>,
     intervals: VecDeque<i64>,
     gaps_in_a_row: u32,
+    /// Frames that arrived since the last stamp seen but had no usable stamp (rejected): they
+    /// fill part of the next gap, so they are not counted as lost as well.
+    arrived_unstamped: u64,
     /// Frames counted as lost so far.
     pub dropped: u64,
 }
@@ -37,9 +40,16 @@ impl DropCounter {
         Some(v[v.len() / 2])
     }
 
+    /// A frame arrived whose stamp cannot be used (it was rejected and counted as an error): it
+    /// is not lost, so the next gap is that much shorter.
+    pub fn arrived_without_stamp(&mut self) {
+        self.arrived_unstamped = self.arrived_unstamped.saturating_add(1);
+    }
+
     /// Account for a frame captured at `stamp_ns`; returns how many frames were lost just before
     /// it. A stamp that goes backwards (a replay looping, a restarted source) starts afresh.
     pub fn observe(&mut self, stamp_ns: i64) -> u64 {
+        let unstamped = std::mem::take(&mut self.arrived_unstamped);
         let Some(last) = self.last_ns.replace(stamp_ns) else {
             return 0;
         };
@@ -60,7 +70,7 @@ impl DropCounter {
                 }
                 let periods = (dt as f64 / p as f64).round();
                 // Bounded: a stamp jump of hours is not billions of lost frames.
-                (periods - 1.0).clamp(0.0, 1e6) as u64
+                ((periods - 1.0).clamp(0.0, 1e6) as u64).saturating_sub(unstamped)
             }
             _ => {
                 self.gaps_in_a_row = 0;
@@ -73,6 +83,25 @@ impl DropCounter {
         };
         self.dropped += lost;
         lost
+    }
+}
+
+#[cfg(test)]
+mod unstamped_tests {
+    use super::*;
+
+    #[test]
+    fn a_frame_rejected_for_its_stamp_is_not_counted_as_lost_too() {
+        let mut d = DropCounter::default();
+        for k in 0..10 {
+            assert_eq!(d.observe(k * 40), 0);
+        }
+        // Frames 10 and 11 arrived with unusable stamps; 12 is fine: no loss.
+        d.arrived_without_stamp();
+        d.arrived_without_stamp();
+        assert_eq!(d.observe(12 * 40), 0);
+        // A real loss is still counted: 13 and 14 missing.
+        assert_eq!(d.observe(15 * 40), 2);
     }
 }
 

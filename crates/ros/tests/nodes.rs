@@ -148,6 +148,36 @@ fn contact_node_answers_every_image_with_a_contact_state() {
     );
 }
 
+/// Issue 16: an image with an invalid stamp (negative seconds, nanoseconds past a second) or an
+/// encoding no node takes is counted once, as an error, never also as a drop, and its stamp is
+/// never rewritten; stamps a minute away from the node's clock are not averaged into latency.
+#[test]
+fn bad_stamps_and_encodings_count_once_as_errors() {
+    let _one = serial();
+    let n = ns("faults");
+    let p = params_file(
+        "faults",
+        "/**:\n  ros__parameters:\n    sensor_kind: generic\n    contact.enter_area_px: 100.0\n    contact.exit_area_px: 50.0\n",
+    );
+    let c = node(env!("CARGO_BIN_EXE_unitac_contact_node"), &n, p.to_str());
+    let faults = r#"{"negative_sec": [5], "big_nanosec": [6], "bad_encoding": [30]}"#;
+    let got = peer(&["images", &n, "40", faults]);
+    stop(c);
+    let states = got["states"].as_array().unwrap();
+    // 40 images, 3 rejected, the first 10 good ones learn: 27 states, all stamps valid.
+    assert_eq!(states.len(), 27, "{got}");
+    assert!(states.iter().all(|s| s["stamp"].as_i64().unwrap() > 0));
+    let d = diag_of(&got, &n, "unitac_contact");
+    let last = d.last().expect("contact node diagnostics");
+    let v = &last["values"];
+    assert_eq!(v["frames_in"], "40", "{last}");
+    assert_eq!(v["errors"], "3", "{last}");
+    assert_eq!(v["dropped"], "0", "{last}");
+    // The images are stamped in 2023: a latency of years is not a latency.
+    assert_ne!(v["latency_out_of_range"], "0", "{last}");
+    assert!(v.get("latency_mean_ms").is_none(), "{last}");
+}
+
 #[test]
 fn parameters_from_a_yaml_file_take_effect() {
     let _one = serial();

@@ -182,6 +182,7 @@ fn run() -> anyhow::Result<()> {
                     f
                 }
                 (Err(e), _) => {
+                    drops.arrived_without_stamp();
                     counters.error(e);
                     continue;
                 }
