@@ -6,7 +6,7 @@
 //! - [`read`]: a rosbag2 directory (metadata.yaml + .mcap or .db3) or a bare .mcap, streamed with
 //!   bounded memory; truncated files are read up to their last complete record;
 //! - [`write`](mod@write): rosbag2-compatible MCAP (profile ros2, ros2msg schemas, cdr) plus metadata.yaml;
-//! - [`repair`]: a cut recording (recorder killed, disk full) rewritten into a valid bag;
+//! - [`repair`](mod@repair): a cut recording (recorder killed, disk full) rewritten into a valid bag;
 //! - [`replay`]: a bag as a runtime [`unitac_core::Source`], and the replay loop behind
 //!   `unitac replay` (stages driven by the bag's stamps, optional output bag).
 

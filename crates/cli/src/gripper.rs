@@ -45,13 +45,13 @@ pub struct GripperArgs {
     pub slave: Option<u8>,
     #[arg(long)]
     pub baud: Option<u32>,
-    /// Grip force limit for open/close [N] (default: the model's minimum).
+    /// Grip force limit for open/close (N) (default: the model's minimum).
     #[arg(long)]
     pub force: Option<f64>,
     /// Finger speed for open/close [m/s] (default: half the model's maximum).
     #[arg(long)]
     pub speed: Option<f64>,
-    /// How long to wait for the action (activate/open/close) or to run the bench [s].
+    /// How long to wait for the action (activate/open/close) or to run the bench (s).
     #[arg(long, default_value_t = 5.0)]
     pub seconds: f64,
     #[arg(long)]

@@ -38,12 +38,12 @@ pub struct Measurement {
     pub strength: f32,
     /// Per-channel illumination gain against the background.
     pub gain: [f32; 3],
-    /// Cell threshold used [DN].
+    /// Cell threshold used \[DN].
     pub threshold: f32,
     /// Noise sigma per channel of one cell of the frame - background difference, measured on
-    /// this frame after the smooth shading was removed [DN].
+    /// this frame after the smooth shading was removed \[DN].
     pub noise: [f32; 3],
-    /// Radius [cells] of the box the difference was averaged over before thresholding (0 on
+    /// Radius \[cells] of the box the difference was averaged over before thresholding (0 on
     /// clean frames; larger on noisy ones).
     pub smoothing: u32,
     /// Share of the shading-fit lattice left out as not smooth (the press, moved markers).
@@ -125,7 +125,7 @@ impl ContactDetector {
     pub fn background_frame(&self, sensor_id: &str) -> Option<Frame> {
         self.background().and_then(|b| b.frame(sensor_id))
     }
-    /// Per-channel noise sigma of one detection cell [DN] measured while the background was
+    /// Per-channel noise sigma of one detection cell \[DN] measured while the background was
     /// learned (`default_noise_dn` for a single image). Detection itself uses the noise measured
     /// on each frame ([`Measurement::noise`]).
     pub fn cell_sigma(&self) -> f32 {

@@ -38,11 +38,11 @@ const MIN_SIGMA: f32 = 0.05;
 pub struct ShadingFit {
     /// Quartic coefficients per channel, in `basis` order.
     pub coef: [[f32; TERMS]; 3],
-    /// Robust noise sigma per channel of one cell of the difference [DN].
+    /// Robust noise sigma per channel of one cell of the difference \[DN].
     pub sigma: [f32; 3],
     /// Share of the lattice cells left out of the final fit (the press, markers that moved).
     pub rejected: f32,
-    /// Largest sum over channels of |fitted field| on the lattice [DN].
+    /// Largest sum over channels of |fitted field| on the lattice \[DN].
     pub peak: f32,
 }
 

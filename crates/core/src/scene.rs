@@ -12,7 +12,7 @@ use thiserror::Error;
 
 /// Largest scene file accepted (it is configuration, not data).
 pub const MAX_SCENE_BYTES: u64 = 1 << 20;
-/// Slowest source frame rate accepted [Hz]: below it a run of any sensible length sees no frame.
+/// Slowest source frame rate accepted \[Hz]: below it a run of any sensible length sees no frame.
 pub const MIN_FPS: f64 = 1.0;
 
 #[derive(Debug, Error)]

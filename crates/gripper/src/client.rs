@@ -144,7 +144,7 @@ impl LinkStats {
         }
         self.rtt_next = (self.rtt_next + 1) % RTT_WINDOW;
     }
-    /// Percentile `q` in [0, 1] of the recent round trips [s] (None before the first).
+    /// Percentile `q` in [0, 1] of the recent round trips \[s] (None before the first).
     pub fn rtt_percentile(&self, q: f64) -> Option<f64> {
         if self.rtt_us.is_empty() {
             return None;

@@ -64,7 +64,7 @@ pub struct DriverStats {
     pub consecutive_failures: u32,
     pub last_error: Option<String>,
     pub link: LinkStats,
-    /// Exchange rate over the last second [Hz].
+    /// Exchange rate over the last second \[Hz].
     pub rate_hz: f64,
     pub rtt_p50_s: Option<f64>,
     pub rtt_p99_s: Option<f64>,

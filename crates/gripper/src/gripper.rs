@@ -11,11 +11,11 @@ use thiserror::Error;
 /// `force_n` (the fingers stop on an object when the grip force reaches it).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct GripCommand {
-    /// Distance between the fingertips [m].
+    /// Distance between the fingertips \[m].
     pub opening_m: f64,
     /// Opening/closing speed of the fingertip distance [m/s].
     pub speed_m_s: f64,
-    /// Grip force limit [N].
+    /// Grip force limit \[N].
     pub force_n: f64,
 }
 
@@ -75,16 +75,16 @@ pub enum Fault {
 pub struct GripperState {
     pub activation: Activation,
     pub motion: Motion,
-    /// Fingertip distance [m] (None until read).
+    /// Fingertip distance \[m] (None until read).
     pub opening_m: Option<f64>,
     /// The position register as the device reports it (Robotiq gPO 0-255, DH 0-1000), for
     /// calibration.
     pub raw_position: Option<u16>,
-    /// The device's echo of the requested opening [m].
+    /// The device's echo of the requested opening \[m].
     pub target_m: Option<f64>,
-    /// Grip force estimate [N] (Robotiq: from the motor current, a rough figure; sim: exact).
+    /// Grip force estimate \[N] (Robotiq: from the motor current, a rough figure; sim: exact).
     pub force_n: Option<f64>,
-    /// Motor current [A] where the device reports one.
+    /// Motor current \[A] where the device reports one.
     pub current_a: Option<f64>,
     pub fault: Option<Fault>,
     /// Successful exchanges since start.

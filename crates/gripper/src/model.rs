@@ -31,11 +31,11 @@ pub enum Model {
 /// Calibration of one model's raw registers.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Calibration {
-    /// Raw position register <-> fingertip opening [m].
+    /// Raw position register <-> fingertip opening \[m].
     pub position: Linear,
     /// Raw speed register <-> opening speed [m/s].
     pub speed: Linear,
-    /// Raw force register <-> grip force [N].
+    /// Raw force register <-> grip force \[N].
     pub force: Linear,
     pub limits: Limits,
 }

@@ -77,7 +77,7 @@ pub fn choose_for_budget(
     }
 }
 
-/// Largest compute budget per latent a scene may ask for [ms].
+/// Largest compute budget per latent a scene may ask for \[ms].
 pub const MAX_BUDGET_MS: f64 = 60_000.0;
 
 #[derive(Debug)]

@@ -16,11 +16,11 @@ use unitac_core::{Frame, FrameError, SensorSpec};
 /// How a press frame is degraded.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Degrade {
-    /// Largest sum over channels of |shading| [DN].
+    /// Largest sum over channels of |shading| \[DN].
     pub shading_dn: f64,
-    /// Camera noise sigma per channel [DN].
+    /// Camera noise sigma per channel \[DN].
     pub noise_dn: f64,
-    /// Moves the press [px] (x, y) from the image centre.
+    /// Moves the press \[px] (x, y) from the image centre.
     pub shift: (i32, i32),
     pub seed: u64,
 }
@@ -33,15 +33,15 @@ pub struct Fixture {
     /// Pixels where the indenter touches the gel, row-major.
     pub mask: Vec<bool>,
     pub contact_px: u32,
-    /// Centroid of the mask [px] (x, y).
+    /// Centroid of the mask \[px] (x, y).
     pub centroid: [f64; 2],
-    /// Radius of the disc with the mask's area [px].
+    /// Radius of the disc with the mask's area \[px].
     pub radius_px: f64,
-    /// Gel penetration of the press [mm].
+    /// Gel penetration of the press \[mm].
     pub penetration_mm: f64,
 }
 
-/// A smooth shading field, RGB interleaved [DN]: per channel a tilt plus two broad Gaussian
+/// A smooth shading field, RGB interleaved \[DN]: per channel a tilt plus two broad Gaussian
 /// bumps (sigma 25-50 % of the frame width) with random signs, scaled so that the largest sum
 /// over channels of |field| is `amplitude_dn`.
 pub fn shading_field(width: u32, height: u32, amplitude_dn: f64, seed: u64) -> Vec<f32> {

@@ -33,7 +33,7 @@ use std::sync::Arc;
 /// Longest MCAP record (and decompressed chunk) accepted: the largest image plus headroom.
 pub const MAX_RECORD_BYTES: usize = MAX_IMAGE_BYTES + (1 << 20);
 
-/// A callback that sees one message with its payload borrowed: (topic, log time [ns], CDR).
+/// A callback that sees one message with its payload borrowed: (topic, log time \[ns], CDR).
 pub type Visit<'f, R> = dyn FnMut(&Arc<TopicInfo>, i64, &[u8]) -> R + 'f;
 
 /// A topic as the bag declares it.

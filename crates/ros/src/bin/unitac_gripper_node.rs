@@ -8,8 +8,8 @@
 //! drop a held object.
 //!
 //! Topics (relative): `gripper_command` in; `joint_states` (one joint, `joint_name`: position =
-//! finger opening [m], effort = grip force [N] where the device gives one, else motor current
-//! [A]) and `gripper_status` (std_msgs/String, the state as one JSON object) out; /diagnostics
+//! finger opening (m), effort = grip force (N) where the device gives one, else motor current
+//! (A)) and `gripper_status` (std_msgs/String, the state as one JSON object) out; /diagnostics
 //! once a second: exchange rate, round trip p50/p99, retries, link errors, the fault.
 
 use futures::{FutureExt, StreamExt};
