@@ -332,9 +332,6 @@ fn cmd_run(
     if let Some(b) = bag {
         b.finish().context("finishing the output bag")?;
     }
-    if let Some(reason) = report.ended.strip_prefix("source_failed: ") {
-        eprintln!("unitac: {reason}");
-    }
     if json {
         writeln!(out, "{}", serde_json::to_string(&report)?)?;
     } else {

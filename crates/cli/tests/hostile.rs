@@ -197,7 +197,7 @@ fn bad_configuration_is_one_line_exit_2() {
         &format!(
             "{SRC}stages: [{{kind: contact, params: {{exit_debounce_frames: 4294967295}}}}]\n"
         ),
-        "exit_debounce_frames 4294967295 must be <= 1000",
+        "exit_debounce_frames 4294967295 is outside 0..=1000",
     );
     scene_error(
         "bgdir",
