@@ -7,27 +7,17 @@
 //! (floats within unitac_core::golden::FLOAT_TOLERANCE).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+use common::{python, root, stop};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
 use unitac_bag::RosMessage;
 use unitac_core::Msg;
 use unitac_core::golden::{diff, parse_lines};
 use unitac_core::msg::{
     ContactEpisode, ContactState, PropertyComparison, TactileLatent, TactileProperties,
 };
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn python() -> PathBuf {
-    std::env::var_os("UNITAC_VENV")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join(".venv"))
-        .join("bin/python")
-}
 
 /// The `unitac` binary of this build (cargo test --workspace builds it next to the tests).
 fn unitac() -> PathBuf {
@@ -57,22 +47,6 @@ fn node(bin: &str, ns: &str, params: &[String]) -> Child {
         .stderr(Stdio::inherit())
         .spawn()
         .unwrap()
-}
-
-fn stop(mut c: Child) {
-    Command::new("kill")
-        .args(["-INT", &c.id().to_string()])
-        .status()
-        .ok();
-    let t = Instant::now();
-    while t.elapsed() < Duration::from_secs(5) {
-        if c.try_wait().unwrap().is_some() {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    c.kill().ok();
-    c.wait().ok();
 }
 
 fn hex(s: &str) -> Vec<u8> {

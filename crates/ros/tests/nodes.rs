@@ -2,10 +2,12 @@
 //! scripts/test runs this in a loopback-only network namespace).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+use common::{python, root, stop};
 use serde_json::Value;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// One test at a time: these start several ROS processes each, and on a 2-core machine running
 /// them side by side starves best-effort delivery (the tests would then measure the load).
@@ -13,17 +15,6 @@ static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 fn serial() -> std::sync::MutexGuard<'static, ()> {
     SERIAL.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn python() -> PathBuf {
-    std::env::var_os("UNITAC_VENV")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join(".venv"))
-        .join("bin/python")
 }
 
 fn node(bin: &str, ns: &str, params: Option<&str>) -> Child {
@@ -36,22 +27,6 @@ fn node(bin: &str, ns: &str, params: Option<&str>) -> Child {
         .stderr(Stdio::inherit())
         .spawn()
         .unwrap()
-}
-
-fn stop(mut c: Child) {
-    Command::new("kill")
-        .args(["-INT", &c.id().to_string()])
-        .status()
-        .ok();
-    let t = Instant::now();
-    while t.elapsed() < Duration::from_secs(5) {
-        if c.try_wait().unwrap().is_some() {
-            return;
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    c.kill().ok();
-    c.wait().ok();
 }
 
 fn peer(args: &[&str]) -> Value {

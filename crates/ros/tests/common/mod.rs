@@ -1,0 +1,35 @@
+//! Helpers shared by the ROS node tests (nodes.rs, golden.rs): paths and stopping a node.
+#![allow(dead_code, clippy::unwrap_used)]
+
+use std::path::PathBuf;
+use std::process::{Child, Command};
+use std::time::{Duration, Instant};
+
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// The project venv's Python (rclpy peers).
+pub fn python() -> PathBuf {
+    std::env::var_os("UNITAC_VENV")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join(".venv"))
+        .join("bin/python")
+}
+
+/// SIGINT, then up to 5 s to exit cleanly, then SIGKILL.
+pub fn stop(mut c: Child) {
+    Command::new("kill")
+        .args(["-INT", &c.id().to_string()])
+        .status()
+        .ok();
+    let t = Instant::now();
+    while t.elapsed() < Duration::from_secs(5) {
+        if c.try_wait().unwrap().is_some() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    c.kill().ok();
+    c.wait().ok();
+}
