@@ -138,8 +138,8 @@ impl PolicyManifest {
         Self::parse(&text).map_err(err)
     }
 
-    /// Parse manifest text.
-    pub fn parse(text: &str) -> Result<PolicyManifest, String> {
+    /// Parse manifest text (the message is wrapped into a [`ManifestError`] by `read`).
+    pub(crate) fn parse(text: &str) -> Result<PolicyManifest, String> {
         serde_json::from_str(text).map_err(|e| {
             let hint = if text.contains("NaN") || text.contains("Infinity") {
                 " (JSON has no NaN or Infinity: the exporter wrote non-finite statistics)"
