@@ -7,7 +7,8 @@
 //! at once. A scene loads only the models it names.
 
 use crate::preprocess::Preprocess;
-use crate::runtime::{InferError, RuntimeConfig, session};
+use crate::runtime::{InferError, RuntimeConfig, Session, TensorInfo};
+pub use crate::runtime::{MAX_OUTPUT_ELEMENTS, TensorF32};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
@@ -16,8 +17,6 @@ use std::path::{Path, PathBuf};
 
 /// Largest manifest accepted [bytes].
 const MAX_MANIFEST_BYTES: u64 = 1 << 20;
-/// Largest tensor a model may return \[elements].
-pub const MAX_OUTPUT_ELEMENTS: usize = 64 << 20;
 
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(untagged)]
@@ -81,9 +80,6 @@ pub struct Bundle {
     pub manifest: Manifest,
 }
 
-/// A float32 tensor: shape and row-major data.
-pub type TensorF32 = (Vec<i64>, Vec<f32>);
-
 /// A loaded, checked model.
 #[derive(Debug)]
 pub struct Model {
@@ -91,22 +87,7 @@ pub struct Model {
     pub spec: ModelSpec,
     /// `bundle@sha256-prefix`, for messages.
     pub id: String,
-    session: ort::session::Session,
-}
-
-fn dtype_name(t: ort::value::TensorElementType) -> &'static str {
-    use ort::value::TensorElementType as T;
-    match t {
-        T::Float32 => "float32",
-        T::Float64 => "float64",
-        T::Float16 => "float16",
-        T::Int64 => "int64",
-        T::Int32 => "int32",
-        T::Uint8 => "uint8",
-        T::Int8 => "int8",
-        T::Bool => "bool",
-        _ => "other",
-    }
+    session: Session,
 }
 
 pub fn sha256_file(path: &Path) -> std::io::Result<String> {
@@ -128,31 +109,29 @@ fn check_io(
     model: &str,
     kind: &str,
     declared: &[TensorSpec],
-    actual: &[ort::value::Outlet],
+    actual: &[TensorInfo],
     problems: &mut Vec<String>,
 ) {
-    let names: Vec<&str> = actual.iter().map(|o| o.name()).collect();
+    let names: Vec<&str> = actual.iter().map(|o| o.name.as_str()).collect();
     for d in declared {
-        let Some(a) = actual.iter().find(|o| o.name() == d.name) else {
+        let Some(a) = actual.iter().find(|o| o.name == d.name) else {
             problems.push(format!(
                 "{model}: {kind} '{}' is declared but the file has {names:?}",
                 d.name
             ));
             continue;
         };
-        let ort::value::ValueType::Tensor { ty, shape, .. } = a.dtype() else {
+        let (Some(ty), shape) = (a.dtype, &a.shape) else {
             problems.push(format!(
                 "{model}: {kind} '{}' is not a tensor in the file",
                 d.name
             ));
             continue;
         };
-        if dtype_name(*ty) != d.dtype {
+        if ty != d.dtype {
             problems.push(format!(
-                "{model}: {kind} '{}' is {} in the file, declared {}",
-                d.name,
-                dtype_name(*ty),
-                d.dtype
+                "{model}: {kind} '{}' is {ty} in the file, declared {}",
+                d.name, d.dtype
             ));
         }
         if shape.len() != d.shape.len() {
@@ -177,10 +156,10 @@ fn check_io(
         }
     }
     for a in actual {
-        if !declared.iter().any(|d| d.name == a.name()) {
+        if !declared.iter().any(|d| d.name == a.name) {
             problems.push(format!(
                 "{model}: the file has {kind} '{}' that the manifest does not declare",
-                a.name()
+                a.name
             ));
         }
     }
@@ -301,7 +280,7 @@ impl Bundle {
                     continue;
                 }
             }
-            let session = match session(name, &path, cfg) {
+            let session = match Session::open(name, &path, cfg) {
                 Ok(s) => s,
                 Err(InferError::Library(e)) => return Err(InferError::Library(e)),
                 Err(e) => {
@@ -347,60 +326,24 @@ impl Model {
     /// Run with float32 inputs given in the manifest's input order as (shape, data); returns
     /// float32 outputs in the manifest's output order as (shape, data). Output sizes are bounded.
     pub fn run(&mut self, inputs: &[(&[i64], &[f32])]) -> Result<Vec<TensorF32>, InferError> {
-        let err = |msg: String| InferError::Model {
-            model: self.name.clone(),
-            msg,
-        };
         if inputs.len() != self.spec.inputs.len() {
-            return Err(err(format!(
-                "{} inputs given, {} declared",
-                inputs.len(),
-                self.spec.inputs.len()
-            )));
+            return Err(InferError::Model {
+                model: self.name.clone(),
+                msg: format!(
+                    "{} inputs given, {} declared",
+                    inputs.len(),
+                    self.spec.inputs.len()
+                ),
+            });
         }
-        let mut values: Vec<(
-            std::borrow::Cow<'_, str>,
-            ort::session::SessionInputValue<'_>,
-        )> = Vec::new();
-        for (spec, (shape, data)) in self.spec.inputs.iter().zip(inputs) {
-            let n: i64 = shape.iter().product();
-            if n < 0 || n as usize != data.len() {
-                return Err(err(format!(
-                    "input '{}': shape {shape:?} needs {n} values, got {}",
-                    spec.name,
-                    data.len()
-                )));
-            }
-            let t = ort::value::TensorRef::from_array_view((shape.to_vec(), *data))
-                .map_err(|e| err(e.to_string()))?;
-            values.push((spec.name.clone().into(), t.into()));
-        }
-        let names: Vec<String> = self.spec.outputs.iter().map(|o| o.name.clone()).collect();
-        let model = self.name.clone();
-        let outputs = self.session.run(values).map_err(|e| InferError::Model {
-            model: model.clone(),
-            msg: e.to_string(),
-        })?;
-        let mut out = Vec::with_capacity(names.len());
-        for n in &names {
-            let v = outputs.get(n).ok_or_else(|| InferError::Output {
-                model: model.clone(),
-                msg: format!("missing '{n}'"),
-            })?;
-            let (shape, data) = v
-                .try_extract_tensor::<f32>()
-                .map_err(|e| InferError::Output {
-                    model: model.clone(),
-                    msg: format!("'{n}': {e}"),
-                })?;
-            if data.len() > MAX_OUTPUT_ELEMENTS {
-                return Err(InferError::Output {
-                    model: model.clone(),
-                    msg: format!("'{n}' has {} elements", data.len()),
-                });
-            }
-            out.push((shape.to_vec(), data.to_vec()));
-        }
-        Ok(out)
+        let named: Vec<(&str, &[i64], &[f32])> = self
+            .spec
+            .inputs
+            .iter()
+            .zip(inputs)
+            .map(|(spec, (shape, data))| (spec.name.as_str(), *shape, *data))
+            .collect();
+        let outputs: Vec<&str> = self.spec.outputs.iter().map(|o| o.name.as_str()).collect();
+        self.session.run_f32(&named, &outputs)
     }
 }

@@ -4,6 +4,10 @@
 //! a `static OnceLock`; the first caller's library path wins and later callers get the same
 //! environment (or the same error). The library is loaded with `ort::init_from`, which returns an
 //! error for a missing or incompatible library instead of panicking.
+//!
+//! [`Session`] is a model file opened in that environment, described and run with float32
+//! tensors without ort types, so other crates (model bundles here, ONNX policies in
+//! unitac-policy) check a file against their own declarations and run it through one code path.
 
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -127,4 +131,135 @@ pub fn session(
             .map_err(|e| err(format!("provider tensorrt is not available: {e}")))?,
     };
     b.commit_from_file(path).map_err(|e| err(e.to_string()))
+}
+
+/// Largest tensor a model may return \[elements].
+pub const MAX_OUTPUT_ELEMENTS: usize = 64 << 20;
+
+/// A float32 tensor: shape and row-major data.
+pub type TensorF32 = (Vec<i64>, Vec<f32>);
+
+/// One input or output of a model file as ONNX Runtime reports it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TensorInfo {
+    pub name: String,
+    /// `float32`, `int64`, ... (`other` for element types this crate never feeds); `None` when
+    /// the value is not a tensor (a sequence, map or optional).
+    pub dtype: Option<&'static str>,
+    /// Dimensions, -1 where the file leaves one dynamic (a symbolic dimension such as "batch").
+    pub shape: Vec<i64>,
+}
+
+/// The manifest spelling of an ONNX element type.
+pub fn dtype_name(t: ort::value::TensorElementType) -> &'static str {
+    use ort::value::TensorElementType as T;
+    match t {
+        T::Float32 => "float32",
+        T::Float64 => "float64",
+        T::Float16 => "float16",
+        T::Int64 => "int64",
+        T::Int32 => "int32",
+        T::Uint8 => "uint8",
+        T::Int8 => "int8",
+        T::Bool => "bool",
+        _ => "other",
+    }
+}
+
+fn describe(outlets: &[ort::value::Outlet]) -> Vec<TensorInfo> {
+    outlets
+        .iter()
+        .map(|o| match o.dtype() {
+            ort::value::ValueType::Tensor { ty, shape, .. } => TensorInfo {
+                name: o.name().to_string(),
+                dtype: Some(dtype_name(*ty)),
+                shape: shape.to_vec(),
+            },
+            _ => TensorInfo {
+                name: o.name().to_string(),
+                dtype: None,
+                shape: Vec::new(),
+            },
+        })
+        .collect()
+}
+
+/// A model file opened in the process's environment ([`session`]'s threads and provider), with
+/// its inputs and outputs as the file declares them.
+#[derive(Debug)]
+pub struct Session {
+    model: String,
+    inputs: Vec<TensorInfo>,
+    outputs: Vec<TensorInfo>,
+    inner: ort::session::Session,
+}
+
+impl Session {
+    /// Open `path`; `model` names it in errors.
+    pub fn open(model: &str, path: &Path, cfg: &RuntimeConfig) -> Result<Session, InferError> {
+        let inner = session(model, path, cfg)?;
+        Ok(Session {
+            model: model.to_string(),
+            inputs: describe(inner.inputs()),
+            outputs: describe(inner.outputs()),
+            inner,
+        })
+    }
+
+    pub fn inputs(&self) -> &[TensorInfo] {
+        &self.inputs
+    }
+
+    pub fn outputs(&self) -> &[TensorInfo] {
+        &self.outputs
+    }
+
+    /// Run with float32 inputs given by name as (name, shape, data); returns the named float32
+    /// outputs in the order asked for. Output sizes are bounded by [`MAX_OUTPUT_ELEMENTS`].
+    pub fn run_f32(
+        &mut self,
+        inputs: &[(&str, &[i64], &[f32])],
+        outputs: &[&str],
+    ) -> Result<Vec<TensorF32>, InferError> {
+        let model = self.model.clone();
+        let err = |msg: String| InferError::Model {
+            model: model.clone(),
+            msg,
+        };
+        let mut values: Vec<(
+            std::borrow::Cow<'_, str>,
+            ort::session::SessionInputValue<'_>,
+        )> = Vec::with_capacity(inputs.len());
+        for (name, shape, data) in inputs {
+            let n: i64 = shape.iter().product();
+            if n < 0 || n as usize != data.len() {
+                return Err(err(format!(
+                    "input '{name}': shape {shape:?} needs {n} values, got {}",
+                    data.len()
+                )));
+            }
+            let t = ort::value::TensorRef::from_array_view((shape.to_vec(), *data))
+                .map_err(|e| err(e.to_string()))?;
+            values.push(((*name).into(), t.into()));
+        }
+        let results = self.inner.run(values).map_err(|e| err(e.to_string()))?;
+        let out_err = |msg: String| InferError::Output {
+            model: model.clone(),
+            msg,
+        };
+        let mut out = Vec::with_capacity(outputs.len());
+        for n in outputs {
+            let v = results
+                .get(n)
+                .ok_or_else(|| out_err(format!("missing '{n}'")))?;
+            let (shape, data) = v
+                .try_extract_tensor::<f32>()
+                .map_err(|e| out_err(format!("'{n}': {e}")))?;
+            if data.len() > MAX_OUTPUT_ELEMENTS {
+                return Err(out_err(format!("'{n}' has {} elements", data.len())));
+            }
+            out.push((shape.to_vec(), data.to_vec()));
+        }
+        Ok(out)
+    }
 }

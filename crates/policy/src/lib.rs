@@ -4,3 +4,5 @@
 //! Every stage here implements `unitac_core::Stage` with an injected clock, like the contact and
 //! inference stages, so the embedded runtime, bag replay and the ROS policy node drive the same
 //! code.
+
+pub mod onnx;
