@@ -157,7 +157,7 @@ fn decade_ticks(lo: f64, hi: f64, max_labels: usize) -> (Vec<(f64, String)>, Vec
         }
     }
     // Minor lines at 2..9 when there are few decades.
-    if hi - lo <= 6.0 {
+    if hi - lo <= 3.0 {
         for d in (lo.floor() as i64)..=(hi.ceil() as i64) {
             for m in 2..10 {
                 let t = d as f64 + f64::from(m).log10();
@@ -205,10 +205,10 @@ mod tests {
     #[test]
     fn log_axis_spans_whole_decades_with_superscript_labels() {
         let axis = Axis::log("t");
-        let l = AxisLayout::new(&axis, &[-3.2, -0.4], false, 10, "c", "x").unwrap();
-        assert_eq!((l.lo, l.hi, l.end), (-4.0, 0.0, 0.0));
+        let l = AxisLayout::new(&axis, &[-2.2, -0.4], false, 10, "c", "x").unwrap();
+        assert_eq!((l.lo, l.hi, l.end), (-3.0, 0.0, 0.0));
         let labels: Vec<&str> = l.ticks.iter().map(|(_, s)| s.as_str()).collect();
-        assert_eq!(labels, ["10⁻⁴", "10⁻³", "10⁻²", "10⁻¹", "1"]);
+        assert_eq!(labels, ["10⁻³", "10⁻²", "10⁻¹", "1"]);
         // Minor lines at 2..9 inside the range.
         assert!(
             l.light

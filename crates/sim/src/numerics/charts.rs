@@ -168,14 +168,14 @@ impl NumericsReport {
                 if m == Method::BackwardEuler {
                     chart = chart.note((0.05, 0.07), "no bound (A-stable)", BLACK);
                 } else {
-                    let bound: Vec<(f64, f64)> = (0..=200)
+                    let bound: Vec<(f64, f64)> = (0..=80)
                         .map(|i| {
-                            let k = p(kx0 + (kx1 - kx0) * f64::from(i) / 200.0);
+                            let k = p(kx0 + (kx1 - kx0) * f64::from(i) / 80.0);
                             let (be, bs) = end_state_bounds(&Cup::new("map", 80.0, k));
                             (k, if m == Method::ExplicitEuler { be } else { bs })
                         })
                         .collect();
-                    chart = chart.series(Series::new(BLACK, bound).width(3));
+                    chart = chart.series(Series::new(BLACK, bound));
                 }
                 fig = fig.panel(chart);
             }
