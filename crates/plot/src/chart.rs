@@ -14,7 +14,7 @@ pub enum Scale {
 /// One axis of a chart.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Axis {
-    /// Axis title, e.g. "run time [s]".
+    /// Axis title, e.g. "run time \[s\]".
     pub label: String,
     pub scale: Scale,
     /// Shown range; `None`: from the data (whole decades on a log axis, round steps on a

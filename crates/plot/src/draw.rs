@@ -15,11 +15,11 @@ use std::ops::Range;
 
 pub(crate) type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
 
-/// Font sizes [px].
+/// Font sizes \[px\].
 pub(crate) const TITLE_PX: f64 = 20.0;
 pub(crate) const LABEL_PX: f64 = 15.0;
 pub(crate) const TEXT_PX: f64 = 16.0;
-/// Marker radius [px].
+/// Marker radius \[px\].
 const MARKER_PX: i32 = 5;
 
 pub(crate) fn colour(c: Rgb) -> RGBColor {
