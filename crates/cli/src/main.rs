@@ -12,7 +12,6 @@ mod devices;
 mod eval;
 mod gripper;
 mod images;
-mod plot;
 mod progress;
 mod replay;
 mod sampler;

@@ -4,7 +4,6 @@
 //! (error against a 1024-step Heun reference), with guards off so failures show as errors; the
 //! guard verdict is reported beside each row.
 
-use crate::plot;
 use anyhow::Context;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -13,6 +12,7 @@ use unitac_infer::flow::{
     Guards, OnnxVelocity, SampleConfig, Solver, exact_gaussian, noise, sample,
 };
 use unitac_infer::{Bundle, RuntimeConfig};
+use unitac_plot::{self as plot, Axis, Chart, Figure, LegendEntry, Marker, PALETTE, Series};
 
 pub const STEPS: [u32; 6] = [4, 8, 16, 32, 50, 64];
 pub const GUIDANCE: [f64; 4] = [1.0, 1.5, 3.0, 7.5];
@@ -248,76 +248,85 @@ pub fn report(out_dir: &Path, reps: usize) -> anyhow::Result<Report> {
     std::fs::create_dir_all(out_dir).with_context(|| out_dir.display().to_string())?;
     let rows = table(reps)?;
     let stab = stability()?;
-    // Error vs time: one panel per model x guidance, one line per solver.
-    let (pw, ph) = (420i64, 300i64);
-    let mut img = image::RgbImage::from_pixel(
-        (pw * 4) as u32,
-        (ph * 2 + 30) as u32,
-        image::Rgb([255, 255, 255]),
-    );
-    for (mi, model) in ["gaussian", "transformer"].iter().enumerate() {
-        for (gi, s) in GUIDANCE.iter().enumerate() {
-            let series: Vec<plot::Series> = Solver::ALL
-                .iter()
-                .enumerate()
-                .map(|(k, solver)| plot::Series {
-                    colour: plot::COLOURS[k],
-                    points: rows
-                        .iter()
-                        .filter(|r| r.model == *model && r.guidance == *s && r.solver == *solver)
-                        .map(|r| (r.time_us * 1e-6, r.error))
-                        .collect(),
-                })
-                .collect();
-            plot::loglog(
-                &mut img,
-                (gi as i64 * pw, mi as i64 * ph, pw, ph),
-                &series,
-                &format!("{} s={s}", if mi == 0 { "exact" } else { "ref" }),
-            );
-        }
-    }
-    plot::text(
-        &mut img,
-        10,
-        ph * 2 + 8,
-        "x = time per sample s   y = rms error   red euler  green midpoint  blue heun",
-        2,
-        [0, 0, 0],
-    );
     let p1 = out_dir.join("sampler_error_vs_time.png");
-    img.save(&p1).with_context(|| p1.display().to_string())?;
-    // Stability map: one grid per solver.
-    let cell = 34i64;
-    let gw = 70 + cell * STAB_N.len() as i64 + 30;
-    let mut img = image::RgbImage::from_pixel(
-        (gw * 3) as u32,
-        (cell * STAB_S.len() as i64 + 60) as u32,
-        image::Rgb([255, 255, 255]),
-    );
-    for (k, (_, by_s)) in stab.iter().enumerate() {
-        let cells: Vec<Vec<bool>> = by_s
-            .iter()
-            .map(|(_, r)| r.iter().map(|(_, ok)| *ok).collect())
-            .collect();
-        let rl: Vec<String> = STAB_S.iter().map(|s| format!("s={s}")).collect();
-        let cl: Vec<String> = STAB_N.iter().map(|n| n.to_string()).collect();
-        plot::grid(
-            &mut img,
-            (k as i64 * gw + 4, 4, cell),
-            &cells,
-            &rl,
-            &cl,
-            ["euler", "midpoint", "heun"][k],
-        );
-    }
+    error_vs_time(&rows).save(&p1)?;
     let p2 = out_dir.join("sampler_stability.png");
-    img.save(&p2).with_context(|| p2.display().to_string())?;
+    stability_map(&stab).save(&p2)?;
     Ok(Report {
         rows,
         stability: stab,
         plots: vec![p1, p2],
     })
+}
+
+const SOLVER_MARKERS: [Marker; 3] = [Marker::Circle, Marker::Square, Marker::Triangle];
+
+/// Error against time: one panel per model x guidance, one line per solver; non-finite errors
+/// (the sample blew up) as crosses on the panel's overflow strip.
+fn error_vs_time(rows: &[Row]) -> Figure {
+    let mut fig = Figure::new(1720, 820)
+        .columns(GUIDANCE.len())
+        .title("flow sampler: rms error against time per sample (guards off)");
+    for model in ["gaussian", "transformer"] {
+        for s in GUIDANCE {
+            let what = if model == "gaussian" {
+                "vs exact"
+            } else {
+                "vs Heun-1024"
+            };
+            let mut chart = Chart::new(
+                format!("{model} {what}, s = {s}"),
+                Axis::log("time per sample [s]"),
+                Axis::log("rms error"),
+            )
+            .overflow("diverged");
+            for (k, solver) in Solver::ALL.iter().enumerate() {
+                let points = rows
+                    .iter()
+                    .filter(|r| r.model == model && r.guidance == s && r.solver == *solver)
+                    .map(|r| (r.time_us * 1e-6, r.error))
+                    .collect();
+                chart = chart.series(
+                    Series::new(PALETTE[k], points)
+                        .label(solver.as_str())
+                        .marker(SOLVER_MARKERS[k]),
+                );
+            }
+            fig = fig.panel(chart);
+        }
+    }
+    fig.legend_from_series().note(format!(
+        "steps {STEPS:?} along each line; guidance s per column"
+    ))
+}
+
+/// Stability map: one grid per solver, guidance (rows) x steps (columns).
+fn stability_map(stab: &StabilityMap) -> Figure {
+    const STABLE: plot::Rgb = [120, 200, 120];
+    const UNSTABLE: plot::Rgb = [230, 110, 110];
+    let cols: Vec<String> = STAB_N.iter().map(|n| n.to_string()).collect();
+    let rows: Vec<String> = STAB_S.iter().map(|s| s.to_string()).collect();
+    let mut fig = Figure::new(1500, 480)
+        .columns(Solver::ALL.len())
+        .title("flow sampler on the Gaussian case: stable (finite, rms error < 0.5)");
+    for (solver, by_s) in stab {
+        let cells: Vec<Vec<(plot::Rgb, Option<String>)>> = by_s
+            .iter()
+            .map(|(_, r)| {
+                r.iter()
+                    .map(|(_, ok)| (if *ok { STABLE } else { UNSTABLE }, None))
+                    .collect()
+            })
+            .collect();
+        fig = fig.panel(Chart::heatmap(
+            solver.as_str(),
+            ("steps", &cols),
+            ("guidance s", &rows),
+            &cells,
+        ));
+    }
+    fig.legend(LegendEntry::fill("stable", STABLE))
+        .legend(LegendEntry::fill("unstable", UNSTABLE))
 }
 
 impl Report {

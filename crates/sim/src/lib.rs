@@ -4,14 +4,14 @@
 //! - [`mock`]: the mock sensor as a frame source (scenario, frame rate, stamps, ground truth).
 //! - `render`: the photometric model of a gel sensor that draws each frame.
 //! - [`world`]: the gripper / gel / cup model and its integrators.
-//! - [`numerics`], [`bench`](mod@bench), [`plot`]: the integrator study, the renderer benchmark, its charts.
+//! - [`numerics`], [`bench`](mod@bench): the integrator study (its charts drawn with unitac-plot),
+//!   the renderer benchmark.
 
 pub mod bench;
 pub mod degrade;
 pub mod mock;
 pub mod numerics;
 mod object;
-pub mod plot;
 mod render;
 mod rng;
 mod scenario;
