@@ -6,7 +6,7 @@
 //! inference stage encodes as the sensor prior Z_sen). Saved per sensor serial in a small binary
 //! file whose every size is checked on load.
 
-use crate::grid::{Geometry, block_means};
+use crate::grid::{BlockScratch, Geometry, block_means};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use unitac_core::{Frame, Stamp};
@@ -35,6 +35,7 @@ pub struct Learner {
     sum_full: Vec<u32>,
     prev: Vec<f32>,
     cur: Vec<f32>,
+    scratch: BlockScratch,
     abs_diff: f64,
     diff_n: u64,
 }
@@ -48,6 +49,7 @@ impl Learner {
             sum_full: vec![0; geo.width as usize * geo.height as usize * 3],
             prev: Vec::new(),
             cur: Vec::new(),
+            scratch: BlockScratch::default(),
             abs_diff: 0.0,
             diff_n: 0,
         }
@@ -58,7 +60,7 @@ impl Learner {
     }
 
     pub fn add(&mut self, f: &Frame) {
-        block_means(f, &self.geo, &mut self.cur);
+        block_means(f, &self.geo, &mut self.cur, &mut self.scratch);
         if !self.prev.is_empty() {
             self.abs_diff += self
                 .cur

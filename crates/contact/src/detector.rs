@@ -3,8 +3,9 @@
 
 use crate::background::{Background, Learner};
 use crate::episodes::Episodes;
-use crate::grid::{BitMask, Geometry, block_means, box_mean3, keep_components};
+use crate::grid::{BitMask, BlockScratch, Geometry, block_means, keep_components};
 use crate::params::{ContactParams, ParamsError};
+use crate::residual::{self, Inputs, ResidualScratch, residual_mask};
 use crate::shading::{self, ShadingScratch};
 use unitac_core::msg::{ContactState, Header};
 use unitac_core::{Frame, Msg, SensorKind, SensorSpec, StageError};
@@ -60,11 +61,12 @@ struct Scratch {
     resid: Vec<f32>,
     bits: BitMask,
     labels: Vec<u32>,
-    stack: Vec<usize>,
-    ratios: [Vec<f32>; 3],
-    diff: Vec<f32>,
-    tmp: Vec<f32>,
+    stack: Vec<(usize, usize)>,
+    /// Frame / background ratios per channel, as f32 bits (non-negative).
+    ratios: [Vec<u32>; 3],
+    residual: ResidualScratch,
     shading: ShadingScratch,
+    block: BlockScratch,
 }
 
 #[derive(Debug)]
@@ -275,7 +277,7 @@ impl ContactDetector {
         };
         let k = self.size_scale(geo.width, geo.height);
         let s = &mut self.s;
-        block_means(f, &geo, &mut s.grid);
+        block_means(f, &geo, &mut s.grid, &mut s.block);
 
         // 1. Frame quality and illumination gain, on a sample of cells.
         let (mut sat, mut dark, mut sampled) = (0usize, 0usize, 0usize);
@@ -294,7 +296,7 @@ impl ContactDetector {
             if markers[i] == 0 {
                 for c in 0..3 {
                     if b[c] > 10.0 && g[c] < 250.0 {
-                        s.ratios[c].push(g[c] / b[c]);
+                        s.ratios[c].push((g[c] / b[c]).to_bits());
                     }
                 }
             }
@@ -316,10 +318,9 @@ impl ContactDetector {
         }
         let mut gain = [1.0f32; 3];
         for (c, (g, r)) in gain.iter_mut().zip(s.ratios.iter_mut()).enumerate() {
-            if !r.is_empty() {
-                let mid = r.len() / 2;
-                let (_, m, _) = r.select_nth_unstable_by(mid, f32::total_cmp);
-                *g = *m;
+            let mid = r.len() / 2;
+            if let Some(m) = shading::nth_non_negative(r, mid) {
+                *g = m;
             }
             if !(GAIN_RANGE.0..=GAIN_RANGE.1).contains(g) {
                 return Err(StageError::BadInput(format!(
@@ -329,56 +330,47 @@ impl ContactDetector {
             }
         }
 
-        // 2. Signed difference per channel; masked marker cells count as unchanged.
-        s.diff.clear();
-        s.diff.resize(geo.cells() * 3, 0.0);
-        let per_cell = s
-            .diff
-            .chunks_exact_mut(3)
-            .zip(s.grid.chunks_exact(3))
-            .zip(bg.grid.chunks_exact(3))
-            .zip(markers);
-        for (((d, g), b), &marker) in per_cell {
-            if marker == 0 {
-                d[0] = g[0] - gain[0] * b[0];
-                d[1] = g[1] - gain[1] * b[1];
-                d[2] = g[2] - gain[2] * b[2];
-            }
-        }
+        // 2. Signed difference per channel; masked marker cells count as unchanged. Computed
+        // where it is needed: at the fit's lattices, then once per cell in the threshold pass.
+        let (grid, bgrid) = (&s.grid, &bg.grid);
+        let diff_at = |i: usize| {
+            let (g, b) = (&grid[i * 3..i * 3 + 3], &bgrid[i * 3..i * 3 + 3]);
+            residual::diff(g, b, markers[i], gain)
+        };
 
         // 3. The smooth shading out, and the noise of what is left, from this frame.
-        let fit = shading::fit(&s.diff, markers, geo.gw, geo.gh, &mut s.shading);
+        let fit = shading::fit(diff_at, markers, geo.gw, geo.gh, &mut s.shading);
         let sigma: f32 = fit.sigma.iter().sum();
-        // A field far below the noise is not worth a pass over the grid.
-        if fit.peak > 0.5 * sigma {
-            fit.remove(&mut s.diff, geo.gw, geo.gh, &s.shading);
-        }
+        // A field far below the noise is not worth subtracting.
+        let remove = fit.peak > 0.5 * sigma;
         // Noisy frames: average the difference over a box of cells, so that the per-channel
         // noise left is at most SMOOTH_TARGET_DN (presses are larger than the box).
         let mut r = 0u32;
         while sigma / 3.0 / (2 * r + 1) as f32 > SMOOTH_TARGET_DN && r < MAX_SMOOTHING {
             r += 1;
         }
-        box_mean3(&mut s.diff, geo.gw, geo.gh, r as usize, &mut s.tmp);
         let thr = (self.p.noise_k * sigma / (2 * r + 1) as f32).max(self.p.min_threshold);
-
-        // 4. Residual and threshold, straight into a packed mask.
-        s.resid.clear();
-        s.resid.resize(geo.cells(), 0.0);
-        s.bits.reset(geo.gw, geo.gh);
-        for (i, ((d, &marker), res)) in s
-            .diff
-            .chunks_exact(3)
-            .zip(markers)
-            .zip(s.resid.iter_mut())
-            .enumerate()
-        {
-            let v = d[0].abs() + d[1].abs() + d[2].abs();
-            *res = v;
-            if v > thr && marker == 0 {
-                s.bits.set(i % geo.gw, i / geo.gw);
-            }
-        }
+        let (gw, gh) = (geo.gw, geo.gh);
+        // 4. Residual and threshold, straight into a packed mask: in one pass from the frame's
+        // grid on clean frames; through the difference and its box mean on noisy ones.
+        let inputs = Inputs {
+            grid,
+            bg: bgrid,
+            markers,
+            gain,
+            gw,
+            gh,
+            field: remove.then_some(&fit),
+            us: s.shading.us(),
+        };
+        residual_mask(
+            &inputs,
+            r as usize,
+            thr,
+            &mut s.residual,
+            &mut s.resid,
+            &mut s.bits,
+        );
 
         // 5. Morphology, then the coherent regions: components over the minimum size and not
         // much smaller than the largest, so scattered specks never add up to a contact.
@@ -390,36 +382,48 @@ impl ContactDetector {
                 ((px as f32 * k / st as f32).round() as u32).max(1)
             }
         };
-        if !s.bits.is_empty() {
+        let any = !s.bits.is_empty();
+        if any {
             s.bits
                 .open_close(cells(self.p.open_radius_px), cells(self.p.close_radius_px));
         }
         s.bits.to_bytes(&mut s.mask);
-        let min_cells = (self.p.min_component_px * k * k / geo.cell_px()).ceil() as usize;
-        keep_components(
-            &mut s.mask,
-            geo.gw,
-            geo.gh,
-            min_cells.max(1),
-            SHARE_OF_LARGEST,
-            &mut s.labels,
-            &mut s.stack,
-        );
+        // Nothing over the threshold (most frames): no components to look for.
+        if any {
+            let min_cells = (self.p.min_component_px * k * k / geo.cell_px()).ceil() as usize;
+            keep_components(
+                &mut s.mask,
+                geo.gw,
+                geo.gh,
+                min_cells.max(1),
+                SHARE_OF_LARGEST,
+                &mut s.labels,
+                &mut s.stack,
+            );
+        }
 
         // 4. Geometry in input pixels.
         let (mut n, mut sx, mut sy, mut sr) = (0u64, 0f64, 0f64, 0f64);
         let mut bb = [u32::MAX, u32::MAX, 0u32, 0u32];
-        for (i, &m) in s.mask.iter().enumerate() {
-            if m == 0 {
-                continue;
-            }
-            let (gx, gy) = ((i % geo.gw) as u32, (i / geo.gw) as u32);
+        // Row by row (cell order), past the empty rows.
+        let rows = s
+            .mask
+            .chunks_exact(geo.gw)
+            .zip(s.resid.chunks_exact(geo.gw));
+        let set_rows = rows
+            .enumerate()
+            .filter(|(_, (m, _))| m.iter().any(|&m| m != 0));
+        let cells = set_rows.flat_map(|(gy, (m, res))| {
+            let set = m.iter().zip(res).enumerate().filter(|(_, (m, _))| **m != 0);
+            set.map(move |(gx, (_, &res))| (gx as u32, gy as u32, res))
+        });
+        for (gx, gy, res) in cells {
             n += 1;
             sx += f64::from(gx);
             sy += f64::from(gy);
             // Closing can add masked marker cells with no residual of their own: count them at
             // the threshold.
-            sr += f64::from((s.resid[i] / thr).max(1.0));
+            sr += f64::from((res / thr).max(1.0));
             bb = [
                 bb[0].min(gx),
                 bb[1].min(gy),
@@ -530,11 +534,15 @@ impl ContactDetector {
         let Some(Model::Ready { bg, .. }) = self.model.as_mut() else {
             return;
         };
-        for (i, &m) in self.s.mask.iter().enumerate() {
+        let cells = bg
+            .grid
+            .chunks_exact_mut(3)
+            .zip(self.s.grid.chunks_exact(3))
+            .zip(&self.s.mask);
+        for ((b, g), &m) in cells {
             if m == 0 {
                 for c in 0..3 {
-                    let (b, g) = (&mut bg.grid[i * 3 + c], self.s.grid[i * 3 + c]);
-                    *b += a * (g - *b);
+                    b[c] += a * (g[c] - b[c]);
                 }
             }
         }

@@ -32,43 +32,83 @@ impl Geometry {
     }
 }
 
-/// Block means, RGB interleaved, into `out` (resized as needed). One pass over the frame, integer
-/// sums per cell row, one conversion per cell.
-pub fn block_means(f: &Frame, g: &Geometry, out: &mut Vec<f32>) {
-    let s = g.stride as usize;
-    let w = f.width as usize;
-    let used = g.gw * s * 3;
-    out.clear();
+/// Scratch of [`block_means`]: one cell row's pixel rows summed per column, then per cell.
+#[derive(Debug, Default, Clone)]
+pub struct BlockScratch {
+    rows: Vec<u16>,
+    sums: Vec<u32>,
+}
+
+/// Pixel rows summed in u16 before they are flushed into the cell sums (255 x 257 fits).
+const ROWS_PER_BATCH: usize = 257;
+
+/// Block means, RGB interleaved, into `out` (resized as needed). One pass over the frame: the
+/// pixel rows of a cell row are added column by column in u16 (a loop the compiler vectorises),
+/// then each cell's columns are added, and each cell is converted once. Integer sums, so the
+/// result does not depend on the order.
+pub fn block_means(f: &Frame, g: &Geometry, out: &mut Vec<f32>, s: &mut BlockScratch) {
+    let st = g.stride as usize;
+    let w3 = f.width as usize * 3;
+    let used = g.gw * st * 3;
+    // Every cell is written below.
     out.resize(g.cells() * 3, 0.0);
+    s.rows.resize(used, 0);
+    s.sums.clear();
+    s.sums.resize(g.gw * 3, 0);
     let data = f.data();
-    let inv = 1.0 / (s * s) as f32;
-    let mut sums = vec![0u32; g.gw * 3];
-    for gy in 0..g.gh {
-        sums.fill(0);
-        for dy in 0..s {
-            let y = gy * s + dy;
-            let row = &data[y * w * 3..y * w * 3 + used];
-            if s == 2 {
-                for (cell, px) in sums.chunks_exact_mut(3).zip(row.chunks_exact(6)) {
-                    cell[0] += u32::from(px[0]) + u32::from(px[3]);
-                    cell[1] += u32::from(px[1]) + u32::from(px[4]);
-                    cell[2] += u32::from(px[2]) + u32::from(px[5]);
-                }
-            } else {
-                for (cell, px) in sums.chunks_exact_mut(3).zip(row.chunks_exact(s * 3)) {
-                    for p in px.chunks_exact(3) {
-                        cell[0] += u32::from(p[0]);
-                        cell[1] += u32::from(p[1]);
-                        cell[2] += u32::from(p[2]);
+    let inv = 1.0 / (st * st) as f32;
+    for (gy, dst) in out.chunks_exact_mut(g.gw * 3).enumerate().take(g.gh) {
+        s.sums.fill(0);
+        let first = gy * st;
+        let mut dy = 0;
+        while dy < st {
+            let n = (st - dy).min(ROWS_PER_BATCH);
+            s.rows.fill(0);
+            for y in first + dy..first + dy + n {
+                if let Some(row) = data.get(y * w3..y * w3 + used) {
+                    for (a, &b) in s.rows.iter_mut().zip(row) {
+                        *a += u16::from(b);
                     }
                 }
             }
+            match st {
+                1 => add_cells::<1>(&s.rows, &mut s.sums),
+                2 => add_cells::<2>(&s.rows, &mut s.sums),
+                3 => add_cells::<3>(&s.rows, &mut s.sums),
+                4 => add_cells::<4>(&s.rows, &mut s.sums),
+                8 => add_cells::<8>(&s.rows, &mut s.sums),
+                _ => add_cells_n(&s.rows, &mut s.sums, st),
+            }
+            dy += n;
         }
-        for (o, &v) in out[gy * g.gw * 3..(gy + 1) * g.gw * 3]
-            .iter_mut()
-            .zip(&sums)
-        {
+        for (o, &v) in dst.iter_mut().zip(&s.sums) {
             *o = v as f32 * inv;
+        }
+    }
+}
+
+/// Add each cell's `S` columns (RGB) of the summed rows into its sums.
+fn add_cells<const S: usize>(rows: &[u16], sums: &mut [u32]) {
+    for (cell, px) in sums.chunks_exact_mut(3).zip(rows.chunks_exact(3 * S)) {
+        let mut a = [0u32; 3];
+        for p in px.chunks_exact(3) {
+            a[0] += u32::from(p[0]);
+            a[1] += u32::from(p[1]);
+            a[2] += u32::from(p[2]);
+        }
+        cell[0] += a[0];
+        cell[1] += a[1];
+        cell[2] += a[2];
+    }
+}
+
+/// [`add_cells`] for a stride known only at run time.
+fn add_cells_n(rows: &[u16], sums: &mut [u32], st: usize) {
+    for (cell, px) in sums.chunks_exact_mut(3).zip(rows.chunks_exact(3 * st)) {
+        for p in px.chunks_exact(3) {
+            cell[0] += u32::from(p[0]);
+            cell[1] += u32::from(p[1]);
+            cell[2] += u32::from(p[2]);
         }
     }
 }
@@ -94,6 +134,21 @@ impl BitMask {
     }
     pub fn set(&mut self, x: usize, y: usize) {
         self.words[y * self.wpr + x / 64] |= 1u64 << (x % 64);
+    }
+    /// Set row `y` from one byte per cell, each 0 or 1 (`bytes.len()` = the row's width): eight
+    /// cells per multiply, which gathers the low bits of eight bytes into one byte.
+    pub fn set_row(&mut self, y: usize, bytes: &[u8]) {
+        const GATHER: u64 = 0x0102_0408_1020_4080;
+        let row = &mut self.words[y * self.wpr..(y + 1) * self.wpr];
+        for (word, cells) in row.iter_mut().zip(bytes.chunks(64)) {
+            let mut acc = 0u64;
+            for (k, eight) in cells.chunks(8).enumerate() {
+                let mut le = [0u8; 8];
+                le[..eight.len()].copy_from_slice(eight);
+                acc |= (u64::from_le_bytes(le).wrapping_mul(GATHER) >> 56) << (8 * k);
+            }
+            *word = acc;
+        }
     }
     pub fn get(&self, x: usize, y: usize) -> bool {
         self.words[y * self.wpr + x / 64] >> (x % 64) & 1 == 1
@@ -294,7 +349,7 @@ pub fn keep_components(
     min_cells: usize,
     share_of_largest: f32,
     labels: &mut Vec<u32>,
-    stack: &mut Vec<usize>,
+    stack: &mut Vec<(usize, usize)>,
 ) -> usize {
     labels.clear();
     labels.resize(mask.len(), 0);
@@ -306,28 +361,28 @@ pub fn keep_components(
         let id = sizes.len() as u32;
         let mut n = 0;
         stack.clear();
-        stack.push(start);
+        stack.push((start % gw, start / gw));
         labels[start] = id;
-        while let Some(i) = stack.pop() {
+        while let Some((x, y)) = stack.pop() {
             n += 1;
-            let (x, y) = (i % gw, i / gw);
-            let mut visit = |j: usize| {
+            let i = y * gw + x;
+            let mut visit = |j: usize, x: usize, y: usize| {
                 if mask[j] != 0 && labels[j] == 0 {
                     labels[j] = id;
-                    stack.push(j);
+                    stack.push((x, y));
                 }
             };
             if x > 0 {
-                visit(i - 1);
+                visit(i - 1, x - 1, y);
             }
             if x + 1 < gw {
-                visit(i + 1);
+                visit(i + 1, x + 1, y);
             }
             if y > 0 {
-                visit(i - gw);
+                visit(i - gw, x, y - 1);
             }
             if y + 1 < gh {
-                visit(i + gw);
+                visit(i + gw, x, y + 1);
             }
         }
         sizes.push(n);
@@ -362,11 +417,86 @@ mod tests {
         let f = Frame::new("t", 0, Stamp::ZERO, 4, 2, d).unwrap();
         let g = Geometry::new(4, 2, 2);
         let mut out = Vec::new();
-        block_means(&f, &g, &mut out);
+        block_means(&f, &g, &mut out, &mut BlockScratch::default());
         assert_eq!(out, vec![25.0, 25.0, 230.0, 45.0, 45.0, 210.0]);
         // Tiny images shrink the stride instead of producing an empty grid.
         let g1 = Geometry::new(1, 1, 4);
         assert_eq!((g1.stride, g1.cells()), (1, 1));
+    }
+
+    /// Block means against a direct per-cell mean, for strides with a specialised loop, one
+    /// without, and one over the u16 batch of rows; widths with a remainder.
+    #[test]
+    fn block_means_match_a_direct_mean() {
+        let mut seed = 99u64;
+        for (w, h, st) in [
+            (13, 7, 1),
+            (21, 10, 2),
+            (19, 11, 3),
+            (42, 17, 4),
+            (37, 29, 5),
+            (300, 280, 270),
+        ] {
+            let d: Vec<u8> = (0..w * h * 3)
+                .map(|_| {
+                    seed = seed
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    (seed >> 56) as u8
+                })
+                .collect();
+            let f = Frame::new("t", 0, Stamp::ZERO, w as u32, h as u32, d.clone()).unwrap();
+            let g = Geometry::new(w as u32, h as u32, st as u32);
+            let mut out = Vec::new();
+            block_means(&f, &g, &mut out, &mut BlockScratch::default());
+            assert_eq!(out.len(), g.cells() * 3);
+            for cy in 0..g.gh {
+                for cx in 0..g.gw {
+                    for c in 0..3 {
+                        let mut sum = 0u32;
+                        for y in cy * st..(cy + 1) * st {
+                            for x in cx * st..(cx + 1) * st {
+                                sum += u32::from(d[(y * w + x) * 3 + c]);
+                            }
+                        }
+                        let want = sum as f32 * (1.0 / (st * st) as f32);
+                        assert_eq!(
+                            out[(cy * g.gw + cx) * 3 + c],
+                            want,
+                            "{w}x{h}/{st} ({cx}, {cy}, {c})"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn set_row_packs_bytes_like_set() {
+        let mut seed = 5u64;
+        for gw in [1, 7, 8, 63, 64, 65, 130] {
+            let gh = 3;
+            let m: Vec<u8> = (0..gw * gh)
+                .map(|_| {
+                    seed = seed
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    u8::from((seed >> 33) % 3 == 0)
+                })
+                .collect();
+            let (mut a, mut b) = (BitMask::default(), BitMask::default());
+            a.reset(gw, gh);
+            b.reset(gw, gh);
+            for (i, &v) in m.iter().enumerate() {
+                if v != 0 {
+                    a.set(i % gw, i / gw);
+                }
+            }
+            for (y, row) in m.chunks_exact(gw).enumerate() {
+                b.set_row(y, row);
+            }
+            assert_eq!(a.words, b.words, "gw {gw}");
+        }
     }
 
     #[test]

@@ -27,6 +27,7 @@ mod detector;
 mod episodes;
 pub mod grid;
 mod params;
+mod residual;
 pub mod shading;
 mod stage;
 mod store;

@@ -11,8 +11,9 @@
 //! the sensor.
 //!
 //! Cost: the fitting lattice holds ~600 cells whatever the frame size (an odd step each way,
-//! rows staggered; the noise is measured on ~2,000); the normal matrix (15 x 15) of the whole lattice is built once per frame size and
-//! only the rejected rows are taken out of it per frame; at most three iterations (fewer when the
+//! rows staggered; the noise is measured on ~2,000); the normal matrix (15 x 15) of the lattice
+//! less the masked marker cells is built once per frame size and marker mask, and only the rows
+//! rejected on this frame are taken out of it; at most three iterations (fewer when the
 //! inliers stop changing). Subtracting the surface is four multiply-adds per channel per cell
 //! (Horner in x, the row's coefficients computed once per row), skipped when the fitted field is
 //! below half the noise.
@@ -51,17 +52,28 @@ pub struct ShadingFit {
 pub struct ShadingScratch {
     /// Lattice cell indices and their basis rows.
     idx: Vec<usize>,
-    /// The denser lattice the noise is measured on.
+    /// The denser lattice the noise is measured on, less the cells with no right neighbour.
     noise_idx: Vec<usize>,
-    rows: Vec<[f32; TERMS]>,
+    /// (As f64: exactly the f32 basis values, converted once per frame size.)
+    rows: Vec<[f64; TERMS]>,
+    /// The same basis term-major (term t of every lattice cell together), so that the model at
+    /// the lattice is evaluated a term at a time over all cells (a loop the compiler vectorises).
+    cols: Vec<f32>,
+    /// The model at the lattice, channel-major.
+    model: Vec<f32>,
     inlier: Vec<bool>,
-    abs: [Vec<f32>; 3],
+    /// |neighbour difference| per channel, as f32 bits (see [`nth_non_negative`]).
+    abs: [Vec<u32>; 3],
     /// The geometry the lattice was built for (gw, gh).
     built: (usize, usize),
-    /// Normal matrix of the whole lattice (upper triangle), built with it.
-    full: [[f64; TERMS]; TERMS],
+    /// Normal matrix (upper triangle) of the lattice cells not skipped, and which those are:
+    /// built again only when the skipped cells change (the marker mask, once per background).
+    base: [[f64; TERMS]; TERMS],
+    open: Vec<bool>,
     /// u of every cell column.
     us: Vec<f32>,
+    /// The difference at the lattice cells of this frame.
+    d: Vec<[f32; 3]>,
 }
 
 /// About `cells` cells spread over the grid: an odd step, and rows staggered, so that the lattice
@@ -107,11 +119,11 @@ fn basis(u: f32, v: f32) -> [f32; TERMS] {
 }
 
 /// `a += w * row row^T` on the upper triangle.
-fn add_outer(a: &mut [[f64; TERMS]; TERMS], row: &[f32; TERMS], w: f64) {
+fn add_outer(a: &mut [[f64; TERMS]; TERMS], row: &[f64; TERMS], w: f64) {
     for (j, &rj) in row.iter().enumerate() {
-        let rj = w * f64::from(rj);
+        let rj = w * rj;
         for (k, &rk) in row.iter().enumerate().skip(j) {
-            a[j][k] += rj * f64::from(rk);
+            a[j][k] += rj * rk;
         }
     }
 }
@@ -165,41 +177,66 @@ fn solve(mut a: [[f64; TERMS]; TERMS], mut b: [[f64; 3]; TERMS]) -> [[f32; TERMS
     out
 }
 
-/// Robust sigma of zero-mean Gaussian values from their absolute values: the 30th percentile
-/// of |x| is 0.3853 sigma. A low quantile, so that a press covering much of the gel (its cells
-/// all far out) inflates it little.
-fn robust_sigma(abs: &mut [f32]) -> f32 {
-    if abs.is_empty() {
-        return 0.0;
+/// The `k`-th smallest (0-based) of non-negative floats given as their bits (`f32::to_bits`),
+/// `None` when `k` is out of range. For non-negative floats the bits are in the order of the
+/// values (that of `f32::total_cmp`), so an integer selection finds the same element as a float
+/// one, at a fraction of the cost of the float comparisons.
+pub fn nth_non_negative(bits: &mut [u32], k: usize) -> Option<f32> {
+    if k >= bits.len() {
+        return None;
     }
-    let k = abs.len() * 3 / 10;
-    *abs.select_nth_unstable_by(k, f32::total_cmp).1 / 0.3853
+    Some(f32::from_bits(*bits.select_nth_unstable(k).1))
 }
 
-/// Fit the shading of `diff` (signed difference, RGB interleaved, `gw` x `gh` cells), leaving out
-/// cells where `skip` is non-zero (masked markers).
-pub fn fit(diff: &[f32], skip: &[u8], gw: usize, gh: usize, s: &mut ShadingScratch) -> ShadingFit {
+/// Robust sigma of zero-mean Gaussian values from their absolute values (as f32 bits): the 30th
+/// percentile of |x| is 0.3853 sigma. A low quantile, so that a press covering much of the gel
+/// (its cells all far out) inflates it little.
+fn robust_sigma(abs: &mut [u32]) -> f32 {
+    let k = abs.len() * 3 / 10;
+    nth_non_negative(abs, k).map_or(0.0, |v| v / 0.3853)
+}
+
+/// Fit the shading of the signed difference `diff(cell)` (RGB, cell = y gw + x of a `gw` x `gh`
+/// grid), leaving out cells where `skip` is non-zero (masked markers). The difference is asked
+/// for at the lattices only (a few thousand cells), so the caller need not compute it everywhere.
+pub fn fit(
+    diff: impl Fn(usize) -> [f32; 3],
+    skip: &[u8],
+    gw: usize,
+    gh: usize,
+    s: &mut ShadingScratch,
+) -> ShadingFit {
     if s.built != (gw, gh) {
         s.idx = lattice(gw, gh, LATTICE_CELLS);
         s.noise_idx = lattice(gw, gh, NOISE_CELLS);
+        s.noise_idx
+            .retain(|&i| (i + 1) % gw != 0 && i + 1 < gw * gh);
         s.rows = s
             .idx
             .iter()
             .map(|&i| {
                 let (u, v) = coords(i % gw, i / gw, gw, gh);
-                basis(u, v)
+                basis(u, v).map(f64::from)
             })
             .collect();
-        s.full = [[0f64; TERMS]; TERMS];
-        for row in &s.rows {
-            add_outer(&mut s.full, row, 1.0);
-        }
+        let n = s.rows.len();
+        s.cols = (0..TERMS * n)
+            .map(|k| s.rows[k % n][k / n] as f32)
+            .collect();
+        s.open.clear();
         s.us = (0..gw).map(|x| coords(x, 0, gw, gh).0).collect();
         s.built = (gw, gh);
     }
     s.inlier.clear();
     s.inlier
         .extend(s.idx.iter().map(|&i| skip.get(i).is_none_or(|&m| m == 0)));
+    if s.open != s.inlier {
+        s.base = [[0f64; TERMS]; TERMS];
+        for (row, _) in s.rows.iter().zip(&s.inlier).filter(|(_, ok)| **ok) {
+            add_outer(&mut s.base, row, 1.0);
+        }
+        s.open.clone_from(&s.inlier);
+    }
     let mut fit = ShadingFit::default();
     // The noise, from differences of horizontally neighbouring cells at the lattice: shading and
     // the inside of a press change little from one cell to the next, so even a press covering
@@ -209,41 +246,44 @@ pub fn fit(diff: &[f32], skip: &[u8], gw: usize, gh: usize, s: &mut ShadingScrat
     }
     for &i in &s.noise_idx {
         let j = i + 1;
-        if j % gw == 0 || j >= gw * gh {
-            continue;
-        }
         let masked = |k: usize| skip.get(k).is_some_and(|&m| m != 0);
         if masked(i) || masked(j) {
             continue;
         }
+        let (dj, di) = (diff(j), diff(i));
         for c in 0..3 {
-            s.abs[c].push((diff[j * 3 + c] - diff[i * 3 + c]).abs());
+            s.abs[c].push((dj[c] - di[c]).abs().to_bits());
         }
     }
     for c in 0..3 {
         fit.sigma[c] = (robust_sigma(&mut s.abs[c]) / std::f32::consts::SQRT_2).max(MIN_SIGMA);
     }
     let limit = REJECT_K * (fit.sigma[0] + fit.sigma[1] + fit.sigma[2]);
+    s.d.clear();
+    s.d.extend(s.idx.iter().map(|&i| diff(i)));
     for it in 0..ITERATIONS {
-        // The normal matrix is the lattice's less the rows left out (few, usually).
-        let mut a = s.full;
-        let mut b = [[0f64; 3]; TERMS];
-        for ((&i, row), &ok) in s.idx.iter().zip(&s.rows).zip(&s.inlier) {
+        // The normal matrix is that of the cells not skipped less the rows rejected (few,
+        // usually).
+        let mut a = s.base;
+        // Channel-major, so that a cell's terms are added to contiguous accumulators.
+        let mut bc = [[0f64; TERMS]; 3];
+        for (((di, row), &ok), &open) in s.d.iter().zip(&s.rows).zip(&s.inlier).zip(&s.open) {
             if !ok {
-                add_outer(&mut a, row, -1.0);
+                if open {
+                    add_outer(&mut a, row, -1.0);
+                }
                 continue;
             }
-            let d = [
-                f64::from(diff[i * 3]),
-                f64::from(diff[i * 3 + 1]),
-                f64::from(diff[i * 3 + 2]),
-            ];
-            for (bj, &rj) in b.iter_mut().zip(row) {
-                let rj = f64::from(rj);
-                bj[0] += rj * d[0];
-                bj[1] += rj * d[1];
-                bj[2] += rj * d[2];
+            for (bc, &d) in bc.iter_mut().zip(di) {
+                let d = f64::from(d);
+                for (bj, &rj) in bc.iter_mut().zip(row) {
+                    *bj += rj * d;
+                }
             }
+        }
+        let mut b = [[0f64; 3]; TERMS];
+        for (j, bj) in b.iter_mut().enumerate() {
+            *bj = [bc[0][j], bc[1][j], bc[2][j]];
         }
         for j in 0..TERMS {
             for k in 0..j {
@@ -255,16 +295,28 @@ pub fn fit(diff: &[f32], skip: &[u8], gw: usize, gh: usize, s: &mut ShadingScrat
         let mut rejected = 0usize;
         let mut changed = false;
         fit.peak = 0.0;
-        for ((&i, row), ok) in s.idx.iter().zip(&s.rows).zip(s.inlier.iter_mut()) {
+        // The model at every lattice cell, summed term by term in the basis order.
+        let n = s.idx.len();
+        s.model.clear();
+        s.model.resize(3 * n, 0.0);
+        for (model, coef) in s.model.chunks_exact_mut(n.max(1)).zip(&fit.coef) {
+            for (col, &k) in s.cols.chunks_exact(n.max(1)).zip(coef) {
+                for (m, &r) in model.iter_mut().zip(col) {
+                    *m += r * k;
+                }
+            }
+        }
+        let (m0, rest) = s.model.split_at(n);
+        let (m1, m2) = rest.split_at(n);
+        let cells = s.d.iter().zip(&s.open).zip(s.inlier.iter_mut());
+        for (k, ((di, &open), ok)) in cells.enumerate() {
             let (mut e, mut field) = (0f32, 0f32);
-            for c in 0..3 {
-                let model: f32 = row.iter().zip(&fit.coef[c]).map(|(r, k)| r * k).sum();
-                e += (diff[i * 3 + c] - model).abs();
+            for (c, model) in [m0[k], m1[k], m2[k]].into_iter().enumerate() {
+                e += (di[c] - model).abs();
                 field += model.abs();
             }
             fit.peak = fit.peak.max(field);
-            let masked = skip.get(i).is_some_and(|&m| m != 0);
-            let now = !masked && e < limit;
+            let now = open && e < limit;
             changed |= now != *ok;
             *ok = now;
             rejected += usize::from(!now);
@@ -279,30 +331,49 @@ pub fn fit(diff: &[f32], skip: &[u8], gw: usize, gh: usize, s: &mut ShadingScrat
 }
 
 impl ShadingFit {
-    /// Subtract the fitted field from `diff` in place (`s`: the scratch `fit` used).
-    pub fn remove(&self, diff: &mut [f32], gw: usize, gh: usize, s: &ShadingScratch) {
+    /// The fitted field along grid row `y`, per channel, as a quartic in u (coefficients of
+    /// u^0..u^4): evaluate it with [`ShadingFit::at`] and the `us` of the scratch.
+    pub fn row(&self, y: usize, gw: usize, gh: usize) -> [[f32; 5]; 3] {
         let c = &self.coef;
+        let (_, v) = coords(0, y, gw, gh);
+        let mut p = [[0f32; 5]; 3];
+        for ch in 0..3 {
+            let k = &c[ch];
+            p[ch] = [
+                k[0] + v * (k[2] + v * (k[5] + v * (k[9] + v * k[14]))),
+                k[1] + v * (k[4] + v * (k[8] + v * k[13])),
+                k[3] + v * (k[7] + v * k[12]),
+                k[6] + v * k[11],
+                k[10],
+            ];
+        }
+        p
+    }
+
+    /// One channel of a [`ShadingFit::row`] at `u` (Horner: four multiply-adds).
+    #[inline]
+    pub fn at(q: &[f32; 5], u: f32) -> f32 {
+        q[0] + u * (q[1] + u * (q[2] + u * (q[3] + u * q[4])))
+    }
+
+    /// Subtract the fitted field from `diff` (RGB interleaved) in place (`s`: the scratch `fit`
+    /// used).
+    pub fn remove(&self, diff: &mut [f32], gw: usize, gh: usize, s: &ShadingScratch) {
         for (y, row) in diff.chunks_exact_mut(gw * 3).enumerate().take(gh) {
-            let (_, v) = coords(0, y, gw, gh);
-            // Per channel: p0 + p1 u + p2 u^2 + p3 u^3 + p4 u^4.
-            let mut p = [[0f32; 5]; 3];
-            for ch in 0..3 {
-                let k = &c[ch];
-                p[ch] = [
-                    k[0] + v * (k[2] + v * (k[5] + v * (k[9] + v * k[14]))),
-                    k[1] + v * (k[4] + v * (k[8] + v * k[13])),
-                    k[3] + v * (k[7] + v * k[12]),
-                    k[6] + v * k[11],
-                    k[10],
-                ];
-            }
+            let p = self.row(y, gw, gh);
             for (cell, &u) in row.chunks_exact_mut(3).zip(&s.us) {
                 for ch in 0..3 {
-                    let q = &p[ch];
-                    cell[ch] -= q[0] + u * (q[1] + u * (q[2] + u * (q[3] + u * q[4])));
+                    cell[ch] -= Self::at(&p[ch], u);
                 }
             }
         }
+    }
+}
+
+impl ShadingScratch {
+    /// u of every cell column of the grid the last fit was for.
+    pub fn us(&self) -> &[f32] {
+        &self.us
     }
 }
 
@@ -341,7 +412,13 @@ mod tests {
             }
         }
         let mut s = ShadingScratch::default();
-        let f = fit(&diff, &[], gw, gh, &mut s);
+        let f = fit(
+            |i| [diff[i * 3], diff[i * 3 + 1], diff[i * 3 + 2]],
+            &[],
+            gw,
+            gh,
+            &mut s,
+        );
         for c in 0..3 {
             assert!((f.sigma[c] - 2.0).abs() < 0.4, "{:?}", f.sigma);
         }
