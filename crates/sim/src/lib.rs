@@ -4,6 +4,8 @@
 //! - [`mock`]: the mock sensor as a frame source (scenario, frame rate, stamps, ground truth).
 //! - `render`: the photometric model of a gel sensor that draws each frame.
 //! - [`world`]: the gripper / gel / cup model and its integrators.
+//! - [`task`]: the closed-loop task worlds (cup deformation, fabric selection) and the scripted
+//!   expert.
 //! - [`numerics`], [`bench`](mod@bench), [`plot`]: the integrator study, the renderer benchmark, its charts.
 
 pub mod bench;
@@ -15,6 +17,7 @@ pub mod plot;
 mod render;
 mod rng;
 mod scenario;
+pub mod task;
 pub mod world;
 
 pub use mock::{Drift, EPOCH, GroundTruth, MockConfig, MockSensor};

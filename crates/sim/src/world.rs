@@ -67,6 +67,16 @@ pub enum WorldError {
     },
     #[error("bad step {0} s (must be finite and > 0)")]
     BadStep(f64),
+    /// A task command (or run setting) outside its domain: nothing was changed.
+    #[error("bad command: {field} = {value} ({why})")]
+    BadCommand {
+        field: &'static str,
+        value: f64,
+        why: &'static str,
+    },
+    /// An arm target that is neither "home" nor an object of this task (name cut to 64 bytes).
+    #[error("unknown arm target '{name}' (home or one of: {known})")]
+    UnknownTarget { name: String, known: String },
 }
 
 /// Ground truth after a step.
