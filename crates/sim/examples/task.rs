@@ -3,6 +3,7 @@
 //! (cup: training cups unless `--unseen`).
 
 use std::error::Error;
+use std::io::Write;
 
 use unitac_sim::task::expert::default_run;
 use unitac_sim::task::{Split, TaskConfig, TaskOutcome, run_expert};
@@ -26,6 +27,7 @@ fn main() -> Result<(), Box<dyn Error>> {
         _ => return Err("usage: task cup|fabric [--seed N] [--trials N] [--unseen]".into()),
     };
     let (dt, duration) = default_run(cfg.kind);
+    let mut out = std::io::stdout().lock();
     let mut ok = 0;
     for trial in 0..trials.min(1000) {
         let demo = run_expert(&cfg, seed, trial, dt, duration)?;
@@ -33,7 +35,8 @@ fn main() -> Result<(), Box<dyn Error>> {
         match &demo.outcome {
             TaskOutcome::Cup(c) => {
                 let cup = demo.spec.cup().ok_or("no cup")?;
-                println!(
+                writeln!(
+                    out,
                     "trial {trial:3} cup {:2.0} mm k {:.3} N/mm m {:3.0} g mu {:.2}: \
                      lift {} ({:.1} mm) deformation {} ({:.2} mm, peak {:.2}) overall {}",
                     cup.diameter_m * 1e3,
@@ -46,11 +49,12 @@ fn main() -> Result<(), Box<dyn Error>> {
                     c.deformation_m * 1e3,
                     c.peak_deformation_m * 1e3,
                     c.overall
-                );
+                )?;
             }
             TaskOutcome::Fabric(f) => {
                 let name = |n: &str| demo.spec.fabric(n).map_or("?", |s| s.fabric.name);
-                println!(
+                writeln!(
+                    out,
                     "trial {trial:3} a {:10} b {:10} smoother {}: chose {} selection {} \
                      layers {} lift {:.1} mm slip {:.2} mm grasp {} overall {}",
                     name("fabric_a"),
@@ -63,10 +67,10 @@ fn main() -> Result<(), Box<dyn Error>> {
                     f.slip_m * 1e3,
                     f.grasp,
                     f.overall
-                );
+                )?;
             }
         }
     }
-    println!("expert overall success: {ok}/{}", trials.min(1000));
+    writeln!(out, "expert overall success: {ok}/{}", trials.min(1000))?;
     Ok(())
 }

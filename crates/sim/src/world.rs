@@ -74,7 +74,7 @@ pub enum WorldError {
         value: f64,
         why: &'static str,
     },
-    /// An arm target that is neither "home" nor an object of this task (name cut to 64 bytes).
+    /// An arm target that is neither "home" nor an object of this task (name cut to 64 chars).
     #[error("unknown arm target '{name}' (home or one of: {known})")]
     UnknownTarget { name: String, known: String },
 }

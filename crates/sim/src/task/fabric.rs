@@ -171,7 +171,7 @@ pub struct FabricSpec {
 }
 
 /// Largest force the stack spring is set for \[N]: at it the stack is at 20 % of its thickness.
-const STACK_FORCE_N: f64 = 40.0;
+pub const STACK_FORCE_N: f64 = 40.0;
 /// Mass of the pinched corner itself \[kg] (the part between the gels).
 const CORNER_KG: f64 = 0.002;
 
