@@ -25,6 +25,6 @@ pub use object::{BUMP_ASPECT, FLAT_FILLET, Object, Shape};
 pub use rng::{GaussianTable, NoiseStream, SplitMix64, normal_quantile, quantise_f32};
 pub use scenario::{Phase, Scenario, ScenarioError};
 pub use world::{
-    Command, Cup, Gel, GripSample, Gripper, Method, Substep, World, WorldConfig, WorldError,
-    WorldTruth,
+    Command, Cup, DriveStep, Gel, GripSample, Gripper, Method, Substep, World, WorldConfig,
+    WorldError, WorldTruth,
 };

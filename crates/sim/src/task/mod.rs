@@ -19,7 +19,7 @@
 use serde::Serialize;
 
 use crate::rng::SplitMix64;
-use crate::world::{Command, Gel, Gripper, World, WorldConfig, WorldError, WorldTruth};
+use crate::world::{Gel, Gripper, World, WorldConfig, WorldError, WorldTruth};
 
 mod arm;
 pub mod cup;
@@ -650,15 +650,11 @@ impl TaskWorld {
                 last,
                 ..
             } => {
-                let p = last.finger_mm;
+                // Each finger takes half the opening change.
                 let target_p = (*width_mm - (open_mm - 2e3 * lim.pad_m)) / 2.0;
-                let v = speed_mm_s / 2.0 * h;
-                let mut next = p + (target_p - p).clamp(-v, v);
-                if next > p && last.force_n >= force_n {
-                    next = p;
-                    self.stalled = true;
-                }
-                *last = world.step(h, Command::Position(next))?;
+                let d = world.drive(h, target_p, speed_mm_s / 2.0, force_n)?;
+                self.stalled = d.stalled;
+                *last = d.truth;
                 self.substeps += last.substeps;
             }
         }
