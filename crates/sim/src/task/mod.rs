@@ -10,6 +10,8 @@
 //! the squeeze world keeps its mm inside and is converted here.
 //!
 //! - [`cup`], [`fabric`]: the objects of each task, their per-trial draw and the criteria;
+//! - `command`: the command and what it refuses; `trial`: what a trial draws; `truth`: the
+//!   ground truth and the outcome;
 //! - `arm`: the kinematic arm; `hold`: friction and slip of the held object;
 //! - [`observe`]: the camera's observation and the sensor view;
 //! - [`expert`]: the scripted expert and the demonstration record.
@@ -22,18 +24,24 @@ use crate::rng::SplitMix64;
 use crate::world::{Gel, Gripper, World, WorldConfig, WorldError, WorldTruth};
 
 mod arm;
+mod command;
 pub mod cup;
 pub mod expert;
 pub mod fabric;
 mod hold;
 pub mod observe;
+mod trial;
+mod truth;
 
 pub use arm::{ArmLimits, ArmState};
+pub use command::{ArmSetpoint, ArmTarget, GripperSetpoint, MAX_STEP_S, TaskCommand};
 pub use cup::{CupCriteria, CupOutcome, CupSpec, CupVariation};
 pub use expert::{DemoStep, Demonstration, expert_command, run_expert};
 pub use fabric::{FABRICS, Fabric, FabricCriteria, FabricOutcome, FabricSpec, FabricVariation};
 pub use hold::{G, Hold};
 pub use observe::{SensorView, VisionNoise, VisualObservation};
+pub use trial::{ObjectSpec, TaskObject, TrialSpec, trial_rng};
+pub use truth::{ContactTruth, GripperTruth, ObjectTruth, TaskOutcome, TaskTruth};
 
 /// A uniform distribution on [lo, hi].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -140,62 +148,6 @@ impl TaskConfig {
     }
 }
 
-/// The gripper part of a command (SI): target opening, speed bound (opening rate), force bound
-/// per finger (closing stalls at it).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct GripperSetpoint {
-    pub opening_m: f64,
-    pub speed_m_s: f64,
-    pub force_n: f64,
-}
-
-/// Where the arm goes.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ArmTarget {
-    Home,
-    /// An object of the task by name ("cup", "fabric_a", "fabric_b").
-    Object(String),
-}
-
-impl ArmTarget {
-    /// "home" or an object name (checked against the task at the step).
-    pub fn named(name: &str) -> ArmTarget {
-        if name == "home" {
-            ArmTarget::Home
-        } else {
-            ArmTarget::Object(name.to_string())
-        }
-    }
-    pub fn name(&self) -> &str {
-        match self {
-            ArmTarget::Home => "home",
-            ArmTarget::Object(n) => n,
-        }
-    }
-}
-
-/// The arm part of a command: the target, the fingertip centre's height above the table at the
-/// grasp, and how far to lift from there \[m] (home ignores both).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ArmSetpoint {
-    pub target: ArmTarget,
-    pub z_m: f64,
-    pub lift_m: f64,
-}
-
-/// One control tick's command.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TaskCommand {
-    pub gripper: GripperSetpoint,
-    pub arm: ArmSetpoint,
-}
-
-/// Bounds of a command's fields (beyond them the command is refused, nothing changes).
-const MAX_Z_M: f64 = 1.0;
-const MAX_LIFT_M: f64 = 0.5;
-/// Longest control step accepted \[s].
-pub const MAX_STEP_S: f64 = 1.0;
 /// Arm within this horizontal distance of an object's grasp point has it between the fingers
 /// (when also within its height band) \[m].
 const REACH_M: f64 = 0.01;
@@ -205,185 +157,6 @@ const CUP_MARGIN_M: f64 = 0.005;
 const PINCH_DEPTH_M: f64 = 0.015;
 /// Contact force that counts as touching an object \[N].
 const TOUCH_N: f64 = 0.2;
-
-fn check(field: &'static str, v: f64, lo: f64, hi: f64) -> Result<(), WorldError> {
-    if !v.is_finite() {
-        return Err(WorldError::BadCommand {
-            field,
-            value: v,
-            why: "not finite",
-        });
-    }
-    if v < lo || v > hi {
-        return Err(WorldError::BadCommand {
-            field,
-            value: v,
-            why: if v < lo {
-                "below its range"
-            } else {
-                "above its range"
-            },
-        });
-    }
-    Ok(())
-}
-
-impl TaskCommand {
-    /// Refuse NaN / inf, negative opening, speed, force, height or lift, and heights beyond the
-    /// workspace. An opening, speed or force beyond the gripper's bounds is clamped to them (as
-    /// the gripper does), not refused.
-    pub fn validate(&self) -> Result<(), WorldError> {
-        let g = &self.gripper;
-        check("gripper.opening_m", g.opening_m, 0.0, f64::MAX)?;
-        check("gripper.speed_m_s", g.speed_m_s, 0.0, f64::MAX)?;
-        check("gripper.force_n", g.force_n, 0.0, f64::MAX)?;
-        check("arm.z_m", self.arm.z_m, 0.0, MAX_Z_M)?;
-        check("arm.lift_m", self.arm.lift_m, 0.0, MAX_LIFT_M)?;
-        Ok(())
-    }
-}
-
-/// An object of the trial.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum ObjectSpec {
-    Cup(CupSpec),
-    Fabric(FabricSpec),
-}
-
-/// An object of the trial: its name, what it is, where it was placed (x, y) \[m].
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TaskObject {
-    pub name: String,
-    pub spec: ObjectSpec,
-    pub placed_m: [f64; 2],
-}
-
-impl TaskObject {
-    fn friction(&self) -> (f64, f64) {
-        match &self.spec {
-            ObjectSpec::Cup(c) => (c.friction_static, c.friction_kinetic),
-            ObjectSpec::Fabric(f) => (f.friction_static, f.friction_kinetic),
-        }
-    }
-    /// (mass \[kg], downward force \[N]) at height z moving at v.
-    fn load(&self, z: f64, v: f64) -> (f64, f64) {
-        match &self.spec {
-            ObjectSpec::Cup(c) => (c.mass_kg, c.mass_kg * G),
-            ObjectSpec::Fabric(f) => f.load(z, v),
-        }
-    }
-}
-
-/// What reset drew for this trial (ground truth; the expert may read it, a policy must not).
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TrialSpec {
-    pub kind: TaskKind,
-    pub split: Split,
-    pub seed: u64,
-    pub trial: u32,
-    pub objects: Vec<TaskObject>,
-    /// The camera's per-trial bias, one per visual observation name.
-    pub vision_bias: Vec<f64>,
-}
-
-impl TrialSpec {
-    pub fn object(&self, name: &str) -> Option<&TaskObject> {
-        self.objects.iter().find(|o| o.name == name)
-    }
-    /// The cup of a cup trial.
-    pub fn cup(&self) -> Option<&CupSpec> {
-        self.objects.iter().find_map(|o| match &o.spec {
-            ObjectSpec::Cup(c) => Some(c),
-            ObjectSpec::Fabric(_) => None,
-        })
-    }
-    /// The fabric called `name`.
-    pub fn fabric(&self, name: &str) -> Option<&FabricSpec> {
-        match &self.object(name)?.spec {
-            ObjectSpec::Fabric(f) => Some(f),
-            ObjectSpec::Cup(_) => None,
-        }
-    }
-    /// Name of the smoother fabric of a fabric trial ("" otherwise).
-    pub fn smoother(&self) -> &str {
-        let mut best: Option<(&str, f64)> = None;
-        for o in &self.objects {
-            if let ObjectSpec::Fabric(f) = &o.spec
-                && best.is_none_or(|(_, r)| f.roughness_ra_mm < r)
-            {
-                best = Some((&o.name, f.roughness_ra_mm));
-            }
-        }
-        best.map_or("", |(n, _)| n)
-    }
-}
-
-/// The gripper's truth.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
-pub struct GripperTruth {
-    pub opening_m: f64,
-    /// Contact force per finger \[N].
-    pub force_n: f64,
-    /// Closing was stopped by the commanded force bound.
-    pub stalled: bool,
-}
-
-/// The contact between the gels and the object between them.
-#[derive(Debug, Clone, PartialEq, Serialize, Default)]
-pub struct ContactTruth {
-    /// The object between the fingers ("" when none).
-    pub object: String,
-    /// Fabric layers between the fingers (1 for a cup, 0 when none).
-    pub layers: u32,
-    /// Gel penetration \[m] (negative: the gap to the object).
-    pub penetration_m: f64,
-    /// Loss of the object's width between the fingers (cup diameter, fabric stack) \[m] and its
-    /// rate \[m/s].
-    pub deformation_m: f64,
-    pub deformation_rate_m_s: f64,
-    /// Vertical friction force on the object, both fingers, up positive \[N].
-    pub friction_n: f64,
-    /// Displacement of each gel's surface by that force, along the sensor's y axis (world down
-    /// positive) \[m].
-    pub tangential_m: f64,
-    /// Relative motion of object and fingers in this step, signed (object down positive) \[m],
-    /// and summed unsigned since the grasp.
-    pub slip_step_m: f64,
-    pub slip_total_m: f64,
-    /// Object and fingers move together.
-    pub stuck: bool,
-}
-
-/// An object's truth.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ObjectTruth {
-    pub name: String,
-    /// (x, y) where it is, z its lift above where it rests \[m].
-    pub position_m: [f64; 3],
-    /// Between the fingers with a grip force.
-    pub held: bool,
-    /// Time it was pressed by the gels with at least 0.2 N \[s].
-    pub touch_s: f64,
-}
-
-/// Ground truth after a step.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct TaskTruth {
-    pub t_s: f64,
-    pub arm: ArmState,
-    pub gripper: GripperTruth,
-    pub contact: ContactTruth,
-    pub objects: Vec<ObjectTruth>,
-    /// Largest cup deformation so far \[m] (0 in the fabric task).
-    pub peak_deformation_m: f64,
-    /// The fingers met an object while too closed to pass around it (sticky).
-    pub collision: bool,
-    /// An object slipped out of the fingers (sticky).
-    pub dropped: bool,
-    /// Squeeze-world integrator steps in this step.
-    pub substeps: u32,
-}
 
 /// The fingers: free (nothing between them) or around an object (its squeeze world).
 #[derive(Debug, Clone)]
@@ -428,65 +201,10 @@ pub struct TaskWorld {
     substeps: u32,
 }
 
-/// The trial's own generator: a pure function of (seed, trial).
-pub fn trial_rng(seed: u64, trial: u32) -> SplitMix64 {
-    let mut r = SplitMix64::new(seed ^ (u64::from(trial) + 1).wrapping_mul(0xD1B5_4A32_D192_ED03));
-    r.next_u64();
-    r
-}
-
 impl TaskWorld {
     /// Draw trial `trial` of `seed`: the objects, their properties and places, the camera's bias.
     pub fn reset(cfg: &TaskConfig, seed: u64, trial: u32) -> TaskWorld {
-        let mut rng = trial_rng(seed, trial);
-        let objects = match cfg.kind {
-            TaskKind::Cup => {
-                let c = CupSpec::draw(cfg.split, &cfg.cup, &mut rng);
-                let v = &cfg.cup;
-                let placed_m = [
-                    v.centre_m[0] + Uniform(-v.spread_m[0], v.spread_m[0]).draw(&mut rng),
-                    v.centre_m[1] + Uniform(-v.spread_m[1], v.spread_m[1]).draw(&mut rng),
-                ];
-                vec![TaskObject {
-                    name: "cup".into(),
-                    spec: ObjectSpec::Cup(c),
-                    placed_m,
-                }]
-            }
-            TaskKind::Fabric => {
-                let v = &cfg.fabric;
-                let n = FABRICS.len();
-                let i = ((rng.uniform() * n as f64) as usize).min(n - 1);
-                let j = ((rng.uniform() * (n - 1) as f64) as usize).min(n - 2);
-                let j = if j >= i { j + 1 } else { j };
-                [("fabric_a", i, 0), ("fabric_b", j, 1)]
-                    .into_iter()
-                    .map(|(name, k, place)| {
-                        let f = FabricSpec::draw(&FABRICS[k], v, &mut rng);
-                        let s = Uniform(-v.spread_m, v.spread_m);
-                        let p = v.places_m[place];
-                        TaskObject {
-                            name: name.into(),
-                            spec: ObjectSpec::Fabric(f),
-                            placed_m: [p[0] + s.draw(&mut rng), p[1] + s.draw(&mut rng)],
-                        }
-                    })
-                    .collect()
-            }
-        };
-        let names = observe::visual_names(cfg.kind);
-        let vision_bias = names
-            .iter()
-            .map(|n| cfg.vision.bias_sigma(n) * rng.gaussian())
-            .collect();
-        let spec = TrialSpec {
-            kind: cfg.kind,
-            split: cfg.split,
-            seed,
-            trial,
-            objects,
-            vision_bias,
-        };
+        let spec = TrialSpec::draw(cfg, seed, trial);
         let objects = spec
             .objects
             .iter()
@@ -861,23 +579,6 @@ impl TaskWorld {
                     truth.collision,
                 ))
             }
-        }
-    }
-}
-
-/// A task's outcome.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum TaskOutcome {
-    Cup(CupOutcome),
-    Fabric(FabricOutcome),
-}
-
-impl TaskOutcome {
-    pub fn overall(&self) -> bool {
-        match self {
-            TaskOutcome::Cup(c) => c.overall,
-            TaskOutcome::Fabric(f) => f.overall,
         }
     }
 }
