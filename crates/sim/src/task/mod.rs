@@ -392,15 +392,17 @@ impl TaskWorld {
                 if grip >= TOUCH_N {
                     s.touch_s += h;
                 }
-                if grip > 0.0 && s.hold.z_m > 0.0 {
-                    // Carried: it goes where the fingers go.
+                if grip > 0.0 {
+                    // Gripped: closing centres it between the fingers and it goes where they go
+                    // (lifted, or slid over the table).
                     s.xy = [self.arm.position_m[0], self.arm.position_m[1]];
                 }
             }
         }
 
         // 4. Drops and leaving: an object slips out of the pinch or past the rim; fingers that no
-        //    touch it leave it when the arm moves away (or to another height for a fabric).
+        //    longer touch it leave it when the arm moves away (or to another height: a fabric's
+        //    layers depend on it).
         if let Fingers::Around {
             obj,
             width_mm,

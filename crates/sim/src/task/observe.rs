@@ -4,8 +4,9 @@
 //! The camera model estimates what an RGB(-D) camera over the table could: each object's
 //! position, the cup's diameter (undeformed: the fingers hide the squeezed section, the rim is
 //! what the camera measures) and height, a fabric's folded-edge height. Each value is the truth
-//! plus a per-trial bias (calibration, segmentation) plus per-frame noise, both normal. It never
-//! sees tactile properties (roughness, softness, friction), stiffness, force, deformation or slip.
+//! plus a per-trial bias (calibration, segmentation) plus per-frame noise, both near-normal
+//! (`SplitMix64::gaussian`). It never sees tactile properties (roughness, softness, friction),
+//! stiffness, force, deformation or slip.
 
 use serde::Serialize;
 
