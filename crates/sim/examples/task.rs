@@ -1,12 +1,15 @@
 //! Run the scripted expert on task trials and print each outcome:
-//! `cargo run -p unitac-sim --example task -- cup|fabric [--seed N] [--trials N] [--unseen]`
-//! (cup: training cups unless `--unseen`).
+//! `cargo run -p unitac-sim --example task -- cup|fabric [--seed N] [--trials N] [--unseen]
+//! [--fixed-opening M]` (cup: training cups unless `--unseen`; `--fixed-opening`: the size-blind
+//! baseline grip closing to M metres instead of the expert).
 
 use std::error::Error;
 use std::io::Write;
 
 use unitac_sim::task::expert::default_run;
-use unitac_sim::task::{Split, TaskConfig, TaskOutcome, run_expert};
+use unitac_sim::task::{
+    Split, TaskConfig, TaskOutcome, fixed_opening_command, run_expert, run_policy,
+};
 
 fn main() -> Result<(), Box<dyn Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -16,6 +19,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     };
     let seed: u64 = value("--seed").map_or(Ok(1), |s| s.parse())?;
     let trials: u32 = value("--trials").map_or(Ok(10), |s| s.parse())?;
+    let fixed: Option<f64> = value("--fixed-opening").map(|s| s.parse()).transpose()?;
     let split = if args.iter().any(|a| a == "--unseen") {
         Split::Unseen
     } else {
@@ -30,7 +34,12 @@ fn main() -> Result<(), Box<dyn Error>> {
     let mut out = std::io::stdout().lock();
     let mut ok = 0;
     for trial in 0..trials.min(1000) {
-        let demo = run_expert(&cfg, seed, trial, dt, duration)?;
+        let demo = match fixed {
+            Some(m) => run_policy(&cfg, seed, trial, dt, duration, |t, spec| {
+                fixed_opening_command(t, spec, &cfg, m)
+            })?,
+            None => run_expert(&cfg, seed, trial, dt, duration)?,
+        };
         ok += u32::from(demo.outcome.overall());
         match &demo.outcome {
             TaskOutcome::Cup(c) => {
@@ -71,6 +80,11 @@ fn main() -> Result<(), Box<dyn Error>> {
             }
         }
     }
-    writeln!(out, "expert overall success: {ok}/{}", trials.min(1000))?;
+    let who = if fixed.is_some() {
+        "fixed-opening grip"
+    } else {
+        "expert"
+    };
+    writeln!(out, "{who} overall success: {ok}/{}", trials.min(1000))?;
     Ok(())
 }

@@ -179,6 +179,21 @@ pub fn run_expert(
     dt_s: f64,
     duration_s: f64,
 ) -> Result<Demonstration, WorldError> {
+    run_policy(cfg, seed, trial, dt_s, duration_s, |t, spec| {
+        expert_command(t, spec, cfg)
+    })
+}
+
+/// Run `policy` (truth and trial -> command; a baseline or the expert: they may read truth) for
+/// `duration_s` at control period `dt_s` on trial `trial` of `seed`, recorded tick by tick.
+pub fn run_policy(
+    cfg: &TaskConfig,
+    seed: u64,
+    trial: u32,
+    dt_s: f64,
+    duration_s: f64,
+    mut policy: impl FnMut(&TaskTruth, &TrialSpec) -> TaskCommand,
+) -> Result<Demonstration, WorldError> {
     if !(dt_s.is_finite() && dt_s > 0.0 && dt_s <= super::MAX_STEP_S) {
         return Err(WorldError::BadStep(dt_s));
     }
@@ -195,7 +210,7 @@ pub fn run_expert(
     let mut truth = w.truth();
     let mut steps = Vec::with_capacity(n as usize);
     for _ in 0..n as usize {
-        let cmd = expert_command(&truth, w.spec(), cfg);
+        let cmd = policy(&truth, w.spec());
         let visual = w.observe_visual(&mut rng);
         let next = w.step(&cmd, dt_s)?;
         steps.push(DemoStep {
@@ -213,6 +228,35 @@ pub fn run_expert(
         final_truth: truth,
         outcome: w.outcome(),
     })
+}
+
+/// A size-blind cup grip, the baseline that shows the task is not trivial: the expert's approach
+/// and lift, but it always closes to one opening (e.g. the one learned on a training cup) instead
+/// of the cup's own, and lifts once the fingers stop (reached or stalled).
+pub fn fixed_opening_command(
+    t: &TaskTruth,
+    spec: &TrialSpec,
+    cfg: &TaskConfig,
+    opening_m: f64,
+) -> TaskCommand {
+    let Some(cup) = spec.cup() else {
+        return home(cfg);
+    };
+    let g = cfg.gripper;
+    let z = 0.5 * cup.height_m;
+    let wide = (cup.diameter_m + 0.02 + 2.0 * g.pad_m).min(g.max_opening_m);
+    let around = t.contact.object == "cup";
+    let lifting = around && t.gripper.force_n > 0.0 && t.arm.target_m[2] > z + 1e-4;
+    let stopped = around
+        && t.arm.arrived
+        && ((t.gripper.opening_m - opening_m).abs() < 1e-4 || t.gripper.stalled);
+    if lifting || stopped {
+        command(opening_m, CLOSE_M_S, g.max_force_n, "cup", z, CUP_LIFT_M)
+    } else if around && (t.arm.arrived || t.gripper.force_n > 0.0) {
+        command(opening_m, CLOSE_M_S, g.max_force_n, "cup", z, 0.0)
+    } else {
+        command(wide, g.max_speed_m_s, g.max_force_n, "cup", z, 0.0)
+    }
 }
 
 /// Control period and duration the example and tests run the expert at \[s].

@@ -36,7 +36,9 @@ mod truth;
 pub use arm::{ArmLimits, ArmState};
 pub use command::{ArmSetpoint, ArmTarget, GripperSetpoint, MAX_STEP_S, TaskCommand};
 pub use cup::{CupCriteria, CupOutcome, CupSpec, CupVariation};
-pub use expert::{DemoStep, Demonstration, expert_command, run_expert};
+pub use expert::{
+    DemoStep, Demonstration, expert_command, fixed_opening_command, run_expert, run_policy,
+};
 pub use fabric::{FABRICS, Fabric, FabricCriteria, FabricOutcome, FabricSpec, FabricVariation};
 pub use hold::{G, Hold};
 pub use observe::{SensorView, VisionNoise, VisualObservation};
