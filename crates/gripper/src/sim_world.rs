@@ -66,26 +66,29 @@ impl Physics for WorldFingers {
             return self.fingers;
         }
         let p = self.truth.finger_mm;
-        let (target_p, closing, stalled) = if d.enabled {
+        let step = if d.enabled {
             let target =
                 (self.diameter_mm() - d.target_m.clamp(0.0, self.max_opening_m) * 1e3) / 2.0;
             // Opening speed is split over two fingers.
-            let v = d.speed_m_s.max(0.0) * 1e3 / 2.0;
-            let next = p + (target - p).clamp(-v * dt, v * dt);
-            let closing = next > p;
-            if closing && self.truth.force_n >= d.force_n {
-                (p, true, true)
-            } else {
-                (next, closing, false)
-            }
+            self.world
+                .drive(dt, target, d.speed_m_s * 1e3 / 2.0, d.force_n)
+                .map(|s| (s.truth, s.closing, s.stalled))
         } else {
             // Motor off: the cup pushes the fingers back to touching.
-            (p.min(0.0), false, false)
+            self.world
+                .step(dt, Command::Position(p.min(0.0)))
+                .map(|t| (t, false, false))
         };
-        match self.world.step(dt, Command::Position(target_p)) {
-            Ok(t) => self.truth = t,
-            Err(e) => self.error = Some(e),
-        }
+        let (closing, stalled) = match step {
+            Ok((t, closing, stalled)) => {
+                self.truth = t;
+                (closing, stalled)
+            }
+            Err(e) => {
+                self.error = Some(e);
+                (false, false)
+            }
+        };
         self.fingers = self.read(stalled, closing);
         self.fingers
     }

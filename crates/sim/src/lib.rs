@@ -4,6 +4,8 @@
 //! - [`mock`]: the mock sensor as a frame source (scenario, frame rate, stamps, ground truth).
 //! - `render`: the photometric model of a gel sensor that draws each frame.
 //! - [`world`]: the gripper / gel / cup model and its integrators.
+//! - [`task`]: the closed-loop task worlds (cup deformation, fabric selection) and the scripted
+//!   expert.
 //! - [`numerics`], [`bench`](mod@bench): the integrator study (its charts drawn with unitac-plot),
 //!   the renderer benchmark.
 
@@ -15,6 +17,7 @@ mod object;
 mod render;
 mod rng;
 mod scenario;
+pub mod task;
 pub mod world;
 
 pub use mock::{Drift, EPOCH, GroundTruth, MockConfig, MockSensor};
@@ -22,6 +25,6 @@ pub use object::{BUMP_ASPECT, FLAT_FILLET, Object, Shape};
 pub use rng::{GaussianTable, NoiseStream, SplitMix64, normal_quantile, quantise_f32};
 pub use scenario::{Phase, Scenario, ScenarioError};
 pub use world::{
-    Command, Cup, Gel, GripSample, Gripper, Method, Substep, World, WorldConfig, WorldError,
-    WorldTruth,
+    Command, Cup, DriveStep, Gel, GripSample, Gripper, Method, Substep, World, WorldConfig,
+    WorldError, WorldTruth,
 };

@@ -6,6 +6,7 @@
 
 use unitac_core::{Frame, FrameError, SensorKind, SensorSpec, Source, SourceError, Stamp};
 
+use crate::object::Object;
 use crate::render::Renderer;
 use crate::scenario::Scenario;
 
@@ -174,27 +175,62 @@ impl MockSensor {
         let t = index as f64 / self.cfg.fps;
         let (approach, obj) = self.scenario.at(t);
         let grip = self.scenario.grip_at(t);
-        let gain = self.cfg.drift.gain(t);
         let touching = obj.filter(|_| approach > 0.0);
-        let depth = touching.map_or(0.0, |o| o.gel_depth(approach));
+        let press = touching.map(|o| (o, o.gel_depth(approach)));
+        let label = obj.map(|o| o.label.clone()).unwrap_or_default();
+        self.render_at(
+            index,
+            press,
+            label,
+            grip.map_or(0.0, |g| g.force_n),
+            grip.map_or(0.0, |g| g.deformation_mm),
+        )
+    }
+
+    /// Render frame `index` of a press the caller gives instead of the scenario (a task world's
+    /// sensor view): `press` = (object, gel penetration \[mm]); `force_n` and `deformation_mm`
+    /// go into the ground truth as they are.
+    pub fn render_press(
+        &self,
+        index: u64,
+        press: Option<(&Object, f64)>,
+        force_n: f64,
+        deformation_mm: f64,
+    ) -> (Frame, GroundTruth) {
+        let label = press.map(|(o, _)| o.label.clone()).unwrap_or_default();
+        let press = press.filter(|&(_, d)| d > 0.0);
+        self.render_at(index, press, label, force_n, deformation_mm)
+    }
+
+    fn render_at(
+        &self,
+        index: u64,
+        press: Option<(&Object, f64)>,
+        label: String,
+        force_n: f64,
+        deformation_mm: f64,
+    ) -> (Frame, GroundTruth) {
+        let t = index as f64 / self.cfg.fps;
+        let gain = self.cfg.drift.gain(t);
+        let depth = press.map_or(0.0, |(_, d)| d);
         let mut frame = self.blank.clone();
         frame.seq = index;
         frame.stamp =
             EPOCH.saturating_add_nanos((index as f64 * 1e9 / self.cfg.fps).round() as i64);
         let contact = self.renderer.render_into(
             frame.data_mut(),
-            touching.map(|o| (o, depth)),
+            press,
             gain,
             self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15),
         );
         let truth = GroundTruth {
             penetration_mm: depth.max(0.0),
-            label: obj.map(|o| o.label.clone()).unwrap_or_default(),
+            label,
             contact_px: contact.contact_px,
             mask: contact.mask,
             gain,
-            force_n: grip.map_or(0.0, |g| g.force_n),
-            deformation_mm: grip.map_or(0.0, |g| g.deformation_mm),
+            force_n,
+            deformation_mm,
         };
         (frame, truth)
     }

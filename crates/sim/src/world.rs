@@ -67,6 +67,16 @@ pub enum WorldError {
     },
     #[error("bad step {0} s (must be finite and > 0)")]
     BadStep(f64),
+    /// A task command (or run setting) outside its domain: nothing was changed.
+    #[error("bad command: {field} = {value} ({why})")]
+    BadCommand {
+        field: &'static str,
+        value: f64,
+        why: &'static str,
+    },
+    /// An arm target that is neither "home" nor an object of this task (name cut to 64 chars).
+    #[error("unknown arm target '{name}' (home or one of: {known})")]
+    UnknownTarget { name: String, known: String },
 }
 
 /// Ground truth after a step.
@@ -89,6 +99,16 @@ pub struct WorldTruth {
     pub substeps: u32,
     /// Largest force at the end of any of those sub-steps \[N] (a peak inside the step).
     pub step_peak_force_n: f64,
+}
+
+/// What one [`World::drive`] step did.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DriveStep {
+    pub truth: WorldTruth,
+    /// The target asked the finger to close.
+    pub closing: bool,
+    /// Closing was held back by the commanded force bound.
+    pub stalled: bool,
 }
 
 /// The world: state and integrator.
@@ -172,6 +192,29 @@ impl World {
         };
         let p1 = self.p + dp;
         self.step_finger(h, p1)
+    }
+
+    /// Advance by `h` seconds as a gripper drive does: the finger moves toward `target_mm` at no
+    /// more than `speed_mm_s`, and does not close further while the force is at or above
+    /// `force_n` (the commanded force bound; the world's own limits still hold).
+    pub fn drive(
+        &mut self,
+        h: f64,
+        target_mm: f64,
+        speed_mm_s: f64,
+        force_n: f64,
+    ) -> Result<DriveStep, WorldError> {
+        let v = speed_mm_s.max(0.0) * h;
+        let next = self.p + (target_mm - self.p).clamp(-v, v);
+        let closing = next > self.p;
+        let stalled = closing && self.force >= force_n;
+        let to = if stalled { self.p } else { next };
+        let truth = self.step(h, Command::Position(to))?;
+        Ok(DriveStep {
+            truth,
+            closing,
+            stalled,
+        })
     }
 
     /// Advance by `h` seconds while the finger moves linearly to `p1` \[mm] (a prescribed motion,

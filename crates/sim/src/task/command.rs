@@ -1,0 +1,99 @@
+//! The command a task world takes each control tick (SI), and what it refuses.
+
+use serde::Serialize;
+
+use crate::world::WorldError;
+
+/// The gripper part of a command (SI): target opening, speed bound (opening rate), force bound
+/// per finger (closing stalls at it).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct GripperSetpoint {
+    pub opening_m: f64,
+    pub speed_m_s: f64,
+    pub force_n: f64,
+}
+
+/// Where the arm goes.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ArmTarget {
+    Home,
+    /// An object of the task by name ("cup", "fabric_a", "fabric_b").
+    Object(String),
+}
+
+impl ArmTarget {
+    /// "home" or an object name (checked against the task at the step).
+    pub fn named(name: &str) -> ArmTarget {
+        if name == "home" {
+            ArmTarget::Home
+        } else {
+            ArmTarget::Object(name.to_string())
+        }
+    }
+    pub fn name(&self) -> &str {
+        match self {
+            ArmTarget::Home => "home",
+            ArmTarget::Object(n) => n,
+        }
+    }
+}
+
+/// The arm part of a command: the target, the fingertip centre's height above the table at the
+/// grasp, and how far to lift from there \[m] (home ignores both).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ArmSetpoint {
+    pub target: ArmTarget,
+    pub z_m: f64,
+    pub lift_m: f64,
+}
+
+/// One control tick's command.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TaskCommand {
+    pub gripper: GripperSetpoint,
+    pub arm: ArmSetpoint,
+}
+
+/// Bounds of a command's fields (beyond them the command is refused, nothing changes).
+const MAX_Z_M: f64 = 1.0;
+const MAX_LIFT_M: f64 = 0.5;
+/// Longest control step accepted \[s].
+pub const MAX_STEP_S: f64 = 1.0;
+
+fn check(field: &'static str, v: f64, lo: f64, hi: f64) -> Result<(), WorldError> {
+    if !v.is_finite() {
+        return Err(WorldError::BadCommand {
+            field,
+            value: v,
+            why: "not finite",
+        });
+    }
+    if v < lo || v > hi {
+        return Err(WorldError::BadCommand {
+            field,
+            value: v,
+            why: if v < lo {
+                "below its range"
+            } else {
+                "above its range"
+            },
+        });
+    }
+    Ok(())
+}
+
+impl TaskCommand {
+    /// Refuse NaN / inf, negative opening, speed, force, height or lift, and heights beyond the
+    /// workspace. An opening, speed or force beyond the gripper's bounds is clamped to them (as
+    /// the gripper does), not refused.
+    pub fn validate(&self) -> Result<(), WorldError> {
+        let g = &self.gripper;
+        check("gripper.opening_m", g.opening_m, 0.0, f64::MAX)?;
+        check("gripper.speed_m_s", g.speed_m_s, 0.0, f64::MAX)?;
+        check("gripper.force_n", g.force_n, 0.0, f64::MAX)?;
+        check("arm.z_m", self.arm.z_m, 0.0, MAX_Z_M)?;
+        check("arm.lift_m", self.arm.lift_m, 0.0, MAX_LIFT_M)?;
+        Ok(())
+    }
+}

@@ -1,0 +1,268 @@
+//! The scripted expert: a function (truth, trial, config) -> command per control tick that
+//! solves both tasks reading ground truth, and the demonstration record the reference policies
+//! will be fitted on.
+//!
+//! Cup: open wide, bring the fingertips to half the cup's height, close at 20 mm/s to the opening
+//! at which the world's static equilibrium gives the target deformation
+//! ([`static_finger_for`] on the cup's true wall), wait until the wall has settled there, lift
+//! 5 cm. Fabric: pinch each fabric at its single-layer height with 1.5 N until it has been touched
+//! 0.3 s, open, then pinch the smoother one (true roughness) at its single-layer height with
+//! twice the force friction needs to carry it, and lift 8 cm. Stateless: the phase follows from
+//! the truth (what is between the fingers, how long each fabric was touched, where the arm is).
+
+use serde::Serialize;
+
+use super::{
+    ArmSetpoint, ArmTarget, GripperSetpoint, TaskCommand, TaskConfig, TaskKind, TaskOutcome,
+    TaskTruth, TaskWorld, TrialSpec, VisualObservation, trial_rng,
+};
+use crate::world::{WorldError, static_finger_for};
+
+/// How long a fabric is pressed before the expert counts it as touched \[s].
+pub const TOUCH_DWELL_S: f64 = 0.3;
+/// Lift heights of the expert \[m].
+pub const CUP_LIFT_M: f64 = 0.05;
+pub const FABRIC_LIFT_M: f64 = 0.08;
+/// Closing speed on contact \[m/s] and the touch force \[N].
+const CLOSE_M_S: f64 = 0.02;
+const TOUCH_FORCE_N: f64 = 1.5;
+/// Most control ticks one demonstration may record.
+pub const MAX_DEMO_STEPS: usize = 100_000;
+
+fn command(
+    opening_m: f64,
+    speed_m_s: f64,
+    force_n: f64,
+    target: &str,
+    z_m: f64,
+    lift_m: f64,
+) -> TaskCommand {
+    TaskCommand {
+        gripper: GripperSetpoint {
+            opening_m,
+            speed_m_s,
+            force_n,
+        },
+        arm: ArmSetpoint {
+            target: ArmTarget::named(target),
+            z_m,
+            lift_m,
+        },
+    }
+}
+
+/// The expert's command for this tick.
+pub fn expert_command(truth: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskCommand {
+    match cfg.kind {
+        TaskKind::Cup => cup_command(truth, spec, cfg),
+        TaskKind::Fabric => fabric_command(truth, spec, cfg),
+    }
+}
+
+fn home(cfg: &TaskConfig) -> TaskCommand {
+    let g = cfg.gripper;
+    command(g.max_opening_m, g.max_speed_m_s, 0.0, "home", 0.0, 0.0)
+}
+
+fn cup_command(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskCommand {
+    let Some(cup) = spec.cup() else {
+        return home(cfg);
+    };
+    let g = cfg.gripper;
+    let z = 0.5 * cup.height_m;
+    let target_mm = cfg.cup_criteria.target_deformation_m * 1e3;
+    let finger_mm = static_finger_for(&cup.wall, &cfg.gel, target_mm, g.max_force_n);
+    let squeeze = (cup.diameter_m - 2.0 * finger_mm * 1e-3 + 2.0 * g.pad_m).max(0.0);
+    let wide = (cup.diameter_m + 0.02 + 2.0 * g.pad_m).min(g.max_opening_m);
+    let around = t.contact.object == "cup";
+    // Once the lift is under way (the arm heads above the grasp height, the cup in the grip),
+    // keep lifting; start it when the wall has settled at the squeeze.
+    let lifting = around && t.gripper.force_n > 0.0 && t.arm.target_m[2] > z + 1e-4;
+    let settled = around
+        && t.arm.arrived
+        && (t.gripper.opening_m - squeeze).abs() < 5e-5
+        && t.contact.deformation_rate_m_s.abs() < 1e-3;
+    if lifting || settled {
+        command(squeeze, CLOSE_M_S, g.max_force_n, "cup", z, CUP_LIFT_M)
+    } else if around && (t.arm.arrived || t.gripper.force_n > 0.0) {
+        command(squeeze, CLOSE_M_S, g.max_force_n, "cup", z, 0.0)
+    } else {
+        command(wide, g.max_speed_m_s, g.max_force_n, "cup", z, 0.0)
+    }
+}
+
+fn fabric_command(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskCommand {
+    let g = cfg.gripper;
+    let touched = |name: &str| {
+        t.objects
+            .iter()
+            .any(|o| o.name == name && o.touch_s >= TOUCH_DWELL_S)
+    };
+    let (goal, grasp) = if !touched("fabric_a") {
+        ("fabric_a", false)
+    } else if !touched("fabric_b") {
+        ("fabric_b", false)
+    } else {
+        (spec.smoother(), true)
+    };
+    let Some(f) = spec.fabric(goal) else {
+        return home(cfg);
+    };
+    // Let go of another fabric before moving on.
+    let other = t.contact.object.as_str();
+    if !other.is_empty()
+        && other != goal
+        && let Some(o) = spec.fabric(other)
+    {
+        let wide = o.stack_m() + 0.01 + 2.0 * g.pad_m;
+        if t.gripper.force_n > 0.0 || t.gripper.opening_m < wide - 1e-4 {
+            return command(
+                wide,
+                g.max_speed_m_s,
+                TOUCH_FORCE_N,
+                other,
+                o.single_layer_z_m(),
+                0.0,
+            );
+        }
+    }
+    let z = f.single_layer_z_m();
+    let wide = f.stack_m() + 0.01 + 2.0 * g.pad_m;
+    let around = t.contact.object == goal;
+    let force = if grasp {
+        // Twice what static friction must carry at the top of the lift, accelerating.
+        let (m, down) = f.load(FABRIC_LIFT_M, 0.1);
+        let need = down + m * cfg.arm.max_accel_m_s2;
+        (need / f.friction_static).max(TOUCH_FORCE_N)
+    } else {
+        TOUCH_FORCE_N
+    };
+    let lifting = around && grasp && t.gripper.force_n > 0.0 && t.arm.target_m[2] > z + 1e-4;
+    let gripped = around && grasp && t.arm.arrived && t.gripper.force_n >= 0.9 * force;
+    if lifting || gripped {
+        command(0.0, CLOSE_M_S, force, goal, z, FABRIC_LIFT_M)
+    } else if around && (t.arm.arrived || t.gripper.force_n > 0.0) {
+        command(0.0, CLOSE_M_S, force, goal, z, 0.0)
+    } else {
+        command(wide, g.max_speed_m_s, force, goal, z, 0.0)
+    }
+}
+
+/// One control tick of a demonstration: what was observed (truth and camera) at `t_s` and the
+/// command given then.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DemoStep {
+    pub t_s: f64,
+    pub truth: TaskTruth,
+    pub visual: VisualObservation,
+    pub command: TaskCommand,
+}
+
+/// A demonstration: the trial, the ticks, and the outcome at the end.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Demonstration {
+    pub spec: TrialSpec,
+    pub dt_s: f64,
+    pub steps: Vec<DemoStep>,
+    pub final_truth: TaskTruth,
+    pub outcome: TaskOutcome,
+}
+
+/// Salt of the camera's per-frame noise stream (separate from the trial's draw).
+const VISION_SALT: u64 = 0x5649_5349_4F4E_0001;
+
+/// Run the expert for `duration_s` at control period `dt_s` on trial `trial` of `seed`.
+pub fn run_expert(
+    cfg: &TaskConfig,
+    seed: u64,
+    trial: u32,
+    dt_s: f64,
+    duration_s: f64,
+) -> Result<Demonstration, WorldError> {
+    run_policy(cfg, seed, trial, dt_s, duration_s, |t, spec| {
+        expert_command(t, spec, cfg)
+    })
+}
+
+/// Run `policy` (truth and trial -> command; a baseline or the expert: they may read truth) for
+/// `duration_s` at control period `dt_s` on trial `trial` of `seed`, recorded tick by tick.
+pub fn run_policy(
+    cfg: &TaskConfig,
+    seed: u64,
+    trial: u32,
+    dt_s: f64,
+    duration_s: f64,
+    mut policy: impl FnMut(&TaskTruth, &TrialSpec) -> TaskCommand,
+) -> Result<Demonstration, WorldError> {
+    if !(dt_s.is_finite() && dt_s > 0.0 && dt_s <= super::MAX_STEP_S) {
+        return Err(WorldError::BadStep(dt_s));
+    }
+    let n = (duration_s / dt_s).ceil();
+    if !(n.is_finite() && n >= 1.0 && n <= MAX_DEMO_STEPS as f64) {
+        return Err(WorldError::BadCommand {
+            field: "duration_s",
+            value: duration_s,
+            why: "must be positive and at most MAX_DEMO_STEPS control periods",
+        });
+    }
+    let mut w = TaskWorld::reset(cfg, seed, trial);
+    let mut rng = trial_rng(seed ^ VISION_SALT, trial);
+    let mut truth = w.truth();
+    let mut steps = Vec::with_capacity(n as usize);
+    for _ in 0..n as usize {
+        let cmd = policy(&truth, w.spec());
+        let visual = w.observe_visual(&mut rng);
+        let next = w.step(&cmd, dt_s)?;
+        steps.push(DemoStep {
+            t_s: truth.t_s,
+            truth,
+            visual,
+            command: cmd,
+        });
+        truth = next;
+    }
+    Ok(Demonstration {
+        spec: w.spec().clone(),
+        dt_s,
+        steps,
+        final_truth: truth,
+        outcome: w.outcome(),
+    })
+}
+
+/// A size-blind cup grip, the baseline that shows the task is not trivial: the expert's approach
+/// and lift, but it always closes to one opening (e.g. the one learned on a training cup) instead
+/// of the cup's own, and lifts once the fingers stop (reached or stalled).
+pub fn fixed_opening_command(
+    t: &TaskTruth,
+    spec: &TrialSpec,
+    cfg: &TaskConfig,
+    opening_m: f64,
+) -> TaskCommand {
+    let Some(cup) = spec.cup() else {
+        return home(cfg);
+    };
+    let g = cfg.gripper;
+    let z = 0.5 * cup.height_m;
+    let wide = (cup.diameter_m + 0.02 + 2.0 * g.pad_m).min(g.max_opening_m);
+    let around = t.contact.object == "cup";
+    let lifting = around && t.gripper.force_n > 0.0 && t.arm.target_m[2] > z + 1e-4;
+    let stopped = around
+        && t.arm.arrived
+        && ((t.gripper.opening_m - opening_m).abs() < 1e-4 || t.gripper.stalled);
+    if lifting || stopped {
+        command(opening_m, CLOSE_M_S, g.max_force_n, "cup", z, CUP_LIFT_M)
+    } else if around && (t.arm.arrived || t.gripper.force_n > 0.0) {
+        command(opening_m, CLOSE_M_S, g.max_force_n, "cup", z, 0.0)
+    } else {
+        command(wide, g.max_speed_m_s, g.max_force_n, "cup", z, 0.0)
+    }
+}
+
+/// Control period and duration the example and tests run the expert at \[s].
+pub fn default_run(kind: TaskKind) -> (f64, f64) {
+    match kind {
+        TaskKind::Cup => (1.0 / 30.0, 6.0),
+        TaskKind::Fabric => (1.0 / 30.0, 12.0),
+    }
+}

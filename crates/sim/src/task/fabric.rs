@@ -1,0 +1,376 @@
+//! The fabric task (the paper's towel selection and grasp): a set of fabrics a camera cannot
+//! tell apart, the per-trial pairing and placement, the folded edge's layers, the load while
+//! lifting, and the success criteria.
+//!
+//! Each fabric lies folded on the table: at its edge `layers` layers of thickness `t` are stacked
+//! (layer k spans k t .. (k + 1) t above the table). Fingers pinching with their centre at height
+//! z catch the layers whose top is above z: `n = layers - floor(z / t)` (none at z >= layers x t),
+//! so only z in ((layers - 1) t, layers t) catches one. Between the gels the caught layers are a
+//! compliant stack of thickness `n t`, squeezed by the same world as the cup (a [`Cup`] whose
+//! "diameter" is the stack and whose wall is the fabric's compression spring, stiffening as it
+//! nears solid). The lifted edge carries the hanging part of the fabric (the share
+//! `z / hang_length` of its mass) and drags the rest over the table (table friction) while it
+//! rises.
+
+use serde::Serialize;
+
+use super::Uniform;
+use super::hold::G;
+use crate::object::Object;
+use crate::rng::SplitMix64;
+use crate::world::Cup;
+
+/// One kind of fabric (nominal values; a trial varies some of them).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Fabric {
+    pub name: &'static str,
+    /// Texture as the gel sees it: sine amplitude and period \[mm], bumps (radius \[mm],
+    /// per mm^2), hardness (share of the approach the gel takes).
+    pub roughness_mm: f64,
+    pub period_mm: f64,
+    pub bump_mm: f64,
+    pub bump_density: f64,
+    pub hardness: f64,
+    /// Thickness of one layer \[mm].
+    pub layer_mm: f64,
+    /// Compression stiffness of the stack per side at no load [N/mm].
+    pub k_n_per_mm: f64,
+    /// Friction coefficient gel on fabric (static).
+    pub friction: f64,
+    pub mass_kg: f64,
+}
+
+impl Fabric {
+    /// What the gel sees (the fabric over a rounded fingertip, radius 6 mm as in the fabric
+    /// scenario).
+    pub fn object(&self, label: &str) -> Object {
+        Object::new(label, 6.0, self.roughness_mm, self.period_mm)
+            .with_hardness(self.hardness)
+            .with_bumps(self.bump_mm, self.bump_density)
+    }
+}
+
+/// The fabrics: alike in colour, size and drape to a camera; they differ in touch. The first
+/// and last are the fabric scenario's two textures (terry and microfibre); terry has the soft
+/// towel's bumps of the indenters scenario.
+pub const FABRICS: [Fabric; 5] = [
+    Fabric {
+        name: "terry",
+        roughness_mm: 0.06,
+        period_mm: 0.9,
+        bump_mm: 0.35,
+        bump_density: 1.2,
+        hardness: 0.5,
+        layer_mm: 2.4,
+        k_n_per_mm: 1.0,
+        friction: 0.9,
+        mass_kg: 0.060,
+    },
+    Fabric {
+        name: "waffle",
+        roughness_mm: 0.05,
+        period_mm: 1.4,
+        bump_mm: 0.0,
+        bump_density: 0.0,
+        hardness: 0.7,
+        layer_mm: 1.6,
+        k_n_per_mm: 2.0,
+        friction: 0.7,
+        mass_kg: 0.045,
+    },
+    Fabric {
+        name: "linen",
+        roughness_mm: 0.035,
+        period_mm: 0.7,
+        bump_mm: 0.0,
+        bump_density: 0.0,
+        hardness: 0.85,
+        layer_mm: 0.7,
+        k_n_per_mm: 6.0,
+        friction: 0.5,
+        mass_kg: 0.030,
+    },
+    Fabric {
+        name: "flannel",
+        roughness_mm: 0.02,
+        period_mm: 0.8,
+        bump_mm: 0.2,
+        bump_density: 0.8,
+        hardness: 0.6,
+        layer_mm: 1.2,
+        k_n_per_mm: 1.5,
+        friction: 0.8,
+        mass_kg: 0.040,
+    },
+    Fabric {
+        name: "microfibre",
+        roughness_mm: 0.015,
+        period_mm: 0.6,
+        bump_mm: 0.0,
+        bump_density: 0.0,
+        hardness: 0.55,
+        layer_mm: 1.0,
+        k_n_per_mm: 1.2,
+        friction: 1.0,
+        mass_kg: 0.035,
+    },
+];
+
+/// Per-trial variation of the fabrics.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FabricVariation {
+    /// Factors on layer thickness, friction and mass.
+    pub thickness_factor: Uniform,
+    pub friction_factor: Uniform,
+    pub mass_factor: Uniform,
+    pub kinetic_ratio: f64,
+    /// Layers at the folded edge: uniform among `min_layers ..= max_layers`.
+    pub min_layers: u32,
+    pub max_layers: u32,
+    /// Places of fabric_a and fabric_b (x, y) \[m] (which fabric goes where is drawn), each
+    /// moved uniformly within +-`spread_m`.
+    pub places_m: [[f64; 2]; 2],
+    pub spread_m: f64,
+    /// Length of fabric that hangs from the edge before all of it is off the table \[m], and the
+    /// fabric's friction on the table.
+    pub hang_length_m: f64,
+    pub table_friction: f64,
+}
+
+impl Default for FabricVariation {
+    fn default() -> Self {
+        Self {
+            thickness_factor: Uniform(0.9, 1.1),
+            friction_factor: Uniform(0.85, 1.15),
+            mass_factor: Uniform(0.85, 1.15),
+            kinetic_ratio: 0.8,
+            min_layers: 2,
+            max_layers: 4,
+            places_m: [[0.45, 0.12], [0.45, -0.12]],
+            spread_m: 0.02,
+            hang_length_m: 0.25,
+            table_friction: 0.4,
+        }
+    }
+}
+
+/// One trial's fabric (ground truth).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FabricSpec {
+    /// Which fabric of [`FABRICS`].
+    pub fabric: Fabric,
+    pub layers: u32,
+    pub layer_m: f64,
+    pub friction_static: f64,
+    pub friction_kinetic: f64,
+    pub mass_kg: f64,
+    /// Mean absolute deviation of the texture height the gel sees (Ra) \[mm]: lower is smoother.
+    pub roughness_ra_mm: f64,
+    pub hang_length_m: f64,
+    pub table_friction: f64,
+}
+
+/// Largest force the stack spring is set for \[N]: at it the stack is at 20 % of its thickness.
+pub const STACK_FORCE_N: f64 = 40.0;
+/// Mass of the pinched corner itself \[kg] (the part between the gels).
+const CORNER_KG: f64 = 0.002;
+
+impl FabricSpec {
+    pub fn draw(fabric: &Fabric, var: &FabricVariation, rng: &mut SplitMix64) -> FabricSpec {
+        let span = var.max_layers.saturating_sub(var.min_layers) + 1;
+        let layers =
+            var.min_layers.max(1) + ((rng.uniform() * f64::from(span)) as u32).min(span - 1);
+        let layer_m = fabric.layer_mm * 1e-3 * var.thickness_factor.draw(rng);
+        let mu = fabric.friction * var.friction_factor.draw(rng);
+        FabricSpec {
+            fabric: fabric.clone(),
+            layers,
+            layer_m,
+            friction_static: mu,
+            friction_kinetic: mu * var.kinetic_ratio,
+            mass_kg: fabric.mass_kg * var.mass_factor.draw(rng),
+            roughness_ra_mm: roughness_ra_mm(&fabric.object("ra")),
+            hang_length_m: var.hang_length_m,
+            table_friction: var.table_friction,
+        }
+    }
+
+    /// Height of the folded edge (all layers) \[m].
+    pub fn stack_m(&self) -> f64 {
+        f64::from(self.layers) * self.layer_m
+    }
+
+    /// Layers caught by fingers whose centre is `z_m` above the bottom layer.
+    pub fn layers_at(&self, z_m: f64) -> u32 {
+        if !(z_m.is_finite() && self.layer_m > 0.0) {
+            return 0;
+        }
+        let below = (z_m.max(0.0) / self.layer_m).floor();
+        if below >= f64::from(self.layers) {
+            0
+        } else {
+            self.layers - below as u32
+        }
+    }
+
+    /// Fingertip centre height that catches exactly one layer (the middle of the top layer) \[m].
+    pub fn single_layer_z_m(&self) -> f64 {
+        (f64::from(self.layers) - 0.5) * self.layer_m
+    }
+
+    /// The compliant stack of `n` layers between the gels, as the world's squeezed object:
+    /// thickness n t, the fabric's stiffness per side, stiffening so that at
+    /// [`STACK_FORCE_N`] 80 % of the stack is squeezed out; 1 g of moving mass per side.
+    pub fn stack(&self, n: u32) -> Cup {
+        let t_mm = f64::from(n.max(1)) * self.layer_m * 1e3;
+        let k = self.fabric.k_n_per_mm;
+        let x80 = 0.4 * t_mm;
+        let k3 = ((STACK_FORCE_N - k * x80) / (x80 * x80 * x80)).max(0.0);
+        let mut c = Cup::new(self.fabric.name, t_mm, k);
+        c.k3_n_per_mm3 = k3;
+        c.wall_mass_kg = 0.001;
+        c.damping_ratio = 0.3;
+        c
+    }
+
+    /// Load on the lifted edge at height `z` moving up at `v`: the hanging share of the mass
+    /// and, while rising, the drag of the rest over the table (mass \[kg], downward force \[N]).
+    pub fn load(&self, z_m: f64, v_m_s: f64) -> (f64, f64) {
+        let share = (z_m / self.hang_length_m.max(1e-3)).clamp(0.0, 1.0);
+        let hanging = self.mass_kg * share;
+        let drag = if v_m_s > 0.0 {
+            self.table_friction * self.mass_kg * (1.0 - share) * G
+        } else {
+            0.0
+        };
+        (hanging + CORNER_KG, (hanging + CORNER_KG) * G + drag)
+    }
+}
+
+/// Ra of an object's texture height over a 10 x 10 mm patch (200 x 200 samples) \[mm]: the same
+/// texture the renderer draws.
+pub fn roughness_ra_mm(o: &Object) -> f64 {
+    let n = 200;
+    let step = 10.0 / f64::from(n);
+    let hs: Vec<f64> = (0..n * n)
+        .map(|k| {
+            let (i, j) = (f64::from(k % n), f64::from(k / n));
+            o.texture_height(i * step, j * step)
+        })
+        .collect();
+    let mean = hs.iter().sum::<f64>() / hs.len() as f64;
+    hs.iter().map(|h| (h - mean).abs()).sum::<f64>() / hs.len() as f64
+}
+
+/// Success criteria of the fabric task.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FabricCriteria {
+    /// Lifted: the edge at least this high, held \[m].
+    pub lift_m: f64,
+    /// Most slip allowed during the grasp and lift \[m].
+    pub slip_m: f64,
+}
+
+impl Default for FabricCriteria {
+    fn default() -> Self {
+        Self {
+            lift_m: 0.05,
+            slip_m: 0.003,
+        }
+    }
+}
+
+/// The fabric task's outcome with the values behind each criterion.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FabricOutcome {
+    /// The fabric held now ("" when none) and the smoother one of the pair.
+    pub chosen: String,
+    pub smoother: String,
+    /// Selection success: the smoother one is held.
+    pub selection: bool,
+    /// Layers between the fingers.
+    pub layers: u32,
+    pub lift_height_m: f64,
+    /// Slip since the grasp (summed relative motion) \[m].
+    pub slip_m: f64,
+    /// Grasp success: a single layer, lifted at least the criterion's height, slip within bound.
+    pub grasp: bool,
+    pub collision: bool,
+    pub overall: bool,
+}
+
+impl FabricOutcome {
+    pub fn judge(
+        c: &FabricCriteria,
+        chosen: &str,
+        smoother: &str,
+        layers: u32,
+        lift_height_m: f64,
+        slip_m: f64,
+        collision: bool,
+    ) -> FabricOutcome {
+        let selection = !chosen.is_empty() && chosen == smoother;
+        let grasp =
+            !chosen.is_empty() && layers == 1 && lift_height_m >= c.lift_m && slip_m <= c.slip_m;
+        FabricOutcome {
+            chosen: chosen.to_string(),
+            smoother: smoother.to_string(),
+            selection,
+            layers,
+            lift_height_m,
+            slip_m,
+            grasp: grasp && !collision,
+            collision,
+            overall: selection && grasp && !collision,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec(layers: u32, layer_m: f64) -> FabricSpec {
+        let mut s = FabricSpec::draw(
+            &FABRICS[0],
+            &FabricVariation::default(),
+            &mut SplitMix64::new(1),
+        );
+        s.layers = layers;
+        s.layer_m = layer_m;
+        s
+    }
+
+    #[test]
+    fn pinch_height_decides_the_layers_caught() {
+        let s = spec(3, 0.001);
+        assert_eq!(s.layers_at(0.0), 3);
+        assert_eq!(s.layers_at(0.0005), 3);
+        assert_eq!(s.layers_at(0.0015), 2);
+        assert_eq!(s.layers_at(0.0025), 1);
+        assert_eq!(s.layers_at(s.single_layer_z_m()), 1);
+        assert_eq!(s.layers_at(0.0031), 0);
+        assert_eq!(s.layers_at(f64::NAN), 0);
+    }
+
+    #[test]
+    fn the_fabric_set_ranks_by_measured_roughness_as_stated() {
+        let ra: Vec<f64> = FABRICS
+            .iter()
+            .map(|f| roughness_ra_mm(&f.object("x")))
+            .collect();
+        // Terry (texture and bumps) is the roughest, microfibre the smoothest; all differ.
+        for w in ra.windows(2) {
+            assert!(w[0] > w[1], "{ra:?}");
+        }
+    }
+
+    #[test]
+    fn the_stack_spring_nears_solid_at_its_design_force() {
+        let s = spec(2, 0.0012);
+        let c = s.stack(2);
+        let x80 = 0.4 * 2.4;
+        assert!((c.spring(x80).0 - STACK_FORCE_N).abs() < 1e-9);
+        assert!(c.spring(0.1).0 < 0.2);
+    }
+}

@@ -1,0 +1,588 @@
+//! Closed-loop task worlds: the paper's cup deformation grasp and fabric selection grasp, as a
+//! world a policy (or the scripted expert) drives one control tick at a time.
+//!
+//! `TaskWorld::reset(config, seed, trial)` draws the trial (objects, their properties and
+//! placement, the camera's biases); `step(&TaskCommand, dt)` advances the arm, the gripper (the
+//! cup world of [`crate::world`] squeezing the cup or the fabric stack between the gels, sub-stepped
+//! inside) and the held object's friction and slip; `observe_visual` is what a camera model could
+//! estimate (noisy, never tactile properties or forces); `sensor_view` is what the mock sensor must
+//! render now; `outcome` is the task's success criteria with their values. Public values are SI;
+//! the squeeze world keeps its mm inside and is converted here.
+//!
+//! - [`cup`], [`fabric`]: the objects of each task, their per-trial draw and the criteria;
+//! - `command`: the command and what it refuses; `trial`: what a trial draws; `truth`: the
+//!   ground truth and the outcome;
+//! - `arm`: the kinematic arm; `hold`: friction and slip of the held object;
+//! - [`observe`]: the camera's observation and the sensor view;
+//! - [`expert`]: the scripted expert and the demonstration record.
+//!
+//! Same (config, seed, trial) and the same commands give the same truth, bit for bit.
+
+use serde::Serialize;
+
+use crate::rng::SplitMix64;
+use crate::world::{Gel, Gripper, World, WorldConfig, WorldError, WorldTruth};
+
+mod arm;
+mod command;
+pub mod cup;
+pub mod expert;
+pub mod fabric;
+mod hold;
+pub mod observe;
+mod trial;
+mod truth;
+
+pub use arm::{ArmLimits, ArmState};
+pub use command::{ArmSetpoint, ArmTarget, GripperSetpoint, MAX_STEP_S, TaskCommand};
+pub use cup::{CupCriteria, CupOutcome, CupSpec, CupVariation};
+pub use expert::{
+    DemoStep, Demonstration, expert_command, fixed_opening_command, run_expert, run_policy,
+};
+pub use fabric::{FABRICS, Fabric, FabricCriteria, FabricOutcome, FabricSpec, FabricVariation};
+pub use hold::{G, Hold};
+pub use observe::{SensorView, VisionNoise, VisualObservation};
+pub use trial::{ObjectSpec, TaskObject, TrialSpec, trial_rng};
+pub use truth::{ContactTruth, GripperTruth, ObjectTruth, TaskOutcome, TaskTruth};
+
+/// A uniform distribution on [lo, hi].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Uniform(pub f64, pub f64);
+
+impl Uniform {
+    pub fn draw(&self, rng: &mut SplitMix64) -> f64 {
+        self.0 + (self.1 - self.0) * rng.uniform()
+    }
+}
+
+/// Which task.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TaskKind {
+    Cup,
+    Fabric,
+}
+
+impl TaskKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            TaskKind::Cup => "cup",
+            TaskKind::Fabric => "fabric",
+        }
+    }
+}
+
+/// Which object family a trial draws from: the training objects or the unseen ones (cups:
+/// 60 / 65 / 70 mm vs 90 mm; the fabric task has one set and ignores it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Split {
+    Train,
+    Unseen,
+}
+
+/// The gripper's hardware bounds (a long-stroke two-finger gripper such as a 140 mm one).
+/// Openings are between the finger bodies: the gel surfaces meet at an opening of 2 x `pad_m`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct GripperLimits {
+    pub max_opening_m: f64,
+    /// Gel pad thickness per finger \[m].
+    pub pad_m: f64,
+    /// Opening speed bound (both fingers together) \[m/s].
+    pub max_speed_m_s: f64,
+    /// Grip force bound per finger \[N].
+    pub max_force_n: f64,
+}
+
+impl Default for GripperLimits {
+    fn default() -> Self {
+        Self {
+            max_opening_m: 0.14,
+            pad_m: 0.003,
+            max_speed_m_s: 0.1,
+            max_force_n: 40.0,
+        }
+    }
+}
+
+/// Everything a task world is made from.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TaskConfig {
+    pub kind: TaskKind,
+    pub split: Split,
+    pub arm: ArmLimits,
+    pub gripper: GripperLimits,
+    pub gel: Gel,
+    /// Tangential (shear) stiffness of one gel pad [N/m].
+    pub gel_shear_n_per_m: f64,
+    pub cup: CupVariation,
+    pub cup_criteria: CupCriteria,
+    pub fabric: FabricVariation,
+    pub fabric_criteria: FabricCriteria,
+    pub vision: VisionNoise,
+    /// Longest inner step of the arm, gripper and friction \[s] (the squeeze world sub-steps
+    /// further for its own stability).
+    pub substep_s: f64,
+}
+
+impl TaskConfig {
+    pub fn new(kind: TaskKind, split: Split) -> Self {
+        Self {
+            kind,
+            split,
+            arm: ArmLimits::default(),
+            gripper: GripperLimits::default(),
+            gel: Gel::default(),
+            gel_shear_n_per_m: 4000.0,
+            cup: CupVariation::default(),
+            cup_criteria: CupCriteria::default(),
+            fabric: FabricVariation::default(),
+            fabric_criteria: FabricCriteria::default(),
+            vision: VisionNoise::default(),
+            substep_s: 1e-3,
+        }
+    }
+    pub fn cup(split: Split) -> Self {
+        Self::new(TaskKind::Cup, split)
+    }
+    pub fn fabric() -> Self {
+        Self::new(TaskKind::Fabric, Split::Train)
+    }
+}
+
+/// Arm within this horizontal distance of an object's grasp point has it between the fingers
+/// (when also within its height band) \[m].
+const REACH_M: f64 = 0.01;
+/// Cup: fingertip centre at least this far from bottom and rim to hold it \[m].
+const CUP_MARGIN_M: f64 = 0.005;
+/// Fabric: length of fabric inside the pinch; slipping this far drops it \[m].
+const PINCH_DEPTH_M: f64 = 0.015;
+/// Contact force that counts as touching an object \[N].
+const TOUCH_N: f64 = 0.2;
+
+/// The fingers: free (nothing between them) or around an object (its squeeze world).
+#[derive(Debug, Clone)]
+enum Fingers {
+    Free {
+        opening_mm: f64,
+    },
+    Around {
+        obj: usize,
+        world: Box<World>,
+        width_mm: f64,
+        layers: u32,
+        /// Arm height over the object's lift when it came between the fingers \[m].
+        z_rel_m: f64,
+        last: WorldTruth,
+    },
+}
+
+/// Dynamic state of an object.
+#[derive(Debug, Clone, PartialEq)]
+struct ObjState {
+    xy: [f64; 2],
+    hold: Hold,
+    touch_s: f64,
+}
+
+/// A task world: one trial.
+#[derive(Debug, Clone)]
+pub struct TaskWorld {
+    cfg: TaskConfig,
+    spec: TrialSpec,
+    t: f64,
+    arm: ArmState,
+    fingers: Fingers,
+    objects: Vec<ObjState>,
+    stalled: bool,
+    collision: bool,
+    dropped: bool,
+    peak_deformation_mm: f64,
+    /// Last step's slip (signed) and integrator steps.
+    slip_step_m: f64,
+    substeps: u32,
+}
+
+impl TaskWorld {
+    /// Draw trial `trial` of `seed`: the objects, their properties and places, the camera's bias.
+    pub fn reset(cfg: &TaskConfig, seed: u64, trial: u32) -> TaskWorld {
+        let spec = TrialSpec::draw(cfg, seed, trial);
+        let objects = spec
+            .objects
+            .iter()
+            .map(|o| ObjState {
+                xy: o.placed_m,
+                hold: Hold::default(),
+                touch_s: 0.0,
+            })
+            .collect();
+        TaskWorld {
+            cfg: cfg.clone(),
+            spec,
+            t: 0.0,
+            arm: ArmState::at(cfg.arm.home_m),
+            fingers: Fingers::Free {
+                opening_mm: cfg.gripper.max_opening_m * 1e3,
+            },
+            objects,
+            stalled: false,
+            collision: false,
+            dropped: false,
+            peak_deformation_mm: 0.0,
+            slip_step_m: 0.0,
+            substeps: 0,
+        }
+    }
+
+    pub fn config(&self) -> &TaskConfig {
+        &self.cfg
+    }
+    pub fn spec(&self) -> &TrialSpec {
+        &self.spec
+    }
+    pub fn time(&self) -> f64 {
+        self.t
+    }
+
+    /// Advance by `dt_s` under `cmd`. A bad command or step is refused with nothing changed.
+    pub fn step(&mut self, cmd: &TaskCommand, dt_s: f64) -> Result<TaskTruth, WorldError> {
+        if !(dt_s.is_finite() && dt_s > 0.0 && dt_s <= MAX_STEP_S) {
+            return Err(WorldError::BadStep(dt_s));
+        }
+        cmd.validate()?;
+        let target = self.resolve(&cmd.arm.target)?;
+        let n = (dt_s / self.cfg.substep_s.clamp(1e-5, MAX_STEP_S))
+            .ceil()
+            .clamp(1.0, 1e5) as u32;
+        let h = dt_s / f64::from(n);
+        // Work on a copy: an integration error leaves the world as it was.
+        let mut next = self.clone();
+        next.slip_step_m = 0.0;
+        next.substeps = 0;
+        for _ in 0..n {
+            next.substep(cmd, target, h)?;
+        }
+        next.t = self.t + dt_s;
+        *self = next;
+        Ok(self.truth())
+    }
+
+    /// The object index of an arm target (None: home).
+    fn resolve(&self, target: &ArmTarget) -> Result<Option<usize>, WorldError> {
+        match target {
+            ArmTarget::Home => Ok(None),
+            ArmTarget::Object(name) => self
+                .spec
+                .objects
+                .iter()
+                .position(|o| &o.name == name)
+                .map(Some)
+                .ok_or_else(|| WorldError::UnknownTarget {
+                    name: name.chars().take(64).collect(),
+                    known: self
+                        .spec
+                        .objects
+                        .iter()
+                        .map(|o| o.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                }),
+        }
+    }
+
+    /// Width between the fingers \[mm] and layers, if object `i` is between fingers at `pos`.
+    fn between(&self, i: usize, pos: [f64; 3]) -> Option<(f64, u32)> {
+        let (o, s) = (self.spec.objects.get(i)?, self.objects.get(i)?);
+        let d = (pos[0] - s.xy[0]).hypot(pos[1] - s.xy[1]);
+        if d > REACH_M {
+            return None;
+        }
+        let z = pos[2] - s.hold.z_m;
+        match &o.spec {
+            ObjectSpec::Cup(c) => (z >= CUP_MARGIN_M && z <= c.height_m - CUP_MARGIN_M)
+                .then_some((c.diameter_m * 1e3, 1)),
+            ObjectSpec::Fabric(f) => {
+                let n = f.layers_at(z);
+                (n > 0).then_some((f64::from(n) * f.layer_m * 1e3, n))
+            }
+        }
+    }
+
+    /// Opening at which the gel surfaces meet \[mm].
+    fn pad2_mm(&self) -> f64 {
+        2e3 * self.cfg.gripper.pad_m
+    }
+
+    fn squeezed(&self, i: usize, layers: u32) -> Option<crate::world::Cup> {
+        match &self.spec.objects.get(i)?.spec {
+            ObjectSpec::Cup(c) => Some(c.wall.clone()),
+            ObjectSpec::Fabric(f) => Some(f.stack(layers)),
+        }
+    }
+
+    fn substep(
+        &mut self,
+        cmd: &TaskCommand,
+        target: Option<usize>,
+        h: f64,
+    ) -> Result<(), WorldError> {
+        // 1. The arm, and what comes between the fingers on its way.
+        let goal = match target.and_then(|i| self.objects.get(i)) {
+            None => self.cfg.arm.home_m,
+            Some(s) => [s.xy[0], s.xy[1], cmd.arm.z_m + cmd.arm.lift_m],
+        };
+        let cand = self.arm.advanced(&self.cfg.arm, goal, h);
+        let mut blocked = false;
+        if let Fingers::Free { opening_mm } = self.fingers {
+            for i in 0..self.objects.len() {
+                let Some((width_mm, layers)) = self.between(i, cand.position_m) else {
+                    continue;
+                };
+                if opening_mm - self.pad2_mm() >= width_mm {
+                    self.engage(i, width_mm, layers, opening_mm, cand.position_m[2])?;
+                } else {
+                    self.collision = true;
+                    blocked = true;
+                }
+                break;
+            }
+        }
+        self.arm = if blocked {
+            self.arm.blocked(goal)
+        } else {
+            cand
+        };
+
+        // 2. The gripper: its bounds, then free fingers or the squeeze world.
+        let lim = self.cfg.gripper;
+        let g = &cmd.gripper;
+        let open_mm = g.opening_m.min(lim.max_opening_m) * 1e3;
+        let speed_mm_s = g.speed_m_s.min(lim.max_speed_m_s) * 1e3;
+        let force_n = g.force_n.min(lim.max_force_n);
+        self.stalled = false;
+        match &mut self.fingers {
+            Fingers::Free { opening_mm } => {
+                *opening_mm += (open_mm - *opening_mm).clamp(-speed_mm_s * h, speed_mm_s * h);
+            }
+            Fingers::Around {
+                world,
+                width_mm,
+                last,
+                ..
+            } => {
+                // Each finger takes half the opening change.
+                let target_p = (*width_mm - (open_mm - 2e3 * lim.pad_m)) / 2.0;
+                let d = world.drive(h, target_p, speed_mm_s / 2.0, force_n)?;
+                self.stalled = d.stalled;
+                *last = d.truth;
+                self.substeps += last.substeps;
+            }
+        }
+
+        // 3. Every object's vertical motion; the one between the fingers feels the grip.
+        let (held, grip_n) = match &self.fingers {
+            Fingers::Around { obj, last, .. } => (Some(*obj), last.force_n),
+            Fingers::Free { .. } => (None, 0.0),
+        };
+        let (va, aa) = (self.arm.velocity_m_s[2], self.arm.accel_m_s2[2]);
+        for (i, (o, s)) in self.spec.objects.iter().zip(&mut self.objects).enumerate() {
+            let grip = if held == Some(i) { grip_n } else { 0.0 };
+            let load = |z: f64, v: f64| o.load(z, v);
+            let slip = s.hold.step(h, va, aa, grip, o.friction(), &load);
+            if held == Some(i) {
+                self.slip_step_m += slip;
+                if grip >= TOUCH_N {
+                    s.touch_s += h;
+                }
+                if grip > 0.0 {
+                    // Gripped: closing centres it between the fingers and it goes where they go
+                    // (lifted, or slid over the table).
+                    s.xy = [self.arm.position_m[0], self.arm.position_m[1]];
+                }
+            }
+        }
+
+        // 4. Drops and leaving: an object slips out of the pinch or past the rim; fingers that no
+        //    longer touch it leave it when the arm moves away (or to another height: a fabric's
+        //    layers depend on it).
+        if let Fingers::Around {
+            obj,
+            width_mm,
+            z_rel_m,
+            last,
+            ..
+        } = &self.fingers
+        {
+            let (i, width_mm, z_rel, last) = (*obj, *width_mm, *z_rel_m, *last);
+            let s = self.objects.get(i).map_or(Hold::default(), |s| s.hold);
+            let margin = match self.spec.objects.get(i).map(|o| &o.spec) {
+                Some(ObjectSpec::Cup(c)) => c.height_m - CUP_MARGIN_M - z_rel,
+                _ => PINCH_DEPTH_M,
+            };
+            let touching = last.force_n > 0.0 || last.penetration_mm > 0.0;
+            let moved = (self.arm.position_m[2] - s.z_m - z_rel).abs() > 2e-4
+                || self.between(i, self.arm.position_m).is_none();
+            let pad2 = self.pad2_mm();
+            if s.slip_net_m > margin {
+                self.dropped = true;
+                self.fingers = Fingers::Free {
+                    opening_mm: last.width_mm.min(width_mm) + pad2,
+                };
+            } else if !touching && moved {
+                self.fingers = Fingers::Free {
+                    opening_mm: last.width_mm + pad2,
+                };
+            }
+            if let Some(ObjectSpec::Cup(_)) = self.spec.objects.get(i).map(|o| &o.spec) {
+                self.peak_deformation_mm = self.peak_deformation_mm.max(last.deformation_mm);
+            }
+        }
+        Ok(())
+    }
+
+    fn engage(
+        &mut self,
+        i: usize,
+        width_mm: f64,
+        layers: u32,
+        opening_mm: f64,
+        arm_z: f64,
+    ) -> Result<(), WorldError> {
+        let Some(model) = self.squeezed(i, layers) else {
+            return Ok(());
+        };
+        let lim = self.cfg.gripper;
+        let mut wc = WorldConfig::new(model);
+        wc.gel = self.cfg.gel;
+        wc.gripper = Gripper {
+            speed_mm_s: lim.max_speed_m_s * 1e3 / 2.0,
+            max_force_n: lim.max_force_n,
+            ..Gripper::default()
+        };
+        wc.start_mm = (width_mm - (opening_mm - self.pad2_mm())) / 2.0;
+        let world = World::new(wc);
+        let last = world.truth(0);
+        let s = &mut self.objects[i];
+        s.hold.regrasp();
+        self.fingers = Fingers::Around {
+            obj: i,
+            world: Box::new(world),
+            width_mm,
+            layers,
+            z_rel_m: arm_z - s.hold.z_m,
+            last,
+        };
+        Ok(())
+    }
+
+    /// Ground truth now.
+    pub fn truth(&self) -> TaskTruth {
+        let (gripper, contact) = match &self.fingers {
+            Fingers::Free { opening_mm } => (
+                GripperTruth {
+                    opening_m: opening_mm * 1e-3,
+                    force_n: 0.0,
+                    stalled: false,
+                },
+                ContactTruth::default(),
+            ),
+            Fingers::Around {
+                obj, layers, last, ..
+            } => {
+                let hold = self.objects.get(*obj).map_or(Hold::default(), |s| s.hold);
+                let name = self
+                    .spec
+                    .objects
+                    .get(*obj)
+                    .map_or(String::new(), |o| o.name.clone());
+                (
+                    GripperTruth {
+                        opening_m: (last.width_mm + self.pad2_mm()) * 1e-3,
+                        force_n: last.force_n,
+                        stalled: self.stalled,
+                    },
+                    ContactTruth {
+                        object: name,
+                        layers: *layers,
+                        penetration_m: last.penetration_mm * 1e-3,
+                        deformation_m: last.deformation_mm * 1e-3,
+                        deformation_rate_m_s: 2.0 * last.wall_velocity_mm_s * 1e-3,
+                        friction_n: hold.friction_n,
+                        tangential_m: 0.5 * hold.friction_n / self.cfg.gel_shear_n_per_m.max(1.0),
+                        slip_step_m: self.slip_step_m,
+                        slip_total_m: hold.slip_total_m,
+                        stuck: hold.stuck,
+                    },
+                )
+            }
+        };
+        let held = match &self.fingers {
+            Fingers::Around { obj, last, .. } if last.force_n > 0.0 => Some(*obj),
+            _ => None,
+        };
+        TaskTruth {
+            t_s: self.t,
+            arm: self.arm,
+            gripper,
+            contact,
+            objects: self
+                .spec
+                .objects
+                .iter()
+                .zip(&self.objects)
+                .enumerate()
+                .map(|(i, (o, s))| ObjectTruth {
+                    name: o.name.clone(),
+                    position_m: [s.xy[0], s.xy[1], s.hold.z_m],
+                    held: held == Some(i),
+                    touch_s: s.touch_s,
+                })
+                .collect(),
+            peak_deformation_m: self.peak_deformation_mm * 1e-3,
+            collision: self.collision,
+            dropped: self.dropped,
+            substeps: self.substeps,
+        }
+    }
+
+    /// The task's success criteria, judged now, with their values.
+    pub fn outcome(&self) -> TaskOutcome {
+        let truth = self.truth();
+        let held = truth.objects.iter().position(|o| o.held);
+        let lift = held
+            .and_then(|i| truth.objects.get(i))
+            .map_or(0.0, |o| o.position_m[2]);
+        match self.cfg.kind {
+            TaskKind::Cup => TaskOutcome::Cup(CupOutcome::judge(
+                &self.cfg.cup_criteria,
+                held.is_some(),
+                lift,
+                if held.is_some() {
+                    truth.contact.deformation_m
+                } else {
+                    0.0
+                },
+                truth.peak_deformation_m,
+                truth.collision,
+            )),
+            TaskKind::Fabric => {
+                let chosen = held
+                    .and_then(|i| truth.objects.get(i))
+                    .map_or("", |o| o.name.as_str());
+                TaskOutcome::Fabric(FabricOutcome::judge(
+                    &self.cfg.fabric_criteria,
+                    chosen,
+                    self.spec.smoother(),
+                    if held.is_some() {
+                        truth.contact.layers
+                    } else {
+                        0
+                    },
+                    lift,
+                    truth.contact.slip_total_m,
+                    truth.collision,
+                ))
+            }
+        }
+    }
+}

@@ -1,0 +1,195 @@
+//! What the robot's other senses get from a task world: the camera's noisy estimate and the
+//! view the mock tactile sensor renders.
+//!
+//! The camera model estimates what an RGB(-D) camera over the table could: each object's
+//! position, the cup's diameter (undeformed: the fingers hide the squeezed section, the rim is
+//! what the camera measures) and height, a fabric's folded-edge height. Each value is the truth
+//! plus a per-trial bias (calibration, segmentation) plus per-frame noise, both near-normal
+//! (`SplitMix64::gaussian`). It never sees tactile properties (roughness, softness, friction),
+//! stiffness, force, deformation or slip.
+
+use serde::Serialize;
+
+use super::{ObjectSpec, TaskKind, TaskWorld};
+use crate::mock::{GroundTruth, MockSensor};
+use crate::object::Object;
+use crate::rng::SplitMix64;
+use unitac_core::Frame;
+
+/// Camera noise: per-trial bias and per-frame noise (standard deviations) \[m].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct VisionNoise {
+    pub position_bias_m: f64,
+    pub position_m: f64,
+    pub size_bias_m: f64,
+    pub size_m: f64,
+    /// Fabric edge height (a few mm seen from above, at a slant).
+    pub edge_bias_m: f64,
+    pub edge_m: f64,
+}
+
+impl Default for VisionNoise {
+    fn default() -> Self {
+        Self {
+            position_bias_m: 0.003,
+            position_m: 0.002,
+            size_bias_m: 0.002,
+            size_m: 0.001,
+            edge_bias_m: 0.0005,
+            edge_m: 0.0005,
+        }
+    }
+}
+
+impl VisionNoise {
+    fn sigmas(&self, name: &str) -> (f64, f64) {
+        if name.ends_with("edge_height_m") {
+            (self.edge_bias_m, self.edge_m)
+        } else if name.ends_with("diameter_m") || name.ends_with("height_m") {
+            (self.size_bias_m, self.size_m)
+        } else {
+            (self.position_bias_m, self.position_m)
+        }
+    }
+    /// Standard deviation of the per-trial bias of the value called `name` \[m].
+    pub fn bias_sigma(&self, name: &str) -> f64 {
+        self.sigmas(name).0
+    }
+    /// Standard deviation of the per-frame noise of the value called `name` \[m].
+    pub fn frame_sigma(&self, name: &str) -> f64 {
+        self.sigmas(name).1
+    }
+}
+
+/// The names of the camera's values for a task, in order (SI units in the names).
+pub fn visual_names(kind: TaskKind) -> Vec<String> {
+    let per = |o: &str, fields: &[&str]| -> Vec<String> {
+        fields.iter().map(|f| format!("{o}.{f}")).collect()
+    };
+    match kind {
+        TaskKind::Cup => per("cup", &["x_m", "y_m", "z_m", "diameter_m", "height_m"]),
+        TaskKind::Fabric => {
+            let f = ["x_m", "y_m", "z_m", "edge_height_m"];
+            let mut v = per("fabric_a", &f);
+            v.extend(per("fabric_b", &f));
+            v
+        }
+    }
+}
+
+/// A camera observation: names and values (same order every tick).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct VisualObservation {
+    pub t_s: f64,
+    pub names: Vec<String>,
+    pub values: Vec<f64>,
+}
+
+impl VisualObservation {
+    pub fn get(&self, name: &str) -> Option<f64> {
+        let i = self.names.iter().position(|n| n == name)?;
+        self.values.get(i).copied()
+    }
+}
+
+/// What the mock sensor must render now (the sensor on one finger; the other is symmetric).
+/// Sensor plane axes: x right, y down (world down along the finger).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorView {
+    pub t_s: f64,
+    /// The touched object as the gel sees it (None: nothing between the fingers).
+    pub object: Option<Object>,
+    /// Gel penetration \[m] (0 when not touching).
+    pub penetration_m: f64,
+    pub force_n: f64,
+    /// Contact centre in the sensor plane from the gel's centre \[m].
+    pub contact_centre_m: [f64; 2],
+    /// Tangential displacement of the gel surface under the contact \[m].
+    pub tangential_m: [f64; 2],
+    /// Relative motion of the object over the gel in the last step \[m] and since the grasp
+    /// (summed unsigned) \[m].
+    pub slip_m: [f64; 2],
+    pub slip_total_m: f64,
+    /// Deformation of the touched object (cup diameter loss, stack compression) \[m].
+    pub deformation_m: f64,
+}
+
+impl SensorView {
+    /// Render it as frame `index` of `sensor` (today's renderer: the object pressed to the
+    /// penetration; the tangential part is in the view for the renderer to draw).
+    pub fn render(&self, sensor: &MockSensor, index: u64) -> (Frame, GroundTruth) {
+        sensor.render_press(
+            index,
+            self.object.as_ref().map(|o| (o, self.penetration_m * 1e3)),
+            self.force_n,
+            self.deformation_m * 1e3,
+        )
+    }
+}
+
+impl TaskWorld {
+    /// The camera's estimate now, with this frame's noise drawn from `rng`.
+    pub fn observe_visual(&self, rng: &mut SplitMix64) -> VisualObservation {
+        let names = visual_names(self.cfg.kind);
+        let truth = self.truth();
+        let values = names
+            .iter()
+            .zip(&self.spec.vision_bias)
+            .map(|(name, bias)| {
+                let v = self.visual_truth(name, &truth.objects).unwrap_or(0.0);
+                v + bias + self.cfg.vision.frame_sigma(name) * rng.gaussian()
+            })
+            .collect();
+        VisualObservation {
+            t_s: self.t,
+            names,
+            values,
+        }
+    }
+
+    fn visual_truth(&self, name: &str, objects: &[super::ObjectTruth]) -> Option<f64> {
+        let (obj, field) = name.split_once('.')?;
+        let i = self.spec.objects.iter().position(|o| o.name == obj)?;
+        let (o, s) = (self.spec.objects.get(i)?, objects.get(i)?);
+        Some(match (field, &o.spec) {
+            ("x_m", _) => s.position_m[0],
+            ("y_m", _) => s.position_m[1],
+            ("z_m", _) => s.position_m[2],
+            ("diameter_m", ObjectSpec::Cup(c)) => c.diameter_m,
+            ("height_m", ObjectSpec::Cup(c)) => c.height_m,
+            ("edge_height_m", ObjectSpec::Fabric(f)) => f.stack_m(),
+            _ => return None,
+        })
+    }
+
+    /// What the mock sensor must render now.
+    pub fn sensor_view(&self) -> SensorView {
+        let truth = self.truth();
+        let c = &truth.contact;
+        let object = self
+            .spec
+            .objects
+            .iter()
+            .find(|o| !c.object.is_empty() && o.name == c.object)
+            .map(|o| match &o.spec {
+                ObjectSpec::Cup(cup) => {
+                    let mut obj = cup.wall.object();
+                    obj.label = o.name.clone();
+                    obj
+                }
+                ObjectSpec::Fabric(f) => f.fabric.object(&o.name),
+            });
+        let touching = c.penetration_m > 0.0;
+        SensorView {
+            t_s: self.t,
+            object,
+            penetration_m: c.penetration_m.max(0.0),
+            force_n: truth.gripper.force_n,
+            contact_centre_m: [0.0, 0.0],
+            tangential_m: [0.0, if touching { c.tangential_m } else { 0.0 }],
+            slip_m: [0.0, c.slip_step_m],
+            slip_total_m: c.slip_total_m,
+            deformation_m: c.deformation_m,
+        }
+    }
+}

@@ -1,0 +1,143 @@
+//! What a trial is made of: its objects (drawn per seed and trial) and the camera's bias.
+
+use serde::Serialize;
+
+use super::observe;
+use super::{CupSpec, FABRICS, FabricSpec, G, Split, TaskConfig, TaskKind, Uniform};
+use crate::rng::SplitMix64;
+
+/// An object of the trial.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ObjectSpec {
+    Cup(CupSpec),
+    Fabric(FabricSpec),
+}
+
+/// An object of the trial: its name, what it is, where it was placed (x, y) \[m].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TaskObject {
+    pub name: String,
+    pub spec: ObjectSpec,
+    pub placed_m: [f64; 2],
+}
+
+impl TaskObject {
+    pub(crate) fn friction(&self) -> (f64, f64) {
+        match &self.spec {
+            ObjectSpec::Cup(c) => (c.friction_static, c.friction_kinetic),
+            ObjectSpec::Fabric(f) => (f.friction_static, f.friction_kinetic),
+        }
+    }
+    /// (mass \[kg], downward force \[N]) at height z moving at v.
+    pub(crate) fn load(&self, z: f64, v: f64) -> (f64, f64) {
+        match &self.spec {
+            ObjectSpec::Cup(c) => (c.mass_kg, c.mass_kg * G),
+            ObjectSpec::Fabric(f) => f.load(z, v),
+        }
+    }
+}
+
+/// What reset drew for this trial (ground truth; the expert may read it, a policy must not).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TrialSpec {
+    pub kind: TaskKind,
+    pub split: Split,
+    pub seed: u64,
+    pub trial: u32,
+    pub objects: Vec<TaskObject>,
+    /// The camera's per-trial bias, one per visual observation name.
+    pub vision_bias: Vec<f64>,
+}
+
+impl TrialSpec {
+    /// Draw trial `trial` of `seed`: the objects, their properties and places, the camera's bias.
+    pub fn draw(cfg: &TaskConfig, seed: u64, trial: u32) -> TrialSpec {
+        let mut rng = trial_rng(seed, trial);
+        let objects = match cfg.kind {
+            TaskKind::Cup => {
+                let c = CupSpec::draw(cfg.split, &cfg.cup, &mut rng);
+                let v = &cfg.cup;
+                let placed_m = [
+                    v.centre_m[0] + Uniform(-v.spread_m[0], v.spread_m[0]).draw(&mut rng),
+                    v.centre_m[1] + Uniform(-v.spread_m[1], v.spread_m[1]).draw(&mut rng),
+                ];
+                vec![TaskObject {
+                    name: "cup".into(),
+                    spec: ObjectSpec::Cup(c),
+                    placed_m,
+                }]
+            }
+            TaskKind::Fabric => {
+                let v = &cfg.fabric;
+                let n = FABRICS.len();
+                let i = ((rng.uniform() * n as f64) as usize).min(n - 1);
+                let j = ((rng.uniform() * (n - 1) as f64) as usize).min(n - 2);
+                let j = if j >= i { j + 1 } else { j };
+                [("fabric_a", i, 0), ("fabric_b", j, 1)]
+                    .into_iter()
+                    .map(|(name, k, place)| {
+                        let f = FabricSpec::draw(&FABRICS[k], v, &mut rng);
+                        let s = Uniform(-v.spread_m, v.spread_m);
+                        let p = v.places_m[place];
+                        TaskObject {
+                            name: name.into(),
+                            spec: ObjectSpec::Fabric(f),
+                            placed_m: [p[0] + s.draw(&mut rng), p[1] + s.draw(&mut rng)],
+                        }
+                    })
+                    .collect()
+            }
+        };
+        let names = observe::visual_names(cfg.kind);
+        let vision_bias = names
+            .iter()
+            .map(|n| cfg.vision.bias_sigma(n) * rng.gaussian())
+            .collect();
+        TrialSpec {
+            kind: cfg.kind,
+            split: cfg.split,
+            seed,
+            trial,
+            objects,
+            vision_bias,
+        }
+    }
+
+    pub fn object(&self, name: &str) -> Option<&TaskObject> {
+        self.objects.iter().find(|o| o.name == name)
+    }
+    /// The cup of a cup trial.
+    pub fn cup(&self) -> Option<&CupSpec> {
+        self.objects.iter().find_map(|o| match &o.spec {
+            ObjectSpec::Cup(c) => Some(c),
+            ObjectSpec::Fabric(_) => None,
+        })
+    }
+    /// The fabric called `name`.
+    pub fn fabric(&self, name: &str) -> Option<&FabricSpec> {
+        match &self.object(name)?.spec {
+            ObjectSpec::Fabric(f) => Some(f),
+            ObjectSpec::Cup(_) => None,
+        }
+    }
+    /// Name of the smoother fabric of a fabric trial ("" otherwise).
+    pub fn smoother(&self) -> &str {
+        let mut best: Option<(&str, f64)> = None;
+        for o in &self.objects {
+            if let ObjectSpec::Fabric(f) = &o.spec
+                && best.is_none_or(|(_, r)| f.roughness_ra_mm < r)
+            {
+                best = Some((&o.name, f.roughness_ra_mm));
+            }
+        }
+        best.map_or("", |(n, _)| n)
+    }
+}
+
+/// The trial's own generator: a pure function of (seed, trial).
+pub fn trial_rng(seed: u64, trial: u32) -> SplitMix64 {
+    let mut r = SplitMix64::new(seed ^ (u64::from(trial) + 1).wrapping_mul(0xD1B5_4A32_D192_ED03));
+    r.next_u64();
+    r
+}

@@ -1,0 +1,403 @@
+//! The task worlds through their public API: determinism, the expert on training and unseen
+//! cups and on fabrics, what a size-blind grip does to the big cup, the friction bound of a lift,
+//! pinch height and layers, slip at a weak grip, refused commands, the camera and the sensor view.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use unitac_core::SensorKind;
+use unitac_sim::task::expert::default_run;
+use unitac_sim::task::{
+    ArmSetpoint, ArmTarget, G, GripperSetpoint, Split, TaskCommand, TaskConfig, TaskOutcome,
+    TaskTruth, TaskWorld, fixed_opening_command, run_expert, run_policy,
+};
+use unitac_sim::{MockConfig, MockSensor, Scenario, SplitMix64, WorldError};
+
+const DT: f64 = 1.0 / 30.0;
+
+fn cmd(
+    opening_m: f64,
+    speed: f64,
+    force_n: f64,
+    target: &str,
+    z_m: f64,
+    lift_m: f64,
+) -> TaskCommand {
+    TaskCommand {
+        gripper: GripperSetpoint {
+            opening_m,
+            speed_m_s: speed,
+            force_n,
+        },
+        arm: ArmSetpoint {
+            target: ArmTarget::named(target),
+            z_m,
+            lift_m,
+        },
+    }
+}
+
+fn cup_outcome(o: &TaskOutcome) -> &unitac_sim::task::CupOutcome {
+    match o {
+        TaskOutcome::Cup(c) => c,
+        TaskOutcome::Fabric(_) => panic!("not a cup outcome"),
+    }
+}
+
+fn fabric_outcome(o: &TaskOutcome) -> &unitac_sim::task::FabricOutcome {
+    match o {
+        TaskOutcome::Fabric(f) => f,
+        TaskOutcome::Cup(_) => panic!("not a fabric outcome"),
+    }
+}
+
+#[test]
+fn same_seed_and_trial_give_the_same_bytes_of_truth() {
+    for cfg in [TaskConfig::cup(Split::Train), TaskConfig::fabric()] {
+        let (dt, dur) = default_run(cfg.kind);
+        let a = run_expert(&cfg, 7, 3, dt, dur).unwrap();
+        let b = run_expert(&cfg, 7, 3, dt, dur).unwrap();
+        assert_eq!(format!("{a:?}"), format!("{b:?}"));
+        let c = run_expert(&cfg, 8, 3, dt, dur).unwrap();
+        let d = run_expert(&cfg, 7, 4, dt, dur).unwrap();
+        assert_ne!(
+            format!("{:?}", a.spec.objects),
+            format!("{:?}", c.spec.objects)
+        );
+        assert_ne!(
+            format!("{:?}", a.spec.objects),
+            format!("{:?}", d.spec.objects)
+        );
+    }
+}
+
+#[test]
+fn the_expert_solves_training_cups_and_the_unseen_cup() {
+    let mut diameters = Vec::new();
+    for (split, trials) in [(Split::Train, 8), (Split::Unseen, 4)] {
+        let cfg = TaskConfig::cup(split);
+        let (dt, dur) = default_run(cfg.kind);
+        for trial in 0..trials {
+            let demo = run_expert(&cfg, 1, trial, dt, dur).unwrap();
+            let c = cup_outcome(&demo.outcome);
+            assert!(c.overall, "{split:?} trial {trial}: {c:?}");
+            assert!((c.deformation_m - 0.010).abs() < 5e-4, "{c:?}");
+            diameters.push(demo.spec.cup().unwrap().diameter_m);
+        }
+    }
+    // Both families were drawn: three training sizes and the unseen one.
+    diameters.sort_by(f64::total_cmp);
+    diameters.dedup();
+    assert_eq!(diameters, vec![0.060, 0.065, 0.070, 0.090]);
+}
+
+#[test]
+fn a_size_blind_position_grip_over_compresses_the_unseen_cup() {
+    // The opening the expert squeezed a 65 mm training cup to.
+    let cfg = TaskConfig::cup(Split::Train);
+    let (dt, dur) = default_run(cfg.kind);
+    let trial = (0..20)
+        .find(|&k| {
+            TaskWorld::reset(&cfg, 1, k)
+                .spec()
+                .cup()
+                .unwrap()
+                .diameter_m
+                == 0.065
+        })
+        .unwrap();
+    let demo = run_expert(&cfg, 1, trial, dt, dur).unwrap();
+    let learned = demo.steps.last().unwrap().command.gripper.opening_m;
+    assert!(learned > 0.05 && learned < 0.065, "{learned}");
+    // On that training cup the learned opening works.
+    let blind = |cfg: &TaskConfig, trial| {
+        run_policy(cfg, 1, trial, DT, 8.0, |t, spec| {
+            fixed_opening_command(t, spec, cfg, learned)
+        })
+        .unwrap()
+    };
+    let run = blind(&cfg, trial);
+    assert!(run.outcome.overall(), "{:?}", run.outcome);
+    // On the unseen 90 mm cup it lifts it but crushes it, far beyond the 1 cm target.
+    let cfg = TaskConfig::cup(Split::Unseen);
+    let run = blind(&cfg, 0);
+    let c = cup_outcome(&run.outcome).clone();
+    assert!(
+        c.lift && c.over_compressed && c.crushed && !c.deformation && !c.overall,
+        "{c:?}"
+    );
+    assert!(c.peak_deformation_m > 0.02, "{c:?}");
+}
+
+/// Grip the cup with force `force_n` (closing stalls there), then lift 5 cm; returns the truth
+/// when the lift starts and at the end.
+fn grip_and_lift(world: &mut TaskWorld, force_n: f64) -> (TaskTruth, TaskTruth) {
+    let cup = world.spec().cup().unwrap().clone();
+    let z = 0.5 * cup.height_m;
+    let wide = cup.diameter_m + 0.02 + 2.0 * world.config().gripper.pad_m;
+    let mut t = world.truth();
+    let mut at_lift = None;
+    for _ in 0..(6.0 / DT) as usize {
+        let around = t.contact.object == "cup";
+        let lifting = around && t.arm.target_m[2] > z + 1e-4;
+        let c = if lifting || (around && t.arm.arrived && t.gripper.stalled) {
+            if at_lift.is_none() {
+                at_lift = Some(t.clone());
+            }
+            cmd(0.0, 0.02, force_n, "cup", z, 0.05)
+        } else if around && t.arm.arrived {
+            cmd(0.0, 0.02, force_n, "cup", z, 0.0)
+        } else {
+            cmd(wide, 0.1, force_n, "cup", z, 0.0)
+        };
+        t = world.step(&c, DT).unwrap();
+    }
+    (at_lift.unwrap(), t)
+}
+
+#[test]
+fn a_lift_fails_below_the_friction_bound_and_holds_above_it() {
+    let cfg = TaskConfig::cup(Split::Train);
+    for trial in 0..3 {
+        let w = TaskWorld::reset(&cfg, 2, trial);
+        let cup = w.spec().cup().unwrap().clone();
+        // 2 mu_s N >= m (g + a): the bound on the grip force for a lift at the arm's acceleration.
+        let bound = cup.mass_kg * (G + cfg.arm.max_accel_m_s2) / (2.0 * cup.friction_static);
+        let mut weak = w.clone();
+        let (start, end) = grip_and_lift(&mut weak, 0.7 * bound);
+        assert!(2.0 * cup.friction_static * start.gripper.force_n < cup.mass_kg * G);
+        let o = cup_outcome(&weak.outcome()).clone();
+        assert!(!o.lift && o.lift_height_m < 0.01, "trial {trial}: {o:?}");
+        assert!(
+            end.contact.slip_total_m > 0.01 || end.dropped,
+            "{:?}",
+            end.contact
+        );
+        let mut strong = w.clone();
+        let (start, end) = grip_and_lift(&mut strong, 1.5 * bound);
+        assert!(2.0 * cup.friction_static * start.gripper.force_n > cup.mass_kg * 11.81);
+        let o = cup_outcome(&strong.outcome()).clone();
+        assert!(o.lift && o.lift_height_m > 0.049, "trial {trial}: {o:?}");
+        assert!(end.contact.slip_total_m < 1e-6, "{:?}", end.contact);
+    }
+}
+
+#[test]
+fn the_pinch_height_decides_how_many_layers_are_caught() {
+    let cfg = TaskConfig::fabric();
+    let w0 = TaskWorld::reset(&cfg, 3, 0);
+    let f = w0.spec().fabric("fabric_a").unwrap().clone();
+    assert!(f.layers >= 2);
+    let pinch = |z: f64| {
+        let mut w = w0.clone();
+        let wide = f.stack_m() + 0.02;
+        let mut t = w.truth();
+        for _ in 0..(3.0 / DT) as usize {
+            let c = if t.arm.arrived && t.arm.position_m[2] < 0.05 {
+                cmd(0.0, 0.02, 1.5, "fabric_a", z, 0.0)
+            } else {
+                cmd(wide, 0.1, 1.5, "fabric_a", z, 0.0)
+            };
+            t = w.step(&c, DT).unwrap();
+        }
+        t
+    };
+    for n in 1..=f.layers {
+        let z = (f64::from(f.layers - n) + 0.5) * f.layer_m;
+        let t = pinch(z);
+        assert_eq!(t.contact.layers, n, "z {z}: {:?}", t.contact);
+        assert!(t.gripper.force_n > 1.0, "{:?}", t.gripper);
+    }
+    // Above the folded edge the fingers close on nothing.
+    let t = pinch(f.stack_m() + 0.002);
+    assert_eq!((t.contact.layers, t.gripper.force_n), (0, 0.0));
+    assert!(t.gripper.opening_m < 1e-3);
+}
+
+/// Pinch fabric_a at its single layer with `force_n` and lift 8 cm; the truths of every tick.
+fn pinch_and_lift(w: &mut TaskWorld, force_n: f64) -> Vec<TaskTruth> {
+    let f = w.spec().fabric("fabric_a").unwrap().clone();
+    let z = f.single_layer_z_m();
+    let wide = f.stack_m() + 0.02;
+    let mut t = w.truth();
+    let mut all = Vec::new();
+    for _ in 0..(6.0 / DT) as usize {
+        let around = t.contact.object == "fabric_a";
+        let lifting = around && t.arm.target_m[2] > z + 1e-4;
+        let c = if lifting || (around && t.arm.arrived && t.gripper.stalled) {
+            cmd(0.0, 0.02, force_n, "fabric_a", z, 0.08)
+        } else if around && t.arm.arrived {
+            cmd(0.0, 0.02, force_n, "fabric_a", z, 0.0)
+        } else {
+            cmd(wide, 0.1, force_n, "fabric_a", z, 0.0)
+        };
+        t = w.step(&c, DT).unwrap();
+        all.push(t.clone());
+    }
+    all
+}
+
+#[test]
+fn slip_appears_when_the_grip_force_is_too_low() {
+    let cfg = TaskConfig::fabric();
+    let w0 = TaskWorld::reset(&cfg, 4, 1);
+    let mut weak = w0.clone();
+    let ticks = pinch_and_lift(&mut weak, 0.05);
+    let slipping = ticks
+        .iter()
+        .filter(|t| t.contact.slip_step_m > 1e-4)
+        .count();
+    assert!(slipping > 5, "{slipping} ticks with slip");
+    let o = fabric_outcome(&weak.outcome()).clone();
+    assert!(!o.grasp, "{o:?}");
+    // The sensor view carries the slip while it happens.
+    let mut w = w0.clone();
+    let mut seen = 0.0f64;
+    let f = w.spec().fabric("fabric_a").unwrap().clone();
+    for _ in 0..(6.0 / DT) as usize {
+        let t = w.truth();
+        let z = f.single_layer_z_m();
+        let around = t.contact.object == "fabric_a";
+        let c = if around && (t.arm.target_m[2] > z + 1e-4 || (t.arm.arrived && t.gripper.stalled))
+        {
+            cmd(0.0, 0.02, 0.05, "fabric_a", z, 0.08)
+        } else if around && t.arm.arrived {
+            cmd(0.0, 0.02, 0.05, "fabric_a", z, 0.0)
+        } else {
+            cmd(f.stack_m() + 0.02, 0.1, 0.05, "fabric_a", z, 0.0)
+        };
+        w.step(&c, DT).unwrap();
+        seen = seen.max(w.sensor_view().slip_m[1].abs());
+    }
+    assert!(seen > 1e-4, "{seen}");
+    // A grip well above the bound lifts it with no slip.
+    let mut strong = w0.clone();
+    let ticks = pinch_and_lift(&mut strong, 3.0);
+    assert!(ticks.iter().all(|t| t.contact.slip_step_m.abs() < 1e-9));
+    let o = fabric_outcome(&strong.outcome()).clone();
+    assert!(o.grasp && o.layers == 1 && o.slip_m < 1e-9, "{o:?}");
+    let last = ticks.last().unwrap();
+    assert!(last.contact.tangential_m > 0.0 && last.contact.friction_n > 0.0);
+}
+
+#[test]
+fn the_expert_selects_the_smoother_fabric_and_grasps_one_layer() {
+    let cfg = TaskConfig::fabric();
+    let (dt, dur) = default_run(cfg.kind);
+    let mut smoother = Vec::new();
+    for trial in 0..8 {
+        let demo = run_expert(&cfg, 1, trial, dt, dur).unwrap();
+        let f = fabric_outcome(&demo.outcome);
+        assert!(f.overall && f.layers == 1, "trial {trial}: {f:?}");
+        // Both were touched before the choice.
+        assert!(demo.final_truth.objects.iter().all(|o| o.touch_s >= 0.3));
+        smoother.push(f.smoother.clone());
+    }
+    // Placement is random: the smoother one is sometimes a, sometimes b.
+    assert!(smoother.iter().any(|s| s == "fabric_a") && smoother.iter().any(|s| s == "fabric_b"));
+}
+
+#[test]
+fn bad_commands_are_refused_with_a_typed_error_and_change_nothing() {
+    let cfg = TaskConfig::cup(Split::Train);
+    let mut w = TaskWorld::reset(&cfg, 5, 0);
+    let good = cmd(0.1, 0.05, 10.0, "cup", 0.04, 0.0);
+    for _ in 0..10 {
+        w.step(&good, DT).unwrap();
+    }
+    let before = format!("{:?}", w.truth());
+    let mut bad = Vec::new();
+    let mut c = good.clone();
+    c.gripper.opening_m = f64::NAN;
+    bad.push((c, "gripper.opening_m"));
+    let mut c = good.clone();
+    c.gripper.speed_m_s = -0.01;
+    bad.push((c, "gripper.speed_m_s"));
+    let mut c = good.clone();
+    c.gripper.force_n = f64::INFINITY;
+    bad.push((c, "gripper.force_n"));
+    let mut c = good.clone();
+    c.arm.z_m = -0.01;
+    bad.push((c, "arm.z_m"));
+    let mut c = good.clone();
+    c.arm.lift_m = f64::NAN;
+    bad.push((c, "arm.lift_m"));
+    for (c, field) in bad {
+        match w.step(&c, DT) {
+            Err(WorldError::BadCommand { field: f, .. }) => assert_eq!(f, field),
+            other => panic!("{field}: {other:?}"),
+        }
+    }
+    let long = "x".repeat(10_000);
+    match w.step(&cmd(0.1, 0.05, 10.0, &long, 0.04, 0.0), DT) {
+        Err(WorldError::UnknownTarget { name, known }) => {
+            assert_eq!((name.len(), known.as_str()), (64, "cup"));
+        }
+        other => panic!("{other:?}"),
+    }
+    for dt in [f64::NAN, 0.0, -DT, 10.0] {
+        assert!(
+            matches!(w.step(&good, dt), Err(WorldError::BadStep(_))),
+            "{dt}"
+        );
+    }
+    assert_eq!(format!("{:?}", w.truth()), before);
+    assert!(!before.contains("NaN") && !before.contains("inf"));
+    // Beyond the gripper's bounds is clamped, not refused.
+    let t = w.step(&cmd(5.0, 9.0, 1e6, "home", 0.0, 0.0), DT).unwrap();
+    assert!(t.gripper.opening_m <= cfg.gripper.max_opening_m + 1e-12);
+}
+
+#[test]
+fn the_camera_sees_positions_and_sizes_with_noise_and_nothing_tactile() {
+    let cfg = TaskConfig::fabric();
+    let w = TaskWorld::reset(&cfg, 6, 0);
+    let mut rng = SplitMix64::new(1);
+    let a = w.observe_visual(&mut rng);
+    let b = w.observe_visual(&mut rng);
+    assert_eq!(a.names, b.names);
+    assert_ne!(a.values, b.values, "per-frame noise");
+    for n in &a.names {
+        for word in [
+            "rough", "friction", "stiff", "force", "layers", "slip", "mass",
+        ] {
+            assert!(!n.contains(word), "{n}");
+        }
+    }
+    let f = w.spec().fabric("fabric_b").unwrap();
+    let est = a.get("fabric_b.edge_height_m").unwrap();
+    assert!(
+        (est - f.stack_m()).abs() < 0.005,
+        "{est} vs {}",
+        f.stack_m()
+    );
+    let placed = w.spec().object("fabric_b").unwrap().placed_m;
+    assert!((a.get("fabric_b.x_m").unwrap() - placed[0]).abs() < 0.02);
+    // Same generator state, same observation.
+    let c = w.observe_visual(&mut SplitMix64::new(1));
+    assert_eq!(format!("{a:?}"), format!("{c:?}"));
+    let cup = TaskWorld::reset(&TaskConfig::cup(Split::Unseen), 6, 0);
+    let o = cup.observe_visual(&mut rng);
+    assert!(
+        (o.get("cup.diameter_m").unwrap() - 0.090).abs() < 0.01,
+        "{o:?}"
+    );
+}
+
+#[test]
+fn the_rendered_frame_follows_the_world() {
+    let cfg = TaskConfig::fabric();
+    let mut w = TaskWorld::reset(&cfg, 1, 0);
+    let sensor = MockSensor::new(
+        MockConfig::new(SensorKind::GelsightMini, 1),
+        Scenario::idle(1.0),
+    );
+    let (_, idle) = w.sensor_view().render(&sensor, 0);
+    assert_eq!((idle.contact_px, idle.label.as_str()), (0, ""));
+    let ticks = pinch_and_lift(&mut w, 3.0);
+    assert!(ticks.last().unwrap().contact.penetration_m > 0.0);
+    let view = w.sensor_view();
+    assert_eq!(view.object.as_ref().unwrap().label, "fabric_a");
+    let (_, g) = view.render(&sensor, 1);
+    assert!(g.contact_px > 100, "{}", g.contact_px);
+    assert!((g.penetration_mm - view.penetration_m * 1e3).abs() < 1e-12);
+    assert_eq!(g.label, "fabric_a");
+}
