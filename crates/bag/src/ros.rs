@@ -9,8 +9,8 @@
 use crate::cdr::{CdrError, CdrReader, CdrWriter, MAX_IMAGE_BYTES, MAX_SEQUENCE};
 use unitac_core::Stamp;
 use unitac_core::msg::{
-    ContactEpisode, ContactState, GripperCommand, Header, Message, PolicyStatus,
-    PropertyComparison, TactileLatent, TactileProperties,
+    ArmCommand, ContactEpisode, ContactState, GripperCommand, GripperStatus, Header, Message,
+    PolicyStatus, PropertyComparison, TactileLatent, TactileProperties, VisualObservation,
 };
 
 pub use unitac_core::msg::MAX_LATENT_DIMS;
@@ -310,6 +310,24 @@ impl CdrField for Vec<f32> {
     }
     fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
         r.seq_f32(what, max)
+    }
+}
+
+impl CdrField for Vec<f64> {
+    fn write_field(&self, w: &mut CdrWriter) {
+        w.seq_f64(self);
+    }
+    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
+        r.seq_f64(what, max)
+    }
+}
+
+impl CdrField for Vec<String> {
+    fn write_field(&self, w: &mut CdrWriter) {
+        w.seq_string(self);
+    }
+    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
+        r.seq_string(what, max)
     }
 }
 
