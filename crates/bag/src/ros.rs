@@ -542,7 +542,11 @@ mod tests {
             };
         }
         unitac_core::for_each_message!(round_trip_each);
-        assert_eq!(KNOWN_TYPES.len(), 4 + 7);
+        assert_eq!(KNOWN_TYPES.len(), 4 + 10);
+        // The decoder runs the message's checks: names and values pair up.
+        let mut v = samples::visual_observation();
+        v.values.pop();
+        assert!(VisualObservation::from_cdr(&v.to_cdr()).is_err());
         for (t, text) in KNOWN_TYPES {
             assert!(schema_text(t).unwrap().starts_with(text.trim_end()), "{t}");
         }
