@@ -1,9 +1,10 @@
 """rclpy peer for the r2r interop tests (crates/ros/tests/interop.rs).
 
-  peer.py sub PREFIX   subscribe to ContactState and PropertyComparison, print the first of each
-                       as one JSON line each (all fields, read through rclpy), exit 0; 1 on timeout
-  peer.py pub PREFIX   publish the fixture TactileLatent and GripperCommand every 100 ms until
-                       killed or 60 s pass
+  peer.py sub PREFIX   subscribe to ContactState, PropertyComparison and ArmCommand, print the
+                       first of each as one JSON line each (all fields, read through rclpy),
+                       exit 0; 1 on timeout
+  peer.py pub PREFIX   publish the fixture TactileLatent, GripperCommand, GripperStatus and
+                       VisualObservation every 100 ms until killed or 60 s pass
 
 rclpy is an independent implementation of the ROS client side: what it reads is what any ROS 2
 node would read from our r2r publishers.
@@ -15,7 +16,8 @@ import time
 import rclpy
 from rclpy.node import Node
 from builtin_interfaces.msg import Time
-from unitac_msgs.msg import ContactState, GripperCommand, PropertyComparison, TactileLatent
+from unitac_msgs.msg import (ArmCommand, ContactState, GripperCommand, GripperStatus,
+                             PropertyComparison, TactileLatent, VisualObservation)
 
 
 def plain(v):
@@ -36,18 +38,22 @@ def sub(prefix):
                              lambda m: got.setdefault("contact_state", plain(m)), 10)
     node.create_subscription(PropertyComparison, prefix + "/property_comparison",
                              lambda m: got.setdefault("property_comparison", plain(m)), 10)
+    node.create_subscription(ArmCommand, prefix + "/arm_command",
+                             lambda m: got.setdefault("arm_command", plain(m)), 10)
     deadline = time.monotonic() + 30
-    while len(got) < 2 and time.monotonic() < deadline:
+    while len(got) < 3 and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.05)
     for k in sorted(got):
         print(json.dumps({"type": k, "msg": got[k]}), flush=True)
-    return 0 if len(got) == 2 else 1
+    return 0 if len(got) == 3 else 1
 
 
 def pub(prefix):
     node = Node("unitac_peer_pub")
     p1 = node.create_publisher(TactileLatent, prefix + "/tactile_latent", 10)
     p2 = node.create_publisher(GripperCommand, prefix + "/gripper_command", 10)
+    p3 = node.create_publisher(GripperStatus, prefix + "/gripper_status", 10)
+    p4 = node.create_publisher(VisualObservation, prefix + "/visual_observation", 10)
     lat = TactileLatent()
     lat.header.stamp = Time(sec=1_700_000_003, nanosec=500)
     lat.header.frame_id = "gsmini_optical_frame"
@@ -70,11 +76,29 @@ def pub(prefix):
     cmd.speed_m_s = 0.01
     cmd.force_n = 12.5
     cmd.reason = "grasp the smoother fabric (B)"
+    gs = GripperStatus()
+    gs.header.stamp = Time(sec=1_700_000_006, nanosec=7)
+    gs.header.frame_id = "gripper_base"
+    gs.opening_m = 0.0375
+    gs.target_m = 0.03125
+    gs.force_n = 6.5
+    gs.current_a = float("nan")  # unknown
+    gs.object_detected = True
+    gs.activation = "active"
+    gs.motion = "stopped"
+    gs.fault = ""
+    vis = VisualObservation()
+    vis.header.stamp = Time(sec=1_700_000_007, nanosec=8)
+    vis.header.frame_id = "camera_optical_frame"
+    vis.names = ["cup_width_m", "cup_x_m"]
+    vis.values = [0.0815, -0.125]
     deadline = time.monotonic() + 60
     try:
         while time.monotonic() < deadline:
             p1.publish(lat)
             p2.publish(cmd)
+            p3.publish(gs)
+            p4.publish(vis)
             rclpy.spin_once(node, timeout_sec=0.1)
     except KeyboardInterrupt:  # the test stops us with SIGINT
         pass

@@ -134,6 +134,20 @@ impl CdrWriter {
             self.f32(x);
         }
     }
+    /// `float64[]`
+    pub fn seq_f64(&mut self, v: &[f64]) {
+        self.len(v.len());
+        for &x in v {
+            self.f64(x);
+        }
+    }
+    /// `string[]`
+    pub fn seq_string(&mut self, v: &[String]) {
+        self.len(v.len());
+        for x in v {
+            self.string(x);
+        }
+    }
     pub fn finish(self) -> Vec<u8> {
         self.buf
     }
@@ -259,6 +273,15 @@ impl<'a> CdrReader<'a> {
     pub fn seq_f32(&mut self, what: &'static str, max: usize) -> Result<Vec<f32>, CdrError> {
         let n = self.count(what, 4, max)?;
         (0..n).map(|_| self.f32(what)).collect()
+    }
+    pub fn seq_f64(&mut self, what: &'static str, max: usize) -> Result<Vec<f64>, CdrError> {
+        let n = self.count(what, 8, max)?;
+        (0..n).map(|_| self.f64(what)).collect()
+    }
+    /// `string[]`: each string at least its 4-byte length.
+    pub fn seq_string(&mut self, what: &'static str, max: usize) -> Result<Vec<String>, CdrError> {
+        let n = self.count(what, 4, max)?;
+        (0..n).map(|_| self.string(what)).collect()
     }
 }
 

@@ -22,8 +22,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use unitac_core::msg::{
-    ContactEpisode, ContactState, GripperCommand, PolicyStatus, PropertyComparison, TactileLatent,
-    TactileProperties,
+    ArmCommand, ContactEpisode, ContactState, GripperCommand, GripperStatus, PolicyStatus,
+    PropertyComparison, TactileLatent, TactileProperties, VisualObservation,
 };
 use unitac_core::{Chain, Frame, Msg, Pacer, Source, SourceError, Stamp};
 
@@ -351,6 +351,9 @@ pub fn output_topic(m: &Msg) -> Option<(&'static str, &'static str)> {
         Msg::Latent(_) => ("/unitac/tactile_latent", TactileLatent::TYPE),
         Msg::Command(_) => ("/unitac/gripper_command", GripperCommand::TYPE),
         Msg::Status(_) => ("/unitac/policy_status", PolicyStatus::TYPE),
+        Msg::Gripper(_) => ("/unitac/gripper_status", GripperStatus::TYPE),
+        Msg::Arm(_) => ("/unitac/arm_command", ArmCommand::TYPE),
+        Msg::Visual(_) => ("/unitac/visual_observation", VisualObservation::TYPE),
         Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return None,
     })
 }
@@ -410,6 +413,9 @@ impl OutputBag {
             Msg::Latent(x) => x.to_cdr(),
             Msg::Command(x) => x.to_cdr(),
             Msg::Status(x) => x.to_cdr(),
+            Msg::Gripper(x) => x.to_cdr(),
+            Msg::Arm(x) => x.to_cdr(),
+            Msg::Visual(x) => x.to_cdr(),
             Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return Ok(()),
         };
         self.writer.write_raw(id, t, &data)

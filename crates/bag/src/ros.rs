@@ -9,8 +9,8 @@
 use crate::cdr::{CdrError, CdrReader, CdrWriter, MAX_IMAGE_BYTES, MAX_SEQUENCE};
 use unitac_core::Stamp;
 use unitac_core::msg::{
-    ContactEpisode, ContactState, GripperCommand, Header, Message, PolicyStatus,
-    PropertyComparison, TactileLatent, TactileProperties,
+    ArmCommand, ContactEpisode, ContactState, GripperCommand, GripperStatus, Header, Message,
+    PolicyStatus, PropertyComparison, TactileLatent, TactileProperties, VisualObservation,
 };
 
 pub use unitac_core::msg::MAX_LATENT_DIMS;
@@ -313,6 +313,24 @@ impl CdrField for Vec<f32> {
     }
 }
 
+impl CdrField for Vec<f64> {
+    fn write_field(&self, w: &mut CdrWriter) {
+        w.seq_f64(self);
+    }
+    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
+        r.seq_f64(what, max)
+    }
+}
+
+impl CdrField for Vec<String> {
+    fn write_field(&self, w: &mut CdrWriter) {
+        w.seq_string(self);
+    }
+    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
+        r.seq_string(what, max)
+    }
+}
+
 impl CdrField for Vec<u8> {
     fn write_field(&self, w: &mut CdrWriter) {
         w.bytes(self);
@@ -524,7 +542,11 @@ mod tests {
             };
         }
         unitac_core::for_each_message!(round_trip_each);
-        assert_eq!(KNOWN_TYPES.len(), 4 + 7);
+        assert_eq!(KNOWN_TYPES.len(), 4 + 10);
+        // The decoder runs the message's checks: names and values pair up.
+        let mut v = samples::visual_observation();
+        v.values.pop();
+        assert!(VisualObservation::from_cdr(&v.to_cdr()).is_err());
         for (t, text) in KNOWN_TYPES {
             assert!(schema_text(t).unwrap().starts_with(text.trim_end()), "{t}");
         }

@@ -155,6 +155,9 @@ struct Written {
     latent: TactileLatent,
     cmd: GripperCommand,
     status: PolicyStatus,
+    gripper: GripperStatus,
+    arm: ArmCommand,
+    visual: VisualObservation,
     image: Image,
     jpeg: CompressedImage,
 }
@@ -243,6 +246,29 @@ fn fixture() -> Written {
             phase: "press".into(),
             safety_ok: false,
             message: "force limit".into(),
+        },
+        gripper: GripperStatus {
+            header: header(t + 7),
+            opening_m: 0.0375,
+            target_m: 0.03125,
+            force_n: 6.5,
+            current_a: 0.25,
+            object_detected: true,
+            activation: "active".into(),
+            motion: "stopped".into(),
+            fault: String::new(),
+        },
+        arm: ArmCommand {
+            header: header(t + 8),
+            target: "fabric_b".into(),
+            z_m: 0.004,
+            lift_m: 0.0625,
+            reason: "grasp the smoother (B)".into(),
+        },
+        visual: VisualObservation {
+            header: header(t + 9),
+            names: vec!["cup_width_m".into(), "cup_x_m".into(), "ünïcode".into()],
+            values: vec![0.0815, -0.125, 1e-300],
         },
         image: Image {
             header: header(t),
@@ -335,6 +361,27 @@ fn write_fixture(path: &std::path::Path, compression: Compression) -> Written {
         x.status.header.stamp.0,
         1,
     );
+    put(
+        &mut w,
+        "/unitac/gripper_status",
+        &x.gripper,
+        x.gripper.header.stamp.0,
+        1,
+    );
+    put(
+        &mut w,
+        "/unitac/arm_command",
+        &x.arm,
+        x.arm.header.stamp.0,
+        1,
+    );
+    put(
+        &mut w,
+        "/unitac/visual_observation",
+        &x.visual,
+        x.visual.header.stamp.0,
+        1,
+    );
     w.finish().unwrap();
     x
 }
@@ -365,7 +412,7 @@ fn bags_written_here_are_read_by_rosbags_field_for_field() {
             .map(|l| serde_json::from_str::<Value>(l).unwrap());
         let topics = lines.next().unwrap();
         let topics = topics["topics"].as_array().unwrap().clone();
-        assert_eq!(topics.len(), 9, "{name}");
+        assert_eq!(topics.len(), 12, "{name}");
         for t in &topics {
             assert_eq!(t["schema_matches"], true, "{name}: schema of {}", t["type"]);
             if !name.ends_with(".mcap") {
@@ -373,7 +420,7 @@ fn bags_written_here_are_read_by_rosbags_field_for_field() {
             }
         }
         let msgs: Vec<Value> = lines.collect();
-        assert_eq!(msgs.len(), 13, "{name}: every message");
+        assert_eq!(msgs.len(), 16, "{name}: every message");
         let by = |topic: &str| -> Vec<&Value> {
             msgs.iter()
                 .filter(|m| m["topic"] == topic)
@@ -485,6 +532,32 @@ fn bags_written_here_are_read_by_rosbags_field_for_field() {
         assert_eq!(s["phase"], "press");
         assert_eq!(s["safety_ok"], false);
         assert_eq!(s["message"], "force limit");
+        // GripperStatus
+        let g = by("/unitac/gripper_status")[0];
+        check_header(&g["header"], &x.gripper.header);
+        assert_eq!(g["opening_m"], 0.0375);
+        assert_eq!(g["target_m"], 0.03125);
+        assert_eq!(g["force_n"], 6.5);
+        assert_eq!(g["current_a"], 0.25);
+        assert_eq!(g["object_detected"], true);
+        assert_eq!(g["activation"], "active");
+        assert_eq!(g["motion"], "stopped");
+        assert_eq!(g["fault"], "");
+        // ArmCommand
+        let a = by("/unitac/arm_command")[0];
+        check_header(&a["header"], &x.arm.header);
+        assert_eq!(a["target"], "fabric_b");
+        assert_eq!(a["z_m"], 0.004);
+        assert_eq!(a["lift_m"], 0.0625);
+        assert_eq!(a["reason"], "grasp the smoother (B)");
+        // VisualObservation
+        let v = by("/unitac/visual_observation")[0];
+        check_header(&v["header"], &x.visual.header);
+        assert_eq!(
+            v["names"],
+            serde_json::json!(["cup_width_m", "cup_x_m", "ünïcode"])
+        );
+        assert_eq!(v["values"], serde_json::json!([0.0815, -0.125, 1e-300]));
         // Log times as written.
         let imgs: Vec<i64> = msgs
             .iter()
@@ -498,7 +571,7 @@ fn bags_written_here_are_read_by_rosbags_field_for_field() {
             .unwrap()
             .map(|m| m.unwrap())
             .collect();
-        assert_eq!(ours.len(), 13);
+        assert_eq!(ours.len(), 16);
         let find = |t: &str| ours.iter().find(|m| m.topic.name == t).unwrap();
         assert_eq!(
             ContactState::from_cdr(&find("/unitac/contact_state").data).unwrap(),
@@ -515,6 +588,18 @@ fn bags_written_here_are_read_by_rosbags_field_for_field() {
         assert_eq!(
             Image::from_cdr(&find("/gs/image_raw").data).unwrap(),
             x.image
+        );
+        assert_eq!(
+            GripperStatus::from_cdr(&find("/unitac/gripper_status").data).unwrap(),
+            x.gripper
+        );
+        assert_eq!(
+            ArmCommand::from_cdr(&find("/unitac/arm_command").data).unwrap(),
+            x.arm
+        );
+        assert_eq!(
+            VisualObservation::from_cdr(&find("/unitac/visual_observation").data).unwrap(),
+            x.visual
         );
     }
     std::fs::remove_dir_all(&dir).ok();

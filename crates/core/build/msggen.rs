@@ -20,10 +20,17 @@ pub const ENUM_NAMES: &[(&str, &str, &str)] = &[
 ];
 
 /// Sequence bounds tighter than the CDR reader's default (a `const` of `unitac_core::msg`).
-pub const BOUNDS: &[(&str, &str, &str)] = &[("TactileLatent", "shape", "MAX_LATENT_DIMS")];
+pub const BOUNDS: &[(&str, &str, &str)] = &[
+    ("TactileLatent", "shape", "MAX_LATENT_DIMS"),
+    ("VisualObservation", "names", "MAX_VISUAL_VALUES"),
+    ("VisualObservation", "values", "MAX_VISUAL_VALUES"),
+];
 
 /// Checks beyond the field types (a method of the message in msg.rs); every decoder runs them.
-pub const CHECKS: &[(&str, &str)] = &[("TactileLatent", "check_shape")];
+pub const CHECKS: &[(&str, &str)] = &[
+    ("TactileLatent", "check_shape"),
+    ("VisualObservation", "check_lengths"),
+];
 
 /// One `.msg` file: its type name (file stem) and text.
 #[derive(Debug, Clone)]

@@ -63,6 +63,8 @@ impl Header {
 
 /// Most dimensions in a TactileLatent's shape.
 pub const MAX_LATENT_DIMS: usize = 16;
+/// Most named values in a VisualObservation.
+pub const MAX_VISUAL_VALUES: usize = 64;
 
 /// A project message (msg/unitac_msgs): its ROS type name, its `.msg` text, and the checks a
 /// decoder runs beyond the field types.
@@ -91,6 +93,10 @@ pub enum MsgError {
     },
     #[error("shape {0:?} needs more values than a u64 counts")]
     ShapeOverflow(Vec<u32>),
+    #[error("{names} names but {values} values (they pair up one to one)")]
+    NamesValues { names: usize, values: usize },
+    #[error("{0} named values (at most {MAX_VISUAL_VALUES})")]
+    TooManyValues(usize),
 }
 
 /// A wire value that is none of an enum's constants.
@@ -124,6 +130,29 @@ impl TactileLatent {
     }
 }
 
+impl VisualObservation {
+    /// As many names as values, at most [`MAX_VISUAL_VALUES`] of each.
+    pub fn check_lengths(&self) -> Result<(), MsgError> {
+        if self.names.len() != self.values.len() {
+            return Err(MsgError::NamesValues {
+                names: self.names.len(),
+                values: self.values.len(),
+            });
+        }
+        if self.names.len() > MAX_VISUAL_VALUES {
+            return Err(MsgError::TooManyValues(self.names.len()));
+        }
+        Ok(())
+    }
+    /// The value named `name`, if the camera model gave one.
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.names
+            .iter()
+            .position(|n| n == name)
+            .and_then(|i| self.values.get(i).copied())
+    }
+}
+
 /// The frames of one contact episode, centred on its peak (for the touch encoder). Bounded by the
 /// contact stage's `clip_frames`. Not a ROS message: nodes pass frames as sensor_msgs/Image.
 #[derive(Debug, Clone, PartialEq)]
@@ -154,6 +183,10 @@ pub enum Msg {
     Latent(TactileLatent),
     Command(GripperCommand),
     Status(PolicyStatus),
+    /// The gripper's state (driver or sim); its arrival is the policy's control tick.
+    Gripper(GripperStatus),
+    Arm(ArmCommand),
+    Visual(VisualObservation),
 }
 
 impl Msg {
@@ -173,6 +206,9 @@ impl Msg {
             Msg::Latent(m) => m.header.stamp,
             Msg::Command(m) => m.header.stamp,
             Msg::Status(m) => m.header.stamp,
+            Msg::Gripper(m) => m.header.stamp,
+            Msg::Arm(m) => m.header.stamp,
+            Msg::Visual(m) => m.header.stamp,
         }
     }
     /// Short type name, as used in counters and JSON (`"frame"`, `"contact_state"`, ...).
@@ -188,6 +224,9 @@ impl Msg {
             Msg::Latent(_) => "tactile_latent",
             Msg::Command(_) => "gripper_command",
             Msg::Status(_) => "policy_status",
+            Msg::Gripper(_) => "gripper_status",
+            Msg::Arm(_) => "arm_command",
+            Msg::Visual(_) => "visual_observation",
         }
     }
     /// JSON of an event (`{"type": kind, ...fields}`); frames give only their metadata.
@@ -209,6 +248,9 @@ impl Msg {
             Msg::Latent(m) => serde_json::to_value(m).unwrap_or_default(),
             Msg::Command(m) => serde_json::to_value(m).unwrap_or_default(),
             Msg::Status(m) => serde_json::to_value(m).unwrap_or_default(),
+            Msg::Gripper(m) => serde_json::to_value(m).unwrap_or_default(),
+            Msg::Arm(m) => serde_json::to_value(m).unwrap_or_default(),
+            Msg::Visual(m) => serde_json::to_value(m).unwrap_or_default(),
         };
         let mut v = serde_json::json!({ "type": self.kind() });
         if let (Some(obj), serde_json::Value::Object(fields)) = (v.as_object_mut(), body) {
@@ -270,6 +312,29 @@ mod tests {
             latent(vec![2, 3], 5).check().unwrap_err().to_string(),
             "shape [2, 3] needs 6 values, data has 5"
         );
+    }
+
+    #[test]
+    fn visual_names_and_values_pair_up() {
+        let ok = samples::visual_observation();
+        assert_eq!(ok.check(), Ok(()));
+        assert_eq!(ok.get("cup_width_m"), Some(0.081));
+        assert_eq!(ok.get("nothing"), None);
+        let short = VisualObservation {
+            values: vec![1.0],
+            ..ok.clone()
+        };
+        assert_eq!(
+            short.check().unwrap_err().to_string(),
+            "2 names but 1 values (they pair up one to one)"
+        );
+        let n = MAX_VISUAL_VALUES + 1;
+        let long = VisualObservation {
+            names: vec!["x".into(); n],
+            values: vec![0.0; n],
+            ..ok
+        };
+        assert_eq!(long.check(), Err(MsgError::TooManyValues(n)));
     }
 
     #[test]

@@ -17,17 +17,20 @@ pub mod overrides;
 pub mod registry;
 
 pub use registry::{
-    KNOWN_STAGES, StageConfig, build_source, build_stage, build_stages, open_v4l, scene_context,
-    scene_dirs, stage_configs,
+    KNOWN_STAGES, StageConfig, build_source, build_stage, build_stages, check_modes, open_v4l,
+    scene_context, scene_dirs, stage_configs,
 };
 
 use std::path::PathBuf;
 use unitac_core::{Scene, SceneError};
 
-/// A scene by name (looked up in [`scene_dirs`], `extra_dir` first) or by path, loaded and checked.
+/// A scene by name (looked up in [`scene_dirs`], `extra_dir` first) or by path, loaded and checked
+/// (including each policy stage's mode against the scene's stages, [`check_modes`]).
 pub fn load_scene(name: &str, extra_dir: Option<PathBuf>) -> Result<Scene, SceneError> {
     let path = unitac_core::scene::resolve(name, &scene_dirs(extra_dir))?;
-    Scene::load(&path, &scene_context())
+    let scene = Scene::load(&path, &scene_context())?;
+    check_modes(&scene)?;
+    Ok(scene)
 }
 
 /// Each stage's effective configuration, one line per stage (`kind: {typed params}`), exactly as

@@ -10,6 +10,7 @@ use unitac_core::{Scene, Source, Stage};
 use unitac_infer::RuntimeConfig;
 use unitac_infer::encoder::{CompareParams, CompareStage, EncoderStage};
 use unitac_infer::predict::{SamplerParams, SamplerStage};
+use unitac_policy::{PolicyParams, PolicyStage};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
 /// Root of the sysfs tree live sensors are discovered in (`/` unless `UNITAC_SYSFS_ROOT` says
@@ -128,7 +129,7 @@ pub fn scene_context() -> SceneContext {
 }
 
 /// Stage kinds a scene may name.
-pub const KNOWN_STAGES: &[&str] = &["contact", "encoder", "compare", "sampler"];
+pub const KNOWN_STAGES: &[&str] = &["contact", "encoder", "compare", "sampler", "policy"];
 /// Stage kind -> the kind it takes its input from (clips and backgrounds come from contact,
 /// properties from encoder); the scene must list that one first.
 pub const STAGE_NEEDS: &[(&str, &str)] = &[
@@ -173,6 +174,11 @@ pub enum StageConfig {
         params: SamplerParams,
         bundle: PathBuf,
     },
+    /// The scene's name goes into PolicyStatus.scene.
+    Policy {
+        params: Box<PolicyParams>,
+        scene: String,
+    },
 }
 
 impl StageConfig {
@@ -183,6 +189,7 @@ impl StageConfig {
             StageConfig::Encoder { .. } => "encoder",
             StageConfig::Compare(_) => "compare",
             StageConfig::Sampler { .. } => "sampler",
+            StageConfig::Policy { .. } => "policy",
         }
     }
 }
@@ -239,6 +246,14 @@ pub fn stage_configs(scene: &Scene) -> Result<Vec<StageConfig>, SceneError> {
                 bundle: bundle_of(scene, st, &bad)?,
             },
             "compare" => StageConfig::Compare(params(scene, index, st)?),
+            "policy" => {
+                let params: PolicyParams = params(scene, index, st)?;
+                params.check().map_err(&bad)?;
+                StageConfig::Policy {
+                    params: Box::new(params),
+                    scene: scene.name.clone(),
+                }
+            }
             other => {
                 return Err(SceneError::UnknownStage {
                     path: scene.path.clone(),
@@ -250,6 +265,26 @@ pub fn stage_configs(scene: &Scene) -> Result<Vec<StageConfig>, SceneError> {
         });
     }
     Ok(out)
+}
+
+/// The policy stages' modes against the scene's full stage list (before a transport keeps only
+/// the stages it runs): every input a mode reads that a stage produces has its producer before
+/// the policy stage, and no stage runs whose output the mode does not use. One line.
+pub fn check_modes(scene: &Scene) -> Result<(), SceneError> {
+    for (i, st) in scene.stages.iter().enumerate() {
+        if st.kind != "policy" {
+            continue;
+        }
+        let index = i + 1;
+        let p: PolicyParams = params(scene, index, st)?;
+        let before: Vec<&str> = scene.stages[..i].iter().map(|s| s.kind.as_str()).collect();
+        unitac_policy::check_scene(&p, &before, STAGE_NEEDS).map_err(|e| SceneError::BadValue {
+            path: scene.path.clone(),
+            field: format!("stages[{index}].params (policy)"),
+            msg: e.to_string(),
+        })?;
+    }
+    Ok(())
 }
 
 /// Build one stage (loads its models).
@@ -273,6 +308,9 @@ pub fn build_stage(scene: &Scene, cfg: StageConfig) -> Result<Box<dyn Stage>, Sc
                 .map_err(|e| bad(format!("model {}: {e}", bundle.display())))?,
         ),
         StageConfig::Compare(p) => Box::new(CompareStage::new(p).map_err(|e| bad(e.to_string()))?),
+        StageConfig::Policy { params, scene } => {
+            Box::new(PolicyStage::new(&scene, *params).map_err(|e| bad(e.to_string()))?)
+        }
     })
 }
 

@@ -3,6 +3,19 @@
 //!
 //! Every stage here implements `unitac_core::Stage` with an injected clock, like the contact and
 //! inference stages, so the embedded runtime, bag replay and the ROS policy node drive the same
-//! code.
+//! code. See the crate README for the observation layout, the safety rules and the modes.
 
+pub mod controller;
+pub mod mode;
 pub mod onnx;
+pub mod observation;
+pub mod params;
+pub mod policy;
+pub mod safety;
+pub mod stage;
+pub mod task;
+
+pub use mode::Mode;
+pub use params::PolicyParams;
+pub use policy::{Action, ArmAction, GripperAction, Policy, PolicyError};
+pub use stage::{PolicyLoadError, PolicyStage, check_scene};

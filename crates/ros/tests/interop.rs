@@ -80,7 +80,7 @@ fn r2r_publishes_rclpy_receives() {
     let (pub_ok, _) = finish(publisher, Duration::from_secs(10));
     assert!(
         sub_ok,
-        "rclpy subscriber did not get both messages: {lines:?}"
+        "rclpy subscriber did not get every message: {lines:?}"
     );
     assert!(pub_ok);
     let cs = &lines.iter().find(|l| l["type"] == "contact_state").unwrap()["msg"];
@@ -120,6 +120,15 @@ fn r2r_publishes_rclpy_receives() {
     assert_eq!(pc["margin"], 0.625);
     assert_eq!(pc["confidence"], 0.9375);
     assert_eq!(pc["sentence"], "B is smoother than A");
+
+    let ac = &lines.iter().find(|l| l["type"] == "arm_command").unwrap()["msg"];
+    assert_eq!(ac["header"]["stamp"]["sec"], 1_700_000_005);
+    assert_eq!(ac["header"]["stamp"]["nanosec"], 2);
+    assert_eq!(ac["header"]["frame_id"], "base_link");
+    assert_eq!(ac["target"], "fabric_b");
+    assert_eq!(ac["z_m"], 0.004);
+    assert_eq!(ac["lift_m"], 0.0625);
+    assert_eq!(ac["reason"], "grasp the smoother fabric (B)");
 }
 
 #[test]
@@ -135,7 +144,7 @@ fn rclpy_publishes_r2r_receives() {
         .status()
         .ok();
     let _ = finish_within(&mut publisher, Duration::from_secs(5));
-    assert!(echo_ok, "r2r echo did not get both messages: {lines:?}");
+    assert!(echo_ok, "r2r echo did not get every message: {lines:?}");
 
     let lat = lines
         .iter()
@@ -171,4 +180,28 @@ fn rclpy_publishes_r2r_receives() {
     assert_eq!(cmd["speed_m_s"], 0.01);
     assert_eq!(cmd["force_n"], 12.5);
     assert_eq!(cmd["reason"], "grasp the smoother fabric (B)");
+
+    let gs = lines
+        .iter()
+        .find(|l| l["type"] == "gripper_status")
+        .unwrap();
+    assert_eq!(gs["header"]["stamp"], 1_700_000_006_000_000_007i64);
+    assert_eq!(gs["header"]["frame_id"], "gripper_base");
+    assert_eq!(gs["opening_m"], 0.0375);
+    assert_eq!(gs["target_m"], 0.03125);
+    assert_eq!(gs["force_n"], 6.5);
+    // NaN (unknown) crosses as NaN; serde_json writes it as null.
+    assert!(gs["current_a"].is_null(), "{gs}");
+    assert_eq!(gs["object_detected"], true);
+    assert_eq!(gs["activation"], "active");
+    assert_eq!(gs["motion"], "stopped");
+    assert_eq!(gs["fault"], "");
+
+    let vis = lines
+        .iter()
+        .find(|l| l["type"] == "visual_observation")
+        .unwrap();
+    assert_eq!(vis["header"]["stamp"], 1_700_000_007_000_000_008i64);
+    assert_eq!(vis["names"], serde_json::json!(["cup_width_m", "cup_x_m"]));
+    assert_eq!(vis["values"], serde_json::json!([0.0815, -0.125]));
 }

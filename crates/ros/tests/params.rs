@@ -14,6 +14,7 @@ use unitac_contact::ContactParams;
 use unitac_infer::RuntimeConfig;
 use unitac_infer::encoder::CompareParams;
 use unitac_infer::predict::SamplerParams;
+use unitac_policy::PolicyParams;
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("unitac-params-{}", std::process::id()));
@@ -53,8 +54,8 @@ fn non_default(default: Value, special: Value) -> serde_json::Map<String, Value>
     out
 }
 
-/// (contact, encoder, compare, sampler) params with every key set to a non-default value.
-fn full_params() -> [serde_json::Map<String, Value>; 4] {
+/// (contact, encoder, compare, sampler, policy) params with every key set to a non-default value.
+fn full_params() -> [serde_json::Map<String, Value>; 5] {
     let bg = tmp("backgrounds");
     std::fs::create_dir_all(&bg).unwrap();
     let contact = non_default(
@@ -82,16 +83,31 @@ fn full_params() -> [serde_json::Map<String, Value>; 4] {
         serde_json::to_value(SamplerParams::default()).unwrap(),
         sampler_special,
     );
-    [contact, encoder, compare, sampler]
+    // vtla_pred on a pick task reads what all four stages make (the scene check passes).
+    let policy = non_default(
+        serde_json::to_value(PolicyParams::default()).unwrap(),
+        json!({"mode": "vtla_pred", "task": "pick the rougher fabric", "safe_action": "open",
+               "objects": ["fabric_x", "fabric_y"], "visual_names": ["fabric_x_roughness"],
+               "stiffness_weights": [1.0, 2.0], "latent_len": 64, "min_opening_m": 0.001,
+               "max_opening_m": 0.1, "min_z_m": 0.01, "max_z_m": 0.4}),
+    );
+    [contact, encoder, compare, sampler, policy]
 }
 
-/// A scene with the four stages and these params (empty maps: the defaults).
-fn scene(name: &str, p: &[serde_json::Map<String, Value>; 4]) -> PathBuf {
+/// A scene with the five stages and these params (empty maps: the defaults, but the policy's
+/// mode and latent length, which the four stages before it require).
+fn scene(name: &str, p: &[serde_json::Map<String, Value>; 5]) -> PathBuf {
+    let mut policy = p[4].clone();
+    if policy.is_empty() {
+        policy.insert("mode".into(), json!("vtla_pred"));
+        policy.insert("latent_len".into(), json!(64));
+    }
     let stages = json!([
         {"kind": "contact", "params": p[0]},
         {"kind": "encoder", "models": ["reference"], "params": p[1]},
         {"kind": "compare", "params": p[2]},
         {"kind": "sampler", "models": ["reference"], "params": p[3]},
+        {"kind": "policy", "params": policy},
     ]);
     let yaml = format!(
         "scene: {name}\nsource: {{kind: mock, sensor: digit, scenario: fabric_selection}}\n\
@@ -185,7 +201,7 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
     let full = full_params();
     let full_scene = scene("full", &full);
     let want = run_lines(&full_scene);
-    assert_eq!(want.len(), 4, "{want:?}");
+    assert_eq!(want.len(), 5, "{want:?}");
     // The values really are the non-default ones (not the defaults the scene left out).
     let defaults = run_lines(&scene("defaults", &Default::default()));
     for (w, d) in want.iter().zip(&defaults) {
@@ -206,11 +222,11 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
         &format!("    scene: {}\n", full_scene.display()),
         3,
     );
-    assert_eq!(infer, want[1..], "{log}");
+    assert_eq!(infer, want[1..4], "{log}");
 
     // 2. A scene with default params plus `<stage>.<key>` ROS parameters for every key ROS can
     // carry (nested lists such as compare.pairs cannot be ROS parameters: scene file only).
-    let mut base: [serde_json::Map<String, Value>; 4] = Default::default();
+    let mut base: [serde_json::Map<String, Value>; 5] = Default::default();
     base[2].insert("pairs".into(), full[2]["pairs"].clone());
     let default_scene = scene("overridden", &base);
     let overrides = |kind: &str, p: &serde_json::Map<String, Value>| -> String {
@@ -231,7 +247,24 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
         + &overrides("compare", &full[2])
         + &overrides("sampler", &full[3]);
     let (infer, _, log) = node_lines(INFERENCE, "i2", &(head + &body), 3);
-    assert_eq!(infer, want[1..], "{log}");
+    assert_eq!(infer, want[1..4], "{log}");
+
+    // 3. The policy stage (its ROS node comes later): every `policy.<key>` through the same
+    // override path the nodes use reaches the typed params exactly as the scene file does.
+    let mut s = unitac_pipeline::load_scene(default_scene.to_str().unwrap(), None).unwrap();
+    let policy: Vec<(String, serde_yaml::Value)> = full[4]
+        .iter()
+        .map(|(k, v)| {
+            (
+                format!("policy.{k}"),
+                serde_yaml::from_str(&v.to_string()).unwrap(),
+            )
+        })
+        .collect();
+    unitac_pipeline::overrides::apply(&mut s, &["policy"], &policy).unwrap();
+    let got = unitac_pipeline::effective_params(&s).unwrap();
+    // The stage carries its scene's name (PolicyStatus.scene): the two scenes differ only there.
+    assert_eq!(got[4].replace("\"overridden\"", "\"full\""), want[4]);
 }
 
 #[test]

@@ -111,3 +111,35 @@ pub fn policy_status() -> PolicyStatus {
         message: "force limit".into(),
     }
 }
+
+pub fn gripper_status() -> GripperStatus {
+    GripperStatus {
+        header: header(),
+        opening_m: 0.0425,
+        target_m: 0.03,
+        force_n: 6.5,
+        current_a: 0.25,
+        object_detected: true,
+        activation: "active".into(),
+        motion: "stopped".into(),
+        fault: "overtemp".into(),
+    }
+}
+
+pub fn arm_command() -> ArmCommand {
+    ArmCommand {
+        header: header(),
+        target: "fabric_b".into(),
+        z_m: 0.004,
+        lift_m: 0.05,
+        reason: "grasp the smoother".into(),
+    }
+}
+
+pub fn visual_observation() -> VisualObservation {
+    VisualObservation {
+        header: header(),
+        names: vec!["cup_width_m".into(), "cup_x_m".into()],
+        values: vec![0.081, -0.125],
+    }
+}

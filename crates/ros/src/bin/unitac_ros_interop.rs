@@ -1,10 +1,10 @@
 //! Interop peer for the ROS tests (and a quick check on a robot that unitac_msgs work end to end).
 //!
 //! `unitac_ros_interop publish [--topic-prefix P]`: waits for a subscriber, then publishes the
-//!   fixture ContactState and PropertyComparison a few times (the first message can be lost
-//!   before discovery completes).
-//! `unitac_ros_interop echo [--topic-prefix P]`: prints the first TactileLatent and GripperCommand
-//!   it receives as JSON lines on stdout, then exits.
+//!   fixture ContactState, PropertyComparison and ArmCommand a few times (the first message can
+//!   be lost before discovery completes).
+//! `unitac_ros_interop echo [--topic-prefix P]`: prints the first TactileLatent, GripperCommand,
+//!   GripperStatus and VisualObservation it receives as JSON lines on stdout, then exits.
 //! Exit code 1 on timeout, 2 on bad usage.
 
 use anyhow::{Context, bail};
@@ -13,7 +13,7 @@ use r2r::QosProfile;
 use r2r::unitac_msgs::msg as ros;
 use std::time::Duration;
 use unitac_core::Stamp;
-use unitac_core::msg::{ContactState, Header, Msg, PropertyComparison, Winner};
+use unitac_core::msg::{ArmCommand, ContactState, Header, Msg, PropertyComparison, Winner};
 use unitac_ros::{convert, spin_until};
 
 const TIMEOUT: Duration = Duration::from_secs(30);
@@ -52,6 +52,16 @@ fn fixture_comparison() -> PropertyComparison {
     }
 }
 
+fn fixture_arm() -> ArmCommand {
+    ArmCommand {
+        header: Header::new(Stamp(1_700_000_005_000_000_002), "base_link"),
+        target: "fabric_b".into(),
+        z_m: 0.004,
+        lift_m: 0.0625,
+        reason: "grasp the smoother fabric (B)".into(),
+    }
+}
+
 fn publish(prefix: &str) -> anyhow::Result<()> {
     let ctx = r2r::Context::create()?;
     let mut node = r2r::Node::create(ctx, "unitac_interop_pub", "")?;
@@ -63,23 +73,41 @@ fn publish(prefix: &str) -> anyhow::Result<()> {
         &format!("{prefix}/property_comparison"),
         QosProfile::default(),
     )?;
+    let p3 = node.create_publisher::<ros::ArmCommand>(
+        &format!("{prefix}/arm_command"),
+        QosProfile::default(),
+    )?;
     let matched = spin_until(&mut node, TIMEOUT, || {
         p1.get_inter_process_subscription_count().unwrap_or(0) > 0
             && p2.get_inter_process_subscription_count().unwrap_or(0) > 0
+            && p3.get_inter_process_subscription_count().unwrap_or(0) > 0
     });
     if !matched {
         bail!("no subscriber matched within {TIMEOUT:?}");
     }
-    let (c, k) = (
+    let (c, k, a) = (
         convert::contact_state(&fixture_contact()),
         convert::property_comparison(&fixture_comparison()),
+        convert::arm_command(&fixture_arm()),
     );
     for _ in 0..5 {
         p1.publish(&c)?;
         p2.publish(&k)?;
+        p3.publish(&a)?;
         spin_until(&mut node, Duration::from_millis(200), || false);
     }
     Ok(())
+}
+
+/// Drains `stream`; the first message, converted, goes into `slot` (later ones are dropped).
+fn first<M, E: std::fmt::Display>(
+    stream: &mut (impl futures::Stream<Item = M> + Unpin),
+    slot: &mut Option<Result<Msg, String>>,
+    convert: impl Fn(&M) -> Result<Msg, E>,
+) {
+    while let Some(Some(m)) = stream.next().now_or_never() {
+        slot.get_or_insert_with(|| convert(&m).map_err(|e| e.to_string()));
+    }
 }
 
 fn echo(prefix: &str) -> anyhow::Result<()> {
@@ -93,34 +121,51 @@ fn echo(prefix: &str) -> anyhow::Result<()> {
         &format!("{prefix}/gripper_command"),
         QosProfile::default(),
     )?;
-    let (mut got1, mut got2) = (false, false);
-    let mut err: Option<String> = None;
+    let mut s3 = node.subscribe::<ros::GripperStatus>(
+        &format!("{prefix}/gripper_status"),
+        QosProfile::default(),
+    )?;
+    let mut s4 = node.subscribe::<ros::VisualObservation>(
+        &format!("{prefix}/visual_observation"),
+        QosProfile::default(),
+    )?;
+    // The first message of each topic, converted back (None until it arrives).
+    let mut got: [Option<Result<Msg, String>>; 4] = Default::default();
     spin_until(&mut node, TIMEOUT, || {
-        while let Some(Some(m)) = s1.next().now_or_never() {
-            if !got1 {
-                match convert::tactile_latent_from(&m) {
-                    Ok(l) => println!("{}", Msg::Latent(l).to_json()),
-                    Err(e) => err = Some(e.to_string()),
-                }
-                got1 = true;
-            }
-        }
-        while let Some(Some(m)) = s2.next().now_or_never() {
-            if !got2 {
-                match convert::gripper_command_from(&m) {
-                    Ok(c) => println!("{}", Msg::Command(c).to_json()),
-                    Err(e) => err = Some(e.to_string()),
-                }
-                got2 = true;
-            }
-        }
-        (got1 && got2) || err.is_some()
+        first(&mut s1, &mut got[0], |m| {
+            convert::tactile_latent_from(m).map(Msg::Latent)
+        });
+        first(&mut s2, &mut got[1], |m| {
+            convert::gripper_command_from(m).map(Msg::Command)
+        });
+        first(&mut s3, &mut got[2], |m| {
+            convert::gripper_status_from(m).map(Msg::Gripper)
+        });
+        first(&mut s4, &mut got[3], |m| {
+            convert::visual_observation_from(m).map(Msg::Visual)
+        });
+        got.iter().all(Option::is_some) || got.iter().flatten().any(Result::is_err)
     });
-    if let Some(e) = err {
-        bail!("bad message: {e}");
+    for g in got.iter().flatten() {
+        match g {
+            Ok(m) => println!("{}", m.to_json()),
+            Err(e) => bail!("bad message: {e}"),
+        }
     }
-    if !(got1 && got2) {
-        bail!("timed out: tactile_latent {got1}, gripper_command {got2}");
+    if got.iter().any(Option::is_none) {
+        let names = [
+            "tactile_latent",
+            "gripper_command",
+            "gripper_status",
+            "visual_observation",
+        ];
+        let missing: Vec<&str> = names
+            .iter()
+            .zip(&got)
+            .filter(|(_, g)| g.is_none())
+            .map(|(n, _)| *n)
+            .collect();
+        bail!("timed out: no {}", missing.join(", "));
     }
     Ok(())
 }

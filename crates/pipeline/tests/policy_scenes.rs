@@ -1,0 +1,145 @@
+//! The policy stage in scenes: the shipped scene per task and mode loads and builds its typed
+//! params; a mode whose inputs no stage produces, or a stage the mode does not use, is rejected at
+//! load with one line; `policy.<key>` overrides reach the typed params.
+#![allow(clippy::unwrap_used, clippy::panic)]
+
+use serde_yaml::Value;
+use unitac_pipeline::{StageConfig, load_scene, overrides, stage_configs};
+use unitac_policy::Mode;
+
+fn policy_of(cfgs: &[StageConfig]) -> (unitac_policy::PolicyParams, String) {
+    match cfgs.last().unwrap() {
+        StageConfig::Policy { params, scene } => ((**params).clone(), scene.clone()),
+        other => panic!("the policy stage is last: {other:?}"),
+    }
+}
+
+#[test]
+fn every_shipped_task_and_mode_loads_only_what_its_mode_uses() {
+    for (task, mode, kinds) in [
+        ("cup_deformation", Mode::Vla, vec!["policy"]),
+        (
+            "cup_deformation",
+            Mode::VtlaReal,
+            vec!["contact", "encoder", "policy"],
+        ),
+        (
+            "cup_deformation",
+            Mode::VtlaPred,
+            vec!["contact", "sampler", "policy"],
+        ),
+        ("fabric_selection", Mode::Vla, vec!["policy"]),
+        (
+            "fabric_selection",
+            Mode::VtlaReal,
+            vec!["contact", "encoder", "compare", "policy"],
+        ),
+        (
+            "fabric_selection",
+            Mode::VtlaPred,
+            vec!["contact", "encoder", "compare", "sampler", "policy"],
+        ),
+    ] {
+        let name = format!("{task}_{}", mode.as_str());
+        let s = load_scene(&name, None).unwrap();
+        let cfgs = stage_configs(&s).unwrap();
+        let got: Vec<&str> = cfgs.iter().map(|c| c.kind()).collect();
+        assert_eq!(got, kinds, "{name}");
+        let (p, scene) = policy_of(&cfgs);
+        assert_eq!(p.mode, mode, "{name}");
+        assert_eq!(scene, name);
+        // Building the policy stage itself needs no model.
+        unitac_pipeline::build_stage(&s, cfgs.last().unwrap().clone()).unwrap();
+    }
+}
+
+fn write(name: &str, stages: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("unitac-policy-scenes-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("{name}.yaml"));
+    std::fs::write(
+        &path,
+        format!(
+            "scene: {name}\nsource: {{kind: mock, sensor: gelsight-mini, scenario: cup_deformation}}\n\
+             models:\n  reference: ${{UNITAC_MODELS}}/reference/manifest.json\nstages:\n{stages}"
+        ),
+    )
+    .unwrap();
+    path
+}
+
+#[test]
+fn a_mode_and_its_stages_must_agree_at_load() {
+    let cup = "task: squeeze the cup, objects: [cup]";
+    for (name, stages, want) in [
+        (
+            "vla_with_encoder",
+            format!(
+                "  - kind: contact\n  - kind: encoder\n    models: [reference]\n  - kind: policy\n    params: {{mode: vla, {cup}, visual_names: [cup_width_m]}}\n"
+            ),
+            "mode vla does not use the contact stage's output: remove it from the scene",
+        ),
+        (
+            "real_with_sampler",
+            format!(
+                "  - kind: contact\n  - kind: encoder\n    models: [reference]\n  - kind: sampler\n    models: [reference]\n  - kind: policy\n    params: {{mode: vtla_real, {cup}, latent_len: 3072}}\n"
+            ),
+            "mode vtla_real does not use the sampler stage's output",
+        ),
+        (
+            "pred_without_sampler",
+            format!(
+                "  - kind: contact\n  - kind: policy\n    params: {{mode: vtla_pred, {cup}, latent_len: 64}}\n"
+            ),
+            "mode vtla_pred reads latent_pred (predicted tactile latent), which only a sampler stage produces",
+        ),
+        (
+            "unknown_task",
+            "  - kind: policy\n    params: {mode: vla, task: juggle the cup}\n".to_string(),
+            "task 'juggle the cup' is not understood",
+        ),
+    ] {
+        let path = write(name, &stages);
+        let e = load_scene(path.to_str().unwrap(), None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(want), "{name}: {e}");
+        assert!(
+            e.contains("stages[") && e.contains("(policy)"),
+            "{name}: {e}"
+        );
+        assert!(!e.contains('\n'), "{name}: {e}");
+    }
+}
+
+#[test]
+fn policy_overrides_reach_the_typed_params() {
+    let mut s = load_scene("cup_deformation_vla", None).unwrap();
+    overrides::apply(
+        &mut s,
+        &["policy"],
+        &[
+            ("policy.max_force_n".into(), Value::from(12.5)),
+            ("policy.safe_action".into(), Value::from("open")),
+            ("policy.task".into(), Value::from("squeeze the cup by 8 mm")),
+        ],
+    )
+    .unwrap();
+    let (p, _) = policy_of(&stage_configs(&s).unwrap());
+    assert_eq!(p.max_force_n, 12.5);
+    assert_eq!(p.safe_action, unitac_policy::safety::SafeAction::Open);
+    assert_eq!(p.task, "squeeze the cup by 8 mm");
+    for (k, v, want) in [
+        ("policy.task", Value::from("dance"), "task 'dance'"),
+        ("policy.max_force_n", Value::from(-1.0), "max_force_n = -1"),
+        ("policy.no_such_key", Value::from(1), "no_such_key"),
+        ("policy.mode", Value::from("vlx"), "vlx"),
+    ] {
+        let mut s = load_scene("cup_deformation_vla", None).unwrap();
+        let e = overrides::apply(&mut s, &["policy"], &[(k.into(), v)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(want), "{k}: {e}");
+        assert!(!e.contains('\n'), "{k}: {e}");
+    }
+}

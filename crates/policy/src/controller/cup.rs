@@ -1,0 +1,308 @@
+//! Cup deformation: grasp a cup and squeeze its diameter by the target deformation d (1 cm by
+//! default, the task may say otherwise), hold, lift. Each mode maps its observations to the
+//! squeeze differently:
+//!
+//! ```text
+//! vla:       approach (reads the camera's cup_width_m W once) -> close (position W - d)
+//!            -> hold -> lift -> done
+//! vtla_real: approach -> close (lightly, until the contact state says contact: D0 = opening)
+//!            -> probe (open by probe_release_m until the contact ends, so the episode's latent
+//!            is encoded) -> await_latent (stiffness k from the live latent: force cap
+//!            k d force_margin) -> squeeze (toward D0 - d - gel indentation; compression =
+//!            D0 - opening - gel_indent_m_per_mm2 x area growth, live) -> hold -> lift -> done
+//! vtla_pred: approach (stiffness k from the predicted latent, before any touch: force F = k d,
+//!            computed once) -> close (force mode, F) -> hold -> lift -> done
+//! any phase -> failed (a timeout): the error goes to the safety layer every tick
+//! ```
+
+use super::{Timed, action, arm, force, position, stiffness};
+use crate::mode::Mode;
+use crate::observation::Observation;
+use crate::params::PolicyParams;
+use crate::policy::{Action, GripperAction, Policy, PolicyError};
+use unitac_core::Stamp;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    Approach,
+    Close,
+    Probe,
+    AwaitLatent,
+    Squeeze,
+    Hold,
+    Lift,
+    Done,
+    Failed,
+}
+
+#[derive(Debug)]
+pub struct CupController {
+    p: PolicyParams,
+    mode: Mode,
+    /// Target loss of diameter \[m].
+    d: f64,
+    t: Timed<Phase>,
+    /// vla: W - d; vtla_real: the opening where the squeeze stopped.
+    target_opening: Option<f64>,
+    /// vtla_pred: F = k d; vtla_real: the force cap k d margin.
+    force_n: Option<f64>,
+    /// vtla_real: opening and contact area at first contact, and when the probe began.
+    d0: Option<(f64, f64)>,
+    probe_at: Option<Stamp>,
+    /// Last compression estimate \[m] (vtla_real).
+    compression: f64,
+    failure: Option<PolicyError>,
+}
+
+impl CupController {
+    /// `by_m`: the deformation the task names (None: the params').
+    pub fn new(p: &PolicyParams, by_m: Option<f64>) -> Self {
+        Self {
+            mode: p.mode,
+            d: by_m.unwrap_or(p.target_deformation_m),
+            t: Timed::new(Phase::Approach),
+            target_opening: None,
+            force_n: None,
+            d0: None,
+            probe_at: None,
+            compression: 0.0,
+            failure: None,
+            p: p.clone(),
+        }
+    }
+
+    fn fail(&mut self, e: PolicyError) -> PolicyError {
+        self.t.go(Phase::Failed);
+        self.failure = Some(e.clone());
+        e
+    }
+
+    fn timeout(&mut self, what: &str) -> PolicyError {
+        let e = PolicyError::Timeout(format!("{what} within {} s", self.p.contact_timeout_s));
+        self.fail(e)
+    }
+
+    fn step(&mut self, obs: &Observation) -> Result<(), PolicyError> {
+        let now = obs.stamp;
+        let elapsed = self.t.elapsed(now);
+        let p = self.p.clone();
+        let g = obs.gripper();
+        let opening = g.map(|g| g.opening_m);
+        let contact = obs.contact();
+        match self.t.phase {
+            Phase::Approach => {
+                match self.mode {
+                    Mode::Vla => {
+                        let w = obs
+                            .visual()
+                            .and_then(|v| v.get("cup_width_m"))
+                            .ok_or_else(|| PolicyError::Failed("no camera cup_width_m".into()))?;
+                        self.target_opening = Some(w - self.d);
+                    }
+                    Mode::VtlaPred => {
+                        let l = obs.latent().ok_or_else(|| {
+                            PolicyError::Failed("no fresh predicted latent".into())
+                        })?;
+                        self.force_n = Some(stiffness(&p, l)? * self.d);
+                    }
+                    Mode::VtlaReal => {}
+                }
+                if elapsed >= p.approach_s {
+                    self.t.go(Phase::Close);
+                }
+            }
+            Phase::Close => match self.mode {
+                Mode::Vla => {
+                    let target = self.target_opening.unwrap_or(p.max_opening_m);
+                    let tol = p.deformation_tolerance_m / 2.0;
+                    if opening.is_some_and(|o| (o - target).abs() <= tol) {
+                        self.t.go(Phase::Hold);
+                    } else if elapsed >= p.contact_timeout_s {
+                        return Err(self.timeout("the fingers did not reach the camera's target"));
+                    }
+                }
+                Mode::VtlaPred => {
+                    let f = self.force_n.unwrap_or(0.0);
+                    let held = g.is_some_and(|g| {
+                        (g.force_n.is_finite() && g.force_n >= 0.95 * f)
+                            || (g.object_detected && g.motion == "stopped")
+                    });
+                    if held {
+                        self.t.go(Phase::Hold);
+                    } else if elapsed >= p.contact_timeout_s {
+                        return Err(self.timeout("the grip force was not reached"));
+                    }
+                }
+                Mode::VtlaReal => match (contact, opening) {
+                    (Some(c), Some(o)) if c.in_contact => {
+                        self.d0 = Some((o, f64::from(c.area_mm2)));
+                        self.probe_at = Some(now);
+                        self.t.go(Phase::Probe);
+                    }
+                    _ if elapsed >= p.contact_timeout_s => {
+                        return Err(self.timeout("no contact with the cup"));
+                    }
+                    _ => {}
+                },
+            },
+            Phase::Probe => {
+                if contact.is_some_and(|c| !c.in_contact) {
+                    self.t.go(Phase::AwaitLatent);
+                } else if elapsed >= p.contact_timeout_s {
+                    return Err(self.timeout("the probe contact did not end"));
+                }
+            }
+            Phase::AwaitLatent => {
+                let after = self.probe_at.unwrap_or(Stamp::ZERO);
+                if let Some(l) = obs.latent().filter(|l| l.header.stamp >= after) {
+                    self.force_n = Some(stiffness(&p, l)? * self.d * p.force_margin);
+                    self.t.go(Phase::Squeeze);
+                } else if elapsed >= p.contact_timeout_s {
+                    return Err(self.timeout("no latent of the probe touch"));
+                }
+            }
+            Phase::Squeeze => {
+                let (d0, a0) = self.d0.unwrap_or((p.max_opening_m, 0.0));
+                if let (Some(c), Some(o)) = (contact, opening) {
+                    let gel = p.gel_indent_m_per_mm2 * (f64::from(c.area_mm2) - a0).max(0.0);
+                    self.compression = if c.in_contact { d0 - o - gel } else { 0.0 };
+                    if self.compression >= self.d - p.deformation_tolerance_m / 2.0 {
+                        self.target_opening = Some(o);
+                        self.t.go(Phase::Hold);
+                    } else if elapsed >= p.contact_timeout_s {
+                        return Err(self.timeout("the target deformation was not reached"));
+                    }
+                }
+            }
+            Phase::Hold => {
+                if elapsed >= p.hold_s {
+                    self.t.go(Phase::Lift);
+                }
+            }
+            Phase::Lift => {
+                if elapsed * p.lift_speed_m_s >= p.lift_m {
+                    self.t.go(Phase::Done);
+                }
+            }
+            Phase::Done | Phase::Failed => {}
+        }
+        Ok(())
+    }
+
+    /// The grip once the squeeze is over.
+    fn hold(&self) -> GripperAction {
+        let p = &self.p;
+        match self.mode {
+            Mode::VtlaPred => force(
+                p.min_opening_m,
+                p.squeeze_speed_m_s,
+                self.force_n.unwrap_or(0.0),
+            ),
+            _ => position(
+                self.target_opening.unwrap_or(p.max_opening_m),
+                p.squeeze_speed_m_s,
+                self.force_n.unwrap_or(p.max_force_n),
+            ),
+        }
+    }
+
+    fn command(&mut self, obs: &Observation) -> Action {
+        let p = self.p.clone();
+        let elapsed = self.t.elapsed(obs.stamp);
+        let at = |lift: f64| arm("cup", p.cup_z_m, lift);
+        let open = position(p.max_opening_m, p.max_speed_m_s, p.touch_force_n);
+        match self.t.phase {
+            Phase::Approach => action(open, at(0.0), "approaching the cup"),
+            Phase::Close => match self.mode {
+                Mode::Vla => {
+                    let t = self.target_opening.unwrap_or(p.max_opening_m);
+                    action(
+                        position(t, p.squeeze_speed_m_s, p.max_force_n),
+                        at(0.0),
+                        format!("closing to {t:.4} m (camera width - {:.4} m)", self.d),
+                    )
+                }
+                Mode::VtlaPred => {
+                    let f = self.force_n.unwrap_or(0.0);
+                    action(
+                        force(p.min_opening_m, p.squeeze_speed_m_s, f),
+                        at(0.0),
+                        format!(
+                            "squeezing with {f:.2} N (predicted stiffness x {:.4} m)",
+                            self.d
+                        ),
+                    )
+                }
+                Mode::VtlaReal => action(
+                    position(p.min_opening_m, p.touch_speed_m_s, p.touch_force_n),
+                    at(0.0),
+                    "closing until contact",
+                ),
+            },
+            Phase::Probe | Phase::AwaitLatent => {
+                let (d0, _) = self.d0.unwrap_or((p.max_opening_m, 0.0));
+                action(
+                    position(d0 + p.probe_release_m, p.touch_speed_m_s, p.touch_force_n),
+                    at(0.0),
+                    format!("probe touch at {d0:.4} m, waiting for its latent"),
+                )
+            }
+            Phase::Squeeze => {
+                let (d0, a0) = self.d0.unwrap_or((p.max_opening_m, 0.0));
+                let area = obs.contact().map_or(a0, |c| f64::from(c.area_mm2));
+                let gel = p.gel_indent_m_per_mm2 * (area - a0).max(0.0);
+                let f = self.force_n.unwrap_or(p.touch_force_n);
+                action(
+                    position(d0 - self.d - gel, p.squeeze_speed_m_s, f),
+                    at(0.0),
+                    format!(
+                        "squeezing: compression {:.4} of {:.4} m ({f:.2} N cap)",
+                        self.compression, self.d
+                    ),
+                )
+            }
+            Phase::Hold => action(self.hold(), at(0.0), "holding the squeeze"),
+            Phase::Lift => action(
+                self.hold(),
+                at((elapsed * p.lift_speed_m_s).min(p.lift_m)),
+                "lifting the cup",
+            ),
+            Phase::Done | Phase::Failed => action(self.hold(), at(p.lift_m), "cup lifted"),
+        }
+    }
+}
+
+impl Policy for CupController {
+    fn phase(&self) -> &str {
+        match self.t.phase {
+            Phase::Approach => "approach",
+            Phase::Close => "close",
+            Phase::Probe => "probe",
+            Phase::AwaitLatent => "await_latent",
+            Phase::Squeeze => "squeeze",
+            Phase::Hold => "hold",
+            Phase::Lift => "lift",
+            Phase::Done => "done",
+            Phase::Failed => "failed",
+        }
+    }
+
+    fn required(&self) -> Vec<&'static str> {
+        let mut r = vec!["gripper"];
+        match (self.t.phase, self.mode) {
+            (Phase::Approach, Mode::Vla) => r.push("visual"),
+            (Phase::Approach, Mode::VtlaPred) => r.push("latent_pred"),
+            (Phase::Close | Phase::Probe | Phase::Squeeze, Mode::VtlaReal) => r.push("contact"),
+            _ => {}
+        }
+        r
+    }
+
+    fn act(&mut self, obs: &Observation) -> Result<Vec<Action>, PolicyError> {
+        if let Some(e) = &self.failure {
+            return Err(e.clone());
+        }
+        self.step(obs)?;
+        Ok(vec![self.command(obs)])
+    }
+}

@@ -1,0 +1,331 @@
+//! Fabric selection: touch A, touch B, wait for the PropertyComparison, grasp the one the task
+//! asks for, lift.
+//!
+//! ```text
+//! vtla_real / vtla_pred:
+//!   approach_a -> press_a (close lightly until contact, hold touch_hold_s) -> release_a
+//!   -> approach_b -> press_b -> release_b -> compare (timeout) -> approach_grasp -> grasp
+//!   -> lift -> done
+//! vla:
+//!   look (the camera's <object>_<property> estimates) -> approach_grasp -> grasp -> lift -> done
+//! any phase -> failed (a timeout, a tie): the error goes to the safety layer every tick
+//! ```
+//! vtla_pred sets the press force from the predicted latent before the first touch (expected
+//! stiffness x press_depth_m); vtla_real presses with touch_force_n.
+
+use super::{Timed, action, arm, force, position, stiffness};
+use crate::mode::Mode;
+use crate::observation::Observation;
+use crate::params::PolicyParams;
+use crate::policy::{Action, Policy, PolicyError};
+use unitac_core::Stamp;
+use unitac_core::msg::Winner;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    Look,
+    Approach(usize),
+    Press(usize),
+    Release(usize),
+    Compare,
+    ApproachGrasp,
+    Grasp,
+    Lift,
+    Done,
+    Failed,
+}
+
+#[derive(Debug)]
+pub struct FabricController {
+    p: PolicyParams,
+    mode: Mode,
+    property: &'static str,
+    more: bool,
+    /// The two objects touched, A and B.
+    objects: [String; 2],
+    t: Timed<Phase>,
+    press_force_n: f64,
+    contact_at: Option<Stamp>,
+    /// Comparisons stamped before the second touch began are not about this trial.
+    second_touch_at: Option<Stamp>,
+    chosen: Option<String>,
+    failure: Option<PolicyError>,
+}
+
+impl FabricController {
+    /// `property`/`more`: from the task (which property, and whether the pick has more of it).
+    pub fn new(p: &PolicyParams, property: &'static str, more: bool) -> Result<Self, String> {
+        let [a, b, ..] = p.objects.as_slice() else {
+            return Err("a pick task needs two objects (A and B)".into());
+        };
+        Ok(Self {
+            mode: p.mode,
+            property,
+            more,
+            objects: [a.clone(), b.clone()],
+            t: Timed::new(if p.mode == Mode::Vla {
+                Phase::Look
+            } else {
+                Phase::Approach(0)
+            }),
+            press_force_n: p.touch_force_n,
+            contact_at: None,
+            second_touch_at: None,
+            chosen: None,
+            failure: None,
+            p: p.clone(),
+        })
+    }
+
+    fn fail(&mut self, e: PolicyError) -> PolicyError {
+        self.t.go(Phase::Failed);
+        self.failure = Some(e.clone());
+        e
+    }
+
+    /// The object with more (or less) of the property: index 0 = A, 1 = B.
+    fn pick(&self, more_a: bool) -> usize {
+        match (more_a, self.more) {
+            (true, true) | (false, false) => 0,
+            _ => 1,
+        }
+    }
+
+    /// Advance the phase on what `obs` shows; Err: the controller failed.
+    fn step(&mut self, obs: &Observation) -> Result<(), PolicyError> {
+        let now = obs.stamp;
+        let elapsed = self.t.elapsed(now);
+        let p = &self.p;
+        let opening = obs.gripper().map(|g| g.opening_m);
+        let in_contact = obs.contact().map(|c| c.in_contact);
+        match self.t.phase {
+            Phase::Look => {
+                let v = obs
+                    .visual()
+                    .ok_or_else(|| PolicyError::Failed("no fresh visual observation".into()))?;
+                let name = |o: &str| format!("{o}_{}", self.property);
+                let (Some(a), Some(b)) = (
+                    v.get(&name(&self.objects[0])),
+                    v.get(&name(&self.objects[1])),
+                ) else {
+                    return Err(self.fail(PolicyError::Failed(format!(
+                        "the camera gives no {} for both objects",
+                        self.property
+                    ))));
+                };
+                let i = self.pick(a > b);
+                self.chosen = Some(self.objects[i].clone());
+                self.t.go(Phase::ApproachGrasp);
+            }
+            Phase::Approach(i) => {
+                if i == 0 && self.mode == Mode::VtlaPred {
+                    let l = obs
+                        .latent()
+                        .ok_or_else(|| PolicyError::Failed("no fresh predicted latent".into()))?;
+                    self.press_force_n = stiffness(p, l)? * p.press_depth_m;
+                }
+                if elapsed >= p.approach_s {
+                    if i == 1 {
+                        self.second_touch_at = Some(now);
+                    }
+                    self.contact_at = None;
+                    self.t.go(Phase::Press(i));
+                }
+            }
+            Phase::Press(i) => {
+                if in_contact == Some(true) {
+                    let at = *self.contact_at.get_or_insert(now);
+                    if now.secs_since(at) >= p.touch_hold_s {
+                        self.t.go(Phase::Release(i));
+                    }
+                } else if elapsed >= p.contact_timeout_s {
+                    let e = PolicyError::Timeout(format!(
+                        "no contact on {} within {} s",
+                        self.objects[i], p.contact_timeout_s
+                    ));
+                    return Err(self.fail(e));
+                }
+            }
+            Phase::Release(i) => {
+                let open = opening.is_some_and(|o| o >= p.max_opening_m - p.max_step_m);
+                if in_contact == Some(false) && (open || elapsed >= p.approach_s) {
+                    self.t.go(if i == 0 {
+                        Phase::Approach(1)
+                    } else {
+                        Phase::Compare
+                    });
+                }
+            }
+            Phase::Compare => {
+                let after = self.second_touch_at.unwrap_or(Stamp::ZERO);
+                let labels = |a: &str, b: &str| {
+                    (a == self.objects[0] && b == self.objects[1])
+                        || (a == self.objects[1] && b == self.objects[0])
+                };
+                let found = obs.comparison().filter(|c| {
+                    c.header.stamp >= after
+                        && c.property == self.property
+                        && labels(&c.label_a, &c.label_b)
+                });
+                if let Some(c) = found {
+                    let more_label = match c.winner {
+                        Winner::A => &c.label_a,
+                        Winner::B => &c.label_b,
+                        Winner::Tie => {
+                            let e = PolicyError::Failed(format!(
+                                "the comparison is a tie: {}",
+                                c.sentence
+                            ));
+                            return Err(self.fail(e));
+                        }
+                    };
+                    let i = self.pick(more_label == &self.objects[0]);
+                    self.chosen = Some(self.objects[i].clone());
+                    self.t.go(Phase::ApproachGrasp);
+                } else if elapsed >= p.compare_timeout_s {
+                    let e = PolicyError::Timeout(format!(
+                        "no {} comparison of {} and {} within {} s",
+                        self.property, self.objects[0], self.objects[1], p.compare_timeout_s
+                    ));
+                    return Err(self.fail(e));
+                }
+            }
+            Phase::ApproachGrasp => {
+                if elapsed >= p.approach_s {
+                    self.t.go(Phase::Grasp);
+                }
+            }
+            Phase::Grasp => {
+                let g = obs.gripper();
+                let held = g.is_some_and(|g| {
+                    g.object_detected
+                        || (g.force_n.is_finite() && g.force_n >= 0.9 * p.grasp_force_n)
+                });
+                if held {
+                    self.t.go(Phase::Lift);
+                } else if elapsed >= p.contact_timeout_s {
+                    let e = PolicyError::Timeout(format!(
+                        "the grasp did not close on {} within {} s",
+                        self.chosen.as_deref().unwrap_or("?"),
+                        p.contact_timeout_s
+                    ));
+                    return Err(self.fail(e));
+                }
+            }
+            Phase::Lift => {
+                if elapsed * p.lift_speed_m_s >= p.lift_m {
+                    self.t.go(Phase::Done);
+                }
+            }
+            Phase::Done | Phase::Failed => {}
+        }
+        Ok(())
+    }
+
+    /// The action of the current phase.
+    fn command(&mut self, obs: &Observation) -> Action {
+        let p = &self.p;
+        let elapsed = self.t.elapsed(obs.stamp);
+        let opening = obs.gripper().map_or(p.max_opening_m, |g| g.opening_m);
+        let open = position(p.max_opening_m, p.max_speed_m_s, p.touch_force_n);
+        let chosen = self.chosen.clone().unwrap_or_else(|| "home".into());
+        let grip = force(p.min_opening_m, p.max_speed_m_s, p.grasp_force_n);
+        match self.t.phase {
+            Phase::Look => action(open, arm("home", p.max_z_m, 0.0), "looking at both fabrics"),
+            Phase::Approach(i) => action(
+                open,
+                arm(&self.objects[i], p.touch_z_m, 0.0),
+                format!("approaching {}", self.objects[i]),
+            ),
+            Phase::Press(i) => {
+                // Close lightly; once in contact, stay where the fingers are.
+                let target = if self.contact_at.is_some() {
+                    opening
+                } else {
+                    p.min_opening_m
+                };
+                action(
+                    position(target, p.touch_speed_m_s, self.press_force_n),
+                    arm(&self.objects[i], p.touch_z_m, 0.0),
+                    format!(
+                        "touching {} ({:.2} N limit)",
+                        self.objects[i], self.press_force_n
+                    ),
+                )
+            }
+            Phase::Release(i) => action(
+                open,
+                arm(&self.objects[i], p.touch_z_m, 0.0),
+                format!("releasing {}", self.objects[i]),
+            ),
+            Phase::Compare => action(
+                open,
+                arm("home", p.max_z_m, 0.0),
+                format!("waiting for the {} comparison", self.property),
+            ),
+            Phase::ApproachGrasp => action(
+                open,
+                arm(&chosen, p.grasp_z_m, 0.0),
+                format!("approaching {chosen} to grasp it"),
+            ),
+            Phase::Grasp => action(
+                grip,
+                arm(&chosen, p.grasp_z_m, 0.0),
+                format!("grasping {chosen}"),
+            ),
+            Phase::Lift => action(
+                grip,
+                arm(
+                    &chosen,
+                    p.grasp_z_m,
+                    (elapsed * p.lift_speed_m_s).min(p.lift_m),
+                ),
+                format!("lifting {chosen}"),
+            ),
+            Phase::Done | Phase::Failed => action(
+                grip,
+                arm(&chosen, p.grasp_z_m, p.lift_m),
+                format!("holding {chosen}"),
+            ),
+        }
+    }
+}
+
+impl Policy for FabricController {
+    fn phase(&self) -> &str {
+        match self.t.phase {
+            Phase::Look => "look",
+            Phase::Approach(0) => "approach_a",
+            Phase::Approach(_) => "approach_b",
+            Phase::Press(0) => "press_a",
+            Phase::Press(_) => "press_b",
+            Phase::Release(0) => "release_a",
+            Phase::Release(_) => "release_b",
+            Phase::Compare => "compare",
+            Phase::ApproachGrasp => "approach_grasp",
+            Phase::Grasp => "grasp",
+            Phase::Lift => "lift",
+            Phase::Done => "done",
+            Phase::Failed => "failed",
+        }
+    }
+
+    fn required(&self) -> Vec<&'static str> {
+        let mut r = vec!["gripper"];
+        match self.t.phase {
+            Phase::Look => r.push("visual"),
+            Phase::Approach(0) if self.mode == Mode::VtlaPred => r.push("latent_pred"),
+            Phase::Press(_) | Phase::Release(_) => r.push("contact"),
+            _ => {}
+        }
+        r
+    }
+
+    fn act(&mut self, obs: &Observation) -> Result<Vec<Action>, PolicyError> {
+        if let Some(e) = &self.failure {
+            return Err(e.clone());
+        }
+        self.step(obs)?;
+        Ok(vec![self.command(obs)])
+    }
+}

@@ -1,0 +1,142 @@
+//! The paper's three modes and what each observes.
+//!
+//! A mode is a set of inputs (names of [`crate::observation::INPUTS`]). The scene check
+//! ([`check_scene_stages`]) uses it both ways: every input a mode reads that a scene stage
+//! produces must have its producer in the scene, and the scene must not run a stage that no input
+//! of the mode needs (no encoder for vla, no sampler for vtla_real).
+
+use crate::observation::{INPUTS, input};
+use serde::{Deserialize, Serialize};
+
+/// vla: vision only. vtla_real: live latents from the touch encoder. vtla_pred: latents
+/// predicted by the flow sampler from the sensor prior, before or without touch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    Vla,
+    #[default]
+    VtlaReal,
+    VtlaPred,
+}
+
+impl Mode {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Mode::Vla => "vla",
+            Mode::VtlaReal => "vtla_real",
+            Mode::VtlaPred => "vtla_pred",
+        }
+    }
+
+    /// The inputs this mode reads (names in [`INPUTS`]), for the given task kind.
+    pub fn inputs(self, fabric: bool) -> Vec<&'static str> {
+        let mut v = vec!["gripper"];
+        match (self, fabric) {
+            (Mode::Vla, _) => v.push("visual"),
+            // Fabric: the choice is the comparison of the two touches' latents (the compare
+            // stage consumes the encoder's output; the policy reads the comparison).
+            (Mode::VtlaReal, true) => v.extend(["contact", "comparison"]),
+            // Cup: a probe touch, whose episode's live latent sets the squeeze's force cap.
+            (Mode::VtlaReal, false) => v.extend(["contact", "latent_real"]),
+            // The predicted latent sets the press (fabric) or squeeze (cup) force before
+            // anything is touched; the fabric choice still needs the comparison.
+            (Mode::VtlaPred, true) => v.extend(["contact", "latent_pred", "comparison"]),
+            (Mode::VtlaPred, false) => v.extend(["contact", "latent_pred"]),
+        }
+        v
+    }
+}
+
+/// Checks a scene's stage list against a mode: `kinds` are the scene's stage kinds before the
+/// policy stage, `needs` the registry's (stage kind -> the kind it consumes). Errors name the
+/// stage or input, one line.
+pub fn check_scene_stages(
+    mode: Mode,
+    fabric: bool,
+    kinds: &[&str],
+    needs: &[(&str, &str)],
+) -> Result<(), String> {
+    let inputs = mode.inputs(fabric);
+    let mut used: Vec<&str> = Vec::new();
+    for name in &inputs {
+        let Some(spec) = input(name) else { continue };
+        let Some(producer) = spec.produced_by else {
+            continue;
+        };
+        if !kinds.contains(&producer) {
+            return Err(format!(
+                "mode {} reads {} ({}), which only a {producer} stage produces: add one before the policy stage",
+                mode.as_str(),
+                spec.name,
+                spec.what
+            ));
+        }
+        // The producer and everything it consumes, transitively.
+        let mut k = producer;
+        loop {
+            if !used.contains(&k) {
+                used.push(k);
+            }
+            match needs.iter().find(|(a, _)| *a == k) {
+                Some((_, b)) => k = b,
+                None => break,
+            }
+        }
+    }
+    for k in kinds {
+        let feeds_an_input = INPUTS.iter().any(|i| i.produced_by == Some(*k));
+        if feeds_an_input && !used.contains(k) {
+            return Err(format!(
+                "mode {} does not use the {k} stage's output: remove it from the scene (a scene loads nothing its mode does not use)",
+                mode.as_str()
+            ));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const NEEDS: &[(&str, &str)] = &[
+        ("encoder", "contact"),
+        ("sampler", "contact"),
+        ("compare", "encoder"),
+    ];
+
+    #[test]
+    fn each_mode_needs_its_producers_and_nothing_else() {
+        let real = ["contact", "encoder", "compare"];
+        assert_eq!(
+            check_scene_stages(Mode::VtlaReal, true, &real, NEEDS),
+            Ok(())
+        );
+        assert_eq!(
+            check_scene_stages(Mode::VtlaReal, false, &["contact", "encoder"], NEEDS),
+            Ok(())
+        );
+        assert_eq!(check_scene_stages(Mode::Vla, true, &[], NEEDS), Ok(()));
+        assert_eq!(
+            check_scene_stages(Mode::VtlaPred, false, &["contact", "sampler"], NEEDS),
+            Ok(())
+        );
+        // vla loads no encoder; vtla_real no sampler.
+        let e = check_scene_stages(Mode::Vla, true, &real, NEEDS).unwrap_err();
+        assert!(e.contains("does not use the contact stage"), "{e}");
+        let e = check_scene_stages(
+            Mode::VtlaReal,
+            false,
+            &["contact", "encoder", "sampler"],
+            NEEDS,
+        )
+        .unwrap_err();
+        assert!(e.contains("does not use the sampler stage"), "{e}");
+        // A missing producer names the input.
+        let e = check_scene_stages(Mode::VtlaPred, false, &["contact"], NEEDS).unwrap_err();
+        assert_eq!(
+            e,
+            "mode vtla_pred reads latent_pred (predicted tactile latent), which only a sampler stage produces: add one before the policy stage"
+        );
+    }
+}

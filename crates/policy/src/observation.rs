@@ -1,0 +1,558 @@
+//! Observation assembly: the latest message of each named input, its age against the control
+//! tick and its validity, and one flat f32 vector with named slices (LeRobot naming).
+//!
+//! Inputs are one table, [`INPUTS`]: adding an input (e.g. the slip state once its message lands)
+//! is one entry there and its name in [`crate::mode::Mode::inputs`].
+
+use unitac_core::Stamp;
+use unitac_core::msg::{
+    ContactState, GripperStatus, LatentSource, Msg, PropertyComparison, TactileLatent,
+    VisualObservation, Winner,
+};
+
+/// What the layout of the vector depends on besides the input table.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Layout {
+    /// Values of `observation.tactile_latent` (the latent's data, row-major).
+    pub latent_len: usize,
+    /// Names read from the VisualObservation into `observation.visual`, in this order.
+    pub visual_names: Vec<String>,
+}
+
+/// One named input.
+#[derive(Debug)]
+pub struct InputSpec {
+    /// Its name in params (`budget_<name>_s`), the mode table and PolicyStatus messages.
+    pub name: &'static str,
+    /// What it is, for messages.
+    pub what: &'static str,
+    /// The slice of the observation vector it fills (LeRobot key).
+    pub feature: &'static str,
+    /// The scene stage kind that produces it; None: it comes from outside the scene (the
+    /// gripper driver or the sim, the arm stack's camera model).
+    pub produced_by: Option<&'static str>,
+    /// Freshness budget when params name none \[s].
+    pub default_budget_s: f64,
+    /// Whether a message is this input.
+    pub accepts: fn(&Msg) -> bool,
+    /// Number of values in its slice.
+    pub width: fn(&Layout) -> usize,
+    /// Its values (exactly `width`) into `out`; Err: the message is invalid, with the reason.
+    pub features: fn(&Msg, &Layout, &mut Vec<f32>) -> Result<(), String>,
+}
+
+fn finite(name: &str, v: f64) -> Result<f32, String> {
+    if v.is_finite() {
+        Ok(v as f32)
+    } else {
+        Err(format!("{name} is {v}"))
+    }
+}
+
+/// NaN (unknown) -> (0, known = 0); finite -> (v, 1); inf -> error.
+fn maybe(name: &str, v: f64, out: &mut Vec<f32>) -> Result<(), String> {
+    if v.is_nan() {
+        out.extend([0.0, 0.0]);
+        return Ok(());
+    }
+    out.extend([finite(name, v)?, 1.0]);
+    Ok(())
+}
+
+fn gripper_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), String> {
+    let Msg::Gripper(g) = m else {
+        return Err("not a gripper status".into());
+    };
+    out.push(finite("opening_m", g.opening_m)?);
+    maybe("target_m", g.target_m, out)?;
+    maybe("force_n", g.force_n, out)?;
+    maybe("current_a", g.current_a, out)?;
+    out.push(if g.object_detected { 1.0 } else { 0.0 });
+    if !g.fault.is_empty() {
+        return Err(format!("gripper fault: {}", g.fault));
+    }
+    Ok(())
+}
+
+fn contact_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), String> {
+    let Msg::Contact(c) = m else {
+        return Err("not a contact state".into());
+    };
+    out.push(if c.in_contact { 1.0 } else { 0.0 });
+    out.push(finite("area_mm2", f64::from(c.area_mm2))?);
+    out.push(finite("strength", f64::from(c.strength))?);
+    Ok(())
+}
+
+fn latent_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), String> {
+    let Msg::Latent(t) = m else {
+        return Err("not a tactile latent".into());
+    };
+    if !t.valid {
+        return Err(format!("latent marked invalid: {}", t.guard_report));
+    }
+    if t.data.len() != l.latent_len {
+        return Err(format!(
+            "latent has {} values, the observation layout has {} (latent_len)",
+            t.data.len(),
+            l.latent_len
+        ));
+    }
+    if let Some(i) = t.data.iter().position(|v| !v.is_finite()) {
+        return Err(format!("latent value {i} is {}", t.data[i]));
+    }
+    out.extend_from_slice(&t.data);
+    Ok(())
+}
+
+fn comparison_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), String> {
+    let Msg::Comparison(c) = m else {
+        return Err("not a property comparison".into());
+    };
+    let one_hot = |w: Winner| if c.winner == w { 1.0 } else { 0.0 };
+    out.extend([one_hot(Winner::A), one_hot(Winner::B), one_hot(Winner::Tie)]);
+    out.push(finite("margin", f64::from(c.margin))?);
+    out.push(finite("confidence", f64::from(c.confidence))?);
+    Ok(())
+}
+
+fn visual_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), String> {
+    let Msg::Visual(v) = m else {
+        return Err("not a visual observation".into());
+    };
+    for name in &l.visual_names {
+        let x = v
+            .get(name)
+            .ok_or_else(|| format!("visual observation has no {name}"))?;
+        out.push(finite(name, x)?);
+    }
+    Ok(())
+}
+
+/// Every input a policy can read. Order = order of the slices in the vector.
+pub static INPUTS: &[InputSpec] = &[
+    InputSpec {
+        name: "gripper",
+        what: "gripper status",
+        feature: "observation.state",
+        produced_by: None,
+        default_budget_s: 0.2,
+        accepts: |m| matches!(m, Msg::Gripper(_)),
+        width: |_| 8,
+        features: gripper_features,
+    },
+    InputSpec {
+        name: "contact",
+        what: "contact state",
+        feature: "observation.contact",
+        produced_by: Some("contact"),
+        default_budget_s: 0.25,
+        accepts: |m| matches!(m, Msg::Contact(_)),
+        width: |_| 3,
+        features: contact_features,
+    },
+    InputSpec {
+        name: "latent_real",
+        what: "live tactile latent",
+        feature: "observation.tactile_latent",
+        produced_by: Some("encoder"),
+        default_budget_s: 60.0,
+        accepts: |m| matches!(m, Msg::Latent(l) if l.source == LatentSource::Real),
+        width: |l| l.latent_len,
+        features: latent_features,
+    },
+    InputSpec {
+        name: "latent_pred",
+        what: "predicted tactile latent",
+        feature: "observation.tactile_latent",
+        produced_by: Some("sampler"),
+        default_budget_s: 600.0,
+        accepts: |m| matches!(m, Msg::Latent(l) if l.source == LatentSource::Predicted),
+        width: |l| l.latent_len,
+        features: latent_features,
+    },
+    InputSpec {
+        name: "comparison",
+        what: "property comparison",
+        feature: "observation.comparison",
+        produced_by: Some("compare"),
+        default_budget_s: 600.0,
+        accepts: |m| matches!(m, Msg::Comparison(_)),
+        width: |_| 5,
+        features: comparison_features,
+    },
+    InputSpec {
+        name: "visual",
+        what: "visual observation",
+        feature: "observation.visual",
+        produced_by: None,
+        default_budget_s: 0.5,
+        accepts: |m| matches!(m, Msg::Visual(_)),
+        width: |l| l.visual_names.len(),
+        features: visual_features,
+    },
+];
+
+/// The input named `name`.
+pub fn input(name: &str) -> Option<&'static InputSpec> {
+    INPUTS.iter().find(|i| i.name == name)
+}
+
+/// An input's state at a tick.
+#[derive(Debug, Clone, PartialEq)]
+pub enum InputStatus {
+    Fresh,
+    /// Nothing received yet.
+    Missing,
+    /// Older than its budget.
+    Stale,
+    /// The latest message is unusable (reason).
+    Invalid(String),
+}
+
+/// One input at a tick.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputReading {
+    pub name: &'static str,
+    /// Tick stamp minus the message stamp \[s]; None when missing.
+    pub age_s: Option<f64>,
+    pub budget_s: f64,
+    pub status: InputStatus,
+}
+
+impl InputReading {
+    /// Why it cannot be used (None when fresh), one phrase.
+    pub fn problem(&self) -> Option<String> {
+        match &self.status {
+            InputStatus::Fresh => None,
+            InputStatus::Missing => Some(format!("{}: nothing received", self.name)),
+            InputStatus::Stale => Some(format!(
+                "{}: stale ({:.3} s old, budget {} s)",
+                self.name,
+                self.age_s.unwrap_or(f64::INFINITY),
+                self.budget_s
+            )),
+            InputStatus::Invalid(r) => Some(format!("{}: invalid ({r})", self.name)),
+        }
+    }
+}
+
+/// A named slice of the vector.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Slice {
+    pub name: &'static str,
+    pub start: usize,
+    pub len: usize,
+}
+
+/// What a policy sees at one control tick.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observation {
+    /// The tick's stamp (the GripperStatus that triggered it).
+    pub stamp: Stamp,
+    /// The task string (LeRobot `task`).
+    pub task: String,
+    /// Every slice, in [`INPUTS`] order; a slice whose input is not fresh is zeros. Never NaN.
+    pub vector: Vec<f32>,
+    pub slices: Vec<Slice>,
+    pub inputs: Vec<InputReading>,
+    latest: Vec<(&'static str, Option<Msg>)>,
+}
+
+impl Observation {
+    /// The values of a slice by LeRobot key, e.g. `observation.state`.
+    pub fn slice(&self, name: &str) -> Option<&[f32]> {
+        let s = self.slices.iter().find(|s| s.name == name)?;
+        self.vector.get(s.start..s.start + s.len)
+    }
+    /// The reading of an input by name.
+    pub fn reading(&self, name: &str) -> Option<&InputReading> {
+        self.inputs.iter().find(|r| r.name == name)
+    }
+    /// The latest message of a fresh input.
+    fn fresh(&self, name: &str) -> Option<&Msg> {
+        if self.reading(name)?.status != InputStatus::Fresh {
+            return None;
+        }
+        self.latest
+            .iter()
+            .find(|(n, _)| *n == name)
+            .and_then(|(_, m)| m.as_ref())
+    }
+    pub fn gripper(&self) -> Option<&GripperStatus> {
+        match self.fresh("gripper")? {
+            Msg::Gripper(g) => Some(g),
+            _ => None,
+        }
+    }
+    pub fn contact(&self) -> Option<&ContactState> {
+        match self.fresh("contact")? {
+            Msg::Contact(c) => Some(c),
+            _ => None,
+        }
+    }
+    /// The fresh latent of the mode (real or predicted).
+    pub fn latent(&self) -> Option<&TactileLatent> {
+        match self
+            .fresh("latent_real")
+            .or_else(|| self.fresh("latent_pred"))?
+        {
+            Msg::Latent(l) => Some(l),
+            _ => None,
+        }
+    }
+    pub fn comparison(&self) -> Option<&PropertyComparison> {
+        match self.fresh("comparison")? {
+            Msg::Comparison(c) => Some(c),
+            _ => None,
+        }
+    }
+    pub fn visual(&self) -> Option<&VisualObservation> {
+        match self.fresh("visual")? {
+            Msg::Visual(v) => Some(v),
+            _ => None,
+        }
+    }
+}
+
+/// Keeps the latest message of each input of a mode and assembles observations.
+#[derive(Debug, Clone)]
+pub struct Assembler {
+    layout: Layout,
+    /// The mode's inputs in [`INPUTS`] order, with their budgets, and the latest message.
+    inputs: Vec<(&'static InputSpec, f64, Option<Msg>)>,
+}
+
+impl Assembler {
+    /// `names`: the inputs to keep (unknown names are an error); `budget`: an input's budget
+    /// (None: its default).
+    pub fn new(
+        names: &[&str],
+        budget: impl Fn(&str) -> Option<f64>,
+        layout: Layout,
+    ) -> Result<Self, String> {
+        if let Some(n) = names.iter().find(|n| input(n).is_none()) {
+            return Err(format!("unknown input {n}"));
+        }
+        let inputs = INPUTS
+            .iter()
+            .filter(|i| names.contains(&i.name))
+            .map(|i| (i, budget(i.name).unwrap_or(i.default_budget_s), None))
+            .collect();
+        Ok(Self { layout, inputs })
+    }
+
+    /// Keep `m` if it is one of the inputs; true if kept.
+    pub fn offer(&mut self, m: &Msg) -> bool {
+        for (spec, _, latest) in &mut self.inputs {
+            if (spec.accepts)(m) {
+                *latest = Some(m.clone());
+                return true;
+            }
+        }
+        false
+    }
+
+    /// The slices of the vector (same for every observation of this assembler).
+    pub fn slices(&self) -> Vec<Slice> {
+        let mut start = 0;
+        self.inputs
+            .iter()
+            .map(|(spec, _, _)| {
+                let len = (spec.width)(&self.layout);
+                let s = Slice {
+                    name: spec.feature,
+                    start,
+                    len,
+                };
+                start += len;
+                s
+            })
+            .collect()
+    }
+
+    /// The observation at tick `now`.
+    pub fn assemble(&self, now: Stamp, task: &str) -> Observation {
+        let mut vector = Vec::new();
+        let mut readings = Vec::new();
+        for (spec, budget, latest) in &self.inputs {
+            let width = (spec.width)(&self.layout);
+            let start = vector.len();
+            let (age_s, status) = match latest {
+                None => (None, InputStatus::Missing),
+                Some(m) => {
+                    let age = now.secs_since(m.stamp());
+                    let status = if age > *budget {
+                        InputStatus::Stale
+                    } else if age < -budget {
+                        InputStatus::Invalid(format!("stamped {:.3} s in the future", -age))
+                    } else {
+                        match (spec.features)(m, &self.layout, &mut vector) {
+                            Ok(()) if vector.len() == start + width => InputStatus::Fresh,
+                            Ok(()) => InputStatus::Invalid(format!(
+                                "{} values, the layout has {width}",
+                                vector.len() - start
+                            )),
+                            Err(r) => InputStatus::Invalid(r),
+                        }
+                    };
+                    (Some(age), status)
+                }
+            };
+            if status != InputStatus::Fresh {
+                vector.truncate(start);
+                vector.resize(start + width, 0.0);
+            }
+            readings.push(InputReading {
+                name: spec.name,
+                age_s,
+                budget_s: *budget,
+                status,
+            });
+        }
+        Observation {
+            stamp: now,
+            task: task.to_string(),
+            vector,
+            slices: self.slices(),
+            inputs: readings,
+            latest: self
+                .inputs
+                .iter()
+                .map(|(s, _, m)| (s.name, m.clone()))
+                .collect(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+    use unitac_core::msg::{Header, samples};
+
+    fn at(ns: i64) -> Header {
+        Header::new(Stamp(ns), "x")
+    }
+
+    fn assembler() -> Assembler {
+        Assembler::new(
+            &["gripper", "contact", "latent_real", "visual"],
+            |n| (n == "contact").then_some(0.1),
+            Layout {
+                latent_len: 6,
+                visual_names: vec!["cup_width_m".into()],
+            },
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn slices_follow_the_table_with_lerobot_names() {
+        let a = assembler();
+        let names: Vec<(&str, usize, usize)> = a
+            .slices()
+            .iter()
+            .map(|s| (s.name, s.start, s.len))
+            .collect();
+        assert_eq!(
+            names,
+            [
+                ("observation.state", 0, 8),
+                ("observation.contact", 8, 3),
+                ("observation.tactile_latent", 11, 6),
+                ("observation.visual", 17, 1),
+            ]
+        );
+        assert!(Assembler::new(&["smell"], |_| None, Layout::default()).is_err());
+    }
+
+    #[test]
+    fn ages_budgets_and_validity_per_input() {
+        let mut a = assembler();
+        let t = 10_000_000_000;
+        let mut g = samples::gripper_status();
+        g.header = at(t);
+        g.fault.clear();
+        g.current_a = f64::NAN;
+        assert!(a.offer(&Msg::Gripper(g)));
+        let mut c = samples::contact_state();
+        c.header = at(t - 200_000_000); // 0.2 s old, budget 0.1 s
+        assert!(a.offer(&Msg::Contact(c)));
+        let mut l = samples::tactile_latent();
+        l.source = LatentSource::Real;
+        l.header = at(t - 1_000_000_000);
+        l.data[2] = f32::NAN;
+        assert!(a.offer(&Msg::Latent(l.clone())));
+        // A predicted latent is not this mode's input.
+        assert!(!a.offer(&Msg::Latent(samples::tactile_latent())));
+        let mut v = samples::visual_observation();
+        v.header = at(t);
+        assert!(a.offer(&Msg::Visual(v)));
+
+        let o = a.assemble(Stamp(t), "squeeze the cup");
+        let st: Vec<_> = o.inputs.iter().map(|r| r.status.clone()).collect();
+        assert_eq!(st[0], InputStatus::Fresh);
+        assert_eq!(st[1], InputStatus::Stale);
+        assert_eq!(st[2], InputStatus::Invalid("latent value 2 is NaN".into()));
+        assert_eq!(st[3], InputStatus::Fresh);
+        assert_eq!(o.inputs[1].age_s, Some(0.2));
+        assert_eq!(
+            o.inputs[1].problem().unwrap(),
+            "contact: stale (0.200 s old, budget 0.1 s)"
+        );
+        // Unknown current: 0 with known = 0; invalid and stale slices are zeros; no NaN anywhere.
+        assert_eq!(
+            o.slice("observation.state").unwrap(),
+            [0.0425, 0.03, 1.0, 6.5, 1.0, 0.0, 0.0, 1.0]
+        );
+        assert_eq!(o.slice("observation.contact").unwrap(), [0.0; 3]);
+        assert_eq!(o.slice("observation.tactile_latent").unwrap(), [0.0; 6]);
+        assert_eq!(o.slice("observation.visual").unwrap(), [0.081f32]);
+        assert!(o.vector.iter().all(|v| v.is_finite()));
+        assert!(o.contact().is_none() && o.latent().is_none());
+        assert_eq!(o.visual().unwrap().get("cup_width_m"), Some(0.081));
+
+        // A fresh valid latent replaces the bad one.
+        l.data[2] = 2.25;
+        a.offer(&Msg::Latent(l));
+        let o = a.assemble(Stamp(t), "");
+        assert_eq!(o.reading("latent_real").unwrap().status, InputStatus::Fresh);
+        assert_eq!(
+            o.slice("observation.tactile_latent").unwrap(),
+            [0.5, -1.0, 2.25, 3.0, -0.125, 8.0]
+        );
+    }
+
+    #[test]
+    fn wrong_latent_length_and_gripper_fault_are_invalid() {
+        let mut a = Assembler::new(
+            &["gripper", "latent_pred"],
+            |_| None,
+            Layout {
+                latent_len: 4,
+                ..Layout::default()
+            },
+        )
+        .unwrap();
+        let mut g = samples::gripper_status();
+        g.header = at(0);
+        a.offer(&Msg::Gripper(g));
+        let mut l = samples::tactile_latent();
+        l.header = at(0);
+        a.offer(&Msg::Latent(l));
+        let o = a.assemble(Stamp(0), "");
+        assert_eq!(
+            o.reading("gripper").unwrap().problem().unwrap(),
+            "gripper: invalid (gripper fault: overtemp)"
+        );
+        assert_eq!(
+            o.reading("latent_pred").unwrap().problem().unwrap(),
+            "latent_pred: invalid (latent has 6 values, the observation layout has 4 (latent_len))"
+        );
+        let o = Assembler::new(&["visual"], |_| None, Layout::default())
+            .unwrap()
+            .assemble(Stamp(5), "");
+        assert_eq!(o.inputs[0].status, InputStatus::Missing);
+    }
+}

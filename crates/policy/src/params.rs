@@ -1,0 +1,363 @@
+//! The policy stage's typed parameters (`kind: policy` in a scene; every key is also a
+//! `policy.<key>` override). Flat on purpose: each key is one ROS parameter.
+
+use crate::mode::Mode;
+use crate::observation::Layout;
+use crate::safety::{Bounds, SafeAction};
+use crate::task::Task;
+use serde::{Deserialize, Serialize};
+
+/// Most values in `observation.tactile_latent` (a latent is at most this long).
+pub const MAX_LATENT_LEN: usize = 1 << 16;
+/// Most objects or visual names a scene lists.
+pub const MAX_NAMES: usize = 64;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PolicyParams {
+    /// vla | vtla_real | vtla_pred.
+    pub mode: Mode,
+    /// The task string (grammar in task.rs); it also picks the scene controller.
+    pub task: String,
+    /// Control ticks per second: a GripperStatus closer than 0.9 / rate to the last tick is
+    /// not a tick.
+    pub control_rate_hz: f64,
+    /// Freshness budgets per input \[s].
+    pub budget_gripper_s: f64,
+    pub budget_contact_s: f64,
+    pub budget_latent_s: f64,
+    pub budget_comparison_s: f64,
+    pub budget_visual_s: f64,
+    /// Bounds of every command (the gripper's limits and the scene's).
+    pub min_opening_m: f64,
+    pub max_opening_m: f64,
+    pub max_speed_m_s: f64,
+    pub max_force_n: f64,
+    pub max_step_m: f64,
+    pub max_force_step_n: f64,
+    pub min_z_m: f64,
+    pub max_z_m: f64,
+    pub max_lift_m: f64,
+    pub max_lift_step_m: f64,
+    /// hold | open.
+    pub safe_action: SafeAction,
+    /// Force limit of the hold safe action \[N].
+    pub hold_force_n: f64,
+    /// Objects the arm may go to (besides "home"); for a pick task the first two are touched as
+    /// A and B, in this order.
+    pub objects: Vec<String>,
+    /// Values in `observation.tactile_latent` (0 for vla).
+    pub latent_len: usize,
+    /// Names read from the VisualObservation into `observation.visual`.
+    pub visual_names: Vec<String>,
+    /// Time the arm gets to reach a target \[s].
+    pub approach_s: f64,
+    /// Fingertip height above the table when touching / grasping a fabric \[m].
+    pub touch_z_m: f64,
+    pub grasp_z_m: f64,
+    /// Closing speed while looking for contact \[m/s] and its force limit \[N].
+    pub touch_speed_m_s: f64,
+    pub touch_force_n: f64,
+    /// How long a touch is held once in contact \[s].
+    pub touch_hold_s: f64,
+    /// Longest wait for contact, for the comparison, for a grasp to close \[s].
+    pub contact_timeout_s: f64,
+    pub compare_timeout_s: f64,
+    /// Grip force of the fabric grasp \[N].
+    pub grasp_force_n: f64,
+    /// Lift height and speed after a grasp \[m], \[m/s].
+    pub lift_m: f64,
+    pub lift_speed_m_s: f64,
+    /// Cup: loss of diameter to reach \[m] (the task may name another) and its tolerance \[m].
+    pub target_deformation_m: f64,
+    pub deformation_tolerance_m: f64,
+    /// Cup: fingertip height at the grasp \[m], squeeze speed \[m/s], hold before lifting \[s].
+    pub cup_z_m: f64,
+    pub squeeze_speed_m_s: f64,
+    pub hold_s: f64,
+    /// Cup, vtla_real: opening added back after the probe touch to end its contact \[m].
+    pub probe_release_m: f64,
+    /// Cup, vtla_real: gel indentation per mm^2 of contact area growth \[m/mm^2], subtracted
+    /// from the finger travel to estimate the cup's own compression.
+    pub gel_indent_m_per_mm2: f64,
+    /// Latent -> stiffness readout \[N/m]: bias + weights . (latent averaged over its leading
+    /// dimension), clamped to [min, max]. Empty weights: the bias (a prior) alone.
+    pub stiffness_bias_n_per_m: f64,
+    pub stiffness_weights: Vec<f64>,
+    pub min_stiffness_n_per_m: f64,
+    pub max_stiffness_n_per_m: f64,
+    /// Force cap of the squeeze = stiffness x deformation x this margin.
+    pub force_margin: f64,
+    /// Fabric, vtla_pred: press depth the predicted stiffness turns into a press force \[m].
+    pub press_depth_m: f64,
+}
+
+impl Default for PolicyParams {
+    fn default() -> Self {
+        Self {
+            mode: Mode::VtlaReal,
+            task: "pick the smoother fabric".into(),
+            control_rate_hz: 30.0,
+            budget_gripper_s: 0.2,
+            budget_contact_s: 0.25,
+            budget_latent_s: 60.0,
+            budget_comparison_s: 600.0,
+            budget_visual_s: 0.5,
+            min_opening_m: 0.0,
+            max_opening_m: 0.085,
+            max_speed_m_s: 0.15,
+            max_force_n: 40.0,
+            max_step_m: 0.005,
+            max_force_step_n: 2.0,
+            min_z_m: 0.0,
+            max_z_m: 0.3,
+            max_lift_m: 0.2,
+            max_lift_step_m: 0.01,
+            safe_action: SafeAction::Hold,
+            hold_force_n: 5.0,
+            objects: vec!["fabric_a".into(), "fabric_b".into()],
+            latent_len: 0,
+            visual_names: Vec::new(),
+            approach_s: 0.5,
+            touch_z_m: 0.002,
+            grasp_z_m: 0.004,
+            touch_speed_m_s: 0.01,
+            touch_force_n: 3.0,
+            touch_hold_s: 1.0,
+            contact_timeout_s: 8.0,
+            compare_timeout_s: 10.0,
+            grasp_force_n: 15.0,
+            lift_m: 0.05,
+            lift_speed_m_s: 0.05,
+            target_deformation_m: 0.01,
+            deformation_tolerance_m: 0.002,
+            cup_z_m: 0.04,
+            squeeze_speed_m_s: 0.005,
+            hold_s: 1.0,
+            probe_release_m: 0.002,
+            gel_indent_m_per_mm2: 2e-5,
+            stiffness_bias_n_per_m: 300.0,
+            stiffness_weights: Vec::new(),
+            min_stiffness_n_per_m: 20.0,
+            max_stiffness_n_per_m: 5000.0,
+            force_margin: 1.5,
+            press_depth_m: 0.002,
+        }
+    }
+}
+
+impl PolicyParams {
+    /// The parsed task, the bounds and every range rule; all problems in one line.
+    pub fn check(&self) -> Result<Task, String> {
+        let mut bad = Vec::new();
+        let task = Task::parse(&self.task).map_err(|e| e.to_string());
+        if let Err(e) = &task {
+            bad.push(e.clone());
+        }
+        if let Err(e) = self.bounds().check() {
+            bad.push(e);
+        }
+        if !(self.control_rate_hz.is_finite() && (0.1..=1000.0).contains(&self.control_rate_hz)) {
+            bad.push(format!(
+                "control_rate_hz = {} is outside [0.1, 1000]",
+                self.control_rate_hz
+            ));
+        }
+        let positive = [
+            ("budget_gripper_s", self.budget_gripper_s),
+            ("budget_contact_s", self.budget_contact_s),
+            ("budget_latent_s", self.budget_latent_s),
+            ("budget_comparison_s", self.budget_comparison_s),
+            ("budget_visual_s", self.budget_visual_s),
+            ("contact_timeout_s", self.contact_timeout_s),
+            ("compare_timeout_s", self.compare_timeout_s),
+            ("lift_speed_m_s", self.lift_speed_m_s),
+            ("touch_speed_m_s", self.touch_speed_m_s),
+            ("squeeze_speed_m_s", self.squeeze_speed_m_s),
+            ("target_deformation_m", self.target_deformation_m),
+            ("deformation_tolerance_m", self.deformation_tolerance_m),
+            ("min_stiffness_n_per_m", self.min_stiffness_n_per_m),
+            ("force_margin", self.force_margin),
+        ];
+        for (k, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                bad.push(format!("{k} = {v} must be finite and > 0"));
+            }
+        }
+        let non_negative = [
+            ("hold_force_n", self.hold_force_n),
+            ("approach_s", self.approach_s),
+            ("touch_z_m", self.touch_z_m),
+            ("grasp_z_m", self.grasp_z_m),
+            ("touch_force_n", self.touch_force_n),
+            ("touch_hold_s", self.touch_hold_s),
+            ("grasp_force_n", self.grasp_force_n),
+            ("lift_m", self.lift_m),
+            ("cup_z_m", self.cup_z_m),
+            ("hold_s", self.hold_s),
+            ("probe_release_m", self.probe_release_m),
+            ("gel_indent_m_per_mm2", self.gel_indent_m_per_mm2),
+            ("stiffness_bias_n_per_m", self.stiffness_bias_n_per_m),
+            ("press_depth_m", self.press_depth_m),
+        ];
+        for (k, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                bad.push(format!("{k} = {v} must be finite and >= 0"));
+            }
+        }
+        if !(self.max_stiffness_n_per_m.is_finite()
+            && self.max_stiffness_n_per_m >= self.min_stiffness_n_per_m)
+        {
+            bad.push("max_stiffness_n_per_m must be finite and >= min_stiffness_n_per_m".into());
+        }
+        if self.stiffness_weights.iter().any(|w| !w.is_finite())
+            || self.stiffness_weights.len() > MAX_LATENT_LEN
+        {
+            bad.push(format!(
+                "stiffness_weights must be finite, at most {MAX_LATENT_LEN}"
+            ));
+        }
+        if self.latent_len > MAX_LATENT_LEN {
+            bad.push(format!(
+                "latent_len {} exceeds {MAX_LATENT_LEN}",
+                self.latent_len
+            ));
+        }
+        let uses_latent = self
+            .mode
+            .inputs(matches!(task, Ok(Task::Pick { .. })))
+            .iter()
+            .any(|i| i.starts_with("latent"));
+        if uses_latent && self.latent_len == 0 {
+            bad.push(format!(
+                "mode {} reads a tactile latent: set latent_len to its number of values",
+                self.mode.as_str()
+            ));
+        }
+        for (k, list) in [
+            ("objects", &self.objects),
+            ("visual_names", &self.visual_names),
+        ] {
+            if list.len() > MAX_NAMES {
+                bad.push(format!(
+                    "{k} has {} names (at most {MAX_NAMES})",
+                    list.len()
+                ));
+            }
+        }
+        match &task {
+            Ok(Task::Pick { property, .. }) => {
+                if self.objects.len() < 2 {
+                    bad.push("a pick task needs two objects (A and B)".into());
+                } else if self.mode == Mode::Vla {
+                    for o in &self.objects[..2] {
+                        let n = format!("{o}_{property}");
+                        if !self.visual_names.contains(&n) {
+                            bad.push(format!(
+                                "mode vla picks from the camera: visual_names must list {n}"
+                            ));
+                        }
+                    }
+                }
+            }
+            Ok(Task::Squeeze { .. }) => {
+                if !self.objects.iter().any(|o| o == "cup") {
+                    bad.push("a squeeze task needs the object 'cup' in objects".into());
+                }
+                if self.mode == Mode::Vla && !self.visual_names.iter().any(|n| n == "cup_width_m") {
+                    bad.push(
+                        "mode vla sizes the cup from the camera: visual_names must list cup_width_m"
+                            .into(),
+                    );
+                }
+            }
+            Err(_) => {}
+        }
+        match task {
+            Ok(t) if bad.is_empty() => Ok(t),
+            _ => Err(bad.join("; ")),
+        }
+    }
+
+    pub fn bounds(&self) -> Bounds {
+        Bounds {
+            min_opening_m: self.min_opening_m,
+            max_opening_m: self.max_opening_m,
+            max_speed_m_s: self.max_speed_m_s,
+            max_force_n: self.max_force_n,
+            max_step_m: self.max_step_m,
+            max_force_step_n: self.max_force_step_n,
+            min_z_m: self.min_z_m,
+            max_z_m: self.max_z_m,
+            max_lift_m: self.max_lift_m,
+            max_lift_step_m: self.max_lift_step_m,
+            objects: self.objects.clone(),
+        }
+    }
+
+    pub fn layout(&self) -> Layout {
+        Layout {
+            latent_len: self.latent_len,
+            visual_names: self.visual_names.clone(),
+        }
+    }
+
+    /// The budget of an input by name (latent_real and latent_pred share budget_latent_s).
+    pub fn budget(&self, input: &str) -> Option<f64> {
+        Some(match input {
+            "gripper" => self.budget_gripper_s,
+            "contact" => self.budget_contact_s,
+            "latent_real" | "latent_pred" => self.budget_latent_s,
+            "comparison" => self.budget_comparison_s,
+            "visual" => self.budget_visual_s,
+            _ => return None,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    fn parse(yaml: &str) -> Result<PolicyParams, String> {
+        serde_yaml::from_str(yaml).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn defaults_check_and_errors_are_one_line_with_every_problem() {
+        assert!(PolicyParams::default().check().is_ok());
+        let p = parse("{task: pick the nicer fabric, max_force_n: -1, mode: vtla_pred}").unwrap();
+        let e = p.check().unwrap_err();
+        assert!(!e.contains('\n'));
+        assert!(
+            e.starts_with("task 'pick the nicer fabric' is not understood"),
+            "{e}"
+        );
+        assert!(
+            e.contains("max_force_n = -1 must be finite and >= 0"),
+            "{e}"
+        );
+        let e = parse("{mode: vtla_pred}").unwrap().check().unwrap_err();
+        assert_eq!(
+            e,
+            "mode vtla_pred reads a tactile latent: set latent_len to its number of values"
+        );
+        let e = parse("{mode: vla}").unwrap().check().unwrap_err();
+        assert_eq!(
+            e,
+            "mode vla picks from the camera: visual_names must list fabric_a_roughness; mode vla picks from the camera: visual_names must list fabric_b_roughness"
+        );
+        let e = parse("{task: squeeze the cup, latent_len: 4}")
+            .unwrap()
+            .check()
+            .unwrap_err();
+        assert_eq!(e, "a squeeze task needs the object 'cup' in objects");
+        assert!(
+            parse("{no_such_key: 1}")
+                .unwrap_err()
+                .contains("no_such_key")
+        );
+        assert!(parse("{mode: vlx}").unwrap_err().contains("vlx"));
+    }
+}

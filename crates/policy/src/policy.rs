@@ -1,0 +1,69 @@
+//! The one place a policy plugs in: [`Policy`] maps an observation to an action chunk. The scene
+//! controllers implement it; so does the ONNX policy (src/onnx). Whatever it returns goes through
+//! the safety layer before it becomes a command.
+
+use crate::observation::Observation;
+use thiserror::Error;
+use unitac_core::msg::GripperMode;
+
+/// What the gripper should do (SI units), before the safety layer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GripperAction {
+    pub mode: GripperMode,
+    /// Finger opening \[m]: the target (position mode) or the opening to close toward (force).
+    pub position_m: f64,
+    pub speed_m_s: f64,
+    /// Force target (force mode) or limit (position mode) \[N].
+    pub force_n: f64,
+}
+
+/// Where the arm should bring the fingers (SI units), before the safety layer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArmAction {
+    /// "home" or an object name of the scene.
+    pub target: String,
+    pub z_m: f64,
+    pub lift_m: f64,
+}
+
+/// One control tick's action.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Action {
+    pub gripper: GripperAction,
+    pub arm: ArmAction,
+    /// Why (goes into the commands' reason and PolicyStatus.message).
+    pub note: String,
+}
+
+impl Action {
+    /// The numbers of the action with their names (for the finiteness check and for policies
+    /// that output a flat vector, e.g. `action.gripper.position_m`).
+    pub fn values(&self) -> [(&'static str, f64); 5] {
+        [
+            ("gripper.position_m", self.gripper.position_m),
+            ("gripper.speed_m_s", self.gripper.speed_m_s),
+            ("gripper.force_n", self.gripper.force_n),
+            ("arm.z_m", self.arm.z_m),
+            ("arm.lift_m", self.arm.lift_m),
+        ]
+    }
+}
+
+/// A policy's failure at one tick: the safety layer answers it with the safe action.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum PolicyError {
+    #[error("timed out: {0}")]
+    Timeout(String),
+    #[error("{0}")]
+    Failed(String),
+}
+
+/// Observation -> action chunk (the actions of the next ticks, first first; at least one).
+pub trait Policy: Send + std::fmt::Debug {
+    /// The current phase (PolicyStatus.phase).
+    fn phase(&self) -> &str;
+    /// The inputs that must be fresh and valid now; the watchdog answers any other state of one
+    /// of them with the safe action before the policy is asked.
+    fn required(&self) -> Vec<&'static str>;
+    fn act(&mut self, obs: &Observation) -> Result<Vec<Action>, PolicyError>;
+}

@@ -1,0 +1,337 @@
+//! The safety layer between any policy and any gripper, independent of the policy.
+//!
+//! Every tick it gets what the policy proposed (an action, or the reason there is none: a stale
+//! or invalid input, a policy error) and returns the command that is sent:
+//! - a proposed action with a non-finite number is refused (the reason names the field);
+//! - an arm target that is not "home" or one of the scene's objects is refused;
+//! - otherwise every number is clamped to its bounds, then the opening, force and lift may move
+//!   at most one step per tick from the previous command (the rate limit);
+//! - a refusal gives the scene's safe action within the same tick: hold (position mode at the
+//!   measured opening, the hold force, arm where it was) or open (the widest opening).
+//!
+//! The safe action itself is bounded but not rate limited (holding is stopping where the fingers
+//! are); the next proposed action is rate limited from it. No NaN or infinity ever leaves here.
+
+use crate::policy::{Action, ArmAction, GripperAction};
+use serde::{Deserialize, Serialize};
+use unitac_core::msg::GripperMode;
+
+/// What the scene does when the policy cannot be trusted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SafeAction {
+    /// Keep the current opening with the hold force; the arm stays.
+    #[default]
+    Hold,
+    /// Open to the widest opening; the arm stays.
+    Open,
+}
+
+/// The limits (from the gripper's limits and the scene).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Bounds {
+    pub min_opening_m: f64,
+    pub max_opening_m: f64,
+    pub max_speed_m_s: f64,
+    pub max_force_n: f64,
+    /// Largest change of the commanded opening per tick \[m].
+    pub max_step_m: f64,
+    /// Largest change of the commanded force per tick \[N].
+    pub max_force_step_n: f64,
+    pub min_z_m: f64,
+    pub max_z_m: f64,
+    pub max_lift_m: f64,
+    /// Largest change of the commanded lift per tick \[m].
+    pub max_lift_step_m: f64,
+    /// Arm targets besides "home".
+    pub objects: Vec<String>,
+}
+
+impl Bounds {
+    /// One line per broken rule, all at once.
+    pub fn check(&self) -> Result<(), String> {
+        let mut bad = Vec::new();
+        let all = [
+            ("min_opening_m", self.min_opening_m),
+            ("max_opening_m", self.max_opening_m),
+            ("max_speed_m_s", self.max_speed_m_s),
+            ("max_force_n", self.max_force_n),
+            ("max_step_m", self.max_step_m),
+            ("max_force_step_n", self.max_force_step_n),
+            ("min_z_m", self.min_z_m),
+            ("max_z_m", self.max_z_m),
+            ("max_lift_m", self.max_lift_m),
+            ("max_lift_step_m", self.max_lift_step_m),
+        ];
+        for (k, v) in all {
+            if !(v.is_finite() && v >= 0.0) {
+                bad.push(format!("{k} = {v} must be finite and >= 0"));
+            }
+        }
+        if self.min_opening_m >= self.max_opening_m {
+            bad.push("min_opening_m must be below max_opening_m".into());
+        }
+        if self.min_z_m > self.max_z_m {
+            bad.push("min_z_m must not exceed max_z_m".into());
+        }
+        for (k, v) in [
+            ("max_step_m", self.max_step_m),
+            ("max_force_step_n", self.max_force_step_n),
+            ("max_speed_m_s", self.max_speed_m_s),
+        ] {
+            if v == 0.0 {
+                bad.push(format!("{k} must be > 0"));
+            }
+        }
+        if bad.is_empty() {
+            Ok(())
+        } else {
+            Err(bad.join("; "))
+        }
+    }
+}
+
+/// What leaves the safety layer at one tick.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Decision {
+    pub gripper: GripperAction,
+    pub arm: ArmAction,
+    /// false: the safe action, for `reason`.
+    pub ok: bool,
+    pub reason: String,
+}
+
+/// Bounds, rate limits and the safe action, with the previous command it limits from.
+#[derive(Debug, Clone)]
+pub struct SafetyLayer {
+    bounds: Bounds,
+    safe: SafeAction,
+    hold_force_n: f64,
+    last: Option<(GripperAction, ArmAction)>,
+}
+
+fn step(from: f64, to: f64, max: f64) -> f64 {
+    to.clamp(from - max, from + max)
+}
+
+impl SafetyLayer {
+    pub fn new(bounds: Bounds, safe: SafeAction, hold_force_n: f64) -> Self {
+        let hold_force_n = if hold_force_n.is_finite() {
+            hold_force_n.clamp(0.0, bounds.max_force_n)
+        } else {
+            0.0
+        };
+        Self {
+            bounds,
+            safe,
+            hold_force_n,
+            last: None,
+        }
+    }
+
+    pub fn bounds(&self) -> &Bounds {
+        &self.bounds
+    }
+
+    /// The command for this tick: `proposed` through the bounds and rate limits, or the safe
+    /// action when it is refused. `opening_m`: the measured opening (None or non-finite: unknown).
+    pub fn decide(&mut self, proposed: Result<Action, String>, opening_m: Option<f64>) -> Decision {
+        let opening = opening_m.filter(|o| o.is_finite());
+        let checked = proposed.and_then(|a| self.refuse(&a).map_or(Ok(a), Err));
+        let d = match checked {
+            Ok(a) => Decision {
+                gripper: self.limit_gripper(&a.gripper, opening),
+                arm: self.limit_arm(&a.arm),
+                ok: true,
+                reason: a.note,
+            },
+            Err(reason) => self.safe_action(opening, reason),
+        };
+        self.last = Some((d.gripper.clone(), d.arm.clone()));
+        d
+    }
+
+    /// Why `a` cannot be executed at all (None: it can, after clamping).
+    fn refuse(&self, a: &Action) -> Option<String> {
+        if let Some((k, v)) = a.values().into_iter().find(|(_, v)| !v.is_finite()) {
+            return Some(format!("policy output not finite: {k} = {v}"));
+        }
+        let t = &a.arm.target;
+        if t != "home" && !self.bounds.objects.iter().any(|o| o == t) {
+            return Some(format!(
+                "policy chose arm target '{}', not home or one of the scene's objects ({})",
+                t.chars().take(64).collect::<String>(),
+                self.bounds.objects.join(", ")
+            ));
+        }
+        None
+    }
+
+    fn limit_gripper(&self, g: &GripperAction, opening: Option<f64>) -> GripperAction {
+        let b = &self.bounds;
+        let pos = g.position_m.clamp(b.min_opening_m, b.max_opening_m);
+        let force = g.force_n.clamp(0.0, b.max_force_n);
+        let speed = g.speed_m_s.clamp(0.0, b.max_speed_m_s);
+        let (last_pos, last_force) = match &self.last {
+            Some((l, _)) => (Some(l.position_m), Some(l.force_n)),
+            None => (opening, None),
+        };
+        GripperAction {
+            mode: g.mode,
+            position_m: last_pos.map_or(pos, |p| step(p, pos, b.max_step_m)),
+            speed_m_s: speed,
+            force_n: last_force.map_or(force.min(b.max_force_step_n), |f| {
+                step(f, force, b.max_force_step_n)
+            }),
+        }
+    }
+
+    fn limit_arm(&self, a: &ArmAction) -> ArmAction {
+        let b = &self.bounds;
+        let lift = a.lift_m.clamp(0.0, b.max_lift_m);
+        let last_lift = self.last.as_ref().map_or(0.0, |(_, l)| l.lift_m);
+        ArmAction {
+            target: a.target.clone(),
+            z_m: a.z_m.clamp(b.min_z_m, b.max_z_m),
+            lift_m: step(last_lift, lift, b.max_lift_step_m),
+        }
+    }
+
+    /// The scene's safe action (bounded, finite).
+    pub fn safe_action(&self, opening: Option<f64>, reason: String) -> Decision {
+        let b = &self.bounds;
+        let arm = self
+            .last
+            .as_ref()
+            .map(|(_, a)| a.clone())
+            .unwrap_or_else(|| ArmAction {
+                target: "home".into(),
+                z_m: b.max_z_m,
+                lift_m: 0.0,
+            });
+        let last_pos = self.last.as_ref().map(|(g, _)| g.position_m);
+        let gripper = match (self.safe, opening.or(last_pos)) {
+            (SafeAction::Hold, Some(o)) => GripperAction {
+                mode: GripperMode::Position,
+                position_m: o.clamp(b.min_opening_m, b.max_opening_m),
+                speed_m_s: b.max_speed_m_s,
+                force_n: self.hold_force_n,
+            },
+            // Nothing known about the fingers: stop them where they are.
+            (SafeAction::Hold, None) => GripperAction {
+                mode: GripperMode::Stop,
+                position_m: b.max_opening_m,
+                speed_m_s: 0.0,
+                force_n: self.hold_force_n,
+            },
+            (SafeAction::Open, _) => GripperAction {
+                mode: GripperMode::Position,
+                position_m: b.max_opening_m,
+                speed_m_s: b.max_speed_m_s,
+                force_n: self.hold_force_n,
+            },
+        };
+        Decision {
+            gripper,
+            arm,
+            ok: false,
+            reason,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    pub(crate) fn bounds() -> Bounds {
+        Bounds {
+            min_opening_m: 0.0,
+            max_opening_m: 0.085,
+            max_speed_m_s: 0.1,
+            max_force_n: 20.0,
+            max_step_m: 0.002,
+            max_force_step_n: 1.0,
+            min_z_m: 0.0,
+            max_z_m: 0.3,
+            max_lift_m: 0.1,
+            max_lift_step_m: 0.005,
+            objects: vec!["cup".into()],
+        }
+    }
+
+    fn act(pos: f64, force: f64, target: &str) -> Action {
+        Action {
+            gripper: GripperAction {
+                mode: GripperMode::Position,
+                position_m: pos,
+                speed_m_s: 1.0,
+                force_n: force,
+            },
+            arm: ArmAction {
+                target: target.into(),
+                z_m: 0.01,
+                lift_m: 1.0,
+            },
+            note: "go".into(),
+        }
+    }
+
+    #[test]
+    fn clamps_then_rate_limits_from_the_last_command() {
+        let mut s = SafetyLayer::new(bounds(), SafeAction::Hold, 5.0);
+        let d = s.decide(Ok(act(-1.0, 100.0, "cup")), Some(0.05));
+        assert!(d.ok);
+        // From the measured opening, one step toward the clamped target.
+        assert!((d.gripper.position_m - 0.048).abs() < 1e-12);
+        assert_eq!(d.gripper.force_n, 1.0);
+        assert_eq!(d.gripper.speed_m_s, 0.1);
+        assert_eq!(d.arm.lift_m, 0.005);
+        let d = s.decide(Ok(act(-1.0, 100.0, "cup")), Some(0.05));
+        assert!((d.gripper.position_m - 0.046).abs() < 1e-12);
+        assert_eq!(d.gripper.force_n, 2.0);
+        assert_eq!(d.arm.lift_m, 0.01);
+    }
+
+    #[test]
+    fn refusals_give_the_safe_action_with_the_reason() {
+        let mut s = SafetyLayer::new(bounds(), SafeAction::Hold, 5.0);
+        let d = s.decide(Ok(act(f64::NAN, 1.0, "cup")), Some(0.04));
+        assert!(!d.ok);
+        assert_eq!(
+            d.reason,
+            "policy output not finite: gripper.position_m = NaN"
+        );
+        assert_eq!(d.gripper.mode, GripperMode::Position);
+        assert_eq!(d.gripper.position_m, 0.04);
+        assert_eq!(d.gripper.force_n, 5.0);
+        let d = s.decide(Ok(act(0.03, 1.0, "table")), Some(0.04));
+        assert!(d.reason.contains("'table'"), "{}", d.reason);
+        let d = s.decide(Err("contact: stale".into()), None);
+        assert_eq!(d.reason, "contact: stale");
+        // Unknown opening: the last command's.
+        assert_eq!(d.gripper.position_m, 0.04);
+        let mut open = SafetyLayer::new(bounds(), SafeAction::Open, 5.0);
+        let d = open.decide(Err("x".into()), None);
+        assert_eq!(d.gripper.position_m, 0.085);
+        assert_eq!(d.arm.target, "home");
+        let mut fresh = SafetyLayer::new(bounds(), SafeAction::Hold, 500.0);
+        let d = fresh.decide(Err("x".into()), None);
+        assert_eq!(d.gripper.mode, GripperMode::Stop);
+        assert_eq!(d.gripper.force_n, 20.0);
+    }
+
+    #[test]
+    fn bounds_check_lists_every_problem() {
+        let mut b = bounds();
+        b.max_force_n = f64::NAN;
+        b.min_opening_m = 0.1;
+        b.max_step_m = 0.0;
+        let e = b.check().unwrap_err();
+        assert_eq!(
+            e,
+            "max_force_n = NaN must be finite and >= 0; min_opening_m must be below max_opening_m; max_step_m must be > 0"
+        );
+        assert_eq!(bounds().check(), Ok(()));
+    }
+}

@@ -1,0 +1,176 @@
+//! The policy stage (`kind: policy`): keeps the latest of each input, and on each control tick
+//! (the arrival of a GripperStatus) assembles the observation, runs the watchdog, asks the
+//! policy, and sends its action through the safety layer: one GripperCommand, one ArmCommand and
+//! one PolicyStatus per tick.
+
+use crate::controller::{CupController, FabricController};
+use crate::observation::Assembler;
+use crate::params::PolicyParams;
+use crate::policy::{Action, Policy};
+use crate::safety::SafetyLayer;
+use crate::task::Task;
+use std::collections::VecDeque;
+use thiserror::Error;
+use unitac_core::msg::{ArmCommand, GripperCommand, GripperStatus, Header, Msg, PolicyStatus};
+use unitac_core::{Clock, Stage, StageError, Stamp};
+
+#[derive(Debug, Clone, PartialEq, Error)]
+#[error("{0}")]
+pub struct PolicyLoadError(pub String);
+
+/// The params' checks plus the scene's stage list against the mode: `kinds` are the stage kinds
+/// before the policy stage, `needs` the registry's (kind -> the kind it consumes).
+pub fn check_scene(
+    p: &PolicyParams,
+    kinds: &[&str],
+    needs: &[(&str, &str)],
+) -> Result<(), PolicyLoadError> {
+    let task = p.check().map_err(PolicyLoadError)?;
+    crate::mode::check_scene_stages(p.mode, task.is_pick(), kinds, needs).map_err(PolicyLoadError)
+}
+
+pub struct PolicyStage {
+    scene: String,
+    params: PolicyParams,
+    assembler: Assembler,
+    policy: Box<dyn Policy>,
+    safety: SafetyLayer,
+    queue: VecDeque<Action>,
+    /// When the next control tick is due \[ns].
+    next_tick: Option<i64>,
+}
+
+impl std::fmt::Debug for PolicyStage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PolicyStage")
+            .field("scene", &self.scene)
+            .field("mode", &self.params.mode)
+            .field("phase", &self.policy.phase())
+            .finish_non_exhaustive()
+    }
+}
+
+impl PolicyStage {
+    /// The scene controller the task names.
+    pub fn new(scene: &str, params: PolicyParams) -> Result<Self, PolicyLoadError> {
+        let task = params.check().map_err(PolicyLoadError)?;
+        let policy: Box<dyn Policy> = match task {
+            Task::Pick { property, more, .. } => {
+                Box::new(FabricController::new(&params, property, more).map_err(PolicyLoadError)?)
+            }
+            Task::Squeeze { by_m } => Box::new(CupController::new(&params, by_m)),
+        };
+        Self::with_policy(scene, params, policy)
+    }
+
+    /// Any policy (e.g. an ONNX policy) behind the same observation, watchdog and safety layer.
+    pub fn with_policy(
+        scene: &str,
+        params: PolicyParams,
+        policy: Box<dyn Policy>,
+    ) -> Result<Self, PolicyLoadError> {
+        let task = params.check().map_err(PolicyLoadError)?;
+        let inputs = params.mode.inputs(task.is_pick());
+        let assembler = Assembler::new(&inputs, |n| params.budget(n), params.layout())
+            .map_err(PolicyLoadError)?;
+        Ok(Self {
+            scene: scene.to_string(),
+            safety: SafetyLayer::new(params.bounds(), params.safe_action, params.hold_force_n),
+            assembler,
+            policy,
+            queue: VecDeque::new(),
+            next_tick: None,
+            params,
+        })
+    }
+
+    /// One control tick at `now`, triggered by `g`.
+    fn tick(&mut self, now: Stamp, g: &GripperStatus) -> Vec<Msg> {
+        let obs = self.assembler.assemble(now, &self.params.task);
+        // Watchdog: every input the policy needs now must be fresh and valid.
+        let problems: Vec<String> = self
+            .policy
+            .required()
+            .iter()
+            .filter_map(|n| obs.reading(n).and_then(|r| r.problem()))
+            .collect();
+        let proposed = if problems.is_empty() {
+            let planned = if self.queue.is_empty() {
+                match self.policy.act(&obs) {
+                    Ok(chunk) => {
+                        self.queue.extend(chunk);
+                        Ok(())
+                    }
+                    Err(e) => Err(format!("policy: {e}")),
+                }
+            } else {
+                Ok(())
+            };
+            planned.and_then(|()| {
+                self.queue
+                    .pop_front()
+                    .ok_or_else(|| "policy returned no action".to_string())
+            })
+        } else {
+            // A chunk planned on inputs that went bad is dropped.
+            self.queue.clear();
+            Err(problems.join("; "))
+        };
+        let d = self.safety.decide(proposed, Some(g.opening_m));
+        let header = Header::new(now, g.header.frame_id.clone());
+        vec![
+            Msg::Command(GripperCommand {
+                header: header.clone(),
+                mode: d.gripper.mode,
+                position_m: d.gripper.position_m,
+                speed_m_s: d.gripper.speed_m_s,
+                force_n: d.gripper.force_n,
+                reason: d.reason.clone(),
+            }),
+            Msg::Arm(ArmCommand {
+                header: header.clone(),
+                target: d.arm.target,
+                z_m: d.arm.z_m,
+                lift_m: d.arm.lift_m,
+                reason: d.reason.clone(),
+            }),
+            Msg::Status(PolicyStatus {
+                header,
+                scene: self.scene.clone(),
+                mode: self.params.mode.as_str().into(),
+                phase: self.policy.phase().into(),
+                safety_ok: d.ok,
+                message: d.reason,
+            }),
+        ]
+    }
+}
+
+impl Stage for PolicyStage {
+    fn name(&self) -> &str {
+        "policy"
+    }
+
+    fn process(&mut self, input: &Msg, clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
+        self.assembler.offer(input);
+        let Msg::Gripper(g) = input else {
+            return Ok(Vec::new());
+        };
+        let now = clock.now();
+        // Ticks on a fixed schedule at the control rate (no drift); a status up to 5 % of a
+        // period early still ticks, so jitter does not skip a period.
+        let period = (1e9 / self.params.control_rate_hz).round() as i64;
+        if let Some(due) = self.next_tick {
+            if now.0 < due - period / 20 {
+                return Ok(Vec::new());
+            }
+        }
+        let due = self.next_tick.unwrap_or(now.0);
+        self.next_tick = Some(if now.0 - due < period {
+            due + period
+        } else {
+            now.0 + period
+        });
+        Ok(self.tick(now, g))
+    }
+}

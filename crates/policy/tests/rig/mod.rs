@@ -1,0 +1,147 @@
+//! Scripted inputs for the policy tests: a chain with the policy stage, fed GripperStatus ticks
+//! at 30 Hz and whatever the script sends between them, through `unitac_core::chain`.
+#![allow(dead_code, clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use unitac_core::msg::{
+    ArmCommand, ContactState, GripperCommand, GripperMode, GripperStatus, Header, LatentSource,
+    PolicyStatus, TactileLatent, samples,
+};
+use unitac_core::{Chain, Msg, Stamp};
+use unitac_policy::{PolicyParams, PolicyStage};
+
+pub const TICK_NS: i64 = 33_333_333;
+
+/// What one tick produced.
+#[derive(Debug, Clone)]
+pub struct Tick {
+    pub stamp: Stamp,
+    pub cmd: GripperCommand,
+    pub arm: ArmCommand,
+    pub status: PolicyStatus,
+}
+
+pub fn params(yaml: &str) -> PolicyParams {
+    serde_yaml::from_str(yaml).unwrap()
+}
+
+pub struct Rig {
+    pub chain: Chain,
+    pub now: i64,
+    pub opening: f64,
+    pub force_n: f64,
+    pub object_detected: bool,
+    pub motion: String,
+    pub ticks: Vec<Tick>,
+}
+
+impl Rig {
+    pub fn new(p: PolicyParams) -> Self {
+        let stage = PolicyStage::new("test_scene", p).unwrap();
+        Self {
+            chain: Chain::new(vec![Box::new(stage)]),
+            now: 1_000_000_000,
+            opening: 0.085,
+            force_n: 0.0,
+            object_detected: false,
+            motion: "stopped".into(),
+            ticks: Vec::new(),
+        }
+    }
+
+    pub fn header(&self) -> Header {
+        Header::new(Stamp(self.now), "gripper")
+    }
+
+    /// Send a non-tick input now.
+    pub fn send(&mut self, m: Msg) {
+        let out = self.chain.run(m);
+        assert!(out.errors.is_empty(), "{:?}", out.errors);
+        assert!(out.produced.is_empty(), "only GripperStatus ticks");
+    }
+
+    pub fn contact(&self, in_contact: bool, area_mm2: f32) -> Msg {
+        Msg::Contact(ContactState {
+            header: self.header(),
+            in_contact,
+            area_mm2,
+            ..samples::contact_state()
+        })
+    }
+
+    pub fn latent(&self, source: LatentSource, data: Vec<f32>) -> Msg {
+        Msg::Latent(TactileLatent {
+            header: self.header(),
+            source,
+            shape: vec![1, data.len() as u32],
+            data,
+            valid: true,
+            guard_report: String::new(),
+            ..samples::tactile_latent()
+        })
+    }
+
+    /// One control tick: the GripperStatus now; returns what the stage sent.
+    pub fn tick(&mut self) -> Tick {
+        let g = GripperStatus {
+            header: self.header(),
+            opening_m: self.opening,
+            target_m: f64::NAN,
+            force_n: self.force_n,
+            current_a: f64::NAN,
+            object_detected: self.object_detected,
+            activation: "active".into(),
+            motion: self.motion.clone(),
+            fault: String::new(),
+        };
+        let out = self.chain.run(Msg::Gripper(g));
+        assert!(out.errors.is_empty(), "{:?}", out.errors);
+        let [Msg::Command(cmd), Msg::Arm(arm), Msg::Status(status)] = out.produced.as_slice()
+        else {
+            panic!("a tick gives command, arm, status: {:?}", out.produced);
+        };
+        let t = Tick {
+            stamp: Stamp(self.now),
+            cmd: cmd.clone(),
+            arm: arm.clone(),
+            status: status.clone(),
+        };
+        for v in [
+            cmd.position_m,
+            cmd.speed_m_s,
+            cmd.force_n,
+            arm.z_m,
+            arm.lift_m,
+        ] {
+            assert!(v.is_finite(), "{t:?}");
+        }
+        self.ticks.push(t.clone());
+        self.now += TICK_NS;
+        t
+    }
+
+    /// Move the fingers one tick toward the last command at its speed (a plain gripper).
+    pub fn follow(&mut self, cmd: &GripperCommand, stop_at: Option<f64>) {
+        if cmd.mode == GripperMode::Stop {
+            return;
+        }
+        let step = cmd.speed_m_s * TICK_NS as f64 * 1e-9;
+        let mut target = cmd.position_m;
+        if let Some(s) = stop_at {
+            target = target.max(s);
+        }
+        let d = (target - self.opening).clamp(-step, step);
+        self.opening += d;
+        self.motion = if d.abs() > 1e-12 { "moving" } else { "stopped" }.into();
+    }
+
+    /// The phases in the order they first appeared.
+    pub fn phases(&self) -> Vec<String> {
+        let mut v: Vec<String> = Vec::new();
+        for t in &self.ticks {
+            if v.last() != Some(&t.status.phase) {
+                v.push(t.status.phase.clone());
+            }
+        }
+        v
+    }
+}
