@@ -108,6 +108,9 @@ build_msgs() {
   # r2r caches generated bindings in its OUT_DIR keyed on the environment, not on the message
   # files: drop both crates' build outputs so the bindings are generated again.
   if [ -d "${CARGO_TARGET_DIR:-target}" ]; then cargo clean -q -p r2r -p r2r_msg_gen 2>/dev/null || true; fi
+  # The colcon check builds in its own target dir with an environment r2r has seen before: it would
+  # keep the old bindings too, so it starts again from scratch.
+  rm -rf "$b/colcon-target"
   echo "$key" >"$b/msgs/.stamp"
 }
 # Jazzy first, in a subshell: the Kilted environment below is what the rest of setup uses.
