@@ -22,8 +22,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use unitac_core::msg::{
-    ContactEpisode, ContactState, GripperCommand, PolicyStatus, PropertyComparison, TactileLatent,
-    TactileProperties,
+    ContactEpisode, ContactState, GripperCommand, PolicyStatus, PropertyComparison, SlipState,
+    TactileLatent, TactileProperties,
 };
 use unitac_core::{Chain, Frame, Msg, Pacer, Source, SourceError, Stamp};
 
@@ -351,6 +351,7 @@ pub fn output_topic(m: &Msg) -> Option<(&'static str, &'static str)> {
         Msg::Latent(_) => ("/unitac/tactile_latent", TactileLatent::TYPE),
         Msg::Command(_) => ("/unitac/gripper_command", GripperCommand::TYPE),
         Msg::Status(_) => ("/unitac/policy_status", PolicyStatus::TYPE),
+        Msg::Slip(_) => ("/unitac/slip_state", SlipState::TYPE),
         Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return None,
     })
 }
@@ -410,6 +411,7 @@ impl OutputBag {
             Msg::Latent(x) => x.to_cdr(),
             Msg::Command(x) => x.to_cdr(),
             Msg::Status(x) => x.to_cdr(),
+            Msg::Slip(x) => x.to_cdr(),
             Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return Ok(()),
         };
         self.writer.write_raw(id, t, &data)

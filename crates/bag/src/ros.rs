@@ -10,7 +10,7 @@ use crate::cdr::{CdrError, CdrReader, CdrWriter, MAX_IMAGE_BYTES, MAX_SEQUENCE};
 use unitac_core::Stamp;
 use unitac_core::msg::{
     ContactEpisode, ContactState, GripperCommand, Header, Message, PolicyStatus,
-    PropertyComparison, TactileLatent, TactileProperties,
+    PropertyComparison, SlipState, TactileLatent, TactileProperties,
 };
 
 pub use unitac_core::msg::MAX_LATENT_DIMS;
@@ -524,7 +524,7 @@ mod tests {
             };
         }
         unitac_core::for_each_message!(round_trip_each);
-        assert_eq!(KNOWN_TYPES.len(), 4 + 7);
+        assert_eq!(KNOWN_TYPES.len(), 4 + 8);
         for (t, text) in KNOWN_TYPES {
             assert!(schema_text(t).unwrap().starts_with(text.trim_end()), "{t}");
         }

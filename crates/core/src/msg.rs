@@ -154,6 +154,7 @@ pub enum Msg {
     Latent(TactileLatent),
     Command(GripperCommand),
     Status(PolicyStatus),
+    Slip(SlipState),
 }
 
 impl Msg {
@@ -173,6 +174,7 @@ impl Msg {
             Msg::Latent(m) => m.header.stamp,
             Msg::Command(m) => m.header.stamp,
             Msg::Status(m) => m.header.stamp,
+            Msg::Slip(m) => m.header.stamp,
         }
     }
     /// Short type name, as used in counters and JSON (`"frame"`, `"contact_state"`, ...).
@@ -188,6 +190,7 @@ impl Msg {
             Msg::Latent(_) => "tactile_latent",
             Msg::Command(_) => "gripper_command",
             Msg::Status(_) => "policy_status",
+            Msg::Slip(_) => "slip_state",
         }
     }
     /// JSON of an event (`{"type": kind, ...fields}`); frames give only their metadata.
@@ -209,6 +212,7 @@ impl Msg {
             Msg::Latent(m) => serde_json::to_value(m).unwrap_or_default(),
             Msg::Command(m) => serde_json::to_value(m).unwrap_or_default(),
             Msg::Status(m) => serde_json::to_value(m).unwrap_or_default(),
+            Msg::Slip(m) => serde_json::to_value(m).unwrap_or_default(),
         };
         let mut v = serde_json::json!({ "type": self.kind() });
         if let (Some(obj), serde_json::Value::Object(fields)) = (v.as_object_mut(), body) {

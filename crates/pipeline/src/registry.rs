@@ -3,7 +3,7 @@
 use serde::de::DeserializeOwned;
 use std::path::PathBuf;
 use unitac_bag::{BagSource, ReplayOptions};
-use unitac_contact::{ContactParams, ContactStage};
+use unitac_contact::{ContactParams, ContactStage, SlipParams, SlipStage};
 use unitac_core::scene::{SceneContext, SceneError, SensorArg, SourceKind, StageSpec};
 use unitac_core::{Scene, Source, Stage};
 
@@ -128,10 +128,11 @@ pub fn scene_context() -> SceneContext {
 }
 
 /// Stage kinds a scene may name.
-pub const KNOWN_STAGES: &[&str] = &["contact", "encoder", "compare", "sampler"];
-/// Stage kind -> the kind it takes its input from (clips and backgrounds come from contact,
-/// properties from encoder); the scene must list that one first.
+pub const KNOWN_STAGES: &[&str] = &["contact", "slip", "encoder", "compare", "sampler"];
+/// Stage kind -> the kind it takes its input from (clips, backgrounds and contact states come
+/// from contact, properties from encoder); the scene must list that one first.
 pub const STAGE_NEEDS: &[(&str, &str)] = &[
+    ("slip", "contact"),
     ("encoder", "contact"),
     ("sampler", "contact"),
     ("compare", "encoder"),
@@ -164,6 +165,10 @@ pub enum StageConfig {
         params: ContactParams,
         sensor: unitac_core::SensorSpec,
     },
+    Slip {
+        params: SlipParams,
+        sensor: unitac_core::SensorSpec,
+    },
     Encoder {
         runtime: RuntimeConfig,
         bundle: PathBuf,
@@ -180,6 +185,7 @@ impl StageConfig {
     pub fn kind(&self) -> &'static str {
         match self {
             StageConfig::Contact { .. } => "contact",
+            StageConfig::Slip { .. } => "slip",
             StageConfig::Encoder { .. } => "encoder",
             StageConfig::Compare(_) => "compare",
             StageConfig::Sampler { .. } => "sampler",
@@ -230,6 +236,17 @@ pub fn stage_configs(scene: &Scene) -> Result<Vec<StageConfig>, SceneError> {
                     sensor: spec,
                 }
             }
+            "slip" => {
+                let params: SlipParams = params(scene, index, st)?;
+                // A sensor without marker dots is refused here, naming it.
+                params
+                    .check_for(spec.kind)
+                    .map_err(|e| bad(e.to_string()))?;
+                StageConfig::Slip {
+                    params,
+                    sensor: spec,
+                }
+            }
             "encoder" => StageConfig::Encoder {
                 runtime: params(scene, index, st)?,
                 bundle: bundle_of(scene, st, &bad)?,
@@ -263,6 +280,9 @@ pub fn build_stage(scene: &Scene, cfg: StageConfig) -> Result<Box<dyn Stage>, Sc
     Ok(match cfg {
         StageConfig::Contact { params, sensor } => {
             Box::new(ContactStage::new(params, sensor).map_err(|e| bad(e.to_string()))?)
+        }
+        StageConfig::Slip { params, sensor } => {
+            Box::new(SlipStage::new(params, sensor).map_err(|e| bad(e.to_string()))?)
         }
         StageConfig::Encoder { runtime, bundle } => Box::new(
             EncoderStage::new(&bundle, &runtime)

@@ -6,8 +6,10 @@
 
 use unitac_core::{Frame, FrameError, SensorKind, SensorSpec, Source, SourceError, Stamp};
 
+use crate::object::Object;
 use crate::render::Renderer;
 use crate::scenario::Scenario;
+use crate::tangential::{MarkerTruth, Tangential};
 
 /// Capture time of frame 0: a fixed ROS time so runs are reproducible (2023-11-14T22:13:20Z).
 pub const EPOCH: Stamp = Stamp(1_700_000_000_000_000_000);
@@ -29,6 +31,11 @@ pub struct GroundTruth {
     pub force_n: f64,
     /// Cup deformation (loss of diameter) \[mm] when the world drives the scenario (0 otherwise).
     pub deformation_mm: f64,
+    /// The tangential input of this frame (zero: none).
+    pub tangential: Tangential,
+    /// Every marker dot whose rest centre is in the frame, at rest and moved by the tangential
+    /// input (empty for a sensor without markers).
+    pub markers: Vec<MarkerTruth>,
 }
 
 /// Slow illumination changes of a real sensor: LED warm-up, slow wander, exposure steps.
@@ -174,27 +181,48 @@ impl MockSensor {
         let t = index as f64 / self.cfg.fps;
         let (approach, obj) = self.scenario.at(t);
         let grip = self.scenario.grip_at(t);
-        let gain = self.cfg.drift.gain(t);
         let touching = obj.filter(|_| approach > 0.0);
         let depth = touching.map_or(0.0, |o| o.gel_depth(approach));
+        let (frame, mut truth) = self.render_contact(index, touching.map(|o| (o, depth)), None);
+        truth.label = obj.map(|o| o.label.clone()).unwrap_or_default();
+        truth.force_n = grip.map_or(0.0, |g| g.force_n);
+        truth.deformation_mm = grip.map_or(0.0, |g| g.deformation_mm);
+        (frame, truth)
+    }
+
+    /// Frame `index` (its stamp, gain and noise) showing `press` = (object, gel depth \[mm]) and
+    /// the object's sideways motion `tangential` instead of the scenario's: what a world that
+    /// moves objects drives. The truth's label is the object's.
+    pub fn render_contact(
+        &self,
+        index: u64,
+        press: Option<(&Object, f64)>,
+        tangential: Option<&Tangential>,
+    ) -> (Frame, GroundTruth) {
+        let t = index as f64 / self.cfg.fps;
+        let gain = self.cfg.drift.gain(t);
         let mut frame = self.blank.clone();
         frame.seq = index;
         frame.stamp =
             EPOCH.saturating_add_nanos((index as f64 * 1e9 / self.cfg.fps).round() as i64);
+        let press = press.filter(|&(_, depth)| depth > 0.0);
         let contact = self.renderer.render_into(
             frame.data_mut(),
-            touching.map(|o| (o, depth)),
+            press,
+            tangential,
             gain,
             self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15),
         );
         let truth = GroundTruth {
-            penetration_mm: depth.max(0.0),
-            label: obj.map(|o| o.label.clone()).unwrap_or_default(),
+            penetration_mm: press.map_or(0.0, |(_, d)| d),
+            label: press.map(|(o, _)| o.label.clone()).unwrap_or_default(),
             contact_px: contact.contact_px,
             mask: contact.mask,
             gain,
-            force_n: grip.map_or(0.0, |g| g.force_n),
-            deformation_mm: grip.map_or(0.0, |g| g.deformation_mm),
+            force_n: 0.0,
+            deformation_mm: 0.0,
+            tangential: tangential.copied().unwrap_or_default(),
+            markers: self.renderer.marker_truth(press, tangential),
         };
         (frame, truth)
     }
