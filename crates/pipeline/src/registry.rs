@@ -361,3 +361,63 @@ pub fn build_source(scene: &Scene, arg: Option<&SensorArg>) -> Result<Box<dyn So
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::panic)]
+    use super::*;
+
+    /// A scene on `sensor` with these stages (YAML flow list).
+    fn scene(name: &str, sensor: &str, stages: &str) -> Result<Scene, SceneError> {
+        let dir = std::env::temp_dir().join(format!("unitac-registry-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(format!("{name}.yaml"));
+        std::fs::write(
+            &path,
+            format!(
+                "scene: {name}\nsource: {{kind: mock, sensor: {sensor}, scenario: fabric_selection}}\n\
+                 stages: {stages}\n"
+            ),
+        )
+        .unwrap();
+        Scene::load(&path, &scene_context())
+    }
+
+    #[test]
+    fn a_slip_stage_gets_its_typed_params_after_contact_on_a_marker_gel() {
+        let s = scene(
+            "slip_ok",
+            "gelsight-mini",
+            "[{kind: contact}, {kind: slip, params: {slip_on: 0.2, slip_off: 0.1}}]",
+        )
+        .unwrap();
+        let cfgs = stage_configs(&s).unwrap();
+        let StageConfig::Slip { params, sensor } = &cfgs[1] else {
+            panic!("{cfgs:?}")
+        };
+        assert_eq!((params.slip_on, params.slip_off), (0.2, 0.1));
+        assert_eq!(sensor.kind, unitac_core::SensorKind::GelsightMini);
+        assert_eq!(build_stages(&s).unwrap()[1].name(), "slip");
+    }
+
+    #[test]
+    fn a_slip_stage_on_a_digit_or_before_contact_is_refused_at_load() {
+        let s = scene("slip_digit", "digit", "[{kind: contact}, {kind: slip}]").unwrap();
+        let e = stage_configs(&s).unwrap_err().to_string();
+        assert!(e.contains("digit") && e.contains("slip"), "{e}");
+        let e = scene(
+            "slip_first",
+            "gelsight-mini",
+            "[{kind: slip}, {kind: contact}]",
+        );
+        assert!(e.is_err(), "{e:?}");
+        let s = scene(
+            "slip_bad",
+            "gelsight-mini",
+            "[{kind: contact}, {kind: slip, params: {slip_on: 0.1, slip_off: 0.3}}]",
+        )
+        .unwrap();
+        let e = stage_configs(&s).unwrap_err().to_string();
+        assert!(e.contains("slip_off"), "{e}");
+    }
+}
