@@ -23,7 +23,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use unitac_core::msg::{
     ArmCommand, ContactEpisode, ContactState, GripperCommand, GripperStatus, PolicyStatus,
-    PropertyComparison, TactileLatent, TactileProperties, VisualObservation,
+    PropertyComparison, SlipState, TactileLatent, TactileProperties, VisualObservation,
 };
 use unitac_core::{Chain, Frame, Msg, Pacer, Source, SourceError, Stamp};
 
@@ -354,6 +354,7 @@ pub fn output_topic(m: &Msg) -> Option<(&'static str, &'static str)> {
         Msg::Gripper(_) => ("/unitac/gripper_status", GripperStatus::TYPE),
         Msg::Arm(_) => ("/unitac/arm_command", ArmCommand::TYPE),
         Msg::Visual(_) => ("/unitac/visual_observation", VisualObservation::TYPE),
+        Msg::Slip(_) => ("/unitac/slip_state", SlipState::TYPE),
         Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return None,
     })
 }
@@ -416,6 +417,7 @@ impl OutputBag {
             Msg::Gripper(x) => x.to_cdr(),
             Msg::Arm(x) => x.to_cdr(),
             Msg::Visual(x) => x.to_cdr(),
+            Msg::Slip(x) => x.to_cdr(),
             Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return Ok(()),
         };
         self.writer.write_raw(id, t, &data)

@@ -10,7 +10,7 @@ use crate::cdr::{CdrError, CdrReader, CdrWriter, MAX_IMAGE_BYTES, MAX_SEQUENCE};
 use unitac_core::Stamp;
 use unitac_core::msg::{
     ArmCommand, ContactEpisode, ContactState, GripperCommand, GripperStatus, Header, Message,
-    PolicyStatus, PropertyComparison, TactileLatent, TactileProperties, VisualObservation,
+    PolicyStatus, PropertyComparison, SlipState, TactileLatent, TactileProperties, VisualObservation,
 };
 
 pub use unitac_core::msg::MAX_LATENT_DIMS;
@@ -542,7 +542,7 @@ mod tests {
             };
         }
         unitac_core::for_each_message!(round_trip_each);
-        assert_eq!(KNOWN_TYPES.len(), 4 + 10);
+        assert_eq!(KNOWN_TYPES.len(), 4 + 11);
         // The decoder runs the message's checks: names and values pair up.
         let mut v = samples::visual_observation();
         v.values.pop();

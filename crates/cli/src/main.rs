@@ -15,6 +15,7 @@ mod images;
 mod progress;
 mod replay;
 mod sampler;
+mod slip_eval;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
@@ -133,7 +134,7 @@ enum Cmd {
         #[command(subcommand)]
         cmd: BagCmd,
     },
-    /// Measure quality against ground truth (mock sensor): `eval contact`.
+    /// Measure quality against ground truth (mock sensor): `eval contact`, `eval slip`.
     Eval {
         what: EvalTarget,
         #[arg(long)]
@@ -211,6 +212,8 @@ enum BagCmd {
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum EvalTarget {
     Contact,
+    /// The slip stage's shear, rotation and slip flag against the renderer's tangential truth.
+    Slip,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -519,6 +522,18 @@ fn main() -> ExitCode {
             json,
             idle_minutes,
         } => eval::eval_contact(idle_minutes.clamp(0.0, 600.0) * 60.0).and_then(|r| {
+            if json {
+                emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
+            } else {
+                emit(r.text())?;
+            }
+            Ok(true)
+        }),
+        Cmd::Eval {
+            what: EvalTarget::Slip,
+            json,
+            ..
+        } => slip_eval::eval_slip().and_then(|r| {
             if json {
                 emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
             } else {

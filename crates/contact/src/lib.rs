@@ -21,6 +21,8 @@
 //! Saturated or dark frames, frames whose gain is implausible and frames of another size are
 //! rejected with an error and leave the detector's state as it was (a sustained new size is
 //! learned again). Saved backgrounds come through a [`BackgroundStore`]; the stage does no I/O.
+//!
+//! The [`slip`] stage runs after it on marker gels: shear and slip from the tracked marker field.
 
 pub mod background;
 mod detector;
@@ -29,11 +31,13 @@ pub mod grid;
 mod params;
 mod residual;
 pub mod shading;
+pub mod slip;
 mod stage;
 mod store;
 
 pub use background::{Background, BackgroundFileError, Learner};
 pub use detector::{ContactDetector, Measurement};
 pub use params::{ContactParams, MAX_CLIP_FRAMES, ParamsError};
+pub use slip::{SlipParams, SlipStage};
 pub use stage::ContactStage;
 pub use store::{BackgroundStore, DirStore};

@@ -99,6 +99,8 @@ pub enum ParamsError {
     AreaBand { enter: f32, exit: f32 },
     #[error("background_dir {} is not a directory", .0.display())]
     NotADirectory(std::path::PathBuf),
+    #[error("the slip stage tracks marker dots and a {sensor} gel has none")]
+    NoMarkers { sensor: String },
 }
 
 fn out_of_range(name: &'static str, value: impl ToString, range: &'static str) -> ParamsError {

@@ -187,6 +187,7 @@ pub enum Msg {
     Gripper(GripperStatus),
     Arm(ArmCommand),
     Visual(VisualObservation),
+    Slip(SlipState),
 }
 
 impl Msg {
@@ -209,6 +210,7 @@ impl Msg {
             Msg::Gripper(m) => m.header.stamp,
             Msg::Arm(m) => m.header.stamp,
             Msg::Visual(m) => m.header.stamp,
+            Msg::Slip(m) => m.header.stamp,
         }
     }
     /// Short type name, as used in counters and JSON (`"frame"`, `"contact_state"`, ...).
@@ -227,6 +229,7 @@ impl Msg {
             Msg::Gripper(_) => "gripper_status",
             Msg::Arm(_) => "arm_command",
             Msg::Visual(_) => "visual_observation",
+            Msg::Slip(_) => "slip_state",
         }
     }
     /// JSON of an event (`{"type": kind, ...fields}`); frames give only their metadata.
@@ -251,6 +254,7 @@ impl Msg {
             Msg::Gripper(m) => serde_json::to_value(m).unwrap_or_default(),
             Msg::Arm(m) => serde_json::to_value(m).unwrap_or_default(),
             Msg::Visual(m) => serde_json::to_value(m).unwrap_or_default(),
+            Msg::Slip(m) => serde_json::to_value(m).unwrap_or_default(),
         };
         let mut v = serde_json::json!({ "type": self.kind() });
         if let (Some(obj), serde_json::Value::Object(fields)) = (v.as_object_mut(), body) {

@@ -3,7 +3,7 @@
 use serde::de::DeserializeOwned;
 use std::path::PathBuf;
 use unitac_bag::{BagSource, ReplayOptions};
-use unitac_contact::{ContactParams, ContactStage};
+use unitac_contact::{ContactParams, ContactStage, SlipParams, SlipStage};
 use unitac_core::scene::{SceneContext, SceneError, SensorArg, SourceKind, StageSpec};
 use unitac_core::{Scene, Source, Stage};
 
@@ -129,10 +129,11 @@ pub fn scene_context() -> SceneContext {
 }
 
 /// Stage kinds a scene may name.
-pub const KNOWN_STAGES: &[&str] = &["contact", "encoder", "compare", "sampler", "policy"];
-/// Stage kind -> the kind it takes its input from (clips and backgrounds come from contact,
-/// properties from encoder); the scene must list that one first.
+pub const KNOWN_STAGES: &[&str] = &["contact", "slip", "encoder", "compare", "sampler", "policy"];
+/// Stage kind -> the kind it takes its input from (clips, backgrounds and contact states come
+/// from contact, properties from encoder); the scene must list that one first.
 pub const STAGE_NEEDS: &[(&str, &str)] = &[
+    ("slip", "contact"),
     ("encoder", "contact"),
     ("sampler", "contact"),
     ("compare", "encoder"),
@@ -165,6 +166,10 @@ pub enum StageConfig {
         params: ContactParams,
         sensor: unitac_core::SensorSpec,
     },
+    Slip {
+        params: SlipParams,
+        sensor: unitac_core::SensorSpec,
+    },
     Encoder {
         runtime: RuntimeConfig,
         bundle: PathBuf,
@@ -186,6 +191,7 @@ impl StageConfig {
     pub fn kind(&self) -> &'static str {
         match self {
             StageConfig::Contact { .. } => "contact",
+            StageConfig::Slip { .. } => "slip",
             StageConfig::Encoder { .. } => "encoder",
             StageConfig::Compare(_) => "compare",
             StageConfig::Sampler { .. } => "sampler",
@@ -233,6 +239,17 @@ pub fn stage_configs(scene: &Scene) -> Result<Vec<StageConfig>, SceneError> {
                 let params: ContactParams = params(scene, index, st)?;
                 params.check().map_err(|e| bad(e.to_string()))?;
                 StageConfig::Contact {
+                    params,
+                    sensor: spec,
+                }
+            }
+            "slip" => {
+                let params: SlipParams = params(scene, index, st)?;
+                // A sensor without marker dots is refused here, naming it.
+                params
+                    .check_for(spec.kind)
+                    .map_err(|e| bad(e.to_string()))?;
+                StageConfig::Slip {
                     params,
                     sensor: spec,
                 }
@@ -298,6 +315,9 @@ pub fn build_stage(scene: &Scene, cfg: StageConfig) -> Result<Box<dyn Stage>, Sc
     Ok(match cfg {
         StageConfig::Contact { params, sensor } => {
             Box::new(ContactStage::new(params, sensor).map_err(|e| bad(e.to_string()))?)
+        }
+        StageConfig::Slip { params, sensor } => {
+            Box::new(SlipStage::new(params, sensor).map_err(|e| bad(e.to_string()))?)
         }
         StageConfig::Encoder { runtime, bundle } => Box::new(
             EncoderStage::new(&bundle, &runtime)
@@ -377,5 +397,65 @@ pub fn build_source(scene: &Scene, arg: Option<&SensorArg>) -> Result<Box<dyn So
                 BagSource::open(&path, opts).map_err(|e| bad("source.path", e.to_string()))?;
             Ok(Box::new(src))
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::panic)]
+    use super::*;
+
+    /// A scene on `sensor` with these stages (YAML flow list).
+    fn scene(name: &str, sensor: &str, stages: &str) -> Result<Scene, SceneError> {
+        let dir = std::env::temp_dir().join(format!("unitac-registry-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(format!("{name}.yaml"));
+        std::fs::write(
+            &path,
+            format!(
+                "scene: {name}\nsource: {{kind: mock, sensor: {sensor}, scenario: fabric_selection}}\n\
+                 stages: {stages}\n"
+            ),
+        )
+        .unwrap();
+        Scene::load(&path, &scene_context())
+    }
+
+    #[test]
+    fn a_slip_stage_gets_its_typed_params_after_contact_on_a_marker_gel() {
+        let s = scene(
+            "slip_ok",
+            "gelsight-mini",
+            "[{kind: contact}, {kind: slip, params: {slip_on: 0.2, slip_off: 0.1}}]",
+        )
+        .unwrap();
+        let cfgs = stage_configs(&s).unwrap();
+        let StageConfig::Slip { params, sensor } = &cfgs[1] else {
+            panic!("{cfgs:?}")
+        };
+        assert_eq!((params.slip_on, params.slip_off), (0.2, 0.1));
+        assert_eq!(sensor.kind, unitac_core::SensorKind::GelsightMini);
+        assert_eq!(build_stages(&s).unwrap()[1].name(), "slip");
+    }
+
+    #[test]
+    fn a_slip_stage_on_a_digit_or_before_contact_is_refused_at_load() {
+        let s = scene("slip_digit", "digit", "[{kind: contact}, {kind: slip}]").unwrap();
+        let e = stage_configs(&s).unwrap_err().to_string();
+        assert!(e.contains("digit") && e.contains("slip"), "{e}");
+        let e = scene(
+            "slip_first",
+            "gelsight-mini",
+            "[{kind: slip}, {kind: contact}]",
+        );
+        assert!(e.is_err(), "{e:?}");
+        let s = scene(
+            "slip_bad",
+            "gelsight-mini",
+            "[{kind: contact}, {kind: slip, params: {slip_on: 0.1, slip_off: 0.3}}]",
+        )
+        .unwrap();
+        let e = stage_configs(&s).unwrap_err().to_string();
+        assert!(e.contains("slip_off"), "{e}");
     }
 }

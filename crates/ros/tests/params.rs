@@ -10,7 +10,7 @@ use std::io::BufRead;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
-use unitac_contact::ContactParams;
+use unitac_contact::{ContactParams, SlipParams};
 use unitac_infer::RuntimeConfig;
 use unitac_infer::encoder::CompareParams;
 use unitac_infer::predict::SamplerParams;
@@ -54,14 +54,19 @@ fn non_default(default: Value, special: Value) -> serde_json::Map<String, Value>
     out
 }
 
-/// (contact, encoder, compare, sampler, policy) params with every key set to a non-default value.
-fn full_params() -> [serde_json::Map<String, Value>; 5] {
+/// (contact, slip, encoder, compare, sampler, policy) params with every key set to a non-default
+/// value.
+fn full_params() -> [serde_json::Map<String, Value>; 6] {
     let bg = tmp("backgrounds");
     std::fs::create_dir_all(&bg).unwrap();
     let contact = non_default(
         serde_json::to_value(ContactParams::default()).unwrap(),
         json!({"mask_markers": true, "background_dir": bg, "episode_labels": ["x", "y"],
                "clip_frames": 6}),
+    );
+    let slip = non_default(
+        serde_json::to_value(SlipParams::default()).unwrap(),
+        json!({}),
     );
     let runtime = json!({"library": std::env::var("UNITAC_ORT_LIB").unwrap_or_default(),
                          "provider": "cuda", "intra_threads": 2});
@@ -91,26 +96,28 @@ fn full_params() -> [serde_json::Map<String, Value>; 5] {
                "stiffness_weights": [1.0, 2.0], "latent_len": 64, "min_opening_m": 0.001,
                "max_opening_m": 0.1, "min_z_m": 0.01, "max_z_m": 0.4}),
     );
-    [contact, encoder, compare, sampler, policy]
+    [contact, slip, encoder, compare, sampler, policy]
 }
 
-/// A scene with the five stages and these params (empty maps: the defaults, but the policy's
-/// mode and latent length, which the four stages before it require).
-fn scene(name: &str, p: &[serde_json::Map<String, Value>; 5]) -> PathBuf {
-    let mut policy = p[4].clone();
+/// A scene with the six stages and these params (empty maps: the defaults, but the policy's
+/// mode and latent length, which the stages before it require). The sensor has marker dots (the
+/// slip stage refuses a DIGIT).
+fn scene(name: &str, p: &[serde_json::Map<String, Value>; 6]) -> PathBuf {
+    let mut policy = p[5].clone();
     if policy.is_empty() {
         policy.insert("mode".into(), json!("vtla_pred"));
         policy.insert("latent_len".into(), json!(64));
     }
     let stages = json!([
         {"kind": "contact", "params": p[0]},
-        {"kind": "encoder", "models": ["reference"], "params": p[1]},
-        {"kind": "compare", "params": p[2]},
-        {"kind": "sampler", "models": ["reference"], "params": p[3]},
+        {"kind": "slip", "params": p[1]},
+        {"kind": "encoder", "models": ["reference"], "params": p[2]},
+        {"kind": "compare", "params": p[3]},
+        {"kind": "sampler", "models": ["reference"], "params": p[4]},
         {"kind": "policy", "params": policy},
     ]);
     let yaml = format!(
-        "scene: {name}\nsource: {{kind: mock, sensor: digit, scenario: fabric_selection}}\n\
+        "scene: {name}\nsource: {{kind: mock, sensor: gelsight-mini, scenario: fabric_selection}}\n\
          models:\n  reference: ${{UNITAC_MODELS}}/reference/manifest.json\nstages: {stages}\n"
     );
     let path = tmp(&format!("{name}.yaml"));
@@ -201,7 +208,7 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
     let full = full_params();
     let full_scene = scene("full", &full);
     let want = run_lines(&full_scene);
-    assert_eq!(want.len(), 5, "{want:?}");
+    assert_eq!(want.len(), 6, "{want:?}");
     // The values really are the non-default ones (not the defaults the scene left out).
     let defaults = run_lines(&scene("defaults", &Default::default()));
     for (w, d) in want.iter().zip(&defaults) {
@@ -213,21 +220,21 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
         CONTACT,
         "c1",
         &format!("    scene: {}\n", full_scene.display()),
-        1,
+        2,
     );
-    assert_eq!(contact, want[..1], "{log}");
+    assert_eq!(contact, want[..2], "{log}");
     let (infer, _, log) = node_lines(
         INFERENCE,
         "i1",
         &format!("    scene: {}\n", full_scene.display()),
         3,
     );
-    assert_eq!(infer, want[1..4], "{log}");
+    assert_eq!(infer, want[2..5], "{log}");
 
     // 2. A scene with default params plus `<stage>.<key>` ROS parameters for every key ROS can
     // carry (nested lists such as compare.pairs cannot be ROS parameters: scene file only).
-    let mut base: [serde_json::Map<String, Value>; 5] = Default::default();
-    base[2].insert("pairs".into(), full[2]["pairs"].clone());
+    let mut base: [serde_json::Map<String, Value>; 6] = Default::default();
+    base[3].insert("pairs".into(), full[3]["pairs"].clone());
     let default_scene = scene("overridden", &base);
     let overrides = |kind: &str, p: &serde_json::Map<String, Value>| -> String {
         p.iter()
@@ -239,20 +246,20 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
     let (contact, _, log) = node_lines(
         CONTACT,
         "c2",
-        &(head.clone() + &overrides("contact", &full[0])),
-        1,
+        &(head.clone() + &overrides("contact", &full[0]) + &overrides("slip", &full[1])),
+        2,
     );
-    assert_eq!(contact, want[..1], "{log}");
-    let body = overrides("encoder", &full[1])
-        + &overrides("compare", &full[2])
-        + &overrides("sampler", &full[3]);
+    assert_eq!(contact, want[..2], "{log}");
+    let body = overrides("encoder", &full[2])
+        + &overrides("compare", &full[3])
+        + &overrides("sampler", &full[4]);
     let (infer, _, log) = node_lines(INFERENCE, "i2", &(head + &body), 3);
-    assert_eq!(infer, want[1..4], "{log}");
+    assert_eq!(infer, want[2..5], "{log}");
 
     // 3. The policy stage (its ROS node comes later): every `policy.<key>` through the same
     // override path the nodes use reaches the typed params exactly as the scene file does.
     let mut s = unitac_pipeline::load_scene(default_scene.to_str().unwrap(), None).unwrap();
-    let policy: Vec<(String, serde_yaml::Value)> = full[4]
+    let policy: Vec<(String, serde_yaml::Value)> = full[5]
         .iter()
         .map(|(k, v)| {
             (
@@ -264,7 +271,7 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
     unitac_pipeline::overrides::apply(&mut s, &["policy"], &policy).unwrap();
     let got = unitac_pipeline::effective_params(&s).unwrap();
     // The stage carries its scene's name (PolicyStatus.scene): the two scenes differ only there.
-    assert_eq!(got[4].replace("\"overridden\"", "\"full\""), want[4]);
+    assert_eq!(got[5].replace("\"overridden\"", "\"full\""), want[5]);
 }
 
 #[test]

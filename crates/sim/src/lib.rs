@@ -3,6 +3,8 @@
 //!
 //! - [`mock`]: the mock sensor as a frame source (scenario, frame rate, stamps, ground truth).
 //! - `render`: the photometric model of a gel sensor that draws each frame.
+//! - [`tangential`]: the gel's sideways displacement under a pulled or twisted object (markers),
+//!   the truth a slip detector is measured against.
 //! - [`world`]: the gripper / gel / cup model and its integrators.
 //! - [`task`]: the closed-loop task worlds (cup deformation, fabric selection) and the scripted
 //!   expert.
@@ -18,12 +20,14 @@ mod render;
 mod rng;
 mod scenario;
 pub mod task;
+pub mod tangential;
 pub mod world;
 
 pub use mock::{Drift, EPOCH, GroundTruth, MockConfig, MockSensor};
 pub use object::{BUMP_ASPECT, FLAT_FILLET, Object, Shape};
 pub use rng::{GaussianTable, NoiseStream, SplitMix64, normal_quantile, quantise_f32};
 pub use scenario::{Phase, Scenario, ScenarioError};
+pub use tangential::{MarkerTruth, Tangential};
 pub use world::{
     Command, Cup, DriveStep, Gel, GripSample, Gripper, Method, Substep, World, WorldConfig,
     WorldError, WorldTruth,

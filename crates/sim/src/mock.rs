@@ -9,6 +9,7 @@ use unitac_core::{Frame, FrameError, SensorKind, SensorSpec, Source, SourceError
 use crate::object::Object;
 use crate::render::Renderer;
 use crate::scenario::Scenario;
+use crate::tangential::{MarkerTruth, Tangential};
 
 /// Capture time of frame 0: a fixed ROS time so runs are reproducible (2023-11-14T22:13:20Z).
 pub const EPOCH: Stamp = Stamp(1_700_000_000_000_000_000);
@@ -30,6 +31,11 @@ pub struct GroundTruth {
     pub force_n: f64,
     /// Cup deformation (loss of diameter) \[mm] when the world drives the scenario (0 otherwise).
     pub deformation_mm: f64,
+    /// The tangential input of this frame (zero: none).
+    pub tangential: Tangential,
+    /// Every marker dot whose rest centre is in the frame, at rest and moved by the tangential
+    /// input (empty for a sensor without markers).
+    pub markers: Vec<MarkerTruth>,
 }
 
 /// Slow illumination changes of a real sensor: LED warm-up, slow wander, exposure steps.
@@ -176,20 +182,18 @@ impl MockSensor {
         let (approach, obj) = self.scenario.at(t);
         let grip = self.scenario.grip_at(t);
         let touching = obj.filter(|_| approach > 0.0);
-        let press = touching.map(|o| (o, o.gel_depth(approach)));
-        let label = obj.map(|o| o.label.clone()).unwrap_or_default();
-        self.render_at(
-            index,
-            press,
-            label,
-            grip.map_or(0.0, |g| g.force_n),
-            grip.map_or(0.0, |g| g.deformation_mm),
-        )
+        let depth = touching.map_or(0.0, |o| o.gel_depth(approach));
+        let (frame, mut truth) = self.render_contact(index, touching.map(|o| (o, depth)), None);
+        truth.label = obj.map(|o| o.label.clone()).unwrap_or_default();
+        truth.force_n = grip.map_or(0.0, |g| g.force_n);
+        truth.deformation_mm = grip.map_or(0.0, |g| g.deformation_mm);
+        (frame, truth)
     }
 
     /// Render frame `index` of a press the caller gives instead of the scenario (a task world's
     /// sensor view): `press` = (object, gel penetration \[mm]); `force_n` and `deformation_mm`
-    /// go into the ground truth as they are.
+    /// go into the ground truth as they are, and the label is the object's even when it does not
+    /// touch.
     pub fn render_press(
         &self,
         index: u64,
@@ -198,39 +202,46 @@ impl MockSensor {
         deformation_mm: f64,
     ) -> (Frame, GroundTruth) {
         let label = press.map(|(o, _)| o.label.clone()).unwrap_or_default();
-        let press = press.filter(|&(_, d)| d > 0.0);
-        self.render_at(index, press, label, force_n, deformation_mm)
+        let (frame, mut truth) = self.render_contact(index, press, None);
+        truth.label = label;
+        truth.force_n = force_n;
+        truth.deformation_mm = deformation_mm;
+        (frame, truth)
     }
 
-    fn render_at(
+    /// Frame `index` (its stamp, gain and noise) showing `press` = (object, gel depth \[mm]) and
+    /// the object's sideways motion `tangential` instead of the scenario's: what a world that
+    /// moves objects drives. The truth's label is the object's.
+    pub fn render_contact(
         &self,
         index: u64,
         press: Option<(&Object, f64)>,
-        label: String,
-        force_n: f64,
-        deformation_mm: f64,
+        tangential: Option<&Tangential>,
     ) -> (Frame, GroundTruth) {
         let t = index as f64 / self.cfg.fps;
         let gain = self.cfg.drift.gain(t);
-        let depth = press.map_or(0.0, |(_, d)| d);
         let mut frame = self.blank.clone();
         frame.seq = index;
         frame.stamp =
             EPOCH.saturating_add_nanos((index as f64 * 1e9 / self.cfg.fps).round() as i64);
+        let press = press.filter(|&(_, depth)| depth > 0.0);
         let contact = self.renderer.render_into(
             frame.data_mut(),
             press,
+            tangential,
             gain,
             self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15),
         );
         let truth = GroundTruth {
-            penetration_mm: depth.max(0.0),
-            label,
+            penetration_mm: press.map_or(0.0, |(_, d)| d),
+            label: press.map(|(o, _)| o.label.clone()).unwrap_or_default(),
             contact_px: contact.contact_px,
             mask: contact.mask,
             gain,
-            force_n,
-            deformation_mm,
+            force_n: 0.0,
+            deformation_mm: 0.0,
+            tangential: tangential.copied().unwrap_or_default(),
+            markers: self.renderer.marker_truth(press, tangential),
         };
         (frame, truth)
     }

@@ -10,9 +10,10 @@ use unitac_core::{SensorKind, SensorSpec};
 
 use crate::object::{Object, Shape};
 use crate::rng::{GaussianTable, SplitMix64, quantise_f32};
+use crate::tangential::{Field, MarkerTruth, Tangential};
 
 /// Marker grid: spacing and dot radius in output pixels, darkening factor inside a dot.
-const MARKER_SPACING: f64 = 24.0;
+pub(crate) const MARKER_SPACING: f64 = 24.0;
 const MARKER_RADIUS: f64 = 2.6;
 const MARKER_DARK: f64 = 0.35;
 /// Lateral marker displacement per mm of local gel depression [px/mm].
@@ -58,11 +59,13 @@ impl Renderer {
     }
 
     /// Render into `data` (RGB8, the spec's size) the gel with `press` = (object, depth [mm])
-    /// pressed at the centre (None: at rest), times `gain`, plus noise drawn from `seed`.
+    /// pressed at the centre (None: at rest), dragged sideways by `tangential` (markers only;
+    /// None or zero: the plain press, byte for byte), times `gain`, plus noise drawn from `seed`.
     pub fn render_into(
         &self,
         data: &mut [u8],
         press: Option<(&Object, f64)>,
+        tangential: Option<&Tangential>,
         gain: f64,
         seed: u64,
     ) -> Contact {
@@ -70,7 +73,16 @@ impl Renderer {
         let mut rng = self.noise.stream(SplitMix64::new(seed));
         let mut mask = vec![false; w * h];
         let mut contact_px = 0u32;
-        let press = press.map(|(o, depth)| Press::new(o, depth, &self.spec, w, h));
+        let press = press.map(|(o, depth)| {
+            Press::new(
+                o,
+                depth,
+                &self.spec,
+                w,
+                h,
+                tangential.filter(|_| self.markers),
+            )
+        });
         // Rows and columns the press can change (contact, skirt, dragged markers); everything
         // else is the lit background times the gain, plus noise.
         let (x0, x1, y0, y1) = press.as_ref().map_or((0, 0, 0, 0), |p| p.bbox);
@@ -121,6 +133,41 @@ impl Renderer {
             }
         }
         Contact { mask, contact_px }
+    }
+
+    /// The marker dots whose rest centre is in the frame, at rest and moved by `tangential` on
+    /// `press` (empty without markers).
+    pub fn marker_truth(
+        &self,
+        press: Option<(&Object, f64)>,
+        tangential: Option<&Tangential>,
+    ) -> Vec<MarkerTruth> {
+        if !self.markers {
+            return Vec::new();
+        }
+        let (w, h) = (self.spec.width as usize, self.spec.height as usize);
+        let field = press
+            .zip(tangential)
+            .and_then(|((o, depth), t)| Press::new(o, depth, &self.spec, w, h, Some(t)).field);
+        let (nx, ny) = (
+            (w as f64 / MARKER_SPACING - 0.5).ceil().max(0.0) as usize,
+            (h as f64 / MARKER_SPACING - 0.5).ceil().max(0.0) as usize,
+        );
+        let mut out = Vec::with_capacity(nx * ny);
+        for j in 0..ny {
+            for i in 0..nx {
+                let rest = [
+                    (i as f64 + 0.5) * MARKER_SPACING,
+                    (j as f64 + 0.5) * MARKER_SPACING,
+                ];
+                let d = field.as_ref().map_or([0.0; 2], |f| f.at(rest[0], rest[1]));
+                out.push(MarkerTruth {
+                    rest_px: rest,
+                    moved_px: [rest[0] + d[0], rest[1] + d[1]],
+                });
+            }
+        }
+        out
     }
 }
 
@@ -192,18 +239,30 @@ struct Press<'a> {
     inv_skirt: f64,
     /// Outer radius of the deformed area [px].
     outer_px: f64,
+    /// Tangential displacement of the gel (markers), if the object moved sideways.
+    field: Option<Field>,
 }
 
 impl<'a> Press<'a> {
-    fn new(obj: &'a Object, depth: f64, spec: &SensorSpec, w: usize, h: usize) -> Self {
+    fn new(
+        obj: &'a Object,
+        depth: f64,
+        spec: &SensorSpec,
+        w: usize,
+        h: usize,
+        tangential: Option<&Tangential>,
+    ) -> Self {
         let px_per_mm = 1.0 / spec.mm_per_px;
         let a_px = obj.contact_half_width_mm(depth) * px_per_mm;
+        let (cx, cy) = (spec.width as f64 * 0.5, spec.height as f64 * 0.5);
+        let field = tangential
+            .and_then(|t| Field::new(t, a_px, (cx, cy), obj.shape == Shape::Edge, spec.mm_per_px));
         let mut p = Self {
             obj,
             depth,
             px_per_mm,
-            cx: spec.width as f64 * 0.5,
-            cy: spec.height as f64 * 0.5,
+            cx,
+            cy,
             a_px,
             // The gel deforms a little past the contact: 60 % of the contact size plus 4 px.
             skirt_px: a_px * 0.6 + 4.0,
@@ -214,6 +273,7 @@ impl<'a> Press<'a> {
             inv_r: 1.0 / obj.effective_radius_mm(),
             inv_skirt: 1.0 / (a_px * 0.6 + 4.0),
             outer_px: a_px * 1.6 + 4.0,
+            field,
         };
         p.bbox = p.find_bbox(w, h);
         let (x0, x1, _, _) = p.bbox;
@@ -233,7 +293,14 @@ impl<'a> Press<'a> {
         // Reach of the deformation plus the farthest a marker dot can be dragged into view.
         // Beyond the skirt the gel is at rest (markers are sampled at the pixel, so a dragged
         // dot never shows outside the deformed area).
-        let reach = self.a_px + self.skirt_px + 2.0;
+        let mut reach = self.a_px + self.skirt_px + 2.0;
+        if let Some(f) = &self.field {
+            // Dragged dots show within the field's reach (or the deformed disc) plus the
+            // farthest sideways and outward drag.
+            let outward = MARKER_SHIFT_PX_PER_MM * self.depth.max(0.0);
+            reach =
+                reach.max(f.reach.max(self.outer_px) + f.max_px + outward + MARKER_RADIUS + 2.0);
+        }
         let span = |c: f64, n: usize| {
             let lo = (c - reach).floor().max(0.0) as usize;
             let hi = ((c + reach).ceil().max(0.0) as usize).min(n);
@@ -257,7 +324,7 @@ impl<'a> Press<'a> {
             _ => {
                 let r2 = dxp * dxp + dyp * dyp;
                 if r2 >= self.outer_px * self.outer_px {
-                    return None;
+                    return self.dragged_marker(x, y, markers);
                 }
                 let r = r2.sqrt();
                 // The outward direction (skirt slope, marker drag), normalised below if used.
@@ -265,7 +332,7 @@ impl<'a> Press<'a> {
             }
         };
         if r >= self.outer_px {
-            return None;
+            return self.dragged_marker(x, y, markers);
         }
         let unit = || -> (f64, f64) {
             match o.shape {
@@ -327,7 +394,14 @@ impl<'a> Press<'a> {
             // the dot that would have moved here).
             let shift = MARKER_SHIFT_PX_PER_MM * height.max(0.0);
             let (ux, uy) = unit();
-            dark = marker_dark(x as f64 - ux * shift, y as f64 - uy * shift);
+            dark = match &self.field {
+                // The gel here came from (mx, my), dragged by the press and sideways.
+                Some(f) => {
+                    let (mx, my) = self.material_source(f, x as f64, y as f64);
+                    marker_dark(mx, my)
+                }
+                None => marker_dark(x as f64 - ux * shift, y as f64 - uy * shift),
+            };
         }
         let mut shade = [0.0; 3];
         for (c, l) in LIGHTS.iter().enumerate() {
@@ -337,6 +411,57 @@ impl<'a> Press<'a> {
             in_contact,
             shade,
             dark,
+        })
+    }
+}
+
+impl Press<'_> {
+    /// Outward drag of the gel point at rest at (mx, my) by the press [px]: the depression's
+    /// smooth part (cap or skirt, no texture) times MARKER_SHIFT_PX_PER_MM, as the plain press
+    /// drags its markers, but carried by the gel (so a stuck pull moves it along rigidly).
+    fn radial_drag(&self, mx: f64, my: f64) -> [f64; 2] {
+        let (dxp, dyp) = (mx - self.cx, my - self.cy);
+        let edge = self.obj.shape == Shape::Edge;
+        let r = if edge { dxp.abs() } else { dxp.hypot(dyp) };
+        if r >= self.outer_px || r == 0.0 {
+            return [0.0; 2];
+        }
+        let (dx, dy) = (dxp * self.mm_per_px, dyp * self.mm_per_px);
+        let cap = self.depth - self.obj.gap(dx, dy).0;
+        let height = if cap > 0.0 {
+            cap
+        } else {
+            let u = ((r - self.a_px) * self.inv_skirt).clamp(0.0, 1.0);
+            (1.0 - u) * (1.0 - u) * self.depth * 0.15
+        };
+        let shift = MARKER_SHIFT_PX_PER_MM * height.max(0.0);
+        if edge {
+            [dxp.signum() * shift, 0.0]
+        } else {
+            [dxp / r * shift, dyp / r * shift]
+        }
+    }
+
+    /// Where the gel now at pixel (x, y) was at rest: m with m + press drag(m) + field(m) =
+    /// (x, y), by fixed-point iteration.
+    fn material_source(&self, f: &Field, x: f64, y: f64) -> (f64, f64) {
+        let (mut mx, mut my) = (x, y);
+        for _ in 0..10 {
+            let (d, g) = (f.at(mx, my), self.radial_drag(mx, my));
+            (mx, my) = (x - d[0] - g[0], y - d[1] - g[1]);
+        }
+        (mx, my)
+    }
+
+    /// A pixel outside the pressed area: at rest (None), or showing a marker dot dragged there by
+    /// the tangential field.
+    fn dragged_marker(&self, x: usize, y: usize, markers: bool) -> Option<PressPixel> {
+        let f = self.field.as_ref().filter(|_| markers)?;
+        let (mx, my) = self.material_source(f, x as f64, y as f64);
+        Some(PressPixel {
+            in_contact: false,
+            shade: [0.0; 3],
+            dark: marker_dark(mx, my),
         })
     }
 }

@@ -143,3 +143,18 @@ pub fn visual_observation() -> VisualObservation {
         values: vec![0.081, -0.125],
     }
 }
+
+pub fn slip_state() -> SlipState {
+    SlipState {
+        header: header(),
+        sensor_id: "gs".into(),
+        shear_x_m: 1.5e-4,
+        shear_y_m: -2.5e-4,
+        rotation_rad: 0.03,
+        residual_px: 0.4,
+        slip_score: 0.2,
+        slip: true,
+        markers_tracked: 11,
+        valid: true,
+    }
+}

@@ -1,11 +1,12 @@
 //! Contact node: sensor_msgs/Image in (or CompressedImage: `image_transport`; best-effort, REP 2003); ContactState per frame,
 //! ContactEpisode on release, ContactClip (the episode's frames, for the inference node) and the
-//! learned background (latched, for the sampler's sensor prior) out, reliable; /diagnostics once
-//! a second. A thin driver of the same `ContactStage` the embedded runtime runs; its clock is the
-//! images' capture stamps, so replays give the same answers as live runs.
+//! learned background (latched, for the sampler's sensor prior) out, reliable; SlipState per frame
+//! in contact when the scene has a `slip` stage; /diagnostics once a second. A thin driver of the
+//! same `ContactStage` (and `SlipStage`) the embedded runtime runs; its clock is the images'
+//! capture stamps, so replays give the same answers as live runs.
 //!
 //! Topics (relative, so namespaces and remaps apply): `image` (or `image/compressed`) in; `contact_state`,
-//! `contact_episode`, `contact_clip`, `background` out. Parameters
+//! `contact_episode`, `contact_clip`, `background`, `slip_state` out. Parameters
 //! (`--ros-args --params-file x.yaml`): see `Params`.
 
 use futures::{FutureExt, StreamExt};
@@ -44,7 +45,7 @@ impl Default for Params {
 }
 
 /// Stage kinds this node runs.
-const STAGES: &[&str] = &["contact"];
+const STAGES: &[&str] = &["contact", "slip"];
 
 /// An image received: its header stamp (checked) and the converted frame.
 struct Received {
@@ -113,6 +114,8 @@ fn run() -> anyhow::Result<()> {
         .create_publisher::<r2r::unitac_msgs::msg::ContactEpisode>("contact_episode", reliable())?;
     let pub_clip =
         node.create_publisher::<r2r::unitac_msgs::msg::ContactClip>("contact_clip", reliable())?;
+    let pub_slip =
+        node.create_publisher::<r2r::unitac_msgs::msg::SlipState>("slip_state", reliable())?;
     // Latched: an inference node started later still gets the sensor prior.
     let pub_bg = node.create_publisher::<r2r::sensor_msgs::msg::Image>(
         "background",
@@ -135,6 +138,7 @@ fn run() -> anyhow::Result<()> {
                 Msg::Episode(e) => pub_ep.publish(&convert::contact_episode(&e)),
                 Msg::Clip(c) => pub_clip.publish(&convert::contact_clip(&c)),
                 Msg::Background(f) => pub_bg.publish(&image::from_frame(&f)),
+                Msg::Slip(s) => pub_slip.publish(&convert::slip_state(&s)),
                 _ => continue,
             };
             counters.published(r);
