@@ -10,7 +10,8 @@ use crate::cdr::{CdrError, CdrReader, CdrWriter, MAX_IMAGE_BYTES, MAX_SEQUENCE};
 use unitac_core::Stamp;
 use unitac_core::msg::{
     ArmCommand, ContactEpisode, ContactState, GripperCommand, GripperStatus, Header, Message,
-    PolicyStatus, PropertyComparison, SlipState, TactileLatent, TactileProperties, VisualObservation,
+    PolicyStatus, PropertyComparison, SlipState, TactileLatent, TactileProperties,
+    VisualObservation,
 };
 
 pub use unitac_core::msg::MAX_LATENT_DIMS;

@@ -7,8 +7,8 @@
 
 pub mod controller;
 pub mod mode;
-pub mod onnx;
 pub mod observation;
+pub mod onnx;
 pub mod params;
 pub mod policy;
 pub mod safety;

@@ -19,8 +19,8 @@ mod object;
 mod render;
 mod rng;
 mod scenario;
-pub mod task;
 pub mod tangential;
+pub mod task;
 pub mod world;
 
 pub use mock::{Drift, EPOCH, GroundTruth, MockConfig, MockSensor};
