@@ -107,7 +107,10 @@ build_msgs() {
     || { tail -50 "$b/msgs-cmake.log" >&2; exit 1; }
   # r2r caches generated bindings in its OUT_DIR keyed on the environment, not on the message
   # files: drop both crates' build outputs so the bindings are generated again.
-  if [ -d "${CARGO_TARGET_DIR:-target}" ]; then cargo clean -q -p r2r -p r2r_msg_gen 2>/dev/null || true; fi
+  if [ -d "${CARGO_TARGET_DIR:-target}" ]; then
+    cargo clean -q -p r2r -p r2r_msg_gen 2>/dev/null || true
+    cargo clean -q --release -p r2r -p r2r_msg_gen 2>/dev/null || true
+  fi
   # The colcon check builds in its own target dir with an environment r2r has seen before: it would
   # keep the old bindings too, so it starts again from scratch.
   rm -rf "$b/colcon-target"
