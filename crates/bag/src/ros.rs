@@ -296,41 +296,24 @@ impl<T: CdrField + Copy + Default, const N: usize> CdrField for [T; N] {
     }
 }
 
-impl CdrField for Vec<u32> {
-    fn write_field(&self, w: &mut CdrWriter) {
-        w.seq_u32(self);
-    }
-    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
-        r.seq_u32(what, max)
-    }
+/// Sequences of one element type: the writer's and reader's `seq_*` pair for it.
+macro_rules! cdr_sequence {
+    ($($t:ty => $seq:ident),* $(,)?) => {$(
+        impl CdrField for Vec<$t> {
+            fn write_field(&self, w: &mut CdrWriter) {
+                w.$seq(self);
+            }
+            fn read_field(
+                r: &mut CdrReader<'_>,
+                what: &'static str,
+                max: usize,
+            ) -> Result<Self, CdrError> {
+                r.$seq(what, max)
+            }
+        }
+    )*};
 }
-
-impl CdrField for Vec<f32> {
-    fn write_field(&self, w: &mut CdrWriter) {
-        w.seq_f32(self);
-    }
-    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
-        r.seq_f32(what, max)
-    }
-}
-
-impl CdrField for Vec<f64> {
-    fn write_field(&self, w: &mut CdrWriter) {
-        w.seq_f64(self);
-    }
-    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
-        r.seq_f64(what, max)
-    }
-}
-
-impl CdrField for Vec<String> {
-    fn write_field(&self, w: &mut CdrWriter) {
-        w.seq_string(self);
-    }
-    fn read_field(r: &mut CdrReader<'_>, what: &'static str, max: usize) -> Result<Self, CdrError> {
-        r.seq_string(what, max)
-    }
-}
+cdr_sequence!(u32 => seq_u32, f32 => seq_f32, f64 => seq_f64, String => seq_string);
 
 impl CdrField for Vec<u8> {
     fn write_field(&self, w: &mut CdrWriter) {
