@@ -71,7 +71,7 @@ pub struct Outcome {
 pub struct Summary {
     pub cases: usize,
     pub valid: usize,
-    /// Stuck sweep cases: translation error [mm] mean / max, rotation error [rad] mean / max.
+    /// Stuck sweep cases: translation error \[mm] mean / max, rotation error \[rad] mean / max.
     pub stick_shear_err_mm: [f64; 2],
     pub stick_rotation_err_rad: [f64; 2],
     /// Slip flag over the sweep (partial + gross are slip).
