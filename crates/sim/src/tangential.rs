@@ -25,7 +25,7 @@
 
 /// Contact radii over which the displacement outside the contact decays to zero.
 pub const DECAY_RADII: f64 = 2.0;
-/// Default friction limit of the gel's displacement [m] (elastic pre-slide of a soft gel).
+/// Default friction limit of the gel's displacement \[m] (elastic pre-slide of a soft gel).
 pub const DEFAULT_LIMIT_M: f64 = 0.5e-3;
 
 /// A render input: how the pressed object moved across the gel since it touched. SI units, in
