@@ -1,0 +1,274 @@
+//! The world <-> message bridge: what a task world publishes (the gripper's state, the camera's
+//! estimate, the tactile sensor's frames) and how the policy's commands become a world command.
+//!
+//! Times: world time `t_s` (seconds since the trial's reset) maps to the stamp
+//! [`EPOCH`] + `t_s`, the same epoch the mock sensor stamps its frames with, so a frame captured
+//! at world time t and a gripper status read at t carry the same stamp.
+//!
+//! What the gripper reports is what a real gripper can: the opening, the target it is moving to,
+//! the force (a force-controlled gripper's estimate), object detection (it stopped on something
+//! before reaching the target); never the object's deformation or slip.
+
+use thiserror::Error;
+use unitac_core::Frame;
+use unitac_core::clock::Stamp;
+use unitac_core::msg::{
+    ArmCommand, GripperCommand, GripperMode, GripperStatus, Header, VisualObservation,
+};
+use unitac_sim::task::{
+    self, ArmSetpoint, ArmTarget, GripperLimits, GripperSetpoint, TaskCommand, TaskTruth,
+};
+use unitac_sim::{EPOCH, GroundTruth, MockSensor};
+
+/// The frame id of the gripper's status (REP 105 style: the gripper's base link).
+pub const GRIPPER_FRAME: &str = "gripper_base_link";
+/// The frame id of the camera's observation.
+pub const CAMERA_FRAME: &str = "scene_camera_optical_frame";
+
+/// Opening within this of the target counts as arrived \[m] (a real gripper's position deadband).
+const ARRIVED_M: f64 = 1e-4;
+
+/// A command the bridge cannot turn into a world command.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum BridgeError {
+    #[error("gripper command {field} = {value} is not finite")]
+    NotFinite { field: &'static str, value: f64 },
+    #[error("arm command target is empty")]
+    EmptyTarget,
+}
+
+/// World time -> stamp.
+pub fn stamp_at(t_s: f64) -> Stamp {
+    EPOCH.saturating_add_nanos((t_s * 1e9).round() as i64)
+}
+
+/// Stamp -> world time (the inverse of [`stamp_at`]).
+pub fn time_of(stamp: Stamp) -> f64 {
+    stamp.secs_since(EPOCH)
+}
+
+/// The gripper's state as its driver would publish it. `target_m` is the opening the last
+/// command asked for (NaN before the first).
+pub fn gripper_status(truth: &TaskTruth, target_m: f64) -> GripperStatus {
+    let g = &truth.gripper;
+    let arrived = target_m.is_finite() && (g.opening_m - target_m).abs() < ARRIVED_M;
+    GripperStatus {
+        header: Header::new(stamp_at(truth.t_s), GRIPPER_FRAME),
+        opening_m: g.opening_m,
+        target_m,
+        force_n: g.force_n,
+        current_a: f64::NAN,
+        object_detected: g.stalled && g.force_n > 0.0,
+        activation: "active".into(),
+        motion: if arrived || g.stalled {
+            "stopped"
+        } else {
+            "moving"
+        }
+        .into(),
+        fault: String::new(),
+    }
+}
+
+/// The camera's estimate as a message.
+pub fn visual_message(v: &task::VisualObservation) -> VisualObservation {
+    VisualObservation {
+        header: Header::new(stamp_at(v.t_s), CAMERA_FRAME),
+        names: v.names.clone(),
+        values: v.values.clone(),
+    }
+}
+
+fn finite(field: &'static str, value: f64) -> Result<f64, BridgeError> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(BridgeError::NotFinite { field, value })
+    }
+}
+
+/// The policy's two commands as one world command. `opening_m` is the measured opening (a stop
+/// holds it). Position mode: move to `position_m` with `force_n` as the force bound; force mode:
+/// close (target 0) until the fingers stall at `force_n`; stop: stay where the fingers are.
+/// Values beyond the gripper's range are left for the world to clamp or refuse, as a gripper
+/// does; NaN or inf is an error here.
+pub fn task_command(
+    g: &GripperCommand,
+    a: &ArmCommand,
+    opening_m: f64,
+    limits: &GripperLimits,
+) -> Result<TaskCommand, BridgeError> {
+    let speed = finite("speed_m_s", g.speed_m_s)?;
+    let force = finite("force_n", g.force_n)?;
+    let (opening, force) = match g.mode {
+        GripperMode::Position => (finite("position_m", g.position_m)?, force),
+        GripperMode::Force => (0.0, force),
+        GripperMode::Stop => (finite("opening_m", opening_m)?, limits.max_force_n),
+    };
+    if a.target.is_empty() {
+        return Err(BridgeError::EmptyTarget);
+    }
+    Ok(TaskCommand {
+        gripper: GripperSetpoint {
+            opening_m: opening,
+            speed_m_s: speed,
+            force_n: force,
+        },
+        arm: ArmSetpoint {
+            target: ArmTarget::named(&a.target),
+            z_m: finite("z_m", a.z_m)?,
+            lift_m: finite("lift_m", a.lift_m)?,
+        },
+    })
+}
+
+/// The tactile sensor on the finger: renders the world's sensor view at the sensor's own frame
+/// times. Frame `i` is captured at world time `i / fps`; [`SensorRig::frames_until`] renders every
+/// frame due up to a world time from the world as it is then (the control step is the sim's
+/// resolution: frames within one step see the state at its end).
+#[derive(Debug)]
+pub struct SensorRig {
+    sensor: MockSensor,
+    next: u64,
+}
+
+impl SensorRig {
+    pub fn new(sensor: MockSensor) -> Self {
+        Self { sensor, next: 0 }
+    }
+    pub fn sensor(&self) -> &MockSensor {
+        &self.sensor
+    }
+    /// Index of the next frame to render.
+    pub fn next_index(&self) -> u64 {
+        self.next
+    }
+    /// World time of frame `index` \[s].
+    pub fn frame_time(&self, index: u64) -> f64 {
+        index as f64 / self.sensor.config().fps
+    }
+    /// Every frame captured at or before world time `t_s`, rendered from `world`'s sensor view,
+    /// with its ground truth (for measuring, never for the policy).
+    pub fn frames_until(&mut self, world: &task::TaskWorld, t_s: f64) -> Vec<(Frame, GroundTruth)> {
+        let view = world.sensor_view();
+        let mut out = Vec::new();
+        // A tolerance of 1 ns keeps frames whose time equals t_s up to rounding.
+        while self.frame_time(self.next) <= t_s + 1e-9 {
+            out.push(view.render(&self.sensor, self.next));
+            self.next += 1;
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::expect_used)]
+    use super::*;
+    use unitac_core::SensorKind;
+    use unitac_sim::task::{Split, TaskConfig, TaskWorld};
+    use unitac_sim::{MockConfig, Scenario};
+
+    fn cmd(mode: GripperMode, position_m: f64) -> GripperCommand {
+        GripperCommand {
+            header: Header::new(EPOCH, GRIPPER_FRAME),
+            mode,
+            position_m,
+            speed_m_s: 0.05,
+            force_n: 12.0,
+            reason: String::new(),
+        }
+    }
+    fn arm(target: &str) -> ArmCommand {
+        ArmCommand {
+            header: Header::new(EPOCH, GRIPPER_FRAME),
+            target: target.into(),
+            z_m: 0.05,
+            lift_m: 0.0,
+            reason: String::new(),
+        }
+    }
+
+    #[test]
+    fn stamps_round_trip_world_time() {
+        for t in [0.0, 1.0 / 30.0, 2.5, 600.0] {
+            assert!((time_of(stamp_at(t)) - t).abs() < 1e-9);
+        }
+        assert_eq!(stamp_at(0.0), EPOCH);
+    }
+
+    #[test]
+    fn modes_become_world_setpoints() {
+        let lim = GripperLimits::default();
+        let p = task_command(&cmd(GripperMode::Position, 0.05), &arm("cup"), 0.08, &lim).unwrap();
+        assert_eq!(p.gripper.opening_m, 0.05);
+        assert_eq!(p.gripper.force_n, 12.0);
+        assert_eq!(p.arm.target, ArmTarget::Object("cup".into()));
+        let f = task_command(&cmd(GripperMode::Force, 0.05), &arm("home"), 0.08, &lim).unwrap();
+        assert_eq!((f.gripper.opening_m, f.gripper.force_n), (0.0, 12.0));
+        assert_eq!(f.arm.target, ArmTarget::Home);
+        let s = task_command(&cmd(GripperMode::Stop, f64::NAN), &arm("cup"), 0.08, &lim).unwrap();
+        assert_eq!(s.gripper.opening_m, 0.08);
+    }
+
+    #[test]
+    fn non_finite_commands_are_errors_naming_the_field() {
+        let lim = GripperLimits::default();
+        let e = task_command(
+            &cmd(GripperMode::Position, f64::NAN),
+            &arm("cup"),
+            0.08,
+            &lim,
+        );
+        assert!(matches!(
+            e,
+            Err(BridgeError::NotFinite {
+                field: "position_m",
+                ..
+            })
+        ));
+        let mut a = arm("cup");
+        a.lift_m = f64::INFINITY;
+        let e = task_command(&cmd(GripperMode::Position, 0.05), &a, 0.08, &lim);
+        assert!(matches!(
+            e,
+            Err(BridgeError::NotFinite {
+                field: "lift_m",
+                ..
+            })
+        ));
+        let e = task_command(&cmd(GripperMode::Position, 0.05), &arm(""), 0.08, &lim);
+        assert_eq!(e, Err(BridgeError::EmptyTarget));
+    }
+
+    #[test]
+    fn status_reports_what_a_gripper_can_measure() {
+        let w = TaskWorld::reset(&TaskConfig::cup(Split::Train), 3, 0);
+        let t = w.truth();
+        let s = gripper_status(&t, f64::NAN);
+        assert_eq!(s.header.stamp, stamp_at(t.t_s));
+        assert_eq!(s.opening_m, t.gripper.opening_m);
+        assert!(s.target_m.is_nan() && s.current_a.is_nan());
+        assert!(!s.object_detected);
+        assert_eq!(s.motion, "moving");
+        let s = gripper_status(&t, t.gripper.opening_m);
+        assert_eq!(s.motion, "stopped");
+    }
+
+    #[test]
+    fn rig_renders_each_frame_once_at_its_own_time() {
+        let cfg = MockConfig::new(SensorKind::GelsightMini, 5);
+        let sensor = MockSensor::new(cfg, Scenario::idle(1.0));
+        let mut rig = SensorRig::new(sensor);
+        let w = TaskWorld::reset(&TaskConfig::cup(Split::Train), 3, 0);
+        let first = rig.frames_until(&w, 0.1);
+        // 25 fps: frames at 0, 0.04, 0.08.
+        assert_eq!(first.len(), 3);
+        assert_eq!(first[0].0.stamp, stamp_at(0.0));
+        assert_eq!(first[2].0.stamp, stamp_at(0.08));
+        assert!(rig.frames_until(&w, 0.1).is_empty());
+        let next = rig.frames_until(&w, 0.125);
+        assert_eq!(next.len(), 1);
+        assert_eq!(next[0].0.seq, 3);
+    }
+}
