@@ -6,7 +6,9 @@
       tactile_latent; once the contact node's publishers are discovered, print "ready" on stderr;
       collect until every count in UNTIL_JSON (e.g. {"contact_episode": 2}) arrived and then 1 s
       passed with nothing new, or SECONDS passed. Print one JSON line per message on stdout:
-      {"topic": name, "cdr": hex of the serialized message}, in arrival order per topic.
+      {"topic": name, "cdr": hex of the serialized message}, in arrival order per topic; then
+      {"topic": "contact_dropped", "value": N}: the largest `dropped` count the contact node in
+      NS reported on /diagnostics (frames it lost on the way, from stamp gaps).
 
 The CDR bytes are decoded by the project's own codecs on the Rust side, so the comparison with
 the golden files covers the ROS serialization too.
@@ -19,6 +21,7 @@ import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile
 from rclpy.serialization import serialize_message
+from diagnostic_msgs.msg import DiagnosticArray
 from unitac_msgs.msg import (ContactEpisode, ContactState, PropertyComparison, TactileLatent,
                              TactileProperties)
 
@@ -47,6 +50,16 @@ def main():
                              durability=DurabilityPolicy.TRANSIENT_LOCAL if latched
                              else DurabilityPolicy.VOLATILE)
             node.create_subscription(ty, f"{ns}/{topic}", keep(topic), qos)
+        dropped = [0]
+
+        def diagnostics(m):
+            for st in m.status:
+                if st.name.startswith("unitac_contact") and ns in st.name:
+                    for kv in st.values:
+                        if kv.key == "dropped":
+                            dropped[0] = max(dropped[0], int(kv.value))
+
+        node.create_subscription(DiagnosticArray, "/diagnostics", diagnostics, 100)
         end = time.monotonic() + seconds
         ready = False
         while time.monotonic() < end:
@@ -60,6 +73,7 @@ def main():
         for topic, msgs in got.items():
             for m in msgs:
                 print(json.dumps({"topic": topic, "cdr": m}))
+        print(json.dumps({"topic": "contact_dropped", "value": dropped[0]}))
         return 0
     finally:
         rclpy.try_shutdown()

@@ -10,6 +10,27 @@ use unitac_core::Frame;
 
 use crate::convert;
 
+/// History depth of an image topic when every frame must arrive (`image_qos:=reliable` on the
+/// contact node, `image_depth` on the sensor node): about 2.5 s of frames at 25 fps.
+pub const RELIABLE_IMAGE_DEPTH: usize = 64;
+
+/// The contact node's image subscription QoS by its `image_qos` parameter:
+/// - `sensor_data` (the default, ROS's sensor-data profile: best effort, keep last 5): on a robot
+///   the newest frame matters and a late one is worth nothing; a frame lost on the way shows up
+///   in the `dropped` diagnostic (stamp gaps);
+/// - `reliable` (reliable, keep last [`RELIABLE_IMAGE_DEPTH`]): every frame arrives unless the
+///   node falls that far behind: for replays whose outputs are compared frame by frame (the
+///   golden test). The publisher must be reliable too (the sensor node's is).
+pub fn image_qos(name: &str) -> Result<r2r::QosProfile, String> {
+    match name {
+        "sensor_data" => Ok(r2r::QosProfile::sensor_data()),
+        "reliable" => Ok(r2r::QosProfile::default().keep_last(RELIABLE_IMAGE_DEPTH)),
+        other => Err(format!(
+            "image_qos must be sensor_data or reliable, got '{other}'"
+        )),
+    }
+}
+
 /// Image (any encoding `unitac_bag::image` knows; any row padding) -> RGB8 frame with the
 /// header's stamp.
 pub fn to_frame(m: &Image, sensor_id: &str, seq: u64) -> Result<Frame, ImageError> {
@@ -63,6 +84,24 @@ mod tests {
     fn frame() -> Frame {
         let data: Vec<u8> = (0..4 * 3 * 3).map(|i| i as u8).collect();
         Frame::new("gs", 5, Stamp(1_700_000_000_000_000_123), 4, 3, data).unwrap()
+    }
+
+    #[test]
+    fn image_qos_names_its_profiles_and_rejects_others() {
+        use r2r::qos::{HistoryPolicy, ReliabilityPolicy};
+        let s = image_qos("sensor_data").unwrap();
+        assert_eq!(s.reliability, ReliabilityPolicy::BestEffort);
+        let r = image_qos("reliable").unwrap();
+        assert_eq!(r.reliability, ReliabilityPolicy::Reliable);
+        assert_eq!(
+            (r.history, r.depth),
+            (HistoryPolicy::KeepLast, RELIABLE_IMAGE_DEPTH)
+        );
+        let e = image_qos("best").unwrap_err();
+        assert!(
+            e.contains("sensor_data or reliable") && e.contains("'best'"),
+            "{e}"
+        );
     }
 
     #[test]

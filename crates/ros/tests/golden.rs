@@ -5,6 +5,11 @@
 //! reproduce: crates/cli/tests/golden.rs). An rclpy observer (tests/ros/golden_peer.py) records
 //! the messages' CDR; they are decoded with the project's codecs and compared field by field
 //! (floats within unitac_core::golden::FLOAT_TOLERANCE).
+//!
+//! Every frame must reach the contact node (a lost frame changes the background's updates and so
+//! the outputs): the sensor node publishes reliably with a deep history and the contact node
+//! subscribes reliably (`image_qos:=reliable`), and the contact node's own drop count (stamp gaps,
+//! from /diagnostics) must be zero, so a loss fails as a loss, not as a stage difference.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
@@ -106,7 +111,7 @@ fn check_scene(scene: &str) {
     let contact = node(
         env!("CARGO_BIN_EXE_unitac_contact_node"),
         &ns,
-        &[scene_p.clone(), sim.clone()],
+        &[scene_p.clone(), sim.clone(), "image_qos:=reliable".into()],
     );
     let inference = node(
         env!("CARGO_BIN_EXE_unitac_inference_node"),
@@ -141,6 +146,7 @@ fn check_scene(scene: &str) {
             format!("bag:={}", bag.display()),
             "rate:=1.0".into(),
             "wait_subscribers:=1".into(),
+            format!("image_depth:={}", unitac_ros::image::RELIABLE_IMAGE_DEPTH),
         ],
     );
     let out = peer.wait_with_output().unwrap();
@@ -149,13 +155,24 @@ fn check_scene(scene: &str) {
     stop(inference);
     std::fs::remove_dir_all(&dir).ok();
     let mut got: BTreeMap<String, Vec<serde_json::Value>> = BTreeMap::new();
+    let mut dropped = None;
     for l in String::from_utf8_lossy(&out.stdout).lines() {
         let j: serde_json::Value = serde_json::from_str(l).unwrap();
         let topic = j["topic"].as_str().unwrap();
+        if topic == "contact_dropped" {
+            dropped = j["value"].as_u64();
+            continue;
+        }
         got.entry(topic.to_string())
             .or_default()
             .push(event(topic, &hex(j["cdr"].as_str().unwrap())));
     }
+    assert_eq!(
+        dropped,
+        Some(0),
+        "{scene}: the contact node lost frames on the way (its /diagnostics `dropped`): the \
+         comparison would be meaningless, so this is a transport failure, not a stage difference"
+    );
     for (ty, w) in &want {
         let g = got.get(ty).cloned().unwrap_or_default();
         if let Some(d) = diff(w, &g) {

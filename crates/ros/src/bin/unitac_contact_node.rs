@@ -31,6 +31,9 @@ struct Params {
     /// raw: sensor_msgs/Image on `image`; compressed: sensor_msgs/CompressedImage (jpeg, png) on
     /// `image/compressed`, as image_transport names it
     image_transport: String,
+    /// sensor_data (best effort, newest frames: a robot) | reliable (every frame: replays that
+    /// are compared frame by frame)
+    image_qos: String,
 }
 
 impl Default for Params {
@@ -40,6 +43,7 @@ impl Default for Params {
             sensor_id: String::new(),
             sensor_kind: String::new(),
             image_transport: "raw".into(),
+            image_qos: "sensor_data".into(),
         }
     }
 }
@@ -89,20 +93,19 @@ fn run() -> anyhow::Result<()> {
     let mut chain = Chain::new(stages);
     let sensor_id = p.sensor_id;
 
+    let image_qos = unitac_ros::image::image_qos(&p.image_qos).map_err(anyhow::Error::msg)?;
     let node = &mut base.node;
     // One of the two subscriptions, by `image_transport`.
     let (mut raw, mut compressed) = match p.image_transport.as_str() {
         "raw" => (
-            Some(
-                node.subscribe::<r2r::sensor_msgs::msg::Image>("image", QosProfile::sensor_data())?,
-            ),
+            Some(node.subscribe::<r2r::sensor_msgs::msg::Image>("image", image_qos.clone())?),
             None,
         ),
         "compressed" => (
             None,
             Some(node.subscribe::<r2r::sensor_msgs::msg::CompressedImage>(
                 "image/compressed",
-                QosProfile::sensor_data(),
+                image_qos.clone(),
             )?),
         ),
         other => anyhow::bail!("image_transport must be raw or compressed, got '{other}'"),

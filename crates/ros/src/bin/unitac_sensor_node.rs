@@ -48,6 +48,9 @@ struct Params {
     rate: f64,
     /// Publish /clock with the bag's time (bag source; for nodes under use_sim_time)
     publish_clock: bool,
+    /// History depth of the image publisher (reliable; 1..=64): deeper lets a reliable
+    /// subscriber that falls behind catch up instead of losing frames
+    image_depth: i32,
 }
 
 impl Default for Params {
@@ -64,11 +67,22 @@ impl Default for Params {
             bag_topic: String::new(),
             rate: 1.0,
             publish_clock: true,
+            image_depth: 10,
         }
     }
 }
 
 type Base = NodeBase<Params>;
+
+/// The image publisher's QoS: reliable (it matches best-effort and reliable subscribers), keep
+/// last `image_depth`.
+fn image_qos(p: &Params) -> anyhow::Result<QosProfile> {
+    let max = unitac_ros::image::RELIABLE_IMAGE_DEPTH;
+    match usize::try_from(p.image_depth) {
+        Ok(d) if (1..=max).contains(&d) => Ok(QosProfile::default().keep_last(d)),
+        _ => anyhow::bail!("image_depth must be 1..={max}, got {}", p.image_depth),
+    }
+}
 
 fn wait_for_subscribers(
     base: &mut Base,
@@ -116,7 +130,7 @@ fn run_source(base: &mut Base, p: &Params, scene: &Scene) -> anyhow::Result<()> 
     let mut source = open()?;
     let publisher = base
         .node
-        .create_publisher::<r2r::sensor_msgs::msg::Image>("image_raw", QosProfile::default())?;
+        .create_publisher::<r2r::sensor_msgs::msg::Image>("image_raw", image_qos(p)?)?;
     let hardware_id = source.name().to_string();
     let mut diag = diagnostics::Updater::new(
         &format!("unitac_sensor: {}", base.node.fully_qualified_name()?),
@@ -244,9 +258,9 @@ fn run_bag(base: &mut Base, p: &Params, scene: &Scene) -> anyhow::Result<()> {
     } else {
         "image_raw/compressed"
     };
-    let publisher =
-        base.node
-            .create_publisher_untyped(out_topic, &type_name, QosProfile::default())?;
+    let publisher = base
+        .node
+        .create_publisher_untyped(out_topic, &type_name, image_qos(p)?)?;
     let clock = base
         .node
         .create_publisher::<r2r::rosgraph_msgs::msg::Clock>("/clock", QosProfile::default())?;
