@@ -32,6 +32,7 @@ pub fn list_param(s: &str) -> Vec<String> {
 
 pub mod diagnostics;
 pub mod drops;
+pub mod gripper;
 pub mod image;
 pub mod node;
 

@@ -9,8 +9,9 @@
 //!
 //! Topics (relative): `gripper_command` in; `joint_states` (one joint, `joint_name`: position =
 //! finger opening (m), effort = grip force (N) where the device gives one, else motor current
-//! (A)) and `gripper_status` (std_msgs/String, the state as one JSON object) out; /diagnostics
-//! once a second: exchange rate, round trip p50/p99, retries, link errors, the fault.
+//! (A)) and `gripper_status` (unitac_msgs/GripperStatus: opening, target, force, current, object
+//! detection, activation, motion, fault; frame_id `frame_id`) out, both on every new reading;
+//! /diagnostics once a second: exchange rate, round trip p50/p99, retries, link errors, the fault.
 
 use futures::{FutureExt, StreamExt};
 use r2r::{QosProfile, RosParams};
@@ -33,6 +34,8 @@ struct Params {
     activate: bool,
     /// Joint name in joint_states
     joint_name: String,
+    /// frame_id of joint_states and gripper_status
+    frame_id: String,
 }
 
 impl Default for Params {
@@ -44,6 +47,7 @@ impl Default for Params {
             rate_hz: 100.0,
             activate: true,
             joint_name: "gripper_finger_opening".into(),
+            frame_id: "gripper_base".into(),
         }
     }
 }
@@ -102,8 +106,10 @@ fn run() -> anyhow::Result<()> {
         "joint_states",
         QosProfile::default(),
     )?;
-    let pub_status = node
-        .create_publisher::<r2r::std_msgs::msg::String>("gripper_status", QosProfile::default())?;
+    let pub_status = node.create_publisher::<r2r::unitac_msgs::msg::GripperStatus>(
+        "gripper_status",
+        QosProfile::default(),
+    )?;
     let mut diag = diagnostics::Updater::new(
         &format!("unitac_gripper: {}", node.fully_qualified_name()?),
         &format!("{model} on {}", gripper.stats().port.display()),
@@ -130,16 +136,17 @@ fn run() -> anyhow::Result<()> {
         let s = gripper.state();
         if s.updates != last_update {
             last_update = s.updates;
+            let now = base.now();
             let mut js = r2r::sensor_msgs::msg::JointState::default();
-            js.header.stamp = base.now();
+            js.header.stamp = now.clone();
+            js.header.frame_id = p.frame_id.clone();
             js.name = vec![p.joint_name.clone()];
             js.position = vec![s.opening_m.unwrap_or(f64::NAN)];
             js.effort = vec![s.force_n.or(s.current_a).unwrap_or(f64::NAN)];
             counters.published(pub_joint.publish(&js));
-            let status = r2r::std_msgs::msg::String {
-                data: serde_json::to_string(&s)?,
-            };
-            counters.published(pub_status.publish(&status));
+            let status =
+                unitac_ros::gripper::status(&s, unitac_ros::convert::stamp(&now), &p.frame_id);
+            counters.published(pub_status.publish(&unitac_ros::convert::gripper_status(&status)));
         }
         let st = gripper.stats();
         counters.frames_in = st.cycles;
