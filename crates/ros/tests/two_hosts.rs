@@ -1,6 +1,6 @@
 //! Two hosts on one machine: a "robot" and a "gpu" network namespace joined by a veth pair (the
 //! test's own addresses, only on that veth, inside namespaces it creates and always deletes).
-//! The robot runs the sensor and contact nodes and an rclpy observer; the gpu host runs the
+//! (`scripts/two-hosts`.) The robot runs the sensor and contact nodes and an rclpy observer; the gpu host runs the
 //! inference node. DDS crosses the veth over UDP (no shared memory: FASTDDS_BUILTIN_TRANSPORTS=
 //! UDPv4), discovery by multicast on the veth's subnet plus static peers (the deployment recipe
 //! in crates/ros/README.md). Checked: the properties and the comparison of the episodes the robot
@@ -14,95 +14,44 @@ use serde_json::Value;
 use std::process::{Child, Command, Stdio};
 use std::time::Instant;
 
-/// The two namespaces and the veth between them; dropping it deletes both namespaces (and with
-/// them the veth), also when the test fails.
+/// The two hosts of `scripts/two-hosts` (the one place that creates them); dropping it deletes
+/// both namespaces (and with them the veth), also when the test fails.
 struct Hosts {
-    robot: String,
-    gpu: String,
-    robot_dev: String,
+    id: String,
 }
 
-const ROBOT_IP: &str = "10.77.0.1";
-const GPU_IP: &str = "10.77.0.2";
-
-fn ip(args: &[&str]) {
-    let s = Command::new("ip").args(args).status().unwrap();
-    assert!(s.success(), "ip {args:?} failed");
+fn two_hosts(args: &[&str]) -> Command {
+    let mut c = Command::new("bash");
+    c.arg(root().join("scripts/two-hosts")).args(args);
+    c
 }
 
 impl Hosts {
     fn up() -> Hosts {
-        let id = std::process::id();
         let h = Hosts {
-            robot: format!("unitac_robot_{id}"),
-            gpu: format!("unitac_gpu_{id}"),
-            robot_dev: format!("ur{id}"),
+            id: std::process::id().to_string(),
         };
-        let gpu_dev = format!("ug{id}");
-        ip(&["netns", "add", &h.robot]);
-        ip(&["netns", "add", &h.gpu]);
-        ip(&[
-            "link",
-            "add",
-            &h.robot_dev,
-            "type",
-            "veth",
-            "peer",
-            "name",
-            &gpu_dev,
-        ]);
-        ip(&["link", "set", &h.robot_dev, "netns", &h.robot]);
-        ip(&["link", "set", &gpu_dev, "netns", &h.gpu]);
-        for (ns, dev, addr) in [
-            (&h.robot, &h.robot_dev, ROBOT_IP),
-            (&h.gpu, &gpu_dev, GPU_IP),
-        ] {
-            ip(&["-n", ns, "addr", "add", &format!("{addr}/24"), "dev", dev]);
-            ip(&["-n", ns, "link", "set", "lo", "up"]);
-            ip(&["-n", ns, "link", "set", dev, "up"]);
-            // DDS discovery multicast goes out on the veth (there is no other route).
-            ip(&["-n", ns, "route", "add", "224.0.0.0/4", "dev", dev]);
-        }
+        let s = two_hosts(&["up", &h.id]).status().unwrap();
+        assert!(s.success(), "scripts/two-hosts up failed");
         h
     }
 
-    /// A command run on host `ns` with the two-host DDS settings; `peer` is the other host.
-    fn exec(&self, ns: &str, program: &str) -> Command {
-        let peer = if ns == self.robot { GPU_IP } else { ROBOT_IP };
-        let mut c = Command::new("ip");
-        c.args(["netns", "exec", ns, "env"])
-            .arg("ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET")
-            .arg(format!("ROS_STATIC_PEERS={peer}"))
-            .arg("FASTDDS_BUILTIN_TRANSPORTS=UDPv4")
-            .arg(program);
-        c
+    /// `program` run on `host` (robot | gpu) with the two-host DDS settings.
+    fn exec(&self, host: &str, program: &str) -> Command {
+        two_hosts(&["exec", host, &self.id, program])
     }
 
     /// Bytes sent plus received on the robot's end of the veth so far.
     fn veth_bytes(&self) -> u64 {
-        let o = Command::new("ip")
-            .args([
-                "-n",
-                &self.robot,
-                "-s",
-                "-j",
-                "link",
-                "show",
-                &self.robot_dev,
-            ])
-            .output()
-            .unwrap();
-        let v: Value = serde_json::from_slice(&o.stdout).unwrap();
-        let s = &v[0]["stats64"];
-        s["rx"]["bytes"].as_u64().unwrap() + s["tx"]["bytes"].as_u64().unwrap()
+        let o = two_hosts(&["bytes", &self.id]).output().unwrap();
+        assert!(o.status.success());
+        String::from_utf8_lossy(&o.stdout).trim().parse().unwrap()
     }
 }
 
 impl Drop for Hosts {
     fn drop(&mut self) {
-        for ns in [&self.robot, &self.gpu] {
-            let _ = Command::new("ip").args(["netns", "del", ns]).status();
-        }
+        let _ = two_hosts(&["down", &self.id]).status();
     }
 }
 
@@ -117,7 +66,7 @@ fn node(mut c: Command, ns: &str, args: &[&str]) -> Child {
 
 fn sensor(h: &Hosts, ns: &str) -> Child {
     node(
-        h.exec(&h.robot, env!("CARGO_BIN_EXE_unitac_sensor_node")),
+        h.exec("robot", env!("CARGO_BIN_EXE_unitac_sensor_node")),
         ns,
         &[
             "-p",
@@ -141,12 +90,12 @@ fn inference_on_a_second_host_answers_the_robots_episodes_and_only_clips_cross()
 
     // Clips only: contact on the robot, inference on the gpu host.
     let contact = node(
-        h.exec(&h.robot, env!("CARGO_BIN_EXE_unitac_contact_node")),
+        h.exec("robot", env!("CARGO_BIN_EXE_unitac_contact_node")),
         &ns,
         &["-r", "image:=image_raw", "-p", "scene:=fabric_selection"],
     );
     let inference = node(
-        h.exec(&h.gpu, env!("CARGO_BIN_EXE_unitac_inference_node")),
+        h.exec("gpu", env!("CARGO_BIN_EXE_unitac_inference_node")),
         &ns,
         &["-p", "scene:=fabric_selection"],
     );
@@ -154,7 +103,7 @@ fn inference_on_a_second_host_answers_the_robots_episodes_and_only_clips_cross()
     let opts = serde_json::json!({"until": {"comparisons": 1, "episodes": 2},
         "wait_for": ["/contact_state", "/contact_episode", "/property_comparison"]});
     let listener = h
-        .exec(&h.robot, py)
+        .exec("robot", py)
         .args([peer, "listen", &ns, "90", &opts.to_string()])
         .stdout(Stdio::piped())
         .spawn()
@@ -192,13 +141,13 @@ fn inference_on_a_second_host_answers_the_robots_episodes_and_only_clips_cross()
 
     // Raw images: the same sensor with a subscriber to image_raw on the gpu host instead.
     let raw_sub = h
-        .exec(&h.gpu, py)
+        .exec("gpu", py)
         .args([peer, "slow", &ns, "12", "0"])
         .stdout(Stdio::piped())
         .spawn()
         .unwrap();
     let local = h
-        .exec(&h.robot, py)
+        .exec("robot", py)
         .args([peer, "slow", &ns, "12", "0"])
         .stdout(Stdio::null())
         .spawn()
