@@ -3,6 +3,11 @@
 //!
 //! - [`bridge`]: the one conversion between the world and the messages (GripperStatus,
 //!   VisualObservation and the mock sensor's frames out of the world; GripperCommand +
-//!   ArmCommand into it), used by the embedded trial loop and by the ROS sim node alike.
+//!   ArmCommand into it), used by the embedded trial loop and by the ROS sim node alike;
+//! - [`run`]: one closed-loop trial (the world as the scene's source, the scene's stages driven
+//!   by `unitac_core::chain`, a per-tick trace and the world's outcome).
 
 pub mod bridge;
+pub mod run;
+
+pub use run::{TraceRow, TrialError, TrialOptions, TrialRecord, run_trial};
