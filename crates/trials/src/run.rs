@@ -237,6 +237,28 @@ pub fn run_trial(
     let params = policy_params(scene)?;
     let dt = 1.0 / params.control_rate_hz;
     let mut world = TaskWorld::reset(task, seed, trial);
+    let names: Vec<&str> = world
+        .spec()
+        .objects
+        .iter()
+        .map(|o| o.name.as_str())
+        .collect();
+    let foreign: Vec<&str> = params
+        .objects
+        .iter()
+        .map(String::as_str)
+        .filter(|o| !names.contains(o))
+        .collect();
+    if !foreign.is_empty() {
+        return Err(TrialError::Scene {
+            scene: scene.name.clone(),
+            msg: format!(
+                "policy objects {foreign:?} are not in the {} task's world ({})",
+                task.kind.as_str(),
+                names.join(", ")
+            ),
+        });
+    }
     let mut rig = SensorRig::new(trial_sensor(scene, seed, trial));
     let mut camera = trial_rng(seed ^ CAMERA_SALT, trial);
     let mut chain = Chain::new(stages);

@@ -137,12 +137,20 @@ mod tests {
     fn counts_each_criterion_per_mode_beside_the_paper() {
         let modes = vec![
             ("vla".to_string(), vec![cup(true, 0.015), cup(true, 0.01)]),
-            ("vtla_real".to_string(), vec![cup(true, 0.0095), cup(false, 0.0)]),
+            (
+                "vtla_real".to_string(),
+                vec![cup(true, 0.0095), cup(false, 0.0)],
+            ),
         ];
         let rows = table(TaskKind::Cup, &modes);
         let got: Vec<(String, Vec<u32>)> = rows
             .iter()
-            .map(|r| (r.criterion.clone(), r.cells.iter().map(|c| c.ours).collect()))
+            .map(|r| {
+                (
+                    r.criterion.clone(),
+                    r.cells.iter().map(|c| c.ours).collect(),
+                )
+            })
             .collect();
         assert_eq!(
             got,
@@ -155,7 +163,10 @@ mod tests {
         assert_eq!(rows[1].cells[0].paper, Some(0));
         assert_eq!(rows[1].cells[1].paper, Some(20));
         let text = render(&rows);
-        assert!(text.contains("target deformation    1/2 (paper 0/20)"), "{text}");
+        assert!(
+            text.contains("target deformation    1/2 (paper 0/20)"),
+            "{text}"
+        );
         assert_eq!(text.lines().count(), 4);
         assert_eq!(paper(TaskKind::Fabric, "selection", "vtla_pred"), Some(18));
         assert_eq!(paper(TaskKind::Fabric, "lift", "vla"), None);
