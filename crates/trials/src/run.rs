@@ -39,6 +39,8 @@ const CAMERA_SALT: u64 = 0x4341_4D45_5241_0001;
 pub const MAX_TRIAL_S: f64 = 600.0;
 /// Rejections kept per trial (the count goes on).
 const KEPT_REJECTIONS: usize = 20;
+/// Phase changes kept per trial.
+pub const KEPT_PHASES: usize = 64;
 
 /// A trial that could not run to its end.
 #[derive(Debug, Error)]
@@ -146,8 +148,12 @@ pub struct TrialRecord {
     pub control_rate_hz: f64,
     pub duration_s: f64,
     pub frames: u64,
-    /// The policy's last phase (`done`, `failed`, or where the time limit caught it).
+    /// The policy's last phase (`done`, `failed`, or where the time limit caught it) and its
+    /// last message (the failure's reason when it failed).
     pub end_phase: String,
+    pub end_reason: String,
+    /// `t phase: message` at each phase change (the first [`KEPT_PHASES`]): the trial's story.
+    pub phases: Vec<String>,
     pub outcome: TaskOutcome,
     /// Inputs a stage rejected (the first few) and how many in all.
     pub rejections: Vec<String>,
@@ -272,6 +278,8 @@ pub fn run_trial(
         duration_s: 0.0,
         frames: 0,
         end_phase: String::new(),
+        end_reason: String::new(),
+        phases: Vec::new(),
         outcome: world.outcome(),
         rejections: Vec::new(),
         rejected: 0,
@@ -342,7 +350,15 @@ pub fn run_trial(
             safety_ok: status.safety_ok,
             reason: status.message.clone(),
         });
+        if (record.phases.is_empty() || record.end_phase != status.phase)
+            && record.phases.len() < KEPT_PHASES
+        {
+            record
+                .phases
+                .push(format!("{t:.3} {}: {}", status.phase, status.message));
+        }
         record.end_phase = status.phase;
+        record.end_reason = status.message;
         if ended_at.is_none() && matches!(record.end_phase.as_str(), "done" | "failed") {
             ended_at = Some(t);
         }
