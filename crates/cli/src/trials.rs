@@ -60,7 +60,7 @@ impl TrialMode {
 
 #[derive(clap::Args, Debug)]
 pub struct TrialsArgs {
-    /// Task: cup_deformation | fabric_selection (runs launch/scenes/<scene>_<mode>.yaml).
+    /// Task: cup_deformation | fabric_selection (runs `launch/scenes/<scene>_<mode>.yaml`).
     #[arg(long)]
     pub scene: TrialScene,
     /// Modes, comma separated: vla, vtla_real, vtla_pred.
