@@ -16,6 +16,7 @@ mod progress;
 mod replay;
 mod sampler;
 mod slip_eval;
+mod trials;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
@@ -191,6 +192,9 @@ enum Cmd {
     },
     /// Bring-up of a serial gripper: `gripper --port P --model M activate|open|close|status|bench`.
     Gripper(gripper::GripperArgs),
+    /// Closed-loop grasp trials in the sim world (issue 13): each mode's scene
+    /// (`<scene>_<mode>.yaml`) N times, the success table beside the paper's (`--json`, `--plot DIR`).
+    Trials(trials::TrialsArgs),
     /// List the scenes found in the scene directories.
     Scenes {
         #[arg(long)]
@@ -620,6 +624,7 @@ fn main() -> ExitCode {
             }
         }
         Cmd::Gripper(args) => gripper::run(args),
+        Cmd::Trials(args) => trials::run(args),
         Cmd::Scenes { scene_dir } => {
             let mut names: Vec<String> = scene_dirs(scene_dir)
                 .iter()

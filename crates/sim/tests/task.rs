@@ -401,3 +401,62 @@ fn the_rendered_frame_follows_the_world() {
     assert!((g.penetration_mm - view.penetration_m * 1e3).abs() < 1e-12);
     assert_eq!(g.label, "fabric_a");
 }
+
+/// Largest downward marker motion in a frame's truth \[px].
+fn max_marker_dy(g: &unitac_sim::GroundTruth) -> f64 {
+    g.markers
+        .iter()
+        .map(|m| m.moved_px[1] - m.rest_px[1])
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn the_gel_displacement_of_a_lift_moves_the_rendered_markers() {
+    let sensor = MockSensor::new(
+        MockConfig::new(SensorKind::GelsightMini, 1),
+        Scenario::idle(1.0),
+    );
+    let mm_per_px = sensor.spec().mm_per_px;
+    // A held, lifted fabric: the hanging load drags the gel down, stuck.
+    let cfg = TaskConfig::fabric();
+    let mut w = TaskWorld::reset(&cfg, 4, 1);
+    let ticks = pinch_and_lift(&mut w, 3.0);
+    assert!(ticks.iter().all(|t| t.contact.slip_step_m.abs() < 1e-9));
+    let view = w.sensor_view();
+    let gel = view.tangential_m[1];
+    assert!(gel > 0.0, "{gel}");
+    let tan = view.tangential().unwrap();
+    assert_eq!((tan.shift_m, tan.stick_ratio), ([0.0, gel], 1.0));
+    let (frame, g) = view.render(&sensor, 7);
+    assert_eq!(g.tangential, tan);
+    assert_eq!(g.label, "fabric_a");
+    assert!((g.penetration_mm - view.penetration_m * 1e3).abs() < 1e-12);
+    assert!((g.force_n - view.force_n).abs() < 1e-12);
+    // The stuck markers follow the gel: down by its displacement, in pixels.
+    let dy = max_marker_dy(&g);
+    let want = gel * 1e3 / mm_per_px;
+    assert!(
+        (dy - want).abs() < 0.05 * want + 1e-3,
+        "{dy} px vs {want} px"
+    );
+    // The same press without the displacement is another image.
+    let obj = view.object.as_ref().unwrap();
+    let (plain, pg) = sensor.render_press(7, Some((obj, view.penetration_m * 1e3)), 0.0, 0.0);
+    assert_eq!(max_marker_dy(&pg), 0.0);
+    assert_ne!(frame.data(), plain.data());
+
+    // Slipping (relative motion in this step): gross slip, the gel at its friction limit.
+    let mut slipping = view.clone();
+    slipping.slip_m = [0.0, 2e-4];
+    slipping.slip_total_m = 1e-3;
+    let s = slipping.tangential().unwrap();
+    assert_eq!(s.stick_ratio, 0.0);
+    assert_eq!(s.limit_m, gel);
+    assert!((s.shift_m[1] - (gel + 1e-3)).abs() < 1e-15 && s.shift_m[0] == 0.0);
+    let (_, sg) = slipping.render(&sensor, 7);
+    assert!(max_marker_dy(&sg) <= gel * 1e3 / mm_per_px + 1e-9);
+    // Not touching: no displacement.
+    let mut free = view.clone();
+    free.penetration_m = 0.0;
+    assert_eq!(free.tangential(), None);
+}

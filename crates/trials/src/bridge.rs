@@ -70,11 +70,22 @@ pub fn gripper_status(truth: &TaskTruth, target_m: f64) -> GripperStatus {
     }
 }
 
-/// The camera's estimate as a message.
+/// The message name of a camera value: the world's `<object>.<field>` as `<object>_<field>`,
+/// with the cup's diameter called its width (`cup_width_m`, what the camera measures across the
+/// rim and the name the policy reads).
+pub fn visual_name(world_name: &str) -> String {
+    let name = world_name.replacen('.', "_", 1);
+    match name.strip_suffix("_diameter_m") {
+        Some(object) => format!("{object}_width_m"),
+        None => name,
+    }
+}
+
+/// The camera's estimate as a message (names by [`visual_name`]).
 pub fn visual_message(v: &task::VisualObservation) -> VisualObservation {
     VisualObservation {
         header: Header::new(stamp_at(v.t_s), CAMERA_FRAME),
-        names: v.names.clone(),
+        names: v.names.iter().map(|n| visual_name(n)).collect(),
         values: v.values.clone(),
     }
 }
@@ -239,6 +250,30 @@ mod tests {
         ));
         let e = task_command(&cmd(GripperMode::Position, 0.05), &arm(""), 0.08, &lim);
         assert_eq!(e, Err(BridgeError::EmptyTarget));
+    }
+
+    #[test]
+    fn camera_values_keep_their_order_under_the_message_names() {
+        let w = TaskWorld::reset(&TaskConfig::cup(Split::Unseen), 3, 0);
+        let v = w.observe_visual(&mut unitac_sim::SplitMix64::new(1));
+        let m = visual_message(&v);
+        assert_eq!(
+            m.names,
+            [
+                "cup_x_m",
+                "cup_y_m",
+                "cup_z_m",
+                "cup_width_m",
+                "cup_height_m"
+            ]
+        );
+        assert_eq!(m.values, v.values);
+        assert_eq!(m.header.stamp, stamp_at(v.t_s));
+        assert_eq!(m.get("cup_width_m"), v.get("cup.diameter_m"));
+        assert_eq!(
+            visual_name("fabric_b.edge_height_m"),
+            "fabric_b_edge_height_m"
+        );
     }
 
     #[test]

@@ -3,6 +3,13 @@
 //!
 //! - [`bridge`]: the one conversion between the world and the messages (GripperStatus,
 //!   VisualObservation and the mock sensor's frames out of the world; GripperCommand +
-//!   ArmCommand into it), used by the embedded trial loop and by the ROS sim node alike.
+//!   ArmCommand into it), used by the embedded trial loop and by the ROS sim node alike;
+//! - [`run`]: one closed-loop trial (the world as the scene's source, the scene's stages driven
+//!   by `unitac_core::chain`, a per-tick trace and the world's outcome);
+//! - [`table`]: the paper-style success table, our counts beside the paper's.
 
 pub mod bridge;
+pub mod run;
+pub mod table;
+
+pub use run::{TraceRow, TrialError, TrialOptions, TrialRecord, run_trial};

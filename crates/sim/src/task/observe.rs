@@ -14,6 +14,7 @@ use super::{ObjectSpec, TaskKind, TaskWorld};
 use crate::mock::{GroundTruth, MockSensor};
 use crate::object::Object;
 use crate::rng::SplitMix64;
+use crate::tangential::{DEFAULT_LIMIT_M, Tangential};
 use unitac_core::Frame;
 
 /// Camera noise: per-trial bias and per-frame noise (standard deviations) \[m].
@@ -115,15 +116,52 @@ pub struct SensorView {
 }
 
 impl SensorView {
-    /// Render it as frame `index` of `sensor` (today's renderer: the object pressed to the
-    /// penetration; the tangential part is in the view for the renderer to draw).
+    /// The gel's sideways displacement as the renderer's input (None: not touching, or no
+    /// displacement). The world moves the gel surface by `tangential_m` (friction force over the
+    /// pad's shear stiffness). Stuck (no relative motion this step): the object and the gel under
+    /// it moved together by that much, stick ratio 1. Slipping: the object slides on over a gel
+    /// held at its friction limit, so the renderer's gross slip (stick ratio 0) with the limit at
+    /// the gel's displacement and the object's travel (gel displacement plus the slip since the
+    /// grasp, in the slip's direction) as the shift.
+    pub fn tangential(&self) -> Option<Tangential> {
+        let [tx, ty] = self.tangential_m;
+        let gel = tx.hypot(ty);
+        if self.object.is_none() || self.penetration_m <= 0.0 || !(gel > 0.0 && gel.is_finite()) {
+            return None;
+        }
+        let step = self.slip_m[0].hypot(self.slip_m[1]);
+        if step > 0.0 && step.is_finite() {
+            let along = self.slip_total_m.max(0.0) / step;
+            Some(Tangential {
+                shift_m: [tx + self.slip_m[0] * along, ty + self.slip_m[1] * along],
+                rotation_rad: 0.0,
+                stick_ratio: 0.0,
+                limit_m: gel,
+            })
+        } else {
+            Some(Tangential {
+                shift_m: [tx, ty],
+                rotation_rad: 0.0,
+                stick_ratio: 1.0,
+                limit_m: gel.max(DEFAULT_LIMIT_M),
+            })
+        }
+    }
+
+    /// Render it as frame `index` of `sensor`: the object pressed to the penetration, the marker
+    /// dots moved by [`SensorView::tangential`]; force and deformation go into the ground truth
+    /// as they are.
     pub fn render(&self, sensor: &MockSensor, index: u64) -> (Frame, GroundTruth) {
-        sensor.render_press(
-            index,
-            self.object.as_ref().map(|o| (o, self.penetration_m * 1e3)),
-            self.force_n,
-            self.deformation_m * 1e3,
-        )
+        let press = self.object.as_ref().map(|o| (o, self.penetration_m * 1e3));
+        let (frame, mut truth) = sensor.render_contact(index, press, self.tangential().as_ref());
+        truth.label = self
+            .object
+            .as_ref()
+            .map(|o| o.label.clone())
+            .unwrap_or_default();
+        truth.force_n = self.force_n;
+        truth.deformation_mm = self.deformation_m * 1e3;
+        (frame, truth)
     }
 }
 

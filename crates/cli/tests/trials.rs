@@ -1,0 +1,113 @@
+//! `unitac trials`: the table has every criterion for every mode, beside the paper's, and each
+//! trial's outcome; bad arguments are exit 2.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::process::{Command, Output};
+
+fn unitac(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn one_cup_trial_per_mode_gives_every_row_and_each_outcome() {
+    let dir = std::env::temp_dir().join(format!("unitac-cli-trials-{}", std::process::id()));
+    let o = unitac(&[
+        "trials",
+        "--scene",
+        "cup_deformation",
+        "--trials",
+        "1",
+        "--seed",
+        "2",
+        "--json",
+        "--plot",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(
+        (j["task"].as_str(), j["split"].as_str()),
+        (Some("cup_deformation"), Some("unseen"))
+    );
+    let rows = j["table"].as_array().unwrap();
+    let criteria: Vec<&str> = rows
+        .iter()
+        .map(|r| r["criterion"].as_str().unwrap())
+        .collect();
+    assert_eq!(criteria, ["lift", "target deformation", "overall"]);
+    let paper = [[18, 20, 19], [0, 20, 18], [0, 20, 18]];
+    for (r, want) in rows.iter().zip(paper) {
+        let cells = r["cells"].as_array().unwrap();
+        let modes: Vec<&str> = cells.iter().map(|c| c["mode"].as_str().unwrap()).collect();
+        assert_eq!(modes, ["vla", "vtla_real", "vtla_pred"]);
+        for (c, p) in cells.iter().zip(want) {
+            assert_eq!(
+                (c["trials"].as_u64(), c["paper"].as_u64()),
+                (Some(1), Some(p))
+            );
+            assert!(c["ours"].as_u64().unwrap() <= 1);
+        }
+    }
+    // Each cell is the count of its mode's trial outcomes.
+    let modes = j["modes"].as_array().unwrap();
+    assert_eq!(modes.len(), 3);
+    for (i, m) in modes.iter().enumerate() {
+        let t = &m["trials"].as_array().unwrap()[0];
+        let cup = &t["outcome"]["cup"];
+        assert!(cup["deformation_m"].is_f64(), "{t}");
+        for (row, key) in rows.iter().zip(["lift", "deformation", "overall"]) {
+            let ours = row["cells"][i]["ours"].as_u64().unwrap();
+            assert_eq!(ours, u64::from(cup[key].as_bool().unwrap()), "{key} of {m}");
+        }
+        assert_eq!(
+            m["scene"],
+            format!("cup_deformation_{}", m["mode"].as_str().unwrap())
+        );
+    }
+    let png = std::fs::read(dir.join("cup_deformation.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_text_table_names_each_criterion_and_bad_arguments_are_exit_2() {
+    let o = unitac(&[
+        "trials",
+        "--scene",
+        "cup_deformation",
+        "--modes",
+        "vla",
+        "--trials",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    for row in ["criterion", "lift", "target deformation", "overall"] {
+        assert!(text.lines().any(|l| l.starts_with(row)), "{row} in {text}");
+    }
+    assert!(text.contains("(paper 18/20)"), "{text}");
+    for bad in [
+        &["trials", "--scene", "cup_deformation", "--trials", "0"][..],
+        &["trials", "--scene", "teapot"],
+        &[
+            "trials",
+            "--scene",
+            "fabric_selection",
+            "--modes",
+            "vla,vtla_fake",
+        ],
+    ] {
+        let o = unitac(bad);
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "{bad:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(o.stdout.is_empty());
+    }
+}

@@ -1,0 +1,385 @@
+//! One closed-loop trial: a task world driven by a scene's stages through messages.
+//!
+//! Each control tick (the policy's `control_rate_hz`, world time t):
+//! 1. the mock sensor's frames captured up to t ([`SensorRig::frames_until`], rendered from the
+//!    world's sensor view) go through the chain (contact, slip, encoder, ... stages);
+//! 2. then the camera's observation ([`visual_message`]);
+//! 3. then the gripper's status at t ([`gripper_status`]): the policy's tick. The chain's
+//!    GripperCommand and ArmCommand for it become the world's command ([`task_command`]) and the
+//!    world steps one control period.
+//!
+//! The stages are driven by [`unitac_core::chain::Chain`] (the one chain driver: a stage's clock
+//! is its input's stamp). They are built by the caller from the scene (`unitac_pipeline::
+//! build_stages`, fresh for each trial: stages keep state). This crate does not depend on the
+//! pipeline because the pipeline links the V4L2 driver, which a sim crate must not (its layering
+//! rule); the CLI and the tests build the stages and hand them in.
+//!
+//! The scene's `source:` is not used: the world is the source. The mock sensor is the scene's
+//! sensor kind (its `fps` and `sensor_id` if given), seeded from (seed, trial). The camera's
+//! per-frame noise has its own stream, also from (seed, trial). Same scene, seed and trial give
+//! the same trace, byte for byte.
+//!
+//! The trial ends one settle period ([`TrialOptions::settle_s`]) after the policy reports phase
+//! `done` or `failed`, or at the task's time limit; the outcome is the world's judgement then.
+
+use crate::bridge::{BridgeError, SensorRig, gripper_status, task_command, visual_message};
+use serde::Serialize;
+use thiserror::Error;
+use unitac_core::chain::Chain;
+use unitac_core::msg::{ArmCommand, GripperCommand, PolicyStatus};
+use unitac_core::{Msg, Scene, Stage};
+use unitac_policy::PolicyParams;
+use unitac_sim::task::{TaskConfig, TaskKind, TaskOutcome, TaskWorld, trial_rng};
+use unitac_sim::{MockConfig, MockSensor, Scenario, WorldError};
+
+/// Salts of the sensor's seed and the camera's noise stream (apart from the trial's own draw).
+const SENSOR_SALT: u64 = 0x5345_4E53_4F52_0001;
+const CAMERA_SALT: u64 = 0x4341_4D45_5241_0001;
+/// Longest trial anyone may ask for \[s] (bounds the trace).
+pub const MAX_TRIAL_S: f64 = 600.0;
+/// Rejections kept per trial (the count goes on).
+const KEPT_REJECTIONS: usize = 20;
+/// Phase changes kept per trial.
+pub const KEPT_PHASES: usize = 64;
+
+/// A trial that could not run to its end.
+#[derive(Debug, Error)]
+pub enum TrialError {
+    /// The scene cannot drive a trial (no policy stage, bad policy params).
+    #[error("scene '{scene}': {msg}")]
+    Scene { scene: String, msg: String },
+    #[error("bad trial options: {0}")]
+    Options(String),
+    /// The policy did not answer a control tick with both commands.
+    #[error("t = {t_s:.3} s: the chain gave no {missing} for the gripper status{}", rejections_note(.rejections))]
+    NoCommand {
+        t_s: f64,
+        missing: &'static str,
+        rejections: Vec<String>,
+    },
+    #[error("t = {t_s:.3} s: {source}")]
+    Bridge {
+        t_s: f64,
+        #[source]
+        source: BridgeError,
+    },
+    #[error("t = {t_s:.3} s: the world refused the command: {source}")]
+    World {
+        t_s: f64,
+        #[source]
+        source: WorldError,
+    },
+}
+
+fn rejections_note(r: &[String]) -> String {
+    if r.is_empty() {
+        String::new()
+    } else {
+        format!(" ({})", r.join("; "))
+    }
+}
+
+/// How long a trial may run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrialOptions {
+    /// Time limit \[s] (the world's time).
+    pub max_s: f64,
+    /// Time run on after the policy says done or failed \[s] (a late slip or drop counts).
+    pub settle_s: f64,
+}
+
+impl TrialOptions {
+    /// The limits the table runs use: the cup task 40 s, the fabric task 90 s (touch, touch,
+    /// compare, grasp, lift at the policy's speeds), 1 s to settle.
+    pub fn for_task(kind: TaskKind) -> Self {
+        Self {
+            max_s: match kind {
+                TaskKind::Cup => 40.0,
+                TaskKind::Fabric => 90.0,
+            },
+            settle_s: 1.0,
+        }
+    }
+    fn check(&self) -> Result<(), TrialError> {
+        let ok = |v: f64, hi: f64| v.is_finite() && v >= 0.0 && v <= hi;
+        if !(ok(self.max_s, MAX_TRIAL_S) && self.max_s > 0.0 && ok(self.settle_s, MAX_TRIAL_S)) {
+            return Err(TrialError::Options(format!(
+                "max_s = {}, settle_s = {} (max_s in (0, {MAX_TRIAL_S}] s, settle_s in [0, {MAX_TRIAL_S}] s)",
+                self.max_s, self.settle_s
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// One control tick of a trial: the world's truth at `t_s` (measured, never shown to the
+/// policy) and what the policy said.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TraceRow {
+    pub t_s: f64,
+    /// Gripper opening \[m] and grip force per finger \[N] (truth).
+    pub opening_m: f64,
+    pub force_n: f64,
+    /// Deformation of the object between the fingers (cup diameter loss, fabric stack
+    /// compression) \[m] (truth).
+    pub deformation_m: f64,
+    /// Relative motion of object and fingers since the grasp, unsigned \[m] (truth).
+    pub slip_m: f64,
+    /// The slip stage's flag on its latest frame (None: no slip stage in the scene, or no
+    /// state yet).
+    pub slip_detected: Option<bool>,
+    /// Lift of the object between the fingers \[m] (truth; 0 when none).
+    pub lift_m: f64,
+    /// The policy's phase, whether the safety layer let its action through, and why.
+    pub phase: String,
+    pub safety_ok: bool,
+    pub reason: String,
+}
+
+/// A finished trial: its trace and the world's outcome.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TrialRecord {
+    pub scene: String,
+    pub mode: String,
+    pub seed: u64,
+    pub trial: u32,
+    /// The objects drawn, for reading a trace (e.g. `cup 90 mm, 0.21 N/mm`).
+    pub objects: String,
+    pub control_rate_hz: f64,
+    pub duration_s: f64,
+    pub frames: u64,
+    /// The policy's last phase (`done`, `failed`, or where the time limit caught it) and its
+    /// last message (the failure's reason when it failed).
+    pub end_phase: String,
+    pub end_reason: String,
+    /// `t phase: message` at each phase change (the first [`KEPT_PHASES`]): the trial's story.
+    pub phases: Vec<String>,
+    pub outcome: TaskOutcome,
+    /// Inputs a stage rejected (the first few) and how many in all.
+    pub rejections: Vec<String>,
+    pub rejected: u64,
+    pub trace: Vec<TraceRow>,
+}
+
+/// The scene's policy params (the first policy stage; a trial needs one).
+pub fn policy_params(scene: &Scene) -> Result<PolicyParams, TrialError> {
+    let bad = |msg: String| TrialError::Scene {
+        scene: scene.name.clone(),
+        msg,
+    };
+    let st = scene
+        .stages
+        .iter()
+        .find(|s| s.kind == "policy")
+        .ok_or_else(|| bad("no policy stage: nothing would command the gripper".into()))?;
+    let p: PolicyParams = if st.params.is_null() {
+        PolicyParams::default()
+    } else {
+        serde_yaml::from_value(st.params.clone()).map_err(|e| bad(format!("policy params: {e}")))?
+    };
+    p.check().map_err(|e| bad(format!("policy params: {e}")))?;
+    Ok(p)
+}
+
+/// The mock sensor of trial `trial` of `seed` on the scene's sensor.
+pub fn trial_sensor(scene: &Scene, seed: u64, trial: u32) -> MockSensor {
+    let mut cfg = MockConfig::new(
+        scene.source.sensor,
+        trial_rng(seed ^ SENSOR_SALT, trial).next_u64(),
+    );
+    if let Some(fps) = scene.source.fps.filter(|f| f.is_finite() && *f > 0.0) {
+        cfg.fps = fps;
+    }
+    if let Some(id) = scene.source.sensor_id.clone() {
+        cfg.sensor_id = id;
+    }
+    // The scenario is not rendered (the world's sensor view is); it only sizes the sensor.
+    MockSensor::new(cfg, Scenario::idle(MAX_TRIAL_S))
+}
+
+fn describe(world: &TaskWorld) -> String {
+    use unitac_sim::task::ObjectSpec;
+    world
+        .spec()
+        .objects
+        .iter()
+        .map(|o| match &o.spec {
+            ObjectSpec::Cup(c) => format!(
+                "{} {:.0} mm, {:.3} N/mm, {:.0} g",
+                o.name,
+                c.diameter_m * 1e3,
+                c.wall.k_n_per_mm,
+                c.mass_kg * 1e3
+            ),
+            ObjectSpec::Fabric(f) => format!(
+                "{} {} (Ra {:.4} mm, {} layers)",
+                o.name, f.fabric.name, f.roughness_ra_mm, f.layers
+            ),
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// What the chain said for one control tick.
+#[derive(Default)]
+struct TickOutput {
+    gripper: Option<GripperCommand>,
+    arm: Option<ArmCommand>,
+    status: Option<PolicyStatus>,
+}
+
+/// Run trial `trial` of `seed` of `scene` on the task `task` with the scene's `stages` (built
+/// from the scene, fresh). Errors: the scene cannot drive a trial, the policy left a tick
+/// unanswered, or a command the bridge or the world refuses.
+pub fn run_trial(
+    scene: &Scene,
+    stages: Vec<Box<dyn Stage>>,
+    task: &TaskConfig,
+    seed: u64,
+    trial: u32,
+    opts: &TrialOptions,
+) -> Result<TrialRecord, TrialError> {
+    opts.check()?;
+    let params = policy_params(scene)?;
+    let dt = 1.0 / params.control_rate_hz;
+    let mut world = TaskWorld::reset(task, seed, trial);
+    let names: Vec<&str> = world
+        .spec()
+        .objects
+        .iter()
+        .map(|o| o.name.as_str())
+        .collect();
+    let foreign: Vec<&str> = params
+        .objects
+        .iter()
+        .map(String::as_str)
+        .filter(|o| !names.contains(o))
+        .collect();
+    if !foreign.is_empty() {
+        return Err(TrialError::Scene {
+            scene: scene.name.clone(),
+            msg: format!(
+                "policy objects {foreign:?} are not in the {} task's world ({})",
+                task.kind.as_str(),
+                names.join(", ")
+            ),
+        });
+    }
+    let mut rig = SensorRig::new(trial_sensor(scene, seed, trial));
+    let mut camera = trial_rng(seed ^ CAMERA_SALT, trial);
+    let mut chain = Chain::new(stages);
+    let mut record = TrialRecord {
+        scene: scene.name.clone(),
+        mode: params.mode.as_str().to_string(),
+        seed,
+        trial,
+        objects: describe(&world),
+        control_rate_hz: params.control_rate_hz,
+        duration_s: 0.0,
+        frames: 0,
+        end_phase: String::new(),
+        end_reason: String::new(),
+        phases: Vec::new(),
+        outcome: world.outcome(),
+        rejections: Vec::new(),
+        rejected: 0,
+        trace: Vec::new(),
+    };
+    let mut slip_detected = None;
+    let mut target_m = f64::NAN;
+    let mut ended_at: Option<f64> = None;
+    let ticks = (opts.max_s / dt).ceil() as u64;
+    let keep = |record: &mut TrialRecord, errors: Vec<unitac_core::chain::Rejection>| {
+        for e in errors {
+            record.rejected += 1;
+            if record.rejections.len() < KEPT_REJECTIONS {
+                record.rejections.push(e.to_string());
+            }
+        }
+    };
+    for _ in 0..ticks {
+        let t = world.time();
+        for (frame, _) in rig.frames_until(&world, t) {
+            record.frames += 1;
+            let out = chain.run(Msg::Frame(frame));
+            for m in &out.produced {
+                if let Msg::Slip(s) = m {
+                    slip_detected = Some(s.slip);
+                }
+            }
+            keep(&mut record, out.errors);
+        }
+        let visual = world.observe_visual(&mut camera);
+        let out = chain.run(Msg::Visual(visual_message(&visual)));
+        keep(&mut record, out.errors);
+        let truth = world.truth();
+        let out = chain.run(Msg::Gripper(gripper_status(&truth, target_m)));
+        let mut tick = TickOutput::default();
+        for m in out.produced {
+            match m {
+                Msg::Command(c) => tick.gripper = Some(c),
+                Msg::Arm(a) => tick.arm = Some(a),
+                Msg::Status(s) => tick.status = Some(s),
+                Msg::Slip(s) => slip_detected = Some(s.slip),
+                _ => {}
+            }
+        }
+        let rejections: Vec<String> = out.errors.iter().map(|e| e.to_string()).collect();
+        keep(&mut record, out.errors);
+        let missing = |what| TrialError::NoCommand {
+            t_s: t,
+            missing: what,
+            rejections: rejections.clone(),
+        };
+        let g = tick.gripper.ok_or_else(|| missing("GripperCommand"))?;
+        let a = tick.arm.ok_or_else(|| missing("ArmCommand"))?;
+        let status = tick.status.ok_or_else(|| missing("PolicyStatus"))?;
+        let cmd = task_command(&g, &a, truth.gripper.opening_m, &task.gripper)
+            .map_err(|source| TrialError::Bridge { t_s: t, source })?;
+        target_m = cmd.gripper.opening_m;
+        let held = truth.objects.iter().find(|o| o.held);
+        record.trace.push(TraceRow {
+            t_s: t,
+            opening_m: truth.gripper.opening_m,
+            force_n: truth.gripper.force_n,
+            deformation_m: truth.contact.deformation_m,
+            slip_m: truth.contact.slip_total_m,
+            slip_detected,
+            lift_m: held.map_or(0.0, |o| o.position_m[2]),
+            phase: status.phase.clone(),
+            safety_ok: status.safety_ok,
+            reason: status.message.clone(),
+        });
+        if (record.phases.is_empty() || record.end_phase != status.phase)
+            && record.phases.len() < KEPT_PHASES
+        {
+            record
+                .phases
+                .push(format!("{t:.3} {}: {}", status.phase, status.message));
+        }
+        record.end_phase = status.phase;
+        record.end_reason = status.message;
+        if ended_at.is_none() && matches!(record.end_phase.as_str(), "done" | "failed") {
+            ended_at = Some(t);
+        }
+        if ended_at.is_some_and(|e| t - e >= opts.settle_s) {
+            break;
+        }
+        world
+            .step(&cmd, dt)
+            .map_err(|source| TrialError::World { t_s: t, source })?;
+    }
+    record.duration_s = world.time();
+    record.outcome = world.outcome();
+    Ok(record)
+}
+
+/// The trace as JSON lines (one row per line): the bytes the determinism test compares.
+pub fn trace_jsonl(record: &TrialRecord) -> Result<String, serde_json::Error> {
+    let mut s = String::new();
+    for row in &record.trace {
+        s.push_str(&serde_json::to_string(row)?);
+        s.push('\n');
+    }
+    Ok(s)
+}
