@@ -149,6 +149,8 @@ impl Loop {
                 &format!("duration_s:={duration_s:.1}"),
                 "-p",
                 "wait_subscribers:=2",
+                "-p",
+                "wait_image_subscribers:=2",
                 // Real time at most: the latent comes from the inference node at its own pace
                 // (the sim waits for the contact states and the commands, not for it).
                 "-p",

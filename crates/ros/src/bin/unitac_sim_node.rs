@@ -47,8 +47,10 @@ struct Params {
     command_timeout_s: f64,
     /// At most this many sim seconds per wall second (0: as fast as the loop runs)
     max_rate: f64,
-    /// Start once this many subscriptions matched on gripper_state, and as many on image_raw
+    /// Start once this many subscriptions matched on gripper_state (the policy node, observers)
     wait_subscribers: i32,
+    /// ... and this many on image_raw (the contact node, observers)
+    wait_image_subscribers: i32,
     /// The gripper's joint in joint_states
     joint_name: String,
     /// Lock-step with the contact node too: once its background is learned (`background`
@@ -72,6 +74,7 @@ impl Default for Params {
             command_timeout_s: 1.0,
             max_rate: 0.0,
             wait_subscribers: 0,
+            wait_image_subscribers: 0,
             joint_name: "gripper_finger_opening".into(),
             sync_contact: true,
         }
@@ -145,7 +148,8 @@ fn run() -> anyhow::Result<()> {
     let mut counters = diagnostics::Counters::default();
 
     let wanted = usize::try_from(p.wait_subscribers).unwrap_or(0);
-    if wanted > 0 {
+    let wanted_images = usize::try_from(p.wait_image_subscribers).unwrap_or(0);
+    if wanted + wanted_images > 0 {
         let matched = || {
             pub_status
                 .get_inter_process_subscription_count()
@@ -154,11 +158,14 @@ fn run() -> anyhow::Result<()> {
                 && pub_image
                     .get_inter_process_subscription_count()
                     .unwrap_or(0)
-                    >= wanted
+                    >= wanted_images
         };
         if !base.spin_until(Duration::from_secs(60), matched) {
+            if base.stopped() {
+                return Ok(());
+            }
             anyhow::bail!(
-                "fewer than {wanted} subscribers on gripper_state and image_raw within 60 s"
+                "fewer than {wanted} subscribers on gripper_state or {wanted_images} on image_raw within 60 s"
             );
         }
     }
