@@ -9,9 +9,13 @@ stdin/stdout, one line each:
   out: "ready"             once the policy node's PolicyStatus and GripperCommand publishers
                            are matched (start the sim after this)
   out: "phase NAME T_NS"   the first PolicyStatus of each phase (T_NS its stamp)
-  in:  "mark"              record the latest /clock as the mark (the test froze the sim and
-                           killed a producer), answer "marked T_NS"
+  in:  "mark"              record the latest PolicyStatus stamp as the mark (the test froze the
+                           sim and killed a producer: the last tick before), answer
+                           "marked T_NS"
   out: "outcome"           the sim's outcome arrived
+  in:  "joint_states N"    publish N sensor_msgs/JointState on NS/joint_states at 30 Hz (system
+                           time stamps, opening 0.07 m, effort 1.5 N), then stop; answer
+                           "published T_NS" with the last stamp
   in:  "end"               (or SECONDS passed, or stdin closed) print the summary as one JSON line
                            and exit
 """
@@ -23,7 +27,7 @@ import time
 import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import String
 from unitac_msgs.msg import GripperCommand, GripperStatus, PolicyStatus
 
@@ -94,6 +98,22 @@ def main():
     got["counts"] = counts
 
     end = threading.Event()
+    joint_pub = node.create_publisher(JointState, ns + "/joint_states", reliable)
+
+    def publish_joint_states(n):
+        last = 0
+        t0 = time.monotonic()
+        for k in range(n):
+            # On a fixed schedule (no drift): the k-th state at t0 + k / 30 s.
+            time.sleep(max(0.0, t0 + k / 30.0 - time.monotonic()))
+            m = JointState()
+            m.header.stamp = node.get_clock().now().to_msg()
+            m.name = ["gripper_finger_opening"]
+            m.position = [0.07]
+            m.effort = [1.5]
+            joint_pub.publish(m)
+            last = stamp_ns(m.header.stamp)
+        say(f"published {last}")
 
     def read_stdin():
         for line in sys.stdin:
@@ -102,8 +122,11 @@ def main():
                 # Let /clock messages already sent arrive before reading the latest.
                 time.sleep(0.3)
                 with lock:
-                    got["mark_ns"] = got["clock_ns"]
+                    got["mark_ns"] = max((s["stamp"] for s in got["status"]), default=0)
                 say(f"marked {got['mark_ns']}")
+            elif cmd.startswith("joint_states "):
+                threading.Thread(target=publish_joint_states, args=(int(cmd.split()[1]),),
+                                 daemon=True).start()
             elif cmd == "end":
                 break
         end.set()

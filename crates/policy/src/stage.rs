@@ -126,8 +126,9 @@ impl PolicyStage {
 
     /// The control tick a transport's timer gives when no GripperStatus came: at `now` (the
     /// transport's clock, the same time line as the statuses' stamps), once the tick due last
-    /// is half a control period overdue, the safe action with the reason (`gripper: no status
-    /// for ...`), stamped `now`; then the schedule goes on from it. Nothing before the first
+    /// is a whole control period overdue (no status for a control period where one was due),
+    /// the safe action with the reason (`gripper: no status for ...`), stamped `now`; then the
+    /// schedule goes on from it. Nothing before the first
     /// GripperStatus (nothing is known yet to hold) or while a tick is not overdue.
     pub fn watchdog_tick(&mut self, now: Stamp) -> Vec<Msg> {
         let (Some(due), Some((opening, frame_id))) = (self.next_tick, self.last_gripper.clone())
@@ -135,10 +136,12 @@ impl PolicyStage {
             return Vec::new();
         };
         let period = self.period_ns();
-        if now.0 < due + period / 2 {
+        if now.0 < due + period {
             return Vec::new();
         }
-        self.schedule_after(now.0, due);
+        // This tick stands for the one missed; the next is due now, so while nothing comes the
+        // watchdog ticks once per period.
+        self.next_tick = Some(now.0);
         let last = due - period;
         let why = format!(
             "gripper: no status for {:.3} s (control period {:.3} s)",

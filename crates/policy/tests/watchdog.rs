@@ -40,7 +40,7 @@ fn cup_stage(mode: &str) -> PolicyStage {
 }
 
 #[test]
-fn a_missing_gripper_status_gives_the_safe_action_half_a_period_late() {
+fn a_missing_gripper_status_gives_the_safe_action_a_period_after_its_tick_was_due() {
     let mut s = cup_stage("vtla_real");
     let clock = ManualClock::new(Stamp(0));
     let t0 = 1_000_000_000;
@@ -48,19 +48,19 @@ fn a_missing_gripper_status_gives_the_safe_action_half_a_period_late() {
     assert!(s.watchdog_tick(Stamp(t0)).is_empty());
     clock.set(Stamp(t0));
     assert_eq!(s.process(&status(t0, 0.07), &clock).unwrap().len(), 3);
-    // The next tick is due at t0 + P; the watchdog waits until it is half a period overdue.
+    // The next tick is due at t0 + P; the watchdog waits until it is a period overdue.
     let p = TICK_NS;
     assert!(s.watchdog_tick(Stamp(t0 + p)).is_empty());
-    assert!(s.watchdog_tick(Stamp(t0 + p + p / 2 - 1)).is_empty());
-    let out = s.watchdog_tick(Stamp(t0 + p + p / 2));
+    assert!(s.watchdog_tick(Stamp(t0 + 2 * p - 1)).is_empty());
+    let out = s.watchdog_tick(Stamp(t0 + 2 * p));
     let [Msg::Command(c), Msg::Arm(a), Msg::Status(st)] = out.as_slice() else {
         panic!("{out:?}");
     };
     assert!(!st.safety_ok);
-    assert_eq!(st.header.stamp, Stamp(t0 + p + p / 2));
+    assert_eq!(st.header.stamp, Stamp(t0 + 2 * p));
     assert_eq!(st.header.frame_id, "gripper");
     assert!(
-        st.message.starts_with("gripper: no status for 0.050 s"),
+        st.message.starts_with("gripper: no status for 0.067 s"),
         "{}",
         st.message
     );
@@ -70,13 +70,13 @@ fn a_missing_gripper_status_gives_the_safe_action_half_a_period_late() {
     assert_eq!(c.mode, GripperMode::Position);
     assert_eq!(c.position_m, 0.07);
     // Once per period while nothing comes, on the schedule.
-    assert!(s.watchdog_tick(Stamp(t0 + 2 * p)).is_empty());
-    assert_eq!(s.watchdog_tick(Stamp(t0 + 2 * p + p / 2)).len(), 3);
+    assert!(s.watchdog_tick(Stamp(t0 + 3 * p - 1)).is_empty());
+    assert_eq!(s.watchdog_tick(Stamp(t0 + 3 * p)).len(), 3);
     // A status back on the schedule ticks normally again.
-    clock.set(Stamp(t0 + 3 * p));
-    let out = s.process(&status(t0 + 3 * p, 0.07), &clock).unwrap();
+    clock.set(Stamp(t0 + 4 * p));
+    let out = s.process(&status(t0 + 4 * p, 0.07), &clock).unwrap();
     assert_eq!(out.len(), 3);
-    assert_eq!(policy_status(&out).header.stamp, Stamp(t0 + 3 * p));
+    assert_eq!(policy_status(&out).header.stamp, Stamp(t0 + 4 * p));
 }
 
 #[test]

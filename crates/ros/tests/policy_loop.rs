@@ -246,7 +246,8 @@ fn killing_the_inference_node_makes_the_policy_hold_within_one_control_period() 
     let mut l = Loop::start(&n, 6.0, &obs);
     // Closing on the cup: the probe latent is still awaited, so its producer must be alive.
     obs.wait_for(|s| s.starts_with("phase close"), 60);
-    // Freeze sim time, kill the inference node, let the graph see it go, read the sim time.
+    // Freeze sim time, kill the inference node, let the graph see it go, and mark the last
+    // tick the policy made before.
     let sim_pid = l.sim.id().to_string();
     Command::new("kill")
         .args(["-STOP", &sim_pid])
@@ -290,7 +291,7 @@ fn killing_the_inference_node_makes_the_policy_hold_within_one_control_period() 
             .take(5)
             .collect::<Vec<_>>()
     );
-    // The first tick after the kill holds and says why: within one control period of sim time.
+    // The next tick after the kill holds and says why: one control period of sim time later.
     let first = st
         .iter()
         .find(|s| s["stamp"].as_i64().unwrap() > mark)
@@ -326,4 +327,71 @@ fn killing_the_inference_node_makes_the_policy_hold_within_one_control_period() 
     // And the cup was not squeezed.
     let cup = &got["outcome"]["outcome"]["cup"];
     assert_eq!(cup["deformation"], false, "{cup}");
+}
+
+/// No sim: a gripper driver's JointState (`gripper_input:=joint_states`) on system time, which
+/// then stops. The policy keeps acting on its control interval: the safe action with the reason,
+/// at the last measured opening, stamped on its own clock a period after the tick that was due (when exactly is the stage's rule, tested in crates/policy/tests/watchdog.rs).
+#[test]
+fn without_gripper_states_the_policy_node_sends_the_safe_action_on_its_timer() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let n = ns("watchdog");
+    let mut obs = Observer::start(&n, 60);
+    let policy = node(
+        env!("CARGO_BIN_EXE_unitac_policy_node"),
+        &n,
+        &[
+            "-p",
+            &format!("scene:={SCENE}"),
+            "-p",
+            "gripper_input:=joint_states",
+        ],
+    );
+    obs.wait_for(|l| l == "ready", 30);
+    obs.send("joint_states 30");
+    let published = obs.wait_for(|l| l.starts_with("published "), 30);
+    let last: i64 = published["published ".len()..].parse().unwrap();
+    // A second of system time for the watchdog ticks to come.
+    std::thread::sleep(Duration::from_secs(1));
+    let got = obs.finish();
+    stop(policy);
+    let st = statuses(&got);
+    // Ticks on the joint states (held: the encoder is not running, so its latent is lost) ...
+    let on_states: Vec<&Value> = st
+        .iter()
+        .filter(|s| s["stamp"].as_i64().unwrap() <= last)
+        .collect();
+    assert!(!on_states.is_empty(), "{st:?}");
+    assert!(
+        on_states
+            .iter()
+            .all(|s| !s["message"].as_str().unwrap().starts_with("gripper:"))
+    );
+    // ... then the watchdog's.
+    let after: Vec<&Value> = st
+        .iter()
+        .filter(|s| s["stamp"].as_i64().unwrap() > last)
+        .collect();
+    assert!(after.len() >= 10, "{after:?}");
+    assert!(after.iter().all(|s| {
+        s["safety_ok"] == false
+            && s["message"]
+                .as_str()
+                .unwrap()
+                .starts_with("gripper: no status for")
+    }));
+    // (The due tick is after the last state: a period past it is the earliest.)
+    assert!(after[0]["stamp"].as_i64().unwrap() - last >= PERIOD_NS);
+    // The hold is at the opening the joint states reported.
+    let cmds = got["commands"].as_array().unwrap();
+    let held: Vec<&Value> = cmds
+        .iter()
+        .filter(|c| c["stamp"].as_i64().unwrap() > last)
+        .collect();
+    assert!(!held.is_empty());
+    assert!(
+        held.iter()
+            .all(|c| c["mode"] == 0 && c["position_m"] == 0.07),
+        "{held:?}"
+    );
 }

@@ -173,14 +173,6 @@ fn run() -> anyhow::Result<()> {
     let mut steps = 0u64;
     let mut pending = Pending::default();
     while !base.stopped() && !sim.done() {
-        // Pace: at most max_rate sim seconds per wall second.
-        if p.max_rate > 0.0 {
-            let due = Duration::from_secs_f64(sim.time() / p.max_rate);
-            let left = due.saturating_sub(start.elapsed());
-            if !left.is_zero() {
-                base.spin(left);
-            }
-        }
         let t0 = Instant::now();
         let o = sim.observe();
         let now = convert::time(o.stamp);
@@ -189,6 +181,8 @@ fn run() -> anyhow::Result<()> {
         for f in &o.frames {
             counters.published(pub_image.publish(&image::from_frame(f)));
         }
+        // Busy: rendering and publishing, not the waits.
+        counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
         if let (true, Some(last)) = (p.sync_contact, o.frames.last()) {
             let want = last.stamp;
             let waited = Instant::now();
@@ -209,10 +203,21 @@ fn run() -> anyhow::Result<()> {
                 }
             }
         }
+        // Pace: at most max_rate sim seconds per wall second. The wait is here, between the
+        // frames and the tick, so the contact states have that long to reach the policy too
+        // (they come from another process than the status: their order there is not given).
+        if p.max_rate > 0.0 {
+            let due = Duration::from_secs_f64(sim.time() / p.max_rate);
+            let left = due.saturating_sub(start.elapsed());
+            if !left.is_zero() {
+                base.spin(left);
+            }
+        }
+        let t1 = Instant::now();
         counters.published(pub_visual.publish(&convert::visual_observation(&o.visual)));
         counters.published(pub_joint.publish(&convert::joint_state(&o.gripper, &p.joint_name)));
         counters.published(pub_status.publish(&convert::gripper_status(&o.gripper)));
-        counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
+        counters.busy_us += t1.elapsed().as_secs_f64() * 1e6;
         // Wait for the commands stamped now (older ones are dropped; a newer one cannot exist).
         let waited = Instant::now();
         let mut got = |pending: &mut Pending, base: &mut NodeBase<Params>| {
