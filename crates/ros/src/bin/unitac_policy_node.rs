@@ -18,8 +18,8 @@
 //!   `<input>: no publisher on <topic>`;
 //! - SIGINT / SIGTERM end the loop; the node stops spinning and exits 0.
 
+use futures::StreamExt;
 use futures::stream::{BoxStream, SelectAll};
-use futures::{FutureExt, StreamExt};
 use r2r::{QosProfile, RosParams};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -373,8 +373,6 @@ async fn run_async() -> anyhow::Result<()> {
     }
     stop.store(true, Ordering::SeqCst);
     spinner.await?;
-    // Whatever the parameter handler was doing ends with the runtime.
-    let _ = incoming.next().now_or_never();
     Ok(())
 }
 
