@@ -37,13 +37,14 @@ struct Params {
     trial: i64,
     /// Control rate = sim steps per sim second
     control_rate_hz: f64,
-    /// Sim time of the trial [s]
+    /// Sim time of the trial, in seconds
     duration_s: f64,
     /// Mock tactile sensor: gelsight-mini | digit | generic, and its id (frame_id
     /// `<sensor_id>_optical_frame`)
     sensor: String,
     sensor_id: String,
-    /// Wall time to wait for the commands of a step before stepping with the last ones [s]
+    /// Wall time to wait for the commands of a step before stepping with the last ones, in
+    /// seconds
     command_timeout_s: f64,
     /// At most this many sim seconds per wall second (0: as fast as the loop runs)
     max_rate: f64,
