@@ -3,7 +3,7 @@
   policy_observer.py NS SECONDS
 
 Records NS/policy_status, NS/gripper_command, /clock and NS/sim/outcome; subscribes to
-NS/gripper_state and NS/image_raw too (counting them), so the sim's wait for subscribers waits for
+NS/gripper_status and NS/image_raw too (counting them), so the sim's wait for subscribers waits for
 it as well. Talks to the test on
 stdin/stdout, one line each:
   out: "ready"             once the policy node's PolicyStatus and GripperCommand publishers
@@ -84,7 +84,7 @@ def main():
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     node.create_subscription(String, ns + "/sim/outcome", on_outcome, latched)
 
-    counts = {"gripper_state": 0, "images": 0}
+    counts = {"gripper_status": 0, "images": 0}
 
     def count(key):
         def cb(_m):
@@ -92,7 +92,7 @@ def main():
                 counts[key] += 1
         return cb
 
-    node.create_subscription(GripperStatus, ns + "/gripper_state", count("gripper_state"),
+    node.create_subscription(GripperStatus, ns + "/gripper_status", count("gripper_status"),
                              reliable)
     node.create_subscription(Image, ns + "/image_raw", count("images"), 10)
     got["counts"] = counts

@@ -131,7 +131,7 @@ impl Loop {
             &["-p", &scene, sim_time[0], sim_time[1]],
         );
         obs.wait_for(|l| l == "ready", 30);
-        // Two subscribers each on gripper_state (policy, observer) and image_raw (contact,
+        // Two subscribers each on gripper_status (policy, observer) and image_raw (contact,
         // observer).
         let sim = node(
             env!("CARGO_BIN_EXE_unitac_sim_node"),

@@ -1,5 +1,5 @@
 //! Policy node: the scene's `policy` stage (observation assembly, scene controller, safety layer)
-//! on a tokio runtime. The gripper state in (`gripper_state`, unitac_msgs/GripperStatus from the
+//! on a tokio runtime. The gripper state in (`gripper_status`, unitac_msgs/GripperStatus from the
 //! sim or a driver, or `joint_states`, sensor_msgs/JointState: `gripper_input`), and what the
 //! scene's mode reads: `contact_state`, `tactile_latent` (real or predicted), `property_comparison`,
 //! `visual_observation`; GripperCommand (`gripper_command`), ArmCommand (`arm_command`) and
@@ -37,7 +37,7 @@ use unitac_ros::{convert, diagnostics};
 struct Params {
     /// Scene: a scene name (looked up like `unitac run --scene`) or a path to a scene YAML
     scene: String,
-    /// gripper_state: unitac_msgs/GripperStatus on `gripper_state`; joint_states:
+    /// gripper_status: unitac_msgs/GripperStatus on `gripper_status`; joint_states:
     /// sensor_msgs/JointState on `joint_states` (position = opening, effort = force)
     gripper_input: String,
     /// The gripper's joint in joint_states (empty: the only joint)
@@ -48,7 +48,7 @@ impl Default for Params {
     fn default() -> Self {
         Self {
             scene: "cup_deformation_vtla_real".into(),
-            gripper_input: "gripper_state".into(),
+            gripper_input: "gripper_status".into(),
             joint_name: "gripper_finger_opening".into(),
         }
     }
@@ -60,7 +60,7 @@ const STAGES: &[&str] = &["policy"];
 fn topic_of(input: &str, p: &Params) -> &'static str {
     match input {
         "gripper" if p.gripper_input == "joint_states" => "joint_states",
-        "gripper" => "gripper_state",
+        "gripper" => "gripper_status",
         "contact" => "contact_state",
         "latent_real" | "latent_pred" => "tactile_latent",
         "comparison" => "property_comparison",
@@ -97,14 +97,14 @@ fn subscribe(
             }
             "gripper" => {
                 let s = node.subscribe::<r2r::unitac_msgs::msg::GripperStatus>(
-                    "gripper_state",
+                    "gripper_status",
                     reliable(),
                 )?;
                 all.push(
                     s.map(move |m| {
                         convert::gripper_status_from(&m)
                             .map(Msg::Gripper)
-                            .map_err(err("gripper_state"))
+                            .map_err(err("gripper_status"))
                     })
                     .boxed(),
                 );
@@ -266,9 +266,9 @@ async fn run_async() -> anyhow::Result<()> {
         clock,
         diagnostics: pub_diag,
     } = AsyncNode::<Params>::new("unitac_policy", STAGES)?;
-    if !matches!(p.gripper_input.as_str(), "gripper_state" | "joint_states") {
+    if !matches!(p.gripper_input.as_str(), "gripper_status" | "joint_states") {
         anyhow::bail!(
-            "gripper_input must be gripper_state or joint_states, got '{}'",
+            "gripper_input must be gripper_status or joint_states, got '{}'",
             p.gripper_input
         );
     }

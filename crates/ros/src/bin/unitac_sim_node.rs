@@ -5,7 +5,7 @@
 //!
 //! Each control period at world time t it publishes `/clock` = t, the tactile frames due up to t
 //! on `image_raw` (sensor_msgs/Image, the mock sensor's frames rendered from the world), the
-//! camera's estimate on `visual_observation`, and the gripper's state on `gripper_state`
+//! camera's estimate on `visual_observation`, and the gripper's state on `gripper_status`
 //! (unitac_msgs/GripperStatus) and `joint_states` (sensor_msgs/JointState: position = opening,
 //! effort = force), the status last (it is the policy's tick; with `sync_contact`, once the
 //! contact node's background is learned, only after the ContactState of the step's last frame
@@ -48,7 +48,7 @@ struct Params {
     command_timeout_s: f64,
     /// At most this many sim seconds per wall second (0: as fast as the loop runs)
     max_rate: f64,
-    /// Start once this many subscriptions matched on gripper_state (the policy node, observers)
+    /// Start once this many subscriptions matched on gripper_status (the policy node, observers)
     wait_subscribers: i32,
     /// ... and this many on image_raw (the contact node, observers)
     wait_image_subscribers: i32,
@@ -116,8 +116,8 @@ fn run() -> anyhow::Result<()> {
         node.create_publisher::<r2r::rosgraph_msgs::msg::Clock>("/clock", QosProfile::default())?;
     let pub_image =
         node.create_publisher::<r2r::sensor_msgs::msg::Image>("image_raw", QosProfile::default())?;
-    let pub_status =
-        node.create_publisher::<r2r::unitac_msgs::msg::GripperStatus>("gripper_state", reliable())?;
+    let pub_status = node
+        .create_publisher::<r2r::unitac_msgs::msg::GripperStatus>("gripper_status", reliable())?;
     let pub_joint =
         node.create_publisher::<r2r::sensor_msgs::msg::JointState>("joint_states", reliable())?;
     let pub_visual = node.create_publisher::<r2r::unitac_msgs::msg::VisualObservation>(
@@ -166,7 +166,7 @@ fn run() -> anyhow::Result<()> {
                 return Ok(());
             }
             anyhow::bail!(
-                "fewer than {wanted} subscribers on gripper_state or {wanted_images} on image_raw within 60 s"
+                "fewer than {wanted} subscribers on gripper_status or {wanted_images} on image_raw within 60 s"
             );
         }
     }
