@@ -14,7 +14,7 @@ PACKAGE = "unitac_ros"
 
 # Launch arguments: name -> (default, description). Every setting is a declared argument.
 ARGUMENTS = {
-    "source": ("", "Frame source: mock | v4l | bag (empty: the scene's)"),
+    "source": ("", "Frame source: mock | v4l | bag | sim (sim: the task world node, closed loop; empty: the scene's)"),
     "sensor_kind": ("", "gelsight-mini | digit | generic (empty: the scene's)"),
     "sensor_id": ("gsmini", "Sensor id (mock, v4l); frame_ids are <sensor_id>_optical_frame (match the URDF)"),
     "serial": ("", "Serial of a live sensor (v4l; empty: the only one of sensor_kind connected)"),
@@ -26,12 +26,21 @@ ARGUMENTS = {
     "inference": ("true", "Run the inference node for the scene's encoder/compare/sampler stages (true | false)"),
     "sensor": ("true", "Run the sensor node (false when images come from elsewhere)"),
     "params_file": ("", "Extra --params-file YAML applied to every node"),
+    "split": ("train", "Sim source: train | unseen objects (cups 60/65/70 mm vs 90 mm; fabric has one set)"),
+    "seed": ("1", "Sim source: the trial draw's seed"),
+    "trial": ("0", "Sim source: the trial index"),
+    "duration_s": ("", "Sim source: sim time of the trial [s] (empty: the task's, cup 12.0, fabric 25.0)"),
+    "max_rate": ("1.0", "Sim source: at most this many sim seconds per wall second (0: as fast as the loop runs)"),
 }
 
 # Stage kind -> the node that runs it. Nodes read their stages' parameters from the scene file
 # themselves, through the same registry and typed structs as `unitac run`; nothing is copied here,
 # so nothing can be dropped. Override a stage parameter with `<stage>.<key>` in params_file.
-STAGE_NODES = {"contact": "unitac_contact_node"}
+STAGE_NODES = {"contact": "unitac_contact_node", "policy": "unitac_policy_node"}
+# Scene name prefix -> the sim node's task.
+SIM_TASKS = {"cup_deformation": "cup", "fabric_selection": "fabric"}
+# The sim's trial length per task [s] when duration_s is not given.
+SIM_DURATION_S = {"cup": 12.0, "fabric": 25.0}
 # These run in one inference node.
 INFERENCE_STAGES = {"encoder", "compare", "sampler"}
 
@@ -53,13 +62,29 @@ def plan(scene_name, args=None):
     scene, scene_path = load_scene(scene_name)
     src = scene["source"]
     source = a["source"] or src["kind"]
-    sim_time = a["use_sim_time"] == "true" or (a["use_sim_time"] == "auto" and source == "bag")
+    sim_time = a["use_sim_time"] == "true" or (a["use_sim_time"] == "auto" and source in ("bag", "sim"))
     extra = [a["params_file"]] if a["params_file"] else []
     timing = [{"use_sim_time": True}] if sim_time else []
     # Only what the arguments change; everything else comes from the scene file.
     sensor_kind = {"sensor_kind": a["sensor_kind"]} if a["sensor_kind"] else {}
     nodes, skipped = [], []
-    if a["sensor"] == "true":
+    kinds = [st["kind"] for st in scene.get("stages", [])]
+    if a["sensor"] == "true" and source == "sim":
+        task = next((t for prefix, t in SIM_TASKS.items() if scene["scene"].startswith(prefix)), None)
+        if task is None:
+            skipped.append(("source", f"no sim task for scene {scene['scene']} ({', '.join(SIM_TASKS)})"))
+        else:
+            policy = next((st.get("params") or {} for st in scene.get("stages", []) if st["kind"] == "policy"), {})
+            p = {"task": task, "split": a["split"], "seed": int(a["seed"]), "trial": int(a["trial"]),
+                 "duration_s": float(a["duration_s"] or SIM_DURATION_S[task]), "max_rate": float(a["max_rate"]),
+                 "control_rate_hz": float(policy.get("control_rate_hz", 30.0)),
+                 "sensor": a["sensor_kind"] or src.get("sensor", "gelsight-mini"), "sensor_id": a["sensor_id"],
+                 # Start once the policy (and the contact node, when the scene has one) listen.
+                 "wait_subscribers": int("policy" in kinds),
+                 "wait_image_subscribers": int("contact" in kinds)}
+            nodes.append({"executable": "unitac_sim_node", "name": "unitac_sim", "namespace": a["namespace"],
+                          "parameters": [p] + extra, "remappings": []})
+    elif a["sensor"] == "true":
         p = {"scene": scene_path, "source": source, **sensor_kind}
         if source in ("mock", "v4l"):
             p["sensor_id"] = a["sensor_id"]
@@ -82,6 +107,10 @@ def plan(scene_name, args=None):
             continue
         if k not in STAGE_NODES:
             skipped.append((k, "no ROS node for this stage kind"))
+            continue
+        if k == "policy":
+            nodes.append({"executable": STAGE_NODES[k], "name": "unitac_policy", "namespace": a["namespace"],
+                          "parameters": [{"scene": scene_path}] + timing + extra, "remappings": []})
             continue
         params = {"scene": scene_path, "image_transport": a["image_transport"], **sensor_kind}
         if source != "bag":

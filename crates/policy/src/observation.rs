@@ -342,6 +342,11 @@ impl Assembler {
         Ok(Self { layout, inputs })
     }
 
+    /// The names of the inputs kept, in [`INPUTS`] order.
+    pub fn names(&self) -> Vec<&'static str> {
+        self.inputs.iter().map(|(spec, _, _)| spec.name).collect()
+    }
+
     /// Keep `m` if it is one of the inputs; true if kept.
     pub fn offer(&mut self, m: &Msg) -> bool {
         for (spec, _, latest) in &mut self.inputs {

@@ -65,5 +65,12 @@ pub trait Policy: Send + std::fmt::Debug {
     /// The inputs that must be fresh and valid now; the watchdog answers any other state of one
     /// of them with the safe action before the policy is asked.
     fn required(&self) -> Vec<&'static str>;
+    /// The inputs whose producer must be alive now: the required ones, plus those the policy is
+    /// still waiting for (e.g. the probe touch's latent). A transport that sees the producer of
+    /// one of them disappear tells the stage ([`crate::PolicyStage::set_input_lost`]), and the
+    /// safe action follows in that tick.
+    fn awaited(&self) -> Vec<&'static str> {
+        self.required()
+    }
     fn act(&mut self, obs: &Observation) -> Result<Vec<Action>, PolicyError>;
 }

@@ -38,6 +38,10 @@ pub struct PolicyStage {
     queue: VecDeque<Action>,
     /// When the next control tick is due \[ns].
     next_tick: Option<i64>,
+    /// The last GripperStatus's opening and frame id (for the watchdog's safe action).
+    last_gripper: Option<(f64, String)>,
+    /// Inputs whose producer a transport saw disappear, with why.
+    lost: std::collections::BTreeMap<&'static str, String>,
 }
 
 impl std::fmt::Debug for PolicyStage {
@@ -80,20 +84,102 @@ impl PolicyStage {
             policy,
             queue: VecDeque::new(),
             next_tick: None,
+            last_gripper: None,
+            lost: std::collections::BTreeMap::new(),
             params,
         })
+    }
+
+    /// The inputs of the scene's mode (`gripper`, `contact`, `latent_real`, ...).
+    pub fn inputs(&self) -> Vec<&'static str> {
+        self.assembler.names()
+    }
+
+    /// The inputs whose producer must be alive now (the current phase's, see
+    /// [`Policy::awaited`]): a transport watches these producers.
+    pub fn awaited_inputs(&self) -> Vec<&'static str> {
+        self.policy.awaited()
+    }
+
+    /// The control period \[ns].
+    pub fn period_ns(&self) -> i64 {
+        (1e9 / self.params.control_rate_hz).round() as i64
+    }
+
+    /// A transport tells the stage that the producer of input `name` is gone (`Some(why)`, e.g.
+    /// no publisher on its topic any more) or back (`None`). While it is gone, every tick in a
+    /// phase that awaits the input sends the safe action with `<name>: <why>` as the reason.
+    /// Err: `name` is not one of this mode's inputs.
+    pub fn set_input_lost(&mut self, name: &str, why: Option<String>) -> Result<(), String> {
+        let Some(n) = self.inputs().into_iter().find(|n| *n == name) else {
+            return Err(format!(
+                "'{name}' is not an input of this mode ({})",
+                self.inputs().join(", ")
+            ));
+        };
+        match why {
+            Some(w) => self.lost.insert(n, w),
+            None => self.lost.remove(n),
+        };
+        Ok(())
+    }
+
+    /// The control tick a transport's timer gives when no GripperStatus came: at `now` (the
+    /// transport's clock, the same time line as the statuses' stamps), once the tick due last
+    /// is a whole control period overdue (no status for a control period where one was due),
+    /// the safe action with the reason (`gripper: no status for ...`), stamped `now`; then the
+    /// schedule goes on from it. Nothing before the first
+    /// GripperStatus (nothing is known yet to hold) or while a tick is not overdue.
+    pub fn watchdog_tick(&mut self, now: Stamp) -> Vec<Msg> {
+        let (Some(due), Some((opening, frame_id))) = (self.next_tick, self.last_gripper.clone())
+        else {
+            return Vec::new();
+        };
+        let period = self.period_ns();
+        if now.0 < due + period {
+            return Vec::new();
+        }
+        // This tick stands for the one missed; the next is due now, so while nothing comes the
+        // watchdog ticks once per period.
+        self.next_tick = Some(now.0);
+        let last = due - period;
+        let why = format!(
+            "gripper: no status for {:.3} s (control period {:.3} s)",
+            (now.0 - last) as f64 * 1e-9,
+            period as f64 * 1e-9
+        );
+        self.queue.clear();
+        let d = self.safety.decide(Err(why), Some(opening));
+        self.messages(now, &frame_id, d)
+    }
+
+    /// The next tick after one at `now` that was due at `due`: on the fixed schedule unless it
+    /// fell a whole period behind.
+    fn schedule_after(&mut self, now: i64, due: i64) {
+        let period = self.period_ns();
+        self.next_tick = Some(if now - due < period {
+            due + period
+        } else {
+            now + period
+        });
     }
 
     /// One control tick at `now`, triggered by `g`.
     fn tick(&mut self, now: Stamp, g: &GripperStatus) -> Vec<Msg> {
         let obs = self.assembler.assemble(now, &self.params.task);
-        // Watchdog: every input the policy needs now must be fresh and valid.
-        let problems: Vec<String> = self
+        // Watchdog: every input the policy needs now must be fresh and valid, and the producer
+        // of every input it awaits alive.
+        let mut problems: Vec<String> = self
             .policy
             .required()
             .iter()
             .filter_map(|n| obs.reading(n).and_then(|r| r.problem()))
             .collect();
+        for n in self.policy.awaited() {
+            if let Some(why) = self.lost.get(n) {
+                problems.push(format!("{n}: {why}"));
+            }
+        }
         let proposed = if problems.is_empty() {
             let planned = if self.queue.is_empty() {
                 match self.policy.act(&obs) {
@@ -117,7 +203,12 @@ impl PolicyStage {
             Err(problems.join("; "))
         };
         let d = self.safety.decide(proposed, Some(g.opening_m));
-        let header = Header::new(now, g.header.frame_id.clone());
+        self.messages(now, &g.header.frame_id, d)
+    }
+
+    /// The tick's three messages for decision `d`.
+    fn messages(&self, now: Stamp, frame_id: &str, d: crate::safety::Decision) -> Vec<Msg> {
+        let header = Header::new(now, frame_id);
         vec![
             Msg::Command(GripperCommand {
                 header: header.clone(),
@@ -156,21 +247,18 @@ impl Stage for PolicyStage {
         let Msg::Gripper(g) = input else {
             return Ok(Vec::new());
         };
+        self.last_gripper = Some((g.opening_m, g.header.frame_id.clone()));
         let now = clock.now();
         // Ticks on a fixed schedule at the control rate (no drift); a status up to 5 % of a
         // period early still ticks, so jitter does not skip a period.
-        let period = (1e9 / self.params.control_rate_hz).round() as i64;
+        let period = self.period_ns();
         if let Some(due) = self.next_tick {
             if now.0 < due - period / 20 {
                 return Ok(Vec::new());
             }
         }
         let due = self.next_tick.unwrap_or(now.0);
-        self.next_tick = Some(if now.0 - due < period {
-            due + period
-        } else {
-            now.0 + period
-        });
+        self.schedule_after(now.0, due);
         Ok(self.tick(now, g))
     }
 }

@@ -44,6 +44,8 @@ pub enum ConvertError {
     PeakIndex { index: usize, frames: usize },
     #[error("{what}: {reason}")]
     Image { what: String, reason: String },
+    #[error("joint_states: {0}")]
+    JointState(String),
 }
 
 pub fn time(t: Stamp) -> Time {
@@ -291,9 +293,91 @@ pub fn contact_clip_from(m: &ros::ContactClip) -> Result<EpisodeClip, ConvertErr
     })
 }
 
+/// A `sensor_msgs/JointState` from a gripper driver (e.g. the gripper node's `joint_states`) as a
+/// GripperStatus: joint `joint` (or the only joint when `joint` is empty), position = the finger
+/// opening \[m], effort = the grip force \[N]; the rest is unknown (NaN target and current, no
+/// object detection, activation and motion empty, no fault). A missing joint, a missing or
+/// non-finite position, or more than [`MAX_SEQUENCE`] joints is an error.
+pub fn gripper_status_from_joint_state(
+    m: &r2r::sensor_msgs::msg::JointState,
+    joint: &str,
+) -> Result<unitac_core::msg::GripperStatus, ConvertError> {
+    let bad = ConvertError::JointState;
+    if m.name.len() > MAX_SEQUENCE {
+        return Err(ConvertError::TooLong {
+            field: "name",
+            len: m.name.len(),
+            max: MAX_SEQUENCE,
+        });
+    }
+    let i = if joint.is_empty() && m.name.len() <= 1 {
+        0
+    } else {
+        m.name
+            .iter()
+            .position(|n| n == joint)
+            .ok_or_else(|| bad(format!("no joint '{joint}' in {:?}", m.name)))?
+    };
+    let opening_m = *m
+        .position
+        .get(i)
+        .ok_or_else(|| bad(format!("joint {i} has no position")))?;
+    if !opening_m.is_finite() {
+        return Err(bad(format!("position {opening_m} is not finite")));
+    }
+    Ok(unitac_core::msg::GripperStatus {
+        header: header_from(&m.header),
+        opening_m,
+        target_m: f64::NAN,
+        force_n: m.effort.get(i).copied().unwrap_or(f64::NAN),
+        current_a: f64::NAN,
+        object_detected: false,
+        activation: String::new(),
+        motion: String::new(),
+        fault: String::new(),
+    })
+}
+
+/// The JointState a gripper driver publishes for `s` (the inverse of
+/// [`gripper_status_from_joint_state`] for the opening and force).
+pub fn joint_state(
+    s: &unitac_core::msg::GripperStatus,
+    joint: &str,
+) -> r2r::sensor_msgs::msg::JointState {
+    r2r::sensor_msgs::msg::JointState {
+        header: header(&s.header),
+        name: vec![joint.to_string()],
+        position: vec![s.opening_m],
+        velocity: Vec::new(),
+        effort: vec![s.force_n],
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn joint_states_become_gripper_status_with_unknowns_nan() {
+        let mut g = samples::gripper_status();
+        g.opening_m = 0.05;
+        g.force_n = 7.5;
+        let js = joint_state(&g, "finger");
+        let back = gripper_status_from_joint_state(&js, "finger").unwrap();
+        assert_eq!(back.header, g.header);
+        assert_eq!((back.opening_m, back.force_n), (0.05, 7.5));
+        assert!(back.target_m.is_nan() && back.current_a.is_nan());
+        assert!(!back.object_detected && back.fault.is_empty());
+        // The only joint when none is named; a named joint that is not there, or no position.
+        assert!(gripper_status_from_joint_state(&js, "").is_ok());
+        assert!(gripper_status_from_joint_state(&js, "wrist").is_err());
+        let mut no_pos = js.clone();
+        no_pos.position.clear();
+        assert!(gripper_status_from_joint_state(&no_pos, "finger").is_err());
+        let mut nan = js;
+        nan.position[0] = f64::NAN;
+        assert!(gripper_status_from_joint_state(&nan, "finger").is_err());
+    }
     use unitac_core::msg::samples::{self, contact_state as state, tactile_latent as latent};
 
     /// Every message of msg/unitac_msgs, through the same definition as the conversions.

@@ -35,6 +35,7 @@ pub mod drops;
 pub mod gripper;
 pub mod image;
 pub mod node;
+pub mod sim;
 
 /// The stages of `scene` (a name or a path) whose kind is in `kinds`, built by the same registry
 /// `unitac run` uses, from the scene's params with the node's `<stage>.<key>` overrides applied.
@@ -48,6 +49,33 @@ pub fn scene_stages(
     kinds: &[&str],
     overrides: &[(String, serde_yaml::Value)],
 ) -> anyhow::Result<(unitac_core::Scene, Vec<Box<dyn unitac_core::Stage>>)> {
+    let s = scene_kept(node, scene, sensor_kind, kinds, overrides)?;
+    let stages = unitac_pipeline::build_stages(&s)?;
+    Ok((s, stages))
+}
+
+/// The typed configuration of `scene`'s stages whose kind is in `kinds`, as [`scene_stages`]
+/// would build them (same overrides, same effective-params lines), for a node that needs the
+/// concrete stage (the policy node calls the policy stage's watchdog API).
+pub fn scene_configs(
+    node: &str,
+    scene: &str,
+    kinds: &[&str],
+    overrides: &[(String, serde_yaml::Value)],
+) -> anyhow::Result<(unitac_core::Scene, Vec<unitac_pipeline::StageConfig>)> {
+    let s = scene_kept(node, scene, "", kinds, overrides)?;
+    let configs = unitac_pipeline::stage_configs(&s)?;
+    Ok((s, configs))
+}
+
+/// The scene with only the stages of `kinds`, overrides applied, effective params printed.
+fn scene_kept(
+    node: &str,
+    scene: &str,
+    sensor_kind: &str,
+    kinds: &[&str],
+    overrides: &[(String, serde_yaml::Value)],
+) -> anyhow::Result<unitac_core::Scene> {
     let mut s = unitac_pipeline::load_scene(scene, None)?;
     if !sensor_kind.is_empty() {
         s.source.sensor = sensor_kind
@@ -59,6 +87,5 @@ pub fn scene_stages(
     for line in unitac_pipeline::effective_params(&s)? {
         eprintln!("{node}: effective params: {line}");
     }
-    let stages = unitac_pipeline::build_stages(&s)?;
-    Ok((s, stages))
+    Ok(s)
 }

@@ -30,11 +30,12 @@ impl<P: RosParams + Default + Clone + Send + 'static> NodeBase<P> {
     /// Create node `name`; parameters are read and checked before this returns. `stage_kinds`:
     /// the scene stages this node runs (their `<kind>.<key>` overrides are accepted).
     pub fn new(name: &str, stage_kinds: &[&str]) -> anyhow::Result<Self> {
-        let ctx = r2r::Context::create()?;
-        let mut node = r2r::Node::create(ctx, name, "")?;
-        let overrides = check_given_params(&node, &P::default(), stage_kinds)?;
-        let params = Arc::new(Mutex::new(P::default()));
-        let (handler, _events) = node.make_derived_parameter_handler(params.clone())?;
+        let Created {
+            mut node,
+            params,
+            overrides,
+            handler,
+        } = create::<P>(name, stage_kinds)?;
         let pool = LocalPool::new();
         futures::task::LocalSpawnExt::spawn_local(&pool.spawner(), handler)?;
         let stop = Arc::new(AtomicBool::new(false));
@@ -84,13 +85,7 @@ impl<P: RosParams + Default + Clone + Send + 'static> NodeBase<P> {
 
     /// Now on the node's ROS clock: bag time from /clock under `use_sim_time`, else system time.
     pub fn now(&self) -> r2r::builtin_interfaces::msg::Time {
-        let d = self
-            .clock
-            .lock()
-            .ok()
-            .and_then(|mut c| c.get_now().ok())
-            .unwrap_or_default();
-        r2r::Clock::to_builtin_time(&d)
+        ros_now(&self.clock)
     }
 
     /// Seconds from `stamp` (a capture time) to now on the node's clock.
@@ -115,6 +110,107 @@ impl<P: RosParams + Default + Clone + Send + 'static> NodeBase<P> {
         }
         done()
     }
+}
+
+/// Now on a node's ROS clock (`Node::get_ros_clock`): sim time from /clock under
+/// `use_sim_time`, else system time.
+pub fn ros_now(clock: &Mutex<r2r::Clock>) -> r2r::builtin_interfaces::msg::Time {
+    let d = clock
+        .lock()
+        .ok()
+        .and_then(|mut c| c.get_now().ok())
+        .unwrap_or_default();
+    r2r::Clock::to_builtin_time(&d)
+}
+
+/// A node created with its parameters read and checked, and the parameter handler to drive.
+struct Created<P> {
+    node: r2r::Node,
+    params: Arc<Mutex<P>>,
+    overrides: Vec<(String, serde_yaml::Value)>,
+    handler: ParamHandler,
+}
+
+/// The parameter services' future (r2r's derived parameter handler).
+pub type ParamHandler = std::pin::Pin<Box<dyn std::future::Future<Output = ()> + Send>>;
+
+fn create<P: RosParams + Default + Clone + Send + 'static>(
+    name: &str,
+    stage_kinds: &[&str],
+) -> anyhow::Result<Created<P>> {
+    let ctx = r2r::Context::create()?;
+    let mut node = r2r::Node::create(ctx, name, "")?;
+    let overrides = check_given_params(&node, &P::default(), stage_kinds)?;
+    let params = Arc::new(Mutex::new(P::default()));
+    let (handler, _events) = node.make_derived_parameter_handler(params.clone())?;
+    Ok(Created {
+        node,
+        params,
+        overrides,
+        handler: Box::pin(handler),
+    })
+}
+
+/// What a node on a tokio runtime starts from (the policy node): the node with its parameters
+/// read and checked as [`NodeBase::new`] does, the parameter handler to spawn, the ROS clock and
+/// the /diagnostics publisher. No signal handler: the node's own `select!` owns SIGINT and
+/// SIGTERM (`tokio::signal`).
+#[allow(missing_debug_implementations)] // r2r::Node is not Debug
+pub struct AsyncNode<P> {
+    pub node: r2r::Node,
+    pub params: P,
+    pub overrides: Vec<(String, serde_yaml::Value)>,
+    /// Spawn it (`tokio::spawn`): it serves the parameter services while the node spins.
+    pub param_handler: ParamHandler,
+    pub clock: Arc<Mutex<r2r::Clock>>,
+    pub diagnostics: r2r::Publisher<DiagnosticArray>,
+}
+
+impl<P: RosParams + Default + Clone + Send + 'static> AsyncNode<P> {
+    /// Create node `name`; parameters are read and checked before this returns. `stage_kinds`:
+    /// the scene stages this node runs (their `<kind>.<key>` overrides are accepted).
+    pub fn new(name: &str, stage_kinds: &[&str]) -> anyhow::Result<Self> {
+        let Created {
+            mut node,
+            params,
+            overrides,
+            handler,
+        } = create::<P>(name, stage_kinds)?;
+        let diagnostics = node.create_publisher("/diagnostics", QosProfile::default())?;
+        let clock = node.get_ros_clock();
+        let params = params
+            .lock()
+            .map_err(|_| anyhow::anyhow!("parameter lock poisoned"))?
+            .clone();
+        Ok(Self {
+            node,
+            params,
+            overrides,
+            param_handler: handler,
+            clock,
+            diagnostics,
+        })
+    }
+}
+
+/// Spin `node` on a blocking thread of the tokio runtime (as r2r's tokio examples do) until
+/// `stop` is set; subscriptions, services and /clock are served there, the node's streams wake
+/// the async side. The lock is held for one short spin at a time, so graph queries from the
+/// async side wait at most that long.
+pub fn spin_in_background(
+    node: Arc<Mutex<r2r::Node>>,
+    stop: Arc<AtomicBool>,
+) -> tokio::task::JoinHandle<()> {
+    tokio::task::spawn_blocking(move || {
+        while !stop.load(Ordering::SeqCst) {
+            match node.lock() {
+                Ok(mut n) => n.spin_once(Duration::from_millis(2)),
+                Err(_) => return,
+            }
+            // Let a graph query or publisher creation take the lock between spins.
+            std::thread::yield_now();
+        }
+    })
 }
 
 /// A ROS parameter value as the YAML value a scene file would hold (`None`: not set).

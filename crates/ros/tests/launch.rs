@@ -118,6 +118,66 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
     );
 }
 
+/// The closed-loop files (`<task>_<mode>.launch.py`): the sim node instead of the sensor node,
+/// the scene's contact and inference nodes when the mode has those stages, the policy node, all
+/// but the sim on sim time.
+#[test]
+fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
+    let (j, _) = check_launch();
+    assert_eq!(j["problems"], serde_json::json!([]), "{j}");
+    let touch = serde_json::json!([
+        "unitac_sim_node",
+        "unitac_contact_node",
+        "unitac_policy_node",
+        "unitac_inference_node"
+    ]);
+    for (task, sim_task, duration) in [
+        ("cup_deformation", "cup", 12.0),
+        ("fabric_selection", "fabric", 25.0),
+    ] {
+        for mode in ["vla", "vtla_real", "vtla_pred"] {
+            let file = format!("{task}_{mode}");
+            let f = &j["files"][file.as_str()];
+            assert_eq!(f["scene"], file.as_str());
+            for a in ["split", "seed", "trial", "duration_s", "max_rate"] {
+                assert!(f["arguments"].to_string().contains(a), "{file}: {a}");
+            }
+            let plan = &f["plans"]["{}"];
+            if mode == "vla" {
+                // No touch: no contact or inference node, and the sim waits for no image reader.
+                assert_eq!(
+                    plan["nodes"],
+                    serde_json::json!(["unitac_sim_node", "unitac_policy_node"]),
+                    "{file}"
+                );
+            } else {
+                assert_eq!(plan["nodes"], touch, "{file}");
+            }
+            let params = &plan["parameters"];
+            let sim = &params["unitac_sim_node"];
+            assert_eq!(sim["task"], sim_task, "{file}");
+            assert_eq!(sim["duration_s"], duration, "{file}");
+            assert_eq!(sim["wait_subscribers"], 1);
+            assert_eq!(sim["wait_image_subscribers"], i32::from(mode != "vla"));
+            assert!(sim["use_sim_time"].is_null(), "the sim publishes /clock");
+            for (exe, p) in params.as_object().unwrap() {
+                if exe != "unitac_sim_node" {
+                    assert_eq!(p["use_sim_time"], true, "{file} {exe}");
+                }
+            }
+            assert!(
+                params["unitac_policy_node"]["scene"]
+                    .as_str()
+                    .unwrap()
+                    .ends_with(&format!("scenes/{file}.yaml"))
+            );
+            // With a real sensor instead, the same scene plans the sensor node.
+            let v4l = &f["plans"][r#"{"source": "v4l"}"#]["nodes"];
+            assert_eq!(v4l[0], "unitac_sensor_node", "{file}");
+        }
+    }
+}
+
 /// The parameters the launch plan gives each node are ones the node accepts (names and types:
 /// r2r refuses a float where an integer is declared): every planned node starts with them and
 /// shuts down cleanly on SIGINT.
@@ -125,7 +185,11 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
 fn planned_parameters_are_accepted_by_the_nodes() {
     let (j, bin_dir) = check_launch();
     let mut started = 0;
-    for file in ["fabric_selection", "cup_deformation"] {
+    for file in [
+        "fabric_selection",
+        "cup_deformation",
+        "cup_deformation_vtla_real",
+    ] {
         let params = j["files"][file]["plans"]["{}"]["parameters"]
             .as_object()
             .unwrap();
@@ -161,5 +225,5 @@ fn planned_parameters_are_accepted_by_the_nodes() {
             started += 1;
         }
     }
-    assert_eq!(started, 6);
+    assert_eq!(started, 10);
 }

@@ -298,6 +298,23 @@ impl Policy for CupController {
         r
     }
 
+    fn awaited(&self) -> Vec<&'static str> {
+        let mut r = self.required();
+        // The latent that sets the squeeze force: its producer must be alive until it came.
+        let waiting = matches!(
+            self.t.phase,
+            Phase::Approach | Phase::Close | Phase::Probe | Phase::AwaitLatent
+        );
+        match self.mode {
+            Mode::VtlaReal if waiting => r.push("latent_real"),
+            Mode::VtlaPred if self.t.phase == Phase::Approach && !r.contains(&"latent_pred") => {
+                r.push("latent_pred");
+            }
+            _ => {}
+        }
+        r
+    }
+
     fn act(&mut self, obs: &Observation) -> Result<Vec<Action>, PolicyError> {
         if let Some(e) = &self.failure {
             return Err(e.clone());

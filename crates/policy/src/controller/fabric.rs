@@ -321,6 +321,20 @@ impl Policy for FabricController {
         r
     }
 
+    fn awaited(&self) -> Vec<&'static str> {
+        let mut r = self.required();
+        // The touching modes choose from the comparison: its producer must be alive until the
+        // choice is made.
+        let choosing = matches!(
+            self.t.phase,
+            Phase::Approach(_) | Phase::Press(_) | Phase::Release(_) | Phase::Compare
+        );
+        if self.mode != Mode::Vla && choosing {
+            r.push("comparison");
+        }
+        r
+    }
+
     fn act(&mut self, obs: &Observation) -> Result<Vec<Action>, PolicyError> {
         if let Some(e) = &self.failure {
             return Err(e.clone());

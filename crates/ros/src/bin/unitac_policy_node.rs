@@ -1,0 +1,395 @@
+//! Policy node: the scene's `policy` stage (observation assembly, scene controller, safety layer)
+//! on a tokio runtime. The gripper state in (`gripper_status`, unitac_msgs/GripperStatus from the
+//! sim or a driver, or `joint_states`, sensor_msgs/JointState: `gripper_input`), and what the
+//! scene's mode reads: `contact_state`, `tactile_latent` (real or predicted), `property_comparison`,
+//! `visual_observation`; GripperCommand (`gripper_command`), ArmCommand (`arm_command`) and
+//! PolicyStatus (`policy_status`) out, one each per control tick; /diagnostics once a second.
+//!
+//! The stage keeps the clock rule: its clock is its input's stamp (the latest stamp seen), and a
+//! control tick is the arrival of a gripper state at the control rate. What only a transport can
+//! see goes through the stage's pure API, on tokio timers in one `select!` with the inputs and the
+//! signals (no sleep-polling):
+//! - the control interval: when no gripper state came for the due tick, the stage's
+//!   `watchdog_tick(now)` (now on the node's ROS clock: sim time under `use_sim_time`) sends the
+//!   safe action with the reason;
+//! - producers: on every control interval and before every gripper tick, the publisher count of
+//!   each input topic the current phase awaits (`awaited_inputs`) is read from the ROS graph; none
+//!   left marks the input lost (`set_input_lost`), so the next tick sends the safe action with
+//!   `<input>: no publisher on <topic>`;
+//! - SIGINT / SIGTERM end the loop; the node stops spinning and exits 0.
+
+use futures::StreamExt;
+use futures::stream::{BoxStream, SelectAll};
+use r2r::{QosProfile, RosParams};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use tokio::signal::unix::{SignalKind, signal};
+use unitac_core::{ManualClock, Msg, Stage, Stamp};
+use unitac_pipeline::StageConfig;
+use unitac_policy::PolicyStage;
+use unitac_ros::node::{AsyncNode, ros_now, spin_in_background};
+use unitac_ros::{convert, diagnostics};
+
+/// The node's own parameters. The policy stage's come from the scene file's policy stage;
+/// override one with `policy.<key>` (e.g. `-p policy.control_rate_hz:=20.0`).
+#[derive(RosParams, Debug, Clone)]
+struct Params {
+    /// Scene: a scene name (looked up like `unitac run --scene`) or a path to a scene YAML
+    scene: String,
+    /// gripper_status: unitac_msgs/GripperStatus on `gripper_status`; joint_states:
+    /// sensor_msgs/JointState on `joint_states` (position = opening, effort = force)
+    gripper_input: String,
+    /// The gripper's joint in joint_states (empty: the only joint)
+    joint_name: String,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self {
+            scene: "cup_deformation_vtla_real".into(),
+            gripper_input: "gripper_status".into(),
+            joint_name: "gripper_finger_opening".into(),
+        }
+    }
+}
+
+const STAGES: &[&str] = &["policy"];
+
+/// The topic (relative) an input of the policy arrives on.
+fn topic_of(input: &str, p: &Params) -> &'static str {
+    match input {
+        "gripper" if p.gripper_input == "joint_states" => "joint_states",
+        "gripper" => "gripper_status",
+        "contact" => "contact_state",
+        "latent_real" | "latent_pred" => "tactile_latent",
+        "comparison" => "property_comparison",
+        _ => "visual_observation",
+    }
+}
+
+/// A converted input, or why its message was refused.
+type Incoming = Result<Msg, String>;
+
+/// The subscriptions the mode's inputs need, merged into one stream.
+fn subscribe(
+    node: &mut r2r::Node,
+    inputs: &[&str],
+    p: &Params,
+) -> anyhow::Result<SelectAll<BoxStream<'static, Incoming>>> {
+    let mut all = SelectAll::new();
+    let reliable = || QosProfile::default().keep_last(10);
+    let err = |topic: &'static str| move |e: convert::ConvertError| format!("{topic}: {e}");
+    for input in inputs {
+        match *input {
+            "gripper" if p.gripper_input == "joint_states" => {
+                let joint = p.joint_name.clone();
+                let s = node
+                    .subscribe::<r2r::sensor_msgs::msg::JointState>("joint_states", reliable())?;
+                all.push(
+                    s.map(move |m| {
+                        convert::gripper_status_from_joint_state(&m, &joint)
+                            .map(Msg::Gripper)
+                            .map_err(err("joint_states"))
+                    })
+                    .boxed(),
+                );
+            }
+            "gripper" => {
+                let s = node.subscribe::<r2r::unitac_msgs::msg::GripperStatus>(
+                    "gripper_status",
+                    reliable(),
+                )?;
+                all.push(
+                    s.map(move |m| {
+                        convert::gripper_status_from(&m)
+                            .map(Msg::Gripper)
+                            .map_err(err("gripper_status"))
+                    })
+                    .boxed(),
+                );
+            }
+            "contact" => {
+                let s = node.subscribe::<r2r::unitac_msgs::msg::ContactState>(
+                    "contact_state",
+                    reliable(),
+                )?;
+                all.push(
+                    s.map(move |m| {
+                        convert::contact_state_from(&m)
+                            .map(Msg::Contact)
+                            .map_err(err("contact_state"))
+                    })
+                    .boxed(),
+                );
+            }
+            // One subscription for either latent (the inference node publishes both on it,
+            // transient-local: a latent predicted before this node started still arrives).
+            "latent_real" | "latent_pred" => {
+                if inputs.contains(&"latent_real") && *input == "latent_pred" {
+                    continue;
+                }
+                let s = node.subscribe::<r2r::unitac_msgs::msg::TactileLatent>(
+                    "tactile_latent",
+                    reliable().transient_local(),
+                )?;
+                all.push(
+                    s.map(move |m| {
+                        convert::tactile_latent_from(&m)
+                            .map(Msg::Latent)
+                            .map_err(err("tactile_latent"))
+                    })
+                    .boxed(),
+                );
+            }
+            "comparison" => {
+                let s = node.subscribe::<r2r::unitac_msgs::msg::PropertyComparison>(
+                    "property_comparison",
+                    reliable(),
+                )?;
+                all.push(
+                    s.map(move |m| {
+                        convert::property_comparison_from(&m)
+                            .map(Msg::Comparison)
+                            .map_err(err("property_comparison"))
+                    })
+                    .boxed(),
+                );
+            }
+            "visual" => {
+                let s = node.subscribe::<r2r::unitac_msgs::msg::VisualObservation>(
+                    "visual_observation",
+                    reliable(),
+                )?;
+                all.push(
+                    s.map(move |m| {
+                        convert::visual_observation_from(&m)
+                            .map(Msg::Visual)
+                            .map_err(err("visual_observation"))
+                    })
+                    .boxed(),
+                );
+            }
+            other => anyhow::bail!("the policy reads '{other}', which this node cannot subscribe"),
+        }
+    }
+    Ok(all)
+}
+
+/// The policy stage of the scene, built from its typed params (the same registry path as every
+/// transport), kept concrete for its watchdog API.
+fn build(
+    p: &Params,
+    overrides: &[(String, serde_yaml::Value)],
+) -> anyhow::Result<(String, PolicyStage)> {
+    let (scene, configs) =
+        unitac_ros::scene_configs("unitac_policy_node", &p.scene, STAGES, overrides)?;
+    let Some(StageConfig::Policy {
+        params,
+        scene: name,
+    }) = configs.into_iter().next()
+    else {
+        anyhow::bail!("scene '{}' has no policy stage", scene.name);
+    };
+    Ok((name.clone(), PolicyStage::new(&name, *params)?))
+}
+
+struct Publishers {
+    command: r2r::Publisher<r2r::unitac_msgs::msg::GripperCommand>,
+    arm: r2r::Publisher<r2r::unitac_msgs::msg::ArmCommand>,
+    status: r2r::Publisher<r2r::unitac_msgs::msg::PolicyStatus>,
+}
+
+impl Publishers {
+    fn publish(&self, out: Vec<Msg>, counters: &mut diagnostics::Counters, last: &mut String) {
+        for m in out {
+            let r = match &m {
+                Msg::Command(c) => self.command.publish(&convert::gripper_command(c)),
+                Msg::Arm(a) => self.arm.publish(&convert::arm_command(a)),
+                Msg::Status(s) => {
+                    *last = format!(
+                        "{} ({})",
+                        s.phase,
+                        if s.safety_ok { "ok" } else { &s.message }
+                    );
+                    self.status.publish(&convert::policy_status(s))
+                }
+                _ => continue,
+            };
+            counters.published(r);
+        }
+    }
+}
+
+/// Watches the publishers of the inputs the current phase awaits, through the ROS graph.
+struct Producers {
+    node: Arc<Mutex<r2r::Node>>,
+    /// Fully qualified topic per input.
+    topics: Vec<(&'static str, String)>,
+}
+
+impl Producers {
+    /// Mark each awaited input whose topic has no publisher lost, and every other one not.
+    fn check(&self, stage: &mut PolicyStage) -> anyhow::Result<()> {
+        let awaited = stage.awaited_inputs();
+        for (input, topic) in &self.topics {
+            let lost = if awaited.contains(input) {
+                let n = self
+                    .node
+                    .lock()
+                    .map_err(|_| anyhow::anyhow!("node lock poisoned"))?
+                    .get_publishers_info_by_topic(topic, false)?
+                    .len();
+                (n == 0).then(|| format!("no publisher on {topic}"))
+            } else {
+                None
+            };
+            stage
+                .set_input_lost(input, lost)
+                .map_err(anyhow::Error::msg)?;
+        }
+        Ok(())
+    }
+}
+
+/// `topic` (relative) in the node's namespace, as the graph names it.
+fn qualified(namespace: &str, topic: &str) -> String {
+    format!("{}/{topic}", namespace.trim_end_matches('/'))
+}
+
+async fn run_async() -> anyhow::Result<()> {
+    let AsyncNode {
+        mut node,
+        params: p,
+        overrides,
+        param_handler,
+        clock,
+        diagnostics: pub_diag,
+    } = AsyncNode::<Params>::new("unitac_policy", STAGES)?;
+    if !matches!(p.gripper_input.as_str(), "gripper_status" | "joint_states") {
+        anyhow::bail!(
+            "gripper_input must be gripper_status or joint_states, got '{}'",
+            p.gripper_input
+        );
+    }
+    let (scene, mut stage) = build(&p, &overrides)?;
+    let inputs = stage.inputs();
+    let mut incoming = subscribe(&mut node, &inputs, &p)?;
+    let reliable = QosProfile::default;
+    let pubs = Publishers {
+        command: node.create_publisher("gripper_command", reliable())?,
+        arm: node.create_publisher("arm_command", reliable())?,
+        status: node.create_publisher("policy_status", reliable())?,
+    };
+    let namespace = node.namespace()?;
+    let mut diag = diagnostics::Updater::new(
+        &format!("unitac_policy: {}", node.fully_qualified_name()?),
+        &scene,
+    );
+    let node = Arc::new(Mutex::new(node));
+    let producers = Producers {
+        node: node.clone(),
+        topics: inputs
+            .iter()
+            .map(|i| (*i, qualified(&namespace, topic_of(i, &p))))
+            .collect(),
+    };
+    tokio::spawn(param_handler);
+    let stop = Arc::new(AtomicBool::new(false));
+    let spinner = spin_in_background(node.clone(), stop.clone());
+
+    let mut sigint = signal(SignalKind::interrupt())?;
+    let mut sigterm = signal(SignalKind::terminate())?;
+    let period = Duration::from_nanos(u64::try_from(stage.period_ns()).unwrap_or(33_333_333));
+    let mut control = tokio::time::interval(period);
+    control.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut diag_timer = tokio::time::interval(Duration::from_millis(200));
+    diag_timer.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut counters = diagnostics::Counters::default();
+    let (mut watchdog_ticks, mut last_status) = (0u64, String::new());
+    // The stage's clock: the latest input stamp (the chain driver's rule).
+    let mut latest = Stamp::ZERO;
+    let clock_of = |latest: &mut Stamp, t: Stamp| {
+        *latest = (*latest).max(t);
+        ManualClock::new(*latest)
+    };
+    loop {
+        tokio::select! {
+            m = incoming.next() => {
+                let Some(m) = m else { break };
+                counters.frames_in += 1;
+                let t0 = Instant::now();
+                let m = match m {
+                    Ok(m) => m,
+                    Err(e) => {
+                        counters.error(e);
+                        continue;
+                    }
+                };
+                if matches!(m, Msg::Gripper(_)) {
+                    // A tick: the producers as they are now, so a loss shows in this tick.
+                    if let Err(e) = producers.check(&mut stage) {
+                        counters.error(format!("graph: {e:#}"));
+                    }
+                }
+                let stamp = m.stamp();
+                let c = clock_of(&mut latest, stamp);
+                match stage.process(&m, &c) {
+                    Ok(out) => {
+                        if !out.is_empty() {
+                            counters.latency(age_s(&clock, stamp));
+                        }
+                        pubs.publish(out, &mut counters, &mut last_status);
+                    }
+                    Err(e) => counters.error(e.to_string()),
+                }
+                counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
+            }
+            _ = control.tick() => {
+                if let Err(e) = producers.check(&mut stage) {
+                    counters.error(format!("graph: {e:#}"));
+                }
+                let now = convert::stamp(&ros_now(&clock));
+                let out = stage.watchdog_tick(now);
+                if !out.is_empty() {
+                    watchdog_ticks += 1;
+                    pubs.publish(out, &mut counters, &mut last_status);
+                }
+            }
+            _ = diag_timer.tick() => {
+                let extra = [
+                    ("status", last_status.clone()),
+                    ("watchdog_ticks", watchdog_ticks.to_string()),
+                ];
+                if let Some(a) = diag.tick(&mut counters, ros_now(&clock), &extra) {
+                    if let Err(e) = pub_diag.publish(&a) {
+                        counters.error(format!("diagnostics: {e}"));
+                    }
+                }
+            }
+            _ = sigint.recv() => break,
+            _ = sigterm.recv() => break,
+        }
+    }
+    stop.store(true, Ordering::SeqCst);
+    spinner.await?;
+    Ok(())
+}
+
+/// Seconds from `stamp` to now on the node's clock.
+fn age_s(clock: &Mutex<r2r::Clock>, stamp: Stamp) -> f64 {
+    let now = convert::stamp(&ros_now(clock));
+    (now.0 - stamp.0) as f64 * 1e-9
+}
+
+fn run() -> anyhow::Result<()> {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?
+        .block_on(run_async())
+}
+
+fn main() -> std::process::ExitCode {
+    unitac_ros::node::main_of("unitac_policy_node", run)
+}

@@ -1,0 +1,322 @@
+//! Sim node: a task world of the paper's two tasks (cup deformation, fabric selection) as a ROS
+//! node, in lock-step sim time, so the whole closed loop (sim -> contact -> inference -> policy ->
+//! sim) runs over ROS on one machine. The world and every conversion are crates/sim's
+//! `TaskWorld` and crates/trials' bridge (through `unitac_ros::sim::LockStep`).
+//!
+//! Each control period at world time t it publishes `/clock` = t, the tactile frames due up to t
+//! on `image_raw` (sensor_msgs/Image, the mock sensor's frames rendered from the world), the
+//! camera's estimate on `visual_observation`, and the gripper's state on `gripper_status`
+//! (unitac_msgs/GripperStatus) and `joint_states` (sensor_msgs/JointState: position = opening,
+//! effort = force), the status last (it is the policy's tick; with `sync_contact`, once the
+//! contact node's background is learned, only after the ContactState of the step's last frame
+//! came, so the policy sees the contact of its own time as the embedded loop does). It then
+//! waits for the
+//! GripperCommand (`gripper_command`) and ArmCommand (`arm_command`) stamped t; after
+//! `command_timeout_s` of wall time without them it steps with the last command and counts it
+//! (`repeated_steps`). At the end (`duration_s` of sim time) it publishes the world's outcome
+//! once, as one JSON object on `sim/outcome` (std_msgs/String, transient-local), prints the same
+//! line on stdout, and keeps serving until stopped. The other nodes run with `use_sim_time`.
+
+use futures::{FutureExt, StreamExt};
+use r2r::{QosProfile, RosParams};
+use std::time::{Duration, Instant};
+use unitac_core::msg::{ArmCommand, GripperCommand};
+use unitac_core::{SensorKind, Stamp};
+use unitac_ros::node::NodeBase;
+use unitac_ros::sim::{LockStep, SimSpec};
+use unitac_ros::{convert, diagnostics, image};
+
+#[derive(RosParams, Debug, Clone)]
+struct Params {
+    /// cup | fabric
+    task: String,
+    /// train | unseen (cups: 60/65/70 mm vs 90 mm; the fabric task has one set)
+    split: String,
+    /// The trial draw: seed and trial index
+    seed: i64,
+    trial: i64,
+    /// Control rate = sim steps per sim second
+    control_rate_hz: f64,
+    /// Sim time of the trial, in seconds
+    duration_s: f64,
+    /// Mock tactile sensor: gelsight-mini | digit | generic, and its id (frame_id
+    /// `<sensor_id>_optical_frame`)
+    sensor: String,
+    sensor_id: String,
+    /// Wall time to wait for the commands of a step before stepping with the last ones, in
+    /// seconds
+    command_timeout_s: f64,
+    /// At most this many sim seconds per wall second (0: as fast as the loop runs)
+    max_rate: f64,
+    /// Start once this many subscriptions matched on gripper_status (the policy node, observers)
+    wait_subscribers: i32,
+    /// ... and this many on image_raw (the contact node, observers)
+    wait_image_subscribers: i32,
+    /// The gripper's joint in joint_states
+    joint_name: String,
+    /// Lock-step with the contact node too: once its background is learned (`background`
+    /// arrived), wait for the ContactState of the last frame of a step before the gripper
+    /// state (up to `command_timeout_s`), so the policy's tick sees the contact of its own time
+    /// as in the embedded loop
+    sync_contact: bool,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Self {
+            task: "cup".into(),
+            split: "train".into(),
+            seed: 1,
+            trial: 0,
+            control_rate_hz: 30.0,
+            duration_s: 12.0,
+            sensor: "gelsight-mini".into(),
+            sensor_id: "gsmini".into(),
+            command_timeout_s: 1.0,
+            max_rate: 0.0,
+            wait_subscribers: 0,
+            wait_image_subscribers: 0,
+            joint_name: "gripper_finger_opening".into(),
+            sync_contact: true,
+        }
+    }
+}
+
+/// The commands received for the step at `stamp`.
+#[derive(Default)]
+struct Pending {
+    gripper: Option<GripperCommand>,
+    arm: Option<ArmCommand>,
+}
+
+fn run() -> anyhow::Result<()> {
+    let mut base = NodeBase::<Params>::new("unitac_sim", &[])?;
+    let p = base.params()?;
+    let sensor: SensorKind = p.sensor.parse().map_err(anyhow::Error::msg)?;
+    let spec = SimSpec {
+        task: p.task.clone(),
+        split: p.split.clone(),
+        seed: u64::try_from(p.seed).map_err(|_| anyhow::anyhow!("seed must be >= 0"))?,
+        trial: u32::try_from(p.trial).map_err(|_| anyhow::anyhow!("trial must be in 0..2^32"))?,
+        rate_hz: p.control_rate_hz,
+        duration_s: p.duration_s,
+        sensor,
+        sensor_id: p.sensor_id.clone(),
+    };
+    let mut sim = LockStep::new(&spec)?;
+    if !(p.command_timeout_s.is_finite() && p.command_timeout_s > 0.0) {
+        anyhow::bail!("command_timeout_s must be > 0, got {}", p.command_timeout_s);
+    }
+    if !(p.max_rate.is_finite() && p.max_rate >= 0.0) {
+        anyhow::bail!("max_rate must be >= 0, got {}", p.max_rate);
+    }
+    let node = &mut base.node;
+    let reliable = || QosProfile::default().keep_last(10);
+    let pub_clock =
+        node.create_publisher::<r2r::rosgraph_msgs::msg::Clock>("/clock", QosProfile::default())?;
+    let pub_image =
+        node.create_publisher::<r2r::sensor_msgs::msg::Image>("image_raw", QosProfile::default())?;
+    let pub_status = node
+        .create_publisher::<r2r::unitac_msgs::msg::GripperStatus>("gripper_status", reliable())?;
+    let pub_joint =
+        node.create_publisher::<r2r::sensor_msgs::msg::JointState>("joint_states", reliable())?;
+    let pub_visual = node.create_publisher::<r2r::unitac_msgs::msg::VisualObservation>(
+        "visual_observation",
+        reliable(),
+    )?;
+    let pub_outcome = node.create_publisher::<r2r::std_msgs::msg::String>(
+        "sim/outcome",
+        QosProfile::default().keep_last(1).transient_local(),
+    )?;
+    let mut sub_cmd =
+        node.subscribe::<r2r::unitac_msgs::msg::GripperCommand>("gripper_command", reliable())?;
+    let mut sub_arm =
+        node.subscribe::<r2r::unitac_msgs::msg::ArmCommand>("arm_command", reliable())?;
+    let mut sub_contact = node.subscribe::<r2r::unitac_msgs::msg::ContactState>(
+        "contact_state",
+        QosProfile::default().keep_last(100),
+    )?;
+    let mut sub_background = node.subscribe::<r2r::sensor_msgs::msg::Image>(
+        "background",
+        QosProfile::default().keep_last(1).transient_local(),
+    )?;
+    let (mut learned, mut contact_seen, mut contact_timeouts) = (false, Stamp::ZERO, 0u64);
+    let timeout = Duration::from_secs_f64(p.command_timeout_s);
+    let mut diag = diagnostics::Updater::new(
+        &format!("unitac_sim: {}", node.fully_qualified_name()?),
+        &format!("{} {} seed {} trial {}", p.task, p.split, p.seed, p.trial),
+    );
+    let mut counters = diagnostics::Counters::default();
+
+    let wanted = usize::try_from(p.wait_subscribers).unwrap_or(0);
+    let wanted_images = usize::try_from(p.wait_image_subscribers).unwrap_or(0);
+    if wanted + wanted_images > 0 {
+        let matched = || {
+            pub_status
+                .get_inter_process_subscription_count()
+                .unwrap_or(0)
+                >= wanted
+                && pub_image
+                    .get_inter_process_subscription_count()
+                    .unwrap_or(0)
+                    >= wanted_images
+        };
+        if !base.spin_until(Duration::from_secs(60), matched) {
+            if base.stopped() {
+                return Ok(());
+            }
+            anyhow::bail!(
+                "fewer than {wanted} subscribers on gripper_status or {wanted_images} on image_raw within 60 s"
+            );
+        }
+    }
+    let start = Instant::now();
+    let mut steps = 0u64;
+    let mut pending = Pending::default();
+    while !base.stopped() && !sim.done() {
+        let t0 = Instant::now();
+        let o = sim.observe();
+        let now = convert::time(o.stamp);
+        counters
+            .published(pub_clock.publish(&r2r::rosgraph_msgs::msg::Clock { clock: now.clone() }));
+        for f in &o.frames {
+            counters.published(pub_image.publish(&image::from_frame(f)));
+        }
+        // Busy: rendering and publishing, not the waits.
+        counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
+        if let (true, Some(last)) = (p.sync_contact, o.frames.last()) {
+            let want = last.stamp;
+            let waited = Instant::now();
+            let mut caught_up = |base: &mut NodeBase<Params>| {
+                base.spin(Duration::from_millis(1));
+                while let Some(Some(_)) = sub_background.next().now_or_never() {
+                    learned = true;
+                }
+                while let Some(Some(c)) = sub_contact.next().now_or_never() {
+                    contact_seen = contact_seen.max(convert::stamp(&c.header.stamp));
+                }
+                !learned || contact_seen >= want
+            };
+            while !caught_up(&mut base) && !base.stopped() {
+                if waited.elapsed() >= timeout {
+                    contact_timeouts += 1;
+                    break;
+                }
+            }
+        }
+        // Pace: at most max_rate sim seconds per wall second. The wait is here, between the
+        // frames and the tick, so the contact states have that long to reach the policy too
+        // (they come from another process than the status: their order there is not given).
+        if p.max_rate > 0.0 {
+            let due = Duration::from_secs_f64(sim.time() / p.max_rate);
+            let left = due.saturating_sub(start.elapsed());
+            if !left.is_zero() {
+                base.spin(left);
+            }
+        }
+        let t1 = Instant::now();
+        counters.published(pub_visual.publish(&convert::visual_observation(&o.visual)));
+        counters.published(pub_joint.publish(&convert::joint_state(&o.gripper, &p.joint_name)));
+        counters.published(pub_status.publish(&convert::gripper_status(&o.gripper)));
+        counters.busy_us += t1.elapsed().as_secs_f64() * 1e6;
+        // Wait for the commands stamped now (older ones are dropped; a newer one cannot exist).
+        let waited = Instant::now();
+        let mut got = |pending: &mut Pending, base: &mut NodeBase<Params>| {
+            base.spin(Duration::from_millis(1));
+            while let Some(Some(c)) = sub_cmd.next().now_or_never() {
+                take(
+                    &mut pending.gripper,
+                    convert::gripper_command_from(&c),
+                    o.stamp,
+                    &mut counters,
+                );
+            }
+            while let Some(Some(a)) = sub_arm.next().now_or_never() {
+                take(
+                    &mut pending.arm,
+                    convert::arm_command_from(&a),
+                    o.stamp,
+                    &mut counters,
+                );
+            }
+            pending.gripper.is_some() && pending.arm.is_some()
+        };
+        while !got(&mut pending, &mut base) && waited.elapsed() < timeout && !base.stopped() {}
+        let cmds = std::mem::take(&mut pending);
+        let r = match (&cmds.gripper, &cmds.arm) {
+            (Some(g), Some(a)) => sim.step(Some((g, a))),
+            _ => sim.step(None),
+        };
+        if let Err(e) = r {
+            // A refused command (NaN) moves nothing: counted, and the step is taken with the
+            // last good command so sim time goes on.
+            counters.error(e.to_string());
+            sim.step(None)?;
+        }
+        steps += 1;
+        counters.frames_in += 1;
+        let extra = [
+            ("sim_time_s", format!("{:.3}", sim.time())),
+            ("steps", steps.to_string()),
+            ("repeated_steps", sim.repeated.to_string()),
+            ("contact_timeouts", contact_timeouts.to_string()),
+        ];
+        if let Some(a) = diag.tick(&mut counters, now, &extra) {
+            base.publish_diagnostics(&a)?;
+        }
+    }
+    let outcome = serde_json::json!({
+        "task": p.task,
+        "split": p.split,
+        "seed": p.seed,
+        "trial": p.trial,
+        "t_s": sim.time(),
+        "steps": steps,
+        "repeated_steps": sim.repeated,
+        "contact_timeouts": contact_timeouts,
+        "outcome": sim.outcome(),
+    });
+    println!("{outcome}");
+    pub_outcome.publish(&r2r::std_msgs::msg::String {
+        data: outcome.to_string(),
+    })?;
+    // Serve the latched outcome until stopped.
+    while !base.stopped() {
+        base.spin(Duration::from_millis(50));
+    }
+    Ok(())
+}
+
+/// Keep a command if it is stamped `now`; a bad one is counted as an error.
+fn take<T>(
+    slot: &mut Option<T>,
+    m: Result<T, convert::ConvertError>,
+    now: Stamp,
+    counters: &mut diagnostics::Counters,
+) where
+    T: Stamped,
+{
+    match m {
+        Ok(c) if c.stamp() == now => *slot = Some(c),
+        Ok(_) => {}
+        Err(e) => counters.error(format!("command: {e}")),
+    }
+}
+
+trait Stamped {
+    fn stamp(&self) -> Stamp;
+}
+impl Stamped for GripperCommand {
+    fn stamp(&self) -> Stamp {
+        self.header.stamp
+    }
+}
+impl Stamped for ArmCommand {
+    fn stamp(&self) -> Stamp {
+        self.header.stamp
+    }
+}
+
+fn main() -> std::process::ExitCode {
+    unitac_ros::node::main_of("unitac_sim_node", run)
+}

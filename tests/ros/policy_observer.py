@@ -1,0 +1,150 @@
+"""rclpy observer of the closed loop over ROS (crates/ros/tests/policy_loop.rs).
+
+  policy_observer.py NS SECONDS
+
+Records NS/policy_status, NS/gripper_command, /clock and NS/sim/outcome; subscribes to
+NS/gripper_status and NS/image_raw too (counting them), so the sim's wait for subscribers waits for
+it as well. Talks to the test on
+stdin/stdout, one line each:
+  out: "ready"             once the policy node's PolicyStatus and GripperCommand publishers
+                           are matched (start the sim after this)
+  out: "phase NAME T_NS"   the first PolicyStatus of each phase (T_NS its stamp)
+  in:  "mark"              record the latest PolicyStatus stamp as the mark (the test froze the
+                           sim and killed a producer: the last tick before), answer
+                           "marked T_NS"
+  out: "outcome"           the sim's outcome arrived
+  in:  "joint_states N"    publish N sensor_msgs/JointState on NS/joint_states at 30 Hz (system
+                           time stamps, opening 0.07 m, effort 1.5 N), then stop; answer
+                           "published T_NS" with the last stamp
+  in:  "end"               (or SECONDS passed, or stdin closed) print the summary as one JSON line
+                           and exit
+"""
+import json
+import sys
+import threading
+import time
+
+import rclpy
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Image, JointState
+from std_msgs.msg import String
+from unitac_msgs.msg import GripperCommand, GripperStatus, PolicyStatus
+
+
+def stamp_ns(t):
+    return t.sec * 10**9 + t.nanosec
+
+
+def main():
+    ns, seconds = sys.argv[1], float(sys.argv[2])
+    rclpy.init()
+    node = rclpy.create_node("policy_observer")
+    lock = threading.Lock()
+    got = {"status": [], "commands": [], "outcome": None, "mark_ns": None, "clock_ns": 0,
+           "clocks": 0}
+    phases = set()
+
+    def say(line):
+        sys.stdout.write(line + "\n")
+        sys.stdout.flush()
+
+    def on_status(m):
+        t = stamp_ns(m.header.stamp)
+        with lock:
+            got["status"].append({"stamp": t, "phase": m.phase, "safety_ok": m.safety_ok,
+                                  "message": m.message, "mode": m.mode, "scene": m.scene})
+            new = m.phase not in phases
+            phases.add(m.phase)
+        if new:
+            say(f"phase {m.phase} {t}")
+
+    def on_command(m):
+        with lock:
+            got["commands"].append({"stamp": stamp_ns(m.header.stamp), "mode": m.mode,
+                                    "position_m": m.position_m, "force_n": m.force_n,
+                                    "reason": m.reason})
+
+    def on_clock(m):
+        with lock:
+            got["clock_ns"] = max(got["clock_ns"], stamp_ns(m.clock))
+            got["clocks"] += 1
+
+    def on_outcome(m):
+        with lock:
+            first = got["outcome"] is None
+            got["outcome"] = json.loads(m.data)
+        if first:
+            say("outcome")
+
+    reliable = QoSProfile(depth=100)
+    node.create_subscription(PolicyStatus, ns + "/policy_status", on_status, reliable)
+    node.create_subscription(GripperCommand, ns + "/gripper_command", on_command, reliable)
+    node.create_subscription(Clock, "/clock", on_clock, 10)
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    node.create_subscription(String, ns + "/sim/outcome", on_outcome, latched)
+
+    counts = {"gripper_status": 0, "images": 0}
+
+    def count(key):
+        def cb(_m):
+            with lock:
+                counts[key] += 1
+        return cb
+
+    node.create_subscription(GripperStatus, ns + "/gripper_status", count("gripper_status"),
+                             reliable)
+    node.create_subscription(Image, ns + "/image_raw", count("images"), 10)
+    got["counts"] = counts
+
+    end = threading.Event()
+    joint_pub = node.create_publisher(JointState, ns + "/joint_states", reliable)
+
+    def publish_joint_states(n):
+        last = 0
+        t0 = time.monotonic()
+        for k in range(n):
+            # On a fixed schedule (no drift): the k-th state at t0 + k / 30 s.
+            time.sleep(max(0.0, t0 + k / 30.0 - time.monotonic()))
+            m = JointState()
+            m.header.stamp = node.get_clock().now().to_msg()
+            m.name = ["gripper_finger_opening"]
+            m.position = [0.07]
+            m.effort = [1.5]
+            joint_pub.publish(m)
+            last = stamp_ns(m.header.stamp)
+        say(f"published {last}")
+
+    def read_stdin():
+        for line in sys.stdin:
+            cmd = line.strip()
+            if cmd == "mark":
+                # Let /clock messages already sent arrive before reading the latest.
+                time.sleep(0.3)
+                with lock:
+                    got["mark_ns"] = max((s["stamp"] for s in got["status"]), default=0)
+                say(f"marked {got['mark_ns']}")
+            elif cmd.startswith("joint_states "):
+                threading.Thread(target=publish_joint_states, args=(int(cmd.split()[1]),),
+                                 daemon=True).start()
+            elif cmd == "end":
+                break
+        end.set()
+
+    threading.Thread(target=read_stdin, daemon=True).start()
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < seconds and not (
+            node.count_publishers(ns + "/policy_status") > 0
+            and node.count_publishers(ns + "/gripper_command") > 0):
+        rclpy.spin_once(node, timeout_sec=0.05)
+    say("ready")
+    while not end.is_set() and time.monotonic() - t0 < seconds:
+        rclpy.spin_once(node, timeout_sec=0.02)
+    with lock:
+        say(json.dumps(got))
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+if __name__ == "__main__":
+    main()
