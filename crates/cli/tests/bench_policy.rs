@@ -64,6 +64,10 @@ fn bench_policy_prints_a_row_per_scene_mode_and_pass_and_the_python_rows() {
         find("python", "-", "onnx act, sleep-paced")["period"]["periods"],
         2
     );
+    assert_eq!(
+        find("embedded", "-", "onnx act, paced")["period"]["periods"],
+        2
+    );
     assert!(j["python_over_rust"]["p50"].as_f64().is_some(), "{j}");
 
     // The text table: a line per row.
