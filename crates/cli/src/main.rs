@@ -12,6 +12,7 @@ mod devices;
 mod eval;
 mod gripper;
 mod images;
+mod policy_bench;
 mod progress;
 mod replay;
 mod sampler;
@@ -145,7 +146,8 @@ enum Cmd {
         idle_minutes: f64,
     },
     /// Benchmarks, side by side with the Python a user would otherwise run where there is one:
-    /// `bench contact`, `bench replay`, `bench sampler`, `bench render` (mock sensor frames).
+    /// `bench contact`, `bench replay`, `bench sampler`, `bench render` (mock sensor frames),
+    /// `bench policy` (the policy's control tick and a paced loop's period, per scene and mode).
     Bench {
         what: BenchTarget,
         #[arg(long)]
@@ -159,6 +161,12 @@ enum Cmd {
         /// Skip the Python baseline.
         #[arg(long)]
         no_python: bool,
+        /// `bench policy`: ticks of the real-time paced loop per scene (0: none).
+        #[arg(long, default_value_t = 300)]
+        ticks: usize,
+        /// `bench policy`: an ONNX policy directory (default: the test MLP, generated).
+        #[arg(long)]
+        policy: Option<PathBuf>,
     },
     /// Error against run time, with tables and PNG plots: `report sampler` (flow sampler),
     /// `report sim` (the simulator's integrators on soft, stiff and extreme cups, stability map).
@@ -233,6 +241,9 @@ enum BenchTarget {
     Render,
     /// GelSight Mini MJPEG 3280x2464 -> 320x240 and YUYV 320x240 -> RGB, vs OpenCV.
     Decode,
+    /// The policy tick per scene and mode (--repeat episodes each), with an ONNX policy's act,
+    /// and a loop paced at the control rate (--ticks), vs Python onnxruntime.
+    Policy,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -259,6 +270,9 @@ fn emit(text: impl std::fmt::Display) -> anyhow::Result<()> {
         .and_then(|()| o.flush())
         .context("writing to stdout")
 }
+
+/// When `main` began: `unitac run` reports how long it took to have its stages built.
+static STARTED: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
 
 fn scene_dirs(extra: Option<PathBuf>) -> Vec<PathBuf> {
     unitac_pipeline::scene_dirs(extra)
@@ -292,6 +306,8 @@ fn cmd_run(
     }
     let stages = unitac_pipeline::build_stages(&scene).map_err(cfg)?;
     let source = unitac_pipeline::build_source(&scene, sensor.as_ref()).map_err(cfg)?;
+    // main() -> scene loaded and checked, every stage built (models loaded), source opened.
+    let built_s = STARTED.get().map(|t| t.elapsed().as_secs_f64());
 
     let stop = Arc::new(AtomicBool::new(false));
     {
@@ -339,9 +355,14 @@ fn cmd_run(
         b.finish().context("finishing the output bag")?;
     }
     if json {
-        writeln!(out, "{}", serde_json::to_string(&report)?)?;
+        let mut v = serde_json::to_value(&report)?;
+        v["built_s"] = serde_json::json!(built_s);
+        writeln!(out, "{v}")?;
     } else {
         write!(out, "{}", report.text())?;
+        if let Some(b) = built_s {
+            writeln!(out, "built in {b:.3} s (scene, stages and models, source)")?;
+        }
     }
     // The summary goes to stdout; the reason a run failed also goes to stderr, one line.
     if let Some(reason) = report.ended.strip_prefix("source_failed: ") {
@@ -445,6 +466,7 @@ fn report_sim(json: bool, out: &std::path::Path) -> anyhow::Result<bool> {
 }
 
 fn main() -> ExitCode {
+    STARTED.get_or_init(std::time::Instant::now);
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
@@ -575,6 +597,8 @@ fn main() -> ExitCode {
             frames,
             repeat,
             no_python,
+            ticks,
+            policy,
         } => {
             let (frames, repeat) = (frames.clamp(1, 10_000), repeat.clamp(1, 1000));
             let spinner = progress::spinner(&format!("bench {what:?}").to_lowercase());
@@ -591,6 +615,13 @@ fn main() -> ExitCode {
                 BenchTarget::Render => unitac_sim::bench::render_bench(repeat)
                     .map_err(anyhow::Error::from)
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
+                BenchTarget::Policy => policy_bench::bench_policy(&policy_bench::Options {
+                    episodes: repeat,
+                    paced_ticks: ticks.min(100_000),
+                    python: !no_python,
+                    policy,
+                })
+                .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
             };
             spinner.finish_and_clear();
             text.and_then(|(j, t)| {

@@ -25,4 +25,4 @@ pub use pace::Pacer;
 pub use scene::{Scene, SceneError};
 pub use sensor::{SensorKind, SensorSpec};
 pub use stage::{Source, SourceError, Stage, StageError};
-pub use timing::{Timing, timing};
+pub use timing::{PeriodJitter, Tail, Timing, period_jitter, tail, timing};

@@ -31,6 +31,65 @@ pub fn timing(mut samples_us: Vec<f64>) -> Timing {
     }
 }
 
+/// Tail of latency-type samples (control ticks, message latencies), in microseconds: what a
+/// control loop's deadline is judged by. Nearest-rank percentiles; all 0 when there were none.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Tail {
+    pub n: usize,
+    pub p50_us: f64,
+    pub p99_us: f64,
+    pub max_us: f64,
+}
+
+/// The nearest-rank `q` quantile (0 < q <= 1) of sorted samples: the smallest sample with at
+/// least a fraction `q` of the samples at or below it.
+fn nearest_rank(sorted: &[f64], q: f64) -> f64 {
+    let n = sorted.len();
+    let rank = ((q * n as f64).ceil() as usize).clamp(1, n.max(1));
+    sorted.get(rank - 1).copied().unwrap_or(0.0)
+}
+
+/// Summarise latency samples \[us] (NaN sorts last).
+pub fn tail(mut samples_us: Vec<f64>) -> Tail {
+    samples_us.sort_by(f64::total_cmp);
+    Tail {
+        n: samples_us.len(),
+        p50_us: nearest_rank(&samples_us, 0.5),
+        p99_us: nearest_rank(&samples_us, 0.99),
+        max_us: samples_us.last().copied().unwrap_or(0.0),
+    }
+}
+
+/// How regularly a paced loop ran: the achieved periods (between consecutive iteration starts)
+/// against the period it was paced at, in milliseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PeriodJitter {
+    pub target_ms: f64,
+    pub periods: usize,
+    pub p50_ms: f64,
+    pub p99_ms: f64,
+    /// Largest |period - target|.
+    pub max_dev_ms: f64,
+}
+
+/// Achieved periods from iteration start times \[s, any origin, increasing] of a loop paced
+/// at `target_ms`.
+pub fn period_jitter(starts_s: &[f64], target_ms: f64) -> PeriodJitter {
+    let mut periods: Vec<f64> = starts_s.windows(2).map(|w| (w[1] - w[0]) * 1e3).collect();
+    let max_dev_ms = periods
+        .iter()
+        .map(|p| (p - target_ms).abs())
+        .fold(0.0, f64::max);
+    periods.sort_by(f64::total_cmp);
+    PeriodJitter {
+        target_ms,
+        periods: periods.len(),
+        p50_ms: nearest_rank(&periods, 0.5),
+        p99_ms: nearest_rank(&periods, 0.99),
+        max_dev_ms,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -54,5 +113,30 @@ mod tests {
             (t.min_us, t.median_us, t.mean_us, t.p90_us),
             (0.0, 0.0, 0.0, 0.0)
         );
+    }
+
+    #[test]
+    fn tail_uses_nearest_ranks() {
+        // 1..=200: p50 is the 100th sample, p99 the 198th.
+        let t = tail((1..=200).rev().map(f64::from).collect());
+        assert_eq!(
+            (t.n, t.p50_us, t.p99_us, t.max_us),
+            (200, 100.0, 198.0, 200.0)
+        );
+        let one = tail(vec![7.0]);
+        assert_eq!((one.p50_us, one.p99_us, one.max_us), (7.0, 7.0, 7.0));
+        assert_eq!(tail(Vec::new()).max_us, 0.0);
+    }
+
+    #[test]
+    fn period_jitter_of_start_times() {
+        // Periods 30, 40, 30 ms against 33 ms: the largest deviation is 7 ms.
+        let j = period_jitter(&[1.0, 1.03, 1.07, 1.10], 33.0);
+        assert_eq!(j.periods, 3);
+        assert!((j.p50_ms - 30.0).abs() < 1e-9, "{j:?}");
+        assert!((j.p99_ms - 40.0).abs() < 1e-9, "{j:?}");
+        assert!((j.max_dev_ms - 7.0).abs() < 1e-9, "{j:?}");
+        let none = period_jitter(&[1.0], 33.0);
+        assert_eq!((none.periods, none.max_dev_ms), (0, 0.0));
     }
 }

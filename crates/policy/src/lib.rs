@@ -5,6 +5,7 @@
 //! inference stages, so the embedded runtime, bag replay and the ROS policy node drive the same
 //! code. See the crate README for the observation layout, the safety rules and the modes.
 
+pub mod bench;
 pub mod controller;
 pub mod mode;
 pub mod observation;

@@ -1,0 +1,683 @@
+//! `unitac bench policy`: the policy stage's control tick (observation -> command), embedded.
+//!
+//! For each shipped scene x mode (`launch/scenes/<task>_<mode>.yaml`) the scene's own policy stage
+//! is built from the scene file and ticked through `unitac_core::chain` at the control rate, as
+//! every transport drives it. Its inputs are scripted from a sim task world (a training cup, 60 to
+//! 70 mm: the unseen 90 mm cup blocks the arm, since the policy bounds the opening to 85 mm; or
+//! two fabrics): the gripper's status and the camera's estimate come from the world through the
+//! trials bridge (`unitac_trials::bridge`), the commands move the world, and what the tactile
+//! stages would publish (contact state, the latent after the first touch or before any, the
+//! comparison once both fabrics were touched) is scripted from the world's contact. Those inputs
+//! only make the controllers walk through their phases; nothing here judges a trial.
+//!
+//! Per tick, timed: the GripperStatus into the chain until its GripperCommand, ArmCommand and
+//! PolicyStatus are out (the observation is assembled, the watchdog, controller and safety layer
+//! run inside). A second pass adds an ONNX policy's `act` to the same tick (the test MLP of
+//! crates/policy's tests, or `--policy DIR`): it infers every `n_action_steps` ticks and plays
+//! its plan in between. A third runs that tick in real time, paced by `unitac_core::Pacer` at the
+//! control rate, and reports the achieved period. Side by side: the same ONNX policy in Python
+//! (onnxruntime + numpy, the loop a LeRobot user runs) and a `time.sleep`-paced Python loop, each
+//! right after the same work in Rust (`onnx act`, `onnx act, paced`).
+
+use anyhow::{Context, bail};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use unitac_core::msg::{
+    ContactState, GripperMode, LatentSource, PropertyComparison, TactileLatent, Winner, samples,
+};
+use unitac_core::{Chain, Msg, Pacer, Stamp, period_jitter, tail};
+use unitac_pipeline::StageConfig;
+use unitac_policy::bench::TickRow;
+use unitac_policy::onnx::{NamedInputs, OnnxPolicy, RuntimeConfig};
+use unitac_policy::{Mode, PolicyParams, PolicyStage};
+use unitac_sim::SplitMix64;
+use unitac_sim::task::{Split, TaskConfig, TaskTruth, TaskWorld, trial_rng};
+use unitac_trials::bridge;
+
+/// The shipped scene per task and mode.
+pub const SCENES: [&str; 6] = [
+    "cup_deformation_vla",
+    "cup_deformation_vtla_real",
+    "cup_deformation_vtla_pred",
+    "fabric_selection_vla",
+    "fabric_selection_vtla_real",
+    "fabric_selection_vtla_pred",
+];
+
+/// Longest unpaced episode \[ticks] (60 s at 30 Hz); an episode also ends at `done` or `failed`.
+const MAX_EPISODE_TICKS: usize = 1800;
+/// The world seed of the scripted episodes (episode `i` is trial `i` of it).
+const SEED: u64 = 1;
+
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Unpaced episodes per scene and pass.
+    pub episodes: usize,
+    /// Ticks of the real-time paced loop per scene (0: none).
+    pub paced_ticks: usize,
+    pub python: bool,
+    /// An ONNX policy directory (manifest.json + model); None: generate the test MLP.
+    pub policy: Option<PathBuf>,
+}
+
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct Ratios {
+    pub p50: f64,
+    pub p99: f64,
+    pub inferred_p50: f64,
+}
+
+#[derive(Debug, serde::Serialize)]
+pub struct PolicyBench {
+    pub rows: Vec<TickRow>,
+    /// The ONNX policy's id and where it came from.
+    pub onnx_policy: String,
+    /// Python's `act` over ours, when the baseline ran: p50 and p99 over every tick, p50 over
+    /// the ticks that inferred.
+    pub python_over_rust: Option<Ratios>,
+    pub python_versions: String,
+    pub note: String,
+}
+
+/// What the tactile stages and the camera would publish, scripted from a task world, and the
+/// world moved by the policy's commands.
+struct Script {
+    world: TaskWorld,
+    truth: TaskTruth,
+    rng: SplitMix64,
+    mode: Mode,
+    fabric: bool,
+    latent_len: usize,
+    gel_indent_m_per_mm2: f64,
+    objects: Vec<String>,
+    visual_names: Vec<String>,
+    dt_s: f64,
+    /// The opening the last command asked for (NaN before the first).
+    target_m: f64,
+    in_contact: bool,
+    touching: String,
+    touched: Vec<String>,
+    latent_sent: bool,
+    comparison_sent: bool,
+}
+
+impl Script {
+    fn new(p: &PolicyParams, episode: u32) -> Self {
+        let fabric = p.task.starts_with("pick");
+        let cfg = if fabric {
+            TaskConfig::fabric()
+        } else {
+            TaskConfig::cup(Split::Train)
+        };
+        let world = TaskWorld::reset(&cfg, SEED, episode);
+        Script {
+            truth: world.truth(),
+            world,
+            rng: trial_rng(SEED ^ 0x5EED, episode),
+            mode: p.mode,
+            fabric,
+            latent_len: p.latent_len,
+            gel_indent_m_per_mm2: p.gel_indent_m_per_mm2,
+            objects: p.objects.clone(),
+            visual_names: p.visual_names.clone(),
+            dt_s: 1.0 / p.control_rate_hz,
+            target_m: f64::NAN,
+            in_contact: false,
+            touching: String::new(),
+            touched: Vec::new(),
+            latent_sent: false,
+            comparison_sent: false,
+        }
+    }
+
+    fn stamp(&self) -> Stamp {
+        bridge::stamp_at(self.truth.t_s)
+    }
+
+    fn latent(&self, source: LatentSource) -> Msg {
+        let n = self.latent_len.max(1);
+        Msg::Latent(TactileLatent {
+            header: unitac_core::msg::Header::new(self.stamp(), "gel"),
+            source,
+            shape: vec![1, n as u32],
+            data: vec![0.1; n],
+            valid: true,
+            guard_report: String::new(),
+            ..samples::tactile_latent()
+        })
+    }
+
+    /// The messages the scene's other stages and the camera publish before this tick.
+    fn inputs(&mut self) -> Vec<Msg> {
+        let mut out = Vec::new();
+        if self.mode == Mode::Vla {
+            out.push(self.visual());
+            return out;
+        }
+        let c = &self.truth.contact;
+        let now_in = !c.object.is_empty() && c.penetration_m > 0.0;
+        // The gel's contact area grows with its indentation (the inverse of the cup
+        // controller's own estimate).
+        let area = if now_in {
+            10.0 + c.penetration_m / self.gel_indent_m_per_mm2.max(1e-12)
+        } else {
+            0.0
+        };
+        if now_in && !self.in_contact {
+            self.touching = c.object.clone();
+        }
+        let episode_ended = self.in_contact && !now_in;
+        if episode_ended {
+            self.touched.push(std::mem::take(&mut self.touching));
+        }
+        self.in_contact = now_in;
+        out.push(Msg::Contact(ContactState {
+            header: unitac_core::msg::Header::new(self.stamp(), "gel"),
+            in_contact: now_in,
+            area_mm2: area as f32,
+            ..samples::contact_state()
+        }));
+        match (self.mode, self.fabric) {
+            // The sampler predicts once the sensor prior (the background) is known: at once.
+            (Mode::VtlaPred, _) if !self.latent_sent => {
+                self.latent_sent = true;
+                out.push(self.latent(LatentSource::Predicted));
+            }
+            // The encoder's latent of the cup's probe touch, when its episode ends.
+            (Mode::VtlaReal, false) if episode_ended && !self.latent_sent => {
+                self.latent_sent = true;
+                out.push(self.latent(LatentSource::Real));
+            }
+            _ => {}
+        }
+        let both = self
+            .objects
+            .iter()
+            .take(2)
+            .all(|o| self.touched.contains(o));
+        if self.fabric && both && !self.comparison_sent {
+            self.comparison_sent = true;
+            out.push(self.comparison());
+        }
+        out
+    }
+
+    /// The camera's estimate with the values the scene names: the sim camera's when it has the
+    /// name, `<object>_width_m` from its `<object>.diameter_m`, `<fabric>_roughness` from the
+    /// trial's roughness (the sim camera estimates none).
+    fn visual(&mut self) -> Msg {
+        let cam = self.world.observe_visual(&mut self.rng);
+        let mut msg = bridge::visual_message(&cam);
+        let value = |n: &str| -> f64 {
+            if let Some(v) = cam.get(n) {
+                return v;
+            }
+            if let Some(o) = n.strip_suffix("_width_m") {
+                return cam.get(&format!("{o}.diameter_m")).unwrap_or(f64::NAN);
+            }
+            n.strip_suffix("_roughness")
+                .and_then(|o| self.world.spec().fabric(o))
+                .map_or(f64::NAN, |f| f.roughness_ra_mm)
+        };
+        msg.values = self.visual_names.iter().map(|n| value(n)).collect();
+        msg.names = self.visual_names.clone();
+        Msg::Visual(msg)
+    }
+
+    /// The compare stage's answer: the rougher of the two fabrics wins "roughness".
+    fn comparison(&self) -> Msg {
+        let (a, b) = (
+            self.objects.first().cloned().unwrap_or_default(),
+            self.objects.get(1).cloned().unwrap_or_default(),
+        );
+        let a_smoother = self.world.spec().smoother() == a;
+        Msg::Comparison(PropertyComparison {
+            header: unitac_core::msg::Header::new(self.stamp(), "gel"),
+            property: "roughness".into(),
+            episode_a: 1,
+            label_a: a,
+            episode_b: 2,
+            label_b: b,
+            winner: if a_smoother { Winner::B } else { Winner::A },
+            score_a: if a_smoother { 0.2 } else { 0.8 },
+            score_b: if a_smoother { 0.8 } else { 0.2 },
+            margin: 0.6,
+            confidence: 0.9,
+            sentence: String::new(),
+        })
+    }
+
+    /// The gripper's status now: the tick.
+    fn status(&self) -> Msg {
+        Msg::Gripper(bridge::gripper_status(&self.truth, self.target_m))
+    }
+
+    /// The tick's commands move the world one control period.
+    fn apply(&mut self, produced: &[Msg]) -> anyhow::Result<()> {
+        let (Some(g), Some(a)) = (
+            produced.iter().find_map(|m| match m {
+                Msg::Command(c) => Some(c),
+                _ => None,
+            }),
+            produced.iter().find_map(|m| match m {
+                Msg::Arm(a) => Some(a),
+                _ => None,
+            }),
+        ) else {
+            bail!("a control tick sent no gripper or arm command: {produced:?}");
+        };
+        let cmd = bridge::task_command(
+            g,
+            a,
+            self.truth.gripper.opening_m,
+            &self.world.config().gripper,
+        )?;
+        self.target_m = match g.mode {
+            GripperMode::Stop => f64::NAN,
+            _ => cmd.gripper.opening_m,
+        };
+        self.truth = self.world.step(&cmd, self.dt_s)?;
+        Ok(())
+    }
+}
+
+/// The policy stage's params and scene name, from the scene file.
+fn scene_policy(name: &str) -> anyhow::Result<(PolicyParams, String)> {
+    let scene = unitac_pipeline::load_scene(name, None).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let cfgs = unitac_pipeline::stage_configs(&scene).map_err(|e| anyhow::anyhow!("{e}"))?;
+    cfgs.into_iter()
+        .find_map(|c| match c {
+            StageConfig::Policy { params, scene } => Some((*params, scene)),
+            _ => None,
+        })
+        .with_context(|| format!("scene {name} has no policy stage"))
+}
+
+/// The ONNX policy's inputs: each input of the manifest, sized from its shape (batch 1), with
+/// fixed values (an MLP's time does not depend on them).
+fn onnx_inputs(policy: &OnnxPolicy) -> Vec<(String, Vec<f32>)> {
+    policy
+        .manifest()
+        .inputs
+        .iter()
+        .enumerate()
+        .map(|(i, spec)| {
+            let n: i64 = spec
+                .shape
+                .iter()
+                .skip(1)
+                .map(|d| match d {
+                    unitac_infer::bundle::Dim::Fixed(v) => *v,
+                    unitac_infer::bundle::Dim::Symbolic(_) => 1,
+                })
+                .product();
+            let values = unitac_infer::flow::noise(i as u64 + 1, n.max(0) as usize)
+                .iter()
+                .map(|v| v * 0.1)
+                .collect();
+            (spec.name.clone(), values)
+        })
+        .collect()
+}
+
+/// An ONNX policy's inputs by name.
+type Inputs = [(String, Vec<f32>)];
+
+fn named(inputs: &Inputs) -> NamedInputs<'_> {
+    inputs
+        .iter()
+        .fold(NamedInputs::new(), |n, (k, v)| n.with(k, v))
+}
+
+/// One pass's samples.
+#[derive(Default)]
+struct Samples {
+    tick_us: Vec<f64>,
+    inferred_us: Vec<f64>,
+    act_us: Vec<f64>,
+    act_inferred_us: Vec<f64>,
+    starts_s: Vec<f64>,
+    phases: Vec<String>,
+}
+
+/// Tick a scene's policy stage on scripted inputs: `episodes` unpaced episodes (or, paced, one
+/// episode of `paced_ticks` ticks in real time), with `onnx` run in each tick when given.
+fn run_pass(
+    params: &PolicyParams,
+    scene: &str,
+    episodes: usize,
+    paced_ticks: Option<usize>,
+    mut onnx: Option<(&mut OnnxPolicy, &Inputs)>,
+) -> anyhow::Result<Samples> {
+    let mut s = Samples::default();
+    let origin = Instant::now();
+    for episode in 0..episodes {
+        let stage = PolicyStage::new(scene, params.clone()).map_err(anyhow::Error::msg)?;
+        let mut chain = Chain::new(vec![Box::new(stage)]);
+        let mut script = Script::new(params, episode as u32);
+        if let Some((p, _)) = onnx.as_mut() {
+            p.reset();
+        }
+        let mut pacer = Pacer::real_time();
+        let ticks = paced_ticks.unwrap_or(MAX_EPISODE_TICKS);
+        for _ in 0..ticks {
+            for m in script.inputs() {
+                let out = chain.run(m);
+                if let Some(e) = out.errors.first() {
+                    bail!("{scene}: scripted input rejected: {e}");
+                }
+            }
+            let status = script.status();
+            let stamp = status.stamp();
+            if paced_ticks.is_some() {
+                pacer.wait(stamp, |d| {
+                    std::thread::sleep(d);
+                    true
+                });
+                s.starts_s.push(origin.elapsed().as_secs_f64());
+            }
+            let t0 = Instant::now();
+            let out = chain.run(status);
+            let mut act_us = None;
+            if let Some((p, inputs)) = onnx.as_mut() {
+                let named = named(inputs);
+                let t1 = Instant::now();
+                let chunk = p
+                    .act(&named, stamp)
+                    .with_context(|| format!("{scene}: onnx act"))?;
+                let us = t1.elapsed().as_secs_f64() * 1e6;
+                act_us = Some((us, chunk.inferred));
+            }
+            let tick_us = t0.elapsed().as_secs_f64() * 1e6;
+            if let Some(e) = out.errors.first() {
+                bail!("{scene}: the policy stage rejected a tick: {e}");
+            }
+            s.tick_us.push(tick_us);
+            if let Some((us, inferred)) = act_us {
+                s.act_us.push(us);
+                if inferred {
+                    s.inferred_us.push(tick_us);
+                    s.act_inferred_us.push(us);
+                }
+            }
+            let phase = out.produced.iter().find_map(|m| match m {
+                Msg::Status(st) => Some(st.phase.clone()),
+                _ => None,
+            });
+            let phase = phase.unwrap_or_default();
+            if s.phases.last() != Some(&phase) && !s.phases.contains(&phase) {
+                s.phases.push(phase.clone());
+            }
+            script.apply(&out.produced)?;
+            if paced_ticks.is_none() && matches!(phase.as_str(), "done" | "failed") {
+                break;
+            }
+        }
+    }
+    Ok(s)
+}
+
+/// The ONNX policy alone in a loop paced at its control rate by `Pacer` (the same work as the
+/// Python baseline's paced loop).
+fn paced_act(onnx: &mut OnnxPolicy, inputs: &Inputs, ticks: usize) -> anyhow::Result<TickRow> {
+    onnx.reset();
+    let period = onnx.period_ns();
+    let mut pacer = Pacer::real_time();
+    let origin = Instant::now();
+    let (mut starts, mut all, mut inferred) = (Vec::new(), Vec::new(), Vec::new());
+    for k in 0..ticks {
+        let stamp = Stamp(k as i64 * period);
+        pacer.wait(stamp, |d| {
+            std::thread::sleep(d);
+            true
+        });
+        let t0 = Instant::now();
+        starts.push(t0.duration_since(origin).as_secs_f64());
+        let chunk = onnx
+            .act(&named(inputs), stamp)
+            .context("onnx act (paced)")?;
+        let us = t0.elapsed().as_secs_f64() * 1e6;
+        all.push(us);
+        if chunk.inferred {
+            inferred.push(us);
+        }
+    }
+    Ok(TickRow {
+        transport: "embedded".into(),
+        scene: "-".into(),
+        mode: "-".into(),
+        what: "onnx act, paced".into(),
+        tick: tail(all),
+        inferred: Some(tail(inferred)),
+        period: Some(period_jitter(&starts, period as f64 / 1e6)),
+        phases: Vec::new(),
+    })
+}
+
+/// The ONNX policy: `dir`, or the test MLP generated by tests/policy/make_policy.py.
+fn load_onnx(dir: Option<&Path>) -> anyhow::Result<(OnnxPolicy, String, Option<PathBuf>)> {
+    let (dir, generated) = match dir {
+        Some(d) => (d.to_path_buf(), None),
+        None => {
+            let venv = std::env::var_os("UNITAC_VENV")
+                .map(PathBuf::from)
+                .context("UNITAC_VENV is not set (use scripts/unitac)")?;
+            let root = std::env::var_os("UNITAC_ROOT")
+                .map(PathBuf::from)
+                .context("UNITAC_ROOT is not set")?;
+            let d =
+                std::env::temp_dir().join(format!("unitac-bench-policy-{}", std::process::id()));
+            std::fs::create_dir_all(&d)?;
+            let st = std::process::Command::new(venv.join("bin/python"))
+                .arg(root.join("tests/policy/make_policy.py"))
+                .arg(&d)
+                .status()
+                .context("running tests/policy/make_policy.py")?;
+            if !st.success() {
+                bail!("tests/policy/make_policy.py failed ({st})");
+            }
+            (d.clone(), Some(d))
+        }
+    };
+    let p = OnnxPolicy::load(&dir, &RuntimeConfig::default())
+        .map_err(|e| anyhow::anyhow!("--policy {}: {e}", dir.display()))?;
+    let what = match &generated {
+        Some(_) => format!(
+            "{} (tests/policy/make_policy.py: MLP {} inputs -> chunk {} x {}, every {} ticks)",
+            p.id(),
+            p.input_names().join(", "),
+            p.manifest().chunk_size,
+            p.action_names().len(),
+            p.manifest().n_action_steps
+        ),
+        None => format!(
+            "{} ({}; chunk {}, every {} ticks)",
+            p.id(),
+            dir.display(),
+            p.manifest().chunk_size,
+            p.manifest().n_action_steps
+        ),
+    };
+    Ok((p, what, generated))
+}
+
+fn python_rows(
+    dir: &Path,
+    ticks: usize,
+    paced: usize,
+) -> anyhow::Result<(TickRow, Option<TickRow>, String)> {
+    let j = crate::bench::run_python_baseline(
+        "policy_baseline.py",
+        &[
+            dir.as_os_str().to_owned(),
+            ticks.to_string().into(),
+            paced.to_string().into(),
+        ],
+    )?;
+    let samples = |k: &str| -> Vec<f64> {
+        j[k].as_array()
+            .map(|a| a.iter().filter_map(|v| v.as_f64()).collect())
+            .unwrap_or_default()
+    };
+    let act = TickRow {
+        transport: "python".into(),
+        scene: "-".into(),
+        mode: "-".into(),
+        what: "onnx act".into(),
+        tick: tail(samples("act_us")),
+        inferred: Some(tail(samples("inferred_us"))),
+        period: None,
+        phases: Vec::new(),
+    };
+    let starts = samples("paced_starts_s");
+    let paced_row = (starts.len() > 1).then(|| TickRow {
+        transport: "python".into(),
+        scene: "-".into(),
+        mode: "-".into(),
+        what: "onnx act, sleep-paced".into(),
+        tick: tail(samples("paced_act_us")),
+        inferred: None,
+        period: Some(period_jitter(
+            &starts,
+            j["period_ms"].as_f64().unwrap_or(f64::NAN),
+        )),
+        phases: Vec::new(),
+    });
+    let versions = format!(
+        "python {} onnxruntime {} numpy {}",
+        j["python"], j["onnxruntime"], j["numpy"]
+    );
+    Ok((act, paced_row, versions))
+}
+
+pub fn bench_policy(opts: &Options) -> anyhow::Result<PolicyBench> {
+    let (mut onnx, onnx_what, generated) = load_onnx(opts.policy.as_deref())?;
+    let result = (|| {
+        let inputs = onnx_inputs(&onnx);
+        // Warm-up (the first runs allocate), as the Python baseline does: 20 ticks.
+        for i in 0..20 {
+            onnx.act(&named(&inputs), Stamp(i * onnx.period_ns()))
+                .context("onnx act (warm-up)")?;
+        }
+        onnx.reset();
+        let mut rows = Vec::new();
+        let mut act_all = Vec::new();
+        let mut act_inferred = Vec::new();
+        for name in SCENES {
+            let (params, scene) = scene_policy(name)?;
+            let period_ms = 1e3 / params.control_rate_hz;
+            let row = |what: &str, s: &Samples, inferred: bool| TickRow {
+                transport: "embedded".into(),
+                scene: scene.clone(),
+                mode: params.mode.as_str().into(),
+                what: what.into(),
+                tick: tail(s.tick_us.clone()),
+                inferred: inferred.then(|| tail(s.inferred_us.clone())),
+                period: (s.starts_s.len() > 1).then(|| period_jitter(&s.starts_s, period_ms)),
+                phases: s.phases.clone(),
+            };
+            let plain = run_pass(&params, &scene, opts.episodes, None, None)?;
+            rows.push(row("controller", &plain, false));
+            let with = run_pass(
+                &params,
+                &scene,
+                opts.episodes,
+                None,
+                Some((&mut onnx, &inputs)),
+            )?;
+            rows.push(row("controller + onnx act", &with, true));
+            act_all.extend(with.act_us.iter().copied());
+            act_inferred.extend(with.act_inferred_us.iter().copied());
+            if opts.paced_ticks > 1 {
+                let paced = run_pass(
+                    &params,
+                    &scene,
+                    1,
+                    Some(opts.paced_ticks),
+                    Some((&mut onnx, &inputs)),
+                )?;
+                rows.push(row("controller + onnx, paced", &paced, true));
+            }
+        }
+        // The ONNX policy alone, every tick of the scenes above.
+        let act_ticks = act_all.len();
+        let ours = TickRow {
+            transport: "embedded".into(),
+            scene: "-".into(),
+            mode: "-".into(),
+            what: "onnx act".into(),
+            tick: tail(act_all),
+            inferred: Some(tail(act_inferred)),
+            period: None,
+            phases: Vec::new(),
+        };
+        rows.push(ours.clone());
+        // And paced: the same work as the Python baseline's paced loop, just before it.
+        if opts.paced_ticks > 1 {
+            rows.push(paced_act(&mut onnx, &inputs, opts.paced_ticks)?);
+        }
+        let mut versions = String::new();
+        let mut ratios = None;
+        if opts.python {
+            let dir = match (&generated, &opts.policy) {
+                (Some(d), _) | (None, Some(d)) => d.clone(),
+                (None, None) => bail!("no policy directory"),
+            };
+            let paced = if opts.paced_ticks > 1 {
+                opts.paced_ticks
+            } else {
+                0
+            };
+            let (act, paced_row, v) = python_rows(&dir, act_ticks.max(1), paced)?;
+            let inf = |r: &TickRow| r.inferred.map_or(f64::NAN, |t| t.p50_us);
+            ratios = Some(Ratios {
+                p50: act.tick.p50_us / ours.tick.p50_us.max(1e-9),
+                p99: act.tick.p99_us / ours.tick.p99_us.max(1e-9),
+                inferred_p50: inf(&act) / inf(&ours).max(1e-9),
+            });
+            rows.push(act);
+            rows.extend(paced_row);
+            versions = v;
+        }
+        Ok(PolicyBench {
+            rows,
+            onnx_policy: onnx_what.clone(),
+            python_over_rust: ratios,
+            python_versions: versions,
+            note: "tick = GripperStatus into the chain until GripperCommand + ArmCommand + \
+                   PolicyStatus are out (observation, watchdog, controller, safety layer), with \
+                   the ONNX policy's act in the same tick where named; inputs scripted from a sim \
+                   task world (training cups: the unseen 90 mm cup does not pass between fingers bounded to \
+                   85 mm; two fabrics); one core; paced: unitac_core::Pacer in \
+                   real time at the scene's control rate"
+                .into(),
+        })
+    })();
+    if let Some(d) = generated {
+        std::fs::remove_dir_all(d).ok();
+    }
+    result
+}
+
+impl PolicyBench {
+    pub fn text(&self) -> String {
+        let mut s = format!(
+            "policy tick, observation -> command, at the scenes' control rate (30 Hz); ONNX \
+             policy: {}\n",
+            self.onnx_policy
+        );
+        s += &TickRow::header();
+        for r in &self.rows {
+            s += &r.line();
+        }
+        if let Some(r) = self.python_over_rust {
+            s += &format!(
+                "onnx act, Python ({}) over unitac: p50 {:.1}x, p99 {:.1}x, inferring ticks p50 \
+                 {:.1}x\n",
+                self.python_versions, r.p50, r.p99, r.inferred_p50
+            );
+        }
+        s += &format!("{}\n", self.note);
+        s
+    }
+}

@@ -1,0 +1,121 @@
+//! `unitac bench policy` runs end to end with tiny counts and reports every row (a smoke test:
+//! no timing is judged here), and the footprint benchmark's all-stages scene really loads every
+//! stage kind a scene can name.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::process::Command;
+
+const SCENES: [&str; 6] = [
+    "cup_deformation_vla",
+    "cup_deformation_vtla_real",
+    "cup_deformation_vtla_pred",
+    "fabric_selection_vla",
+    "fabric_selection_vtla_real",
+    "fabric_selection_vtla_pred",
+];
+
+#[test]
+fn bench_policy_prints_a_row_per_scene_mode_and_pass_and_the_python_rows() {
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args(["bench", "policy", "--repeat", "1", "--ticks", "3", "--json"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let rows = j["rows"].as_array().unwrap();
+    let find = |transport: &str, scene: &str, what: &str| {
+        rows.iter()
+            .find(|r| r["transport"] == transport && r["scene"] == scene && r["what"] == what)
+            .unwrap_or_else(|| panic!("no row {transport} {scene} {what}: {rows:?}"))
+    };
+    for scene in SCENES {
+        let mode = scene
+            .split_once("_v")
+            .map(|(_, m)| format!("v{m}"))
+            .unwrap();
+        for what in [
+            "controller",
+            "controller + onnx act",
+            "controller + onnx, paced",
+        ] {
+            let r = find("embedded", scene, what);
+            assert_eq!(r["mode"], mode.as_str(), "{r}");
+            assert!(r["tick"]["n"].as_u64().unwrap() > 0, "{r}");
+            let phases = r["phases"].as_array().unwrap();
+            assert!(!phases.is_empty(), "{r}");
+        }
+        // An episode runs until the controller is done or failed.
+        let phases = find("embedded", scene, "controller")["phases"].to_string();
+        assert!(
+            phases.contains("\"done\"") || phases.contains("\"failed\""),
+            "{scene}: {phases}"
+        );
+        // The paced pass: 3 ticks, 2 periods.
+        let paced = find("embedded", scene, "controller + onnx, paced");
+        assert_eq!(paced["tick"]["n"], 3, "{paced}");
+        assert_eq!(paced["period"]["periods"], 2, "{paced}");
+        assert!(paced["inferred"]["n"].as_u64().unwrap() >= 1, "{paced}");
+    }
+    let ours = find("embedded", "-", "onnx act");
+    let theirs = find("python", "-", "onnx act");
+    assert_eq!(ours["tick"]["n"], theirs["tick"]["n"]);
+    assert!(ours["inferred"]["n"].as_u64().unwrap() > 0, "{ours}");
+    assert_eq!(
+        find("python", "-", "onnx act, sleep-paced")["period"]["periods"],
+        2
+    );
+    assert_eq!(
+        find("embedded", "-", "onnx act, paced")["period"]["periods"],
+        2
+    );
+    assert!(j["python_over_rust"]["p50"].as_f64().is_some(), "{j}");
+
+    // The text table: a line per row.
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args([
+            "bench",
+            "policy",
+            "--repeat",
+            "1",
+            "--ticks",
+            "0",
+            "--no-python",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8(o.stdout).unwrap();
+    for scene in SCENES {
+        assert_eq!(
+            text.lines()
+                .filter(|l| l.starts_with("embedded") && l.contains(scene))
+                .count(),
+            2,
+            "{scene}: without --ticks no paced row\n{text}"
+        );
+    }
+    assert!(!text.contains("python "), "{text}");
+}
+
+#[test]
+fn the_all_stages_scene_loads_every_stage_kind() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let path = root.join("bench/scenes/all_stages.yaml");
+    let scene = unitac_pipeline::load_scene(path.to_str().unwrap(), None).unwrap();
+    let cfgs = unitac_pipeline::stage_configs(&scene).unwrap();
+    let kinds: Vec<&str> = cfgs.iter().map(|c| c.kind()).collect();
+    for k in unitac_pipeline::KNOWN_STAGES {
+        assert!(
+            kinds.contains(k),
+            "all_stages.yaml lacks a {k} stage: {kinds:?}"
+        );
+    }
+    // Every model the scene names is used by a stage.
+    let named: Vec<&String> = scene.models.keys().collect();
+    for m in named {
+        assert!(
+            scene.stages.iter().any(|s| s.models.contains(m)),
+            "model {m} is loaded by no stage"
+        );
+    }
+}
