@@ -31,7 +31,14 @@ ARGUMENTS = {
     "trial": ("0", "Sim source: the trial index"),
     "duration_s": ("", "Sim source: sim time of the trial [s] (empty: the task's, cup 12.0, fabric 25.0)"),
     "max_rate": ("1.0", "Sim source: at most this many sim seconds per wall second (0: as fast as the loop runs)"),
+    "gripper": ("", "Gripper: robotiq_2f85 | robotiq_2f140 | dh_ag95 | dh_pge50 (the serial gripper node) | sim "
+                    "(the sim node's gripper) | none (the arm stack owns it and publishes gripper_status); "
+                    "empty: sim with source:=sim, else none"),
+    "gripper_port": ("/dev/ttyUSB0", "Serial port of the gripper, best its /dev/serial/by-id name"),
 }
+
+# Serial gripper models the gripper node drives (crates/gripper).
+SERIAL_GRIPPERS = ("robotiq_2f85", "robotiq_2f140", "dh_ag95", "dh_pge50")
 
 # Stage kind -> the node that runs it. Nodes read their stages' parameters from the scene file
 # themselves, through the same registry and typed structs as `unitac run`; nothing is copied here,
@@ -69,6 +76,16 @@ def plan(scene_name, args=None):
     sensor_kind = {"sensor_kind": a["sensor_kind"]} if a["sensor_kind"] else {}
     nodes, skipped = [], []
     kinds = [st["kind"] for st in scene.get("stages", [])]
+    gripper = a["gripper"] or ("sim" if source == "sim" else "none")
+    if gripper not in SERIAL_GRIPPERS + ("sim", "none"):
+        raise ValueError(f"gripper:={gripper} is not one of {', '.join(SERIAL_GRIPPERS + ('sim', 'none'))}")
+    if gripper == "sim" and source != "sim":
+        raise ValueError("gripper:=sim needs source:=sim (the sim node is that gripper)")
+    if source == "sim" and gripper != "sim":
+        raise ValueError(f"source:=sim drives its own gripper; gripper:={gripper} would be a second one")
+    if gripper in SERIAL_GRIPPERS:
+        nodes.append({"executable": "unitac_gripper_node", "name": "unitac_gripper", "namespace": a["namespace"],
+                      "parameters": [{"model": gripper, "port": a["gripper_port"]}] + extra, "remappings": []})
     if a["sensor"] == "true" and source == "sim":
         task = next((t for prefix, t in SIM_TASKS.items() if scene["scene"].startswith(prefix)), None)
         if task is None:

@@ -60,7 +60,8 @@ def main():
                 out["problems"].append(f"{f}: override {k}={v} is not the declared default")
         plans = {}
         for args in [{}, {"inference": "false"}, {"sensor": "false"}, {"source": "v4l"},
-                     {"source": "bag", "bag": "recorded.mcap"}]:
+                     {"source": "bag", "bag": "recorded.mcap"},
+                     {"source": "v4l", "gripper": "robotiq_2f85", "gripper_port": "/dev/ttyGRIP"}]:
             p = unitac_launch.plan(scene, {**overrides, **args})
             for n in p["nodes"]:
                 if not os.path.isfile(os.path.join(bin_dir, n["executable"])):
@@ -81,6 +82,15 @@ def main():
         out["unknown_argument"] = "accepted"
     except ValueError as e:
         out["unknown_argument"] = str(e)
+    out["bad_gripper"] = {}
+    for name, args in {"unknown": {"gripper": "robotiq_3f"},
+                       "sim_without_sim": {"gripper": "sim"},
+                       "serial_with_sim": {"source": "sim", "gripper": "dh_ag95"}}.items():
+        try:
+            unitac_launch.plan("cup_deformation_vtla_real", args)
+            out["bad_gripper"][name] = "accepted"
+        except ValueError as e:
+            out["bad_gripper"][name] = str(e)
     print(json.dumps(out))
 
 

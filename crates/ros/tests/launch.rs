@@ -125,6 +125,30 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
 fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
     let (j, _) = check_launch();
     assert_eq!(j["problems"], serde_json::json!([]), "{j}");
+    // A gripper that cannot be: an unknown model, the sim's gripper without the sim, a second
+    // gripper beside the sim's; each a one-line error naming it.
+    let bad = &j["bad_gripper"];
+    assert!(
+        bad["unknown"]
+            .as_str()
+            .unwrap()
+            .contains("gripper:=robotiq_3f is not one of"),
+        "{bad}"
+    );
+    assert!(
+        bad["sim_without_sim"]
+            .as_str()
+            .unwrap()
+            .contains("needs source:=sim"),
+        "{bad}"
+    );
+    assert!(
+        bad["serial_with_sim"]
+            .as_str()
+            .unwrap()
+            .contains("second one"),
+        "{bad}"
+    );
     let touch = serde_json::json!([
         "unitac_sim_node",
         "unitac_contact_node",
@@ -171,9 +195,20 @@ fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
                     .unwrap()
                     .ends_with(&format!("scenes/{file}.yaml"))
             );
-            // With a real sensor instead, the same scene plans the sensor node.
+            // With a real sensor instead, the same scene plans the sensor node, and no gripper
+            // node unless one is named (the arm stack owns it).
             let v4l = &f["plans"][r#"{"source": "v4l"}"#]["nodes"];
             assert_eq!(v4l[0], "unitac_sensor_node", "{file}");
+            assert!(!v4l.to_string().contains("unitac_gripper_node"), "{file}");
+            // gripper:=robotiq_2f85 adds the serial gripper node with its model and port.
+            let g = &f["plans"][r#"{"source": "v4l", "gripper": "robotiq_2f85", "gripper_port": "/dev/ttyGRIP"}"#];
+            assert!(
+                g["nodes"].to_string().contains("unitac_gripper_node"),
+                "{file}"
+            );
+            let gp = &g["parameters"]["unitac_gripper_node"];
+            assert_eq!(gp["model"], "robotiq_2f85");
+            assert_eq!(gp["port"], "/dev/ttyGRIP");
         }
     }
 }
