@@ -6,7 +6,7 @@
 use anyhow::{Context, bail};
 use serde::Serialize;
 use std::path::Path;
-use unitac_pipeline::{StageConfig, build_stage, load_scene, stage_configs};
+use unitac_pipeline::{StageConfig, build_stage, load_scene_without_policy_models, stage_configs};
 use unitac_sim::MockConfig;
 use unitac_sim::task::Split;
 use unitac_trials::demos::{Demo, DemoConfig, record};
@@ -36,7 +36,7 @@ pub fn demos(
     if n == 0 || n > MAX_DEMOS {
         bail!("{n} demonstrations asked for (seeds x trials: 1 to {MAX_DEMOS})");
     }
-    let scene = load_scene(scene_name, None)?;
+    let scene = load_scene_without_policy_models(scene_name, None)?;
     let configs = stage_configs(&scene)?;
     let mut cfg = DemoConfig::default();
     if let Some(p) = configs.iter().find_map(|c| match c {

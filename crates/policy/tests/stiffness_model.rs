@@ -1,0 +1,163 @@
+//! The fitted latent -> stiffness readout (scripts/fit_reference_policy.py) as the controllers
+//! run it (`Readout`) against the Python onnxruntime oracle (tests/policy/policy_oracle.py) on
+//! the same latents: the model setup fitted on the expert's demonstrations, and one fitted here
+//! on synthetic demonstrations with a known linear law, which the fit must recover.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod common;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use unitac_core::Stamp;
+use unitac_core::msg::{LatentSource, TactileLatent, samples};
+use unitac_policy::PolicyParams;
+use unitac_policy::readout::Readout;
+
+/// Largest difference accepted \[N/m]: both run the same float32 graph on the same float32
+/// normalisation (measured: 0, printed with --nocapture).
+const TOLERANCE_N_PER_M: f64 = 1e-3;
+
+fn latent(shape: [u32; 2], seed: u64, offset: f32) -> TactileLatent {
+    let n = (shape[0] * shape[1]) as usize;
+    TactileLatent {
+        source: LatentSource::Real,
+        shape: shape.to_vec(),
+        data: unitac_infer::flow::noise(seed, n)
+            .iter()
+            .map(|v| v + offset)
+            .collect(),
+        ..samples::tactile_latent()
+    }
+}
+
+/// Rust readout and oracle on the same latents: (ours, theirs) in N/m.
+fn both(dir: &Path, latents: &[TactileLatent]) -> (Vec<f64>, Vec<f64>) {
+    let len = latents[0].data.len();
+    let mut r = Readout::load(dir, len).unwrap();
+    let p = PolicyParams::default();
+    let stamp = |i: usize| Stamp(1_000_000_000 + (i as i64) * 33_333_333);
+    let ours: Vec<f64> = latents
+        .iter()
+        .enumerate()
+        .map(|(i, l)| r.stiffness(&p, l, stamp(i)).unwrap())
+        .collect();
+    let ticks: Vec<serde_json::Value> = latents
+        .iter()
+        .enumerate()
+        .map(|(i, l)| {
+            serde_json::json!({"t": stamp(i).0, "inputs": {"observation.tactile_latent": l.data}})
+        })
+        .collect();
+    let tmp = common::tmpdir(&format!("stiffness-oracle-{len}"));
+    let spec = tmp.join("ticks.json");
+    std::fs::write(&spec, serde_json::json!({ "ticks": ticks }).to_string()).unwrap();
+    let out = tmp.join("oracle.json");
+    let st = Command::new(common::python())
+        .arg(common::root().join("tests/policy/policy_oracle.py"))
+        .arg(dir)
+        .arg(&spec)
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(st.success(), "policy_oracle.py failed");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap();
+    let plans: Vec<Vec<Vec<f64>>> = serde_json::from_value(v["plans"].clone()).unwrap();
+    let theirs = plans
+        .iter()
+        .map(|p| f64::from(p[0][0] as f32)) // JSON text back to the float32 it was
+        .collect();
+    (ours, theirs)
+}
+
+fn worst(name: &str, ours: &[f64], theirs: &[f64]) -> f64 {
+    assert_eq!(ours.len(), theirs.len());
+    let w = ours
+        .iter()
+        .zip(theirs)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    println!(
+        "{name}: largest difference to the oracle {w:.3e} N/m over {} latents",
+        ours.len()
+    );
+    w
+}
+
+#[test]
+fn the_setup_fitted_models_match_the_oracle() {
+    let models =
+        PathBuf::from(std::env::var_os("UNITAC_MODELS").expect("UNITAC_MODELS (scripts/env.sh)"));
+    for (name, shape) in [
+        ("cup_stiffness_real", [64, 48]),
+        ("cup_stiffness_pred", [8, 8]),
+    ] {
+        let dir = models.join("policy").join(name);
+        let latents: Vec<TactileLatent> = (0..12).map(|i| latent(shape, 40 + i, 0.0)).collect();
+        let (ours, theirs) = both(&dir, &latents);
+        assert!(
+            worst(name, &ours, &theirs) <= TOLERANCE_N_PER_M,
+            "{ours:?} vs {theirs:?}"
+        );
+        assert!(ours.iter().all(|k| (20.0..=5000.0).contains(k)), "{ours:?}");
+    }
+}
+
+/// Synthetic demonstrations: latents [rows, 6] whose row mean carries the stiffness linearly,
+/// `k = 500 + 80 z0 - 40 z3`, three cup diameters for the cross-validation.
+fn law(l: &TactileLatent) -> f64 {
+    let mean = |j: usize| {
+        l.data
+            .iter()
+            .skip(j)
+            .step_by(6)
+            .map(|&v| f64::from(v))
+            .sum::<f64>()
+            / 4.0
+    };
+    500.0 + 80.0 * mean(0) - 40.0 * mean(3)
+}
+
+fn synthetic_demos(path: &Path) {
+    let mut json = Vec::new();
+    for i in 0..30u64 {
+        let l = latent([4, 6], 100 + i, 0.0);
+        let k = law(&l);
+        let diameter_m = [0.06, 0.065, 0.07][(i % 3) as usize];
+        json.push(serde_json::json!({
+            "diameter_m": diameter_m,
+            "stiffness_n_per_m": k,
+            "latents": [{"t_s": 1.0, "touch": 1, "source": "real", "shape": [4, 6], "data": l.data}],
+        }));
+    }
+    std::fs::write(path, serde_json::json!({ "demos": json }).to_string()).unwrap();
+}
+
+#[test]
+fn a_fit_recovers_a_linear_law_and_matches_the_oracle() {
+    let tmp = common::tmpdir("stiffness-fit");
+    let train = tmp.join("train.json");
+    synthetic_demos(&train);
+    let dir = tmp.join("model");
+    let st = Command::new(common::python())
+        .arg(common::root().join("scripts/fit_reference_policy.py"))
+        .args(["--train", train.to_str().unwrap(), "--source", "real"])
+        .args(["--name", "synthetic", "--out", dir.to_str().unwrap()])
+        .stdout(std::process::Stdio::null())
+        .status()
+        .unwrap();
+    assert!(st.success(), "fit_reference_policy.py failed");
+    // New latents, the same law: the readout recovers it (ridge shrinks a little).
+    let fresh: Vec<TactileLatent> = (0..10).map(|i| latent([4, 6], 900 + i, 0.0)).collect();
+    let truth: Vec<f64> = fresh.iter().map(law).collect();
+    let (ours, theirs) = both(&dir, &fresh);
+    assert!(worst("synthetic", &ours, &theirs) <= TOLERANCE_N_PER_M);
+    let err = ours
+        .iter()
+        .zip(&truth)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    let spread = truth.iter().cloned().fold(f64::MIN, f64::max)
+        - truth.iter().cloned().fold(f64::MAX, f64::min);
+    println!("synthetic: largest error to the law {err:.2} N/m (spread {spread:.1} N/m)");
+    assert!(spread > 50.0 && err < 0.1 * spread, "{ours:?} vs {truth:?}");
+}
