@@ -6,11 +6,12 @@ usage: fit_reference_policy.py --train DEMOS.json --source real|predicted --name
 
 The readout: the cup's stiffness k [N/m] (the demonstrations' label: grip force at the target
 deformation / the deformation) from the tactile latent the policy observes, averaged over its
-leading dimension (tokens or rows) into one vector z, by ridge regression on standardised z:
-k = mean_k + std_k * (w . (z - mean_z) / std_z). The ridge strength is chosen by leave-one-
-diameter-out cross-validation on the TRAINING cups only (each fold holds out every cup of one
-diameter, so the error is that of a cup size never fitted on); --eval demonstrations (the unseen
-cup) are scored after the fit and never used for it.
+leading dimension (tokens or rows) into one vector z, by ridge regression on standardised z of
+the target t = k or t = log k (k is a positive scale): t = mean_t + std_t * (w . (z - mean_z) /
+std_z). The target and the ridge strength are chosen together by leave-one-diameter-out
+cross-validation on the TRAINING cups only (each fold holds out every cup of one diameter, so the
+error, in N/m, is that of a cup size never fitted on); --eval demonstrations (the unseen cup) are
+scored after the fit and never used for it.
 
 Observation per demonstration: --source real: the first real latent of touch --touch (default 1,
 the probe touch); --source predicted: the first predicted latent (made before any touch).
@@ -18,7 +19,8 @@ the probe touch); --source predicted: the first predicted latent (made before an
 Export (numpy weights, onnx.helper): input observation.tactile_latent [batch, L] (L = rows x dim,
 the latent as the policy stage sees it), normalisation mean_std per element (z's statistics
 repeated over the rows); graph Reshape [batch, rows, dim] -> ReduceMean over rows -> MatMul w ->
-Add b -> action [batch, 1, 1]; output normalisation mean_std (k's mean and std); one action
+Add b [-> x std_t + mean_t -> Exp for log k] -> action [batch, 1, 1]; output normalisation
+mean_std (k's mean and std) for k, identity for log k (the graph gives k); one action
 cup.stiffness in N/m bounded to [20, 5000] (the policy params' stiffness range). The fit report
 (lambda grid, CV errors, held-out errors, baselines) goes to DIR/fit.json and stdout.
 """
@@ -33,6 +35,7 @@ from onnx import TensorProto, helper, numpy_helper
 
 K_MIN, K_MAX = 20.0, 5000.0
 LAMBDAS = [10.0 ** e for e in np.arange(-3.0, 5.01, 0.5)]
+TARGETS = ["k", "log"]
 PRIOR_K = 300.0  # the policy params' stiffness_bias_n_per_m, the readout without a model
 
 
@@ -75,15 +78,18 @@ def ridge(x, y, lam):
     return np.linalg.solve(a, x.T @ y)
 
 
-def fit(z, y, lam):
+def fit(z, y, lam, target):
+    """Ridge of the target (k, or log k: a positive scale) on standardised z."""
+    t = np.log(y) if target == "log" else y
     mu, sd = standardise(z)
-    ym, ys = y.mean(), (y.std() if y.std() > 1e-12 else 1.0)
-    w = ridge((z - mu) / sd, (y - ym) / ys, lam)
-    return {"mu": mu, "sd": sd, "ym": ym, "ys": ys, "w": w}
+    ym, ys = t.mean(), (t.std() if t.std() > 1e-12 else 1.0)
+    w = ridge((z - mu) / sd, (t - ym) / ys, lam)
+    return {"mu": mu, "sd": sd, "ym": ym, "ys": ys, "w": w, "target": target}
 
 
 def predict(m, z):
-    k = m["ym"] + m["ys"] * (((z - m["mu"]) / m["sd"]) @ m["w"])
+    t = m["ym"] + m["ys"] * (((z - m["mu"]) / m["sd"]) @ m["w"])
+    k = np.exp(t) if m["target"] == "log" else t
     return np.clip(k, K_MIN, K_MAX)
 
 
@@ -91,7 +97,7 @@ def rmse(a, b):
     return float(np.sqrt(np.mean((np.asarray(a) - np.asarray(b)) ** 2)))
 
 
-def cross_validate(z, y, groups):
+def cross_validate(z, y, groups, target):
     """Leave-one-group-out RMSE per lambda, and of the constant (training mean) predictor."""
     folds = sorted(set(groups.tolist()))
     if len(folds) < 2:
@@ -101,7 +107,7 @@ def cross_validate(z, y, groups):
         pred = np.empty_like(y)
         for g in folds:
             tr, te = groups != g, groups == g
-            pred[te] = predict(fit(z[tr], y[tr], lam), z[te])
+            pred[te] = predict(fit(z[tr], y[tr], lam, target), z[te])
         errs[lam] = rmse(pred, y)
     base = np.empty_like(y)
     for g in folds:
@@ -123,8 +129,17 @@ def export(m, rows, dim, name, out, description):
         helper.make_node("ReduceMean", ["tokens", "row_axis"], ["pooled"], keepdims=0),
         helper.make_node("MatMul", ["pooled", "w"], ["k_lin"]),
         helper.make_node("Add", ["k_lin", "b"], ["k_norm"]),
-        helper.make_node("Reshape", ["k_norm", "chunk_shape"], ["action"]),
     ]
+    last = "k_norm"
+    if m["target"] == "log":
+        # log k is unnormalised in the graph and exponentiated: the output is k itself.
+        inits += [numpy_helper.from_array(np.array([m["ys"]], np.float32), "t_std"),
+                  numpy_helper.from_array(np.array([m["ym"]], np.float32), "t_mean")]
+        nodes += [helper.make_node("Mul", ["k_norm", "t_std"], ["t_scaled"]),
+                  helper.make_node("Add", ["t_scaled", "t_mean"], ["log_k"]),
+                  helper.make_node("Exp", ["log_k"], ["k"])]
+        last = "k"
+    nodes.append(helper.make_node("Reshape", [last, "chunk_shape"], ["action"]))
     g = helper.make_graph(
         nodes, name,
         [helper.make_tensor_value_info("observation.tactile_latent", TensorProto.FLOAT,
@@ -155,8 +170,9 @@ def export(m, rows, dim, name, out, description):
                               "std": lst(np.tile(m["sd"], rows))}}],
         "output": {
             "name": "action", "dtype": "float32", "shape": ["batch", 1, 1],
-            "normalization": {"mode": "mean_std", "mean": [float(m["ym"])],
-                              "std": [float(m["ys"])]},
+            "normalization": ({"mode": "identity"} if m["target"] == "log" else
+                              {"mode": "mean_std", "mean": [float(m["ym"])],
+                               "std": [float(m["ys"])]}),
             "actions": [{"name": "cup.stiffness", "unit": "N/m", "min": K_MIN, "max": K_MAX}]},
     }
     with open(os.path.join(out, "manifest.json"), "w") as f:
@@ -173,15 +189,19 @@ def main():
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
     z, y, groups, rows, dim = observations(a.train, a.source, a.touch)
-    errs, cv_base, folds = cross_validate(z, y, groups)
-    lam = min(LAMBDAS, key=lambda l: (errs[l], -l))
-    m = fit(z, y, lam)
+    cv = {t: cross_validate(z, y, groups, t) for t in TARGETS}
+    # The target (k or log k) and lambda with the smallest CV error (ties: the larger lambda).
+    target, lam = min(((t, l) for t in TARGETS for l in LAMBDAS),
+                      key=lambda tl: (cv[tl[0]][0][tl[1]], -tl[1]))
+    errs, cv_base, folds = cv[target]
+    m = fit(z, y, lam, target)
     train_pred = predict(m, z)
     report = {
         "policy": a.name, "source": a.source, "latent_shape": [rows, dim],
         "train_demos": int(len(y)), "train_diameters_mm": folds,
         "train_stiffness_n_per_m": [float(y.min()), float(y.max())],
-        "cv": "leave one diameter out", "lambda": lam,
+        "cv": "leave one diameter out", "target": target, "lambda": lam,
+        "cv_rmse_by_target": {t: min(cv[t][0].values()) for t in TARGETS},
         "cv_rmse_n_per_m": errs[lam], "cv_rmse_mean_predictor": cv_base,
         "cv_rmse_by_lambda": {f"{l:g}": e for l, e in errs.items()},
         "train_rmse_n_per_m": rmse(train_pred, y),
@@ -199,7 +219,8 @@ def main():
             "eval_rmse_train_mean": rmse(np.full_like(ye, y.mean()), ye),
             "eval_rmse_prior_300": rmse(np.full_like(ye, PRIOR_K), ye),
         })
-    desc = (f"cup stiffness from the {a.source} tactile latent: ridge (lambda {lam:g}) on "
+    desc = (f"cup stiffness from the {a.source} tactile latent: ridge of {target} "
+            f"(lambda {lam:g}) on "
             f"{len(y)} expert demonstrations of training cups {folds} mm "
             f"(scripts/fit_reference_policy.py)")
     export(m, rows, dim, a.name, a.out, desc)
