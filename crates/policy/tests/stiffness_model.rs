@@ -5,8 +5,10 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
+mod rig;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use unitac_core::Msg;
 use unitac_core::Stamp;
 use unitac_core::msg::{LatentSource, TactileLatent, samples};
 use unitac_policy::PolicyParams;
@@ -154,9 +156,9 @@ fn synthetic_demos(path: &Path) {
     std::fs::write(path, serde_json::json!({ "demos": json }).to_string()).unwrap();
 }
 
-#[test]
-fn a_fit_recovers_a_linear_law_and_matches_the_oracle() {
-    let tmp = common::tmpdir("stiffness-fit");
+/// The fit script on the synthetic demonstrations, into a fresh directory.
+fn fit_synthetic(name: &str) -> PathBuf {
+    let tmp = common::tmpdir(name);
     let train = tmp.join("train.json");
     synthetic_demos(&train);
     let dir = tmp.join("model");
@@ -168,6 +170,12 @@ fn a_fit_recovers_a_linear_law_and_matches_the_oracle() {
         .status()
         .unwrap();
     assert!(st.success(), "fit_reference_policy.py failed");
+    dir
+}
+
+#[test]
+fn a_fit_recovers_a_linear_law_and_matches_the_oracle() {
+    let dir = fit_synthetic("stiffness-fit");
     // New latents, the same law: the readout recovers it (ridge shrinks a little).
     let fresh: Vec<TactileLatent> = (0..10).map(|i| latent([4, 6], 900 + i, 0.0)).collect();
     let truth: Vec<f64> = fresh.iter().map(law).collect();
@@ -182,4 +190,43 @@ fn a_fit_recovers_a_linear_law_and_matches_the_oracle() {
         - truth.iter().cloned().fold(f64::MAX, f64::min);
     println!("synthetic: largest error to the law {err:.2} N/m (spread {spread:.1} N/m)");
     assert!(spread > 50.0 && err < 0.1 * spread, "{ours:?} vs {truth:?}");
+}
+
+#[test]
+fn the_cup_controller_squeezes_with_the_models_stiffness() {
+    let dir = fit_synthetic("stiffness-stage");
+    let p = rig::params(
+        "{mode: vtla_pred, task: squeeze the cup by 1 cm, objects: [cup], latent_len: 24}",
+    );
+    let stage = unitac_policy::PolicyStage::load("test_scene", p.clone(), Some(&dir)).unwrap();
+    let mut rig = rig::Rig::with_stage(stage);
+    let data = latent([4, 6], 77, 0.0).data;
+    let sent = rig.latent(LatentSource::Predicted, data.clone());
+    let Msg::Latent(l) = &sent else {
+        panic!("a latent")
+    };
+    let k = Readout::load(&dir, 24)
+        .unwrap()
+        .stiffness(&p, l, Stamp(rig.now))
+        .unwrap();
+    assert!((k - law(l)).abs() < 1.0 && (k - 300.0).abs() > 10.0, "{k}");
+    rig.send(sent);
+    // Close in force mode toward F = k x 1 cm (ramped 2 N per tick).
+    let mut close = None;
+    for _ in 0..60 {
+        let t = rig.tick();
+        rig.follow(&t.cmd, None);
+        if t.status.phase == "close" {
+            close = Some(t);
+        }
+    }
+    let t = close.expect("the controller reached close");
+    assert!(t.status.safety_ok, "{t:?}");
+    let f = k * 0.01;
+    assert!((t.cmd.force_n - f).abs() < 1e-9, "{} vs {f}", t.cmd.force_n);
+    assert!(
+        t.status.message.contains(&format!("{f:.2} N")),
+        "{}",
+        t.status.message
+    );
 }
