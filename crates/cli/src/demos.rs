@@ -3,7 +3,8 @@
 //! frames going through the scene's own tactile stages (every stage before its policy stage),
 //! written as `DIR/demos.json` for scripts/fit_reference_policy.py.
 
-use anyhow::{Context, bail};
+use crate::ConfigError;
+use anyhow::Context;
 use serde::Serialize;
 use std::path::Path;
 use unitac_pipeline::{StageConfig, build_stage, load_scene_without_policy_models, stage_configs};
@@ -33,22 +34,25 @@ pub fn demos(
     out: &Path,
 ) -> anyhow::Result<String> {
     let n = seeds.len().saturating_mul(trials as usize);
+    let config = |msg: String| anyhow::Error::new(ConfigError(msg));
     if n == 0 || n > MAX_DEMOS {
-        bail!("{n} demonstrations asked for (seeds x trials: 1 to {MAX_DEMOS})");
+        return Err(config(format!(
+            "{n} demonstrations asked for (seeds x trials: 1 to {MAX_DEMOS})"
+        )));
     }
-    let scene = load_scene_without_policy_models(scene_name, None)?;
-    let configs = stage_configs(&scene)?;
+    let scene =
+        load_scene_without_policy_models(scene_name, None).map_err(|e| config(e.to_string()))?;
+    let configs = stage_configs(&scene).map_err(|e| config(e.to_string()))?;
     let mut cfg = DemoConfig::default();
     if let Some(p) = configs.iter().find_map(|c| match c {
         StageConfig::Policy { params, .. } => Some(params),
         _ => None,
     }) {
         if !p.task.starts_with("squeeze") {
-            bail!(
+            return Err(config(format!(
                 "scene {}: demonstrations are recorded for the cup task, its task is '{}'",
-                scene.name,
-                p.task
-            );
+                scene.name, p.task
+            )));
         }
         cfg.touch_speed_m_s = p.touch_speed_m_s;
         cfg.touch_force_n = p.touch_force_n;
@@ -60,10 +64,10 @@ pub fn demos(
         .filter(|c| !matches!(c, StageConfig::Policy { .. }))
         .collect();
     if tactile.is_empty() {
-        bail!(
+        return Err(config(format!(
             "scene {} has no tactile stage: nothing a demonstration could observe",
             scene.name
-        );
+        )));
     }
     let src = &scene.source;
     let mut sensor = MockConfig::new(src.sensor, src.seed);
