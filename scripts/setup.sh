@@ -15,6 +15,10 @@
 #   5. the reference model bundle in .build/models/reference: `unitac dataset fabrics` renders
 #      mock presses through the real contact stage, models/generate_reference.py builds the ONNX
 #      models and fits the property head on them (~1 min; only when its inputs changed)
+#   6. the reference policies in .build/models/policy: `unitac demos` records the scripted expert
+#      on training cups (and on the unseen cup, scored only) through each cup scene's tactile
+#      stages, scripts/fit_reference_policy.py fits the latent -> stiffness readouts and exports
+#      them to ONNX (~1-2 min on 2 cores; only when its inputs changed)
 # Each step keeps a stamp of its inputs and is skipped when they did not change, so a re-run with
 # nothing changed takes a couple of seconds.
 set -euo pipefail
@@ -141,5 +145,30 @@ if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS
   rm -rf "$MODELS/reference" "$MODELS/data"
   mv "$MODELS/reference.tmp" "$MODELS/reference"
   echo "$models_key" >"$MODELS/.stamp"
+fi
+# --- 6. reference policies --------------------------------------------------------------------
+POLICIES="$MODELS/policy"
+policy_inputs=(scripts/fit_reference_policy.py Cargo.lock launch/scenes/cup_deformation_vtla_real.yaml
+  launch/scenes/cup_deformation_vtla_pred.yaml crates/cli/src/demos.rs
+  $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src -name '*.rs' | sort))
+policy_key="$(hash_of "${policy_inputs[@]}" "$MODELS/.stamp")"
+if [ "$(cat "$POLICIES/.stamp" 2>/dev/null)" != "$policy_key" ] || [ ! -f "$POLICIES/cup_stiffness_pred/manifest.json" ]; then
+  log "policies: expert demonstrations on training cups, fitting the stiffness readouts"
+  cargo build --release --locked -q -p unitac-cli
+  rm -rf "$POLICIES.tmp"
+  mkdir -p "$POLICIES.tmp"
+  for m in real pred; do
+    demos="$POLICIES.tmp/demos/$m"
+    target/release/unitac demos --scene cup_deformation_vtla_$m --split train --seeds 1,2,3 --trials 20 --out "$demos/train" >&2
+    target/release/unitac demos --scene cup_deformation_vtla_$m --split unseen --seeds 101,102 --trials 10 --out "$demos/unseen" >&2
+    src=real
+    [ "$m" = real ] || src=predicted
+    "$VENV/bin/python" scripts/fit_reference_policy.py --train "$demos/train/demos.json" \
+      --eval "$demos/unseen/demos.json" --source "$src" --name "cup_stiffness_$m" \
+      --out "$POLICIES.tmp/cup_stiffness_$m" >/dev/null
+  done
+  rm -rf "$POLICIES.tmp/demos" "$POLICIES"
+  mv "$POLICIES.tmp" "$POLICIES"
+  echo "$policy_key" >"$POLICIES/.stamp"
 fi
 log "ready"

@@ -8,6 +8,7 @@
 mod bench;
 mod dataset;
 mod decode_bench;
+mod demos;
 mod devices;
 mod eval;
 mod gripper;
@@ -193,6 +194,20 @@ enum Cmd {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// Cup demonstrations of the scripted expert with what a policy could observe, through the
+    /// scene's tactile stages: `demos --scene S --split train --seeds 1,2,3 --trials 10 --out DIR`.
+    Demos {
+        #[arg(long)]
+        scene: String,
+        #[arg(long, value_enum, default_value = "train")]
+        split: DemoSplit,
+        #[arg(long, value_delimiter = ',', default_value = "1")]
+        seeds: Vec<u64>,
+        #[arg(long, default_value_t = 10)]
+        trials: u32,
+        #[arg(long)]
+        out: PathBuf,
+    },
     /// List the tactile sensors on the USB bus: model, serial, firmware, V4L2 node, modes.
     Devices {
         #[arg(long)]
@@ -226,6 +241,14 @@ enum EvalTarget {
     Contact,
     /// The slip stage's shear, rotation and slip flag against the renderer's tangential truth.
     Slip,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum DemoSplit {
+    /// The training cups (60, 65, 70 mm).
+    Train,
+    /// The unseen cup (90 mm).
+    Unseen,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -640,6 +663,21 @@ fn main() -> ExitCode {
             test,
             seed,
         } => dataset::fabrics(&out, train, test, seed).map(|()| true),
+        Cmd::Demos {
+            scene,
+            split,
+            seeds,
+            trials,
+            out,
+        } => {
+            let split = match split {
+                DemoSplit::Train => unitac_sim::task::Split::Train,
+                DemoSplit::Unseen => unitac_sim::task::Split::Unseen,
+            };
+            demos::demos(&scene, split, &seeds, trials, &out)
+                .and_then(emit)
+                .map(|()| true)
+        }
         Cmd::Devices { json } => {
             let root = std::env::var_os("UNITAC_SYSFS_ROOT")
                 .map(PathBuf::from)

@@ -281,13 +281,40 @@ impl Script {
     }
 }
 
-/// The policy stage's params and scene name, from the scene file.
-fn scene_policy(name: &str) -> anyhow::Result<(PolicyParams, String)> {
+/// A scene's policy stage as its file configures it: params, scene name and the stiffness model
+/// it names (the fitted readout, an ONNX inference in the tick that reads k).
+struct ScenePolicy {
+    params: PolicyParams,
+    scene: String,
+    stiffness_model: Option<std::path::PathBuf>,
+}
+
+impl ScenePolicy {
+    fn stage(&self) -> anyhow::Result<PolicyStage> {
+        PolicyStage::load(
+            &self.scene,
+            self.params.clone(),
+            self.stiffness_model.as_deref(),
+        )
+        .map_err(|e| anyhow::anyhow!("{e}"))
+    }
+}
+
+/// The policy stage of a scene file.
+fn scene_policy(name: &str) -> anyhow::Result<ScenePolicy> {
     let scene = unitac_pipeline::load_scene(name, None).map_err(|e| anyhow::anyhow!("{e}"))?;
     let cfgs = unitac_pipeline::stage_configs(&scene).map_err(|e| anyhow::anyhow!("{e}"))?;
     cfgs.into_iter()
         .find_map(|c| match c {
-            StageConfig::Policy { params, scene } => Some((*params, scene)),
+            StageConfig::Policy {
+                params,
+                scene,
+                stiffness_model,
+            } => Some(ScenePolicy {
+                params: *params,
+                scene,
+                stiffness_model,
+            }),
             _ => None,
         })
         .with_context(|| format!("scene {name} has no policy stage"))
@@ -343,8 +370,7 @@ struct Samples {
 /// Tick a scene's policy stage on scripted inputs: `episodes` unpaced episodes (or, paced, one
 /// episode of `paced_ticks` ticks in real time), with `onnx` run in each tick when given.
 fn run_pass(
-    params: &PolicyParams,
-    scene: &str,
+    sp: &ScenePolicy,
     episodes: usize,
     paced_ticks: Option<usize>,
     mut onnx: Option<(&mut OnnxPolicy, &Inputs)>,
@@ -352,7 +378,8 @@ fn run_pass(
     let mut s = Samples::default();
     let origin = Instant::now();
     for episode in 0..episodes {
-        let stage = PolicyStage::new(scene, params.clone()).map_err(anyhow::Error::msg)?;
+        let (params, scene) = (&sp.params, &sp.scene);
+        let stage = sp.stage()?;
         let mut chain = Chain::new(vec![Box::new(stage)]);
         let mut script = Script::new(params, episode as u32);
         if let Some((p, _)) = onnx.as_mut() {
@@ -564,7 +591,8 @@ pub fn bench_policy(opts: &Options) -> anyhow::Result<PolicyBench> {
         let mut act_all = Vec::new();
         let mut act_inferred = Vec::new();
         for name in SCENES {
-            let (params, scene) = scene_policy(name)?;
+            let sp = scene_policy(name)?;
+            let (params, scene) = (&sp.params, &sp.scene);
             let period_ms = 1e3 / params.control_rate_hz;
             let row = |what: &str, s: &Samples, inferred: bool| TickRow {
                 transport: "embedded".into(),
@@ -576,26 +604,14 @@ pub fn bench_policy(opts: &Options) -> anyhow::Result<PolicyBench> {
                 period: (s.starts_s.len() > 1).then(|| period_jitter(&s.starts_s, period_ms)),
                 phases: s.phases.clone(),
             };
-            let plain = run_pass(&params, &scene, opts.episodes, None, None)?;
+            let plain = run_pass(&sp, opts.episodes, None, None)?;
             rows.push(row("controller", &plain, false));
-            let with = run_pass(
-                &params,
-                &scene,
-                opts.episodes,
-                None,
-                Some((&mut onnx, &inputs)),
-            )?;
+            let with = run_pass(&sp, opts.episodes, None, Some((&mut onnx, &inputs)))?;
             rows.push(row("controller + onnx act", &with, true));
             act_all.extend(with.act_us.iter().copied());
             act_inferred.extend(with.act_inferred_us.iter().copied());
             if opts.paced_ticks > 1 {
-                let paced = run_pass(
-                    &params,
-                    &scene,
-                    1,
-                    Some(opts.paced_ticks),
-                    Some((&mut onnx, &inputs)),
-                )?;
+                let paced = run_pass(&sp, 1, Some(opts.paced_ticks), Some((&mut onnx, &inputs)))?;
                 rows.push(row("controller + onnx, paced", &paced, true));
             }
         }

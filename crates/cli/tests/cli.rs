@@ -285,3 +285,39 @@ fn report_sim_writes_tables_and_plots() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn demos_writes_the_demonstrations_and_refuses_scenes_without_touch() {
+    let dir = tmpdir("demos");
+    let out = dir.join("d");
+    let o = unitac(&[
+        "demos",
+        "--scene",
+        "cup_deformation_vtla_real",
+        "--seeds",
+        "3",
+        "--trials",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        s.starts_with("2 demonstrations of cup_deformation_vtla_real (Train cups)"),
+        "{s}"
+    );
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("demos.json")).unwrap()).unwrap();
+    let demos = j["demos"].as_array().unwrap();
+    assert_eq!(demos.len(), 2);
+    assert_eq!(demos[0]["latents"][0]["source"], "real");
+    assert_eq!(demos[0]["latents"][0]["touch"], 1);
+    // No tactile stage, or not the cup task: a configuration error, one line, exit 2.
+    for scene in ["cup_deformation_vla", "fabric_selection_vtla_real"] {
+        let o = unitac(&["demos", "--scene", scene, "--out", out.to_str().unwrap()]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert_eq!(stderr(&o).trim_end().lines().count(), 1, "{}", stderr(&o));
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -41,3 +41,38 @@ pub fn effective_params(scene: &Scene) -> Result<Vec<String>, SceneError> {
         .map(|c| format!("{}: {c:?}", c.kind()))
         .collect())
 }
+
+/// A scene as [`load_scene`] loads it, except that the policy stages' own `models:` (the fitted
+/// readouts) are neither named nor loaded; their params stay. For recording the demonstrations
+/// those models are fitted on (`unitac demos`), before they exist.
+pub fn load_scene_without_policy_models(
+    name: &str,
+    extra_dir: Option<PathBuf>,
+) -> Result<Scene, SceneError> {
+    let path = unitac_core::scene::resolve(name, &scene_dirs(extra_dir))?;
+    let text = std::fs::read_to_string(&path).map_err(|e| SceneError::Io {
+        path: path.clone(),
+        msg: e.to_string(),
+    })?;
+    let parse = |msg: String| SceneError::Parse {
+        path: path.clone(),
+        msg,
+    };
+    let mut doc: serde_yaml::Value =
+        serde_yaml::from_str(&text).map_err(|e| parse(e.to_string()))?;
+    if let Some(stages) = doc
+        .get_mut("stages")
+        .and_then(serde_yaml::Value::as_sequence_mut)
+    {
+        for st in stages {
+            let is_policy = st.get("kind").and_then(serde_yaml::Value::as_str) == Some("policy");
+            if let (true, Some(m)) = (is_policy, st.as_mapping_mut()) {
+                m.remove("models");
+            }
+        }
+    }
+    let text = serde_yaml::to_string(&doc).map_err(|e| parse(e.to_string()))?;
+    let scene = Scene::parse(&text, &path, &scene_context())?;
+    check_modes(&scene)?;
+    Ok(scene)
+}

@@ -179,10 +179,13 @@ pub enum StageConfig {
         params: SamplerParams,
         bundle: PathBuf,
     },
-    /// The scene's name goes into PolicyStatus.scene.
+    /// The scene's name goes into PolicyStatus.scene; `stiffness_model`: the bundle directory
+    /// of the fitted latent -> stiffness model the stage names in `models:` (none: the params'
+    /// linear readout).
     Policy {
         params: Box<PolicyParams>,
         scene: String,
+        stiffness_model: Option<PathBuf>,
     },
 }
 
@@ -266,9 +269,15 @@ pub fn stage_configs(scene: &Scene) -> Result<Vec<StageConfig>, SceneError> {
             "policy" => {
                 let params: PolicyParams = params(scene, index, st)?;
                 params.check().map_err(&bad)?;
+                let stiffness_model = if st.models.is_empty() {
+                    None
+                } else {
+                    Some(bundle_of(scene, st, &bad)?)
+                };
                 StageConfig::Policy {
                     params: Box::new(params),
                     scene: scene.name.clone(),
+                    stiffness_model,
                 }
             }
             other => {
@@ -328,9 +337,14 @@ pub fn build_stage(scene: &Scene, cfg: StageConfig) -> Result<Box<dyn Stage>, Sc
                 .map_err(|e| bad(format!("model {}: {e}", bundle.display())))?,
         ),
         StageConfig::Compare(p) => Box::new(CompareStage::new(p).map_err(|e| bad(e.to_string()))?),
-        StageConfig::Policy { params, scene } => {
-            Box::new(PolicyStage::new(&scene, *params).map_err(|e| bad(e.to_string()))?)
-        }
+        StageConfig::Policy {
+            params,
+            scene,
+            stiffness_model,
+        } => Box::new(
+            PolicyStage::load(&scene, *params, stiffness_model.as_deref())
+                .map_err(|e| bad(e.to_string()))?,
+        ),
     })
 }
 

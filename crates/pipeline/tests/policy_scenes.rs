@@ -4,12 +4,17 @@
 #![allow(clippy::unwrap_used, clippy::panic)]
 
 use serde_yaml::Value;
+use std::path::PathBuf;
 use unitac_pipeline::{StageConfig, load_scene, overrides, stage_configs};
 use unitac_policy::Mode;
 
-fn policy_of(cfgs: &[StageConfig]) -> (unitac_policy::PolicyParams, String) {
+fn policy_of(cfgs: &[StageConfig]) -> (unitac_policy::PolicyParams, String, Option<PathBuf>) {
     match cfgs.last().unwrap() {
-        StageConfig::Policy { params, scene } => ((**params).clone(), scene.clone()),
+        StageConfig::Policy {
+            params,
+            scene,
+            stiffness_model,
+        } => ((**params).clone(), scene.clone(), stiffness_model.clone()),
         other => panic!("the policy stage is last: {other:?}"),
     }
 }
@@ -45,10 +50,24 @@ fn every_shipped_task_and_mode_loads_only_what_its_mode_uses() {
         let cfgs = stage_configs(&s).unwrap();
         let got: Vec<&str> = cfgs.iter().map(|c| c.kind()).collect();
         assert_eq!(got, kinds, "{name}");
-        let (p, scene) = policy_of(&cfgs);
+        let (p, scene, model) = policy_of(&cfgs);
         assert_eq!(p.mode, mode, "{name}");
         assert_eq!(scene, name);
-        // Building the policy stage itself needs no model.
+        // The cup's tactile modes read the stiffness from the fitted model (scripts/setup.sh
+        // step 6), the others have nothing learned to load.
+        let want = match (task, mode) {
+            ("cup_deformation", Mode::VtlaReal) => Some("cup_stiffness_real"),
+            ("cup_deformation", Mode::VtlaPred) => Some("cup_stiffness_pred"),
+            _ => None,
+        };
+        assert_eq!(
+            model
+                .as_ref()
+                .and_then(|m| m.file_name())
+                .and_then(|n| n.to_str()),
+            want,
+            "{name}"
+        );
         unitac_pipeline::build_stage(&s, cfgs.last().unwrap().clone()).unwrap();
     }
 }
@@ -125,7 +144,7 @@ fn policy_overrides_reach_the_typed_params() {
         ],
     )
     .unwrap();
-    let (p, _) = policy_of(&stage_configs(&s).unwrap());
+    let (p, _, _) = policy_of(&stage_configs(&s).unwrap());
     assert_eq!(p.max_force_n, 12.5);
     assert_eq!(p.safe_action, unitac_policy::safety::SafeAction::Open);
     assert_eq!(p.task, "squeeze the cup by 8 mm");
@@ -142,4 +161,84 @@ fn policy_overrides_reach_the_typed_params() {
         assert!(e.contains(want), "{k}: {e}");
         assert!(!e.contains('\n'), "{k}: {e}");
     }
+}
+
+/// A cup scene whose policy stage names the stiffness model at `model` (a manifest path).
+fn with_model(name: &str, mode: &str, latent_len: usize, model: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("unitac-policy-scenes-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("{name}.yaml"));
+    let producer = if mode == "vtla_real" {
+        "encoder"
+    } else {
+        "sampler"
+    };
+    std::fs::write(
+        &path,
+        format!(
+            "scene: {name}\nsource: {{kind: mock, sensor: gelsight-mini, scenario: cup_deformation}}\n\
+             models:\n  reference: ${{UNITAC_MODELS}}/reference/manifest.json\n  stiffness: {model}\n\
+             stages:\n  - kind: contact\n  - kind: {producer}\n    models: [reference]\n\
+             \x20 - kind: policy\n    models: [stiffness]\n    params: {{mode: {mode}, task: squeeze the cup, objects: [cup], latent_len: {latent_len}}}\n"
+        ),
+    )
+    .unwrap();
+    path
+}
+
+fn build_policy(path: &std::path::Path) -> Result<(), String> {
+    let s = load_scene(path.to_str().unwrap(), None).map_err(|e| e.to_string())?;
+    let cfgs = stage_configs(&s).map_err(|e| e.to_string())?;
+    unitac_pipeline::build_stage(&s, cfgs.last().unwrap().clone())
+        .map(|_| ())
+        .map_err(|e| e.to_string())
+}
+
+#[test]
+fn a_missing_or_wrong_stiffness_model_is_a_load_error() {
+    let models = PathBuf::from(std::env::var_os("UNITAC_MODELS").unwrap());
+    // The fitted model loads for the latent it was fitted on.
+    let real = models.join("policy/cup_stiffness_real/manifest.json");
+    build_policy(&with_model(
+        "stiff_ok",
+        "vtla_real",
+        3072,
+        real.to_str().unwrap(),
+    ))
+    .unwrap();
+    // Missing: the scene does not load.
+    let e = build_policy(&with_model(
+        "stiff_missing",
+        "vtla_real",
+        3072,
+        "${UNITAC_MODELS}/policy/no_such_model/manifest.json",
+    ))
+    .unwrap_err();
+    assert!(e.contains("no_such_model"), "{e}");
+    // Wrong: the real-latent model for the sampler's 64 values.
+    let e = build_policy(&with_model(
+        "stiff_wrong_len",
+        "vtla_pred",
+        64,
+        real.to_str().unwrap(),
+    ))
+    .unwrap_err();
+    assert!(
+        e.contains("stiffness model")
+            && e.contains(
+                "input observation.tactile_latent has 3072 values, the scene's latent_len is 64"
+            ),
+        "{e}"
+    );
+    assert!(!e.contains('\n'), "{e}");
+    // Wrong: a bundle that is no stiffness model (the reference encoder's manifest is no
+    // policy manifest at all).
+    let e = build_policy(&with_model(
+        "stiff_not_policy",
+        "vtla_real",
+        3072,
+        "${UNITAC_MODELS}/reference/manifest.json",
+    ))
+    .unwrap_err();
+    assert!(e.contains("stiffness model"), "{e}");
 }

@@ -12,6 +12,7 @@ pub mod observation;
 pub mod onnx;
 pub mod params;
 pub mod policy;
+pub mod readout;
 pub mod safety;
 pub mod stage;
 pub mod task;

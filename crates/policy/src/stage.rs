@@ -7,9 +7,11 @@ use crate::controller::{CupController, FabricController};
 use crate::observation::Assembler;
 use crate::params::PolicyParams;
 use crate::policy::{Action, Policy};
+use crate::readout::Readout;
 use crate::safety::SafetyLayer;
 use crate::task::Task;
 use std::collections::VecDeque;
+use std::path::Path;
 use thiserror::Error;
 use unitac_core::msg::{ArmCommand, GripperCommand, GripperStatus, Header, Msg, PolicyStatus};
 use unitac_core::{Clock, Stage, StageError, Stamp};
@@ -55,14 +57,33 @@ impl std::fmt::Debug for PolicyStage {
 }
 
 impl PolicyStage {
-    /// The scene controller the task names.
+    /// The scene controller the task names, with the params' linear stiffness readout.
     pub fn new(scene: &str, params: PolicyParams) -> Result<Self, PolicyLoadError> {
+        Self::load(scene, params, None)
+    }
+
+    /// The scene controller the task names; its stiffness readout is the fitted model in
+    /// `stiffness_model` (a policy bundle directory, checked here: every problem in one error)
+    /// when the scene names one.
+    pub fn load(
+        scene: &str,
+        params: PolicyParams,
+        stiffness_model: Option<&Path>,
+    ) -> Result<Self, PolicyLoadError> {
         let task = params.check().map_err(PolicyLoadError)?;
+        let readout = match stiffness_model {
+            Some(dir) => Readout::load(dir, params.latent_len)?,
+            None => Readout::Linear,
+        };
         let policy: Box<dyn Policy> = match task {
-            Task::Pick { property, more, .. } => {
-                Box::new(FabricController::new(&params, property, more).map_err(PolicyLoadError)?)
+            Task::Pick { property, more, .. } => Box::new(
+                FabricController::new(&params, property, more)
+                    .map_err(PolicyLoadError)?
+                    .with_readout(readout),
+            ),
+            Task::Squeeze { by_m } => {
+                Box::new(CupController::new(&params, by_m).with_readout(readout))
             }
-            Task::Squeeze { by_m } => Box::new(CupController::new(&params, by_m)),
         };
         Self::with_policy(scene, params, policy)
     }

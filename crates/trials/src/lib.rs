@@ -6,9 +6,12 @@
 //!   ArmCommand into it), used by the embedded trial loop and by the ROS sim node alike;
 //! - [`run`]: one closed-loop trial (the world as the scene's source, the scene's stages driven
 //!   by `unitac_core::chain`, a per-tick trace and the world's outcome);
-//! - [`table`]: the paper-style success table, our counts beside the paper's.
+//! - [`table`]: the paper-style success table, our counts beside the paper's;
+//! - [`demos`]: the scripted expert's cup demonstrations recorded with what a policy could
+//!   observe (the scene's tactile stages' latents, the camera, the gripper) and its labels.
 
 pub mod bridge;
+pub mod demos;
 pub mod run;
 pub mod table;
 

@@ -15,11 +15,12 @@
 //! any phase -> failed (a timeout): the error goes to the safety layer every tick
 //! ```
 
-use super::{Timed, action, arm, force, position, stiffness};
+use super::{Timed, action, arm, force, position};
 use crate::mode::Mode;
 use crate::observation::Observation;
 use crate::params::PolicyParams;
 use crate::policy::{Action, GripperAction, Policy, PolicyError};
+use crate::readout::Readout;
 use unitac_core::Stamp;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -52,6 +53,8 @@ pub struct CupController {
     /// Last compression estimate \[m] (vtla_real).
     compression: f64,
     failure: Option<PolicyError>,
+    /// Latent -> stiffness (the params' linear readout or a fitted model).
+    readout: Readout,
 }
 
 impl CupController {
@@ -67,8 +70,15 @@ impl CupController {
             probe_at: None,
             compression: 0.0,
             failure: None,
+            readout: Readout::Linear,
             p: p.clone(),
         }
+    }
+
+    /// The stiffness from `readout` instead of the params' linear one.
+    pub fn with_readout(mut self, readout: Readout) -> Self {
+        self.readout = readout;
+        self
     }
 
     fn fail(&mut self, e: PolicyError) -> PolicyError {
@@ -103,7 +113,7 @@ impl CupController {
                         let l = obs.latent().ok_or_else(|| {
                             PolicyError::Failed("no fresh predicted latent".into())
                         })?;
-                        self.force_n = Some(stiffness(&p, l)? * self.d);
+                        self.force_n = Some(self.readout.stiffness(&p, l, now)? * self.d);
                     }
                     Mode::VtlaReal => {}
                 }
@@ -155,7 +165,8 @@ impl CupController {
             Phase::AwaitLatent => {
                 let after = self.probe_at.unwrap_or(Stamp::ZERO);
                 if let Some(l) = obs.latent().filter(|l| l.header.stamp >= after) {
-                    self.force_n = Some(stiffness(&p, l)? * self.d * p.force_margin);
+                    self.force_n =
+                        Some(self.readout.stiffness(&p, l, now)? * self.d * p.force_margin);
                     self.t.go(Phase::Squeeze);
                 } else if elapsed >= p.contact_timeout_s {
                     return Err(self.timeout("no latent of the probe touch"));

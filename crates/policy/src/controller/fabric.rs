@@ -13,11 +13,12 @@
 //! vtla_pred sets the press force from the predicted latent before the first touch (expected
 //! stiffness x press_depth_m); vtla_real presses with touch_force_n.
 
-use super::{Timed, action, arm, force, position, stiffness};
+use super::{Timed, action, arm, force, position};
 use crate::mode::Mode;
 use crate::observation::Observation;
 use crate::params::PolicyParams;
 use crate::policy::{Action, Policy, PolicyError};
+use crate::readout::Readout;
 use unitac_core::Stamp;
 use unitac_core::msg::Winner;
 
@@ -50,6 +51,8 @@ pub struct FabricController {
     second_touch_at: Option<Stamp>,
     chosen: Option<String>,
     failure: Option<PolicyError>,
+    /// Latent -> stiffness for vtla_pred's press force.
+    readout: Readout,
 }
 
 impl FabricController {
@@ -73,8 +76,15 @@ impl FabricController {
             second_touch_at: None,
             chosen: None,
             failure: None,
+            readout: Readout::Linear,
             p: p.clone(),
         })
+    }
+
+    /// The stiffness from `readout` instead of the params' linear one.
+    pub fn with_readout(mut self, readout: Readout) -> Self {
+        self.readout = readout;
+        self
     }
 
     fn fail(&mut self, e: PolicyError) -> PolicyError {
@@ -122,7 +132,7 @@ impl FabricController {
                     let l = obs
                         .latent()
                         .ok_or_else(|| PolicyError::Failed("no fresh predicted latent".into()))?;
-                    self.press_force_n = stiffness(p, l)? * p.press_depth_m;
+                    self.press_force_n = self.readout.stiffness(p, l, now)? * p.press_depth_m;
                 }
                 if elapsed >= p.approach_s {
                     if i == 1 {

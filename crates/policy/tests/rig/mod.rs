@@ -36,7 +36,10 @@ pub struct Rig {
 
 impl Rig {
     pub fn new(p: PolicyParams) -> Self {
-        let stage = PolicyStage::new("test_scene", p).unwrap();
+        Self::with_stage(PolicyStage::new("test_scene", p).unwrap())
+    }
+
+    pub fn with_stage(stage: PolicyStage) -> Self {
         Self {
             chain: Chain::new(vec![Box::new(stage)]),
             now: 1_000_000_000,

@@ -187,11 +187,13 @@ fn build(
     let Some(StageConfig::Policy {
         params,
         scene: name,
+        stiffness_model,
     }) = configs.into_iter().next()
     else {
         anyhow::bail!("scene '{}' has no policy stage", scene.name);
     };
-    Ok((name.clone(), PolicyStage::new(&name, *params)?))
+    let stage = PolicyStage::load(&name, *params, stiffness_model.as_deref())?;
+    Ok((name.clone(), stage))
 }
 
 struct Publishers {
