@@ -173,6 +173,10 @@ fn run() -> anyhow::Result<()> {
     let start = Instant::now();
     let mut steps = 0u64;
     let mut pending = Pending::default();
+    // Over-ROS tick timing (a benchmark's figures, reported with the outcome): GripperStatus
+    // published -> both commands for it received [us], and when they arrived [s].
+    let mut round_trip_us: Vec<f64> = Vec::new();
+    let mut answered_s: Vec<f64> = Vec::new();
     while !base.stopped() && !sim.done() {
         let t0 = Instant::now();
         let o = sim.observe();
@@ -218,6 +222,7 @@ fn run() -> anyhow::Result<()> {
         counters.published(pub_visual.publish(&convert::visual_observation(&o.visual)));
         counters.published(pub_joint.publish(&convert::joint_state(&o.gripper, &p.joint_name)));
         counters.published(pub_status.publish(&convert::gripper_status(&o.gripper)));
+        let sent = Instant::now();
         counters.busy_us += t1.elapsed().as_secs_f64() * 1e6;
         // Wait for the commands stamped now (older ones are dropped; a newer one cannot exist).
         let waited = Instant::now();
@@ -241,7 +246,17 @@ fn run() -> anyhow::Result<()> {
             }
             pending.gripper.is_some() && pending.arm.is_some()
         };
-        while !got(&mut pending, &mut base) && waited.elapsed() < timeout && !base.stopped() {}
+        let mut answered = false;
+        while !base.stopped() && waited.elapsed() < timeout {
+            if got(&mut pending, &mut base) {
+                answered = true;
+                break;
+            }
+        }
+        if answered {
+            round_trip_us.push(sent.elapsed().as_secs_f64() * 1e6);
+            answered_s.push(start.elapsed().as_secs_f64());
+        }
         let cmds = std::mem::take(&mut pending);
         let r = match (&cmds.gripper, &cmds.arm) {
             (Some(g), Some(a)) => sim.step(Some((g, a))),
@@ -275,6 +290,10 @@ fn run() -> anyhow::Result<()> {
         "repeated_steps": sim.repeated,
         "contact_timeouts": contact_timeouts,
         "outcome": sim.outcome(),
+        // Status published -> its two commands received (DDS both ways + the policy's tick).
+        "tick_round_trip": unitac_core::tail(round_trip_us),
+        // Wall periods between answered ticks (paced by max_rate; a benchmark figure).
+        "command_period": unitac_core::period_jitter(&answered_s, 1e3 / p.control_rate_hz),
     });
     println!("{outcome}");
     pub_outcome.publish(&r2r::std_msgs::msg::String {
