@@ -150,8 +150,10 @@ impl Script {
     /// The messages the scene's other stages and the camera publish before this tick.
     fn inputs(&mut self) -> Vec<Msg> {
         let mut out = Vec::new();
-        if self.mode == Mode::Vla {
+        if self.mode == Mode::Vla || !self.visual_names.is_empty() {
             out.push(self.visual());
+        }
+        if self.mode == Mode::Vla {
             return out;
         }
         let c = &self.truth.contact;
@@ -202,24 +204,17 @@ impl Script {
         out
     }
 
-    /// The camera's estimate with the values the scene names: the sim camera's when it has the
-    /// name, `<object>_width_m` from its `<object>.diameter_m`, `<fabric>_roughness` from the
-    /// trial's roughness (the sim camera estimates none).
+    /// The camera's estimate with the values the scene names, under the bridge's message names
+    /// (NaN for a name the sim camera does not give).
     fn visual(&mut self) -> Msg {
         let cam = self.world.observe_visual(&mut self.rng);
         let mut msg = bridge::visual_message(&cam);
-        let value = |n: &str| -> f64 {
-            if let Some(v) = cam.get(n) {
-                return v;
-            }
-            if let Some(o) = n.strip_suffix("_width_m") {
-                return cam.get(&format!("{o}.diameter_m")).unwrap_or(f64::NAN);
-            }
-            n.strip_suffix("_roughness")
-                .and_then(|o| self.world.spec().fabric(o))
-                .map_or(f64::NAN, |f| f.roughness_ra_mm)
-        };
-        msg.values = self.visual_names.iter().map(|n| value(n)).collect();
+        let values = self
+            .visual_names
+            .iter()
+            .map(|n| msg.get(n).unwrap_or(f64::NAN))
+            .collect();
+        msg.values = values;
         msg.names = self.visual_names.clone();
         Msg::Visual(msg)
     }

@@ -34,13 +34,16 @@ impl Mode {
         match (self, fabric) {
             (Mode::Vla, _) => v.push("visual"),
             // Fabric: the choice is the comparison of the two touches' latents (the compare
-            // stage consumes the encoder's output; the policy reads the comparison).
-            (Mode::VtlaReal, true) => v.extend(["contact", "comparison"]),
+            // stage consumes the encoder's output; the policy reads the comparison); the
+            // camera's edge heights set the fingertip heights.
+            (Mode::VtlaReal, true) => v.extend(["contact", "comparison", "visual"]),
             // Cup: a probe touch, whose episode's live latent sets the squeeze's force cap.
             (Mode::VtlaReal, false) => v.extend(["contact", "latent_real"]),
             // The predicted latent sets the press (fabric) or squeeze (cup) force before
             // anything is touched; the fabric choice still needs the comparison.
-            (Mode::VtlaPred, true) => v.extend(["contact", "latent_pred", "comparison"]),
+            (Mode::VtlaPred, true) => {
+                v.extend(["contact", "latent_pred", "comparison", "visual"]);
+            }
             (Mode::VtlaPred, false) => v.extend(["contact", "latent_pred"]),
         }
         v

@@ -9,15 +9,36 @@ use unitac_core::msg::{
     GripperMode, Header, LatentSource, Msg, PropertyComparison, VisualObservation, Winner,
 };
 
-const FABRIC: &str = "{mode: vtla_real, task: pick the smoother fabric}";
+const FABRIC: &str = "{mode: vtla_real, task: pick the smoother fabric, \
+    visual_names: [fabric_a_edge_height_m, fabric_b_edge_height_m]}";
 
-/// The fabric run: contact when the fingers close below 5 cm on a fabric, the comparison (A is
-/// rougher) once the controller waits for it, the grasp stops on the fabric at 3 mm.
-/// `drop_contact`: ticks of press_a during which no contact state is sent, from its 10th tick.
+/// The camera's folded-edge heights in the fabric run: A alternates between two estimates
+/// frame by frame (per-frame noise), B is steady.
+const EDGE_A_M: [f64; 2] = [0.0030, 0.0034];
+const EDGE_B_M: f64 = 0.0024;
+
+/// The camera's frame `n` of the fabric run.
+fn camera(rig: &Rig, n: usize) -> Msg {
+    Msg::Visual(VisualObservation {
+        header: rig.header(),
+        names: vec![
+            "fabric_a_edge_height_m".into(),
+            "fabric_b_edge_height_m".into(),
+        ],
+        values: vec![EDGE_A_M[n % 2], EDGE_B_M],
+    })
+}
+
+/// The fabric run: a camera frame before every tick, contact when the fingers close below 5 cm
+/// on a fabric, the comparison (A is rougher) once the controller waits for it, the grasp stops
+/// on the fabric at 3 mm. `drop_contact`: ticks of press_a during which no contact state is
+/// sent, from its 10th tick.
 fn fabric_run(rig: &mut Rig, send_comparison: bool, drop_contact: usize, max_ticks: usize) {
     let (mut sent, mut press_ticks) = (false, 0);
+    let first = camera(rig, 0);
+    rig.send(first);
     let mut last = rig.tick();
-    for _ in 0..max_ticks {
+    for n in 1..max_ticks {
         let on_fabric = last.arm.target.starts_with("fabric");
         let grasping = last.cmd.mode == GripperMode::Force;
         rig.follow(&last.cmd, grasping.then_some(0.003));
@@ -52,6 +73,8 @@ fn fabric_run(rig: &mut Rig, send_comparison: bool, drop_contact: usize, max_tic
                 sentence: "A is rougher than B".into(),
             }));
         }
+        let frame = camera(rig, n);
+        rig.send(frame);
         last = rig.tick();
         if matches!(last.status.phase.as_str(), "done" | "failed") {
             break;
@@ -87,7 +110,12 @@ fn fabric_touches_both_compares_and_grasps_the_smoother() {
     let last = rig.ticks.last().unwrap();
     assert_eq!(last.arm.target, "fabric_b");
     assert_eq!(last.arm.lift_m, 0.05);
-    assert_eq!(last.arm.z_m, 0.004);
+    // The grasp aims grasp_z_m (0.35 mm) below the camera's edge height of B.
+    assert!(
+        (last.arm.z_m - (EDGE_B_M - 0.00035)).abs() < 1e-12,
+        "{}",
+        last.arm.z_m
+    );
     assert_eq!(last.cmd.mode, GripperMode::Force);
     assert_eq!(last.cmd.force_n, 15.0);
     assert_eq!(last.status.mode, "vtla_real");
@@ -100,6 +128,20 @@ fn fabric_touches_both_compares_and_grasps_the_smoother() {
         .collect();
     assert!(press_a.iter().all(|t| t.arm.target == "fabric_a"));
     assert!(press_a.iter().all(|t| t.cmd.force_n <= 3.0));
+    // The touch goes touch_z_m (1 mm) below A's edge height, averaged over the frames seen while
+    // approaching A: between the two estimates, and fixed during the press.
+    let z = press_a[0].arm.z_m;
+    assert!(
+        (EDGE_A_M[0] - 0.001 + 1e-6..EDGE_A_M[1] - 0.001 - 1e-6).contains(&z),
+        "{z}"
+    );
+    assert!(press_a.iter().all(|t| t.arm.z_m == z));
+    let press_b = rig
+        .ticks
+        .iter()
+        .find(|t| t.status.phase == "press_b")
+        .unwrap();
+    assert!((press_b.arm.z_m - (EDGE_B_M - 0.001)).abs() < 1e-12);
     // The arm went to A, then B, then the choice.
     let targets: Vec<&str> =
         rig.ticks
@@ -112,6 +154,50 @@ fn fabric_touches_both_compares_and_grasps_the_smoother() {
                 v
             });
     assert_eq!(targets, ["fabric_a", "fabric_b", "home", "fabric_b"]);
+}
+
+#[test]
+fn a_camera_without_the_edge_height_fails_the_approach_with_the_reason() {
+    let mut rig = Rig::new(params(FABRIC));
+    // No camera frame at all: the safety layer holds on the missing input.
+    let t = rig.tick();
+    assert!(!t.status.safety_ok);
+    assert!(
+        t.status.message.starts_with("visual"),
+        "{}",
+        t.status.message
+    );
+    assert_eq!(t.status.phase, "approach_a");
+    // NaN for a listed name: the observation is invalid, the safety layer holds.
+    rig.send(Msg::Visual(VisualObservation {
+        header: rig.header(),
+        names: vec![
+            "fabric_a_edge_height_m".into(),
+            "fabric_b_edge_height_m".into(),
+        ],
+        values: vec![f64::NAN, 0.002],
+    }));
+    let t = rig.tick();
+    assert!(!t.status.safety_ok);
+    assert_eq!(t.status.phase, "approach_a");
+    // A scene that does not list the edge heights, a frame without A's: the controller fails.
+    let mut rig = Rig::new(params(
+        "{mode: vtla_real, task: pick the smoother fabric, visual_names: [fabric_b_edge_height_m]}",
+    ));
+    rig.send(Msg::Visual(VisualObservation {
+        header: rig.header(),
+        names: vec!["fabric_b_edge_height_m".into()],
+        values: vec![0.002],
+    }));
+    let t = rig.tick();
+    assert_eq!(t.status.phase, "failed", "{t:?}");
+    assert!(
+        t.status
+            .message
+            .contains("the camera gives no fabric_a_edge_height_m"),
+        "{}",
+        t.status.message
+    );
 }
 
 #[test]

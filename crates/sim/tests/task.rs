@@ -6,8 +6,8 @@
 use unitac_core::SensorKind;
 use unitac_sim::task::expert::default_run;
 use unitac_sim::task::{
-    ArmSetpoint, ArmTarget, G, GripperSetpoint, Split, TaskCommand, TaskConfig, TaskOutcome,
-    TaskTruth, TaskWorld, fixed_opening_command, run_expert, run_policy,
+    ArmSetpoint, ArmTarget, G, GripperSetpoint, ROUGHNESS_SET_SD_M, Split, TaskCommand, TaskConfig,
+    TaskOutcome, TaskTruth, TaskWorld, fixed_opening_command, run_expert, run_policy,
 };
 use unitac_sim::{MockConfig, MockSensor, Scenario, SplitMix64, WorldError};
 
@@ -347,7 +347,7 @@ fn bad_commands_are_refused_with_a_typed_error_and_change_nothing() {
 }
 
 #[test]
-fn the_camera_sees_positions_and_sizes_with_noise_and_nothing_tactile() {
+fn the_camera_sees_positions_and_sizes_with_noise_and_only_a_guess_of_roughness() {
     let cfg = TaskConfig::fabric();
     let w = TaskWorld::reset(&cfg, 6, 0);
     let mut rng = SplitMix64::new(1);
@@ -357,10 +357,16 @@ fn the_camera_sees_positions_and_sizes_with_noise_and_nothing_tactile() {
     assert_ne!(a.values, b.values, "per-frame noise");
     for n in &a.names {
         for word in [
-            "rough", "friction", "stiff", "force", "layers", "slip", "mass",
+            "friction", "stiff", "force", "layers", "slip", "mass", "soft",
         ] {
             assert!(!n.contains(word), "{n}");
         }
+    }
+    // Roughness is the one tactile property it guesses, with the set's spread as its error.
+    let ra = |name: &str| w.spec().fabric(name).unwrap().roughness_ra_mm * 1e-3;
+    for o in ["fabric_a", "fabric_b"] {
+        let est = a.get(&format!("{o}.roughness_ra_m")).unwrap();
+        assert!((est - ra(o)).abs() < 5.0 * ROUGHNESS_SET_SD_M, "{est}");
     }
     let f = w.spec().fabric("fabric_b").unwrap();
     let est = a.get("fabric_b.edge_height_m").unwrap();

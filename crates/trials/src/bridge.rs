@@ -72,12 +72,16 @@ pub fn gripper_status(truth: &TaskTruth, target_m: f64) -> GripperStatus {
 
 /// The message name of a camera value: the world's `<object>.<field>` as `<object>_<field>`,
 /// with the cup's diameter called its width (`cup_width_m`, what the camera measures across the
-/// rim and the name the policy reads).
+/// rim and the name the policy reads) and a fabric's Ra called its roughness
+/// (`fabric_a_roughness`, the property name the policy picks by; the value stays Ra in m).
 pub fn visual_name(world_name: &str) -> String {
     let name = world_name.replacen('.', "_", 1);
-    match name.strip_suffix("_diameter_m") {
-        Some(object) => format!("{object}_width_m"),
-        None => name,
+    if let Some(object) = name.strip_suffix("_diameter_m") {
+        format!("{object}_width_m")
+    } else if let Some(object) = name.strip_suffix("_roughness_ra_m") {
+        format!("{object}_roughness")
+    } else {
+        name
     }
 }
 
@@ -274,6 +278,15 @@ mod tests {
             visual_name("fabric_b.edge_height_m"),
             "fabric_b_edge_height_m"
         );
+        let w = TaskWorld::reset(&TaskConfig::fabric(), 3, 0);
+        let v = w.observe_visual(&mut unitac_sim::SplitMix64::new(1));
+        let m = visual_message(&v);
+        for o in ["fabric_a", "fabric_b"] {
+            let ra = m.get(&format!("{o}_roughness"));
+            assert!(ra.is_some(), "{:?}", m.names);
+            assert_eq!(ra, v.get(&format!("{o}.roughness_ra_m")));
+            assert!(m.get(&format!("{o}_edge_height_m")).is_some());
+        }
     }
 
     #[test]

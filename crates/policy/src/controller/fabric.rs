@@ -12,6 +12,12 @@
 //! ```
 //! vtla_pred sets the press force from the predicted latent before the first touch (expected
 //! stiffness x press_depth_m); vtla_real presses with touch_force_n.
+//!
+//! Heights: the fingertips go to the camera's estimate of the object's folded-edge height
+//! (`<object>_edge_height_m`, averaged over the camera frames seen while approaching it) plus
+//! `touch_z_m` for a touch and `grasp_z_m` for the grasp (offsets, negative = below the top), so
+//! that the grasp aims into the top layer whatever the fold's height. The approach phases need
+//! a fresh visual observation; one without the object's edge height fails the controller.
 
 use super::{Timed, action, arm, force, position};
 use crate::mode::Mode;
@@ -53,6 +59,31 @@ pub struct FabricController {
     failure: Option<PolicyError>,
     /// Latent -> stiffness for vtla_pred's press force.
     readout: Readout,
+    /// The camera's edge-height estimates of A and B: running means over the frames seen.
+    edges: [EdgeEstimate; 2],
+}
+
+/// A running mean of the camera's edge-height estimates of one object, one sample per camera
+/// frame (a frame seen on several ticks counts once).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct EdgeEstimate {
+    sum_m: f64,
+    frames: u32,
+    last: Option<Stamp>,
+}
+
+impl EdgeEstimate {
+    fn add(&mut self, stamp: Stamp, value_m: f64) {
+        if self.last.is_some_and(|s| s >= stamp) {
+            return;
+        }
+        self.last = Some(stamp);
+        self.sum_m += value_m;
+        self.frames += 1;
+    }
+    fn mean_m(&self) -> Option<f64> {
+        (self.frames > 0).then(|| self.sum_m / f64::from(self.frames))
+    }
 }
 
 impl FabricController {
@@ -77,6 +108,7 @@ impl FabricController {
             chosen: None,
             failure: None,
             readout: Readout::Linear,
+            edges: [EdgeEstimate::default(); 2],
             p: p.clone(),
         })
     }
@@ -93,6 +125,51 @@ impl FabricController {
         e
     }
 
+    /// Index of the object called `name` (A = 0, B = 1).
+    fn index(&self, name: &str) -> Option<usize> {
+        self.objects.iter().position(|o| o == name)
+    }
+
+    /// Add the camera's edge-height estimate of object `i` from this tick's visual observation.
+    fn see_edge(&mut self, obs: &Observation, i: usize) -> Result<(), PolicyError> {
+        let v = obs
+            .visual()
+            .ok_or_else(|| PolicyError::Failed("no fresh visual observation".into()))?;
+        let name = format!("{}_edge_height_m", self.objects[i]);
+        match v.get(&name) {
+            Some(h) if h.is_finite() => {
+                let stamp = v.header.stamp;
+                self.edges[i].add(stamp, h);
+                Ok(())
+            }
+            _ => Err(self.fail(PolicyError::Failed(format!(
+                "the camera gives no {name} (list it in visual_names): the fingertip height \
+                 comes from it"
+            )))),
+        }
+    }
+
+    /// Fingertip height for object `i`: its edge estimate plus `offset_m`, not below the
+    /// lowest height allowed (None before any estimate).
+    fn height(&self, i: usize, offset_m: f64) -> Option<f64> {
+        let e = self.edges.get(i)?.mean_m()?;
+        Some((e + offset_m).max(self.p.min_z_m))
+    }
+
+    /// Height of a touch on object `i`.
+    fn touch_z(&self, i: usize) -> f64 {
+        self.height(i, self.p.touch_z_m).unwrap_or(self.p.max_z_m)
+    }
+
+    /// Height of the grasp on the chosen object.
+    fn grasp_z(&self) -> f64 {
+        self.chosen
+            .as_deref()
+            .and_then(|c| self.index(c))
+            .and_then(|i| self.height(i, self.p.grasp_z_m))
+            .unwrap_or(self.p.max_z_m)
+    }
+
     /// The object with more (or less) of the property: index 0 = A, 1 = B.
     fn pick(&self, more_a: bool) -> usize {
         match (more_a, self.more) {
@@ -105,6 +182,15 @@ impl FabricController {
     fn step(&mut self, obs: &Observation) -> Result<(), PolicyError> {
         let now = obs.stamp;
         let elapsed = self.t.elapsed(now);
+        // On the way to an object the camera's view of its edge sets the fingertip height.
+        let approached = match self.t.phase {
+            Phase::Approach(i) => Some(i),
+            Phase::ApproachGrasp => self.chosen.as_deref().and_then(|c| self.index(c)),
+            _ => None,
+        };
+        if let Some(i) = approached {
+            self.see_edge(obs, i)?;
+        }
         let p = &self.p;
         let opening = obs.gripper().map(|g| g.opening_m);
         let in_contact = obs.contact().map(|c| c.in_contact);
@@ -239,12 +325,13 @@ impl FabricController {
         let opening = obs.gripper().map_or(p.max_opening_m, |g| g.opening_m);
         let open = position(p.max_opening_m, p.max_speed_m_s, p.touch_force_n);
         let chosen = self.chosen.clone().unwrap_or_else(|| "home".into());
+        let grasp_z = self.grasp_z();
         let grip = force(p.min_opening_m, p.max_speed_m_s, p.grasp_force_n);
         match self.t.phase {
             Phase::Look => action(open, arm("home", p.max_z_m, 0.0), "looking at both fabrics"),
             Phase::Approach(i) => action(
                 open,
-                arm(&self.objects[i], p.touch_z_m, 0.0),
+                arm(&self.objects[i], self.touch_z(i), 0.0),
                 format!("approaching {}", self.objects[i]),
             ),
             Phase::Press(i) => {
@@ -256,7 +343,7 @@ impl FabricController {
                 };
                 action(
                     position(target, p.touch_speed_m_s, self.press_force_n),
-                    arm(&self.objects[i], p.touch_z_m, 0.0),
+                    arm(&self.objects[i], self.touch_z(i), 0.0),
                     format!(
                         "touching {} ({:.2} N limit)",
                         self.objects[i], self.press_force_n
@@ -265,7 +352,7 @@ impl FabricController {
             }
             Phase::Release(i) => action(
                 open,
-                arm(&self.objects[i], p.touch_z_m, 0.0),
+                arm(&self.objects[i], self.touch_z(i), 0.0),
                 format!("releasing {}", self.objects[i]),
             ),
             Phase::Compare => action(
@@ -275,26 +362,22 @@ impl FabricController {
             ),
             Phase::ApproachGrasp => action(
                 open,
-                arm(&chosen, p.grasp_z_m, 0.0),
+                arm(&chosen, grasp_z, 0.0),
                 format!("approaching {chosen} to grasp it"),
             ),
             Phase::Grasp => action(
                 grip,
-                arm(&chosen, p.grasp_z_m, 0.0),
+                arm(&chosen, grasp_z, 0.0),
                 format!("grasping {chosen}"),
             ),
             Phase::Lift => action(
                 grip,
-                arm(
-                    &chosen,
-                    p.grasp_z_m,
-                    (elapsed * p.lift_speed_m_s).min(p.lift_m),
-                ),
+                arm(&chosen, grasp_z, (elapsed * p.lift_speed_m_s).min(p.lift_m)),
                 format!("lifting {chosen}"),
             ),
             Phase::Done | Phase::Failed => action(
                 grip,
-                arm(&chosen, p.grasp_z_m, p.lift_m),
+                arm(&chosen, grasp_z, p.lift_m),
                 format!("holding {chosen}"),
             ),
         }
@@ -323,8 +406,12 @@ impl Policy for FabricController {
     fn required(&self) -> Vec<&'static str> {
         let mut r = vec!["gripper"];
         match self.t.phase {
-            Phase::Look => r.push("visual"),
-            Phase::Approach(0) if self.mode == Mode::VtlaPred => r.push("latent_pred"),
+            Phase::Look | Phase::ApproachGrasp => r.push("visual"),
+            Phase::Approach(0) if self.mode == Mode::VtlaPred => {
+                r.push("visual");
+                r.push("latent_pred");
+            }
+            Phase::Approach(_) => r.push("visual"),
             Phase::Press(_) | Phase::Release(_) => r.push("contact"),
             _ => {}
         }

@@ -93,7 +93,8 @@ pub struct CupCriteria {
     pub tolerance_m: f64,
     /// A peak loss of diameter beyond this crushes the cup (buckled for good) \[m].
     pub crush_m: f64,
-    /// Lifted: the cup's bottom at least this high above the table, held \[m].
+    /// Lifted: the cup's bottom at least this high above the table (less
+    /// [`super::fabric::LIFT_TOLERANCE_M`]), held \[m].
     pub lift_m: f64,
 }
 
@@ -136,7 +137,7 @@ impl CupOutcome {
         peak_deformation_m: f64,
         collision: bool,
     ) -> CupOutcome {
-        let lift = held && lift_height_m >= c.lift_m && !collision;
+        let lift = held && super::fabric::lifted(lift_height_m, c.lift_m) && !collision;
         let over_compressed = peak_deformation_m > c.target_deformation_m + c.tolerance_m;
         let crushed = peak_deformation_m > c.crush_m;
         let deformation = !over_compressed

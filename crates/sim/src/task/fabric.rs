@@ -262,10 +262,21 @@ pub fn roughness_ra_mm(o: &Object) -> f64 {
     hs.iter().map(|h| (h - mean).abs()).sum::<f64>() / hs.len() as f64
 }
 
+/// A lift criterion's height is met within this \[m]: the arm's own "arrived" band (0.5 mm), the
+/// precision a lift to exactly the criterion's height reaches (a lift of 0.049999... m to a
+/// 0.05 m target is a lift to 0.05 m).
+pub const LIFT_TOLERANCE_M: f64 = 5e-4;
+
+/// Whether a lift of `height_m` meets a criterion of `criterion_m` (within
+/// [`LIFT_TOLERANCE_M`]; NaN never does).
+pub fn lifted(height_m: f64, criterion_m: f64) -> bool {
+    height_m >= criterion_m - LIFT_TOLERANCE_M
+}
+
 /// Success criteria of the fabric task.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct FabricCriteria {
-    /// Lifted: the edge at least this high, held \[m].
+    /// Lifted: the edge at least this high (less [`LIFT_TOLERANCE_M`]), held \[m].
     pub lift_m: f64,
     /// Most slip allowed during the grasp and lift \[m].
     pub slip_m: f64,
@@ -310,8 +321,10 @@ impl FabricOutcome {
         collision: bool,
     ) -> FabricOutcome {
         let selection = !chosen.is_empty() && chosen == smoother;
-        let grasp =
-            !chosen.is_empty() && layers == 1 && lift_height_m >= c.lift_m && slip_m <= c.slip_m;
+        let grasp = !chosen.is_empty()
+            && layers == 1
+            && lifted(lift_height_m, c.lift_m)
+            && slip_m <= c.slip_m;
         FabricOutcome {
             chosen: chosen.to_string(),
             smoother: smoother.to_string(),
@@ -363,6 +376,23 @@ mod tests {
         for w in ra.windows(2) {
             assert!(w[0] > w[1], "{ra:?}");
         }
+    }
+
+    #[test]
+    fn a_lift_to_the_criterions_height_counts_within_the_arms_precision() {
+        let c = FabricCriteria::default();
+        let judge = |lift: f64| FabricOutcome::judge(&c, "a", "a", 1, lift, 0.0, false).grasp;
+        // Fabric trial 11 of seed 1 lifted to 0.05 m as 0.04999999999999998 m.
+        assert!(judge(0.049_999_999_999_999_98));
+        assert!(judge(0.05 - 0.4e-3));
+        assert!(!judge(0.05 - 0.6e-3));
+        assert!(!judge(f64::NAN));
+        assert!(!FabricOutcome::judge(&c, "a", "a", 2, 0.05, 0.0, false).grasp);
+        // The cup's lift is judged the same way.
+        let cup = crate::task::CupCriteria::default();
+        let lift = |h: f64| crate::task::CupOutcome::judge(&cup, true, h, 0.01, 0.01, false).lift;
+        assert!(lift(0.03 - 1e-17) && lift(0.03 - 0.4e-3));
+        assert!(!lift(0.03 - 0.6e-3));
     }
 
     #[test]

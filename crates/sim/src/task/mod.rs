@@ -39,9 +39,12 @@ pub use cup::{CupCriteria, CupOutcome, CupSpec, CupVariation};
 pub use expert::{
     DemoStep, Demonstration, expert_command, fixed_opening_command, run_expert, run_policy,
 };
-pub use fabric::{FABRICS, Fabric, FabricCriteria, FabricOutcome, FabricSpec, FabricVariation};
+pub use fabric::{
+    FABRICS, Fabric, FabricCriteria, FabricOutcome, FabricSpec, FabricVariation, LIFT_TOLERANCE_M,
+    lifted,
+};
 pub use hold::{G, Hold};
-pub use observe::{SensorView, VisionNoise, VisualObservation};
+pub use observe::{ROUGHNESS_SET_SD_M, SensorView, VisionNoise, VisualObservation};
 pub use trial::{ObjectSpec, TaskObject, TrialSpec, trial_rng};
 pub use truth::{ContactTruth, GripperTruth, ObjectTruth, TaskOutcome, TaskTruth};
 

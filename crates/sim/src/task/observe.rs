@@ -3,10 +3,19 @@
 //!
 //! The camera model estimates what an RGB(-D) camera over the table could: each object's
 //! position, the cup's diameter (undeformed: the fingers hide the squeezed section, the rim is
-//! what the camera measures) and height, a fabric's folded-edge height. Each value is the truth
-//! plus a per-trial bias (calibration, segmentation) plus per-frame noise, both near-normal
-//! (`SplitMix64::gaussian`). It never sees tactile properties (roughness, softness, friction),
+//! what the camera measures) and height, a fabric's folded-edge height, and a poor guess of a
+//! fabric's roughness (Ra). Each value is the truth plus a per-trial bias (calibration,
+//! segmentation; for roughness, how the fabric's sheen and weave happen to look) plus per-frame
+//! noise, both near-normal (`SplitMix64::gaussian`). It never sees softness, friction,
 //! stiffness, force, deformation or slip.
+//!
+//! Roughness: the fabrics' texture amplitudes (0.015 to 0.06 mm) are a tenth of a pixel or
+//! less for a table camera (about 0.3 to 0.5 mm per pixel at 0.5 m), so the camera cannot
+//! measure them; it can only guess from appearance, which the fabrics here share by design
+//! (alike in colour, size and drape). Its estimate is therefore modelled as no better than
+//! knowing the set the fabric comes from: the per-trial bias has the standard deviation of the
+//! set's Ra ([`ROUGHNESS_SET_SD_M`]), the per-frame noise a quarter of it (image noise on an
+//! appearance cue).
 
 use serde::Serialize;
 
@@ -27,7 +36,15 @@ pub struct VisionNoise {
     /// Fabric edge height (a few mm seen from above, at a slant).
     pub edge_bias_m: f64,
     pub edge_m: f64,
+    /// Fabric roughness (Ra, guessed from appearance) \[m].
+    pub roughness_bias_m: f64,
+    pub roughness_m: f64,
 }
+
+/// Standard deviation of the Ra of the five fabrics in [`super::FABRICS`] \[m] (population
+/// standard deviation of `roughness_ra_mm`, checked by a test): the spread a camera that cannot
+/// resolve the texture is left with.
+pub const ROUGHNESS_SET_SD_M: f64 = 1.0125e-5;
 
 impl Default for VisionNoise {
     fn default() -> Self {
@@ -38,13 +55,17 @@ impl Default for VisionNoise {
             size_m: 0.001,
             edge_bias_m: 0.0005,
             edge_m: 0.0005,
+            roughness_bias_m: ROUGHNESS_SET_SD_M,
+            roughness_m: 0.25 * ROUGHNESS_SET_SD_M,
         }
     }
 }
 
 impl VisionNoise {
     fn sigmas(&self, name: &str) -> (f64, f64) {
-        if name.ends_with("edge_height_m") {
+        if name.ends_with("roughness_ra_m") {
+            (self.roughness_bias_m, self.roughness_m)
+        } else if name.ends_with("edge_height_m") {
             (self.edge_bias_m, self.edge_m)
         } else if name.ends_with("diameter_m") || name.ends_with("height_m") {
             (self.size_bias_m, self.size_m)
@@ -73,6 +94,9 @@ pub fn visual_names(kind: TaskKind) -> Vec<String> {
             let f = ["x_m", "y_m", "z_m", "edge_height_m"];
             let mut v = per("fabric_a", &f);
             v.extend(per("fabric_b", &f));
+            // Last, so that the other values' per-trial bias draws stay what they were.
+            v.extend(per("fabric_a", &["roughness_ra_m"]));
+            v.extend(per("fabric_b", &["roughness_ra_m"]));
             v
         }
     }
@@ -196,6 +220,7 @@ impl TaskWorld {
             ("diameter_m", ObjectSpec::Cup(c)) => c.diameter_m,
             ("height_m", ObjectSpec::Cup(c)) => c.height_m,
             ("edge_height_m", ObjectSpec::Fabric(f)) => f.stack_m(),
+            ("roughness_ra_m", ObjectSpec::Fabric(f)) => f.roughness_ra_mm * 1e-3,
             _ => return None,
         })
     }
@@ -229,5 +254,33 @@ impl TaskWorld {
             slip_total_m: c.slip_total_m,
             deformation_m: c.deformation_m,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::task::{FABRICS, fabric::roughness_ra_mm};
+
+    #[test]
+    fn the_roughness_sigma_is_the_fabric_sets_ra_spread() {
+        let ra: Vec<f64> = FABRICS
+            .iter()
+            .map(|f| roughness_ra_mm(&f.object("x")) * 1e-3)
+            .collect();
+        let mean = ra.iter().sum::<f64>() / ra.len() as f64;
+        let var = ra.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / ra.len() as f64;
+        let sd = var.sqrt();
+        assert!(
+            (sd - ROUGHNESS_SET_SD_M).abs() < 0.01 * sd,
+            "{sd:e} vs {ROUGHNESS_SET_SD_M:e}"
+        );
+        let v = VisionNoise::default();
+        assert_eq!(v.bias_sigma("fabric_a.roughness_ra_m"), ROUGHNESS_SET_SD_M);
+        assert_eq!(
+            v.frame_sigma("fabric_b.roughness_ra_m"),
+            0.25 * ROUGHNESS_SET_SD_M
+        );
+        assert_eq!(v.bias_sigma("fabric_a.edge_height_m"), v.edge_bias_m);
     }
 }
