@@ -4,7 +4,6 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
-use std::process::Command;
 use unitac_policy::onnx::ActionChunk;
 
 /// Largest difference accepted, as a fraction of each action's bound range. The model runs
@@ -49,19 +48,7 @@ fn python(dir: &std::path::Path, n: usize) -> Run {
             |(i, t)| serde_json::json!({"t": t.0, "inputs": common::Obs::new(i as u64 + 1).json()}),
         )
         .collect();
-    let spec = dir.join("ticks.json");
-    std::fs::write(&spec, serde_json::json!({ "ticks": ticks }).to_string()).unwrap();
-    let out = dir.join("oracle.json");
-    let st = Command::new(common::python())
-        .arg(common::root().join("tests/policy/policy_oracle.py"))
-        .arg(dir)
-        .arg(&spec)
-        .arg(&out)
-        .status()
-        .unwrap();
-    assert!(st.success(), "policy_oracle.py failed");
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap();
+    let v = common::run_oracle(dir, ticks, dir);
     Run {
         plans: serde_json::from_value(v["plans"].clone()).unwrap(),
         inferred: serde_json::from_value(v["inferred"].clone()).unwrap(),

@@ -50,19 +50,7 @@ fn both(dir: &Path, latents: &[TactileLatent]) -> (Vec<f64>, Vec<f64>) {
         })
         .collect();
     let tmp = common::tmpdir(&format!("stiffness-oracle-{len}"));
-    let spec = tmp.join("ticks.json");
-    std::fs::write(&spec, serde_json::json!({ "ticks": ticks }).to_string()).unwrap();
-    let out = tmp.join("oracle.json");
-    let st = Command::new(common::python())
-        .arg(common::root().join("tests/policy/policy_oracle.py"))
-        .arg(dir)
-        .arg(&spec)
-        .arg(&out)
-        .status()
-        .unwrap();
-    assert!(st.success(), "policy_oracle.py failed");
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap();
+    let v = common::run_oracle(dir, ticks, &tmp);
     let plans: Vec<Vec<Vec<f64>>> = serde_json::from_value(v["plans"].clone()).unwrap();
     let theirs = plans
         .iter()

@@ -121,3 +121,25 @@ pub fn stamps(n: usize) -> Vec<Stamp> {
         })
         .collect()
 }
+
+/// Run the Python onnxruntime oracle (tests/policy/policy_oracle.py) on the policy in `dir` for
+/// `ticks` (`{"t": stamp ns, "inputs": {name: values}}` each), with its files in `work`; returns
+/// its JSON (`plans`, `inferred`, `clamped`).
+pub fn run_oracle(
+    dir: &std::path::Path,
+    ticks: Vec<serde_json::Value>,
+    work: &std::path::Path,
+) -> serde_json::Value {
+    let spec = work.join("ticks.json");
+    std::fs::write(&spec, serde_json::json!({ "ticks": ticks }).to_string()).unwrap();
+    let out = work.join("oracle.json");
+    let st = Command::new(python())
+        .arg(root().join("tests/policy/policy_oracle.py"))
+        .arg(dir)
+        .arg(&spec)
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(st.success(), "policy_oracle.py failed");
+    serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap()
+}
