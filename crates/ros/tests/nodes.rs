@@ -285,14 +285,7 @@ fn check_fabric_outputs(got: &Value, ns: &str, frame_id: &str) {
             got["topics"]
         );
     }
-    let labels = |k: &str| -> Vec<String> {
-        got[k]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|e| e["label"].as_str().unwrap().to_string())
-            .collect()
-    };
+    let labels = |k: &str| common::labels(got, k);
     assert_eq!(
         labels("episodes"),
         ["fabric_a", "fabric_b"],

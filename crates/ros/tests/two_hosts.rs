@@ -118,14 +118,7 @@ fn inference_on_a_second_host_answers_the_robots_episodes_and_only_clips_cross()
     stop(inference);
     assert!(out.status.success());
     let got: Value = serde_json::from_slice(&out.stdout).unwrap();
-    let labels = |k: &str| -> Vec<String> {
-        got[k]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|e| e["label"].as_str().unwrap().to_string())
-            .collect()
-    };
+    let labels = |k: &str| common::labels(&got, k);
     assert_eq!(labels("episodes"), ["fabric_a", "fabric_b"], "{got}");
     assert_eq!(labels("properties"), ["fabric_a", "fabric_b"], "{got}");
     let cmp = got["comparisons"].as_array().unwrap();

@@ -33,3 +33,13 @@ pub fn stop(mut c: Child) {
     c.kill().ok();
     c.wait().ok();
 }
+
+/// The `label` of each entry of `got[key]` (a listener summary's episodes, clips, properties).
+pub fn labels(got: &serde_json::Value, key: &str) -> Vec<String> {
+    got[key]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["label"].as_str().unwrap().to_string())
+        .collect()
+}
