@@ -79,10 +79,14 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::panic)]
     use super::*;
 
+    /// A fresh scene from its own file: the tests run in parallel threads, and one writing the
+    /// file another is reading made that one see it empty.
     fn scene() -> Scene {
+        static N: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
         let dir = std::env::temp_dir().join(format!("unitac-overrides-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("s.yaml");
+        let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let path = dir.join(format!("s{n}.yaml"));
         std::fs::write(
             &path,
             "scene: s\nsource: {kind: mock, sensor: gelsight-mini, scenario: fabric_selection}\n\
