@@ -2,9 +2,11 @@
 
   policy_observer.py NS SECONDS
 
-Records NS/policy_status, NS/gripper_command, /clock and NS/sim/outcome; subscribes to
-NS/gripper_status and NS/image_raw too (counting them), so the sim's wait for subscribers waits for
-it as well. Talks to the test on
+Records NS/policy_status, NS/gripper_command, /clock, NS/sim/outcome, NS/contact_state (stamp and
+in_contact) and NS/tactile_latent (stamps, transient-local like the policy's subscription), NS/contact_episode
+(end stamps: each episode's clip goes to the inference node);
+subscribes to NS/gripper_status and NS/image_raw too (counting them), so the sim's wait for
+subscribers waits for it as well. Talks to the test on
 stdin/stdout, one line each:
   out: "ready"             once the policy node's PolicyStatus and GripperCommand publishers
                            are matched (start the sim after this)
@@ -12,6 +14,10 @@ stdin/stdout, one line each:
   in:  "mark"              record the latest PolicyStatus stamp as the mark (the test froze the
                            sim and killed a producer: the last tick before), answer
                            "marked T_NS"
+  in:  "publishers TOPIC N"  wait until the graph shows N publishers on NS/TOPIC (a producer's host
+                           went away or came back), answer "publishers TOPIC N"
+  in:  "holds N"           answer "held T_NS" once N PolicyStatus after the mark were holds
+                           (safety_ok false), T_NS the N-th's stamp
   out: "outcome"           the sim's outcome arrived
   in:  "joint_states N"    publish N sensor_msgs/JointState on NS/joint_states at 30 Hz (system
                            time stamps, opening 0.07 m, effort 1.5 N), then stop; answer
@@ -29,7 +35,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import String
-from unitac_msgs.msg import GripperCommand, GripperStatus, PolicyStatus
+from unitac_msgs.msg import (ContactEpisode, ContactState, GripperCommand, GripperStatus,
+                             PolicyStatus, TactileLatent)
 
 
 def stamp_ns(t):
@@ -42,7 +49,9 @@ def main():
     node = rclpy.create_node("policy_observer")
     lock = threading.Lock()
     got = {"status": [], "commands": [], "outcome": None, "mark_ns": None, "clock_ns": 0,
-           "clocks": 0}
+           "clocks": 0, "contact": [], "latents": [],
+           "episodes": []}
+    holds = {"want": None}
     phases = set()
 
     def say(line):
@@ -58,6 +67,12 @@ def main():
             phases.add(m.phase)
         if new:
             say(f"phase {m.phase} {t}")
+        with lock:
+            want, mark = holds["want"], got["mark_ns"] or 0
+            held = [s for s in got["status"] if s["stamp"] > mark and not s["safety_ok"]]
+            if want is not None and len(held) >= want:
+                holds["want"] = None
+                say(f"held {held[want - 1]['stamp']}")
 
     def on_command(m):
         with lock:
@@ -77,12 +92,29 @@ def main():
         if first:
             say("outcome")
 
+    def on_contact(m):
+        with lock:
+            got["contact"].append({"stamp": stamp_ns(m.header.stamp),
+                                   "in_contact": m.in_contact})
+
+    def on_latent(m):
+        with lock:
+            got["latents"].append(stamp_ns(m.header.stamp))
+
+    def on_episode(m):
+        with lock:
+            got["episodes"].append(stamp_ns(m.header.stamp))
+
     reliable = QoSProfile(depth=100)
     node.create_subscription(PolicyStatus, ns + "/policy_status", on_status, reliable)
     node.create_subscription(GripperCommand, ns + "/gripper_command", on_command, reliable)
     node.create_subscription(Clock, "/clock", on_clock, 10)
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     node.create_subscription(String, ns + "/sim/outcome", on_outcome, latched)
+    node.create_subscription(ContactState, ns + "/contact_state", on_contact, reliable)
+    node.create_subscription(ContactEpisode, ns + "/contact_episode", on_episode, reliable)
+    node.create_subscription(TactileLatent, ns + "/tactile_latent", on_latent,
+                             QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
 
     counts = {"gripper_status": 0, "images": 0}
 
@@ -124,6 +156,12 @@ def main():
                 with lock:
                     got["mark_ns"] = max((s["stamp"] for s in got["status"]), default=0)
                 say(f"marked {got['mark_ns']}")
+            elif cmd.startswith("publishers "):
+                _, topic, n = cmd.split()
+                wanted[0] = (topic, int(n))
+            elif cmd.startswith("holds "):
+                with lock:
+                    holds["want"] = int(cmd.split()[1])
             elif cmd.startswith("joint_states "):
                 threading.Thread(target=publish_joint_states, args=(int(cmd.split()[1]),),
                                  daemon=True).start()
@@ -131,6 +169,8 @@ def main():
                 break
         end.set()
 
+    # (topic, count) the test waits for; checked on the spinning thread, which owns the graph.
+    wanted = [None]
     threading.Thread(target=read_stdin, daemon=True).start()
     t0 = time.monotonic()
     while time.monotonic() - t0 < seconds and not (
@@ -140,6 +180,10 @@ def main():
     say("ready")
     while not end.is_set() and time.monotonic() - t0 < seconds:
         rclpy.spin_once(node, timeout_sec=0.02)
+        w = wanted[0]
+        if w is not None and node.count_publishers(f"{ns}/{w[0]}") == w[1]:
+            wanted[0] = None
+            say(f"publishers {w[0]} {w[1]}")
     with lock:
         say(json.dumps(got))
     node.destroy_node()

@@ -6,218 +6,57 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
-use common::{python, root, stop};
+use common::closed_loop::{Launcher, Loop, Observer, PERIOD_NS, SCENE, here, phases, statuses};
+use common::stop;
 use serde_json::Value;
-use std::io::{BufRead, BufReader, Write};
-use std::process::{Child, ChildStdin, Command, Stdio};
-use std::sync::mpsc::{Receiver, channel};
 use std::time::Duration;
 
 /// One test at a time: each runs five processes on a small machine.
 static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
-const SCENE: &str = "cup_deformation_vtla_real";
-/// The scene's control period \[ns] (30 Hz).
-const PERIOD_NS: i64 = 33_333_333;
+const HERE: Launcher = &here;
 
 fn ns(name: &str) -> String {
     format!("/t{}_{name}", std::process::id())
 }
 
-fn node(bin: &str, ns: &str, args: &[&str]) -> Child {
-    Command::new(bin)
-        .args(["--ros-args", "-r", &format!("__ns:={ns}")])
-        .args(args)
-        .stdout(Stdio::null())
-        .stderr(Stdio::inherit())
-        .spawn()
-        .unwrap()
-}
-
-struct Observer {
-    child: Child,
-    stdin: ChildStdin,
-    lines: Receiver<String>,
-}
-
-impl Observer {
-    fn start(ns: &str, seconds: u32) -> Self {
-        let mut child = Command::new(python())
-            .arg(root().join("tests/ros/policy_observer.py"))
-            .args([ns, &seconds.to_string()])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .spawn()
-            .unwrap();
-        let stdin = child.stdin.take().unwrap();
-        let out = BufReader::new(child.stdout.take().unwrap());
-        let (tx, lines) = channel();
-        std::thread::spawn(move || {
-            for l in out.lines().map_while(Result::ok) {
-                if tx.send(l).is_err() {
-                    return;
-                }
-            }
-        });
-        Self {
-            child,
-            stdin,
-            lines,
-        }
-    }
-
-    /// The first line `want` accepts (lines before it are dropped), within `seconds`.
-    fn wait_for(&self, want: impl Fn(&str) -> bool, seconds: u64) -> String {
-        let deadline = std::time::Instant::now() + Duration::from_secs(seconds);
-        let mut seen = Vec::new();
-        loop {
-            let left = deadline.saturating_duration_since(std::time::Instant::now());
-            match self.lines.recv_timeout(left) {
-                Ok(l) if want(&l) => return l,
-                Ok(l) => seen.push(l),
-                Err(e) => panic!("observer: no wanted line within {seconds} s ({e}); saw {seen:?}"),
-            }
-        }
-    }
-
-    fn send(&mut self, line: &str) {
-        writeln!(self.stdin, "{line}").unwrap();
-        self.stdin.flush().unwrap();
-    }
-
-    /// End it and return its record.
-    fn finish(mut self) -> Value {
-        self.send("end");
-        let summary = self.wait_for(|l| l.starts_with('{'), 30);
-        self.child.wait().unwrap();
-        serde_json::from_str(&summary).unwrap()
-    }
-}
-
-/// The nodes of the loop: contact, inference and policy on sim time, then the sim, which starts
-/// once the policy and the contact node subscribed.
-struct Loop {
-    contact: Child,
-    inference: Option<Child>,
-    policy: Child,
-    sim: Child,
-}
-
-impl Loop {
-    /// Start the nodes; the sim once `obs` matched the policy's outputs.
-    fn start(ns: &str, duration_s: f64, obs: &Observer) -> Self {
-        let scene = format!("scene:={SCENE}");
-        let sim_time = ["-p", "use_sim_time:=true"];
-        let contact = node(
-            env!("CARGO_BIN_EXE_unitac_contact_node"),
-            ns,
-            &[
-                "-r",
-                "image:=image_raw",
-                "-p",
-                &scene,
-                sim_time[0],
-                sim_time[1],
-            ],
-        );
-        let inference = node(
-            env!("CARGO_BIN_EXE_unitac_inference_node"),
-            ns,
-            &["-p", &scene, sim_time[0], sim_time[1]],
-        );
-        let policy = node(
-            env!("CARGO_BIN_EXE_unitac_policy_node"),
-            ns,
-            &["-p", &scene, sim_time[0], sim_time[1]],
-        );
-        obs.wait_for(|l| l == "ready", 30);
-        // Two subscribers each on gripper_status (policy, observer) and image_raw (contact,
-        // observer).
-        let sim = node(
-            env!("CARGO_BIN_EXE_unitac_sim_node"),
-            ns,
-            &[
-                "-p",
-                "task:=cup",
-                "-p",
-                "split:=train",
-                "-p",
-                "seed:=1",
-                "-p",
-                "trial:=0",
-                "-p",
-                &format!("duration_s:={duration_s:.1}"),
-                "-p",
-                "wait_subscribers:=2",
-                "-p",
-                "wait_image_subscribers:=2",
-                // Real time at most: the latent comes from the inference node at its own pace
-                // (the sim waits for the contact states and the commands, not for it).
-                "-p",
-                "max_rate:=1.0",
-            ],
-        );
-        Self {
-            contact,
-            inference: Some(inference),
-            policy,
-            sim,
-        }
-    }
-
-    fn stop(self) {
-        stop(self.sim);
-        stop(self.policy);
-        if let Some(i) = self.inference {
-            stop(i);
-        }
-        stop(self.contact);
-    }
-}
-
-fn statuses(got: &Value) -> &Vec<Value> {
-    got["status"].as_array().unwrap()
+fn node(bin: &str, ns: &str, args: &[&str]) -> std::process::Child {
+    common::closed_loop::node(HERE, "robot", bin, ns, args)
 }
 
 #[test]
 fn a_vtla_real_cup_trial_over_ros_reaches_the_target_deformation() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let n = ns("trial");
-    let obs = Observer::start(&n, 80);
-    let l = Loop::start(&n, 12.0, &obs);
+    let obs = Observer::start(HERE, &n, 80);
+    let l = Loop::start(HERE, &n, 12.0, &obs);
     obs.wait_for(|s| s == "outcome", 70);
     let got = obs.finish();
     l.stop();
     let outcome = &got["outcome"];
     let cup = &outcome["outcome"]["cup"];
-    let mut phases: Vec<(&str, i64)> = Vec::new();
-    for s in statuses(&got) {
-        let p = s["phase"].as_str().unwrap();
-        if phases.last().map(|x| x.0) != Some(p) {
-            phases.push((p, s["stamp"].as_i64().unwrap() - 1_700_000_000_000_000_000));
-        }
-    }
     let bad: Vec<&Value> = statuses(&got)
         .iter()
         .filter(|s| s["safety_ok"] == false)
         .take(3)
         .collect();
-    eprintln!("phases {phases:?}; holds {bad:?}");
+    eprintln!(
+        "phases {:?}; holds {bad:?}; sim: {} steps, {} contact timeouts",
+        phases(&got),
+        outcome["steps"],
+        outcome["contact_timeouts"]
+    );
     // The sim's own judgement: the final loss of diameter within 1 cm +- 2 mm, never more,
     // no collision, and lifted.
     assert_eq!(cup["deformation"], true, "{outcome}");
     assert_eq!(cup["over_compressed"], false, "{outcome}");
     assert_eq!(cup["overall"], true, "{outcome}");
     // The policy went through the probe touch and the squeeze, on the live latent.
-    let mut phases: Vec<&str> = Vec::new();
     for s in statuses(&got) {
-        let p = s["phase"].as_str().unwrap();
-        if phases.last() != Some(&p) {
-            phases.push(p);
-        }
         assert_eq!(s["scene"], SCENE);
         assert_eq!(s["mode"], "vtla_real");
     }
+    let phases = phases(&got);
     for want in [
         "close",
         "probe",
@@ -242,26 +81,17 @@ fn a_vtla_real_cup_trial_over_ros_reaches_the_target_deformation() {
 fn killing_the_inference_node_makes_the_policy_hold_within_one_control_period() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let n = ns("kill");
-    let mut obs = Observer::start(&n, 80);
-    let mut l = Loop::start(&n, 6.0, &obs);
+    let mut obs = Observer::start(HERE, &n, 80);
+    let mut l = Loop::start(HERE, &n, 6.0, &obs);
     // Closing on the cup: the probe latent is still awaited, so its producer must be alive.
     obs.wait_for(|s| s.starts_with("phase close"), 60);
-    // Freeze sim time, kill the inference node, let the graph see it go, and mark the last
-    // tick the policy made before.
-    let sim_pid = l.sim.id().to_string();
-    Command::new("kill")
-        .args(["-STOP", &sim_pid])
-        .status()
-        .unwrap();
+    // Freeze sim time, kill the inference node, wait until the graph shows it gone, and mark
+    // the last tick the policy made before.
+    l.freeze_sim(true);
     stop(l.inference.take().unwrap());
-    std::thread::sleep(Duration::from_secs(1));
-    obs.send("mark");
-    let marked = obs.wait_for(|s| s.starts_with("marked "), 10);
-    let mark: i64 = marked["marked ".len()..].parse().unwrap();
-    Command::new("kill")
-        .args(["-CONT", &sim_pid])
-        .status()
-        .unwrap();
+    obs.ask("publishers tactile_latent 0", "publishers ", 20);
+    let mark = obs.mark();
+    l.freeze_sim(false);
     obs.wait_for(|s| s == "outcome", 60);
     let got = obs.finish();
     l.stop();
@@ -336,7 +166,7 @@ fn killing_the_inference_node_makes_the_policy_hold_within_one_control_period() 
 fn without_gripper_states_the_policy_node_sends_the_safe_action_on_its_timer() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let n = ns("watchdog");
-    let mut obs = Observer::start(&n, 60);
+    let mut obs = Observer::start(HERE, &n, 60);
     let policy = node(
         env!("CARGO_BIN_EXE_unitac_policy_node"),
         &n,

@@ -1,5 +1,8 @@
-//! Helpers shared by the ROS node tests (nodes.rs, golden.rs): paths and stopping a node.
+//! Helpers shared by the ROS node tests: paths, stopping a node, and the closed cup loop
+//! (`closed_loop`: policy_loop.rs, two_hosts.rs).
 #![allow(dead_code, clippy::unwrap_used)]
+
+pub mod closed_loop;
 
 use std::path::PathBuf;
 use std::process::{Child, Command};
@@ -19,13 +22,21 @@ pub fn python() -> PathBuf {
 
 /// SIGINT, then up to 5 s to exit cleanly, then SIGKILL.
 pub fn stop(mut c: Child) {
+    stop_mut(&mut c);
+}
+
+/// [`stop`] for a child still owned by something (a no-op when it has exited).
+pub fn stop_mut(c: &mut Child) {
+    if c.try_wait().ok().flatten().is_some() {
+        return;
+    }
     Command::new("kill")
         .args(["-INT", &c.id().to_string()])
         .status()
         .ok();
     let t = Instant::now();
     while t.elapsed() < Duration::from_secs(5) {
-        if c.try_wait().unwrap().is_some() {
+        if c.try_wait().ok().flatten().is_some() {
             return;
         }
         std::thread::sleep(Duration::from_millis(50));
