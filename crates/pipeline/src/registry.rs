@@ -268,7 +268,7 @@ pub fn stage_configs(scene: &Scene) -> Result<Vec<StageConfig>, SceneError> {
             "compare" => StageConfig::Compare(params(scene, index, st)?),
             "policy" => {
                 let params: PolicyParams = params(scene, index, st)?;
-                params.check().map_err(&bad)?;
+                params.check().map_err(|e| bad(e.to_string()))?;
                 let stiffness_model = if st.models.is_empty() {
                     None
                 } else {

@@ -7,6 +7,7 @@
 
 pub mod bench;
 pub mod controller;
+pub mod error;
 pub mod mode;
 pub mod observation;
 pub mod onnx;
@@ -17,7 +18,8 @@ pub mod safety;
 pub mod stage;
 pub mod task;
 
+pub use error::{InputError, PolicyLoadError, Problems, SceneStagesError};
 pub use mode::Mode;
 pub use params::PolicyParams;
 pub use policy::{Action, ArmAction, GripperAction, Policy, PolicyError};
-pub use stage::{PolicyLoadError, PolicyStage, check_scene};
+pub use stage::{PolicyStage, check_scene};

@@ -5,6 +5,7 @@
 //! produces must have its producer in the scene, and the scene must not run a stage that no input
 //! of the mode needs (no encoder for vla, no sampler for vtla_real).
 
+use crate::error::SceneStagesError;
 use crate::observation::{INPUTS, input};
 use serde::{Deserialize, Serialize};
 
@@ -58,7 +59,7 @@ pub fn check_scene_stages(
     fabric: bool,
     kinds: &[&str],
     needs: &[(&str, &str)],
-) -> Result<(), String> {
+) -> Result<(), SceneStagesError> {
     let inputs = mode.inputs(fabric);
     let mut used: Vec<&str> = Vec::new();
     for name in &inputs {
@@ -67,12 +68,12 @@ pub fn check_scene_stages(
             continue;
         };
         if !kinds.contains(&producer) {
-            return Err(format!(
-                "mode {} reads {} ({}), which only a {producer} stage produces: add one before the policy stage",
-                mode.as_str(),
-                spec.name,
-                spec.what
-            ));
+            return Err(SceneStagesError::MissingProducer {
+                mode: mode.as_str(),
+                input: spec.name,
+                what: spec.what,
+                producer,
+            });
         }
         // The producer and everything it consumes, transitively.
         let mut k = producer;
@@ -89,10 +90,10 @@ pub fn check_scene_stages(
     for k in kinds {
         let feeds_an_input = INPUTS.iter().any(|i| i.produced_by == Some(*k));
         if feeds_an_input && !used.contains(k) {
-            return Err(format!(
-                "mode {} does not use the {k} stage's output: remove it from the scene (a scene loads nothing its mode does not use)",
-                mode.as_str()
-            ));
+            return Err(SceneStagesError::UnusedStage {
+                mode: mode.as_str(),
+                stage: (*k).to_string(),
+            });
         }
     }
     Ok(())
@@ -125,7 +126,9 @@ mod tests {
             Ok(())
         );
         // vla loads no encoder; vtla_real no sampler.
-        let e = check_scene_stages(Mode::Vla, true, &real, NEEDS).unwrap_err();
+        let e = check_scene_stages(Mode::Vla, true, &real, NEEDS)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("does not use the contact stage"), "{e}");
         let e = check_scene_stages(
             Mode::VtlaReal,
@@ -133,10 +136,13 @@ mod tests {
             &["contact", "encoder", "sampler"],
             NEEDS,
         )
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("does not use the sampler stage"), "{e}");
         // A missing producer names the input.
-        let e = check_scene_stages(Mode::VtlaPred, false, &["contact"], NEEDS).unwrap_err();
+        let e = check_scene_stages(Mode::VtlaPred, false, &["contact"], NEEDS)
+            .unwrap_err()
+            .to_string();
         assert_eq!(
             e,
             "mode vtla_pred reads latent_pred (predicted tactile latent), which only a sampler stage produces: add one before the policy stage"

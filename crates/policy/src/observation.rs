@@ -4,6 +4,7 @@
 //! Inputs are one table, [`INPUTS`]: adding an input (e.g. the slip state once its message lands)
 //! is one entry there and its name in [`crate::mode::Mode::inputs`].
 
+use crate::error::InputError;
 use unitac_core::Stamp;
 use unitac_core::msg::{
     ContactState, GripperStatus, LatentSource, Msg, PropertyComparison, TactileLatent,
@@ -330,9 +331,9 @@ impl Assembler {
         names: &[&str],
         budget: impl Fn(&str) -> Option<f64>,
         layout: Layout,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, InputError> {
         if let Some(n) = names.iter().find(|n| input(n).is_none()) {
-            return Err(format!("unknown input {n}"));
+            return Err(InputError::Unknown(n.chars().take(64).collect()));
         }
         let inputs = INPUTS
             .iter()

@@ -1,6 +1,7 @@
 //! The policy stage's typed parameters (`kind: policy` in a scene; every key is also a
 //! `policy.<key>` override). Flat on purpose: each key is one ROS parameter.
 
+use crate::error::Problems;
 use crate::mode::Mode;
 use crate::observation::Layout;
 use crate::safety::{Bounds, SafeAction};
@@ -152,14 +153,14 @@ impl Default for PolicyParams {
 
 impl PolicyParams {
     /// The parsed task, the bounds and every range rule; all problems in one line.
-    pub fn check(&self) -> Result<Task, String> {
+    pub fn check(&self) -> Result<Task, Problems> {
         let mut bad = Vec::new();
         let task = Task::parse(&self.task).map_err(|e| e.to_string());
         if let Err(e) = &task {
             bad.push(e.clone());
         }
         if let Err(e) = self.bounds().check() {
-            bad.push(e);
+            bad.extend(e.0);
         }
         if !(self.control_rate_hz.is_finite() && (0.1..=1000.0).contains(&self.control_rate_hz)) {
             bad.push(format!(
@@ -282,7 +283,7 @@ impl PolicyParams {
         }
         match task {
             Ok(t) if bad.is_empty() => Ok(t),
-            _ => Err(bad.join("; ")),
+            _ => Err(Problems(bad)),
         }
     }
 
@@ -335,7 +336,7 @@ mod tests {
     fn defaults_check_and_errors_are_one_line_with_every_problem() {
         assert!(PolicyParams::default().check().is_ok());
         let p = parse("{task: pick the nicer fabric, max_force_n: -1, mode: vtla_pred}").unwrap();
-        let e = p.check().unwrap_err();
+        let e = p.check().unwrap_err().to_string();
         assert!(!e.contains('\n'));
         assert!(
             e.starts_with("task 'pick the nicer fabric' is not understood"),
@@ -345,12 +346,20 @@ mod tests {
             e.contains("max_force_n = -1 must be finite and >= 0"),
             "{e}"
         );
-        let e = parse("{mode: vtla_pred}").unwrap().check().unwrap_err();
+        let e = parse("{mode: vtla_pred}")
+            .unwrap()
+            .check()
+            .unwrap_err()
+            .to_string();
         assert_eq!(
             e,
             "mode vtla_pred reads a tactile latent: set latent_len to its number of values"
         );
-        let e = parse("{mode: vla}").unwrap().check().unwrap_err();
+        let e = parse("{mode: vla}")
+            .unwrap()
+            .check()
+            .unwrap_err()
+            .to_string();
         assert_eq!(
             e,
             "mode vla picks from the camera: visual_names must list fabric_a_roughness; mode vla picks from the camera: visual_names must list fabric_b_roughness"
@@ -358,7 +367,8 @@ mod tests {
         let e = parse("{task: squeeze the cup, latent_len: 4}")
             .unwrap()
             .check()
-            .unwrap_err();
+            .unwrap_err()
+            .to_string();
         assert_eq!(e, "a squeeze task needs the object 'cup' in objects");
         assert!(
             parse("{no_such_key: 1}")

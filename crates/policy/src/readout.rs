@@ -8,10 +8,10 @@
 //! [`min_stiffness_n_per_m`]: crate::PolicyParams::min_stiffness_n_per_m
 //! [`max_stiffness_n_per_m`]: crate::PolicyParams::max_stiffness_n_per_m
 
+use crate::error::PolicyLoadError;
 use crate::onnx::{NamedInputs, OnnxPolicy, RuntimeConfig};
 use crate::params::PolicyParams;
 use crate::policy::PolicyError;
-use crate::stage::PolicyLoadError;
 use std::path::Path;
 use unitac_core::Stamp;
 use unitac_core::msg::TactileLatent;
@@ -37,12 +37,9 @@ impl Readout {
     /// bundle's own, checked by [`OnnxPolicy::load`], and this readout's: the input, the action
     /// and its unit) in one error.
     pub fn load(dir: &Path, latent_len: usize) -> Result<Readout, PolicyLoadError> {
-        let fail = |problems: Vec<String>| {
-            PolicyLoadError(format!(
-                "stiffness model {}: {}",
-                dir.display(),
-                problems.join("; ")
-            ))
+        let fail = |problems: Vec<String>| PolicyLoadError::StiffnessModel {
+            dir: dir.to_path_buf(),
+            problems,
         };
         let policy = OnnxPolicy::load(dir, &RuntimeConfig::default()).map_err(|e| {
             fail(vec![
@@ -176,10 +173,11 @@ mod tests {
     #[test]
     fn a_missing_model_is_a_load_error_naming_it() {
         let e = Readout::load(Path::new("/nonexistent/stiffness"), 64).unwrap_err();
+        let e = e.to_string();
         assert!(
-            e.0.starts_with("stiffness model /nonexistent/stiffness: "),
+            e.starts_with("stiffness model /nonexistent/stiffness: "),
             "{e}"
         );
-        assert!(!e.0.contains('\n'), "{e}");
+        assert!(!e.contains('\n'), "{e}");
     }
 }

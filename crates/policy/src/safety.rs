@@ -12,6 +12,7 @@
 //! The safe action itself is bounded but not rate limited (holding is stopping where the fingers
 //! are); the next proposed action is rate limited from it. No NaN or infinity ever leaves here.
 
+use crate::error::Problems;
 use crate::policy::{Action, ArmAction, GripperAction};
 use serde::{Deserialize, Serialize};
 use unitac_core::msg::GripperMode;
@@ -49,7 +50,7 @@ pub struct Bounds {
 
 impl Bounds {
     /// One line per broken rule, all at once.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), Problems> {
         let mut bad = Vec::new();
         let all = [
             ("min_opening_m", self.min_opening_m),
@@ -83,11 +84,7 @@ impl Bounds {
                 bad.push(format!("{k} must be > 0"));
             }
         }
-        if bad.is_empty() {
-            Ok(())
-        } else {
-            Err(bad.join("; "))
-        }
+        Problems(bad).into_result()
     }
 }
 
@@ -327,7 +324,7 @@ mod tests {
         b.max_force_n = f64::NAN;
         b.min_opening_m = 0.1;
         b.max_step_m = 0.0;
-        let e = b.check().unwrap_err();
+        let e = b.check().unwrap_err().to_string();
         assert_eq!(
             e,
             "max_force_n = NaN must be finite and >= 0; min_opening_m must be below max_opening_m; max_step_m must be > 0"

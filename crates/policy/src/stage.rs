@@ -4,6 +4,7 @@
 //! one PolicyStatus per tick.
 
 use crate::controller::{CupController, FabricController};
+use crate::error::{InputError, PolicyLoadError};
 use crate::observation::Assembler;
 use crate::params::PolicyParams;
 use crate::policy::{Action, Policy};
@@ -12,13 +13,8 @@ use crate::safety::SafetyLayer;
 use crate::task::Task;
 use std::collections::VecDeque;
 use std::path::Path;
-use thiserror::Error;
 use unitac_core::msg::{ArmCommand, GripperCommand, GripperStatus, Header, Msg, PolicyStatus};
 use unitac_core::{Clock, Stage, StageError, Stamp};
-
-#[derive(Debug, Clone, PartialEq, Error)]
-#[error("{0}")]
-pub struct PolicyLoadError(pub String);
 
 /// The params' checks plus the scene's stage list against the mode: `kinds` are the stage kinds
 /// before the policy stage, `needs` the registry's (kind -> the kind it consumes).
@@ -27,8 +23,13 @@ pub fn check_scene(
     kinds: &[&str],
     needs: &[(&str, &str)],
 ) -> Result<(), PolicyLoadError> {
-    let task = p.check().map_err(PolicyLoadError)?;
-    crate::mode::check_scene_stages(p.mode, task.is_pick(), kinds, needs).map_err(PolicyLoadError)
+    let task = p.check()?;
+    Ok(crate::mode::check_scene_stages(
+        p.mode,
+        task.is_pick(),
+        kinds,
+        needs,
+    )?)
 }
 
 pub struct PolicyStage {
@@ -70,17 +71,15 @@ impl PolicyStage {
         params: PolicyParams,
         stiffness_model: Option<&Path>,
     ) -> Result<Self, PolicyLoadError> {
-        let task = params.check().map_err(PolicyLoadError)?;
+        let task = params.check()?;
         let readout = match stiffness_model {
             Some(dir) => Readout::load(dir, params.latent_len)?,
             None => Readout::Linear,
         };
         let policy: Box<dyn Policy> = match task {
-            Task::Pick { property, more, .. } => Box::new(
-                FabricController::new(&params, property, more)
-                    .map_err(PolicyLoadError)?
-                    .with_readout(readout),
-            ),
+            Task::Pick { property, more, .. } => {
+                Box::new(FabricController::new(&params, property, more)?.with_readout(readout))
+            }
             Task::Squeeze { by_m } => {
                 Box::new(CupController::new(&params, by_m).with_readout(readout))
             }
@@ -94,10 +93,9 @@ impl PolicyStage {
         params: PolicyParams,
         policy: Box<dyn Policy>,
     ) -> Result<Self, PolicyLoadError> {
-        let task = params.check().map_err(PolicyLoadError)?;
+        let task = params.check()?;
         let inputs = params.mode.inputs(task.is_pick());
-        let assembler = Assembler::new(&inputs, |n| params.budget(n), params.layout())
-            .map_err(PolicyLoadError)?;
+        let assembler = Assembler::new(&inputs, |n| params.budget(n), params.layout())?;
         Ok(Self {
             scene: scene.to_string(),
             safety: SafetyLayer::new(params.bounds(), params.safe_action, params.hold_force_n),
@@ -131,12 +129,12 @@ impl PolicyStage {
     /// no publisher on its topic any more) or back (`None`). While it is gone, every tick in a
     /// phase that awaits the input sends the safe action with `<name>: <why>` as the reason.
     /// Err: `name` is not one of this mode's inputs.
-    pub fn set_input_lost(&mut self, name: &str, why: Option<String>) -> Result<(), String> {
+    pub fn set_input_lost(&mut self, name: &str, why: Option<String>) -> Result<(), InputError> {
         let Some(n) = self.inputs().into_iter().find(|n| *n == name) else {
-            return Err(format!(
-                "'{name}' is not an input of this mode ({})",
-                self.inputs().join(", ")
-            ));
+            return Err(InputError::NotOfMode {
+                name: name.chars().take(64).collect(),
+                inputs: self.inputs(),
+            });
         };
         match why {
             Some(w) => self.lost.insert(n, w),

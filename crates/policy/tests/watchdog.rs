@@ -86,6 +86,7 @@ fn a_lost_producer_holds_in_the_phases_that_await_it_and_only_those() {
     assert!(
         s.set_input_lost("visual", Some("gone".into()))
             .unwrap_err()
+            .to_string()
             .contains("not an input of this mode")
     );
     // Approaching: the latent of the probe touch is awaited, so its producer must be alive.

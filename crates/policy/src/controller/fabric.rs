@@ -20,6 +20,7 @@
 //! a fresh visual observation; one without the object's edge height fails the controller.
 
 use super::{Timed, action, arm, force, position};
+use crate::error::PolicyLoadError;
 use crate::mode::Mode;
 use crate::observation::Observation;
 use crate::params::PolicyParams;
@@ -88,9 +89,13 @@ impl EdgeEstimate {
 
 impl FabricController {
     /// `property`/`more`: from the task (which property, and whether the pick has more of it).
-    pub fn new(p: &PolicyParams, property: &'static str, more: bool) -> Result<Self, String> {
+    pub fn new(
+        p: &PolicyParams,
+        property: &'static str,
+        more: bool,
+    ) -> Result<Self, PolicyLoadError> {
         let [a, b, ..] = p.objects.as_slice() else {
-            return Err("a pick task needs two objects (A and B)".into());
+            return Err(PolicyLoadError::PickNeedsTwoObjects);
         };
         Ok(Self {
             mode: p.mode,

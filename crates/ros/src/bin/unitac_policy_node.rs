@@ -246,9 +246,7 @@ impl Producers {
             } else {
                 None
             };
-            stage
-                .set_input_lost(input, lost)
-                .map_err(anyhow::Error::msg)?;
+            stage.set_input_lost(input, lost)?;
         }
         Ok(())
     }

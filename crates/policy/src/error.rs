@@ -1,0 +1,66 @@
+//! What a policy's configuration can get wrong: its params, its scene's stages, an input name, a
+//! fitted model. Each error is one line; where several rules are checked at once, every broken
+//! rule is listed.
+
+use std::path::PathBuf;
+use thiserror::Error;
+
+/// Every broken rule of a checked set of values (params, bounds), in one line.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("{}", .0.join("; "))]
+pub struct Problems(pub Vec<String>);
+
+impl Problems {
+    /// Ok when nothing was found.
+    pub fn into_result(self) -> Result<(), Problems> {
+        if self.0.is_empty() { Ok(()) } else { Err(self) }
+    }
+}
+
+/// A scene's stage list against the mode of its policy stage.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum SceneStagesError {
+    #[error(
+        "mode {mode} reads {input} ({what}), which only a {producer} stage produces: add one before the policy stage"
+    )]
+    MissingProducer {
+        mode: &'static str,
+        input: &'static str,
+        what: &'static str,
+        producer: &'static str,
+    },
+    #[error(
+        "mode {mode} does not use the {stage} stage's output: remove it from the scene (a scene loads nothing its mode does not use)"
+    )]
+    UnusedStage { mode: &'static str, stage: String },
+}
+
+/// An input name the policy does not have.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+pub enum InputError {
+    /// Not an input any mode reads.
+    #[error("unknown input {0}")]
+    Unknown(String),
+    /// Not an input of this mode (the mode's inputs listed).
+    #[error("'{name}' is not an input of this mode ({})", .inputs.join(", "))]
+    NotOfMode {
+        name: String,
+        inputs: Vec<&'static str>,
+    },
+}
+
+/// Why a policy stage could not be built.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum PolicyLoadError {
+    #[error(transparent)]
+    Params(#[from] Problems),
+    #[error(transparent)]
+    SceneStages(#[from] SceneStagesError),
+    #[error(transparent)]
+    Input(#[from] InputError),
+    #[error("a pick task needs two objects (A and B)")]
+    PickNeedsTwoObjects,
+    /// The fitted stiffness model in `dir`: every problem.
+    #[error("stiffness model {}: {}", .dir.display(), .problems.join("; "))]
+    StiffnessModel { dir: PathBuf, problems: Vec<String> },
+}
