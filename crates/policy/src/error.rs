@@ -64,3 +64,23 @@ pub enum PolicyLoadError {
     #[error("stiffness model {}: {}", .dir.display(), .problems.join("; "))]
     StiffnessModel { dir: PathBuf, problems: Vec<String> },
 }
+
+/// Why a message cannot fill its input's slice of the observation (the input is then invalid,
+/// with this as the reason).
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum FeatureError {
+    #[error("not a {0}")]
+    WrongKind(&'static str),
+    #[error("{name} is {value}")]
+    NotFinite { name: String, value: f64 },
+    #[error("gripper fault: {0}")]
+    GripperFault(String),
+    #[error("latent marked invalid: {0}")]
+    LatentInvalid(String),
+    #[error("latent has {got} values, the observation layout has {want} (latent_len)")]
+    LatentLen { got: usize, want: usize },
+    #[error("latent value {index} is {value}")]
+    LatentValue { index: usize, value: f32 },
+    #[error("visual observation has no {0}")]
+    NoVisual(String),
+}

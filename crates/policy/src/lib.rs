@@ -18,7 +18,7 @@ pub mod safety;
 pub mod stage;
 pub mod task;
 
-pub use error::{InputError, PolicyLoadError, Problems, SceneStagesError};
+pub use error::{FeatureError, InputError, PolicyLoadError, Problems, SceneStagesError};
 pub use mode::Mode;
 pub use params::PolicyParams;
 pub use policy::{Action, ArmAction, GripperAction, Policy, PolicyError};

@@ -4,7 +4,7 @@
 //! Inputs are one table, [`INPUTS`]: adding an input (e.g. the slip state once its message lands)
 //! is one entry there and its name in [`crate::mode::Mode::inputs`].
 
-use crate::error::InputError;
+use crate::error::{FeatureError, InputError};
 use unitac_core::Stamp;
 use unitac_core::msg::{
     ContactState, GripperStatus, LatentSource, Msg, PropertyComparison, TactileLatent,
@@ -39,19 +39,22 @@ pub struct InputSpec {
     /// Number of values in its slice.
     pub width: fn(&Layout) -> usize,
     /// Its values (exactly `width`) into `out`; Err: the message is invalid, with the reason.
-    pub features: fn(&Msg, &Layout, &mut Vec<f32>) -> Result<(), String>,
+    pub features: fn(&Msg, &Layout, &mut Vec<f32>) -> Result<(), FeatureError>,
 }
 
-fn finite(name: &str, v: f64) -> Result<f32, String> {
+fn finite(name: &str, v: f64) -> Result<f32, FeatureError> {
     if v.is_finite() {
         Ok(v as f32)
     } else {
-        Err(format!("{name} is {v}"))
+        Err(FeatureError::NotFinite {
+            name: name.to_string(),
+            value: v,
+        })
     }
 }
 
 /// NaN (unknown) -> (0, known = 0); finite -> (v, 1); inf -> error.
-fn maybe(name: &str, v: f64, out: &mut Vec<f32>) -> Result<(), String> {
+fn maybe(name: &str, v: f64, out: &mut Vec<f32>) -> Result<(), FeatureError> {
     if v.is_nan() {
         out.extend([0.0, 0.0]);
         return Ok(());
@@ -60,9 +63,9 @@ fn maybe(name: &str, v: f64, out: &mut Vec<f32>) -> Result<(), String> {
     Ok(())
 }
 
-fn gripper_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), String> {
+fn gripper_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
     let Msg::Gripper(g) = m else {
-        return Err("not a gripper status".into());
+        return Err(FeatureError::WrongKind("gripper status"));
     };
     out.push(finite("opening_m", g.opening_m)?);
     maybe("target_m", g.target_m, out)?;
@@ -70,14 +73,14 @@ fn gripper_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), Strin
     maybe("current_a", g.current_a, out)?;
     out.push(if g.object_detected { 1.0 } else { 0.0 });
     if !g.fault.is_empty() {
-        return Err(format!("gripper fault: {}", g.fault));
+        return Err(FeatureError::GripperFault(g.fault.clone()));
     }
     Ok(())
 }
 
-fn contact_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), String> {
+fn contact_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
     let Msg::Contact(c) = m else {
-        return Err("not a contact state".into());
+        return Err(FeatureError::WrongKind("contact state"));
     };
     out.push(if c.in_contact { 1.0 } else { 0.0 });
     out.push(finite("area_mm2", f64::from(c.area_mm2))?);
@@ -85,30 +88,29 @@ fn contact_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), Strin
     Ok(())
 }
 
-fn latent_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), String> {
+fn latent_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
     let Msg::Latent(t) = m else {
-        return Err("not a tactile latent".into());
+        return Err(FeatureError::WrongKind("tactile latent"));
     };
     if !t.valid {
-        return Err(format!("latent marked invalid: {}", t.guard_report));
+        return Err(FeatureError::LatentInvalid(t.guard_report.clone()));
     }
     if t.data.len() != l.latent_len {
-        return Err(format!(
-            "latent has {} values, the observation layout has {} (latent_len)",
-            t.data.len(),
-            l.latent_len
-        ));
+        return Err(FeatureError::LatentLen {
+            got: t.data.len(),
+            want: l.latent_len,
+        });
     }
-    if let Some(i) = t.data.iter().position(|v| !v.is_finite()) {
-        return Err(format!("latent value {i} is {}", t.data[i]));
+    if let Some((index, &value)) = t.data.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(FeatureError::LatentValue { index, value });
     }
     out.extend_from_slice(&t.data);
     Ok(())
 }
 
-fn comparison_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), String> {
+fn comparison_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
     let Msg::Comparison(c) = m else {
-        return Err("not a property comparison".into());
+        return Err(FeatureError::WrongKind("property comparison"));
     };
     let one_hot = |w: Winner| if c.winner == w { 1.0 } else { 0.0 };
     out.extend([one_hot(Winner::A), one_hot(Winner::B), one_hot(Winner::Tie)]);
@@ -117,14 +119,14 @@ fn comparison_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), St
     Ok(())
 }
 
-fn visual_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), String> {
+fn visual_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
     let Msg::Visual(v) = m else {
-        return Err("not a visual observation".into());
+        return Err(FeatureError::WrongKind("visual observation"));
     };
     for name in &l.visual_names {
         let x = v
             .get(name)
-            .ok_or_else(|| format!("visual observation has no {name}"))?;
+            .ok_or_else(|| FeatureError::NoVisual(name.clone()))?;
         out.push(finite(name, x)?);
     }
     Ok(())
@@ -399,7 +401,7 @@ impl Assembler {
                                 "{} values, the layout has {width}",
                                 vector.len() - start
                             )),
-                            Err(r) => InputStatus::Invalid(r),
+                            Err(r) => InputStatus::Invalid(r.to_string()),
                         }
                     };
                     (Some(age), status)
