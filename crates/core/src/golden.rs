@@ -61,12 +61,26 @@ fn diff_value(e: &Value, g: &Value, path: &str) -> Option<String> {
     }
 }
 
+/// A line of a JSON-lines text that is not JSON.
+#[derive(Debug, thiserror::Error)]
+#[error("line {line}: {source}")]
+pub struct LineError {
+    /// 1-based.
+    pub line: usize,
+    pub source: serde_json::Error,
+}
+
 /// JSON lines -> values (blank lines skipped); a line that is not JSON is an error naming it.
-pub fn parse_lines(text: &str) -> Result<Vec<Value>, String> {
+pub fn parse_lines(text: &str) -> Result<Vec<Value>, LineError> {
     text.lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| serde_json::from_str(l).map_err(|e| format!("line {}: {e}", i + 1)))
+        .map(|(i, l)| {
+            serde_json::from_str(l).map_err(|source| LineError {
+                line: i + 1,
+                source,
+            })
+        })
         .collect()
 }
 
@@ -111,6 +125,8 @@ mod tests {
     #[test]
     fn lines_parse_and_bad_lines_are_named() {
         assert_eq!(parse_lines("{\"a\":1}\n\n[2]\n").unwrap().len(), 2);
-        assert!(parse_lines("{}\nnope\n").unwrap_err().starts_with("line 2"));
+        let e = parse_lines("{}\nnope\n").unwrap_err();
+        assert_eq!(e.line, 2);
+        assert!(e.to_string().starts_with("line 2: "), "{e}");
     }
 }

@@ -16,6 +16,11 @@ pub const MAX_IDLE_SLICE: Duration = Duration::from_millis(50);
 /// Rates accepted by [`Pacer::new`] (stream seconds per wall second).
 pub const RATE_RANGE: (f64, f64) = (1e-3, 1e3);
 
+/// A pacing rate outside [`RATE_RANGE`] (or not finite).
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("rate must be in [{lo}, {hi}], got {rate}", lo = RATE_RANGE.0, hi = RATE_RANGE.1, rate = .0)]
+pub struct RateError(pub f64);
+
 #[derive(Debug, Clone)]
 pub struct Pacer {
     rate: Option<f64>,
@@ -25,13 +30,10 @@ pub struct Pacer {
 impl Pacer {
     /// `rate` = stream seconds per wall second (1.0 = real time); `None` = as fast as possible.
     /// A rate outside [`RATE_RANGE`] (or not finite) is an error naming the range.
-    pub fn new(rate: Option<f64>) -> Result<Self, String> {
+    pub fn new(rate: Option<f64>) -> Result<Self, RateError> {
         if let Some(r) = rate {
             if !(r.is_finite() && (RATE_RANGE.0..=RATE_RANGE.1).contains(&r)) {
-                return Err(format!(
-                    "rate must be in [{}, {}], got {r}",
-                    RATE_RANGE.0, RATE_RANGE.1
-                ));
+                return Err(RateError(r));
             }
         }
         Ok(Self { rate, start: None })

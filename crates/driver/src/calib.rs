@@ -103,7 +103,7 @@ impl Calibration {
         if !(self.mm_per_px.is_finite() && self.mm_per_px > 0.0 && self.mm_per_px < 10.0) {
             return Err(format!("mm_per_px {} is outside (0, 10)", self.mm_per_px));
         }
-        self.camera.validate()
+        self.camera.validate().map_err(|e| e.to_string())
     }
 
     pub fn parse(text: &str, path: &str) -> Result<Self, CalibrationError> {

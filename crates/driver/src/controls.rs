@@ -72,6 +72,19 @@ pub fn firmware_number(bcd_device: &str) -> Option<u32> {
     s.parse().ok()
 }
 
+/// A camera setting outside what the sensors accept.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SettingsError {
+    #[error("exposure {0} is outside 1..=100000 (100 us units)")]
+    Exposure(u32),
+    #[error("white_balance_k {0} is outside 1000..=10000")]
+    WhiteBalance(u32),
+    #[error("gain {0} is above 1000")]
+    Gain(u32),
+    #[error("led {0}: each channel is 0..=15")]
+    Led(String),
+}
+
 /// Settings written at open and after every reconnect. `None` leaves the camera's value alone.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -105,26 +118,24 @@ impl CameraSettings {
             ..Self::default()
         }
     }
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SettingsError> {
         match self.exposure {
-            Some(e) if !(1..=100_000).contains(&e) => {
-                return Err(format!("exposure {e} is outside 1..=100000 (100 us units)"));
-            }
+            Some(e) if !(1..=100_000).contains(&e) => return Err(SettingsError::Exposure(e)),
             _ => {}
         }
         match self.white_balance_k {
             Some(k) if !(1000..=10_000).contains(&k) => {
-                return Err(format!("white_balance_k {k} is outside 1000..=10000"));
+                return Err(SettingsError::WhiteBalance(k));
             }
             _ => {}
         }
         match self.gain {
-            Some(g) if g > 1000 => return Err(format!("gain {g} is above 1000")),
+            Some(g) if g > 1000 => return Err(SettingsError::Gain(g)),
             _ => {}
         }
         match self.led {
             Some(l) if digit_led_value(l, DIGIT_RGB_LED_FIRMWARE).is_none() => {
-                return Err(format!("led {l:?}: each channel is 0..=15"));
+                return Err(SettingsError::Led(format!("{l:?}")));
             }
             _ => {}
         }

@@ -291,7 +291,9 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
         &mut self,
         settings: crate::controls::CameraSettings,
     ) -> Result<Vec<ControlMismatch>, SourceError> {
-        settings.validate().map_err(SourceError::Fatal)?;
+        settings
+            .validate()
+            .map_err(|e| SourceError::Fatal(e.to_string()))?;
         self.cfg.calibration.camera = settings;
         if let State::Streaming(dev) = &mut self.state {
             let plan = settings.plan(self.cfg.calibration.kind, self.firmware);

@@ -21,15 +21,18 @@ pub const RELIABLE_IMAGE_DEPTH: usize = 64;
 /// - `reliable` (reliable, keep last [`RELIABLE_IMAGE_DEPTH`]): every frame arrives unless the
 ///   node falls that far behind: for replays whose outputs are compared frame by frame (the
 ///   golden test). The publisher must be reliable too (the sensor node's is).
-pub fn image_qos(name: &str) -> Result<r2r::QosProfile, String> {
+pub fn image_qos(name: &str) -> Result<r2r::QosProfile, QosNameError> {
     match name {
         "sensor_data" => Ok(r2r::QosProfile::sensor_data()),
         "reliable" => Ok(r2r::QosProfile::default().keep_last(RELIABLE_IMAGE_DEPTH)),
-        other => Err(format!(
-            "image_qos must be sensor_data or reliable, got '{other}'"
-        )),
+        other => Err(QosNameError(other.chars().take(64).collect())),
     }
 }
+
+/// An `image_qos` value that names no profile.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("image_qos must be sensor_data or reliable, got '{0}'")]
+pub struct QosNameError(pub String);
 
 /// Image (any encoding `unitac_bag::image` knows; any row padding) -> RGB8 frame with the
 /// header's stamp.
@@ -97,7 +100,7 @@ mod tests {
             (r.history, r.depth),
             (HistoryPolicy::KeepLast, RELIABLE_IMAGE_DEPTH)
         );
-        let e = image_qos("best").unwrap_err();
+        let e = image_qos("best").unwrap_err().to_string();
         assert!(
             e.contains("sensor_data or reliable") && e.contains("'best'"),
             "{e}"

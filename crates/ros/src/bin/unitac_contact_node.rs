@@ -93,7 +93,7 @@ fn run() -> anyhow::Result<()> {
     let mut chain = Chain::new(stages);
     let sensor_id = p.sensor_id;
 
-    let image_qos = unitac_ros::image::image_qos(&p.image_qos).map_err(anyhow::Error::msg)?;
+    let image_qos = unitac_ros::image::image_qos(&p.image_qos)?;
     let node = &mut base.node;
     // One of the two subscriptions, by `image_transport`.
     let (mut raw, mut compressed) = match p.image_transport.as_str() {

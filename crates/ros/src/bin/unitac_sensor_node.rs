@@ -221,7 +221,7 @@ fn run_bag(base: &mut Base, p: &Params, scene: &Scene) -> anyhow::Result<()> {
     let Some(path) = scene.source.path.clone() else {
         anyhow::bail!("source 'bag' needs the parameter bag (a rosbag2 directory, .mcap or .db3)");
     };
-    let mut pacer = Pacer::new(Some(p.rate)).map_err(anyhow::Error::msg)?;
+    let mut pacer = Pacer::new(Some(p.rate))?;
     const IMAGE: &str = "sensor_msgs/msg/Image";
     const COMPRESSED: &str = "sensor_msgs/msg/CompressedImage";
     let is_image = |t: &str| t == IMAGE || t == COMPRESSED;
