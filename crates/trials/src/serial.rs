@@ -31,7 +31,8 @@
 //!   fault and `status` ends the trial with an error instead of a different outcome;
 //! - a failed exchange (no reply within [`TIMEOUT`]) is counted in [`SerialReport::link_errors`]:
 //!   a lost reply to a write makes the driver write again, which resets the device's object
-//!   detection, so the byte-for-byte agreement holds for runs with none (the test asserts 0);
+//!   detection at a moment wall time decides, so a serial trial repeats byte for byte when it
+//!   has none (tests/serial_gripper.rs asserts 0);
 //! - waits are bounded by [`WAIT`] of wall time, then an error.
 //!
 //! The world's force bound is per finger, the Robotiq's and DH's a grip force: the number is

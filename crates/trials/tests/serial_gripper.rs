@@ -90,6 +90,43 @@ fn the_cup_trial_over_the_serial_gripper_agrees_with_the_in_process_one() {
     }
 }
 
+/// Fastest opening change between two trace rows in `phase` \[m/s].
+fn top_speed(r: &TrialRecord, phase: &str) -> f64 {
+    r.trace
+        .windows(2)
+        .filter(|w| w[0].phase == phase)
+        .map(|w| (w[1].opening_m - w[0].opening_m).abs() / (w[1].t_s - w[0].t_s))
+        .fold(0.0, f64::max)
+}
+
+/// Where the outcomes differ (seed 1 trial 19 of 20 in `unitac trials`): the policy closes until
+/// contact at its touch speed, 10 mm/s, with a 3 N bound; the 2F-140's slowest is 30 mm/s and its
+/// weakest 10 N (the driver clamps to the model's range, the device's registers hold it), so the
+/// close overruns the first touch, over-compresses the cup, and the probe's release does not end
+/// the contact before the policy's timeout.
+#[test]
+fn where_they_differ_the_serial_gripper_touched_at_its_minimum_speed() {
+    let a = trial("cup_deformation_vtla_real", 1, 19, TrialGripper::InProcess);
+    let b = trial("cup_deformation_vtla_real", 1, 19, SERIAL);
+    assert_went_over_the_wire(&b);
+    assert!(cup(&a).overall, "{:?}", cup(&a));
+    assert!(!cup(&b).overall && cup(&b).over_compressed, "{:?}", cup(&b));
+    assert_eq!(b.end_phase, "failed");
+    assert!(
+        b.end_reason.contains("the probe contact did not end"),
+        "{}",
+        b.end_reason
+    );
+    let limits = Model::Robotiq2F140.calibration().limits;
+    assert_eq!(limits.min_speed_m_s, 0.03);
+    assert!(
+        top_speed(&a, "close") <= 0.0101,
+        "{}",
+        top_speed(&a, "close")
+    );
+    assert!(top_speed(&b, "close") > 0.02, "{}", top_speed(&b, "close"));
+}
+
 #[test]
 fn a_serial_trial_gives_the_same_trace_bytes_twice() {
     let a = trial("cup_deformation_vla", 5, 1, SERIAL);
