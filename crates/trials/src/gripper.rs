@@ -7,9 +7,9 @@
 //! - serial ([`crate::serial`]): the real Modbus RTU driver talking to a simulated device on a
 //!   pseudo-terminal whose fingers are the world's gripper.
 //!
-//! Per tick the loop calls [`GripperSide::status`] (the world after the previous step), then
-//! [`GripperSide::command`] with the policy's setpoint (it returns the setpoint the world is
-//! stepped with), then, after the step, [`GripperSide::stepped`] with the world's new truth.
+//! Per tick the loop calls `GripperSide::status` (the world after the previous step), then
+//! `GripperSide::command` with the policy's setpoint (it returns the setpoint the world is
+//! stepped with), then, after the step, `GripperSide::stepped` with the world's new truth.
 
 use crate::bridge::gripper_status;
 use crate::serial::{SerialError, SerialReport, SerialSide};
