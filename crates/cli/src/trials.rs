@@ -1,7 +1,7 @@
 //! `unitac trials`: the paper's closed-loop grasp trials in the sim world, one scene file per mode
 //! (`<scene>_<mode>.yaml`), N trials each, the success table beside the paper's.
 //!
-//! The loop is unitac-trials' (`run_trial`); here: arguments, the stages built fresh per trial
+//! The loop is unitac-trials' (`run_trial_on`, with the gripper `--gripper` names); here: arguments, the stages built fresh per trial
 //! from the scene (unitac-pipeline), the progress bar, the table, JSON and the plots.
 
 use crate::ConfigError;
@@ -9,10 +9,12 @@ use crate::progress;
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use unitac_gripper::Model;
 use unitac_plot::{Axis, Band, Chart, Figure, PALETTE, Series, Stroke};
 use unitac_sim::task::{Split, TaskConfig, TaskKind, TaskOutcome};
+use unitac_trials::serial::SerialReport;
 use unitac_trials::table::{self, Row};
-use unitac_trials::{TrialOptions, TrialRecord, run_trial};
+use unitac_trials::{TrialGripper, TrialOptions, TrialRecord, run_trial_on};
 
 /// Most trials per mode.
 pub const MAX_TRIALS: u32 = 1000;
@@ -58,6 +60,31 @@ impl TrialMode {
     }
 }
 
+/// The gripper a trial drives.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TrialGripperArg {
+    /// The task world's gripper, in process.
+    #[value(name = "sim")]
+    Sim,
+    /// The serial driver and a simulated Robotiq 2F-140 on a pty, fingers = the world's gripper.
+    #[value(name = "robotiq_2f140")]
+    Robotiq2F140,
+    /// The same with a simulated DH AG-95 (95 mm stroke: too narrow for the unseen 90 mm cup
+    /// between 2 x 3 mm gel pads).
+    #[value(name = "dh_ag95")]
+    DhAg95,
+}
+
+impl TrialGripperArg {
+    fn gripper(self) -> TrialGripper {
+        match self {
+            TrialGripperArg::Sim => TrialGripper::InProcess,
+            TrialGripperArg::Robotiq2F140 => TrialGripper::Serial(Model::Robotiq2F140),
+            TrialGripperArg::DhAg95 => TrialGripper::Serial(Model::DhAg95),
+        }
+    }
+}
+
 #[derive(clap::Args, Debug)]
 pub struct TrialsArgs {
     /// Task: cup_deformation | fabric_selection (runs `launch/scenes/<scene>_<mode>.yaml`).
@@ -75,6 +102,10 @@ pub struct TrialsArgs {
     /// Cup task: draw the training cups (60 / 65 / 70 mm) instead of the unseen 90 mm one.
     #[arg(long)]
     pub train: bool,
+    /// The gripper: sim (the world's own, in process) or a serial model (the Modbus driver
+    /// talking to a simulated device on a pty whose fingers are the world's gripper).
+    #[arg(long, value_enum, default_value = "sim")]
+    pub gripper: TrialGripperArg,
     /// Print the table and every trial's outcome as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -99,6 +130,9 @@ struct TrialLine<'a> {
     frames: u64,
     rejected: u64,
     outcome: &'a TaskOutcome,
+    /// What went over the wire (serial grippers).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    serial: Option<&'a SerialReport>,
 }
 
 #[derive(Debug, Serialize)]
@@ -114,6 +148,7 @@ struct Report<'a> {
     split: Split,
     seed: u64,
     trials: u32,
+    gripper: &'a str,
     table: &'a [Row],
     modes: Vec<ModeReport<'a>>,
 }
@@ -154,6 +189,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         scenes.push((*m, scene));
     }
     let opts = TrialOptions::for_task(kind);
+    let gripper = a.gripper.gripper();
     let total = u64::from(a.trials) * modes.len() as u64;
     let bar = progress::bar(total, &format!("trials {}", a.scene.name()));
     let mut records: Vec<(TrialMode, Vec<TrialRecord>)> = Vec::new();
@@ -162,7 +198,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         let mut rs = Vec::new();
         for trial in 0..a.trials {
             let stages = unitac_pipeline::build_stages(scene).map_err(|e| config(e.to_string()))?;
-            let r = run_trial(scene, stages, &task, a.seed, trial, &opts)
+            let r = run_trial_on(scene, stages, &task, a.seed, trial, &opts, gripper)
                 .with_context(|| format!("{} trial {trial}", scene.name))?;
             rs.push(r);
             bar.inc(1);
@@ -189,6 +225,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             split: task.split,
             seed: a.seed,
             trials: a.trials,
+            gripper: gripper.name(),
             table: &rows,
             modes: records
                 .iter()
@@ -207,6 +244,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
                             frames: r.frames,
                             rejected: r.rejected,
                             outcome: &r.outcome,
+                            serial: r.serial.as_ref(),
                         })
                         .collect(),
                 })
@@ -220,7 +258,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             (TaskKind::Fabric, _) => "fabric selection",
         };
         let mut text = format!(
-            "{what}, seed {}, {} trial(s) per mode: ours (paper, real robot)\n",
+            "{what}, seed {}, {} trial(s) per mode, gripper {gripper}: ours (paper, real robot)\n",
             a.seed, a.trials
         );
         text.push_str(&table::render(&rows));

@@ -100,6 +100,14 @@ fn the_text_table_names_each_criterion_and_bad_arguments_are_exit_2() {
             "--modes",
             "vla,vtla_fake",
         ],
+        // 85 mm of stroke: not offered for the 90 mm cup.
+        &[
+            "trials",
+            "--scene",
+            "cup_deformation",
+            "--gripper",
+            "robotiq_2f85",
+        ],
     ] {
         let o = unitac(bad);
         assert_eq!(
@@ -110,4 +118,47 @@ fn the_text_table_names_each_criterion_and_bad_arguments_are_exit_2() {
         );
         assert!(o.stdout.is_empty());
     }
+}
+
+#[test]
+fn a_serial_gripper_trial_reports_its_wire_in_the_json() {
+    let o = unitac(&[
+        "trials",
+        "--scene",
+        "cup_deformation",
+        "--modes",
+        "vla",
+        "--trials",
+        "1",
+        "--gripper",
+        "robotiq_2f140",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["gripper"], "robotiq_2f140");
+    let t = &j["modes"][0]["trials"][0];
+    let s = &t["serial"];
+    assert_eq!(s["model"], "robotiq_2f140", "{t}");
+    assert_eq!(s["device_activations"], 1, "{t}");
+    assert!(s["commands"].as_u64().unwrap() > 0, "{t}");
+    assert!(
+        s["device_requests"].as_u64().unwrap() >= s["exchanges"].as_u64().unwrap(),
+        "{t}"
+    );
+    assert!(s["last_raw_position"].is_u64(), "{t}");
+    // The in-process gripper has no wire to report.
+    let o = unitac(&[
+        "trials",
+        "--scene",
+        "cup_deformation",
+        "--modes",
+        "vla",
+        "--trials",
+        "1",
+        "--json",
+    ]);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["gripper"], "sim");
+    assert!(j["modes"][0]["trials"][0].get("serial").is_none());
 }

@@ -4,6 +4,8 @@
 //! - [`driver::SerialGripper`]: Robotiq 2F-85/2F-140 and DH AG-95/PGE over Modbus RTU
 //!   ([`client`], [`frame`], [`protocol`]) on a serial port ([`port`]).
 //! - [`sim_world::SimWorldGripper`]: the sim world's gripper behind the same trait.
+//! - [`status::status`]: a gripper's state as the `GripperStatus` message (the gripper node and
+//!   the serial trial gripper both use it).
 //! - [`device::SimDevice`]: simulated serial grippers on a pseudo-terminal, with fault injection,
 //!   for tests and benchmarks without hardware.
 
@@ -18,6 +20,7 @@ pub mod model;
 pub mod port;
 pub mod protocol;
 pub mod sim_world;
+pub mod status;
 
 pub use driver::{DriverConfig, DriverStats, SerialGripper};
 pub use gripper::{Activation, Fault, GripCommand, Gripper, GripperError, GripperState, Motion};

@@ -384,6 +384,39 @@ fn cup_vtla_pred_sets_the_force_once_from_the_predicted_latent() {
 }
 
 #[test]
+fn cup_vtla_pred_holds_on_a_serial_grippers_catch_without_a_force_reading() {
+    // A Robotiq or DH driver reports no force (NaN) and its own motion word: "caught" once the
+    // fingers stopped on the object, "moving" before.
+    let mut rig = Rig::new(params(
+        "{mode: vtla_pred, task: squeeze the cup by 1 cm, objects: [cup], latent_len: 4}",
+    ));
+    let l = rig.latent(LatentSource::Predicted, vec![0.5; 4]);
+    rig.send(l);
+    rig.force_n = f64::NAN;
+    let mut t = rig.tick();
+    let mut caught_at = None;
+    for _ in 0..1200 {
+        let stop = 0.08 - t.cmd.force_n / 500.0;
+        rig.follow(&t.cmd, (t.cmd.mode == GripperMode::Force).then_some(stop));
+        let stopped = rig.motion == "stopped" && t.cmd.mode == GripperMode::Force;
+        rig.object_detected = rig.opening <= 0.08;
+        if rig.object_detected && stopped {
+            rig.motion = "caught".into();
+            caught_at.get_or_insert(rig.ticks.len());
+        }
+        t = rig.tick();
+        if t.status.phase == "done" {
+            break;
+        }
+    }
+    assert_eq!(rig.phases(), ["approach", "close", "hold", "lift", "done"]);
+    // Touching while still closing ("moving") did not end the close; the catch did, at once.
+    let caught_at = caught_at.unwrap();
+    assert_eq!(rig.ticks[caught_at - 1].status.phase, "close");
+    assert_eq!(rig.ticks[caught_at].status.phase, "hold");
+}
+
+#[test]
 fn invalid_latents_hold_within_the_tick_they_arrive() {
     let mut rig = Rig::new(params(
         "{mode: vtla_pred, task: squeeze the cup, objects: [cup], latent_len: 4}",

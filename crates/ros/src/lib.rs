@@ -32,7 +32,6 @@ pub fn list_param(s: &str) -> Vec<String> {
 
 pub mod diagnostics;
 pub mod drops;
-pub mod gripper;
 pub mod image;
 pub mod node;
 pub mod sim;

@@ -4,6 +4,8 @@
 //! - [`bridge`]: the one conversion between the world and the messages (GripperStatus,
 //!   VisualObservation and the mock sensor's frames out of the world; GripperCommand +
 //!   ArmCommand into it), used by the embedded trial loop and by the ROS sim node alike;
+//! - [`gripper`]: the gripper side of a trial, in process or [`serial`] (the Modbus driver and a
+//!   simulated device on a pty whose fingers are the world's gripper);
 //! - [`run`]: one closed-loop trial (the world as the scene's source, the scene's stages driven
 //!   by `unitac_core::chain`, a per-tick trace and the world's outcome);
 //! - [`table`]: the paper-style success table, our counts beside the paper's;
@@ -12,7 +14,10 @@
 
 pub mod bridge;
 pub mod demos;
+pub mod gripper;
 pub mod run;
+pub mod serial;
 pub mod table;
 
-pub use run::{TraceRow, TrialError, TrialOptions, TrialRecord, run_trial};
+pub use gripper::TrialGripper;
+pub use run::{TraceRow, TrialError, TrialOptions, TrialRecord, run_trial, run_trial_on};

@@ -4,9 +4,15 @@
 //! 1. the mock sensor's frames captured up to t ([`SensorRig::frames_until`], rendered from the
 //!    world's sensor view) go through the chain (contact, slip, encoder, ... stages);
 //! 2. then the camera's observation ([`visual_message`]);
-//! 3. then the gripper's status at t ([`gripper_status`]): the policy's tick. The chain's
-//!    GripperCommand and ArmCommand for it become the world's command ([`task_command`]) and the
-//!    world steps one control period.
+//! 3. then the gripper's status at t: the policy's tick. The chain's GripperCommand and
+//!    ArmCommand for it become the world's command ([`task_command`]) and the world steps one
+//!    control period.
+//!
+//! The gripper is one seam ([`crate::gripper`], chosen by [`TrialGripper`]): in process (the
+//! status from the world's truth, [`crate::bridge::gripper_status`], the command as the policy
+//! gave it) or serial (the Modbus driver and a simulated device on a pty whose fingers are the
+//! world's gripper, [`crate::serial`]: the status is the driver's, the world is driven with the
+//! command as the device's registers hold it).
 //!
 //! The stages are driven by [`unitac_core::chain::Chain`] (the one chain driver: a stage's clock
 //! is its input's stamp). They are built by the caller from the scene (`unitac_pipeline::
@@ -22,7 +28,9 @@
 //! The trial ends one settle period ([`TrialOptions::settle_s`]) after the policy reports phase
 //! `done` or `failed`, or at the task's time limit; the outcome is the world's judgement then.
 
-use crate::bridge::{BridgeError, SensorRig, gripper_status, task_command, visual_message};
+use crate::bridge::{BridgeError, SensorRig, task_command, visual_message};
+use crate::gripper::TrialGripper;
+use crate::serial::{SerialError, SerialReport};
 use serde::Serialize;
 use thiserror::Error;
 use unitac_core::chain::Chain;
@@ -62,6 +70,13 @@ pub enum TrialError {
         t_s: f64,
         #[source]
         source: BridgeError,
+    },
+    #[error("t = {t_s:.3} s: gripper {gripper}: {source}")]
+    Gripper {
+        t_s: f64,
+        gripper: &'static str,
+        #[source]
+        source: SerialError,
     },
     #[error("t = {t_s:.3} s: the world refused the command: {source}")]
     World {
@@ -159,6 +174,10 @@ pub struct TrialRecord {
     pub rejections: Vec<String>,
     pub rejected: u64,
     pub trace: Vec<TraceRow>,
+    /// The gripper driven: `sim` (in process) or a serial model's name.
+    pub gripper: String,
+    /// What went over the wire (serial grippers only).
+    pub serial: Option<SerialReport>,
 }
 
 /// The scene's policy params (the first policy stage; a trial needs one).
@@ -229,8 +248,8 @@ struct TickOutput {
 }
 
 /// Run trial `trial` of `seed` of `scene` on the task `task` with the scene's `stages` (built
-/// from the scene, fresh). Errors: the scene cannot drive a trial, the policy left a tick
-/// unanswered, or a command the bridge or the world refuses.
+/// from the scene, fresh), the in-process gripper. Errors: the scene cannot drive a trial, the
+/// policy left a tick unanswered, or a command the bridge or the world refuses.
 pub fn run_trial(
     scene: &Scene,
     stages: Vec<Box<dyn Stage>>,
@@ -238,6 +257,28 @@ pub fn run_trial(
     seed: u64,
     trial: u32,
     opts: &TrialOptions,
+) -> Result<TrialRecord, TrialError> {
+    run_trial_on(
+        scene,
+        stages,
+        task,
+        seed,
+        trial,
+        opts,
+        TrialGripper::InProcess,
+    )
+}
+
+/// [`run_trial`] with the gripper `gripper`; a serial gripper that fails (cannot start, a fault,
+/// no answer) is an error too.
+pub fn run_trial_on(
+    scene: &Scene,
+    stages: Vec<Box<dyn Stage>>,
+    task: &TaskConfig,
+    seed: u64,
+    trial: u32,
+    opts: &TrialOptions,
+    gripper: TrialGripper,
 ) -> Result<TrialRecord, TrialError> {
     opts.check()?;
     let params = policy_params(scene)?;
@@ -284,9 +325,18 @@ pub fn run_trial(
         rejections: Vec::new(),
         rejected: 0,
         trace: Vec::new(),
+        gripper: gripper.name().to_string(),
+        serial: None,
     };
+    let gripper_error = move |t_s: f64| {
+        move |source: SerialError| TrialError::Gripper {
+            t_s,
+            gripper: gripper.name(),
+            source,
+        }
+    };
+    let mut side = gripper.start(&world.truth()).map_err(gripper_error(0.0))?;
     let mut slip_detected = None;
-    let mut target_m = f64::NAN;
     let mut ended_at: Option<f64> = None;
     let ticks = (opts.max_s / dt).ceil() as u64;
     let keep = |record: &mut TrialRecord, errors: Vec<unitac_core::chain::Rejection>| {
@@ -313,7 +363,8 @@ pub fn run_trial(
         let out = chain.run(Msg::Visual(visual_message(&visual)));
         keep(&mut record, out.errors);
         let truth = world.truth();
-        let out = chain.run(Msg::Gripper(gripper_status(&truth, target_m)));
+        let status = side.status(&truth).map_err(gripper_error(t))?;
+        let out = chain.run(Msg::Gripper(status));
         let mut tick = TickOutput::default();
         for m in out.produced {
             match m {
@@ -334,9 +385,9 @@ pub fn run_trial(
         let g = tick.gripper.ok_or_else(|| missing("GripperCommand"))?;
         let a = tick.arm.ok_or_else(|| missing("ArmCommand"))?;
         let status = tick.status.ok_or_else(|| missing("PolicyStatus"))?;
-        let cmd = task_command(&g, &a, truth.gripper.opening_m, &task.gripper)
+        let mut cmd = task_command(&g, &a, truth.gripper.opening_m, &task.gripper)
             .map_err(|source| TrialError::Bridge { t_s: t, source })?;
-        target_m = cmd.gripper.opening_m;
+        cmd.gripper = side.command(cmd.gripper).map_err(gripper_error(t))?;
         let held = truth.objects.iter().find(|o| o.held);
         record.trace.push(TraceRow {
             t_s: t,
@@ -365,10 +416,12 @@ pub fn run_trial(
         if ended_at.is_some_and(|e| t - e >= opts.settle_s) {
             break;
         }
-        world
+        let next = world
             .step(&cmd, dt)
             .map_err(|source| TrialError::World { t_s: t, source })?;
+        side.stepped(&next).map_err(gripper_error(t))?;
     }
+    record.serial = side.report();
     record.duration_s = world.time();
     record.outcome = world.outcome();
     Ok(record)

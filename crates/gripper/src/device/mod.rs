@@ -10,6 +10,7 @@
 
 pub mod physics;
 pub mod registers;
+pub mod relay;
 
 use crate::frame::{Decoder, Direction, Request};
 use crate::model::Model;

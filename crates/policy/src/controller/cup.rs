@@ -133,9 +133,12 @@ impl CupController {
                 }
                 Mode::VtlaPred => {
                     let f = self.force_n.unwrap_or(0.0);
+                    // An object detected and the fingers no longer moving: the motion word is
+                    // the driver's own ("stopped" from the sim, "caught" from the Robotiq and DH
+                    // drivers, whose force is unknown), so only "moving" is ruled out.
                     let held = g.is_some_and(|g| {
                         (g.force_n.is_finite() && g.force_n >= 0.95 * f)
-                            || (g.object_detected && g.motion == "stopped")
+                            || (g.object_detected && g.motion != "moving")
                     });
                     if held {
                         self.t.go(Phase::Hold);

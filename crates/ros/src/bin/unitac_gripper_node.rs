@@ -145,7 +145,7 @@ fn run() -> anyhow::Result<()> {
             js.effort = vec![s.force_n.or(s.current_a).unwrap_or(f64::NAN)];
             counters.published(pub_joint.publish(&js));
             let status =
-                unitac_ros::gripper::status(&s, unitac_ros::convert::stamp(&now), &p.frame_id);
+                unitac_gripper::status::status(&s, unitac_ros::convert::stamp(&now), &p.frame_id);
             counters.published(pub_status.publish(&unitac_ros::convert::gripper_status(&status)));
         }
         let st = gripper.stats();

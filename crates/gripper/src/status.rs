@@ -1,12 +1,13 @@
-//! A serial gripper's state as `unitac_msgs/GripperStatus`, the message the policy ticks on.
+//! A gripper's state as `unitac_msgs/GripperStatus`, the message the policy ticks on: the one
+//! conversion the gripper node (crates/ros) and the serial trial gripper (crates/trials) share.
 //!
 //! Unknowns are NaN (as the message says); `object_detected` is the device's own object
 //! detection (Robotiq gOBJ, DH "caught"); `fault` is empty when there is none, else its kind,
 //! code and text (a link fault too: the policy's watchdog treats a gripper fault as invalid).
 
+use crate::gripper::{Activation, Fault, GripperState, Motion};
 use unitac_core::Stamp;
 use unitac_core::msg::{GripperStatus, Header};
-use unitac_gripper::{Activation, Fault, GripperState, Motion};
 
 fn activation(a: Activation) -> &'static str {
     match a {

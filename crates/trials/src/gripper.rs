@@ -1,0 +1,119 @@
+//! The gripper side of a trial, behind one seam: what the policy reads of the gripper each tick,
+//! what the world's gripper is driven with, and what happens after the world steps.
+//!
+//! Two sides:
+//! - in-process (`sim`, the default): the world's own gripper, its status straight from the
+//!   world's truth ([`crate::bridge::gripper_status`]) and the command passed through unchanged;
+//! - serial ([`crate::serial`]): the real Modbus RTU driver talking to a simulated device on a
+//!   pseudo-terminal whose fingers are the world's gripper.
+//!
+//! Per tick the loop calls `GripperSide::status` (the world after the previous step), then
+//! `GripperSide::command` with the policy's setpoint (it returns the setpoint the world is
+//! stepped with), then, after the step, `GripperSide::stepped` with the world's new truth.
+
+use crate::bridge::gripper_status;
+use crate::serial::{SerialError, SerialReport, SerialSide};
+use std::fmt;
+use std::str::FromStr;
+use unitac_core::msg::GripperStatus;
+use unitac_gripper::Model;
+use unitac_sim::task::{GripperSetpoint, TaskTruth};
+
+/// Which gripper a trial drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TrialGripper {
+    /// The task world's gripper, in process.
+    #[default]
+    InProcess,
+    /// The serial driver and a simulated device of this model on a pty, its fingers the world's.
+    Serial(Model),
+}
+
+impl TrialGripper {
+    /// `sim` or the model's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            TrialGripper::InProcess => "sim",
+            TrialGripper::Serial(m) => m.name(),
+        }
+    }
+
+    /// Start the side for a world whose truth at reset is `truth`.
+    pub(crate) fn start(self, truth: &TaskTruth) -> Result<Box<dyn GripperSide>, SerialError> {
+        Ok(match self {
+            TrialGripper::InProcess => Box::new(InProcess { target_m: f64::NAN }),
+            TrialGripper::Serial(m) => Box::new(SerialSide::start(m, truth)?),
+        })
+    }
+}
+
+impl fmt::Display for TrialGripper {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for TrialGripper {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        if s == "sim" {
+            return Ok(TrialGripper::InProcess);
+        }
+        s.parse::<Model>()
+            .map(TrialGripper::Serial)
+            .map_err(|e| format!("{e}, or sim"))
+    }
+}
+
+/// One trial's gripper.
+pub(crate) trait GripperSide {
+    /// The status the policy sees at the world's time `truth.t_s`.
+    fn status(&mut self, truth: &TaskTruth) -> Result<GripperStatus, SerialError>;
+    /// The policy's setpoint in; the setpoint the world's gripper is stepped with out.
+    fn command(&mut self, want: GripperSetpoint) -> Result<GripperSetpoint, SerialError>;
+    /// The world stepped; `truth` is its new state.
+    fn stepped(&mut self, truth: &TaskTruth) -> Result<(), SerialError>;
+    /// What went over the wire (None in process).
+    fn report(&self) -> Option<SerialReport>;
+}
+
+/// The world's own gripper: today's behaviour, byte for byte.
+struct InProcess {
+    /// The opening the last command asked for (NaN before the first).
+    target_m: f64,
+}
+
+impl GripperSide for InProcess {
+    fn status(&mut self, truth: &TaskTruth) -> Result<GripperStatus, SerialError> {
+        Ok(gripper_status(truth, self.target_m))
+    }
+    fn command(&mut self, want: GripperSetpoint) -> Result<GripperSetpoint, SerialError> {
+        self.target_m = want.opening_m;
+        Ok(want)
+    }
+    fn stepped(&mut self, _truth: &TaskTruth) -> Result<(), SerialError> {
+        Ok(())
+    }
+    fn report(&self) -> Option<SerialReport> {
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    #[test]
+    fn names_parse_back() {
+        for g in [
+            TrialGripper::InProcess,
+            TrialGripper::Serial(Model::Robotiq2F140),
+            TrialGripper::Serial(Model::DhAg95),
+        ] {
+            assert_eq!(g.name().parse::<TrialGripper>().unwrap(), g);
+        }
+        let e = "robotiq_3f".parse::<TrialGripper>().unwrap_err();
+        assert!(e.contains("robotiq_2f140") && e.ends_with("or sim"), "{e}");
+    }
+}
