@@ -259,9 +259,11 @@ impl GripperSide for SerialSide {
     }
 
     fn report(&self) -> Option<SerialReport> {
-        let snap = self.device.snapshot();
-        let stats = self.driver.stats();
+        // The driver's side first: every exchange it completed was counted by the device
+        // before its reply left, so the device's counts read after are at least these.
         let state = self.driver.state();
+        let stats = self.driver.stats();
+        let snap = self.device.snapshot();
         let l = &stats.link;
         let p = &self.cal.position;
         Some(SerialReport {

@@ -11,7 +11,12 @@ use unitac_trials::{TrialGripper, TrialOptions, TrialRecord, run_trial_on};
 
 const SERIAL: TrialGripper = TrialGripper::Serial(Model::Robotiq2F140);
 
+/// One serial trial at a time: each runs a driver thread and a device thread beside the trial
+/// loop, and the device's 1 s no-communication watchdog runs on wall time.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 fn trial(scene: &str, seed: u64, n: u32, gripper: TrialGripper) -> TrialRecord {
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let task = TaskConfig::cup(Split::Unseen);
     let scene = unitac_pipeline::load_scene(scene, None).unwrap();
     let stages = unitac_pipeline::build_stages(&scene).unwrap();

@@ -284,6 +284,14 @@ fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<
         };
         dec.push(&buf[..n]);
         let now = Instant::now();
+        // Requests already waiting count as received now, before the communication watchdog is
+        // checked: a real controller's watchdog runs on its own MCU, while this thread can be
+        // starved on a loaded host with the driver's requests queued in the pty (a driver that
+        // really went quiet sends nothing, and the fault comes as it should).
+        let frames: Vec<_> = std::iter::from_fn(|| dec.next_frame()).collect();
+        if frames.iter().any(|f| f.slave == cfg.slave) {
+            last_rx = now;
+        }
         if shared.overcurrent.swap(false, Ordering::Relaxed) {
             regs.overcurrent();
         }
@@ -292,7 +300,7 @@ fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<
             (now - last_rx).as_secs_f64(),
         );
         last_tick = now;
-        while let Some(frame) = dec.next_frame() {
+        for frame in frames {
             if frame.slave != cfg.slave {
                 continue;
             }
@@ -302,6 +310,8 @@ fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<
             };
             last_rx = now;
             let reply = regs.handle(&req);
+            // Counted before the reply leaves: a driver that has the reply sees it counted.
+            *lock(&shared.snap) = regs.snapshot();
             let Some(reply) = reply else { continue };
             let mut faults = lock(&shared.faults);
             if faults.mute {
