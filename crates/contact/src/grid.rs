@@ -370,8 +370,14 @@ pub fn keep_components(
     labels.clear();
     labels.resize(mask.len(), 0);
     let mut sizes: Vec<usize> = vec![0];
-    for start in 0..mask.len() {
-        if mask[start] == 0 || labels[start] != 0 {
+    // Eight cells at a time past the empty ones (most of the grid).
+    let starts = mask.chunks(8).enumerate().flat_map(|(k, eight)| {
+        let empty = eight.iter().fold(0u8, |a, &m| a | m) == 0;
+        let n = if empty { 0 } else { eight.len() };
+        (k * 8..k * 8 + n).filter(|&i| mask[i] != 0)
+    });
+    for start in starts {
+        if labels[start] != 0 {
             continue;
         }
         let id = sizes.len() as u32;
@@ -405,13 +411,18 @@ pub fn keep_components(
     }
     let largest = sizes.iter().copied().max().unwrap_or(0);
     let min_cells = min_cells.max((share_of_largest * largest as f32).ceil() as usize);
-    let mut kept = 0;
-    for (m, &l) in mask.iter_mut().zip(labels.iter()) {
-        if *m != 0 {
-            if sizes[l as usize] >= min_cells {
-                kept += 1;
-            } else {
-                *m = 0;
+    let kept = sizes.iter().skip(1).filter(|&&n| n >= min_cells).sum();
+    // Only when a component is dropped is the mask walked (past the empty cells, eight at a
+    // time).
+    if sizes.iter().skip(1).any(|&n| n < min_cells) {
+        for (m, l) in mask.chunks_mut(8).zip(labels.chunks(8)) {
+            if m.iter().fold(0u8, |a, &v| a | v) == 0 {
+                continue;
+            }
+            for (m, &l) in m.iter_mut().zip(l) {
+                if *m != 0 && sizes[l as usize] < min_cells {
+                    *m = 0;
+                }
             }
         }
     }
