@@ -410,9 +410,11 @@ impl ContactDetector {
             .mask
             .chunks_exact(geo.gw)
             .zip(s.resid.chunks_exact(geo.gw));
+        // (An OR over the row rather than `any`: a loop the compiler vectorises; no row is set
+        // when nothing was over the threshold.)
         let set_rows = rows
             .enumerate()
-            .filter(|(_, (m, _))| m.iter().any(|&m| m != 0));
+            .filter(|(_, (m, _))| any && m.iter().fold(0u8, |a, &m| a | m) != 0);
         let cells = set_rows.flat_map(|(gy, (m, res))| {
             let set = m.iter().zip(res).enumerate().filter(|(_, (m, _))| **m != 0);
             set.map(move |(gx, (_, &res))| (gx as u32, gy as u32, res))
@@ -534,16 +536,27 @@ impl ContactDetector {
         let Some(Model::Ready { bg, .. }) = self.model.as_mut() else {
             return;
         };
-        let cells = bg
-            .grid
-            .chunks_exact_mut(3)
-            .zip(self.s.grid.chunks_exact(3))
-            .zip(&self.s.mask);
-        for ((b, g), &m) in cells {
-            if m == 0 {
-                for c in 0..3 {
-                    b[c] += a * (g[c] - b[c]);
-                }
+        // Run by run of cells outside the mask (on an idle frame usually one run, the whole
+        // grid), each a flat loop over the run's values that the compiler vectorises.
+        let (mask, grid) = (&self.s.mask, &self.s.grid);
+        let ema = |start: usize, end: usize, b: &mut [f32]| {
+            let (b, g) = (
+                b.get_mut(start * 3..end * 3).unwrap_or_default(),
+                grid.get(start * 3..end * 3).unwrap_or_default(),
+            );
+            for (b, &g) in b.iter_mut().zip(g) {
+                *b += a * (g - *b);
+            }
+        };
+        if mask.iter().fold(0u8, |acc, &m| acc | m) == 0 {
+            ema(0, mask.len(), &mut bg.grid);
+        } else {
+            let mut x = 0;
+            while x < mask.len() {
+                let start = x + mask[x..].iter().take_while(|&&m| m != 0).count();
+                let end = start + mask[start..].iter().take_while(|&&m| m == 0).count();
+                ema(start, end, &mut bg.grid);
+                x = end;
             }
         }
         if self.idle_frames % 8 == 0 {

@@ -53,31 +53,40 @@ pub fn block_means(f: &Frame, g: &Geometry, out: &mut Vec<f32>, s: &mut BlockScr
     // Every cell is written below.
     out.resize(g.cells() * 3, 0.0);
     s.rows.resize(used, 0);
-    s.sums.clear();
     s.sums.resize(g.gw * 3, 0);
     let data = f.data();
     let inv = 1.0 / (st * st) as f32;
     for (gy, dst) in out.chunks_exact_mut(g.gw * 3).enumerate().take(g.gh) {
-        s.sums.fill(0);
         let first = gy * st;
         let mut dy = 0;
         while dy < st {
             let n = (st - dy).min(ROWS_PER_BATCH);
-            s.rows.fill(0);
-            for y in first + dy..first + dy + n {
-                if let Some(row) = data.get(y * w3..y * w3 + used) {
-                    for (a, &b) in s.rows.iter_mut().zip(row) {
-                        *a += u16::from(b);
+            // The batch's first row is copied in (no zero fill), the others added.
+            for (k, y) in (first + dy..first + dy + n).enumerate() {
+                match data.get(y * w3..y * w3 + used) {
+                    Some(row) if k == 0 => {
+                        for (a, &b) in s.rows.iter_mut().zip(row) {
+                            *a = u16::from(b);
+                        }
                     }
+                    Some(row) => {
+                        for (a, &b) in s.rows.iter_mut().zip(row) {
+                            *a += u16::from(b);
+                        }
+                    }
+                    None if k == 0 => s.rows.fill(0),
+                    None => {}
                 }
             }
+            // The first batch sets the cell sums, later ones add to them.
+            let set = dy == 0;
             match st {
-                1 => add_cells::<1>(&s.rows, &mut s.sums),
-                2 => add_cells::<2>(&s.rows, &mut s.sums),
-                3 => add_cells::<3>(&s.rows, &mut s.sums),
-                4 => add_cells::<4>(&s.rows, &mut s.sums),
-                8 => add_cells::<8>(&s.rows, &mut s.sums),
-                _ => add_cells_n(&s.rows, &mut s.sums, st),
+                1 => add_cells::<1>(&s.rows, &mut s.sums, set),
+                2 => add_cells::<2>(&s.rows, &mut s.sums, set),
+                3 => add_cells::<3>(&s.rows, &mut s.sums, set),
+                4 => add_cells::<4>(&s.rows, &mut s.sums, set),
+                8 => add_cells::<8>(&s.rows, &mut s.sums, set),
+                _ => add_cells_n(&s.rows, &mut s.sums, st, set),
             }
             dy += n;
         }
@@ -87,8 +96,8 @@ pub fn block_means(f: &Frame, g: &Geometry, out: &mut Vec<f32>, s: &mut BlockScr
     }
 }
 
-/// Add each cell's `S` columns (RGB) of the summed rows into its sums.
-fn add_cells<const S: usize>(rows: &[u16], sums: &mut [u32]) {
+/// Add each cell's `S` columns (RGB) of the summed rows into its sums (`set`: store them).
+fn add_cells<const S: usize>(rows: &[u16], sums: &mut [u32], set: bool) {
     for (cell, px) in sums.chunks_exact_mut(3).zip(rows.chunks_exact(3 * S)) {
         let mut a = [0u32; 3];
         for p in px.chunks_exact(3) {
@@ -96,15 +105,22 @@ fn add_cells<const S: usize>(rows: &[u16], sums: &mut [u32]) {
             a[1] += u32::from(p[1]);
             a[2] += u32::from(p[2]);
         }
-        cell[0] += a[0];
-        cell[1] += a[1];
-        cell[2] += a[2];
+        if set {
+            cell.copy_from_slice(&a);
+        } else {
+            cell[0] += a[0];
+            cell[1] += a[1];
+            cell[2] += a[2];
+        }
     }
 }
 
 /// [`add_cells`] for a stride known only at run time.
-fn add_cells_n(rows: &[u16], sums: &mut [u32], st: usize) {
+fn add_cells_n(rows: &[u16], sums: &mut [u32], st: usize, set: bool) {
     for (cell, px) in sums.chunks_exact_mut(3).zip(rows.chunks_exact(3 * st)) {
+        if set {
+            cell.fill(0);
+        }
         for p in px.chunks_exact(3) {
             cell[0] += u32::from(p[0]);
             cell[1] += u32::from(p[1]);
@@ -354,8 +370,14 @@ pub fn keep_components(
     labels.clear();
     labels.resize(mask.len(), 0);
     let mut sizes: Vec<usize> = vec![0];
-    for start in 0..mask.len() {
-        if mask[start] == 0 || labels[start] != 0 {
+    // Eight cells at a time past the empty ones (most of the grid).
+    let starts = mask.chunks(8).enumerate().flat_map(|(k, eight)| {
+        let empty = eight.iter().fold(0u8, |a, &m| a | m) == 0;
+        let n = if empty { 0 } else { eight.len() };
+        (k * 8..k * 8 + n).filter(|&i| mask[i] != 0)
+    });
+    for start in starts {
+        if labels[start] != 0 {
             continue;
         }
         let id = sizes.len() as u32;
@@ -389,13 +411,18 @@ pub fn keep_components(
     }
     let largest = sizes.iter().copied().max().unwrap_or(0);
     let min_cells = min_cells.max((share_of_largest * largest as f32).ceil() as usize);
-    let mut kept = 0;
-    for (m, &l) in mask.iter_mut().zip(labels.iter()) {
-        if *m != 0 {
-            if sizes[l as usize] >= min_cells {
-                kept += 1;
-            } else {
-                *m = 0;
+    let kept = sizes.iter().skip(1).filter(|&&n| n >= min_cells).sum();
+    // Only when a component is dropped is the mask walked (past the empty cells, eight at a
+    // time).
+    if sizes.iter().skip(1).any(|&n| n < min_cells) {
+        for (m, l) in mask.chunks_mut(8).zip(labels.chunks(8)) {
+            if m.iter().fold(0u8, |a, &v| a | v) == 0 {
+                continue;
+            }
+            for (m, &l) in m.iter_mut().zip(l) {
+                if *m != 0 && sizes[l as usize] < min_cells {
+                    *m = 0;
+                }
             }
         }
     }

@@ -1,24 +1,31 @@
 //! MCAP storage files, streamed with bounded memory.
 //!
-//! The `mcap` crate's sans-io linear reader streams records from the file; each chunk record (at
-//! most [`MAX_RECORD_BYTES`]) is decompressed here (zstd, lz4 or none) after checking its claimed
-//! size against the same limit, and the records inside are walked with bounds checks. (The
-//! reader's own in-chunk walk underflows on a record longer than its chunk: the fuzz smoke found
-//! it; `mcap::parse_record` reserves a string's claimed length before checking the bytes exist:
-//! cargo fuzz found it.) The summary section is never needed: a file a recorder could not finish
-//! is read up to its last complete record and flagged `truncated`.
+//! The data section is a flat sequence of records (opcode u8, length u64, body), so it is read
+//! here record by record: the 9-byte header, the length checked against [`MAX_RECORD_BYTES`],
+//! then the body straight from the file into a buffer reused across records (no zero fill per
+//! read, no staging copy). A chunk record (zstd, lz4 or none) is decompressed after checking its
+//! claimed size against the same limit; an uncompressed chunk's records are walked where they
+//! were read, without a copy. Either way the chunk CRC is checked and the records inside are
+//! walked with bounds checks. (The `mcap` crate's linear reader was used before: it zero-filled
+//! its buffer before every read and its in-chunk walk underflows on a record longer than its
+//! chunk, which the fuzz smoke found; `mcap::parse_record` reserves a string's claimed length
+//! before checking the bytes exist: cargo fuzz found it.) The summary section is never needed: a
+//! file a recorder could not finish is read up to its last complete record and flagged
+//! `truncated`.
 
 use super::{MAX_RECORD_BYTES, RawMessage, ReadOptions, TopicInfo, Visit};
 use crate::BagError;
-use ::mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use std::collections::BTreeMap;
-use std::io::Read;
+use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use thiserror::Error;
 
-/// Largest single read from a file.
-const READ_BLOCK: usize = 1 << 20;
+/// Buffer for record headers and small records; reads at least this long go from the file
+/// straight into the record buffer.
+const READ_BUFFER: usize = 8 << 10;
+/// The magic bytes an MCAP file starts with (and ends with).
+const MAGIC: &[u8; 8] = b"\x89MCAP0\r\n";
 
 /// Why an MCAP stream could not be read further (one line each).
 #[derive(Debug, Error)]
@@ -75,10 +82,12 @@ pub enum McapError {
 
 pub(super) struct McapFile {
     pub(super) path: PathBuf,
-    file: Box<dyn Read + Send>,
-    reader: LinearReader,
+    file: BufReader<Box<dyn Read + Send>>,
+    /// Whether the magic bytes were read.
+    started: bool,
+    /// Body of the last top-level record.
+    record: Vec<u8>,
     state: McapState,
-    eof: bool,
     done: bool,
     pub(super) truncated: bool,
 }
@@ -88,9 +97,14 @@ struct McapState {
     /// Schema id -> (type name, ros2msg text).
     schemas: BTreeMap<u16, (String, String)>,
     channels: BTreeMap<u16, Arc<TopicInfo>>,
-    /// Decompressed records of the current chunk, and where the next one starts.
+    /// Records of the current chunk: `chunk[chunk_pos..chunk_end]` is still to be walked (the
+    /// decompressed records, or an uncompressed chunk's record body as it was read).
     chunk: Vec<u8>,
     chunk_pos: usize,
+    chunk_end: usize,
+    /// Set by an uncompressed chunk: where its records lie in the record body just handled
+    /// (checked, CRC included); the caller then takes that body as the current chunk.
+    in_place: Option<std::ops::Range<usize>>,
     end: bool,
     /// Bytes of names and schemas kept so far.
     defined: usize,
@@ -295,11 +309,20 @@ impl McapState {
                     compression: r.string()?,
                 };
                 let len = r.u64()?;
+                let start = r.pos;
                 let body = r.take(len)?;
-                // Into the previous chunk's buffer: no allocation (and no fresh pages to fault
-                // in) per chunk.
                 self.chunk_pos = 0;
-                decompress_chunk(&header, body, &mut self.chunk)?;
+                self.chunk_end = 0;
+                if header.compression.is_empty() && !in_chunk {
+                    // Walked where it lies: the caller keeps this record's buffer as the chunk.
+                    check_stored(&header, body)?;
+                    self.in_place = Some(start..start + body.len());
+                } else {
+                    // Into the previous chunk's buffer: no allocation (and no fresh pages to
+                    // fault in) per chunk.
+                    decompress_chunk(&header, body, &mut self.chunk)?;
+                    self.chunk_end = self.chunk.len();
+                }
             }
             // The summary repeats what the data section said.
             OP_DATA_END | OP_FOOTER => self.end = true,
@@ -310,13 +333,13 @@ impl McapState {
 
     /// The next record inside the current chunk: (opcode, body range).
     fn next_in_chunk(&mut self) -> Result<Option<(u8, std::ops::Range<usize>)>, McapError> {
-        let rest = self.chunk.len().saturating_sub(self.chunk_pos);
+        let records = self.chunk.get(..self.chunk_end).unwrap_or_default();
+        let rest = records.len().saturating_sub(self.chunk_pos);
         if rest == 0 {
             return Ok(None);
         }
         let p = self.chunk_pos;
-        let head = self
-            .chunk
+        let head = records
             .get(p..p + 9)
             .ok_or(McapError::CutRecordHeader { rest })?;
         let opcode = head[0];
@@ -327,7 +350,7 @@ impl McapState {
         let end = usize::try_from(len)
             .ok()
             .and_then(|l| body.checked_add(l))
-            .filter(|&e| e <= self.chunk.len())
+            .filter(|&e| e <= records.len())
             .ok_or(McapError::RecordOverrun { opcode, len, rest })?;
         self.chunk_pos = end;
         Ok(Some((opcode, body..end)))
@@ -370,15 +393,28 @@ fn decompress_chunk(h: &ChunkHeader, data: &[u8], out: &mut Vec<u8>) -> Result<(
         out.clear();
         return Err(e);
     }
-    if out.len() != size {
-        let got = out.len();
+    if let Err(e) = check_stored(h, out) {
         out.clear();
-        return Err(McapError::ChunkSize { got, want: size });
+        return Err(e);
+    }
+    Ok(())
+}
+
+/// A chunk's records against its header: the uncompressed size and (when it is not 0) the CRC.
+fn check_stored(h: &ChunkHeader, records: &[u8]) -> Result<(), McapError> {
+    let size = usize::try_from(h.uncompressed_size)
+        .ok()
+        .filter(|&n| n <= MAX_RECORD_BYTES)
+        .ok_or(McapError::ChunkTooLarge(h.uncompressed_size))?;
+    if records.len() != size {
+        return Err(McapError::ChunkSize {
+            got: records.len(),
+            want: size,
+        });
     }
     if h.uncompressed_crc != 0 {
-        let crc = crc32fast::hash(out);
+        let crc = crc32fast::hash(records);
         if crc != h.uncompressed_crc {
-            out.clear();
             return Err(McapError::ChunkCrc {
                 crc,
                 want: h.uncompressed_crc,
@@ -398,23 +434,21 @@ impl McapFile {
     }
 
     fn from_reader(path: &Path, file: Box<dyn Read + Send>) -> Self {
-        // Whole chunk records come to us (bounded by the record limit); we decompress them.
-        let opts = LinearReaderOptions::default()
-            .with_record_length_limit(MAX_RECORD_BYTES)
-            .with_emit_chunks(true);
         Self {
             path: path.to_path_buf(),
-            file,
-            reader: LinearReader::new_with_options(opts),
+            file: BufReader::with_capacity(READ_BUFFER, file),
+            started: false,
+            record: Vec::new(),
             state: McapState {
                 schemas: BTreeMap::new(),
                 channels: BTreeMap::new(),
                 chunk: Vec::new(),
                 chunk_pos: 0,
+                chunk_end: 0,
+                in_place: None,
                 end: false,
                 defined: 0,
             },
-            eof: false,
             done: false,
             truncated: false,
         }
@@ -426,6 +460,66 @@ impl McapFile {
             path: self.path.clone(),
             error,
         }
+    }
+
+    /// The next top-level record: its opcode (the body in `self.record`), or `None` when the
+    /// file ends first (flagged truncated).
+    fn next_record(&mut self) -> Result<Option<u8>, BagError> {
+        let mut head = [0u8; 9];
+        if !self.started {
+            let mut magic = [0u8; 8];
+            if !self.read_into(&mut magic)? {
+                return Ok(None);
+            }
+            if &magic != MAGIC {
+                return Err(self.err(McapError::Stream(::mcap::McapError::BadMagic)));
+            }
+            self.started = true;
+        }
+        if !self.read_into(&mut head)? {
+            return Ok(None);
+        }
+        let opcode = head[0];
+        let mut len = [0u8; 8];
+        len.copy_from_slice(&head[1..]);
+        let len = u64::from_le_bytes(len);
+        let Some(n) = usize::try_from(len).ok().filter(|&n| n <= MAX_RECORD_BYTES) else {
+            return Err(
+                self.err(McapError::Stream(::mcap::McapError::RecordTooLarge {
+                    opcode,
+                    len,
+                })),
+            );
+        };
+        // Into the buffer's spare capacity (reused across records: no allocation and no zero
+        // fill per record).
+        self.record.clear();
+        self.record.reserve(n);
+        let got = (&mut self.file)
+            .take(len)
+            .read_to_end(&mut self.record)
+            .map_err(|error| {
+                self.done = true;
+                BagError::Io {
+                    path: self.path.clone(),
+                    error,
+                }
+            })?;
+        if got < n {
+            return Ok(None);
+        }
+        Ok(Some(opcode))
+    }
+
+    /// [`read_or_eof`] into a small buffer, with the file's path on an error.
+    fn read_into(&mut self, buf: &mut [u8]) -> Result<bool, BagError> {
+        read_or_eof(&mut self.file, buf).map_err(|error| {
+            self.done = true;
+            BagError::Io {
+                path: self.path.clone(),
+                error,
+            }
+        })
     }
 
     pub(super) fn next_with<R>(
@@ -457,52 +551,28 @@ impl McapFile {
                 self.done = true;
                 break;
             }
-            let event = match self.reader.next_event() {
-                None => {
-                    self.done = true;
-                    return Ok(None);
-                }
-                Some(Err(e)) => {
-                    if self.eof {
-                        // The file stops inside a record or before its footer.
-                        self.done = true;
-                        self.truncated = true;
-                        return Ok(None);
-                    }
-                    return Err(self.err(McapError::Stream(e)));
-                }
-                Some(Ok(ev)) => ev,
+            let Some(opcode) = self.next_record()? else {
+                // The file stops inside a record or before the end of its data section.
+                self.done = true;
+                self.truncated = true;
+                return Ok(None);
             };
-            match event {
-                LinearReadEvent::ReadRequest(n) => {
-                    let buf = self.reader.insert(n.clamp(1, READ_BLOCK));
-                    let got = loop {
-                        match self.file.read(buf) {
-                            Ok(k) => break k,
-                            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                            Err(e) => {
-                                let path = self.path.clone();
-                                self.done = true;
-                                return Err(BagError::Io { path, error: e });
-                            }
-                        }
-                    };
-                    if got == 0 {
-                        self.eof = true;
-                    }
-                    self.reader.notify_read(got);
-                }
-                LinearReadEvent::Record { opcode, data } => {
-                    let r = self
-                        .state
-                        .handle(opcode, data, opts, false)
-                        .map(|found| found.map(|m| f(&m.topic, m.log_time, &data[m.offset..])));
-                    match r {
-                        Ok(Some(m)) => return Ok(Some(m)),
-                        Ok(None) => {}
-                        Err(e) => return Err(self.err(e)),
-                    }
-                }
+            let data = self.record.as_slice();
+            let r = self
+                .state
+                .handle(opcode, data, opts, false)
+                .map(|found| found.map(|m| f(&m.topic, m.log_time, &data[m.offset..])));
+            if let Some(records) = self.state.in_place.take() {
+                // An uncompressed chunk: its body becomes the chunk, the old chunk's buffer
+                // the next record's.
+                std::mem::swap(&mut self.record, &mut self.state.chunk);
+                self.state.chunk_pos = records.start;
+                self.state.chunk_end = records.end;
+            }
+            match r {
+                Ok(Some(m)) => return Ok(Some(m)),
+                Ok(None) => {}
+                Err(e) => return Err(self.err(e)),
             }
         }
         Ok(None)
@@ -514,6 +584,15 @@ impl McapFile {
             log_time,
             data: data.to_vec(),
         })
+    }
+}
+
+/// Fill `buf` from `r`; `Ok(false)` when the stream ends first.
+fn read_or_eof(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<bool> {
+    match r.read_exact(buf) {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => Ok(false),
+        Err(e) => Err(e),
     }
 }
 

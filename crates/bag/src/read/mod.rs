@@ -1,14 +1,14 @@
 //! Reading rosbag2 bags: a directory (metadata.yaml + .mcap or .db3 files), a bare .mcap or a
 //! bare .db3, as one stream of raw messages in file order.
 //!
-//! MCAP is read with the `mcap` crate's sans-io linear reader, which streams records from the
-//! file; each chunk record (at most [`MAX_RECORD_BYTES`]) is decompressed here (zstd, lz4 or
-//! none) after checking its claimed size against the same limit, and the records inside are
-//! walked with bounds checks, so memory stays bounded whatever the file says. (The reader's own
-//! in-chunk walk underflows on a record longer than its chunk: the fuzz smoke found it.) The summary section
-//! is never needed: a file a recorder could not finish (killed, disk full) is read up to its last
-//! complete record and flagged [`BagReader::truncated`]. sqlite3 (Humble's default) is read with
-//! rusqlite from the `topics` and `messages` tables, in pages ordered by (timestamp, id).
+//! MCAP is read record by record from the file (opcode, length, body; the length checked against
+//! [`MAX_RECORD_BYTES`] before anything is read into a buffer reused across records); each chunk
+//! record is decompressed here (zstd, lz4 or none) after checking its claimed size against the
+//! same limit (an uncompressed one is walked in place), its CRC is checked, and the records inside
+//! are walked with bounds checks, so memory stays bounded whatever the file says. The summary
+//! section is never needed: a file a recorder could not finish (killed, disk full) is read up to
+//! its last complete record and flagged [`BagReader::truncated`]. sqlite3 (Humble's default) is
+//! read with rusqlite from the `topics` and `messages` tables, in pages ordered by (timestamp, id).
 //!
 //! Messages of every topic come out with their raw CDR bytes, whatever their type; decoding is the
 //! caller's choice (see [`crate::ros::is_known_type`]).
