@@ -2,6 +2,10 @@
 
 use unitac_core::Frame;
 
+/// Largest stride: a cell's channel sum (at most 255 x stride^2) stays below 2^31, so that it
+/// converts to f32 as an i32 (a vector instruction; u32 has none before AVX-512).
+const MAX_STRIDE: u32 = 1024;
+
 /// Grid geometry for a frame size and stride (stride shrinks for tiny images).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Geometry {
@@ -14,7 +18,7 @@ pub struct Geometry {
 
 impl Geometry {
     pub fn new(width: u32, height: u32, stride: u32) -> Self {
-        let s = stride.min(width).min(height).max(1);
+        let s = stride.min(width).min(height).clamp(1, MAX_STRIDE);
         Self {
             width,
             height,
@@ -46,6 +50,7 @@ const ROWS_PER_BATCH: usize = 257;
 /// pixel rows of a cell row are added column by column in u16 (a loop the compiler vectorises),
 /// then each cell's columns are added, and each cell is converted once. Integer sums, so the
 /// result does not depend on the order.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
 pub fn block_means(f: &Frame, g: &Geometry, out: &mut Vec<f32>, s: &mut BlockScratch) {
     let st = g.stride as usize;
     let w3 = f.width as usize * 3;
@@ -90,13 +95,15 @@ pub fn block_means(f: &Frame, g: &Geometry, out: &mut Vec<f32>, s: &mut BlockScr
             }
             dy += n;
         }
+        // The same value either way; through i32 the loop vectorises (see MAX_STRIDE).
         for (o, &v) in dst.iter_mut().zip(&s.sums) {
-            *o = v as f32 * inv;
+            *o = v as i32 as f32 * inv;
         }
     }
 }
 
 /// Add each cell's `S` columns (RGB) of the summed rows into its sums (`set`: store them).
+#[inline]
 fn add_cells<const S: usize>(rows: &[u16], sums: &mut [u32], set: bool) {
     for (cell, px) in sums.chunks_exact_mut(3).zip(rows.chunks_exact(3 * S)) {
         let mut a = [0u32; 3];
@@ -116,6 +123,7 @@ fn add_cells<const S: usize>(rows: &[u16], sums: &mut [u32], set: bool) {
 }
 
 /// [`add_cells`] for a stride known only at run time.
+#[inline]
 fn add_cells_n(rows: &[u16], sums: &mut [u32], st: usize, set: bool) {
     for (cell, px) in sums.chunks_exact_mut(3).zip(rows.chunks_exact(3 * st)) {
         if set {

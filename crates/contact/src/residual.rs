@@ -40,6 +40,7 @@ pub(crate) struct ResidualScratch {
 impl Inputs<'_> {
     /// The field along grid row `y` into `out` (one value per cell per channel); false if there
     /// is no field.
+    #[inline]
     fn field_row(&self, y: usize, out: &mut [Vec<f32>; 3]) -> bool {
         let Some(fit) = self.field else { return false };
         let p = fit.row(y, self.gw, self.gh);
@@ -51,6 +52,7 @@ impl Inputs<'_> {
     }
 
     /// Grid row `y`'s frame, background and marker slices.
+    #[inline]
     fn row(&self, y: usize) -> (&[f32], &[f32], &[u8]) {
         let (a, b) = (y * self.gw, (y + 1) * self.gw);
         (
@@ -74,6 +76,7 @@ pub(crate) fn diff(g: &[f32], b: &[f32], marker: u8, gain: [f32; 3]) -> [f32; 3]
 
 /// Residual of every cell into `resid` and the cells over `thr` (markers never) into `bits`;
 /// with `box_radius > 0` the difference is averaged over that box of cells first.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
 pub(crate) fn residual_mask(
     inp: &Inputs,
     box_radius: usize,

@@ -119,6 +119,7 @@ fn basis(u: f32, v: f32) -> [f32; TERMS] {
 }
 
 /// `a += w * row row^T` on the upper triangle.
+#[inline]
 fn add_outer(a: &mut [[f64; TERMS]; TERMS], row: &[f64; TERMS], w: f64) {
     for (j, &rj) in row.iter().enumerate() {
         let rj = w * rj;
@@ -130,6 +131,7 @@ fn add_outer(a: &mut [[f64; TERMS]; TERMS], row: &[f64; TERMS], w: f64) {
 
 /// Solve the symmetric positive (semi-)definite system `a x = b` for three right-hand sides by
 /// Gaussian elimination with partial pivoting; near-singular pivots give zero coefficients.
+#[inline]
 fn solve(mut a: [[f64; TERMS]; TERMS], mut b: [[f64; 3]; TERMS]) -> [[f32; TERMS]; 3] {
     for col in 0..TERMS {
         let piv = (col..TERMS)
@@ -199,6 +201,7 @@ fn robust_sigma(abs: &mut [u32]) -> f32 {
 /// Fit the shading of the signed difference `diff(cell)` (RGB, cell = y gw + x of a `gw` x `gh`
 /// grid), leaving out cells where `skip` is non-zero (masked markers). The difference is asked
 /// for at the lattices only (a few thousand cells), so the caller need not compute it everywhere.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
 pub fn fit(
     diff: impl Fn(usize) -> [f32; 3],
     skip: &[u8],
@@ -333,6 +336,7 @@ pub fn fit(
 impl ShadingFit {
     /// The fitted field along grid row `y`, per channel, as a quartic in u (coefficients of
     /// u^0..u^4): evaluate it with [`ShadingFit::at`] and the `us` of the scratch.
+    #[inline]
     pub fn row(&self, y: usize, gw: usize, gh: usize) -> [[f32; 5]; 3] {
         let c = &self.coef;
         let (_, v) = coords(0, y, gw, gh);
