@@ -68,6 +68,10 @@ pub struct DriverStats {
     pub rate_hz: f64,
     pub rtt_p50_s: Option<f64>,
     pub rtt_p99_s: Option<f64>,
+    /// Commands that asked for more than the model can do (or less: a speed or force below its
+    /// minimum) and were clamped to its limits, and the last such change.
+    pub clamped_commands: u64,
+    pub last_clamp: Option<String>,
 }
 
 #[derive(Debug, Default)]
@@ -147,7 +151,23 @@ impl Gripper for SerialGripper {
     }
     fn command(&mut self, cmd: GripCommand) -> Result<(), GripperError> {
         self.alive()?;
-        let cmd = self.limits().clamp(cmd)?;
+        let limits = self.limits();
+        let asked = cmd;
+        let cmd = limits.clamp(cmd)?;
+        let what = Limits::clamped(&asked, &cmd);
+        if what.any() {
+            let said = clamp_text(&asked, &cmd, what);
+            let mut st = lock(&self.shared.stats);
+            // Said once per kind of change, then counted (a policy repeats its command).
+            if st.last_clamp.as_deref() != Some(said.as_str()) {
+                tracing::warn!(
+                    "{}: command clamped to the model's limits: {said}",
+                    self.cfg.model
+                );
+            }
+            st.clamped_commands += 1;
+            st.last_clamp = Some(said);
+        }
         let seq = {
             let mut s = lock(&self.shared.seq);
             *s += 1;
@@ -166,6 +186,30 @@ impl Gripper for SerialGripper {
         }
         Ok(())
     }
+}
+
+/// "speed 0.010 -> 0.030 m/s, ..." for the fields `what` names.
+fn clamp_text(asked: &GripCommand, done: &GripCommand, what: crate::gripper::Clamped) -> String {
+    let mut parts = Vec::new();
+    if what.opening {
+        parts.push(format!(
+            "opening {:.4} -> {:.4} m",
+            asked.opening_m, done.opening_m
+        ));
+    }
+    if what.speed {
+        parts.push(format!(
+            "speed {:.3} -> {:.3} m/s",
+            asked.speed_m_s, done.speed_m_s
+        ));
+    }
+    if what.force {
+        parts.push(format!(
+            "force {:.1} -> {:.1} N",
+            asked.force_n, done.force_n
+        ));
+    }
+    parts.join(", ")
 }
 
 impl SerialGripper {

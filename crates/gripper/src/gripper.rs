@@ -127,7 +127,30 @@ pub trait Gripper: Send {
     fn clear_fault(&mut self) -> Result<(), GripperError>;
 }
 
+/// What [`Limits::clamp`] changed in a command, field by field (none: it was within range).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct Clamped {
+    pub opening: bool,
+    pub speed: bool,
+    pub force: bool,
+}
+
+impl Clamped {
+    pub fn any(&self) -> bool {
+        self.opening || self.speed || self.force
+    }
+}
+
 impl Limits {
+    /// Which fields of a finite `asked` command [`Limits::clamp`] changes into `done`.
+    pub fn clamped(asked: &GripCommand, done: &GripCommand) -> Clamped {
+        Clamped {
+            opening: asked.opening_m != done.opening_m,
+            speed: asked.speed_m_s != done.speed_m_s,
+            force: asked.force_n != done.force_n,
+        }
+    }
+
     /// Check `cmd` is finite and clamp it to the limits.
     pub fn clamp(&self, cmd: GripCommand) -> Result<GripCommand, GripperError> {
         if !(cmd.opening_m.is_finite() && cmd.speed_m_s.is_finite() && cmd.force_n.is_finite()) {
@@ -198,6 +221,23 @@ mod tests {
             })
             .unwrap();
         assert_eq!((c.opening_m, c.speed_m_s, c.force_n), (0.085, 0.02, 235.0));
+        let asked = GripCommand {
+            opening_m: 0.05,
+            speed_m_s: 0.01,
+            force_n: 50.0,
+        };
+        let done = l.clamp(asked).unwrap();
+        let what = Limits::clamped(&asked, &done);
+        assert_eq!(
+            what,
+            Clamped {
+                opening: false,
+                speed: true,
+                force: false
+            }
+        );
+        assert!(what.any());
+        assert!(!Limits::clamped(&done, &done).any());
         assert!(
             l.clamp(GripCommand {
                 opening_m: f64::NAN,

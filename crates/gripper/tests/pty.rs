@@ -109,6 +109,22 @@ fn robotiq_activation_position_and_force() {
     assert!(dev.snapshot().fingers.force_n < 60.0);
     assert!(g.state().current_a.unwrap() > 0.0);
     assert_eq!(dev.snapshot().deactivations, 0);
+
+    // Everything so far was within the model's range: nothing clamped. A touch speed below the
+    // 2F-85's minimum is clamped to it, counted and said.
+    assert_eq!(g.stats().clamped_commands, 0);
+    let min = g.limits().min_speed_m_s;
+    for _ in 0..2 {
+        g.command(GripCommand {
+            speed_m_s: 0.001,
+            ..cmd(0.0, 40.0)
+        })
+        .unwrap();
+    }
+    let st = g.stats();
+    assert_eq!(st.clamped_commands, 2);
+    let said = st.last_clamp.unwrap();
+    assert_eq!(said, format!("speed 0.001 -> {min:.3} m/s"));
 }
 
 #[test]

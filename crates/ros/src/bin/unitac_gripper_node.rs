@@ -172,6 +172,11 @@ fn run() -> anyhow::Result<()> {
             ("garbled", st.link.garbled.to_string()),
             ("wrong_slave", st.link.wrong_slave.to_string()),
             ("port_opens", st.opens.to_string()),
+            ("clamped_commands", st.clamped_commands.to_string()),
+            (
+                "last_clamp",
+                st.last_clamp.clone().unwrap_or_else(|| "-".into()),
+            ),
         ];
         // Failed exchanges and refused commands; publish errors are counted by `published`.
         let l = &st.link;
