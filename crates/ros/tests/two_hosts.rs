@@ -195,7 +195,16 @@ fn inference_on_a_second_host_answers_the_robots_episodes_and_only_clips_cross()
 fn when_the_gpu_host_goes_away_the_policy_holds_and_inference_resumes_on_its_return() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let h = Hosts::up("b");
-    let at = |host: &str, program: &str| h.exec(host, program);
+    // The sim, which this test freezes for seconds at a time, announces a lease longer than its
+    // freezes (tests/ros/fastdds_frozen_sim.xml says why); every other node has the product's.
+    let frozen = root().join("tests/ros/fastdds_frozen_sim.xml");
+    let at = |host: &str, program: &str| {
+        let mut c = h.exec(host, program);
+        if program == env!("CARGO_BIN_EXE_unitac_sim_node") {
+            c.env("FASTDDS_DEFAULT_PROFILES_FILE", &frozen);
+        }
+        c
+    };
     let n = format!("/fo{}", std::process::id());
     let mut obs = Observer::start(&at, &n, 150);
     let l = Loop::start(&at, &n, 14.0, &obs);
