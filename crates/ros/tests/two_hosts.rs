@@ -191,13 +191,34 @@ fn inference_on_a_second_host_answers_the_robots_episodes_and_only_clips_cross()
     );
 }
 
+/// launch/dds/fastdds_two_hosts.xml with a 120 s lease, written to a temp file.
+fn frozen_sim_profile(id: &str) -> std::path::PathBuf {
+    let xml = std::fs::read_to_string(root().join("launch/dds/fastdds_two_hosts.xml")).unwrap();
+    let lease = "<leaseDuration>\n              <sec>2</sec>";
+    assert_eq!(
+        xml.matches(lease).count(),
+        1,
+        "the profile's lease is not where it was"
+    );
+    let p = std::env::temp_dir().join(format!("unitac_frozen_sim_{id}.xml"));
+    std::fs::write(
+        &p,
+        xml.replace(lease, "<leaseDuration>\n              <sec>120</sec>"),
+    )
+    .unwrap();
+    p
+}
+
 #[test]
 fn when_the_gpu_host_goes_away_the_policy_holds_and_inference_resumes_on_its_return() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let h = Hosts::up("b");
-    // The sim, which this test freezes for seconds at a time, announces a lease longer than its
-    // freezes (tests/ros/fastdds_frozen_sim.xml says why); every other node has the product's.
-    let frozen = root().join("tests/ros/fastdds_frozen_sim.xml");
+    // The sim, which this test freezes (SIGSTOP) for 2 s and more while the link goes down or
+    // comes back, announces a lease longer than its freezes: the product profile with 120 s
+    // instead of 2 s. A frozen process announces nothing, so with 2 s the robot's other nodes
+    // dropped the sim and had to rediscover it, and one run of eight seen never got its outcome.
+    // A real sim or robot driver is never frozen; every other node has the product's profile.
+    let frozen = frozen_sim_profile(&h.id);
     let at = |host: &str, program: &str| {
         let mut c = h.exec(host, program);
         if program == env!("CARGO_BIN_EXE_unitac_sim_node") {
