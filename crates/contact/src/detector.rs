@@ -5,6 +5,7 @@ use crate::background::{Background, Learner};
 use crate::episodes::Episodes;
 use crate::grid::{BitMask, BlockScratch, Geometry, block_means, keep_components};
 use crate::params::{ContactParams, ParamsError};
+use crate::region::{RegionInputs, RegionScratch, contact_region};
 use crate::residual::{self, Inputs, ResidualScratch, residual_mask};
 use crate::shading::{self, ShadingScratch};
 use unitac_core::msg::{ContactState, Header};
@@ -57,7 +58,11 @@ pub struct Measurement {
 #[derive(Debug, Default)]
 struct Scratch {
     grid: Vec<f32>,
+    /// Deformation: every cell over the noise threshold (after morphology and the component
+    /// filter). The background is never updated under it.
     mask: Vec<u8>,
+    /// Contact: the part of `mask` that area, centroid, bbox and strength are measured on.
+    region: Vec<u8>,
     resid: Vec<f32>,
     bits: BitMask,
     labels: Vec<u32>,
@@ -67,6 +72,7 @@ struct Scratch {
     residual: ResidualScratch,
     shading: ShadingScratch,
     block: BlockScratch,
+    region_s: RegionScratch,
 }
 
 #[derive(Debug)]
@@ -134,22 +140,31 @@ impl ContactDetector {
         self.background().map_or(0.0, |b| b.cell_sigma)
     }
 
-    /// The contact mask of the last measured frame, in input pixels (row-major; empty before the
-    /// first measurement). Pixels in the right/bottom remainder of a stride are never set.
+    /// The contact region of the last measured frame (what its area is), in input pixels
+    /// (row-major; empty before the first measurement). Pixels in the right/bottom remainder of
+    /// a stride are never set.
     pub fn mask_px(&self) -> Vec<bool> {
         let Some(g) = self.geo else { return Vec::new() };
-        if self.s.mask.len() != g.cells() {
+        if self.s.region.len() != g.cells() {
             return Vec::new();
         }
         let (w, st) = (g.width as usize, g.stride as usize);
         let mut out = vec![false; w * g.height as usize];
-        for (i, _) in self.s.mask.iter().enumerate().filter(|(_, m)| **m != 0) {
+        for (i, _) in self.s.region.iter().enumerate().filter(|(_, m)| **m != 0) {
             let (gx, gy) = (i % g.gw, i / g.gw);
             for y in gy * st..(gy + 1) * st {
                 out[y * w + gx * st..y * w + (gx + 1) * st].fill(true);
             }
         }
         out
+    }
+
+    /// The residual of every grid cell of the last measured frame (|R| + |G| + |B| of the
+    /// difference less the shading field \[DN], row-major on the grid) with the grid's geometry;
+    /// None before the first measurement. For diagnostics (the fixtures print radial profiles).
+    pub fn residual_cells(&self) -> Option<(Geometry, &[f32])> {
+        let g = self.geo?;
+        (self.s.resid.len() == g.cells()).then_some((g, self.s.resid.as_slice()))
     }
 
     /// Forget the background and learn it again from the next frames (e.g. after the gel was
@@ -401,13 +416,37 @@ impl ContactDetector {
                 &mut s.stack,
             );
         }
+        // 6. The contact region within it: per component, the cells at or above `area_level` of
+        // its own peak residual (the skirt of a deep press left out), holes filled.
+        let close = cells(self.p.close_radius_px);
+        if any {
+            let inp = RegionInputs {
+                mask: &s.mask,
+                labels: &s.labels,
+                resid: &s.resid,
+                markers,
+                gw: geo.gw,
+                gh: geo.gh,
+            };
+            contact_region(
+                &inp,
+                thr,
+                self.p.area_level,
+                close,
+                &mut s.region,
+                &mut s.region_s,
+            );
+        } else {
+            s.region.clear();
+            s.region.resize(geo.cells(), 0);
+        }
 
-        // 4. Geometry in input pixels.
+        // 7. Geometry of the contact region in input pixels.
         let (mut n, mut sx, mut sy, mut sr) = (0u64, 0f64, 0f64, 0f64);
         let mut bb = [u32::MAX, u32::MAX, 0u32, 0u32];
         // Row by row (cell order), past the empty rows.
         let rows = s
-            .mask
+            .region
             .chunks_exact(geo.gw)
             .zip(s.resid.chunks_exact(geo.gw));
         // (An OR over the row rather than `any`: a loop the compiler vectorises; no row is set
