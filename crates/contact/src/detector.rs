@@ -61,7 +61,8 @@ struct Scratch {
     /// Deformation: every cell over the noise threshold (after morphology and the component
     /// filter). The background is never updated under it.
     mask: Vec<u8>,
-    /// Contact: the part of `mask` that area, centroid, bbox and strength are measured on.
+    /// Contact: the region found from `mask` (`region.rs`; it may grow a little past it) that
+    /// area, centroid, bbox, strength and `mask_px` are measured on.
     region: Vec<u8>,
     resid: Vec<f32>,
     bits: BitMask,
