@@ -261,6 +261,12 @@ impl BitMask {
     pub fn to_bytes(&self, out: &mut Vec<u8>) {
         out.clear();
         out.resize(self.gw * self.gh, 0);
+        self.set_ones(out);
+    }
+
+    /// Write 1 into `out` (one byte per cell, `gw` x `gh`) at every set cell; the other bytes are
+    /// left as they are.
+    pub fn set_ones(&self, out: &mut [u8]) {
         for y in 0..self.gh {
             for i in 0..self.wpr {
                 let mut w = self.words[y * self.wpr + i];

@@ -130,28 +130,40 @@ pub(crate) fn contact_region(
         }
     }
     // The growth starts from the seeds' neighbours (a seed inside the core pushes nothing).
-    let mut any = false;
+    // `rows`: the rows the core spans (every core cell is a seed or popped from the stack).
+    let mut rows = (usize::MAX, 0);
+    let span = |r: (usize, usize), i: usize| (r.0.min(i / gw), r.1.max(i / gw + 1));
     for &i in &s.cells {
         let i = i as usize;
         if s.core[i] != 0 {
-            any = true;
+            rows = span(rows, i);
             let l = s.level[labels[i] as usize];
             grow_around(i, l, inp, &mut s.core, &mut s.grow);
         }
     }
-    if !any {
+    if rows.0 >= rows.1 {
         return;
     }
     while let Some((i, l)) = s.grow.pop() {
+        rows = span(rows, i);
         grow_around(i, l, inp, &mut s.core, &mut s.grow);
     }
-    s.bits.reset(gw, gh);
-    for (y, row) in s.core.chunks_exact(gw).enumerate() {
+    // The closing only on the core's rows and twice its radius around them: its dilation sets
+    // nothing further, and a cell it left unset stays unset whatever the rows beyond hold, so
+    // the rows outside (empty) come out as on the whole grid.
+    let margin = (close_cells as usize).saturating_mul(2);
+    let (y0, y1) = (
+        rows.0.saturating_sub(margin),
+        rows.1.saturating_add(margin).min(gh),
+    );
+    let window = y0 * gw..y1 * gw;
+    s.bits.reset(gw, y1 - y0);
+    for (y, row) in s.core[window.clone()].chunks_exact(gw).enumerate() {
         s.bits.set_row(y, row);
     }
     s.bits.open_close(0, close_cells);
-    s.bits.to_bytes(out);
-    fill_holes(out, gw, gh, s);
+    s.bits.set_ones(&mut out[window]);
+    fill_holes(out, gw, (y0, y1), s);
 }
 
 /// Add the 4-neighbours of cell `i` at or above `l` (not masked markers) to the core and to the
@@ -185,11 +197,14 @@ fn grow_around(
     }
 }
 
-/// Set every cell of `m` (0/1) that is not connected to the outside of the grid through unset
-/// cells (4-connected). Works within the bounding box of the set cells plus one cell.
-fn fill_holes(m: &mut [u8], gw: usize, gh: usize, s: &mut RegionScratch) {
+/// Set every cell of `m` (0/1, `gw` cells a row) that is not connected to the outside of the
+/// grid through unset cells (4-connected). Its set cells lie within rows `rows.0..rows.1`. Works
+/// within the bounding box of the set cells plus one cell.
+fn fill_holes(m: &mut [u8], gw: usize, rows: (usize, usize), s: &mut RegionScratch) {
+    let gh = m.len() / gw;
     let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
-    for (y, row) in m.chunks_exact(gw).enumerate() {
+    let set_rows = m[rows.0 * gw..rows.1 * gw].chunks_exact(gw);
+    for (y, row) in (rows.0..).zip(set_rows) {
         if let (Some(a), Some(b)) = (
             row.iter().position(|&v| v != 0),
             row.iter().rposition(|&v| v != 0),
