@@ -132,21 +132,19 @@ pub(crate) fn contact_region(
     // The growth starts from the seeds' neighbours (a seed inside the core pushes nothing).
     // `rows`: the rows the core spans (every core cell is a seed or popped from the stack).
     let mut rows = (usize::MAX, 0);
-    let span = |r: (usize, usize), i: usize| (r.0.min(i / gw), r.1.max(i / gw + 1));
+    let span = |r: (usize, usize), y: usize| (r.0.min(y), r.1.max(y + 1));
     for &i in &s.cells {
         let i = i as usize;
         if s.core[i] != 0 {
-            rows = span(rows, i);
             let l = s.level[labels[i] as usize];
-            grow_around(i, l, inp, &mut s.core, &mut s.grow);
+            rows = span(rows, grow_around(i, l, inp, &mut s.core, &mut s.grow));
         }
     }
     if rows.0 >= rows.1 {
         return;
     }
     while let Some((i, l)) = s.grow.pop() {
-        rows = span(rows, i);
-        grow_around(i, l, inp, &mut s.core, &mut s.grow);
+        rows = span(rows, grow_around(i, l, inp, &mut s.core, &mut s.grow));
     }
     // The closing only on the core's rows and twice its radius around them: its dilation sets
     // nothing further, and a cell it left unset stays unset whatever the rows beyond hold, so
@@ -167,16 +165,17 @@ pub(crate) fn contact_region(
 }
 
 /// Add the 4-neighbours of cell `i` at or above `l` (not masked markers) to the core and to the
-/// growth's stack.
-#[inline]
+/// growth's stack; returns the row of `i` (one division per cell).
+#[inline(always)]
 fn grow_around(
     i: usize,
     l: f32,
     inp: &RegionInputs,
     core: &mut [u8],
     grow: &mut Vec<(usize, f32)>,
-) {
-    let (gw, x, y) = (inp.gw, i % inp.gw, i / inp.gw);
+) -> usize {
+    let (gw, y) = (inp.gw, i / inp.gw);
+    let x = i - y * gw;
     let mut visit = |j: usize| {
         if core[j] == 0 && inp.markers[j] == 0 && inp.resid[j] >= l {
             core[j] = 1;
@@ -195,6 +194,7 @@ fn grow_around(
     if y + 1 < inp.gh {
         visit(i + gw);
     }
+    y
 }
 
 /// Set every cell of `m` (0/1, `gw` cells a row) that is not connected to the outside of the
