@@ -370,6 +370,58 @@ mod tests {
     }
 
     #[test]
+    fn the_closing_on_the_core_rows_matches_the_whole_grid() {
+        // A tall grid; blobs (uniform residual, so the core is the mask) with gaps the closing
+        // bridges and a ring whose hole the closing leaves open, at rows near and far from the
+        // grid's edges, for several radii: the region is the whole grid's closing, holes filled.
+        let (gw, gh) = (40, 60);
+        for (close, top) in [(1, 0), (2, 0), (2, 5), (3, 20), (4, 40), (2, 55)] {
+            let mut mask = vec![0u8; gw * gh];
+            let mut put = |x: usize, y: usize| {
+                if y < gh {
+                    mask[y * gw + x] = 1;
+                }
+            };
+            for y in top..top + 4 {
+                for x in 2..8 {
+                    put(x, y);
+                }
+                for x in 10..16 {
+                    put(x, y + 1);
+                }
+            }
+            for y in top..top + 5 {
+                for x in 20..27 {
+                    if !(22..25).contains(&x) || !(top + 1..top + 4).contains(&y) {
+                        put(x, y);
+                    }
+                }
+            }
+            let labels: Vec<u32> = mask.iter().map(|&m| u32::from(m)).collect();
+            let resid: Vec<f32> = mask.iter().map(|&m| f32::from(m) * 30.0).collect();
+            let markers = vec![0u8; gw * gh];
+            let inp = RegionInputs {
+                mask: &mask,
+                labels: &labels,
+                resid: &resid,
+                markers: &markers,
+                gw,
+                gh,
+            };
+            let (mut out, mut s) = (Vec::new(), RegionScratch::default());
+            contact_region(&inp, 5.0, 0.5, close, &mut out, &mut s);
+            let mut want = mask.clone();
+            crate::grid::open_close(&mut want, &mut BitMask::default(), gw, gh, 0, close);
+            fill_holes(&mut want, gw, (0, gh), &mut RegionScratch::default());
+            assert_eq!(out, want, "close {close}, top {top}");
+            assert!(
+                area(&out) > area(&mask),
+                "close {close}: the gaps are bridged"
+            );
+        }
+    }
+
+    #[test]
     fn each_component_has_its_own_level() {
         let (gw, gh) = (30, 10);
         let (mut mask, mut labels, mut resid) =
