@@ -17,11 +17,6 @@ const GAIN_RANGE: (f32, f32) = (0.2, 5.0);
 /// samples do not line up in columns): ~1500 samples on a 160x120 grid.
 const SAMPLE_STEP: usize = 13;
 
-/// Largest per-channel noise [DN] left on the difference before thresholding: noisier frames
-/// are averaged over a box of cells first.
-const SMOOTH_TARGET_DN: f32 = 2.0;
-/// Largest box radius [cells] of that averaging.
-const MAX_SMOOTHING: u32 = 4;
 /// Contact components smaller than this share of the largest are dropped.
 const SHARE_OF_LARGEST: f32 = 0.1;
 /// Frame area the pixel parameters are given for (320 x 240).
@@ -359,12 +354,8 @@ impl ContactDetector {
         let sigma: f32 = fit.sigma.iter().sum();
         // A field far below the noise is not worth subtracting.
         let remove = fit.peak > 0.5 * sigma;
-        // Noisy frames: average the difference over a box of cells, so that the per-channel
-        // noise left is at most SMOOTH_TARGET_DN (presses are larger than the box).
-        let mut r = 0u32;
-        while sigma / 3.0 / (2 * r + 1) as f32 > SMOOTH_TARGET_DN && r < MAX_SMOOTHING {
-            r += 1;
-        }
+        // Noisy frames: average the difference over a box of cells (the fit did the same).
+        let r = shading::smoothing_radius(&fit.sigma);
         let thr = (self.p.noise_k * sigma / (2 * r + 1) as f32).max(self.p.min_threshold);
         let (gw, gh) = (geo.gw, geo.gh);
         // 4. Residual and threshold, straight into a packed mask: in one pass from the frame's
