@@ -215,7 +215,7 @@ fn robust_sigma(abs: &mut [u32]) -> f32 {
     nth_non_negative(abs, k).map_or(0.0, |v| v / 0.3853)
 }
 
-/// Radius [cells] of the box the difference is averaged over for a frame with per-channel noise
+/// Radius \[cells] of the box the difference is averaged over for a frame with per-channel noise
 /// `sigma` of one cell: the per-channel noise left is at most `SMOOTH_TARGET_DN` (presses are
 /// larger than the box), `MAX_SMOOTHING` at most.
 pub fn smoothing_radius(sigma: &[f32; 3]) -> u32 {
