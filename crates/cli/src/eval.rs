@@ -217,8 +217,18 @@ mod tests {
             let deep = s.depths.iter().find(|d| d.depth_mm == 0.35).unwrap();
             assert_eq!(deep.detected, 1.0);
             assert!(deep.iou > 0.8, "{}: {}", s.sensor, deep.iou);
-            // Nothing is "found" at 0.01 mm: that would be noise.
-            assert_eq!(s.depths[0].detected, 0.0);
+            // What is found at 0.01 mm (the contact region's growth can lift a real 0.01 mm
+            // touch over the enter area on some frames) is the press, not noise: it overlaps
+            // the true contact. Noise is never a contact: none in the idle minutes.
+            let lightest = &s.depths[0];
+            assert_eq!(lightest.depth_mm, 0.01);
+            assert!(
+                lightest.detected == 0.0 || lightest.iou > 0.8,
+                "{}: {:?}",
+                s.sensor,
+                lightest
+            );
+            assert_eq!((s.idle_false_episodes, s.idle_false_frames), (0, 0));
         }
     }
 }

@@ -5,6 +5,7 @@ use crate::background::{Background, Learner};
 use crate::episodes::Episodes;
 use crate::grid::{BitMask, BlockScratch, Geometry, block_means, keep_components};
 use crate::params::{ContactParams, ParamsError};
+use crate::region::{RegionInputs, RegionScratch, contact_region};
 use crate::residual::{self, Inputs, ResidualScratch, residual_mask};
 use crate::shading::{self, ShadingScratch};
 use unitac_core::msg::{ContactState, Header};
@@ -16,11 +17,6 @@ const GAIN_RANGE: (f32, f32) = (0.2, 5.0);
 /// samples do not line up in columns): ~1500 samples on a 160x120 grid.
 const SAMPLE_STEP: usize = 13;
 
-/// Largest per-channel noise [DN] left on the difference before thresholding: noisier frames
-/// are averaged over a box of cells first.
-const SMOOTH_TARGET_DN: f32 = 2.0;
-/// Largest box radius [cells] of that averaging.
-const MAX_SMOOTHING: u32 = 4;
 /// Contact components smaller than this share of the largest are dropped.
 const SHARE_OF_LARGEST: f32 = 0.1;
 /// Frame area the pixel parameters are given for (320 x 240).
@@ -57,7 +53,12 @@ pub struct Measurement {
 #[derive(Debug, Default)]
 struct Scratch {
     grid: Vec<f32>,
+    /// Deformation: every cell over the noise threshold (after morphology and the component
+    /// filter). The background is never updated under it.
     mask: Vec<u8>,
+    /// Contact: the region found from `mask` (`region.rs`; it may grow a little past it) that
+    /// area, centroid, bbox, strength and `mask_px` are measured on.
+    region: Vec<u8>,
     resid: Vec<f32>,
     bits: BitMask,
     labels: Vec<u32>,
@@ -67,6 +68,7 @@ struct Scratch {
     residual: ResidualScratch,
     shading: ShadingScratch,
     block: BlockScratch,
+    region_s: RegionScratch,
 }
 
 #[derive(Debug)]
@@ -134,22 +136,31 @@ impl ContactDetector {
         self.background().map_or(0.0, |b| b.cell_sigma)
     }
 
-    /// The contact mask of the last measured frame, in input pixels (row-major; empty before the
-    /// first measurement). Pixels in the right/bottom remainder of a stride are never set.
+    /// The contact region of the last measured frame (what its area is), in input pixels
+    /// (row-major; empty before the first measurement). Pixels in the right/bottom remainder of
+    /// a stride are never set.
     pub fn mask_px(&self) -> Vec<bool> {
         let Some(g) = self.geo else { return Vec::new() };
-        if self.s.mask.len() != g.cells() {
+        if self.s.region.len() != g.cells() {
             return Vec::new();
         }
         let (w, st) = (g.width as usize, g.stride as usize);
         let mut out = vec![false; w * g.height as usize];
-        for (i, _) in self.s.mask.iter().enumerate().filter(|(_, m)| **m != 0) {
+        for (i, _) in self.s.region.iter().enumerate().filter(|(_, m)| **m != 0) {
             let (gx, gy) = (i % g.gw, i / g.gw);
             for y in gy * st..(gy + 1) * st {
                 out[y * w + gx * st..y * w + (gx + 1) * st].fill(true);
             }
         }
         out
+    }
+
+    /// The residual of every grid cell of the last measured frame (|R| + |G| + |B| of the
+    /// difference less the shading field \[DN], row-major on the grid) with the grid's geometry;
+    /// None before the first measurement. For diagnostics (the fixtures print radial profiles).
+    pub fn residual_cells(&self) -> Option<(Geometry, &[f32])> {
+        let g = self.geo?;
+        (self.s.resid.len() == g.cells()).then_some((g, self.s.resid.as_slice()))
     }
 
     /// Forget the background and learn it again from the next frames (e.g. after the gel was
@@ -343,12 +354,8 @@ impl ContactDetector {
         let sigma: f32 = fit.sigma.iter().sum();
         // A field far below the noise is not worth subtracting.
         let remove = fit.peak > 0.5 * sigma;
-        // Noisy frames: average the difference over a box of cells, so that the per-channel
-        // noise left is at most SMOOTH_TARGET_DN (presses are larger than the box).
-        let mut r = 0u32;
-        while sigma / 3.0 / (2 * r + 1) as f32 > SMOOTH_TARGET_DN && r < MAX_SMOOTHING {
-            r += 1;
-        }
+        // Noisy frames: average the difference over a box of cells (the fit did the same).
+        let r = shading::smoothing_radius(&fit.sigma);
         let thr = (self.p.noise_k * sigma / (2 * r + 1) as f32).max(self.p.min_threshold);
         let (gw, gh) = (geo.gw, geo.gh);
         // 4. Residual and threshold, straight into a packed mask: in one pass from the frame's
@@ -401,13 +408,37 @@ impl ContactDetector {
                 &mut s.stack,
             );
         }
+        // 6. The contact region within it: per component, the cells at or above `area_level` of
+        // its own peak residual (the skirt of a deep press left out), holes filled.
+        let close = cells(self.p.close_radius_px);
+        if any {
+            let inp = RegionInputs {
+                mask: &s.mask,
+                labels: &s.labels,
+                resid: &s.resid,
+                markers,
+                gw: geo.gw,
+                gh: geo.gh,
+            };
+            contact_region(
+                &inp,
+                thr,
+                self.p.area_level,
+                close,
+                &mut s.region,
+                &mut s.region_s,
+            );
+        } else {
+            s.region.clear();
+            s.region.resize(geo.cells(), 0);
+        }
 
-        // 4. Geometry in input pixels.
+        // 7. Geometry of the contact region in input pixels.
         let (mut n, mut sx, mut sy, mut sr) = (0u64, 0f64, 0f64, 0f64);
         let mut bb = [u32::MAX, u32::MAX, 0u32, 0u32];
         // Row by row (cell order), past the empty rows.
         let rows = s
-            .mask
+            .region
             .chunks_exact(geo.gw)
             .zip(s.resid.chunks_exact(geo.gw));
         // (An OR over the row rather than `any`: a loop the compiler vectorises; no row is set

@@ -261,6 +261,12 @@ impl BitMask {
     pub fn to_bytes(&self, out: &mut Vec<u8>) {
         out.clear();
         out.resize(self.gw * self.gh, 0);
+        self.set_ones(out);
+    }
+
+    /// Write 1 into `out` (one byte per cell, `gw` x `gh`) at every set cell; the other bytes are
+    /// left as they are.
+    pub fn set_ones(&self, out: &mut [u8]) {
         for y in 0..self.gh {
             for i in 0..self.wpr {
                 let mut w = self.words[y * self.wpr + i];
@@ -390,29 +396,41 @@ pub fn keep_components(
         }
         let id = sizes.len() as u32;
         let mut n = 0;
+        // A scanline flood: each popped seed labels its whole run of the row, and pushes one
+        // seed per unlabelled run of the rows above and below that touches it (4-connected).
         stack.clear();
         stack.push((start % gw, start / gw));
-        labels[start] = id;
         while let Some((x, y)) = stack.pop() {
-            n += 1;
-            let i = y * gw + x;
-            let mut visit = |j: usize, x: usize, y: usize| {
-                if mask[j] != 0 && labels[j] == 0 {
-                    labels[j] = id;
-                    stack.push((x, y));
+            let row = y * gw;
+            if labels[row + x] != 0 {
+                continue;
+            }
+            let free = |i: usize, labels: &[u32]| mask[i] != 0 && labels[i] == 0;
+            let (mut l, mut r) = (x, x);
+            while l > 0 && free(row + l - 1, labels) {
+                l -= 1;
+            }
+            while r + 1 < gw && free(row + r + 1, labels) {
+                r += 1;
+            }
+            labels[row + l..=row + r].fill(id);
+            n += r - l + 1;
+            for ny in [y.wrapping_sub(1), y + 1] {
+                if ny >= gh {
+                    continue;
                 }
-            };
-            if x > 0 {
-                visit(i - 1, x - 1, y);
-            }
-            if x + 1 < gw {
-                visit(i + 1, x + 1, y);
-            }
-            if y > 0 {
-                visit(i - gw, x, y - 1);
-            }
-            if y + 1 < gh {
-                visit(i + gw, x, y + 1);
+                let nrow = ny * gw;
+                let mut i = l;
+                while i <= r {
+                    if free(nrow + i, labels) {
+                        stack.push((i, ny));
+                        while i <= r && free(nrow + i, labels) {
+                            i += 1;
+                        }
+                    } else {
+                        i += 1;
+                    }
+                }
             }
         }
         sizes.push(n);
@@ -649,5 +667,76 @@ mod tests {
         assert_eq!(keep_components(&mut m2, gw, gh, 1, 0.6, &mut l, &mut s), 7);
         m2[5] = 0;
         assert_eq!(keep_components(&mut m2, gw, gh, 1, 0.6, &mut l, &mut s), 4);
+    }
+
+    /// The labels of a plain per-cell flood (4-connected, ids in raster order of each
+    /// component's first cell) and each component's size.
+    fn labels_by_cell_flood(mask: &[u8], gw: usize, gh: usize) -> (Vec<u32>, Vec<usize>) {
+        let mut labels = vec![0u32; mask.len()];
+        let mut sizes = vec![0usize];
+        for start in 0..mask.len() {
+            if mask[start] == 0 || labels[start] != 0 {
+                continue;
+            }
+            let id = sizes.len() as u32;
+            let (mut stack, mut n) = (vec![start], 0);
+            labels[start] = id;
+            while let Some(i) = stack.pop() {
+                n += 1;
+                let (x, y) = (i % gw, i / gw);
+                let mut near = Vec::new();
+                if x > 0 {
+                    near.push(i - 1);
+                }
+                if x + 1 < gw {
+                    near.push(i + 1);
+                }
+                if y > 0 {
+                    near.push(i - gw);
+                }
+                if y + 1 < gh {
+                    near.push(i + gw);
+                }
+                for j in near {
+                    if mask[j] != 0 && labels[j] == 0 {
+                        labels[j] = id;
+                        stack.push(j);
+                    }
+                }
+            }
+            sizes.push(n);
+        }
+        (labels, sizes)
+    }
+
+    /// The scanline flood labels every cell as a per-cell flood does, on random masks of every
+    /// density (spirals, combs and single cells among them), and keeps the same cells.
+    #[test]
+    fn scanline_components_match_a_cell_flood() {
+        let mut seed = 11u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 33) as u32
+        };
+        for case in 0..300 {
+            let (gw, gh) = (1 + next() as usize % 40, 1 + next() as usize % 30);
+            let density = next() % 100;
+            let mask: Vec<u8> = (0..gw * gh)
+                .map(|_| u8::from(next() % 100 < density))
+                .collect();
+            let (want, sizes) = labels_by_cell_flood(&mask, gw, gh);
+            let (mut m, mut l, mut st) = (mask.clone(), Vec::new(), Vec::new());
+            let min_cells = 1 + case % 5;
+            let kept = keep_components(&mut m, gw, gh, min_cells, 0.0, &mut l, &mut st);
+            assert_eq!(l, want, "case {case}: {gw}x{gh} at {density} %");
+            let want_kept: usize = sizes.iter().skip(1).filter(|&&n| n >= min_cells).sum();
+            assert_eq!(kept, want_kept, "case {case}");
+            for (i, (&a, &b)) in m.iter().zip(&mask).enumerate() {
+                let keep = b != 0 && sizes[want[i] as usize] >= min_cells;
+                assert_eq!(a != 0, keep, "case {case}, cell {i}");
+            }
+        }
     }
 }

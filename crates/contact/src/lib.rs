@@ -12,7 +12,10 @@
 //!    difference at `noise_k` times the measured noise (never below `min_threshold`);
 //! 4. marker dots masked (GelSight Mini), opening then closing, then the coherent regions only:
 //!    components over `min_component_px` and not much smaller than the largest;
-//! 5. area (px and mm^2), centroid and bounding box in the INPUT image's pixels, strength score;
+//! 5. area (px and mm^2), centroid and bounding box in the INPUT image's pixels, strength score,
+//!    from the contact region inside that deformation mask: per component the cells at or above
+//!    `area_level` (half) of its own robust peak residual, grown, closed, holes filled (so the
+//!    gel's skirt around a deep press is not contact);
 //! 6. hysteresis (enter / exit area) and debounce (k frames) into contact episodes
 //!    ([`episodes`](crate::ContactStage)), with a bounded clip of the episode's frames;
 //! 7. the background follows slow changes by an EMA only while there is no contact, and only in
@@ -29,6 +32,7 @@ mod detector;
 mod episodes;
 pub mod grid;
 mod params;
+mod region;
 mod residual;
 pub mod shading;
 pub mod slip;

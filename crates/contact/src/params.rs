@@ -29,6 +29,12 @@ pub struct ContactParams {
     /// one cell when non-zero.
     pub open_radius_px: u32,
     pub close_radius_px: u32,
+    /// The contact region, from which area, centroid, bounding box and strength are measured:
+    /// per connected region over the noise threshold, the cells whose residual reaches this share
+    /// of the region's own peak (its 90th percentile), never below the threshold; closed, holes
+    /// filled. 0.5 is a half-maximum contour: it leaves out the gel's skirt around a deep press.
+    /// 0 = every cell over the noise threshold.
+    pub area_level: f32,
     /// Consecutive frames needed to enter contact ...
     pub debounce_frames: u32,
     /// ... and to leave it (the exit area is already a hysteresis band below the enter area).
@@ -69,6 +75,7 @@ impl Default for ContactParams {
             min_component_px: 40.0,
             open_radius_px: 2,
             close_radius_px: 4,
+            area_level: 0.5,
             debounce_frames: 2,
             exit_debounce_frames: 1,
             ema_alpha: 0.02,
@@ -167,6 +174,9 @@ impl ContactParams {
                 self.close_radius_px,
                 "0..=32",
             ));
+        }
+        if !(0.0..1.0).contains(&self.area_level) {
+            return Err(out_of_range("area_level", self.area_level, "[0, 1)"));
         }
         if !(self.ema_alpha >= 0.0 && self.ema_alpha < 1.0) {
             return Err(out_of_range("ema_alpha", self.ema_alpha, "[0, 1)"));

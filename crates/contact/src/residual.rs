@@ -40,7 +40,7 @@ pub(crate) struct ResidualScratch {
 impl Inputs<'_> {
     /// The field along grid row `y` into `out` (one value per cell per channel); false if there
     /// is no field.
-    #[inline]
+    #[inline(always)]
     fn field_row(&self, y: usize, out: &mut [Vec<f32>; 3]) -> bool {
         let Some(fit) = self.field else { return false };
         let p = fit.row(y, self.gw, self.gh);

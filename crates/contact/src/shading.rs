@@ -6,9 +6,13 @@
 //! terms) to the signed difference on a sparse lattice of cells, by iteratively reweighted least
 //! squares with hard rejection: cells far from the current fit (the press, moving markers) are
 //! left out of the next fit, so the press never bends the surface towards itself, and a quartic
-//! cannot follow a compact press anyway. The noise comes from the same frame: a robust sigma per
-//! channel from differences of neighbouring cells (a low quantile), with no assumption about
-//! the sensor.
+//! cannot follow a compact press anyway. A press covering most of the gel is not compact, and
+//! its inside is smooth: the least-squares start can end on it, so when the first fit leaves
+//! out a quarter of the lattice or more, a second start from the cells that changed least (the
+//! gel at rest) is tried and kept when its field is clearly smaller (see [`fit`]). On a noisy
+//! frame the lattice holds box means of the difference (the box the threshold uses). The noise
+//! comes from the same frame: a robust sigma per channel from differences of neighbouring cells
+//! (a low quantile), with no assumption about the sensor.
 //!
 //! Cost: the fitting lattice holds ~600 cells whatever the frame size (an odd step each way,
 //! rows staggered; the noise is measured on ~2,000); the normal matrix (15 x 15) of the lattice
@@ -27,6 +31,18 @@ const TERMS: usize = 15;
 const ITERATIONS: usize = 3;
 /// Cells further than this many (summed) sigmas from the fit are left out of the next fit.
 const REJECT_K: f32 = 3.0;
+/// The second start: the cells whose summed |difference| is at most this quantile (per mille).
+const SECOND_START_PERMILLE: usize = 300;
+/// The second start is tried when the first fit keeps fewer than NUM / DEN of the lattice.
+const SECOND_LOOK_NUM: usize = 3;
+const SECOND_LOOK_DEN: usize = 4;
+/// Iterations of the second start.
+const SECOND_ITERATIONS: usize = 6;
+/// Largest per-channel noise [DN] left on the difference before it is fitted and thresholded:
+/// noisier frames are averaged over a box of cells first.
+const SMOOTH_TARGET_DN: f32 = 2.0;
+/// Largest box radius [cells] of that averaging.
+const MAX_SMOOTHING: u32 = 4;
 /// Target size of the fitting lattice (cells).
 const LATTICE_CELLS: usize = 600;
 /// Target size of the lattice the noise is measured on (cells).
@@ -62,6 +78,7 @@ pub struct ShadingScratch {
     /// The model at the lattice, channel-major.
     model: Vec<f32>,
     inlier: Vec<bool>,
+    first_inlier: Vec<bool>,
     /// |neighbour difference| per channel, as f32 bits (see [`nth_non_negative`]).
     abs: [Vec<u32>; 3],
     /// The geometry the lattice was built for (gw, gh).
@@ -198,6 +215,18 @@ fn robust_sigma(abs: &mut [u32]) -> f32 {
     nth_non_negative(abs, k).map_or(0.0, |v| v / 0.3853)
 }
 
+/// Radius \[cells] of the box the difference is averaged over for a frame with per-channel noise
+/// `sigma` of one cell: the per-channel noise left is at most `SMOOTH_TARGET_DN` (presses are
+/// larger than the box), `MAX_SMOOTHING` at most.
+pub fn smoothing_radius(sigma: &[f32; 3]) -> u32 {
+    let sum: f32 = sigma.iter().sum();
+    let mut r = 0u32;
+    while sum / 3.0 / (2 * r + 1) as f32 > SMOOTH_TARGET_DN && r < MAX_SMOOTHING {
+        r += 1;
+    }
+    r
+}
+
 /// Fit the shading of the signed difference `diff(cell)` (RGB, cell = y gw + x of a `gw` x `gh`
 /// grid), leaving out cells where `skip` is non-zero (masked markers). The difference is asked
 /// for at the lattices only (a few thousand cells), so the caller need not compute it everywhere.
@@ -261,10 +290,98 @@ pub fn fit(
     for c in 0..3 {
         fit.sigma[c] = (robust_sigma(&mut s.abs[c]) / std::f32::consts::SQRT_2).max(MIN_SIGMA);
     }
-    let limit = REJECT_K * (fit.sigma[0] + fit.sigma[1] + fit.sigma[2]);
+    // On a noisy frame the lattice holds the difference averaged over the box the threshold
+    // will use, so that the rejection separates what the threshold will.
+    let r = smoothing_radius(&fit.sigma) as usize;
+    let limit = REJECT_K * (fit.sigma[0] + fit.sigma[1] + fit.sigma[2]) / (2 * r + 1) as f32;
     s.d.clear();
-    s.d.extend(s.idx.iter().map(|&i| diff(i)));
-    for it in 0..ITERATIONS {
+    if r == 0 {
+        s.d.extend(s.idx.iter().map(|&i| diff(i)));
+    } else {
+        for &i in &s.idx {
+            let (x, y) = (i % gw, i / gw);
+            let mut acc = [0f32; 3];
+            let mut n = 0u32;
+            for yy in y.saturating_sub(r)..(y + r + 1).min(gh) {
+                for xx in x.saturating_sub(r)..(x + r + 1).min(gw) {
+                    let j = yy * gw + xx;
+                    if skip.get(j).is_some_and(|&m| m != 0) {
+                        continue;
+                    }
+                    let d = diff(j);
+                    for c in 0..3 {
+                        acc[c] += d[c];
+                    }
+                    n += 1;
+                }
+            }
+            let n = n.max(1) as f32;
+            s.d.push(acc.map(|a| a / n));
+        }
+    }
+    // First start: every cell not skipped (a least-squares fit of everything, then rejection).
+    s.inlier.clone_from(&s.open);
+    let first = iterate(s, limit, ITERATIONS);
+    let open_cells = s.open.iter().filter(|&&o| o).count();
+    let mut chosen = first;
+    // A press covering much of the gel can capture the first fit (its inside is smooth, and the
+    // least-squares start sits between it and the gel at rest); the first fit then leaves out
+    // much of the lattice. Then a second start: the cells that changed least.
+    if first.kept * SECOND_LOOK_DEN < open_cells * SECOND_LOOK_NUM {
+        s.first_inlier.clone_from(&s.inlier);
+        s.abs[0].clear();
+        for (di, &open) in s.d.iter().zip(&s.open) {
+            if open {
+                s.abs[0].push((di[0].abs() + di[1].abs() + di[2].abs()).to_bits());
+            }
+        }
+        let k = s.abs[0].len() * SECOND_START_PERMILLE / 1000;
+        let quiet = nth_non_negative(&mut s.abs[0], k).unwrap_or(0.0);
+        for ((di, &open), ok) in s.d.iter().zip(&s.open).zip(s.inlier.iter_mut()) {
+            *ok = open && di[0].abs() + di[1].abs() + di[2].abs() <= quiet;
+        }
+        let second = iterate(s, limit, SECOND_ITERATIONS);
+        // Taken when it is no worse on both counts, or when its field is less than half the
+        // first's while it keeps a third of the lattice: the gel at rest around a press that
+        // covers most of it.
+        let pick = (second.kept >= first.kept && second.mean_field <= first.mean_field)
+            || (second.kept * 3 >= open_cells && second.mean_field * 2.0 <= first.mean_field);
+        if pick {
+            chosen = second;
+        } else {
+            s.inlier.clone_from(&s.first_inlier);
+        }
+    }
+    fit.coef = chosen.coef;
+    fit.peak = chosen.peak;
+    fit.rejected = chosen.rejected;
+    fit
+}
+
+/// One robust fit from the inliers in `s.inlier`.
+#[derive(Clone, Copy)]
+struct Iterated {
+    coef: [[f32; TERMS]; 3],
+    peak: f32,
+    rejected: f32,
+    /// Lattice cells in the final fit.
+    kept: usize,
+    /// Mean over the open lattice cells of the summed |fitted field| \[DN].
+    mean_field: f32,
+}
+
+/// Fit + rejection from the inliers in `s.inlier`, at most `iterations` times (fewer when the
+/// inliers stop changing); `s.inlier` holds the final inliers.
+#[inline(always)]
+fn iterate(s: &mut ShadingScratch, limit: f32, iterations: usize) -> Iterated {
+    let mut out = Iterated {
+        coef: [[0f32; TERMS]; 3],
+        peak: 0.0,
+        rejected: 0.0,
+        kept: 0,
+        mean_field: 0.0,
+    };
+    for it in 0..iterations {
         // The normal matrix is that of the cells not skipped less the rows rejected (few,
         // usually).
         let mut a = s.base;
@@ -293,16 +410,17 @@ pub fn fit(
                 a[j][k] = a[k][j];
             }
         }
-        fit.coef = solve(a, b);
+        out.coef = solve(a, b);
         // Residuals at the lattice, then the new inliers.
         let mut rejected = 0usize;
         let mut changed = false;
-        fit.peak = 0.0;
+        let (mut open_cells, mut field_sum) = (0usize, 0f64);
+        out.peak = 0.0;
         // The model at every lattice cell, summed term by term in the basis order.
         let n = s.idx.len();
         s.model.clear();
         s.model.resize(3 * n, 0.0);
-        for (model, coef) in s.model.chunks_exact_mut(n.max(1)).zip(&fit.coef) {
+        for (model, coef) in s.model.chunks_exact_mut(n.max(1)).zip(&out.coef) {
             for (col, &k) in s.cols.chunks_exact(n.max(1)).zip(coef) {
                 for (m, &r) in model.iter_mut().zip(col) {
                     *m += r * k;
@@ -318,19 +436,25 @@ pub fn fit(
                 e += (di[c] - model).abs();
                 field += model.abs();
             }
-            fit.peak = fit.peak.max(field);
+            out.peak = out.peak.max(field);
+            if open {
+                open_cells += 1;
+                field_sum += f64::from(field);
+            }
             let now = open && e < limit;
             changed |= now != *ok;
             *ok = now;
             rejected += usize::from(!now);
         }
-        fit.rejected = rejected as f32 / s.idx.len().max(1) as f32;
+        out.rejected = rejected as f32 / s.idx.len().max(1) as f32;
+        out.kept = s.idx.len() - rejected;
+        out.mean_field = (field_sum / open_cells.max(1) as f64) as f32;
         // The same inliers would give the same fit again.
-        if !changed || it + 1 == ITERATIONS {
+        if !changed || it + 1 == iterations {
             break;
         }
     }
-    fit
+    out
 }
 
 impl ShadingFit {
@@ -438,5 +562,54 @@ mod tests {
         let mean_off = off.iter().sum::<f32>() / off.len() as f32;
         assert!(mean_off.abs() < 1.0, "{mean_off}");
         assert!(at(100, 50) > 22.0, "{}", at(100, 50));
+    }
+
+    /// A press covering 60 % of the gel (a plateau with a sharp edge, cut by the frame's top and
+    /// bottom, as DIGIT's large press) under a mild tilt: the fit follows the gel at rest around
+    /// it, not the press (the least-squares start alone ends on the press's inside).
+    #[test]
+    fn a_press_over_most_of_the_gel_is_not_shading() {
+        let (gw, gh) = (160, 120);
+        let mut diff = vec![0f32; gw * gh * 3];
+        let mut inside = 0usize;
+        for y in 0..gh {
+            for x in 0..gw {
+                let press = (x as f32 - 80.0).hypot(y as f32 - 60.0) < 61.0;
+                inside += usize::from(press);
+                let tilt = 4.0 * (x as f32 / gw as f32 - 0.5);
+                // A deterministic texture of +-1 DN for the noise.
+                let n = if (x * 7 + y * 13) % 5 < 2 { 1.0 } else { -1.0 };
+                for c in 0..3 {
+                    let p = if press { [14.0, 12.0, 16.0][c] } else { 0.0 };
+                    diff[(y * gw + x) * 3 + c] = tilt + n + p;
+                }
+            }
+        }
+        assert!(
+            inside * 100 > gw * gh * 55,
+            "the press covers {inside} cells"
+        );
+        let mut s = ShadingScratch::default();
+        let f = fit(
+            |i| [diff[i * 3], diff[i * 3 + 1], diff[i * 3 + 2]],
+            &[],
+            gw,
+            gh,
+            &mut s,
+        );
+        f.remove(&mut diff, gw, gh, &s);
+        let at = |x: usize, y: usize| {
+            diff[(y * gw + x) * 3..(y * gw + x) * 3 + 3]
+                .iter()
+                .sum::<f32>()
+        };
+        // The press is all there in the middle and near its edge, and the corners are at rest.
+        for (x, y) in [(80, 60), (40, 60), (120, 60), (80, 20), (80, 100)] {
+            assert!(at(x, y) > 35.0, "press at ({x}, {y}): {}", at(x, y));
+        }
+        for (x, y) in [(2, 2), (157, 2), (2, 117), (157, 117)] {
+            assert!(at(x, y).abs() < 8.0, "corner ({x}, {y}): {}", at(x, y));
+        }
+        assert!(f.rejected > 0.5, "{}", f.rejected);
     }
 }

@@ -345,6 +345,14 @@ fn bad_params_are_rejected() {
             clip_frames: 100_000,
             ..Default::default()
         },
+        ContactParams {
+            area_level: 1.0,
+            ..Default::default()
+        },
+        ContactParams {
+            area_level: f32::NAN,
+            ..Default::default()
+        },
     ] {
         assert!(ContactDetector::new(p, spec).is_err());
     }
