@@ -272,3 +272,85 @@ fn replay_learns_a_new_frame_size() {
     assert_eq!((errors, states), (4, 60 - 4 - 10), "{lines:?}");
     assert!(lines.iter().all(|l| l["contact"] != true));
 }
+
+/// Issue 15's fixtures through the command line: DIGIT's large press (60 % of the gel) and a
+/// light one under 40 DN of shading and 8 DN of noise at 640x480, and the same with no press,
+/// each against one background image. `unitac contact` says what the library's detector says
+/// (same area, centroid and contact, so the same code path), the press's area is within x1.5 of
+/// the true disc, and the idle frame is no contact.
+#[test]
+fn degraded_presses_read_as_the_detector_reads_them() {
+    use unitac_contact::{ContactDetector, ContactParams};
+    use unitac_sim::Object;
+    use unitac_sim::degrade::{Degrade, idle_fixture, press_fixture};
+    let d = dir().join("degraded");
+    std::fs::create_dir_all(&d).unwrap();
+    let kind = SensorKind::Digit;
+    let base = kind.spec();
+    let spec = unitac_core::SensorSpec {
+        width: base.width * 2,
+        height: base.height * 2,
+        mm_per_px: base.mm_per_px / 2.0,
+        ..base
+    };
+    let cfg = MockConfig::new(kind, 42);
+    let deg = |seed| Degrade {
+        shading_dn: 40.0,
+        noise_dn: 8.0,
+        shift: (0, 0),
+        seed,
+    };
+    let mut cases = Vec::new();
+    for (name, obj, depth) in [
+        ("large", Object::sphere("p", 12.0), 1.0),
+        ("light", Object::sphere("p", 4.0), 0.1),
+    ] {
+        let fx = press_fixture(&cfg, spec, &Scenario::held(&obj, depth, 1.0), "p", deg(7)).unwrap();
+        cases.push((name, fx.background, fx.frame, Some(fx.contact_px)));
+    }
+    let (bg, idle) = idle_fixture(&cfg, spec, deg(8)).unwrap();
+    cases.push(("idle", bg, idle, None));
+    for (name, bg, frame, truth) in cases {
+        let (bp, fp) = (
+            d.join(format!("{name}-bg.png")),
+            d.join(format!("{name}.png")),
+        );
+        save_rgb(&bp, &bg);
+        save_rgb(&fp, &frame);
+        let (code, lines, stderr) = run(&[
+            "contact",
+            "--sensor",
+            "digit",
+            "--background",
+            bp.to_str().unwrap(),
+            "--json",
+            fp.to_str().unwrap(),
+        ]);
+        assert_eq!(code, Some(0), "{name}: {stderr}");
+        let l = &lines[0];
+        let mut det = ContactDetector::new(ContactParams::default(), kind.spec()).unwrap();
+        det.set_background_frame(&bg);
+        let m = det.measure(&frame).unwrap();
+        assert_eq!(l["contact"], m.contact, "{name}: {l} vs {m:?}");
+        assert_eq!(
+            l["area_px"].as_f64().unwrap(),
+            f64::from(m.area_px),
+            "{name}: {l}"
+        );
+        assert_eq!(
+            l["centroid"][0].as_f64().unwrap(),
+            f64::from(m.centroid[0]),
+            "{name}"
+        );
+        match truth {
+            Some(px) => {
+                let ratio = f64::from(m.area_px) / f64::from(px);
+                assert!(
+                    m.contact && (1.0 / 1.5..=1.5).contains(&ratio),
+                    "{name}: x{ratio:.2}"
+                );
+            }
+            None => assert!(!m.contact, "{name}: {l}"),
+        }
+    }
+}
