@@ -104,23 +104,23 @@ fn top_speed(r: &TrialRecord, phase: &str) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Where the outcomes differ (seed 1 trial 19 of 20 in `unitac trials`): the policy closes until
-/// contact at its touch speed, 10 mm/s, with a 3 N bound; the 2F-140's slowest is 30 mm/s and its
-/// weakest 10 N (the driver clamps to the model's range, the device's registers hold it), so the
-/// close overruns the first touch, over-compresses the cup, and the probe's release does not end
-/// the contact before the policy's timeout.
+/// Where the two grippers' trials differ most (seed 1 trial 19 of 20 in `unitac trials`): the
+/// policy closes until contact at its touch speed, 10 mm/s, with a 3 N bound; the 2F-140's
+/// slowest is 30 mm/s and its weakest 10 N (the driver clamps to the model's range, the device's
+/// registers hold it), so the serial close overruns the first touch and squeezes the cup deeper.
+/// Before the contact region (issue 15) that over-compressed the cup and the probe's release did
+/// not end the contact in time (the trial failed); since, both trials succeed (crates/trials/
+/// README.md), and the wire still shows the faster, deeper touch.
 #[test]
 fn where_they_differ_the_serial_gripper_touched_at_its_minimum_speed() {
     let a = trial("cup_deformation_vtla_real", 1, 19, TrialGripper::InProcess);
     let b = trial("cup_deformation_vtla_real", 1, 19, SERIAL);
     assert_went_over_the_wire(&b);
-    assert!(cup(&a).overall, "{:?}", cup(&a));
-    assert!(!cup(&b).overall && cup(&b).over_compressed, "{:?}", cup(&b));
-    assert_eq!(b.end_phase, "failed");
-    assert!(
-        b.end_reason.contains("the probe contact did not end"),
-        "{}",
-        b.end_reason
+    let (ca, cb) = (cup(&a), cup(&b));
+    assert!(ca.overall && cb.overall, "{ca:?} vs {cb:?}");
+    assert_eq!(
+        (a.end_phase.as_str(), b.end_phase.as_str()),
+        ("done", "done")
     );
     let limits = Model::Robotiq2F140.calibration().limits;
     assert_eq!(limits.min_speed_m_s, 0.03);
@@ -130,6 +130,10 @@ fn where_they_differ_the_serial_gripper_touched_at_its_minimum_speed() {
         top_speed(&a, "close")
     );
     assert!(top_speed(&b, "close") > 0.02, "{}", top_speed(&b, "close"));
+    assert!(
+        cb.peak_deformation_m > ca.peak_deformation_m + 0.0003,
+        "{ca:?} vs {cb:?}"
+    );
 }
 
 #[test]
