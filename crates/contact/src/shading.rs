@@ -78,7 +78,6 @@ pub struct ShadingScratch {
     /// The model at the lattice, channel-major.
     model: Vec<f32>,
     inlier: Vec<bool>,
-    first_inlier: Vec<bool>,
     /// |neighbour difference| per channel, as f32 bits (see [`nth_non_negative`]).
     abs: [Vec<u32>; 3],
     /// The geometry the lattice was built for (gw, gh).
@@ -321,40 +320,38 @@ pub fn fit(
     }
     // First start: every cell not skipped (a least-squares fit of everything, then rejection).
     s.inlier.clone_from(&s.open);
-    let first = iterate(s, limit, ITERATIONS);
     let open_cells = s.open.iter().filter(|&&o| o).count();
+    let first = iterate(s, limit, ITERATIONS, open_cells);
     let mut chosen = first;
     // A press covering much of the gel can capture the first fit (its inside is smooth, and the
     // least-squares start sits between it and the gel at rest); the first fit then leaves out
     // much of the lattice. Then a second start: the cells that changed least.
     if first.kept * SECOND_LOOK_DEN < open_cells * SECOND_LOOK_NUM {
-        s.first_inlier.clone_from(&s.inlier);
+        let change = |d: &[f32; 3]| d[0].abs() + d[1].abs() + d[2].abs();
         s.abs[0].clear();
         for (di, &open) in s.d.iter().zip(&s.open) {
             if open {
-                s.abs[0].push((di[0].abs() + di[1].abs() + di[2].abs()).to_bits());
+                s.abs[0].push(change(di).to_bits());
             }
         }
         let k = s.abs[0].len() * SECOND_START_PERMILLE / 1000;
         let quiet = nth_non_negative(&mut s.abs[0], k).unwrap_or(0.0);
         for ((di, &open), ok) in s.d.iter().zip(&s.open).zip(s.inlier.iter_mut()) {
-            *ok = open && di[0].abs() + di[1].abs() + di[2].abs() <= quiet;
+            *ok = open && change(di) <= quiet;
         }
-        let second = iterate(s, limit, SECOND_ITERATIONS);
+        let second = iterate(s, limit, SECOND_ITERATIONS, open_cells);
         // Taken when it is no worse on both counts, or when its field is less than half the
         // first's while it keeps a third of the lattice: the gel at rest around a press that
         // covers most of it.
-        let pick = (second.kept >= first.kept && second.mean_field <= first.mean_field)
-            || (second.kept * 3 >= open_cells && second.mean_field * 2.0 <= first.mean_field);
-        if pick {
+        if (second.kept >= first.kept && second.mean_field <= first.mean_field)
+            || (second.kept * 3 >= open_cells && second.mean_field * 2.0 <= first.mean_field)
+        {
             chosen = second;
-        } else {
-            s.inlier.clone_from(&s.first_inlier);
         }
     }
     fit.coef = chosen.coef;
     fit.peak = chosen.peak;
-    fit.rejected = chosen.rejected;
+    fit.rejected = (s.idx.len() - chosen.kept) as f32 / s.idx.len().max(1) as f32;
     fit
 }
 
@@ -363,7 +360,6 @@ pub fn fit(
 struct Iterated {
     coef: [[f32; TERMS]; 3],
     peak: f32,
-    rejected: f32,
     /// Lattice cells in the final fit.
     kept: usize,
     /// Mean over the open lattice cells of the summed |fitted field| \[DN].
@@ -371,13 +367,13 @@ struct Iterated {
 }
 
 /// Fit + rejection from the inliers in `s.inlier`, at most `iterations` times (fewer when the
-/// inliers stop changing); `s.inlier` holds the final inliers.
+/// inliers stop changing); `s.inlier` holds the final inliers. `open_cells`: the lattice cells
+/// not skipped.
 #[inline(always)]
-fn iterate(s: &mut ShadingScratch, limit: f32, iterations: usize) -> Iterated {
+fn iterate(s: &mut ShadingScratch, limit: f32, iterations: usize, open_cells: usize) -> Iterated {
     let mut out = Iterated {
         coef: [[0f32; TERMS]; 3],
         peak: 0.0,
-        rejected: 0.0,
         kept: 0,
         mean_field: 0.0,
     };
@@ -414,7 +410,7 @@ fn iterate(s: &mut ShadingScratch, limit: f32, iterations: usize) -> Iterated {
         // Residuals at the lattice, then the new inliers.
         let mut rejected = 0usize;
         let mut changed = false;
-        let (mut open_cells, mut field_sum) = (0usize, 0f64);
+        let mut field_sum = 0f64;
         out.peak = 0.0;
         // The model at every lattice cell, summed term by term in the basis order.
         let n = s.idx.len();
@@ -438,7 +434,6 @@ fn iterate(s: &mut ShadingScratch, limit: f32, iterations: usize) -> Iterated {
             }
             out.peak = out.peak.max(field);
             if open {
-                open_cells += 1;
                 field_sum += f64::from(field);
             }
             let now = open && e < limit;
@@ -446,7 +441,6 @@ fn iterate(s: &mut ShadingScratch, limit: f32, iterations: usize) -> Iterated {
             *ok = now;
             rejected += usize::from(!now);
         }
-        out.rejected = rejected as f32 / s.idx.len().max(1) as f32;
         out.kept = s.idx.len() - rejected;
         out.mean_field = (field_sum / open_cells.max(1) as f64) as f32;
         // The same inliers would give the same fit again.
@@ -509,6 +503,17 @@ impl ShadingScratch {
 mod tests {
     use super::*;
 
+    /// The fit of an RGB-interleaved difference with nothing skipped.
+    fn fit_rgb(diff: &[f32], gw: usize, gh: usize, s: &mut ShadingScratch) -> ShadingFit {
+        fit(
+            |i| [diff[i * 3], diff[i * 3 + 1], diff[i * 3 + 2]],
+            &[],
+            gw,
+            gh,
+            s,
+        )
+    }
+
     /// A smooth field plus a compact strong press: the fit follows the field, not the press,
     /// and the noise estimate is the noise.
     #[test]
@@ -540,13 +545,7 @@ mod tests {
             }
         }
         let mut s = ShadingScratch::default();
-        let f = fit(
-            |i| [diff[i * 3], diff[i * 3 + 1], diff[i * 3 + 2]],
-            &[],
-            gw,
-            gh,
-            &mut s,
-        );
+        let f = fit_rgb(&diff, gw, gh, &mut s);
         for c in 0..3 {
             assert!((f.sigma[c] - 2.0).abs() < 0.4, "{:?}", f.sigma);
         }
@@ -590,13 +589,7 @@ mod tests {
             "the press covers {inside} cells"
         );
         let mut s = ShadingScratch::default();
-        let f = fit(
-            |i| [diff[i * 3], diff[i * 3 + 1], diff[i * 3 + 2]],
-            &[],
-            gw,
-            gh,
-            &mut s,
-        );
+        let f = fit_rgb(&diff, gw, gh, &mut s);
         f.remove(&mut diff, gw, gh, &s);
         let at = |x: usize, y: usize| {
             diff[(y * gw + x) * 3..(y * gw + x) * 3 + 3]
