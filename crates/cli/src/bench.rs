@@ -70,13 +70,7 @@ fn frames(n: usize) -> anyhow::Result<Vec<Frame>> {
 
 /// Mock GelSight Mini frames of the fabric scene at `scale` x 320x240.
 fn frames_at(n: usize, scale: u32) -> anyhow::Result<Vec<Frame>> {
-    let spec = SensorKind::GelsightMini.spec();
-    let spec = unitac_core::SensorSpec {
-        width: spec.width * scale,
-        height: spec.height * scale,
-        mm_per_px: spec.mm_per_px / f64::from(scale),
-        ..spec
-    };
+    let spec = SensorKind::GelsightMini.spec().scaled(scale);
     let mut s = MockSensor::with_spec(
         MockConfig::new(SensorKind::GelsightMini, 5),
         spec,

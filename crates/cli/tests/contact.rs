@@ -286,13 +286,7 @@ fn degraded_presses_read_as_the_detector_reads_them() {
     let d = dir().join("degraded");
     std::fs::create_dir_all(&d).unwrap();
     let kind = SensorKind::Digit;
-    let base = kind.spec();
-    let spec = unitac_core::SensorSpec {
-        width: base.width * 2,
-        height: base.height * 2,
-        mm_per_px: base.mm_per_px / 2.0,
-        ..base
-    };
+    let spec = kind.spec().scaled(2);
     let cfg = MockConfig::new(kind, 42);
     let deg = |seed| Degrade {
         shading_dn: 40.0,

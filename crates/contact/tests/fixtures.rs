@@ -5,22 +5,12 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use unitac_contact::{ContactDetector, ContactParams};
-use unitac_core::{SensorKind, SensorSpec};
+use unitac_core::SensorKind;
 use unitac_sim::degrade::{Degrade, idle_fixture, press_fixture};
 use unitac_sim::{MockConfig, Object, Scenario};
 
 /// (shading DN, noise DN) pairs: clean, strong shading, both moderate, both at the maximum.
 const CONDITIONS: [(f64, f64); 4] = [(0.0, 1.0), (40.0, 1.0), (20.0, 4.0), (40.0, 8.0)];
-
-fn spec_at(kind: SensorKind, scale: u32) -> SensorSpec {
-    let s = kind.spec();
-    SensorSpec {
-        width: s.width * scale,
-        height: s.height * scale,
-        mm_per_px: s.mm_per_px / f64::from(scale),
-        ..s
-    }
-}
 
 /// (name, object, depth mm, shift in 320x240 px; multiples of the 24 px marker spacing).
 fn presses() -> Vec<(&'static str, Object, f64, (i32, i32))> {
@@ -79,7 +69,7 @@ fn profile(det: &ContactDetector, centre: [f64; 2], radius: f64) -> String {
 
 fn check(kind: SensorKind, scale: u32, profile_of: SensorKind, t: &mut Tally) {
     let profile_kind = profile_of;
-    let spec = spec_at(kind, scale);
+    let spec = kind.spec().scaled(scale);
     let cfg = MockConfig::new(kind, 40 + u64::from(scale));
     for (ci, &(shading_dn, noise_dn)) in CONDITIONS.iter().enumerate() {
         let seed = 1000 * u64::from(scale) + ci as u64;

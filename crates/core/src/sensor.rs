@@ -101,11 +101,41 @@ impl SensorSpec {
     pub fn mm2_per_px(&self) -> f64 {
         self.mm_per_px * self.mm_per_px
     }
+
+    /// The same sensor publishing `scale` times the width and height over the same field of
+    /// view (e.g. GelSight Mini at 640x480: `scaled(2)`).
+    pub fn scaled(self, scale: u32) -> Self {
+        SensorSpec {
+            width: self.width * scale,
+            height: self.height * scale,
+            mm_per_px: self.mm_per_px / f64::from(scale),
+            ..self
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn scaled_keeps_the_field_of_view() {
+        let s = SensorKind::GelsightMini.spec();
+        let d = s.scaled(2);
+        assert_eq!((d.width, d.height), (640, 480));
+        let fov = |s: SensorSpec| {
+            (
+                f64::from(s.width) * s.mm_per_px,
+                f64::from(s.height) * s.mm_per_px,
+            )
+        };
+        assert_eq!(fov(d), fov(s));
+        assert_eq!(
+            (d.kind, d.fps, d.native_width),
+            (s.kind, s.fps, s.native_width)
+        );
+        assert_eq!(s.scaled(1), s);
+    }
 
     #[test]
     fn names_round_trip() {
