@@ -104,7 +104,7 @@ fn top_speed(r: &TrialRecord, phase: &str) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Where the two grippers' trials differ most (seed 1 trial 19 of 20 in `unitac trials`): the
+/// The trial whose outcome differed between the grippers (seed 1 trial 19 of 20): the
 /// policy closes until contact at its touch speed, 10 mm/s, with a 3 N bound; the 2F-140's
 /// slowest is 30 mm/s and its weakest 10 N (the driver clamps to the model's range, the device's
 /// registers hold it), so the serial close overruns the first touch and squeezes the cup deeper.
