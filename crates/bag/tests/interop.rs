@@ -246,6 +246,7 @@ fn fixture() -> Written {
             phase: "press".into(),
             safety_ok: false,
             message: "force limit".into(),
+            clamped: Vec::new(),
         },
         gripper: GripperStatus {
             header: header(t + 7),

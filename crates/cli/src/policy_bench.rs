@@ -85,6 +85,7 @@ struct Script {
     world: TaskWorld,
     truth: TaskTruth,
     rng: SplitMix64,
+    gauge: bridge::GripperGauge,
     mode: Mode,
     fabric: bool,
     latent_len: usize,
@@ -105,12 +106,13 @@ impl Script {
     fn new(p: &PolicyParams, episode: u32) -> Self {
         let fabric = p.task.starts_with("pick");
         let cfg = if fabric {
-            TaskConfig::fabric()
+            TaskConfig::fabric(Split::Train)
         } else {
             TaskConfig::cup(Split::Train)
         };
         let world = TaskWorld::reset(&cfg, SEED, episode);
         Script {
+            gauge: bridge::GripperGauge::for_trial(&world, SEED, episode),
             truth: world.truth(),
             world,
             rng: trial_rng(SEED ^ 0x5EED, episode),
@@ -243,8 +245,8 @@ impl Script {
     }
 
     /// The gripper's status now: the tick.
-    fn status(&self) -> Msg {
-        Msg::Gripper(bridge::gripper_status(&self.truth, self.target_m))
+    fn status(&mut self) -> Msg {
+        Msg::Gripper(self.gauge.status(&self.truth, self.target_m))
     }
 
     /// The tick's commands move the world one control period.

@@ -8,7 +8,10 @@ use crate::ConfigError;
 use crate::progress;
 use anyhow::{Context, Result};
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU32, Ordering};
 use unitac_gripper::Model;
 use unitac_plot::{Axis, Band, Chart, Figure, PALETTE, Series, Stroke};
 use unitac_sim::task::{Split, TaskConfig, TaskKind, TaskOutcome};
@@ -23,7 +26,7 @@ const PLOTTED: usize = 3;
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TrialScene {
-    /// Squeeze the unseen 90 mm cup by 1 cm and lift it.
+    /// Squeeze an unseen-size cup by 1 cm and lift it.
     #[value(name = "cup_deformation")]
     CupDeformation,
     /// Touch two fabrics, grasp the smoother one, lift it.
@@ -99,9 +102,18 @@ pub struct TrialsArgs {
     /// Seed of the trial draws (objects, placement, camera, sensor noise).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Cup task: draw the training cups (60 / 65 / 70 mm) instead of the unseen 90 mm one.
+    /// Draw the training objects instead of the unseen ones (objects/split.yaml: cups by
+    /// diameter range, fabrics by type).
     #[arg(long)]
     pub train: bool,
+    /// Also run every mode with the world varied: camera noise x0.5 / x2, and for the cup
+    /// stiffness x0.5 / x2 and size -10 / +10 mm; a table per variation.
+    #[arg(long)]
+    pub sweep: bool,
+    /// Cup VLA on the training cups: print the rule's offset (vla_offset_m) that centres its
+    /// deformation on the target, for the scene file.
+    #[arg(long)]
+    pub calibrate_vla: bool,
     /// The gripper: sim (the world's own, in process) or a serial model (the Modbus driver
     /// talking to a simulated device on a pty whose fingers are the world's gripper).
     #[arg(long, value_enum, default_value = "sim")]
@@ -130,6 +142,8 @@ struct TrialLine<'a> {
     frames: u64,
     rejected: u64,
     outcome: &'a TaskOutcome,
+    /// Ticks per value its proposal had beyond a bound by more than 2 % of the range.
+    clamped: &'a BTreeMap<String, u64>,
     /// What went over the wire (serial grippers).
     #[serde(skip_serializing_if = "Option::is_none")]
     serial: Option<&'a SerialReport>,
@@ -139,6 +153,7 @@ struct TrialLine<'a> {
 struct ModeReport<'a> {
     mode: &'a str,
     scene: &'a str,
+    clamps: Clamps,
     trials: Vec<TrialLine<'a>>,
 }
 
@@ -150,11 +165,165 @@ struct Report<'a> {
     trials: u32,
     gripper: &'a str,
     table: &'a [Row],
+    sweep: &'a [SweepRow],
+    /// Every noise and measurement figure of the world with its source.
+    noise_figures: Vec<unitac_sim::task::NoiseFigure>,
     modes: Vec<ModeReport<'a>>,
 }
 
 fn config(msg: String) -> anyhow::Error {
     anyhow::Error::new(ConfigError(msg))
+}
+
+/// The trials of one scene, run in parallel on every core (`workers` threads; one for a serial
+/// gripper, whose pty timing wants a core of its own), each trial's stages built fresh from the
+/// scene; in trial order, each a pure function of (scene, task, seed, trial).
+fn run_trials(
+    scene: &unitac_core::Scene,
+    task: &TaskConfig,
+    seed: u64,
+    trials: u32,
+    opts: &TrialOptions,
+    gripper: TrialGripper,
+    bar: &indicatif::ProgressBar,
+) -> Result<Vec<TrialRecord>> {
+    let workers = match gripper {
+        TrialGripper::InProcess => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        TrialGripper::Serial(_) => 1,
+    }
+    .min(trials as usize)
+    .max(1);
+    let next = AtomicU32::new(0);
+    let results: Mutex<Vec<Option<Result<TrialRecord>>>> =
+        Mutex::new((0..trials).map(|_| None).collect());
+    std::thread::scope(|s| {
+        for _ in 0..workers {
+            s.spawn(|| {
+                loop {
+                    let trial = next.fetch_add(1, Ordering::Relaxed);
+                    if trial >= trials {
+                        break;
+                    }
+                    let r = unitac_pipeline::build_stages(scene)
+                        .map_err(|e| config(e.to_string()))
+                        .and_then(|stages| {
+                            run_trial_on(scene, stages, task, seed, trial, opts, gripper)
+                                .with_context(|| format!("{} trial {trial}", scene.name))
+                        });
+                    bar.inc(1);
+                    let failed = r.is_err();
+                    if let Ok(mut all) = results.lock()
+                        && let Some(slot) = all.get_mut(trial as usize)
+                    {
+                        *slot = Some(r);
+                    }
+                    if failed {
+                        // Stop handing out trials: the first error ends the run.
+                        next.store(trials, Ordering::Relaxed);
+                    }
+                }
+            });
+        }
+    });
+    let all = results
+        .into_inner()
+        .map_err(|_| anyhow::anyhow!("a trial thread panicked"))?;
+    let mut out = Vec::with_capacity(all.len());
+    for r in all {
+        match r {
+            Some(r) => out.push(r?),
+            None => anyhow::bail!("a trial did not run (an earlier one failed)"),
+        }
+    }
+    Ok(out)
+}
+
+/// One variation of the world for `--sweep`.
+#[derive(Debug, Clone, Copy, Serialize)]
+struct Variant {
+    name: &'static str,
+    camera_noise: f64,
+    cup_stiffness: f64,
+    cup_size_mm: f64,
+}
+
+impl Variant {
+    fn apply(&self, task: &TaskConfig) -> TaskConfig {
+        let mut t = task.clone();
+        t.vision = t.vision.scaled(self.camera_noise);
+        t.cup.stiffness_scale *= self.cup_stiffness;
+        t.cup.size_offset_m += self.cup_size_mm * 1e-3;
+        t
+    }
+    /// The sweep of a task: camera noise x0.5 / x2; the cup also stiffness x0.5 / x2 and size
+    /// -10 / +10 mm (the nominal row is the main table).
+    fn sweep(kind: TaskKind) -> Vec<Variant> {
+        let v = |name, camera_noise, cup_stiffness, cup_size_mm| Variant {
+            name,
+            camera_noise,
+            cup_stiffness,
+            cup_size_mm,
+        };
+        let mut out = vec![
+            v("camera noise x0.5", 0.5, 1.0, 0.0),
+            v("camera noise x2", 2.0, 1.0, 0.0),
+        ];
+        if kind == TaskKind::Cup {
+            out.extend([
+                v("cup stiffness x0.5", 1.0, 0.5, 0.0),
+                v("cup stiffness x2", 1.0, 2.0, 0.0),
+                v("cup size -10 mm", 1.0, 1.0, -10.0),
+                v("cup size +10 mm", 1.0, 1.0, 10.0),
+            ]);
+        }
+        out
+    }
+}
+
+/// Per mode: ticks, and per value the ticks it was reported clamped (summed over the trials).
+#[derive(Debug, Default, Serialize)]
+struct Clamps {
+    ticks: u64,
+    clamped: BTreeMap<String, u64>,
+    /// The largest share of ticks any one value was clamped in.
+    worst_share: f64,
+}
+
+fn clamps(rs: &[TrialRecord]) -> Clamps {
+    let mut c = Clamps::default();
+    for r in rs {
+        c.ticks += r.ticks;
+        for (k, n) in &r.clamped {
+            *c.clamped.entry(k.clone()).or_default() += n;
+        }
+    }
+    c.worst_share = c
+        .clamped
+        .values()
+        .map(|&n| n as f64 / c.ticks.max(1) as f64)
+        .fold(0.0, f64::max);
+    c
+}
+
+/// One variant's table (sweep output).
+#[derive(Debug, Serialize)]
+struct SweepRow {
+    variant: Variant,
+    table: Vec<Row>,
+}
+
+type Records = Vec<(TrialMode, Vec<TrialRecord>)>;
+
+fn outcomes(records: &Records) -> Vec<(String, Vec<TaskOutcome>)> {
+    records
+        .iter()
+        .map(|(m, rs)| {
+            (
+                m.name().to_string(),
+                rs.iter().map(|r| r.outcome.clone()).collect(),
+            )
+        })
+        .collect()
 }
 
 /// Run every mode's trials; Ok(true) when every trial ran to its end (successful or not).
@@ -174,10 +343,15 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         TrialScene::CupDeformation => TaskKind::Cup,
         TrialScene::FabricSelection => TaskKind::Fabric,
     };
-    let task = match kind {
-        TaskKind::Cup => TaskConfig::cup(if a.train { Split::Train } else { Split::Unseen }),
-        TaskKind::Fabric => TaskConfig::fabric(),
-    };
+    let split = if a.train { Split::Train } else { Split::Unseen };
+    let task = TaskConfig::new(kind, split);
+    if a.calibrate_vla && (kind != TaskKind::Cup || !a.train || modes != [TrialMode::Vla]) {
+        return Err(config(
+            "--calibrate-vla fits the cup VLA rule on the training cups: give --scene \
+             cup_deformation --modes vla --train"
+                .into(),
+        ));
+    }
     // Every scene loads (and its stages build once) before any trial runs.
     let mut scenes = Vec::new();
     for m in &modes {
@@ -190,32 +364,40 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     }
     let opts = TrialOptions::for_task(kind);
     let gripper = a.gripper.gripper();
-    let total = u64::from(a.trials) * modes.len() as u64;
+    let variants = if a.sweep {
+        Variant::sweep(kind)
+    } else {
+        Vec::new()
+    };
+    let total = u64::from(a.trials) * (modes.len() * (1 + variants.len())) as u64;
     let bar = progress::bar(total, &format!("trials {}", a.scene.name()));
-    let mut records: Vec<(TrialMode, Vec<TrialRecord>)> = Vec::new();
+    let mut records: Records = Vec::new();
     for (m, scene) in &scenes {
         bar.set_message(format!("trials {} {}", a.scene.name(), m.name()));
-        let mut rs = Vec::new();
-        for trial in 0..a.trials {
-            let stages = unitac_pipeline::build_stages(scene).map_err(|e| config(e.to_string()))?;
-            let r = run_trial_on(scene, stages, &task, a.seed, trial, &opts, gripper)
-                .with_context(|| format!("{} trial {trial}", scene.name))?;
-            rs.push(r);
-            bar.inc(1);
-        }
+        let rs = run_trials(scene, &task, a.seed, a.trials, &opts, gripper, &bar)?;
         records.push((*m, rs));
     }
+    let rows = table::table(kind, &outcomes(&records));
+    let mut sweep = Vec::new();
+    for v in &variants {
+        let t = v.apply(&task);
+        let mut rs_all = Vec::new();
+        for (m, scene) in &scenes {
+            bar.set_message(format!("sweep {} {}", v.name, m.name()));
+            rs_all.push((
+                *m,
+                run_trials(scene, &t, a.seed, a.trials, &opts, gripper, &bar)?,
+            ));
+        }
+        sweep.push(SweepRow {
+            variant: *v,
+            table: table::table(kind, &outcomes(&rs_all)),
+        });
+    }
     bar.finish_and_clear();
-    let outcomes: Vec<(String, Vec<TaskOutcome>)> = records
-        .iter()
-        .map(|(m, rs)| {
-            (
-                m.name().to_string(),
-                rs.iter().map(|r| r.outcome.clone()).collect(),
-            )
-        })
-        .collect();
-    let rows = table::table(kind, &outcomes);
+    if a.calibrate_vla {
+        return calibrate_vla(&a, &task, &records);
+    }
     if let Some(dir) = &a.plot {
         plot(dir, a.scene, &records)?;
     }
@@ -227,11 +409,14 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             trials: a.trials,
             gripper: gripper.name(),
             table: &rows,
+            sweep: &sweep,
+            noise_figures: task.noise_figures(),
             modes: records
                 .iter()
                 .map(|(m, rs)| ModeReport {
                     mode: m.name(),
                     scene: rs.first().map_or("", |r| r.scene.as_str()),
+                    clamps: clamps(rs),
                     trials: rs
                         .iter()
                         .map(|r| TrialLine {
@@ -244,6 +429,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
                             frames: r.frames,
                             rejected: r.rejected,
                             outcome: &r.outcome,
+                            clamped: &r.clamped,
                             serial: r.serial.as_ref(),
                         })
                         .collect(),
@@ -252,32 +438,104 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         };
         crate::emit(format_args!("{}\n", serde_json::to_string(&report)?))?;
     } else {
-        let what = match (kind, task.split) {
-            (TaskKind::Cup, Split::Unseen) => "unseen cup (90 mm)",
-            (TaskKind::Cup, Split::Train) => "training cups (60 / 65 / 70 mm)",
-            (TaskKind::Fabric, _) => "fabric selection",
-        };
-        let mut text = format!(
-            "{what}, seed {}, {} trial(s) per mode, gripper {gripper}: ours (paper, real robot)\n",
-            a.seed, a.trials
-        );
-        text.push_str(&table::render(&rows));
-        for (m, rs) in &records {
-            let failed: Vec<String> = rs
-                .iter()
-                .filter(|r| !r.outcome.overall())
-                .map(|r| format!("{} ({})", r.trial, r.end_phase))
-                .collect();
-            if !failed.is_empty() {
-                text.push_str(&format!(
-                    "{}: not overall: trials {}\n",
-                    m.name(),
-                    failed.join(", ")
-                ));
-            }
-        }
-        crate::emit(text)?;
+        crate::emit(text_report(
+            &a, kind, split, gripper, &rows, &records, &sweep,
+        ))?;
     }
+    Ok(true)
+}
+
+/// The tables as text: the main one, which trials failed, the clamps, the sweep's.
+fn text_report(
+    a: &TrialsArgs,
+    kind: TaskKind,
+    split: Split,
+    gripper: TrialGripper,
+    rows: &[Row],
+    records: &Records,
+    sweep: &[SweepRow],
+) -> String {
+    let c = unitac_sim::task::split::SPLIT.cups;
+    let what = match (kind, split) {
+        (TaskKind::Cup, Split::Unseen) => format!(
+            "unseen cups ({:.0}-{:.0} mm)",
+            c.unseen_diameter_mm.0, c.unseen_diameter_mm.1
+        ),
+        (TaskKind::Cup, Split::Train) => format!(
+            "training cups ({:.0}-{:.0} mm)",
+            c.train_diameter_mm.0, c.train_diameter_mm.1
+        ),
+        (TaskKind::Fabric, Split::Unseen) => "fabric selection, unseen fabric types".into(),
+        (TaskKind::Fabric, Split::Train) => "fabric selection, training fabric types".into(),
+    };
+    let mut text = format!(
+        "{what}, seed {}, {} trial(s) per mode, gripper {gripper}: ours (paper, real robot)\n",
+        a.seed, a.trials
+    );
+    text.push_str(&table::render(rows));
+    for (m, rs) in records {
+        let failed: Vec<String> = rs
+            .iter()
+            .filter(|r| !r.outcome.overall())
+            .map(|r| format!("{} ({})", r.trial, r.end_phase))
+            .collect();
+        if !failed.is_empty() {
+            text.push_str(&format!(
+                "{}: not overall: trials {}\n",
+                m.name(),
+                failed.join(", ")
+            ));
+        }
+        let c = clamps(rs);
+        if !c.clamped.is_empty() {
+            let list: Vec<String> = c.clamped.iter().map(|(k, n)| format!("{k} {n}")).collect();
+            text.push_str(&format!(
+                "{}: proposals beyond a bound by > 2 % of its range, ticks of {}: {}\n",
+                m.name(),
+                c.ticks,
+                list.join(", ")
+            ));
+        }
+    }
+    for row in sweep {
+        text.push_str(&format!("\nsweep: {}\n", row.variant.name));
+        text.push_str(&table::render(&row.table));
+    }
+    text
+}
+
+/// `--calibrate-vla`: the offset that centres the VLA rule's deformation on the target, from the
+/// training cups' trials just run (with the scene's own offset): new = old - mean(achieved -
+/// target) over the trials whose cup was gripped (a larger offset closes further).
+fn calibrate_vla(a: &TrialsArgs, task: &TaskConfig, records: &Records) -> Result<bool> {
+    let Some((_, rs)) = records.first() else {
+        anyhow::bail!("no trials");
+    };
+    let scene = rs.first().map_or("", |r| r.scene.as_str());
+    let old = unitac_pipeline::load_scene(scene, a.scene_dir.clone())
+        .map_err(|e| config(e.to_string()))
+        .and_then(|s| unitac_trials::run::policy_params(&s).map_err(|e| config(e.to_string())))?
+        .vla_offset_m;
+    let target = task.cup_criteria.target_deformation_m;
+    let errs: Vec<f64> = rs
+        .iter()
+        .filter_map(|r| match &r.outcome {
+            TaskOutcome::Cup(c) if c.held => Some(c.deformation_m - target),
+            _ => None,
+        })
+        .collect();
+    if errs.is_empty() {
+        anyhow::bail!("no training cup was gripped: nothing to calibrate on");
+    }
+    let mean = errs.iter().sum::<f64>() / errs.len() as f64;
+    let sd = (errs.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / errs.len() as f64).sqrt();
+    let new = old - mean;
+    crate::emit(format!(
+        "{} of {} training cups gripped: deformation error mean {mean:+.5} m, sd {sd:.5} m with \
+         vla_offset_m {old:.5}\nvla_offset_m: {new:.5}\n",
+        errs.len(),
+        rs.len(),
+    ))?;
     Ok(true)
 }
 

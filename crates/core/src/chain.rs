@@ -243,6 +243,7 @@ mod tests {
             phase: String::new(),
             safety_ok: true,
             message: text.into(),
+            clamped: Vec::new(),
         })
     }
     fn text(m: &Msg) -> &str {

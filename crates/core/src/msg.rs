@@ -277,6 +277,7 @@ mod tests {
             phase: "press".into(),
             safety_ok: true,
             message: String::new(),
+            clamped: Vec::new(),
         });
         let j = m.to_json();
         assert_eq!(j["type"], "policy_status");

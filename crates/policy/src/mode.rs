@@ -33,19 +33,18 @@ impl Mode {
     pub fn inputs(self, fabric: bool) -> Vec<&'static str> {
         let mut v = vec!["gripper"];
         match (self, fabric) {
+            // Every mode aims the arm where the camera sees the objects.
             (Mode::Vla, _) => v.push("visual"),
             // Fabric: the choice is the comparison of the two touches' latents (the compare
             // stage consumes the encoder's output; the policy reads the comparison); the
             // camera's edge heights set the fingertip heights.
             (Mode::VtlaReal, true) => v.extend(["contact", "comparison", "visual"]),
             // Cup: a probe touch, whose episode's live latent sets the squeeze's force cap.
-            (Mode::VtlaReal, false) => v.extend(["contact", "latent_real"]),
-            // The predicted latent sets the press (fabric) or squeeze (cup) force before
-            // anything is touched; the fabric choice still needs the comparison.
-            (Mode::VtlaPred, true) => {
-                v.extend(["contact", "latent_pred", "comparison", "visual"]);
-            }
-            (Mode::VtlaPred, false) => v.extend(["contact", "latent_pred"]),
+            (Mode::VtlaReal, false) => v.extend(["contact", "latent_real", "visual"]),
+            // The predicted latent (sampled once, from the background frame before the
+            // approach) sets the grasp (fabric) or squeeze (cup) force; nothing derived from a
+            // tactile frame after that is read: no contact state, no live comparison.
+            (Mode::VtlaPred, _) => v.extend(["latent_pred", "visual"]),
         }
         v
     }

@@ -40,6 +40,8 @@ pub struct PolicyParams {
     pub max_z_m: f64,
     pub max_lift_m: f64,
     pub max_lift_step_m: f64,
+    /// The arm's horizontal workspace: |x| and |y| of a target at most this (table frame) \[m].
+    pub max_reach_m: f64,
     /// hold | open.
     pub safe_action: SafeAction,
     /// Force limit of the hold safe action \[N].
@@ -93,8 +95,15 @@ pub struct PolicyParams {
     pub max_stiffness_n_per_m: f64,
     /// Force cap of the squeeze = stiffness x deformation x this margin.
     pub force_margin: f64,
-    /// Fabric, vtla_pred: press depth the predicted stiffness turns into a press force \[m].
+    /// Fabric, vtla_pred: press depth the predicted stiffness turns into the grasp force \[m].
     pub press_depth_m: f64,
+    /// Gel pad thickness per finger \[m]: openings are between the finger bodies, the gel
+    /// surfaces meet at 2 x this (the gripper's geometry, known to every mode).
+    pub pad_m: f64,
+    /// Cup, vla: the closing rule's offset \[m] (the gels' own give at the squeeze), calibrated
+    /// on the training cups alone (`unitac trials --scene cup_deformation --modes vla --train
+    /// --calibrate-vla`).
+    pub vla_offset_m: f64,
 }
 
 impl Default for PolicyParams {
@@ -118,6 +127,7 @@ impl Default for PolicyParams {
             max_z_m: 0.3,
             max_lift_m: 0.2,
             max_lift_step_m: 0.01,
+            max_reach_m: 1.0,
             safe_action: SafeAction::Hold,
             hold_force_n: 5.0,
             objects: vec!["fabric_a".into(), "fabric_b".into()],
@@ -146,6 +156,8 @@ impl Default for PolicyParams {
             min_stiffness_n_per_m: 20.0,
             max_stiffness_n_per_m: 5000.0,
             force_margin: 1.5,
+            pad_m: 0.003,
+            vla_offset_m: 0.0,
             press_depth_m: 0.002,
         }
     }
@@ -202,7 +214,14 @@ impl PolicyParams {
             ("gel_indent_m_per_mm2", self.gel_indent_m_per_mm2),
             ("stiffness_bias_n_per_m", self.stiffness_bias_n_per_m),
             ("press_depth_m", self.press_depth_m),
+            ("pad_m", self.pad_m),
         ];
+        if !(self.vla_offset_m.is_finite() && self.vla_offset_m.abs() <= self.max_opening_m) {
+            bad.push(format!(
+                "vla_offset_m = {} must be finite and within +-max_opening_m",
+                self.vla_offset_m
+            ));
+        }
         for (k, v) in [("touch_z_m", self.touch_z_m), ("grasp_z_m", self.grasp_z_m)] {
             if !(v.is_finite() && v.abs() <= self.max_z_m.abs()) {
                 bad.push(format!("{k} = {v} must be finite and within +-max_z_m"));
@@ -299,6 +318,7 @@ impl PolicyParams {
             max_z_m: self.max_z_m,
             max_lift_m: self.max_lift_m,
             max_lift_step_m: self.max_lift_step_m,
+            max_reach_m: self.max_reach_m,
             objects: self.objects.clone(),
         }
     }

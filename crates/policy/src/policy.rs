@@ -22,6 +22,10 @@ pub struct GripperAction {
 pub struct ArmAction {
     /// "home" or an object name of the scene.
     pub target: String,
+    /// Where over the table (table frame): the policy's estimate of the target's place, from
+    /// its observations \[m].
+    pub x_m: f64,
+    pub y_m: f64,
     pub z_m: f64,
     pub lift_m: f64,
 }
@@ -38,11 +42,13 @@ pub struct Action {
 impl Action {
     /// The numbers of the action with their names (for the finiteness check and for policies
     /// that output a flat vector, e.g. `action.gripper.position_m`).
-    pub fn values(&self) -> [(&'static str, f64); 5] {
+    pub fn values(&self) -> [(&'static str, f64); 7] {
         [
             ("gripper.position_m", self.gripper.position_m),
             ("gripper.speed_m_s", self.gripper.speed_m_s),
             ("gripper.force_n", self.gripper.force_n),
+            ("arm.x_m", self.arm.x_m),
+            ("arm.y_m", self.arm.y_m),
             ("arm.z_m", self.arm.z_m),
             ("arm.lift_m", self.arm.lift_m),
         ]
@@ -73,4 +79,9 @@ pub trait Policy: Send + std::fmt::Debug {
         self.required()
     }
     fn act(&mut self, obs: &Observation) -> Result<Vec<Action>, PolicyError>;
+    /// What the policy clamped inside itself since it was last asked (e.g. a readout beyond its
+    /// range: `readout.stiffness`), reported in PolicyStatus.clamped with the safety layer's.
+    fn take_clamped(&mut self) -> Vec<&'static str> {
+        Vec::new()
+    }
 }

@@ -86,13 +86,15 @@ impl Readout {
         }
     }
 
-    /// The stiffness \[N/m] the latent says, at `now` (the model is asked afresh each time).
+    /// The stiffness \[N/m] the latent says, at `now` (the model is asked afresh each time),
+    /// clamped to the params' range, and whether the raw readout lay beyond that range by more
+    /// than [`crate::safety::CLAMP_REPORT`] of it.
     pub fn stiffness(
         &mut self,
         p: &PolicyParams,
         latent: &TactileLatent,
         now: Stamp,
-    ) -> Result<f64, PolicyError> {
+    ) -> Result<(f64, bool), PolicyError> {
         let k = match self {
             Readout::Linear => linear(p, latent)?,
             Readout::Model(m) => {
@@ -111,7 +113,9 @@ impl Readout {
                 "stiffness readout is not finite".into(),
             ));
         }
-        Ok(k.clamp(p.min_stiffness_n_per_m, p.max_stiffness_n_per_m))
+        let (lo, hi) = (p.min_stiffness_n_per_m, p.max_stiffness_n_per_m);
+        let margin = crate::safety::CLAMP_REPORT * (hi - lo).abs();
+        Ok((k.clamp(lo, hi), k < lo - margin || k > hi + margin))
     }
 }
 
@@ -150,7 +154,7 @@ mod tests {
     use unitac_core::msg::samples;
 
     fn k(p: &PolicyParams, l: &TactileLatent) -> Result<f64, PolicyError> {
-        Readout::Linear.stiffness(p, l, Stamp::ZERO)
+        Readout::Linear.stiffness(p, l, Stamp::ZERO).map(|(k, _)| k)
     }
 
     #[test]

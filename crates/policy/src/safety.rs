@@ -44,6 +44,8 @@ pub struct Bounds {
     pub max_lift_m: f64,
     /// Largest change of the commanded lift per tick \[m].
     pub max_lift_step_m: f64,
+    /// |x| and |y| of an arm target at most this \[m].
+    pub max_reach_m: f64,
     /// Arm targets besides "home".
     pub objects: Vec<String>,
 }
@@ -63,6 +65,7 @@ impl Bounds {
             ("max_z_m", self.max_z_m),
             ("max_lift_m", self.max_lift_m),
             ("max_lift_step_m", self.max_lift_step_m),
+            ("max_reach_m", self.max_reach_m),
         ];
         for (k, v) in all {
             if !(v.is_finite() && v >= 0.0) {
@@ -96,6 +99,19 @@ pub struct Decision {
     /// false: the safe action, for `reason`.
     pub ok: bool,
     pub reason: String,
+    /// The proposed values that lay beyond a bound by more than [`CLAMP_REPORT`] of its range
+    /// (clamped, and counted by whoever reads PolicyStatus.clamped).
+    pub clamped: Vec<&'static str>,
+}
+
+/// A proposed value beyond a bound by more than this share of the bound's range is reported as
+/// clamped (nearer, it is rounding at the edge of a range a policy was trained to reach).
+pub const CLAMP_REPORT: f64 = 0.02;
+
+/// Whether `v` lies beyond [lo, hi] by more than [`CLAMP_REPORT`] of the range.
+fn beyond(v: f64, lo: f64, hi: f64) -> bool {
+    let margin = CLAMP_REPORT * (hi - lo).abs();
+    v < lo - margin || v > hi + margin
 }
 
 /// Bounds, rate limits and the safe action, with the previous command it limits from.
@@ -137,6 +153,7 @@ impl SafetyLayer {
         let checked = proposed.and_then(|a| self.refuse(&a).map_or(Ok(a), Err));
         let d = match checked {
             Ok(a) => Decision {
+                clamped: self.beyond_bounds(&a),
                 gripper: self.limit_gripper(&a.gripper, opening),
                 arm: self.limit_arm(&a.arm),
                 ok: true,
@@ -164,6 +181,35 @@ impl SafetyLayer {
         None
     }
 
+    /// The values of `a` beyond their bounds by more than [`CLAMP_REPORT`] of the range.
+    fn beyond_bounds(&self, a: &Action) -> Vec<&'static str> {
+        let b = &self.bounds;
+        let reach = b.max_reach_m;
+        [
+            (
+                "gripper.position_m",
+                a.gripper.position_m,
+                b.min_opening_m,
+                b.max_opening_m,
+            ),
+            (
+                "gripper.speed_m_s",
+                a.gripper.speed_m_s,
+                0.0,
+                b.max_speed_m_s,
+            ),
+            ("gripper.force_n", a.gripper.force_n, 0.0, b.max_force_n),
+            ("arm.x_m", a.arm.x_m, -reach, reach),
+            ("arm.y_m", a.arm.y_m, -reach, reach),
+            ("arm.z_m", a.arm.z_m, b.min_z_m, b.max_z_m),
+            ("arm.lift_m", a.arm.lift_m, 0.0, b.max_lift_m),
+        ]
+        .into_iter()
+        .filter(|&(_, v, lo, hi)| beyond(v, lo, hi))
+        .map(|(k, ..)| k)
+        .collect()
+    }
+
     fn limit_gripper(&self, g: &GripperAction, opening: Option<f64>) -> GripperAction {
         let b = &self.bounds;
         let pos = g.position_m.clamp(b.min_opening_m, b.max_opening_m);
@@ -189,6 +235,8 @@ impl SafetyLayer {
         let last_lift = self.last.as_ref().map_or(0.0, |(_, l)| l.lift_m);
         ArmAction {
             target: a.target.clone(),
+            x_m: a.x_m.clamp(-b.max_reach_m, b.max_reach_m),
+            y_m: a.y_m.clamp(-b.max_reach_m, b.max_reach_m),
             z_m: a.z_m.clamp(b.min_z_m, b.max_z_m),
             lift_m: step(last_lift, lift, b.max_lift_step_m),
         }
@@ -203,6 +251,8 @@ impl SafetyLayer {
             .map(|(_, a)| a.clone())
             .unwrap_or_else(|| ArmAction {
                 target: "home".into(),
+                x_m: 0.0,
+                y_m: 0.0,
                 z_m: b.max_z_m,
                 lift_m: 0.0,
             });
@@ -233,6 +283,7 @@ impl SafetyLayer {
             arm,
             ok: false,
             reason,
+            clamped: Vec::new(),
         }
     }
 }
@@ -253,6 +304,7 @@ mod tests {
             max_z_m: 0.3,
             max_lift_m: 0.1,
             max_lift_step_m: 0.005,
+            max_reach_m: 1.0,
             objects: vec!["cup".into()],
         }
     }
@@ -267,6 +319,8 @@ mod tests {
             },
             arm: ArmAction {
                 target: target.into(),
+                x_m: 0.4,
+                y_m: 0.0,
                 z_m: 0.01,
                 lift_m: 1.0,
             },
@@ -284,6 +338,23 @@ mod tests {
         assert_eq!(d.gripper.force_n, 1.0);
         assert_eq!(d.gripper.speed_m_s, 0.1);
         assert_eq!(d.arm.lift_m, 0.005);
+        // Opening -1 m on a 0.085 m range, speed 1 m/s on 0.1, force 100 N on 20, lift 1 m on
+        // 0.1: reported.
+        assert_eq!(
+            d.clamped,
+            [
+                "gripper.position_m",
+                "gripper.speed_m_s",
+                "gripper.force_n",
+                "arm.lift_m"
+            ]
+        );
+        let mut near = act(0.0851, 20.2, "cup");
+        near.gripper.speed_m_s = 0.1;
+        near.arm.lift_m = 0.05;
+        let mut s2 = SafetyLayer::new(bounds(), SafeAction::Hold, 5.0);
+        // Within 2 % of the range beyond a bound: clamped, not reported.
+        assert!(s2.decide(Ok(near), Some(0.05)).clamped.is_empty());
         let d = s.decide(Ok(act(-1.0, 100.0, "cup")), Some(0.05));
         assert!((d.gripper.position_m - 0.046).abs() < 1e-12);
         assert_eq!(d.gripper.force_n, 2.0);

@@ -221,7 +221,8 @@ impl PolicyStage {
             self.queue.clear();
             Err(problems.join("; "))
         };
-        let d = self.safety.decide(proposed, Some(g.opening_m));
+        let mut d = self.safety.decide(proposed, Some(g.opening_m));
+        d.clamped.extend(self.policy.take_clamped());
         self.messages(now, &g.header.frame_id, d)
     }
 
@@ -240,6 +241,8 @@ impl PolicyStage {
             Msg::Arm(ArmCommand {
                 header: header.clone(),
                 target: d.arm.target,
+                x_m: d.arm.x_m,
+                y_m: d.arm.y_m,
                 z_m: d.arm.z_m,
                 lift_m: d.arm.lift_m,
                 reason: d.reason.clone(),
@@ -251,6 +254,7 @@ impl PolicyStage {
                 phase: self.policy.phase().into(),
                 safety_ok: d.ok,
                 message: d.reason,
+                clamped: d.clamped.iter().map(|c| c.to_string()).collect(),
             }),
         ]
     }

@@ -10,7 +10,18 @@ use unitac_core::msg::{
 };
 
 const FABRIC: &str = "{mode: vtla_real, task: pick the smoother fabric, \
-    visual_names: [fabric_a_edge_height_m, fabric_b_edge_height_m]}";
+    visual_names: [fabric_a_x_m, fabric_a_y_m, fabric_a_edge_height_m, \
+    fabric_b_x_m, fabric_b_y_m, fabric_b_edge_height_m]}";
+
+/// A camera frame of an 80 mm cup at (0.45, 0.01).
+fn cup_camera(rig: &mut Rig) {
+    let m = Msg::Visual(VisualObservation {
+        header: rig.header(),
+        names: vec!["cup_x_m".into(), "cup_y_m".into(), "cup_width_m".into()],
+        values: vec![0.45, 0.01, 0.08],
+    });
+    rig.send(m);
+}
 
 /// The camera's folded-edge heights in the fabric run: A alternates between two estimates
 /// frame by frame (per-frame noise), B is steady.
@@ -22,10 +33,14 @@ fn camera(rig: &Rig, n: usize) -> Msg {
     Msg::Visual(VisualObservation {
         header: rig.header(),
         names: vec![
+            "fabric_a_x_m".into(),
+            "fabric_a_y_m".into(),
             "fabric_a_edge_height_m".into(),
+            "fabric_b_x_m".into(),
+            "fabric_b_y_m".into(),
             "fabric_b_edge_height_m".into(),
         ],
-        values: vec![EDGE_A_M[n % 2], EDGE_B_M],
+        values: vec![0.45, 0.12, EDGE_A_M[n % 2], 0.45, -0.12, EDGE_B_M],
     })
 }
 
@@ -172,10 +187,14 @@ fn a_camera_without_the_edge_height_fails_the_approach_with_the_reason() {
     rig.send(Msg::Visual(VisualObservation {
         header: rig.header(),
         names: vec![
+            "fabric_a_x_m".into(),
+            "fabric_a_y_m".into(),
             "fabric_a_edge_height_m".into(),
+            "fabric_b_x_m".into(),
+            "fabric_b_y_m".into(),
             "fabric_b_edge_height_m".into(),
         ],
-        values: vec![f64::NAN, 0.002],
+        values: vec![0.45, 0.12, f64::NAN, 0.45, -0.12, 0.002],
     }));
     let t = rig.tick();
     assert!(!t.status.safety_ok);
@@ -194,7 +213,7 @@ fn a_camera_without_the_edge_height_fails_the_approach_with_the_reason() {
     assert!(
         t.status
             .message
-            .contains("the camera gives no fabric_a_edge_height_m"),
+            .contains("the camera gives no fabric_a_x_m / fabric_a_y_m / fabric_a_edge_height_m"),
         "{}",
         t.status.message
     );
@@ -262,15 +281,11 @@ fn a_stale_contact_state_holds_at_the_first_tick_past_its_budget() {
 #[test]
 fn cup_vla_closes_to_the_camera_width_minus_the_target() {
     let mut rig = Rig::new(params(
-        "{mode: vla, task: squeeze the cup, objects: [cup], visual_names: [cup_width_m]}",
+        "{mode: vla, task: squeeze the cup, objects: [cup], visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
     ));
     let mut last = None;
     for _ in 0..600 {
-        rig.send(Msg::Visual(VisualObservation {
-            header: rig.header(),
-            names: vec!["cup_width_m".into()],
-            values: vec![0.08],
-        }));
+        cup_camera(&mut rig);
         let t = rig.tick();
         rig.follow(&t.cmd, None);
         let done = t.status.phase == "done";
@@ -282,7 +297,10 @@ fn cup_vla_closes_to_the_camera_width_minus_the_target() {
     assert_eq!(rig.phases(), ["approach", "close", "hold", "lift", "done"]);
     assert!(rig.ticks.iter().all(|t| t.status.safety_ok));
     let last = last.unwrap();
-    assert!((last.cmd.position_m - 0.07).abs() < 1e-9, "{last:?}");
+    // The gel surfaces at W - 1 cm: the finger bodies 2 x 3 mm of pad wider.
+    assert!((last.cmd.position_m - 0.076).abs() < 1e-9, "{last:?}");
+    // Aimed where the camera saw the cup.
+    assert!((last.arm.x_m - 0.45).abs() < 1e-12 && (last.arm.y_m - 0.01).abs() < 1e-12);
     assert_eq!(last.arm.lift_m, 0.05);
     assert_eq!(last.arm.target, "cup");
     assert!(
@@ -295,10 +313,12 @@ fn cup_vla_closes_to_the_camera_width_minus_the_target() {
 #[test]
 fn cup_vtla_real_probes_then_squeezes_by_the_live_compression() {
     let mut rig = Rig::new(params(
-        "{mode: vtla_real, task: squeeze the cup, objects: [cup], latent_len: 4}",
+        "{mode: vtla_real, task: squeeze the cup, objects: [cup], latent_len: 4, \
+         visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
     ));
     let diameter = 0.08;
     let mut latent_sent = false;
+    cup_camera(&mut rig);
     let mut t = rig.tick();
     for _ in 0..1200 {
         rig.follow(&t.cmd, None);
@@ -315,6 +335,7 @@ fn cup_vtla_real_probes_then_squeezes_by_the_live_compression() {
             let l = rig.latent(LatentSource::Real, vec![0.1, 0.2, 0.3, 0.4]);
             rig.send(l);
         }
+        cup_camera(&mut rig);
         t = rig.tick();
         if t.status.phase == "done" {
             break;
@@ -351,11 +372,13 @@ fn cup_vtla_real_probes_then_squeezes_by_the_live_compression() {
 #[test]
 fn cup_vtla_pred_sets_the_force_once_from_the_predicted_latent() {
     let mut rig = Rig::new(params(
-        "{mode: vtla_pred, task: squeeze the cup by 1 cm, objects: [cup], latent_len: 4}",
+        "{mode: vtla_pred, task: squeeze the cup by 1 cm, objects: [cup], latent_len: 4, \
+         visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
     ));
     let l = rig.latent(LatentSource::Predicted, vec![0.5; 4]);
     rig.send(l);
     let k_true = 500.0;
+    cup_camera(&mut rig);
     let mut t = rig.tick();
     for _ in 0..1200 {
         // The cup pushes back with k_true x compression; the gripper stops at its force.
@@ -363,6 +386,7 @@ fn cup_vtla_pred_sets_the_force_once_from_the_predicted_latent() {
         rig.follow(&t.cmd, (t.cmd.mode == GripperMode::Force).then_some(stop));
         rig.object_detected = rig.opening <= 0.08;
         rig.force_n = (k_true * (0.08 - rig.opening)).max(0.0);
+        cup_camera(&mut rig);
         t = rig.tick();
         if t.status.phase == "done" {
             break;
@@ -388,11 +412,13 @@ fn cup_vtla_pred_holds_on_a_serial_grippers_catch_without_a_force_reading() {
     // A Robotiq or DH driver reports no force (NaN) and its own motion word: "caught" once the
     // fingers stopped on the object, "moving" before.
     let mut rig = Rig::new(params(
-        "{mode: vtla_pred, task: squeeze the cup by 1 cm, objects: [cup], latent_len: 4}",
+        "{mode: vtla_pred, task: squeeze the cup by 1 cm, objects: [cup], latent_len: 4, \
+         visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
     ));
     let l = rig.latent(LatentSource::Predicted, vec![0.5; 4]);
     rig.send(l);
     rig.force_n = f64::NAN;
+    cup_camera(&mut rig);
     let mut t = rig.tick();
     let mut caught_at = None;
     for _ in 0..1200 {
@@ -404,6 +430,7 @@ fn cup_vtla_pred_holds_on_a_serial_grippers_catch_without_a_force_reading() {
             rig.motion = "caught".into();
             caught_at.get_or_insert(rig.ticks.len());
         }
+        cup_camera(&mut rig);
         t = rig.tick();
         if t.status.phase == "done" {
             break;
@@ -419,7 +446,8 @@ fn cup_vtla_pred_holds_on_a_serial_grippers_catch_without_a_force_reading() {
 #[test]
 fn invalid_latents_hold_within_the_tick_they_arrive() {
     let mut rig = Rig::new(params(
-        "{mode: vtla_pred, task: squeeze the cup, objects: [cup], latent_len: 4}",
+        "{mode: vtla_pred, task: squeeze the cup, objects: [cup], latent_len: 4, \
+         visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
     ));
     let mut bad = rig.latent(LatentSource::Predicted, vec![0.5; 4]);
     if let Msg::Latent(l) = &mut bad {
@@ -427,6 +455,7 @@ fn invalid_latents_hold_within_the_tick_they_arrive() {
         l.guard_report = "velocity blew up".into();
     }
     rig.send(bad);
+    cup_camera(&mut rig);
     let t = rig.tick();
     assert!(!t.status.safety_ok);
     assert_eq!(
@@ -435,6 +464,7 @@ fn invalid_latents_hold_within_the_tick_they_arrive() {
     );
     let nan = rig.latent(LatentSource::Predicted, vec![0.5, f32::NAN, 0.5, 0.5]);
     rig.send(nan);
+    cup_camera(&mut rig);
     let t = rig.tick();
     assert_eq!(
         t.status.message,
@@ -443,6 +473,7 @@ fn invalid_latents_hold_within_the_tick_they_arrive() {
     assert!(t.cmd.position_m.is_finite() && t.cmd.force_n.is_finite());
     let good = rig.latent(LatentSource::Predicted, vec![0.5; 4]);
     rig.send(good);
+    cup_camera(&mut rig);
     let t = rig.tick();
     assert!(t.status.safety_ok, "{t:?}");
     assert_eq!(t.status.phase, "approach");

@@ -57,6 +57,8 @@ fn action() -> impl Strategy<Value = Action> {
             },
             arm: ArmAction {
                 target: target.into(),
+                x_m: 0.45,
+                y_m: 0.0,
                 z_m: v[3],
                 lift_m: v[4],
             },
@@ -185,6 +187,8 @@ fn good_action() -> Action {
         },
         arm: ArmAction {
             target: "cup".into(),
+            x_m: 0.45,
+            y_m: 0.0,
             z_m: 0.04,
             lift_m: 0.0,
         },

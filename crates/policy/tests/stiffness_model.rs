@@ -40,7 +40,7 @@ fn both(dir: &Path, latents: &[TactileLatent]) -> (Vec<f64>, Vec<f64>) {
     let ours: Vec<f64> = latents
         .iter()
         .enumerate()
-        .map(|(i, l)| r.stiffness(&p, l, stamp(i)).unwrap())
+        .map(|(i, l)| r.stiffness(&p, l, stamp(i)).unwrap().0)
         .collect();
     let ticks: Vec<serde_json::Value> = latents
         .iter()
@@ -196,7 +196,8 @@ fn the_cup_controller_squeezes_with_the_models_stiffness() {
     let k = Readout::load(&dir, 24)
         .unwrap()
         .stiffness(&p, l, Stamp(rig.now))
-        .unwrap();
+        .unwrap()
+        .0;
     assert!((k - law(l)).abs() < 1.0 && (k - 300.0).abs() > 10.0, "{k}");
     rig.send(sent);
     // Close in force mode toward F = k x 1 cm (ramped 2 N per tick).

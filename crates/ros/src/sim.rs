@@ -72,6 +72,8 @@ pub struct LockStep {
     world: TaskWorld,
     rig: SensorRig,
     rng: SplitMix64,
+    /// The world's gripper as its driver reads it.
+    gauge: bridge::GripperGauge,
     dt_s: f64,
     duration_s: f64,
     /// The opening the last command asked for (NaN before the first).
@@ -91,7 +93,7 @@ impl LockStep {
         };
         let cfg = match spec.task.as_str() {
             "cup" => TaskConfig::cup(split),
-            "fabric" => TaskConfig::fabric(),
+            "fabric" => TaskConfig::fabric(split),
             other => return Err(SimError::Task(other.into())),
         };
         let (rate_hz, duration_s, seed, trial) =
@@ -119,6 +121,8 @@ impl LockStep {
             &ArmCommand {
                 header: Header::new(bridge::stamp_at(0.0), bridge::GRIPPER_FRAME),
                 target: "home".into(),
+                x_m: 0.0,
+                y_m: 0.0,
                 z_m: 0.0,
                 lift_m: 0.0,
                 reason: String::new(),
@@ -127,6 +131,7 @@ impl LockStep {
             &cfg.gripper,
         )?;
         Ok(Self {
+            gauge: bridge::GripperGauge::for_trial(&world, seed, trial),
             world,
             rig,
             rng: trial_rng(seed ^ VISION_SALT, trial),
@@ -167,7 +172,7 @@ impl LockStep {
         Observed {
             stamp: bridge::stamp_at(t),
             frames,
-            gripper: bridge::gripper_status(&truth, self.target_m),
+            gripper: self.gauge.status(&truth, self.target_m),
             visual: bridge::visual_message(&self.world.observe_visual(&mut self.rng)),
         }
     }

@@ -127,6 +127,10 @@ fn r2r_publishes_rclpy_receives() {
     assert_eq!(ac["header"]["frame_id"], "base_link");
     assert_eq!(ac["target"], "fabric_b");
     assert_eq!(ac["z_m"], 0.004);
+    assert_eq!(
+        (ac["x_m"].as_f64(), ac["y_m"].as_f64()),
+        (Some(0.4375), Some(-0.125))
+    );
     assert_eq!(ac["lift_m"], 0.0625);
     assert_eq!(ac["reason"], "grasp the smoother fabric (B)");
 }

@@ -136,6 +136,7 @@ mod tests {
             phase: String::new(),
             safety_ok: true,
             message: String::new(),
+            clamped: Vec::new(),
         })
     }
 

@@ -73,6 +73,7 @@ impl Stage for Slow {
             phase: format!("{}", f.seq),
             safety_ok: true,
             message: String::new(),
+            clamped: Vec::new(),
         })])
     }
     fn finish(&mut self, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {

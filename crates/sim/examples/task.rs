@@ -27,7 +27,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     };
     let cfg = match args.first().map(String::as_str) {
         Some("cup") => TaskConfig::cup(split),
-        Some("fabric") => TaskConfig::fabric(),
+        Some("fabric") => TaskConfig::fabric(Split::Train),
         _ => return Err("usage: task cup|fabric [--seed N] [--trials N] [--unseen]".into()),
     };
     let (dt, duration) = default_run(cfg.kind);

@@ -5,9 +5,11 @@
 //! [`EPOCH`] + `t_s`, the same epoch the mock sensor stamps its frames with, so a frame captured
 //! at world time t and a gripper status read at t carry the same stamp.
 //!
-//! What the gripper reports is what a real gripper can: the opening, the target it is moving to,
-//! the force (a force-controlled gripper's estimate), object detection (it stopped on something
-//! before reaching the target); never the object's deformation or slip.
+//! What the gripper reports is what a real gripper can ([`GripperGauge`], the world's gripper
+//! measurement model `unitac_sim::task::GripperSensing`): the opening (encoder resolution), the
+//! motor current, the force estimated from that current (with this gripper's gain error), object
+//! detection (it stopped on something short of the target, drawing current); never the world's
+//! contact force, the object's deformation or slip.
 
 use thiserror::Error;
 use unitac_core::Frame;
@@ -16,9 +18,10 @@ use unitac_core::msg::{
     ArmCommand, GripperCommand, GripperMode, GripperStatus, Header, VisualObservation,
 };
 use unitac_sim::task::{
-    self, ArmSetpoint, ArmTarget, GripperLimits, GripperSetpoint, TaskCommand, TaskTruth,
+    self, ArmSetpoint, ArmTarget, GripperLimits, GripperSensing, GripperSetpoint, TaskCommand,
+    TaskTruth, TaskWorld, trial_rng,
 };
-use unitac_sim::{EPOCH, GroundTruth, MockSensor};
+use unitac_sim::{EPOCH, GroundTruth, MockSensor, SplitMix64};
 
 /// The frame id of the gripper's status (REP 105 style: the gripper's base link).
 pub const GRIPPER_FRAME: &str = "gripper_base_link";
@@ -47,26 +50,49 @@ pub fn time_of(stamp: Stamp) -> f64 {
     stamp.secs_since(EPOCH)
 }
 
-/// The gripper's state as its driver would publish it. `target_m` is the opening the last
-/// command asked for (NaN before the first).
-pub fn gripper_status(truth: &TaskTruth, target_m: f64) -> GripperStatus {
-    let g = &truth.gripper;
-    let arrived = target_m.is_finite() && (g.opening_m - target_m).abs() < ARRIVED_M;
-    GripperStatus {
-        header: Header::new(stamp_at(truth.t_s), GRIPPER_FRAME),
-        opening_m: g.opening_m,
-        target_m,
-        force_n: g.force_n,
-        current_a: f64::NAN,
-        object_detected: g.stalled && g.force_n > 0.0,
-        activation: "active".into(),
-        motion: if arrived || g.stalled {
-            "stopped"
-        } else {
-            "moving"
+/// Salt of the gripper's measurement noise stream (apart from the trial's draw and the camera).
+const GRIPPER_SALT: u64 = 0x4752_4950_5045_0001;
+
+/// The world's gripper as its driver reads it: the trial's measurement model, its gain (drawn
+/// with the trial) and its own noise stream from (seed, trial).
+#[derive(Debug, Clone)]
+pub struct GripperGauge {
+    sensing: GripperSensing,
+    gain: f64,
+    rng: SplitMix64,
+}
+
+impl GripperGauge {
+    /// The gauge of the trial `world` was reset to (`seed`, `trial`).
+    pub fn for_trial(world: &TaskWorld, seed: u64, trial: u32) -> Self {
+        Self {
+            sensing: world.config().sensing,
+            gain: world.spec().gripper_gain,
+            rng: trial_rng(seed ^ GRIPPER_SALT, trial),
         }
-        .into(),
-        fault: String::new(),
+    }
+
+    /// The gripper's state as its driver would publish it. `target_m` is the opening the last
+    /// command asked for (NaN before the first).
+    pub fn status(&mut self, truth: &TaskTruth, target_m: f64) -> GripperStatus {
+        let r = self.sensing.read(&truth.gripper, self.gain, &mut self.rng);
+        let arrived = target_m.is_finite() && (r.opening_m - target_m).abs() < ARRIVED_M;
+        GripperStatus {
+            header: Header::new(stamp_at(truth.t_s), GRIPPER_FRAME),
+            opening_m: r.opening_m,
+            target_m,
+            force_n: r.force_n,
+            current_a: r.current_a,
+            object_detected: r.object_detected,
+            activation: "active".into(),
+            motion: if arrived || r.stalled {
+                "stopped"
+            } else {
+                "moving"
+            }
+            .into(),
+            fault: String::new(),
+        }
     }
 }
 
@@ -131,6 +157,7 @@ pub fn task_command(
         },
         arm: ArmSetpoint {
             target: ArmTarget::named(&a.target),
+            xy_m: [finite("x_m", a.x_m)?, finite("y_m", a.y_m)?],
             z_m: finite("z_m", a.z_m)?,
             lift_m: finite("lift_m", a.lift_m)?,
         },
@@ -198,6 +225,8 @@ mod tests {
         ArmCommand {
             header: Header::new(EPOCH, GRIPPER_FRAME),
             target: target.into(),
+            x_m: 0.45,
+            y_m: 0.01,
             z_m: 0.05,
             lift_m: 0.0,
             reason: String::new(),
@@ -219,6 +248,7 @@ mod tests {
         assert_eq!(p.gripper.opening_m, 0.05);
         assert_eq!(p.gripper.force_n, 12.0);
         assert_eq!(p.arm.target, ArmTarget::Object("cup".into()));
+        assert_eq!(p.arm.xy_m, [0.45, 0.01]);
         let f = task_command(&cmd(GripperMode::Force, 0.05), &arm("home"), 0.08, &lim).unwrap();
         assert_eq!((f.gripper.opening_m, f.gripper.force_n), (0.0, 12.0));
         assert_eq!(f.arm.target, ArmTarget::Home);
@@ -278,7 +308,7 @@ mod tests {
             visual_name("fabric_b.edge_height_m"),
             "fabric_b_edge_height_m"
         );
-        let w = TaskWorld::reset(&TaskConfig::fabric(), 3, 0);
+        let w = TaskWorld::reset(&TaskConfig::fabric(Split::Train), 3, 0);
         let v = w.observe_visual(&mut unitac_sim::SplitMix64::new(1));
         let m = visual_message(&v);
         for o in ["fabric_a", "fabric_b"] {
@@ -292,15 +322,28 @@ mod tests {
     #[test]
     fn status_reports_what_a_gripper_can_measure() {
         let w = TaskWorld::reset(&TaskConfig::cup(Split::Train), 3, 0);
+        let mut gauge = GripperGauge::for_trial(&w, 3, 0);
         let t = w.truth();
-        let s = gripper_status(&t, f64::NAN);
+        let s = gauge.status(&t, f64::NAN);
         assert_eq!(s.header.stamp, stamp_at(t.t_s));
-        assert_eq!(s.opening_m, t.gripper.opening_m);
-        assert!(s.target_m.is_nan() && s.current_a.is_nan());
+        assert!((s.opening_m - t.gripper.opening_m).abs() <= 0.5e-4);
+        assert!(s.target_m.is_nan() && s.current_a.is_finite());
         assert!(!s.object_detected);
         assert_eq!(s.motion, "moving");
-        let s = gripper_status(&t, t.gripper.opening_m);
+        let s = gauge.status(&t, s.opening_m);
         assert_eq!(s.motion, "stopped");
+        // A grip: the force is the current's estimate with this gripper's gain, not the world's.
+        let mut held = t.clone();
+        held.gripper.force_n = 10.0;
+        held.gripper.stalled = true;
+        let n = 400;
+        let mean = (0..n)
+            .map(|_| gauge.status(&held, 0.0).force_n)
+            .sum::<f64>()
+            / f64::from(n);
+        let want = 10.0 / w.spec().gripper_gain;
+        assert!((mean - want).abs() < 0.3, "{mean} vs {want}");
+        assert!(gauge.status(&held, 0.0).object_detected);
     }
 
     #[test]

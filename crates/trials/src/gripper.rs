@@ -11,7 +11,7 @@
 //! `GripperSide::command` with the policy's setpoint (it returns the setpoint the world is
 //! stepped with), then, after the step, `GripperSide::stepped` with the world's new truth.
 
-use crate::bridge::gripper_status;
+use crate::bridge::GripperGauge;
 use crate::serial::{SerialError, SerialReport, SerialSide};
 use std::fmt;
 use std::str::FromStr;
@@ -38,10 +38,18 @@ impl TrialGripper {
         }
     }
 
-    /// Start the side for a world whose truth at reset is `truth`.
-    pub(crate) fn start(self, truth: &TaskTruth) -> Result<Box<dyn GripperSide>, SerialError> {
+    /// Start the side for a world whose truth at reset is `truth`; `gauge` reads the world's
+    /// gripper in process.
+    pub(crate) fn start(
+        self,
+        truth: &TaskTruth,
+        gauge: GripperGauge,
+    ) -> Result<Box<dyn GripperSide>, SerialError> {
         Ok(match self {
-            TrialGripper::InProcess => Box::new(InProcess { target_m: f64::NAN }),
+            TrialGripper::InProcess => Box::new(InProcess {
+                target_m: f64::NAN,
+                gauge,
+            }),
             TrialGripper::Serial(m) => Box::new(SerialSide::start(m, truth)?),
         })
     }
@@ -77,15 +85,16 @@ pub(crate) trait GripperSide {
     fn report(&self) -> Option<SerialReport>;
 }
 
-/// The world's own gripper: today's behaviour, byte for byte.
+/// The world's own gripper, read through its measurement model.
 struct InProcess {
     /// The opening the last command asked for (NaN before the first).
     target_m: f64,
+    gauge: GripperGauge,
 }
 
 impl GripperSide for InProcess {
     fn status(&mut self, truth: &TaskTruth) -> Result<GripperStatus, SerialError> {
-        Ok(gripper_status(truth, self.target_m))
+        Ok(self.gauge.status(truth, self.target_m))
     }
     fn command(&mut self, want: GripperSetpoint) -> Result<GripperSetpoint, SerialError> {
         self.target_m = want.opening_m;

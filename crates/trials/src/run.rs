@@ -28,7 +28,7 @@
 //! The trial ends one settle period ([`TrialOptions::settle_s`]) after the policy reports phase
 //! `done` or `failed`, or at the task's time limit; the outcome is the world's judgement then.
 
-use crate::bridge::{BridgeError, SensorRig, task_command, visual_message};
+use crate::bridge::{BridgeError, GripperGauge, SensorRig, task_command, visual_message};
 use crate::gripper::TrialGripper;
 use crate::serial::{SerialError, SerialReport};
 use serde::Serialize;
@@ -37,7 +37,7 @@ use unitac_core::chain::Chain;
 use unitac_core::msg::{ArmCommand, GripperCommand, PolicyStatus};
 use unitac_core::{Msg, Scene, Stage};
 use unitac_policy::PolicyParams;
-use unitac_sim::task::{TaskConfig, TaskKind, TaskOutcome, TaskWorld, trial_rng};
+use unitac_sim::task::{Hidden, TaskConfig, TaskKind, TaskOutcome, TaskWorld, trial_rng};
 use unitac_sim::{MockConfig, MockSensor, Scenario, WorldError};
 
 /// Salts of the sensor's seed and the camera's noise stream (apart from the trial's own draw).
@@ -94,13 +94,18 @@ fn rejections_note(r: &[String]) -> String {
     }
 }
 
-/// How long a trial may run.
+/// How long a trial may run, and what else it does.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrialOptions {
     /// Time limit \[s] (the world's time).
     pub max_s: f64,
     /// Time run on after the policy says done or failed \[s] (a late slip or drop counts).
     pub settle_s: f64,
+    /// A hidden variable changed after the draw (the ground-truth test); None as drawn.
+    pub hidden: Option<Hidden>,
+    /// Record a digest of every tick's inputs to the chain and of its outputs
+    /// ([`TrialRecord::io`]).
+    pub record_io: bool,
 }
 
 impl TrialOptions {
@@ -113,6 +118,8 @@ impl TrialOptions {
                 TaskKind::Fabric => 90.0,
             },
             settle_s: 1.0,
+            hidden: None,
+            record_io: false,
         }
     }
     fn check(&self) -> Result<(), TrialError> {
@@ -151,6 +158,16 @@ pub struct TraceRow {
     pub reason: String,
 }
 
+/// What went into the chain at one control tick and what came out, as digests (FNV-1a 64 of the
+/// messages' bytes: frame pixels and stamps, the camera's values, the gripper's status; the
+/// commands and the status), and whether the world had the gels touching an object then.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct TickIo {
+    pub inputs: u64,
+    pub outputs: u64,
+    pub touching: bool,
+}
+
 /// A finished trial: its trace and the world's outcome.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TrialRecord {
@@ -178,6 +195,37 @@ pub struct TrialRecord {
     pub gripper: String,
     /// What went over the wire (serial grippers only).
     pub serial: Option<SerialReport>,
+    /// Control ticks, and per value the ticks whose proposal had it beyond a bound by more than
+    /// 2 % of its range (PolicyStatus.clamped: the safety layer's and the readouts').
+    pub ticks: u64,
+    pub clamped: std::collections::BTreeMap<String, u64>,
+    /// Per tick, when [`TrialOptions::record_io`].
+    #[serde(skip)]
+    pub io: Vec<TickIo>,
+}
+
+/// FNV-1a 64: a stable digest of bytes (the same on every platform and Rust version).
+#[derive(Debug, Clone, Copy)]
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+    fn bytes(&mut self, b: &[u8]) {
+        for &x in b {
+            self.0 = (self.0 ^ u64::from(x)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    /// A message: its Debug text (every field, floats exactly), and a frame's pixels.
+    fn msg(&mut self, m: &Msg) {
+        if let Msg::Frame(f) = m {
+            self.bytes(&f.stamp.0.to_le_bytes());
+            self.bytes(f.data());
+        } else {
+            self.bytes(format!("{m:?}").as_bytes());
+        }
+    }
 }
 
 /// The scene's policy params (the first policy stage; a trial needs one).
@@ -284,6 +332,9 @@ pub fn run_trial_on(
     let params = policy_params(scene)?;
     let dt = 1.0 / params.control_rate_hz;
     let mut world = TaskWorld::reset(task, seed, trial);
+    if let Some(h) = opts.hidden {
+        world.perturb(h);
+    }
     let names: Vec<&str> = world
         .spec()
         .objects
@@ -327,6 +378,9 @@ pub fn run_trial_on(
         trace: Vec::new(),
         gripper: gripper.name().to_string(),
         serial: None,
+        ticks: 0,
+        clamped: Default::default(),
+        io: Vec::new(),
     };
     let gripper_error = move |t_s: f64| {
         move |source: SerialError| TrialError::Gripper {
@@ -335,7 +389,10 @@ pub fn run_trial_on(
             source,
         }
     };
-    let mut side = gripper.start(&world.truth()).map_err(gripper_error(0.0))?;
+    let gauge = GripperGauge::for_trial(&world, seed, trial);
+    let mut side = gripper
+        .start(&world.truth(), gauge)
+        .map_err(gripper_error(0.0))?;
     let mut slip_detected = None;
     let mut ended_at: Option<f64> = None;
     let ticks = (opts.max_s / dt).ceil() as u64;
@@ -349,9 +406,16 @@ pub fn run_trial_on(
     };
     for _ in 0..ticks {
         let t = world.time();
+        let mut inputs = Fnv::new();
+        let mut outputs = Fnv::new();
+        let touching = world.truth().contact.penetration_m > 0.0;
         for (frame, _) in rig.frames_until(&world, t) {
             record.frames += 1;
-            let out = chain.run(Msg::Frame(frame));
+            let frame = Msg::Frame(frame);
+            if opts.record_io {
+                inputs.msg(&frame);
+            }
+            let out = chain.run(frame);
             for m in &out.produced {
                 if let Msg::Slip(s) = m {
                     slip_detected = Some(s.slip);
@@ -359,14 +423,23 @@ pub fn run_trial_on(
             }
             keep(&mut record, out.errors);
         }
-        let visual = world.observe_visual(&mut camera);
-        let out = chain.run(Msg::Visual(visual_message(&visual)));
+        let visual = Msg::Visual(visual_message(&world.observe_visual(&mut camera)));
+        if opts.record_io {
+            inputs.msg(&visual);
+        }
+        let out = chain.run(visual);
         keep(&mut record, out.errors);
         let truth = world.truth();
-        let status = side.status(&truth).map_err(gripper_error(t))?;
-        let out = chain.run(Msg::Gripper(status));
+        let status = Msg::Gripper(side.status(&truth).map_err(gripper_error(t))?);
+        if opts.record_io {
+            inputs.msg(&status);
+        }
+        let out = chain.run(status);
         let mut tick = TickOutput::default();
         for m in out.produced {
+            if opts.record_io {
+                outputs.msg(&m);
+            }
             match m {
                 Msg::Command(c) => tick.gripper = Some(c),
                 Msg::Arm(a) => tick.arm = Some(a),
@@ -385,6 +458,17 @@ pub fn run_trial_on(
         let g = tick.gripper.ok_or_else(|| missing("GripperCommand"))?;
         let a = tick.arm.ok_or_else(|| missing("ArmCommand"))?;
         let status = tick.status.ok_or_else(|| missing("PolicyStatus"))?;
+        record.ticks += 1;
+        for c in &status.clamped {
+            *record.clamped.entry(c.clone()).or_default() += 1;
+        }
+        if opts.record_io {
+            record.io.push(TickIo {
+                inputs: inputs.0,
+                outputs: outputs.0,
+                touching,
+            });
+        }
         let mut cmd = task_command(&g, &a, truth.gripper.opening_m, &task.gripper)
             .map_err(|source| TrialError::Bridge { t_s: t, source })?;
         cmd.gripper = side.command(cmd.gripper).map_err(gripper_error(t))?;

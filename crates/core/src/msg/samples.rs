@@ -109,6 +109,7 @@ pub fn policy_status() -> PolicyStatus {
         phase: "press".into(),
         safety_ok: true,
         message: "force limit".into(),
+        clamped: vec!["gripper.force_n".into()],
     }
 }
 
@@ -130,6 +131,8 @@ pub fn arm_command() -> ArmCommand {
     ArmCommand {
         header: header(),
         target: "fabric_b".into(),
+        x_m: 0.45,
+        y_m: -0.125,
         z_m: 0.004,
         lift_m: 0.05,
         reason: "grasp the smoother".into(),

@@ -3,8 +3,9 @@
 //! squeeze differently:
 //!
 //! ```text
-//! vla:       approach (reads the camera's cup_width_m W once) -> close (position W - d)
-//!            -> hold -> lift -> done
+//! vla:       approach (the camera's cup_width_m W, averaged over the approach) -> close
+//!            (position W + 2 pad - d - vla_offset_m: the gel surfaces at W - d, less the gels'
+//!            own give, calibrated on training cups) -> hold -> lift -> done
 //! vtla_real: approach -> close (lightly, until the contact state says contact: D0 = opening)
 //!            -> probe (open by probe_release_m until the contact ends, so the episode's latent
 //!            is encoded) -> await_latent (stiffness k from the live latent: force cap
@@ -14,8 +15,10 @@
 //!            computed once) -> close (force mode, F) -> hold -> lift -> done
 //! any phase -> failed (a timeout): the error goes to the safety layer every tick
 //! ```
+//! Every mode aims the fingertips where the camera saw the cup (`cup_x_m`, `cup_y_m`, averaged
+//! over the approach and kept from then on), never at its true place.
 
-use super::{Timed, action, arm, force, position};
+use super::{Estimate, Timed, action, arm, force, position};
 use crate::mode::Mode;
 use crate::observation::Observation;
 use crate::params::PolicyParams;
@@ -55,6 +58,10 @@ pub struct CupController {
     failure: Option<PolicyError>,
     /// Latent -> stiffness (the params' linear readout or a fitted model).
     readout: Readout,
+    /// The camera's cup: x, y and width, averaged over the approach.
+    seen: Estimate<3>,
+    /// Clamps inside the controller since the stage last asked.
+    clamped: Vec<&'static str>,
 }
 
 impl CupController {
@@ -71,8 +78,29 @@ impl CupController {
             compression: 0.0,
             failure: None,
             readout: Readout::Linear,
+            seen: Estimate::default(),
+            clamped: Vec::new(),
             p: p.clone(),
         }
+    }
+
+    /// Where the camera saw the cup (the origin before any frame; no tick asks before one).
+    fn place(&self) -> [f64; 2] {
+        self.seen.mean().map_or([0.0, 0.0], |[x, y, _]| [x, y])
+    }
+
+    /// The stiffness of latent `l`, its clamp noted.
+    fn stiffness(
+        &mut self,
+        p: &PolicyParams,
+        l: &unitac_core::msg::TactileLatent,
+        now: Stamp,
+    ) -> Result<f64, PolicyError> {
+        let (k, clamped) = self.readout.stiffness(p, l, now)?;
+        if clamped {
+            self.clamped.push("readout.stiffness");
+        }
+        Ok(k)
     }
 
     /// The stiffness from `readout` instead of the params' linear one.
@@ -101,23 +129,31 @@ impl CupController {
         let contact = obs.contact();
         match self.t.phase {
             Phase::Approach => {
-                match self.mode {
-                    Mode::Vla => {
-                        let w = obs
-                            .visual()
-                            .and_then(|v| v.get("cup_width_m"))
-                            .ok_or_else(|| PolicyError::Failed("no camera cup_width_m".into()))?;
-                        self.target_opening = Some(w - self.d);
-                    }
-                    Mode::VtlaPred => {
-                        let l = obs.latent().ok_or_else(|| {
-                            PolicyError::Failed("no fresh predicted latent".into())
-                        })?;
-                        self.force_n = Some(self.readout.stiffness(&p, l, now)? * self.d);
-                    }
-                    Mode::VtlaReal => {}
+                let v = obs
+                    .visual()
+                    .ok_or_else(|| PolicyError::Failed("no fresh visual observation".into()))?;
+                let read = |n: &str| v.get(n).filter(|x| x.is_finite());
+                let (Some(x), Some(y), Some(w)) =
+                    (read("cup_x_m"), read("cup_y_m"), read("cup_width_m"))
+                else {
+                    return Err(self.fail(PolicyError::Failed(
+                        "the camera gives no cup_x_m / cup_y_m / cup_width_m (list them in \
+                         visual_names)"
+                            .into(),
+                    )));
+                };
+                self.seen.add(v.header.stamp, [x, y, w]);
+                if self.mode == Mode::VtlaPred {
+                    let l = obs
+                        .latent()
+                        .ok_or_else(|| PolicyError::Failed("no fresh predicted latent".into()))?;
+                    self.force_n = Some(self.stiffness(&p, l, now)? * self.d);
                 }
                 if elapsed >= p.approach_s {
+                    if self.mode == Mode::Vla {
+                        let w = self.seen.mean().map_or(p.max_opening_m, |m| m[2]);
+                        self.target_opening = Some(w + 2.0 * p.pad_m - self.d - p.vla_offset_m);
+                    }
                     self.t.go(Phase::Close);
                 }
             }
@@ -168,8 +204,8 @@ impl CupController {
             Phase::AwaitLatent => {
                 let after = self.probe_at.unwrap_or(Stamp::ZERO);
                 if let Some(l) = obs.latent().filter(|l| l.header.stamp >= after) {
-                    self.force_n =
-                        Some(self.readout.stiffness(&p, l, now)? * self.d * p.force_margin);
+                    let l = l.clone();
+                    self.force_n = Some(self.stiffness(&p, &l, now)? * self.d * p.force_margin);
                     self.t.go(Phase::Squeeze);
                 } else if elapsed >= p.contact_timeout_s {
                     return Err(self.timeout("no latent of the probe touch"));
@@ -223,7 +259,8 @@ impl CupController {
     fn command(&mut self, obs: &Observation) -> Action {
         let p = self.p.clone();
         let elapsed = self.t.elapsed(obs.stamp);
-        let at = |lift: f64| arm("cup", p.cup_z_m, lift);
+        let place = self.place();
+        let at = |lift: f64| arm("cup", place, p.cup_z_m, lift);
         let open = position(p.max_opening_m, p.max_speed_m_s, p.touch_force_n);
         match self.t.phase {
             Phase::Approach => action(open, at(0.0), "approaching the cup"),
@@ -233,7 +270,10 @@ impl CupController {
                     action(
                         position(t, p.squeeze_speed_m_s, p.max_force_n),
                         at(0.0),
-                        format!("closing to {t:.4} m (camera width - {:.4} m)", self.d),
+                        format!(
+                            "closing to {t:.4} m (camera width + pads - {:.4} m - {:.4} m)",
+                            self.d, p.vla_offset_m
+                        ),
                     )
                 }
                 Mode::VtlaPred => {
@@ -304,8 +344,11 @@ impl Policy for CupController {
     fn required(&self) -> Vec<&'static str> {
         let mut r = vec!["gripper"];
         match (self.t.phase, self.mode) {
-            (Phase::Approach, Mode::Vla) => r.push("visual"),
-            (Phase::Approach, Mode::VtlaPred) => r.push("latent_pred"),
+            (Phase::Approach, Mode::VtlaPred) => {
+                r.push("visual");
+                r.push("latent_pred");
+            }
+            (Phase::Approach, _) => r.push("visual"),
             (Phase::Close | Phase::Probe | Phase::Squeeze, Mode::VtlaReal) => r.push("contact"),
             _ => {}
         }
@@ -335,5 +378,9 @@ impl Policy for CupController {
         }
         self.step(obs)?;
         Ok(vec![self.command(obs)])
+    }
+
+    fn take_clamped(&mut self) -> Vec<&'static str> {
+        std::mem::take(&mut self.clamped)
     }
 }

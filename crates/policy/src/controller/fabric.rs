@@ -2,24 +2,30 @@
 //! asks for, lift.
 //!
 //! ```text
-//! vtla_real / vtla_pred:
+//! vtla_real:
 //!   approach_a -> press_a (close lightly until contact, hold touch_hold_s) -> release_a
 //!   -> approach_b -> press_b -> release_b -> compare (timeout) -> approach_grasp -> grasp
 //!   -> lift -> done
-//! vla:
+//! vla / vtla_pred:
 //!   look (the camera's <object>_<property> estimates) -> approach_grasp -> grasp -> lift -> done
 //! any phase -> failed (a timeout, a tie): the error goes to the safety layer every tick
 //! ```
-//! vtla_pred sets the press force from the predicted latent before the first touch (expected
-//! stiffness x press_depth_m); vtla_real presses with touch_force_n.
+//! vtla_real touches both and chooses from the live PropertyComparison; vla and vtla_pred
+//! choose from the camera before any touch. vtla_pred reads no tactile input after it starts:
+//! its predicted latent (sampled from the background frame before the approach) sets the grasp
+//! force at the look (expected stiffness x press_depth_m). A predicted latent that knew the
+//! object would let vtla_pred compare the fabrics too; the sampler's condition does not carry the
+//! object yet, so the choice is the camera's.
 //!
+//! Places: the fingertips go where the camera saw each object (`<object>_x_m`, `<object>_y_m`),
+//! averaged over the frames seen while approaching it and kept from then on; never the truth.
 //! Heights: the fingertips go to the camera's estimate of the object's folded-edge height
 //! (`<object>_edge_height_m`, averaged over the camera frames seen while approaching it) plus
 //! `touch_z_m` for a touch and `grasp_z_m` for the grasp (offsets, negative = below the top), so
 //! that the grasp aims into the top layer whatever the fold's height. The approach phases need
 //! a fresh visual observation; one without the object's edge height fails the controller.
 
-use super::{Timed, action, arm, force, position};
+use super::{Estimate, Timed, action, arm, force, position};
 use crate::error::PolicyLoadError;
 use crate::mode::Mode;
 use crate::observation::Observation;
@@ -53,6 +59,10 @@ pub struct FabricController {
     objects: [String; 2],
     t: Timed<Phase>,
     press_force_n: f64,
+    /// The grasp's force: the params' (vla, vtla_real) or the predicted latent's (vtla_pred).
+    grasp_force_n: f64,
+    /// Clamps inside the controller since the stage last asked.
+    clamped: Vec<&'static str>,
     contact_at: Option<Stamp>,
     /// Comparisons stamped before the second touch began are not about this trial.
     second_touch_at: Option<Stamp>,
@@ -60,31 +70,9 @@ pub struct FabricController {
     failure: Option<PolicyError>,
     /// Latent -> stiffness for vtla_pred's press force.
     readout: Readout,
-    /// The camera's edge-height estimates of A and B: running means over the frames seen.
-    edges: [EdgeEstimate; 2],
-}
-
-/// A running mean of the camera's edge-height estimates of one object, one sample per camera
-/// frame (a frame seen on several ticks counts once).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-struct EdgeEstimate {
-    sum_m: f64,
-    frames: u32,
-    last: Option<Stamp>,
-}
-
-impl EdgeEstimate {
-    fn add(&mut self, stamp: Stamp, value_m: f64) {
-        if self.last.is_some_and(|s| s >= stamp) {
-            return;
-        }
-        self.last = Some(stamp);
-        self.sum_m += value_m;
-        self.frames += 1;
-    }
-    fn mean_m(&self) -> Option<f64> {
-        (self.frames > 0).then(|| self.sum_m / f64::from(self.frames))
-    }
+    /// The camera's estimates of where A and B are (x, y) and of their edge heights: running
+    /// means over the frames seen while approaching each.
+    places: [Estimate<3>; 2],
 }
 
 impl FabricController {
@@ -102,18 +90,22 @@ impl FabricController {
             property,
             more,
             objects: [a.clone(), b.clone()],
-            t: Timed::new(if p.mode == Mode::Vla {
-                Phase::Look
-            } else {
+            // Only vtla_real touches before it chooses; vla and vtla_pred choose from what they
+            // have before any touch (the camera; vtla_pred also its predicted latent).
+            t: Timed::new(if p.mode == Mode::VtlaReal {
                 Phase::Approach(0)
+            } else {
+                Phase::Look
             }),
+            grasp_force_n: p.grasp_force_n,
+            clamped: Vec::new(),
             press_force_n: p.touch_force_n,
             contact_at: None,
             second_touch_at: None,
             chosen: None,
             failure: None,
             readout: Readout::Linear,
-            edges: [EdgeEstimate::default(); 2],
+            places: [Estimate::default(); 2],
             p: p.clone(),
         })
     }
@@ -135,21 +127,29 @@ impl FabricController {
         self.objects.iter().position(|o| o == name)
     }
 
-    /// Add the camera's edge-height estimate of object `i` from this tick's visual observation.
-    fn see_edge(&mut self, obs: &Observation, i: usize) -> Result<(), PolicyError> {
+    /// Add the camera's estimate of object `i` (x, y, edge height) from this tick's visual
+    /// observation.
+    fn see(&mut self, obs: &Observation, i: usize) -> Result<(), PolicyError> {
         let v = obs
             .visual()
             .ok_or_else(|| PolicyError::Failed("no fresh visual observation".into()))?;
-        let name = format!("{}_edge_height_m", self.objects[i]);
-        match v.get(&name) {
-            Some(h) if h.is_finite() => {
+        let o = &self.objects[i];
+        let names = [
+            format!("{o}_x_m"),
+            format!("{o}_y_m"),
+            format!("{o}_edge_height_m"),
+        ];
+        let read = |n: &str| v.get(n).filter(|x| x.is_finite());
+        match (read(&names[0]), read(&names[1]), read(&names[2])) {
+            (Some(x), Some(y), Some(h)) => {
                 let stamp = v.header.stamp;
-                self.edges[i].add(stamp, h);
+                self.places[i].add(stamp, [x, y, h]);
                 Ok(())
             }
             _ => Err(self.fail(PolicyError::Failed(format!(
-                "the camera gives no {name} (list it in visual_names): the fingertip height \
-                 comes from it"
+                "the camera gives no {} (list them in visual_names): the fingertips go where \
+                 it sees the fold",
+                names.join(" / ")
             )))),
         }
     }
@@ -157,8 +157,25 @@ impl FabricController {
     /// Fingertip height for object `i`: its edge estimate plus `offset_m`, not below the
     /// lowest height allowed (None before any estimate).
     fn height(&self, i: usize, offset_m: f64) -> Option<f64> {
-        let e = self.edges.get(i)?.mean_m()?;
+        let e = self.places.get(i)?.mean()?[2];
         Some((e + offset_m).max(self.p.min_z_m))
+    }
+
+    /// Where over the table object `i` is, as the camera saw it on the way (the origin before
+    /// any estimate; no tick asks before the first).
+    fn place(&self, i: usize) -> [f64; 2] {
+        self.places
+            .get(i)
+            .and_then(Estimate::mean)
+            .map_or([0.0, 0.0], |[x, y, _]| [x, y])
+    }
+
+    /// Where the chosen object is.
+    fn chosen_place(&self) -> [f64; 2] {
+        self.chosen
+            .as_deref()
+            .and_then(|c| self.index(c))
+            .map_or([0.0, 0.0], |i| self.place(i))
     }
 
     /// Height of a touch on object `i`.
@@ -194,7 +211,7 @@ impl FabricController {
             _ => None,
         };
         if let Some(i) = approached {
-            self.see_edge(obs, i)?;
+            self.see(obs, i)?;
         }
         let p = &self.p;
         let opening = obs.gripper().map(|g| g.opening_m);
@@ -214,17 +231,22 @@ impl FabricController {
                         self.property
                     ))));
                 };
+                if self.mode == Mode::VtlaPred {
+                    // The predicted latent (sampled before any touch) sets the grasp force.
+                    let l = obs
+                        .latent()
+                        .ok_or_else(|| PolicyError::Failed("no fresh predicted latent".into()))?;
+                    let (k, clamped) = self.readout.stiffness(p, l, now)?;
+                    if clamped {
+                        self.clamped.push("readout.stiffness");
+                    }
+                    self.grasp_force_n = (k * p.press_depth_m).min(p.max_force_n);
+                }
                 let i = self.pick(a > b);
                 self.chosen = Some(self.objects[i].clone());
                 self.t.go(Phase::ApproachGrasp);
             }
             Phase::Approach(i) => {
-                if i == 0 && self.mode == Mode::VtlaPred {
-                    let l = obs
-                        .latent()
-                        .ok_or_else(|| PolicyError::Failed("no fresh predicted latent".into()))?;
-                    self.press_force_n = self.readout.stiffness(p, l, now)? * p.press_depth_m;
-                }
                 if elapsed >= p.approach_s {
                     if i == 1 {
                         self.second_touch_at = Some(now);
@@ -300,7 +322,7 @@ impl FabricController {
                 let g = obs.gripper();
                 let held = g.is_some_and(|g| {
                     g.object_detected
-                        || (g.force_n.is_finite() && g.force_n >= 0.9 * p.grasp_force_n)
+                        || (g.force_n.is_finite() && g.force_n >= 0.9 * self.grasp_force_n)
                 });
                 if held {
                     self.t.go(Phase::Lift);
@@ -331,12 +353,18 @@ impl FabricController {
         let open = position(p.max_opening_m, p.max_speed_m_s, p.touch_force_n);
         let chosen = self.chosen.clone().unwrap_or_else(|| "home".into());
         let grasp_z = self.grasp_z();
-        let grip = force(p.min_opening_m, p.max_speed_m_s, p.grasp_force_n);
+        let at = self.chosen_place();
+        let home = [0.0, 0.0];
+        let grip = force(p.min_opening_m, p.max_speed_m_s, self.grasp_force_n);
         match self.t.phase {
-            Phase::Look => action(open, arm("home", p.max_z_m, 0.0), "looking at both fabrics"),
+            Phase::Look => action(
+                open,
+                arm("home", home, p.max_z_m, 0.0),
+                "looking at both fabrics",
+            ),
             Phase::Approach(i) => action(
                 open,
-                arm(&self.objects[i], self.touch_z(i), 0.0),
+                arm(&self.objects[i], self.place(i), self.touch_z(i), 0.0),
                 format!("approaching {}", self.objects[i]),
             ),
             Phase::Press(i) => {
@@ -348,7 +376,7 @@ impl FabricController {
                 };
                 action(
                     position(target, p.touch_speed_m_s, self.press_force_n),
-                    arm(&self.objects[i], self.touch_z(i), 0.0),
+                    arm(&self.objects[i], self.place(i), self.touch_z(i), 0.0),
                     format!(
                         "touching {} ({:.2} N limit)",
                         self.objects[i], self.press_force_n
@@ -357,32 +385,37 @@ impl FabricController {
             }
             Phase::Release(i) => action(
                 open,
-                arm(&self.objects[i], self.touch_z(i), 0.0),
+                arm(&self.objects[i], self.place(i), self.touch_z(i), 0.0),
                 format!("releasing {}", self.objects[i]),
             ),
             Phase::Compare => action(
                 open,
-                arm("home", p.max_z_m, 0.0),
+                arm("home", home, p.max_z_m, 0.0),
                 format!("waiting for the {} comparison", self.property),
             ),
             Phase::ApproachGrasp => action(
                 open,
-                arm(&chosen, grasp_z, 0.0),
+                arm(&chosen, at, grasp_z, 0.0),
                 format!("approaching {chosen} to grasp it"),
             ),
             Phase::Grasp => action(
                 grip,
-                arm(&chosen, grasp_z, 0.0),
-                format!("grasping {chosen}"),
+                arm(&chosen, at, grasp_z, 0.0),
+                format!("grasping {chosen} ({:.2} N)", self.grasp_force_n),
             ),
             Phase::Lift => action(
                 grip,
-                arm(&chosen, grasp_z, (elapsed * p.lift_speed_m_s).min(p.lift_m)),
+                arm(
+                    &chosen,
+                    at,
+                    grasp_z,
+                    (elapsed * p.lift_speed_m_s).min(p.lift_m),
+                ),
                 format!("lifting {chosen}"),
             ),
             Phase::Done | Phase::Failed => action(
                 grip,
-                arm(&chosen, grasp_z, p.lift_m),
+                arm(&chosen, at, grasp_z, p.lift_m),
                 format!("holding {chosen}"),
             ),
         }
@@ -411,12 +444,11 @@ impl Policy for FabricController {
     fn required(&self) -> Vec<&'static str> {
         let mut r = vec!["gripper"];
         match self.t.phase {
-            Phase::Look | Phase::ApproachGrasp => r.push("visual"),
-            Phase::Approach(0) if self.mode == Mode::VtlaPred => {
+            Phase::Look if self.mode == Mode::VtlaPred => {
                 r.push("visual");
                 r.push("latent_pred");
             }
-            Phase::Approach(_) => r.push("visual"),
+            Phase::Look | Phase::ApproachGrasp | Phase::Approach(_) => r.push("visual"),
             Phase::Press(_) | Phase::Release(_) => r.push("contact"),
             _ => {}
         }
@@ -431,10 +463,14 @@ impl Policy for FabricController {
             self.t.phase,
             Phase::Approach(_) | Phase::Press(_) | Phase::Release(_) | Phase::Compare
         );
-        if self.mode != Mode::Vla && choosing {
+        if self.mode == Mode::VtlaReal && choosing {
             r.push("comparison");
         }
         r
+    }
+
+    fn take_clamped(&mut self) -> Vec<&'static str> {
+        std::mem::take(&mut self.clamped)
     }
 
     fn act(&mut self, obs: &Observation) -> Result<Vec<Action>, PolicyError> {

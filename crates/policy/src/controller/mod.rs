@@ -12,6 +12,41 @@ use unitac_core::msg::GripperMode;
 pub use cup::CupController;
 pub use fabric::FabricController;
 
+/// A running mean of the camera's estimates of N values of one object, one sample per camera
+/// frame (a frame seen on several ticks counts once).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Estimate<const N: usize> {
+    sum: [f64; N],
+    frames: u32,
+    last: Option<Stamp>,
+}
+
+impl<const N: usize> Default for Estimate<N> {
+    fn default() -> Self {
+        Self {
+            sum: [0.0; N],
+            frames: 0,
+            last: None,
+        }
+    }
+}
+
+impl<const N: usize> Estimate<N> {
+    pub fn add(&mut self, stamp: Stamp, values: [f64; N]) {
+        if self.last.is_some_and(|s| s >= stamp) {
+            return;
+        }
+        self.last = Some(stamp);
+        for (s, v) in self.sum.iter_mut().zip(values) {
+            *s += v;
+        }
+        self.frames += 1;
+    }
+    pub fn mean(&self) -> Option<[f64; N]> {
+        (self.frames > 0).then(|| self.sum.map(|s| s / f64::from(self.frames)))
+    }
+}
+
 /// A phase and when it began.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Timed<P> {
@@ -34,9 +69,11 @@ impl<P: Copy + PartialEq> Timed<P> {
     }
 }
 
-pub(crate) fn arm(target: &str, z_m: f64, lift_m: f64) -> ArmAction {
+pub(crate) fn arm(target: &str, [x_m, y_m]: [f64; 2], z_m: f64, lift_m: f64) -> ArmAction {
     ArmAction {
         target: target.to_string(),
+        x_m,
+        y_m,
         z_m,
         lift_m,
     }

@@ -56,6 +56,8 @@ fn fixture_arm() -> ArmCommand {
     ArmCommand {
         header: Header::new(Stamp(1_700_000_005_000_000_002), "base_link"),
         target: "fabric_b".into(),
+        x_m: 0.4375,
+        y_m: -0.125,
         z_m: 0.004,
         lift_m: 0.0625,
         reason: "grasp the smoother fabric (B)".into(),

@@ -39,11 +39,14 @@ impl ArmTarget {
     }
 }
 
-/// The arm part of a command: the target, the fingertip centre's height above the table at the
-/// grasp, and how far to lift from there \[m] (home ignores both).
+/// The arm part of a command: the target, where over the table the fingertip centre goes (the
+/// commander's estimate of the object's position: a policy's from the camera, the expert's the
+/// truth), its height above the table at the grasp, and how far to lift from there \[m] (home
+/// ignores all three). The world goes where `xy_m` says, never to the object's true place.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ArmSetpoint {
     pub target: ArmTarget,
+    pub xy_m: [f64; 2],
     pub z_m: f64,
     pub lift_m: f64,
 }
@@ -58,6 +61,8 @@ pub struct TaskCommand {
 /// Bounds of a command's fields (beyond them the command is refused, nothing changes).
 const MAX_Z_M: f64 = 1.0;
 const MAX_LIFT_M: f64 = 0.5;
+/// The workspace's horizontal reach from the table frame's origin \[m].
+const MAX_XY_M: f64 = 2.0;
 /// Longest control step accepted \[s].
 pub const MAX_STEP_S: f64 = 1.0;
 
@@ -92,6 +97,8 @@ impl TaskCommand {
         check("gripper.opening_m", g.opening_m, 0.0, f64::MAX)?;
         check("gripper.speed_m_s", g.speed_m_s, 0.0, f64::MAX)?;
         check("gripper.force_n", g.force_n, 0.0, f64::MAX)?;
+        check("arm.x_m", self.arm.xy_m[0], -MAX_XY_M, MAX_XY_M)?;
+        check("arm.y_m", self.arm.xy_m[1], -MAX_XY_M, MAX_XY_M)?;
         check("arm.z_m", self.arm.z_m, 0.0, MAX_Z_M)?;
         check("arm.lift_m", self.arm.lift_m, 0.0, MAX_LIFT_M)?;
         Ok(())

@@ -1,27 +1,27 @@
 //! The cup task (the paper's unseen-size cup deformation grasp): a family of paper cups, the
 //! per-trial draw, and the success criteria.
 //!
-//! Cups: training diameters 60, 65 and 70 mm, the unseen one 90 mm; height 1.3 x diameter. Wall
-//! stiffness from the world's paper-cup law (`Cup::paper`: 0.3 N/mm at 80 mm, ~ 1/d^3) times a
-//! per-trial factor; mass (cup and contents) and the gel-on-paper friction are drawn per trial.
+//! Cups: diameters drawn from the split's ranges (objects/split.yaml: training 58-74 mm, unseen
+//! 84-96 mm); height 1.3 x diameter. Wall stiffness from the world's paper-cup law (`Cup::paper`:
+//! 0.3 N/mm per side at 80 mm, ~ 1/d^3, the thin-ring law) times a per-trial factor; mass (cup and
+//! contents) and the gel-on-paper friction are drawn per trial.
 //! The gel penetration and the grip force come from the world ([`crate::world`]).
 
 use serde::Serialize;
 
+use super::split::SPLIT;
 use super::{Split, Uniform};
 use crate::rng::SplitMix64;
 use crate::world::Cup;
 
-/// Training cup diameters \[m].
-pub const TRAIN_DIAMETERS_M: [f64; 3] = [0.060, 0.065, 0.070];
-/// The unseen (test) cup diameter \[m].
-pub const UNSEEN_DIAMETER_M: f64 = 0.090;
 /// Cup height over diameter.
 pub const HEIGHT_PER_DIAMETER: f64 = 1.3;
 
-/// Per-trial variation of a cup.
+/// Per-trial variation of a cup: the split's ranges (objects/split.yaml) and the sweeps' knobs.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CupVariation {
+    /// Diameter \[mm] (the split's range).
+    pub diameter_mm: Uniform,
     /// Factor on the paper-cup stiffness law.
     pub stiffness_factor: Uniform,
     /// Cup plus contents \[kg].
@@ -32,18 +32,36 @@ pub struct CupVariation {
     /// Placement on the table (x, y) around `centre_m` \[m], each uniform in +-`spread_m`.
     pub centre_m: [f64; 2],
     pub spread_m: [f64; 2],
+    /// Sweeps (`unitac trials --sweep`): every drawn stiffness times this, every drawn diameter
+    /// plus this \[m]. 1 and 0 for the split as committed.
+    pub stiffness_scale: f64,
+    pub size_offset_m: f64,
+}
+
+impl CupVariation {
+    /// The cups of `split` (objects/split.yaml).
+    pub fn for_split(split: Split) -> Self {
+        let c = SPLIT.cups;
+        Self {
+            diameter_mm: match split {
+                Split::Train => c.train_diameter_mm,
+                Split::Unseen => c.unseen_diameter_mm,
+            },
+            stiffness_factor: c.stiffness_factor,
+            mass_kg: c.mass_kg,
+            friction: c.friction,
+            kinetic_ratio: 0.8,
+            centre_m: [0.45, 0.0],
+            spread_m: [0.03, 0.05],
+            stiffness_scale: 1.0,
+            size_offset_m: 0.0,
+        }
+    }
 }
 
 impl Default for CupVariation {
     fn default() -> Self {
-        Self {
-            stiffness_factor: Uniform(0.8, 1.2),
-            mass_kg: Uniform(0.01, 0.06),
-            friction: Uniform(0.5, 1.0),
-            kinetic_ratio: 0.8,
-            centre_m: [0.45, 0.0],
-            spread_m: [0.03, 0.05],
-        }
+        Self::for_split(Split::Train)
     }
 }
 
@@ -60,17 +78,11 @@ pub struct CupSpec {
 }
 
 impl CupSpec {
-    /// Draw a cup of `split` from `rng`.
-    pub fn draw(split: Split, var: &CupVariation, rng: &mut SplitMix64) -> CupSpec {
-        let diameter_m = match split {
-            Split::Train => {
-                let i = (rng.uniform() * TRAIN_DIAMETERS_M.len() as f64) as usize;
-                TRAIN_DIAMETERS_M[i.min(TRAIN_DIAMETERS_M.len() - 1)]
-            }
-            Split::Unseen => UNSEEN_DIAMETER_M,
-        };
+    /// Draw a cup from `var` with `rng`.
+    pub fn draw(var: &CupVariation, rng: &mut SplitMix64) -> CupSpec {
+        let diameter_m = (var.diameter_mm.draw(rng) * 1e-3 + var.size_offset_m).max(0.02);
         let mut wall = Cup::paper(diameter_m * 1e3);
-        let k = var.stiffness_factor.draw(rng);
+        let k = var.stiffness_factor.draw(rng) * var.stiffness_scale;
         wall.k_n_per_mm *= k;
         wall.k3_n_per_mm3 *= k;
         let mu = var.friction.draw(rng);

@@ -29,11 +29,13 @@ const TOUCH_FORCE_N: f64 = 1.5;
 /// Most control ticks one demonstration may record.
 pub const MAX_DEMO_STEPS: usize = 100_000;
 
+/// A command toward the object called `target` (placed at `xy_m`: the expert reads where the
+/// trial placed it, the truth).
 fn command(
     opening_m: f64,
     speed_m_s: f64,
     force_n: f64,
-    target: &str,
+    (target, xy_m): (&str, [f64; 2]),
     z_m: f64,
     lift_m: f64,
 ) -> TaskCommand {
@@ -45,10 +47,16 @@ fn command(
         },
         arm: ArmSetpoint {
             target: ArmTarget::named(target),
+            xy_m,
             z_m,
             lift_m,
         },
     }
+}
+
+/// The object called `name` and where the trial placed it (truth).
+fn placed<'a>(spec: &TrialSpec, name: &'a str) -> (&'a str, [f64; 2]) {
+    (name, spec.object(name).map_or([0.0, 0.0], |o| o.placed_m))
 }
 
 /// The expert's command for this tick.
@@ -61,7 +69,14 @@ pub fn expert_command(truth: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> 
 
 fn home(cfg: &TaskConfig) -> TaskCommand {
     let g = cfg.gripper;
-    command(g.max_opening_m, g.max_speed_m_s, 0.0, "home", 0.0, 0.0)
+    command(
+        g.max_opening_m,
+        g.max_speed_m_s,
+        0.0,
+        ("home", [0.0, 0.0]),
+        0.0,
+        0.0,
+    )
 }
 
 fn cup_command(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskCommand {
@@ -83,11 +98,32 @@ fn cup_command(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskCommand
         && (t.gripper.opening_m - squeeze).abs() < 5e-5
         && t.contact.deformation_rate_m_s.abs() < 1e-3;
     if lifting || settled {
-        command(squeeze, CLOSE_M_S, g.max_force_n, "cup", z, CUP_LIFT_M)
+        command(
+            squeeze,
+            CLOSE_M_S,
+            g.max_force_n,
+            placed(spec, "cup"),
+            z,
+            CUP_LIFT_M,
+        )
     } else if around && (t.arm.arrived || t.gripper.force_n > 0.0) {
-        command(squeeze, CLOSE_M_S, g.max_force_n, "cup", z, 0.0)
+        command(
+            squeeze,
+            CLOSE_M_S,
+            g.max_force_n,
+            placed(spec, "cup"),
+            z,
+            0.0,
+        )
     } else {
-        command(wide, g.max_speed_m_s, g.max_force_n, "cup", z, 0.0)
+        command(
+            wide,
+            g.max_speed_m_s,
+            g.max_force_n,
+            placed(spec, "cup"),
+            z,
+            0.0,
+        )
     }
 }
 
@@ -120,7 +156,7 @@ fn fabric_command(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskComm
                 wide,
                 g.max_speed_m_s,
                 TOUCH_FORCE_N,
-                other,
+                placed(spec, other),
                 o.single_layer_z_m(),
                 0.0,
             );
@@ -140,11 +176,11 @@ fn fabric_command(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskComm
     let lifting = around && grasp && t.gripper.force_n > 0.0 && t.arm.target_m[2] > z + 1e-4;
     let gripped = around && grasp && t.arm.arrived && t.gripper.force_n >= 0.9 * force;
     if lifting || gripped {
-        command(0.0, CLOSE_M_S, force, goal, z, FABRIC_LIFT_M)
+        command(0.0, CLOSE_M_S, force, placed(spec, goal), z, FABRIC_LIFT_M)
     } else if around && (t.arm.arrived || t.gripper.force_n > 0.0) {
-        command(0.0, CLOSE_M_S, force, goal, z, 0.0)
+        command(0.0, CLOSE_M_S, force, placed(spec, goal), z, 0.0)
     } else {
-        command(wide, g.max_speed_m_s, force, goal, z, 0.0)
+        command(wide, g.max_speed_m_s, force, placed(spec, goal), z, 0.0)
     }
 }
 
@@ -251,11 +287,32 @@ pub fn fixed_opening_command(
         && t.arm.arrived
         && ((t.gripper.opening_m - opening_m).abs() < 1e-4 || t.gripper.stalled);
     if lifting || stopped {
-        command(opening_m, CLOSE_M_S, g.max_force_n, "cup", z, CUP_LIFT_M)
+        command(
+            opening_m,
+            CLOSE_M_S,
+            g.max_force_n,
+            placed(spec, "cup"),
+            z,
+            CUP_LIFT_M,
+        )
     } else if around && (t.arm.arrived || t.gripper.force_n > 0.0) {
-        command(opening_m, CLOSE_M_S, g.max_force_n, "cup", z, 0.0)
+        command(
+            opening_m,
+            CLOSE_M_S,
+            g.max_force_n,
+            placed(spec, "cup"),
+            z,
+            0.0,
+        )
     } else {
-        command(wide, g.max_speed_m_s, g.max_force_n, "cup", z, 0.0)
+        command(
+            wide,
+            g.max_speed_m_s,
+            g.max_force_n,
+            placed(spec, "cup"),
+            z,
+            0.0,
+        )
     }
 }
 

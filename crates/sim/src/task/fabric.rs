@@ -14,8 +14,9 @@
 
 use serde::Serialize;
 
-use super::Uniform;
+use super::Split;
 use super::hold::G;
+use super::split::{FabricType, SPLIT};
 use crate::object::Object;
 use crate::rng::SplitMix64;
 use crate::world::Cup;
@@ -116,17 +117,12 @@ pub const FABRICS: [Fabric; 5] = [
     },
 ];
 
-/// Per-trial variation of the fabrics.
+/// Per-trial variation of the fabrics: the split's types (objects/split.yaml) and where they lie.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct FabricVariation {
-    /// Factors on layer thickness, friction and mass.
-    pub thickness_factor: Uniform,
-    pub friction_factor: Uniform,
-    pub mass_factor: Uniform,
+    /// The types a trial pairs (two different ones), each drawn within its ranges.
+    pub types: &'static [&'static str],
     pub kinetic_ratio: f64,
-    /// Layers at the folded edge: uniform among `min_layers ..= max_layers`.
-    pub min_layers: u32,
-    pub max_layers: u32,
     /// Places of fabric_a and fabric_b (x, y) \[m] (which fabric goes where is drawn), each
     /// moved uniformly within +-`spread_m`.
     pub places_m: [[f64; 2]; 2],
@@ -137,15 +133,16 @@ pub struct FabricVariation {
     pub table_friction: f64,
 }
 
-impl Default for FabricVariation {
-    fn default() -> Self {
+impl FabricVariation {
+    /// The fabric types of `split` (objects/split.yaml).
+    pub fn for_split(split: Split) -> Self {
+        let f = SPLIT.fabrics;
         Self {
-            thickness_factor: Uniform(0.9, 1.1),
-            friction_factor: Uniform(0.85, 1.15),
-            mass_factor: Uniform(0.85, 1.15),
+            types: match split {
+                Split::Train => f.train_types,
+                Split::Unseen => f.unseen_types,
+            },
             kinetic_ratio: 0.8,
-            min_layers: 2,
-            max_layers: 4,
             places_m: [[0.45, 0.12], [0.45, -0.12]],
             spread_m: 0.02,
             hang_length_m: 0.25,
@@ -154,10 +151,16 @@ impl Default for FabricVariation {
     }
 }
 
+impl Default for FabricVariation {
+    fn default() -> Self {
+        Self::for_split(Split::Train)
+    }
+}
+
 /// One trial's fabric (ground truth).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FabricSpec {
-    /// Which fabric of [`FABRICS`].
+    /// The fabric as drawn (its type's name and this trial's values).
     pub fabric: Fabric,
     pub layers: u32,
     pub layer_m: f64,
@@ -176,22 +179,39 @@ pub const STACK_FORCE_N: f64 = 40.0;
 const CORNER_KG: f64 = 0.002;
 
 impl FabricSpec {
-    pub fn draw(fabric: &Fabric, var: &FabricVariation, rng: &mut SplitMix64) -> FabricSpec {
-        let span = var.max_layers.saturating_sub(var.min_layers) + 1;
-        let layers =
-            var.min_layers.max(1) + ((rng.uniform() * f64::from(span)) as u32).min(span - 1);
-        let layer_m = fabric.layer_mm * 1e-3 * var.thickness_factor.draw(rng);
-        let mu = fabric.friction * var.friction_factor.draw(rng);
+    /// Draw a fabric of type `t` within its ranges.
+    pub fn draw(t: &FabricType, var: &FabricVariation, rng: &mut SplitMix64) -> FabricSpec {
+        let fabric = Fabric {
+            name: t.name,
+            roughness_mm: t.roughness_mm.draw(rng),
+            period_mm: t.period_mm.draw(rng),
+            bump_mm: t.bump_mm.draw(rng),
+            bump_density: t.bump_density.draw(rng),
+            hardness: t.hardness.draw(rng),
+            layer_mm: t.layer_mm.draw(rng),
+            k_n_per_mm: t.k_n_per_mm.draw(rng),
+            friction: t.friction.draw(rng),
+            mass_kg: t.mass_kg.draw(rng),
+        };
+        let (lo, hi) = (t.layers.0.max(1), t.layers.1.max(t.layers.0.max(1)));
+        let span = hi - lo + 1;
+        let layers = lo + ((rng.uniform() * f64::from(span)) as u32).min(span - 1);
+        Self::of(fabric, layers, var)
+    }
+
+    /// A fabric as given (nominal values), `layers` at its edge.
+    pub fn of(fabric: Fabric, layers: u32, var: &FabricVariation) -> FabricSpec {
+        let mu = fabric.friction;
         FabricSpec {
-            fabric: fabric.clone(),
-            layers,
-            layer_m,
+            layers: layers.max(1),
+            layer_m: fabric.layer_mm * 1e-3,
             friction_static: mu,
             friction_kinetic: mu * var.kinetic_ratio,
-            mass_kg: fabric.mass_kg * var.mass_factor.draw(rng),
+            mass_kg: fabric.mass_kg,
             roughness_ra_mm: roughness_ra_mm(&fabric.object("ra")),
             hang_length_m: var.hang_length_m,
             table_friction: var.table_friction,
+            fabric,
         }
     }
 
@@ -294,10 +314,12 @@ impl Default for FabricCriteria {
 /// The fabric task's outcome with the values behind each criterion.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FabricOutcome {
-    /// The fabric held now ("" when none) and the smoother one of the pair.
+    /// The fabric the policy decided on (the first it lifted, else the one held; "" none), the
+    /// one held at the end ("" none), and the smoother one of the pair.
     pub chosen: String,
+    pub held: String,
     pub smoother: String,
-    /// Selection success: the smoother one is held.
+    /// Selection success: the decision was the smoother one.
     pub selection: bool,
     /// Layers between the fingers.
     pub layers: u32,
@@ -311,9 +333,15 @@ pub struct FabricOutcome {
 }
 
 impl FabricOutcome {
+    /// `chosen`: the fabric the policy decided on (the first it lifted, else the one it holds);
+    /// `held`: the one between the fingers at the end ("" none). Selection and grasp are scored
+    /// apart, as in the paper: selection is the decision alone, grasp is the held fabric's (a
+    /// single layer, lifted, slip within the bound); overall needs both, on the same fabric.
+    #[allow(clippy::too_many_arguments)]
     pub fn judge(
         c: &FabricCriteria,
         chosen: &str,
+        held: &str,
         smoother: &str,
         layers: u32,
         lift_height_m: f64,
@@ -321,20 +349,22 @@ impl FabricOutcome {
         collision: bool,
     ) -> FabricOutcome {
         let selection = !chosen.is_empty() && chosen == smoother;
-        let grasp = !chosen.is_empty()
+        let grasp = !held.is_empty()
             && layers == 1
             && lifted(lift_height_m, c.lift_m)
-            && slip_m <= c.slip_m;
+            && slip_m <= c.slip_m
+            && !collision;
         FabricOutcome {
             chosen: chosen.to_string(),
+            held: held.to_string(),
             smoother: smoother.to_string(),
             selection,
             layers,
             lift_height_m,
             slip_m,
-            grasp: grasp && !collision,
+            grasp,
             collision,
-            overall: selection && grasp && !collision,
+            overall: selection && grasp && held == chosen,
         }
     }
 }
@@ -344,12 +374,7 @@ mod tests {
     use super::*;
 
     fn spec(layers: u32, layer_m: f64) -> FabricSpec {
-        let mut s = FabricSpec::draw(
-            &FABRICS[0],
-            &FabricVariation::default(),
-            &mut SplitMix64::new(1),
-        );
-        s.layers = layers;
+        let mut s = FabricSpec::of(FABRICS[0].clone(), layers, &FabricVariation::default());
         s.layer_m = layer_m;
         s
     }
@@ -381,13 +406,19 @@ mod tests {
     #[test]
     fn a_lift_to_the_criterions_height_counts_within_the_arms_precision() {
         let c = FabricCriteria::default();
-        let judge = |lift: f64| FabricOutcome::judge(&c, "a", "a", 1, lift, 0.0, false).grasp;
+        let judge = |lift: f64| FabricOutcome::judge(&c, "a", "a", "a", 1, lift, 0.0, false).grasp;
         // Fabric trial 11 of seed 1 lifted to 0.05 m as 0.04999999999999998 m.
         assert!(judge(0.049_999_999_999_999_98));
         assert!(judge(0.05 - 0.4e-3));
         assert!(!judge(0.05 - 0.6e-3));
         assert!(!judge(f64::NAN));
-        assert!(!FabricOutcome::judge(&c, "a", "a", 2, 0.05, 0.0, false).grasp);
+        assert!(!FabricOutcome::judge(&c, "a", "a", "a", 2, 0.05, 0.0, false).grasp);
+        // Selection and grasp apart: the right choice with a failed grasp, and a good grasp of
+        // the wrong fabric.
+        let wrong = FabricOutcome::judge(&c, "b", "b", "a", 1, 0.05, 0.0, false);
+        assert!(!wrong.selection && wrong.grasp && !wrong.overall);
+        let slipped = FabricOutcome::judge(&c, "a", "a", "a", 1, 0.05, 2.0 * c.slip_m, false);
+        assert!(slipped.selection && !slipped.grasp && !slipped.overall);
         // The cup's lift is judged the same way.
         let cup = crate::task::CupCriteria::default();
         let lift = |h: f64| crate::task::CupOutcome::judge(&cup, true, h, 0.01, 0.01, false).lift;

@@ -30,6 +30,8 @@ pub mod expert;
 pub mod fabric;
 mod hold;
 pub mod observe;
+pub mod sensing;
+pub mod split;
 mod trial;
 mod truth;
 
@@ -45,6 +47,7 @@ pub use fabric::{
 };
 pub use hold::{G, Hold};
 pub use observe::{ROUGHNESS_SET_SD_M, SensorView, VisionNoise, VisualObservation};
+pub use sensing::{GripperReading, GripperSensing};
 pub use trial::{ObjectSpec, TaskObject, TrialSpec, trial_rng};
 pub use truth::{ContactTruth, GripperTruth, ObjectTruth, TaskOutcome, TaskTruth};
 
@@ -75,8 +78,8 @@ impl TaskKind {
     }
 }
 
-/// Which object family a trial draws from: the training objects or the unseen ones (cups:
-/// 60 / 65 / 70 mm vs 90 mm; the fabric task has one set and ignores it).
+/// Which objects a trial draws: the training objects or the unseen ones (objects/split.yaml:
+/// cups by diameter range, fabrics by type).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Split {
@@ -95,6 +98,9 @@ pub struct GripperLimits {
     pub max_speed_m_s: f64,
     /// Grip force bound per finger \[N].
     pub max_force_n: f64,
+    /// Half the width of the gel pad across the closing axis (horizontal) \[m]: an object whose
+    /// centre lies within it of the fingertip centre is gripped across its full width.
+    pub pad_half_width_m: f64,
 }
 
 impl Default for GripperLimits {
@@ -104,6 +110,8 @@ impl Default for GripperLimits {
             pad_m: 0.003,
             max_speed_m_s: 0.1,
             max_force_n: 40.0,
+            // GelSight Mini: 18.6 x 14.3 mm sensing area (datasheet), the long side horizontal.
+            pad_half_width_m: 0.0093,
         }
     }
 }
@@ -123,6 +131,8 @@ pub struct TaskConfig {
     pub fabric: FabricVariation,
     pub fabric_criteria: FabricCriteria,
     pub vision: VisionNoise,
+    /// What the gripper measures of itself (its status: never the world's contact force).
+    pub sensing: GripperSensing,
     /// Longest inner step of the arm, gripper and friction \[s] (the squeeze world sub-steps
     /// further for its own stability).
     pub substep_s: f64,
@@ -137,31 +147,175 @@ impl TaskConfig {
             gripper: GripperLimits::default(),
             gel: Gel::default(),
             gel_shear_n_per_m: 4000.0,
-            cup: CupVariation::default(),
+            cup: CupVariation::for_split(split),
             cup_criteria: CupCriteria::default(),
-            fabric: FabricVariation::default(),
+            fabric: FabricVariation::for_split(split),
             fabric_criteria: FabricCriteria::default(),
             vision: VisionNoise::default(),
+            sensing: GripperSensing::default(),
             substep_s: 1e-3,
         }
     }
     pub fn cup(split: Split) -> Self {
         Self::new(TaskKind::Cup, split)
     }
-    pub fn fabric() -> Self {
-        Self::new(TaskKind::Fabric, Split::Train)
+    pub fn fabric(split: Split) -> Self {
+        Self::new(TaskKind::Fabric, split)
     }
 }
 
-/// Arm within this horizontal distance of an object's grasp point has it between the fingers
-/// (when also within its height band) \[m].
-const REACH_M: f64 = 0.01;
+/// A noise or measurement figure of the world and where it comes from.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NoiseFigure {
+    pub name: &'static str,
+    pub value: f64,
+    pub unit: &'static str,
+    /// A datasheet or published figure, our measurement, or "assumed" (then swept).
+    pub source: &'static str,
+}
+
+impl TaskConfig {
+    /// Every noise and measurement figure of this world with its source.
+    pub fn noise_figures(&self) -> Vec<NoiseFigure> {
+        let v = &self.vision;
+        let s = &self.sensing;
+        let assumed = "assumed (swept x0.5 / x1 / x2 by `unitac trials --sweep`)";
+        let fig = |name, value, unit, source| NoiseFigure {
+            name,
+            value,
+            unit,
+            source,
+        };
+        vec![
+            fig(
+                "camera position bias (per trial, sd)",
+                v.position_bias_m,
+                "m",
+                assumed,
+            ),
+            fig(
+                "camera position noise (per frame, sd)",
+                v.position_m,
+                "m",
+                assumed,
+            ),
+            fig(
+                "camera size bias (per trial, sd)",
+                v.size_bias_m,
+                "m",
+                assumed,
+            ),
+            fig("camera size noise (per frame, sd)", v.size_m, "m", assumed),
+            fig(
+                "camera fabric edge height bias (per trial, sd)",
+                v.edge_bias_m,
+                "m",
+                assumed,
+            ),
+            fig(
+                "camera fabric edge height noise (per frame, sd)",
+                v.edge_m,
+                "m",
+                assumed,
+            ),
+            fig(
+                "camera fabric roughness bias (per trial, sd)",
+                v.roughness_bias_m,
+                "m",
+                "our measurement: the Ra spread of the nominal fabric types (a camera that cannot resolve the texture); swept with the camera",
+            ),
+            fig(
+                "camera fabric roughness noise (per frame, sd)",
+                v.roughness_m,
+                "m",
+                "assumed: a quarter of that spread; swept with the camera",
+            ),
+            fig(
+                "gripper current resolution",
+                s.current_step_a,
+                "A",
+                "Robotiq 2F-85/2F-140 manual: gCU, about 10 mA per count",
+            ),
+            fig(
+                "gripper current noise (sd)",
+                s.current_noise_a,
+                "A",
+                "assumed",
+            ),
+            fig(
+                "gripper force constant (nominal)",
+                s.force_per_amp,
+                "N/A",
+                "assumed",
+            ),
+            fig(
+                "gripper force constant error (per trial, sd)",
+                s.gain_error_sd,
+                "relative",
+                "assumed",
+            ),
+            fig(
+                "gripper opening resolution",
+                s.opening_step_m,
+                "m",
+                "assumed (encoder)",
+            ),
+            fig(
+                "gel pad half width across the closing axis",
+                self.gripper.pad_half_width_m,
+                "m",
+                "GelSight Mini datasheet: 18.6 x 14.3 mm sensing area",
+            ),
+        ]
+    }
+}
+
+/// Fabric: the folded edge lies along the table's x axis; fingertips within this of the edge
+/// across it (y) straddle the fold (assumed: the rounded fold of a few mm, plus the pad) \[m],
+/// and within half this length of the edge's middle along it \[m].
+const FOLD_REACH_M: f64 = 0.01;
+const EDGE_LENGTH_M: f64 = 0.2;
 /// Cup: fingertip centre at least this far from bottom and rim to hold it \[m].
 const CUP_MARGIN_M: f64 = 0.005;
 /// Fabric: length of fabric inside the pinch; slipping this far drops it \[m].
 const PINCH_DEPTH_M: f64 = 0.015;
 /// Contact force that counts as touching an object \[N].
 const TOUCH_N: f64 = 0.2;
+
+/// How an object sits between the fingers when it comes between them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Grip {
+    /// Width the gels close on \[mm] (cup diameter or chord, fabric stack) and layers caught.
+    width_mm: f64,
+    layers: u32,
+    offset_m: [f64; 2],
+}
+
+/// Where an object is relative to fingertips moving in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Reach {
+    Outside,
+    Inside(Grip),
+    /// A finger would come down on it.
+    Collision,
+}
+
+/// A hidden variable of a trial changed after its draw, for the test that no ground truth reaches
+/// a policy: two trials that differ only in one of these must look the same to every policy
+/// until the first contact.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Hidden {
+    /// Every object's stiffness (cup wall, fabric stack) times this.
+    Stiffness(f64),
+    /// Every object's friction (static and kinetic) times this.
+    Friction(f64),
+    /// Every object's mass times this.
+    Mass(f64),
+    /// Every object's true place moved by (dx, dy) \[m], the camera's per-trial bias moved back
+    /// by as much: the camera sees what it saw, the object is elsewhere (within its error).
+    Position([f64; 2]),
+}
 
 /// The fingers: free (nothing between them) or around an object (its squeeze world).
 #[derive(Debug, Clone)]
@@ -176,6 +330,9 @@ enum Fingers {
         layers: u32,
         /// Arm height over the object's lift when it came between the fingers \[m].
         z_rel_m: f64,
+        /// Object centre minus fingertip centre (x across the closing axis, y along it) \[m]:
+        /// kept while the object is in the fingers; the closing pushes y to 0 once they grip.
+        offset_m: [f64; 2],
         last: WorldTruth,
     },
 }
@@ -201,6 +358,8 @@ pub struct TaskWorld {
     collision: bool,
     dropped: bool,
     peak_deformation_mm: f64,
+    /// The object of the first command that lifted (the policy's decision).
+    decision: Option<usize>,
     /// Last step's slip (signed) and integrator steps.
     slip_step_m: f64,
     substeps: u32,
@@ -232,6 +391,7 @@ impl TaskWorld {
             collision: false,
             dropped: false,
             peak_deformation_mm: 0.0,
+            decision: None,
             slip_step_m: 0.0,
             substeps: 0,
         }
@@ -239,6 +399,44 @@ impl TaskWorld {
 
     pub fn config(&self) -> &TaskConfig {
         &self.cfg
+    }
+
+    /// Change one hidden variable of a freshly reset trial (see [`Hidden`]); the trial's random
+    /// streams are untouched.
+    pub fn perturb(&mut self, h: Hidden) {
+        for (o, s) in self.spec.objects.iter_mut().zip(&mut self.objects) {
+            match (&mut o.spec, h) {
+                (ObjectSpec::Cup(c), Hidden::Stiffness(f)) => {
+                    c.wall.k_n_per_mm *= f;
+                    c.wall.k3_n_per_mm3 *= f;
+                }
+                (ObjectSpec::Fabric(fab), Hidden::Stiffness(f)) => fab.fabric.k_n_per_mm *= f,
+                (ObjectSpec::Cup(c), Hidden::Friction(f)) => {
+                    c.friction_static *= f;
+                    c.friction_kinetic *= f;
+                }
+                (ObjectSpec::Fabric(fab), Hidden::Friction(f)) => {
+                    fab.friction_static *= f;
+                    fab.friction_kinetic *= f;
+                }
+                (ObjectSpec::Cup(c), Hidden::Mass(f)) => c.mass_kg *= f,
+                (ObjectSpec::Fabric(fab), Hidden::Mass(f)) => fab.mass_kg *= f,
+                (_, Hidden::Position(d)) => {
+                    o.placed_m = [o.placed_m[0] + d[0], o.placed_m[1] + d[1]];
+                    s.xy = o.placed_m;
+                }
+            }
+        }
+        if let Hidden::Position(d) = h {
+            let names = observe::visual_names(self.cfg.kind);
+            for (name, b) in names.iter().zip(&mut self.spec.vision_bias) {
+                if name.ends_with(".x_m") {
+                    *b -= d[0];
+                } else if name.ends_with(".y_m") {
+                    *b -= d[1];
+                }
+            }
+        }
     }
     pub fn spec(&self) -> &TrialSpec {
         &self.spec
@@ -266,6 +464,9 @@ impl TaskWorld {
             next.substep(cmd, target, h)?;
         }
         next.t = self.t + dt_s;
+        if next.decision.is_none() && cmd.arm.lift_m > 0.0 {
+            next.decision = target;
+        }
         *self = next;
         Ok(self.truth())
     }
@@ -293,20 +494,79 @@ impl TaskWorld {
         }
     }
 
-    /// Width between the fingers \[mm] and layers, if object `i` is between fingers at `pos`.
-    fn between(&self, i: usize, pos: [f64; 3]) -> Option<(f64, u32)> {
-        let (o, s) = (self.spec.objects.get(i)?, self.objects.get(i)?);
-        let d = (pos[0] - s.xy[0]).hypot(pos[1] - s.xy[1]);
-        if d > REACH_M {
-            return None;
-        }
+    /// Whether object `i` comes between fingertips centred at `pos` with `inner_mm` between the
+    /// gel surfaces, and how it is gripped.
+    ///
+    /// Cup (a cylinder; the fingers close along y, the pads `2 w` wide along x): a centre within
+    /// `w` of the fingertip centre across the closing axis meets the pads with its full diameter;
+    /// one `e` beyond the pad's edge meets its edges on a chord `2 sqrt(r^2 - e^2)`, and the edge
+    /// contacts push inward at the angle `asin(e / r)`: where its tangent exceeds the static
+    /// friction the closing pushes the cup along the edge until it meets the pad (full diameter,
+    /// at the pad's edge); otherwise the chord is held. Along the closing axis the cup must fit
+    /// between the gels from where it stands (`|dy| + half-extent <= inner / 2`); a finger that
+    /// would come down on it is a collision. The nearer finger pushes it to the middle as they
+    /// close (kept in the offset until the grip).
+    /// Fabric: the fold lies along x; fingertips within [`FOLD_REACH_M`] of it across and half
+    /// [`EDGE_LENGTH_M`] along it straddle it and catch the layers above their height.
+    fn between(&self, i: usize, pos: [f64; 3], inner_mm: f64) -> Reach {
+        let (Some(o), Some(s)) = (self.spec.objects.get(i), self.objects.get(i)) else {
+            return Reach::Outside;
+        };
+        let (dx, dy) = (s.xy[0] - pos[0], s.xy[1] - pos[1]);
         let z = pos[2] - s.hold.z_m;
         match &o.spec {
-            ObjectSpec::Cup(c) => (z >= CUP_MARGIN_M && z <= c.height_m - CUP_MARGIN_M)
-                .then_some((c.diameter_m * 1e3, 1)),
+            ObjectSpec::Cup(c) => {
+                if z < CUP_MARGIN_M || z > c.height_m - CUP_MARGIN_M {
+                    return Reach::Outside;
+                }
+                let r = c.diameter_m / 2.0;
+                let w = self.cfg.gripper.pad_half_width_m;
+                let e = dx.abs() - w;
+                if e >= r {
+                    return Reach::Outside;
+                }
+                let (width_m, x) = if e <= 0.0 {
+                    (c.diameter_m, dx)
+                } else {
+                    let tilt = (e / r).asin().tan();
+                    if tilt > c.friction_static {
+                        (c.diameter_m, w.copysign(dx))
+                    } else {
+                        (2.0 * (r * r - e * e).sqrt(), dx)
+                    }
+                };
+                let half_mm = (r * r - e.max(0.0).powi(2)).sqrt() * 1e3;
+                let gap_mm = inner_mm / 2.0;
+                if dy.abs() * 1e3 + half_mm <= gap_mm {
+                    Reach::Inside(Grip {
+                        width_mm: width_m * 1e3,
+                        layers: 1,
+                        offset_m: [x, dy],
+                    })
+                } else if dy.abs() * 1e3 - half_mm >= gap_mm {
+                    Reach::Outside
+                } else {
+                    Reach::Collision
+                }
+            }
             ObjectSpec::Fabric(f) => {
+                if dy.abs() > FOLD_REACH_M || dx.abs() > EDGE_LENGTH_M / 2.0 {
+                    return Reach::Outside;
+                }
                 let n = f.layers_at(z);
-                (n > 0).then_some((f64::from(n) * f.layer_m * 1e3, n))
+                if n == 0 {
+                    return Reach::Outside;
+                }
+                let width_mm = f64::from(n) * f.layer_m * 1e3;
+                if width_mm <= inner_mm {
+                    Reach::Inside(Grip {
+                        width_mm,
+                        layers: n,
+                        offset_m: [dx, dy],
+                    })
+                } else {
+                    Reach::Collision
+                }
             }
         }
     }
@@ -316,9 +576,15 @@ impl TaskWorld {
         2e3 * self.cfg.gripper.pad_m
     }
 
-    fn squeezed(&self, i: usize, layers: u32) -> Option<crate::world::Cup> {
+    /// The squeeze world's object: the cup's wall across `width_mm` (its diameter, or the chord
+    /// an offset grip meets; same wall law), or the fabric's stack of `layers`.
+    fn squeezed(&self, i: usize, layers: u32, width_mm: f64) -> Option<crate::world::Cup> {
         match &self.spec.objects.get(i)?.spec {
-            ObjectSpec::Cup(c) => Some(c.wall.clone()),
+            ObjectSpec::Cup(c) => {
+                let mut wall = c.wall.clone();
+                wall.diameter_mm = width_mm;
+                Some(wall)
+            }
             ObjectSpec::Fabric(f) => Some(f.stack(layers)),
         }
     }
@@ -330,22 +596,28 @@ impl TaskWorld {
         h: f64,
     ) -> Result<(), WorldError> {
         // 1. The arm, and what comes between the fingers on its way.
-        let goal = match target.and_then(|i| self.objects.get(i)) {
+        let goal = match target {
             None => self.cfg.arm.home_m,
-            Some(s) => [s.xy[0], s.xy[1], cmd.arm.z_m + cmd.arm.lift_m],
+            Some(_) => [
+                cmd.arm.xy_m[0],
+                cmd.arm.xy_m[1],
+                cmd.arm.z_m + cmd.arm.lift_m,
+            ],
         };
         let cand = self.arm.advanced(&self.cfg.arm, goal, h);
         let mut blocked = false;
         if let Fingers::Free { opening_mm } = self.fingers {
+            let inner_mm = opening_mm - self.pad2_mm();
             for i in 0..self.objects.len() {
-                let Some((width_mm, layers)) = self.between(i, cand.position_m) else {
-                    continue;
-                };
-                if opening_mm - self.pad2_mm() >= width_mm {
-                    self.engage(i, width_mm, layers, opening_mm, cand.position_m[2])?;
-                } else {
-                    self.collision = true;
-                    blocked = true;
+                match self.between(i, cand.position_m, inner_mm) {
+                    Reach::Outside => continue,
+                    Reach::Inside(grip) => {
+                        self.engage(i, grip, opening_mm, cand.position_m[2])?;
+                    }
+                    Reach::Collision => {
+                        self.collision = true;
+                        blocked = true;
+                    }
                 }
                 break;
             }
@@ -397,10 +669,23 @@ impl TaskWorld {
                 if grip >= TOUCH_N {
                     s.touch_s += h;
                 }
-                if grip > 0.0 {
-                    // Gripped: closing centres it between the fingers and it goes where they go
-                    // (lifted, or slid over the table).
-                    s.xy = [self.arm.position_m[0], self.arm.position_m[1]];
+                if grip <= 0.0
+                    && let Fingers::Around { offset_m, .. } = &mut self.fingers
+                {
+                    // Not gripped: it stands where it is while the fingers move around it.
+                    *offset_m = [
+                        s.xy[0] - self.arm.position_m[0],
+                        s.xy[1] - self.arm.position_m[1],
+                    ];
+                } else if let Fingers::Around { offset_m, .. } = &mut self.fingers {
+                    // Gripped: the closing has pushed it to the middle along the closing axis;
+                    // across it keeps its offset, and it goes where the fingers go (lifted, or
+                    // slid over the table).
+                    offset_m[1] = 0.0;
+                    s.xy = [
+                        self.arm.position_m[0] + offset_m[0],
+                        self.arm.position_m[1] + offset_m[1],
+                    ];
                 }
             }
         }
@@ -424,7 +709,10 @@ impl TaskWorld {
             };
             let touching = last.force_n > 0.0 || last.penetration_mm > 0.0;
             let moved = (self.arm.position_m[2] - s.z_m - z_rel).abs() > 2e-4
-                || self.between(i, self.arm.position_m).is_none();
+                || matches!(
+                    self.between(i, self.arm.position_m, f64::INFINITY),
+                    Reach::Outside
+                );
             let pad2 = self.pad2_mm();
             if s.slip_net_m > margin {
                 self.dropped = true;
@@ -446,12 +734,11 @@ impl TaskWorld {
     fn engage(
         &mut self,
         i: usize,
-        width_mm: f64,
-        layers: u32,
+        grip: Grip,
         opening_mm: f64,
         arm_z: f64,
     ) -> Result<(), WorldError> {
-        let Some(model) = self.squeezed(i, layers) else {
+        let Some(model) = self.squeezed(i, grip.layers, grip.width_mm) else {
             return Ok(());
         };
         let lim = self.cfg.gripper;
@@ -462,7 +749,7 @@ impl TaskWorld {
             max_force_n: lim.max_force_n,
             ..Gripper::default()
         };
-        wc.start_mm = (width_mm - (opening_mm - self.pad2_mm())) / 2.0;
+        wc.start_mm = (grip.width_mm - (opening_mm - self.pad2_mm())) / 2.0;
         let world = World::new(wc);
         let last = world.truth(0);
         let s = &mut self.objects[i];
@@ -470,9 +757,10 @@ impl TaskWorld {
         self.fingers = Fingers::Around {
             obj: i,
             world: Box::new(world),
-            width_mm,
-            layers,
+            width_mm: grip.width_mm,
+            layers: grip.layers,
             z_rel_m: arm_z - s.hold.z_m,
+            offset_m: grip.offset_m,
             last,
         };
         Ok(())
@@ -569,12 +857,19 @@ impl TaskWorld {
                 truth.collision,
             )),
             TaskKind::Fabric => {
-                let chosen = held
+                // The decision: the object the policy first lifted, else the one it holds.
+                let chosen = self
+                    .decision
+                    .or(held)
+                    .and_then(|i| truth.objects.get(i))
+                    .map_or("", |o| o.name.as_str());
+                let holding = held
                     .and_then(|i| truth.objects.get(i))
                     .map_or("", |o| o.name.as_str());
                 TaskOutcome::Fabric(FabricOutcome::judge(
                     &self.cfg.fabric_criteria,
                     chosen,
+                    holding,
                     self.spec.smoother(),
                     if held.is_some() {
                         truth.contact.layers

@@ -62,6 +62,19 @@ impl Default for VisionNoise {
 }
 
 impl VisionNoise {
+    /// Every figure times `f` (the sweep's camera noise x0.5 / x1 / x2).
+    pub fn scaled(&self, f: f64) -> Self {
+        Self {
+            position_bias_m: self.position_bias_m * f,
+            position_m: self.position_m * f,
+            size_bias_m: self.size_bias_m * f,
+            size_m: self.size_m * f,
+            edge_bias_m: self.edge_bias_m * f,
+            edge_m: self.edge_m * f,
+            roughness_bias_m: self.roughness_bias_m * f,
+            roughness_m: self.roughness_m * f,
+        }
+    }
     fn sigmas(&self, name: &str) -> (f64, f64) {
         if name.ends_with("roughness_ra_m") {
             (self.roughness_bias_m, self.roughness_m)

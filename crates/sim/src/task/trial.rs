@@ -3,7 +3,8 @@
 use serde::Serialize;
 
 use super::observe;
-use super::{CupSpec, FABRICS, FabricSpec, G, Split, TaskConfig, TaskKind, Uniform};
+use super::split::{FabricType, SPLIT};
+use super::{CupSpec, FabricSpec, G, Split, TaskConfig, TaskKind, Uniform};
 use crate::rng::SplitMix64;
 
 /// An object of the trial.
@@ -48,6 +49,8 @@ pub struct TrialSpec {
     pub objects: Vec<TaskObject>,
     /// The camera's per-trial bias, one per visual observation name.
     pub vision_bias: Vec<f64>,
+    /// The gripper's true force constant over its nominal one (its force estimate's error).
+    pub gripper_gain: f64,
 }
 
 impl TrialSpec {
@@ -56,7 +59,7 @@ impl TrialSpec {
         let mut rng = trial_rng(seed, trial);
         let objects = match cfg.kind {
             TaskKind::Cup => {
-                let c = CupSpec::draw(cfg.split, &cfg.cup, &mut rng);
+                let c = CupSpec::draw(&cfg.cup, &mut rng);
                 let v = &cfg.cup;
                 let placed_m = [
                     v.centre_m[0] + Uniform(-v.spread_m[0], v.spread_m[0]).draw(&mut rng),
@@ -70,21 +73,28 @@ impl TrialSpec {
             }
             TaskKind::Fabric => {
                 let v = &cfg.fabric;
-                let n = FABRICS.len();
-                let i = ((rng.uniform() * n as f64) as usize).min(n - 1);
-                let j = ((rng.uniform() * (n - 1) as f64) as usize).min(n - 2);
+                let types: Vec<&FabricType> = v
+                    .types
+                    .iter()
+                    .filter_map(|t| SPLIT.fabrics.get(t))
+                    .collect();
+                let n = types.len();
+                // Two different types (the build script checks each split lists two or more).
+                let i = ((rng.uniform() * n as f64) as usize).min(n.saturating_sub(1));
+                let j = ((rng.uniform() * n.saturating_sub(1) as f64) as usize)
+                    .min(n.saturating_sub(2));
                 let j = if j >= i { j + 1 } else { j };
                 [("fabric_a", i, 0), ("fabric_b", j, 1)]
                     .into_iter()
-                    .map(|(name, k, place)| {
-                        let f = FabricSpec::draw(&FABRICS[k], v, &mut rng);
+                    .filter_map(|(name, k, place)| {
+                        let f = FabricSpec::draw(types.get(k)?, v, &mut rng);
                         let s = Uniform(-v.spread_m, v.spread_m);
                         let p = v.places_m[place];
-                        TaskObject {
+                        Some(TaskObject {
                             name: name.into(),
                             spec: ObjectSpec::Fabric(f),
                             placed_m: [p[0] + s.draw(&mut rng), p[1] + s.draw(&mut rng)],
-                        }
+                        })
                     })
                     .collect()
             }
@@ -94,6 +104,7 @@ impl TrialSpec {
             .iter()
             .map(|n| cfg.vision.bias_sigma(n) * rng.gaussian())
             .collect();
+        let gripper_gain = cfg.sensing.draw_gain(&mut rng);
         TrialSpec {
             kind: cfg.kind,
             split: cfg.split,
@@ -101,6 +112,7 @@ impl TrialSpec {
             trial,
             objects,
             vision_bias,
+            gripper_gain,
         }
     }
 
