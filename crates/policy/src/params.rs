@@ -95,8 +95,6 @@ pub struct PolicyParams {
     pub max_stiffness_n_per_m: f64,
     /// Force cap of the squeeze = stiffness x deformation x this margin.
     pub force_margin: f64,
-    /// Fabric, vtla_pred: press depth the predicted stiffness turns into the grasp force \[m].
-    pub press_depth_m: f64,
     /// Gel pad thickness per finger \[m]: openings are between the finger bodies, the gel
     /// surfaces meet at 2 x this (the gripper's geometry, known to every mode).
     pub pad_m: f64,
@@ -104,6 +102,9 @@ pub struct PolicyParams {
     /// on the training cups alone (`unitac trials --scene cup_deformation --modes vla --train
     /// --calibrate-vla`).
     pub vla_offset_m: f64,
+    /// Cup: the fingers open to the camera's width + 2 pads + this on the way to the cup \[m]
+    /// (clears it with the camera's size and place errors: 2 cm against their ~4 mm).
+    pub pregrasp_margin_m: f64,
 }
 
 impl Default for PolicyParams {
@@ -158,7 +159,7 @@ impl Default for PolicyParams {
             force_margin: 1.5,
             pad_m: 0.003,
             vla_offset_m: 0.0,
-            press_depth_m: 0.002,
+            pregrasp_margin_m: 0.02,
         }
     }
 }
@@ -213,8 +214,8 @@ impl PolicyParams {
             ("probe_release_m", self.probe_release_m),
             ("gel_indent_m_per_mm2", self.gel_indent_m_per_mm2),
             ("stiffness_bias_n_per_m", self.stiffness_bias_n_per_m),
-            ("press_depth_m", self.press_depth_m),
             ("pad_m", self.pad_m),
+            ("pregrasp_margin_m", self.pregrasp_margin_m),
         ];
         if !(self.vla_offset_m.is_finite() && self.vla_offset_m.abs() <= self.max_opening_m) {
             bad.push(format!(

@@ -78,7 +78,7 @@ impl PolicyStage {
         };
         let policy: Box<dyn Policy> = match task {
             Task::Pick { property, more, .. } => {
-                Box::new(FabricController::new(&params, property, more)?.with_readout(readout))
+                Box::new(FabricController::new(&params, property, more)?)
             }
             Task::Squeeze { by_m } => {
                 Box::new(CupController::new(&params, by_m).with_readout(readout))

@@ -161,7 +161,10 @@ impl CupController {
                 Mode::Vla => {
                     let target = self.target_opening.unwrap_or(p.max_opening_m);
                     let tol = p.deformation_tolerance_m / 2.0;
-                    if opening.is_some_and(|o| (o - target).abs() <= tol) {
+                    // Arrived, or stopped on the cup short of the target (the gripper's own
+                    // object detection: what a position-controlled close on a real gripper ends on).
+                    let stopped = g.is_some_and(|g| g.object_detected && g.motion != "moving");
+                    if opening.is_some_and(|o| (o - target).abs() <= tol) || stopped {
                         self.t.go(Phase::Hold);
                     } else if elapsed >= p.contact_timeout_s {
                         return Err(self.timeout("the fingers did not reach the camera's target"));
@@ -261,9 +264,19 @@ impl CupController {
         let elapsed = self.t.elapsed(obs.stamp);
         let place = self.place();
         let at = |lift: f64| arm("cup", place, p.cup_z_m, lift);
-        let open = position(p.max_opening_m, p.max_speed_m_s, p.touch_force_n);
         match self.t.phase {
-            Phase::Approach => action(open, at(0.0), "approaching the cup"),
+            Phase::Approach => {
+                // Every mode opens to the camera's width plus the pads and a margin on the way,
+                // so that no mode spends its closing time on air.
+                let pre = self.seen.mean().map_or(p.max_opening_m, |m| {
+                    (m[2] + 2.0 * p.pad_m + p.pregrasp_margin_m).min(p.max_opening_m)
+                });
+                action(
+                    position(pre, p.max_speed_m_s, p.touch_force_n),
+                    at(0.0),
+                    format!("approaching the cup, fingers at {pre:.4} m"),
+                )
+            }
             Phase::Close => match self.mode {
                 Mode::Vla => {
                     let t = self.target_opening.unwrap_or(p.max_opening_m);

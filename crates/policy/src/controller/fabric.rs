@@ -12,10 +12,11 @@
 //! ```
 //! vtla_real touches both and chooses from the live PropertyComparison; vla and vtla_pred
 //! choose from the camera before any touch. vtla_pred reads no tactile input after it starts:
-//! its predicted latent (sampled from the background frame before the approach) sets the grasp
-//! force at the look (expected stiffness x press_depth_m). A predicted latent that knew the
-//! object would let vtla_pred compare the fabrics too; the sampler's condition does not carry the
-//! object yet, so the choice is the camera's.
+//! it waits at the look for its predicted latent (sampled once, from the background frame
+//! before the approach). That latent would let it compare the fabrics if it knew them, but the
+//! sampler's condition does not carry the object, so it carries nothing the choice or the grasp
+//! could use: vtla_pred chooses and grasps as vla does, and its row measures what touch
+//! predicted without the object is worth here (nothing), not a stand-in for it.
 //!
 //! Places: the fingertips go where the camera saw each object (`<object>_x_m`, `<object>_y_m`),
 //! averaged over the frames seen while approaching it and kept from then on; never the truth.
@@ -31,7 +32,6 @@ use crate::mode::Mode;
 use crate::observation::Observation;
 use crate::params::PolicyParams;
 use crate::policy::{Action, Policy, PolicyError};
-use crate::readout::Readout;
 use unitac_core::Stamp;
 use unitac_core::msg::Winner;
 
@@ -59,17 +59,11 @@ pub struct FabricController {
     objects: [String; 2],
     t: Timed<Phase>,
     press_force_n: f64,
-    /// The grasp's force: the params' (vla, vtla_real) or the predicted latent's (vtla_pred).
-    grasp_force_n: f64,
-    /// Clamps inside the controller since the stage last asked.
-    clamped: Vec<&'static str>,
     contact_at: Option<Stamp>,
     /// Comparisons stamped before the second touch began are not about this trial.
     second_touch_at: Option<Stamp>,
     chosen: Option<String>,
     failure: Option<PolicyError>,
-    /// Latent -> stiffness for vtla_pred's press force.
-    readout: Readout,
     /// The camera's estimates of where A and B are (x, y) and of their edge heights: running
     /// means over the frames seen while approaching each.
     places: [Estimate<3>; 2],
@@ -97,23 +91,15 @@ impl FabricController {
             } else {
                 Phase::Look
             }),
-            grasp_force_n: p.grasp_force_n,
-            clamped: Vec::new(),
+
             press_force_n: p.touch_force_n,
             contact_at: None,
             second_touch_at: None,
             chosen: None,
             failure: None,
-            readout: Readout::Linear,
             places: [Estimate::default(); 2],
             p: p.clone(),
         })
-    }
-
-    /// The stiffness from `readout` instead of the params' linear one.
-    pub fn with_readout(mut self, readout: Readout) -> Self {
-        self.readout = readout;
-        self
     }
 
     fn fail(&mut self, e: PolicyError) -> PolicyError {
@@ -231,17 +217,6 @@ impl FabricController {
                         self.property
                     ))));
                 };
-                if self.mode == Mode::VtlaPred {
-                    // The predicted latent (sampled before any touch) sets the grasp force.
-                    let l = obs
-                        .latent()
-                        .ok_or_else(|| PolicyError::Failed("no fresh predicted latent".into()))?;
-                    let (k, clamped) = self.readout.stiffness(p, l, now)?;
-                    if clamped {
-                        self.clamped.push("readout.stiffness");
-                    }
-                    self.grasp_force_n = (k * p.press_depth_m).min(p.max_force_n);
-                }
                 let i = self.pick(a > b);
                 self.chosen = Some(self.objects[i].clone());
                 self.t.go(Phase::ApproachGrasp);
@@ -322,7 +297,7 @@ impl FabricController {
                 let g = obs.gripper();
                 let held = g.is_some_and(|g| {
                     g.object_detected
-                        || (g.force_n.is_finite() && g.force_n >= 0.9 * self.grasp_force_n)
+                        || (g.force_n.is_finite() && g.force_n >= 0.9 * p.grasp_force_n)
                 });
                 if held {
                     self.t.go(Phase::Lift);
@@ -355,7 +330,7 @@ impl FabricController {
         let grasp_z = self.grasp_z();
         let at = self.chosen_place();
         let home = [0.0, 0.0];
-        let grip = force(p.min_opening_m, p.max_speed_m_s, self.grasp_force_n);
+        let grip = force(p.min_opening_m, p.max_speed_m_s, p.grasp_force_n);
         match self.t.phase {
             Phase::Look => action(
                 open,
@@ -401,7 +376,7 @@ impl FabricController {
             Phase::Grasp => action(
                 grip,
                 arm(&chosen, at, grasp_z, 0.0),
-                format!("grasping {chosen} ({:.2} N)", self.grasp_force_n),
+                format!("grasping {chosen} ({:.2} N)", p.grasp_force_n),
             ),
             Phase::Lift => action(
                 grip,
@@ -467,10 +442,6 @@ impl Policy for FabricController {
             r.push("comparison");
         }
         r
-    }
-
-    fn take_clamped(&mut self) -> Vec<&'static str> {
-        std::mem::take(&mut self.clamped)
     }
 
     fn act(&mut self, obs: &Observation) -> Result<Vec<Action>, PolicyError> {
