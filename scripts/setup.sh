@@ -150,7 +150,7 @@ fi
 POLICIES="$MODELS/policy"
 policy_inputs=(scripts/fit_reference_policy.py Cargo.lock launch/scenes/cup_deformation_vtla_real.yaml
   launch/scenes/cup_deformation_vtla_pred.yaml crates/cli/src/demos.rs
-  $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src -name '*.rs' | sort))
+  $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
 policy_key="$(hash_of "${policy_inputs[@]}" "$MODELS/.stamp")"
 if [ "$(cat "$POLICIES/.stamp" 2>/dev/null)" != "$policy_key" ] || [ ! -f "$POLICIES/cup_stiffness_pred/manifest.json" ]; then
   log "policies: expert demonstrations on training cups, fitting the stiffness readouts"

@@ -246,7 +246,7 @@ fn fixture() -> Written {
             phase: "press".into(),
             safety_ok: false,
             message: "force limit".into(),
-            clamped: Vec::new(),
+            clamped: vec!["gripper.force_n".into(), "arm.lift_m".into()],
         },
         gripper: GripperStatus {
             header: header(t + 7),
@@ -262,6 +262,8 @@ fn fixture() -> Written {
         arm: ArmCommand {
             header: header(t + 8),
             target: "fabric_b".into(),
+            x_m: 0.4375,
+            y_m: -0.125,
             z_m: 0.004,
             lift_m: 0.0625,
             reason: "grasp the smoother (B)".into(),

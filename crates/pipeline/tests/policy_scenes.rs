@@ -42,7 +42,7 @@ fn every_shipped_task_and_mode_loads_only_what_its_mode_uses() {
         (
             "fabric_selection",
             Mode::VtlaPred,
-            vec!["contact", "encoder", "compare", "sampler", "policy"],
+            vec!["contact", "sampler", "policy"],
         ),
     ] {
         let name = format!("{task}_{}", mode.as_str());

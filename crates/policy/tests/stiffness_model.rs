@@ -184,7 +184,8 @@ fn a_fit_recovers_a_linear_law_and_matches_the_oracle() {
 fn the_cup_controller_squeezes_with_the_models_stiffness() {
     let dir = fit_synthetic("stiffness-stage");
     let p = rig::params(
-        "{mode: vtla_pred, task: squeeze the cup by 1 cm, objects: [cup], latent_len: 24}",
+        "{mode: vtla_pred, task: squeeze the cup by 1 cm, objects: [cup], latent_len: 24, \
+         visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
     );
     let stage = unitac_policy::PolicyStage::load("test_scene", p.clone(), Some(&dir)).unwrap();
     let mut rig = rig::Rig::with_stage(stage);
@@ -203,6 +204,12 @@ fn the_cup_controller_squeezes_with_the_models_stiffness() {
     // Close in force mode toward F = k x 1 cm (ramped 2 N per tick).
     let mut close = None;
     for _ in 0..60 {
+        let cam = Msg::Visual(unitac_core::msg::VisualObservation {
+            header: rig.header(),
+            names: vec!["cup_x_m".into(), "cup_y_m".into(), "cup_width_m".into()],
+            values: vec![0.45, 0.0, 0.08],
+        });
+        rig.send(cam);
         let t = rig.tick();
         rig.follow(&t.cmd, None);
         if t.status.phase == "close" {

@@ -34,9 +34,26 @@ fn policy_status(out: &[Msg]) -> &PolicyStatus {
 
 fn cup_stage(mode: &str) -> PolicyStage {
     let p = params(&format!(
-        "{{mode: {mode}, task: squeeze the cup, objects: [cup], latent_len: 4}}"
+        "{{mode: {mode}, task: squeeze the cup, objects: [cup], latent_len: 4, \
+         visual_names: [cup_x_m, cup_y_m, cup_width_m]}}"
     ));
     PolicyStage::new("test_scene", p).unwrap()
+}
+
+/// The camera's frame at `t` (an 80 mm cup), then the gripper's status: one tick's inputs.
+fn step(
+    s: &mut PolicyStage,
+    t: i64,
+    opening: f64,
+    clock: &ManualClock,
+) -> Result<Vec<Msg>, unitac_core::StageError> {
+    let cam = Msg::Visual(unitac_core::msg::VisualObservation {
+        header: unitac_core::msg::Header::new(Stamp(t), "camera"),
+        names: vec!["cup_x_m".into(), "cup_y_m".into(), "cup_width_m".into()],
+        values: vec![0.45, 0.0, 0.08],
+    });
+    s.process(&cam, clock)?;
+    s.process(&status(t, opening), clock)
 }
 
 #[test]
@@ -47,7 +64,7 @@ fn a_missing_gripper_status_gives_the_safe_action_a_period_after_its_tick_was_du
     // Nothing known before the first status: the watchdog stays silent.
     assert!(s.watchdog_tick(Stamp(t0)).is_empty());
     clock.set(Stamp(t0));
-    assert_eq!(s.process(&status(t0, 0.07), &clock).unwrap().len(), 3);
+    assert_eq!(step(&mut s, t0, 0.07, &clock).unwrap().len(), 3);
     // The next tick is due at t0 + P; the watchdog waits until it is a period overdue.
     let p = TICK_NS;
     assert!(s.watchdog_tick(Stamp(t0 + p)).is_empty());
@@ -74,7 +91,7 @@ fn a_missing_gripper_status_gives_the_safe_action_a_period_after_its_tick_was_du
     assert_eq!(s.watchdog_tick(Stamp(t0 + 3 * p)).len(), 3);
     // A status back on the schedule ticks normally again.
     clock.set(Stamp(t0 + 4 * p));
-    let out = s.process(&status(t0 + 4 * p, 0.07), &clock).unwrap();
+    let out = step(&mut s, t0 + 4 * p, 0.07, &clock).unwrap();
     assert_eq!(out.len(), 3);
     assert_eq!(policy_status(&out).header.stamp, Stamp(t0 + 4 * p));
 }
@@ -82,9 +99,9 @@ fn a_missing_gripper_status_gives_the_safe_action_a_period_after_its_tick_was_du
 #[test]
 fn a_lost_producer_holds_in_the_phases_that_await_it_and_only_those() {
     let mut s = cup_stage("vtla_real");
-    assert_eq!(s.inputs(), ["gripper", "contact", "latent_real"]);
+    assert_eq!(s.inputs(), ["gripper", "contact", "latent_real", "visual"]);
     assert!(
-        s.set_input_lost("visual", Some("gone".into()))
+        s.set_input_lost("latent_pred", Some("gone".into()))
             .unwrap_err()
             .to_string()
             .contains("not an input of this mode")
@@ -94,7 +111,7 @@ fn a_lost_producer_holds_in_the_phases_that_await_it_and_only_those() {
     let clock = ManualClock::new(Stamp(0));
     let mut t = 1_000_000_000;
     clock.set(Stamp(t));
-    let out = s.process(&status(t, 0.09), &clock).unwrap();
+    let out = step(&mut s, t, 0.09, &clock).unwrap();
     assert!(policy_status(&out).safety_ok);
     s.set_input_lost(
         "latent_real",
@@ -103,7 +120,7 @@ fn a_lost_producer_holds_in_the_phases_that_await_it_and_only_those() {
     .unwrap();
     t += TICK_NS;
     clock.set(Stamp(t));
-    let out = s.process(&status(t, 0.09), &clock).unwrap();
+    let out = step(&mut s, t, 0.09, &clock).unwrap();
     let st = policy_status(&out);
     assert!(!st.safety_ok);
     assert_eq!(st.message, "latent_real: no publisher on /x/tactile_latent");
@@ -112,7 +129,7 @@ fn a_lost_producer_holds_in_the_phases_that_await_it_and_only_those() {
     s.set_input_lost("latent_real", None).unwrap();
     t += TICK_NS;
     clock.set(Stamp(t));
-    assert!(policy_status(&s.process(&status(t, 0.09), &clock).unwrap()).safety_ok);
+    assert!(policy_status(&step(&mut s, t, 0.09, &clock).unwrap()).safety_ok);
 }
 
 #[test]
@@ -122,7 +139,8 @@ fn once_the_latent_is_used_its_producer_may_go() {
     // contact producer, required in the squeeze, still is.
     let mut s = cup_stage("vtla_real");
     let rig = Rig::new(params(
-        "{mode: vtla_real, task: squeeze the cup, objects: [cup], latent_len: 4}",
+        "{mode: vtla_real, task: squeeze the cup, objects: [cup], latent_len: 4, \
+         visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
     ));
     let clock = ManualClock::new(Stamp(0));
     let (diameter, mut opening, mut t) = (0.08, 0.085, rig.now);
@@ -149,7 +167,7 @@ fn once_the_latent_is_used_its_producer_may_go() {
             }
             s.process(&l, &clock).unwrap();
         }
-        let out = s.process(&status(t, opening), &clock).unwrap();
+        let out = step(&mut s, t, opening, &clock).unwrap();
         let Msg::Command(cmd) = &out[0] else {
             panic!("{out:?}")
         };
@@ -168,13 +186,13 @@ fn once_the_latent_is_used_its_producer_may_go() {
     s.set_input_lost("latent_real", Some("no publisher".into()))
         .unwrap();
     clock.set(Stamp(t));
-    let st = policy_status(&s.process(&status(t, opening), &clock).unwrap()).clone();
+    let st = policy_status(&step(&mut s, t, opening, &clock).unwrap()).clone();
     assert!(st.safety_ok, "{st:?}");
     s.set_input_lost("contact", Some("no publisher on contact_state".into()))
         .unwrap();
     t += TICK_NS;
     clock.set(Stamp(t));
-    let st = policy_status(&s.process(&status(t, opening), &clock).unwrap()).clone();
+    let st = policy_status(&step(&mut s, t, opening, &clock).unwrap()).clone();
     assert!(!st.safety_ok);
     assert!(
         st.message

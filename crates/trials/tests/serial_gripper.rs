@@ -104,20 +104,18 @@ fn top_speed(r: &TrialRecord, phase: &str) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// The trial whose outcome differed between the grippers (seed 1 trial 19 of 20): the
-/// policy closes until contact at its touch speed, 10 mm/s, with a 3 N bound; the 2F-140's
-/// slowest is 30 mm/s and its weakest 10 N (the driver clamps to the model's range, the device's
-/// registers hold it), so the serial close overruns the first touch and squeezes the cup deeper.
-/// Before the contact region (issue 15) that over-compressed the cup and the probe's release did
-/// not end the contact in time (the trial failed); since, both trials succeed (crates/trials/
-/// README.md), and the wire still shows the faster, deeper touch.
+/// Where the grippers differ (seed 1 trial 19): the policy closes until contact at its touch
+/// speed, 10 mm/s, with a 3 N bound; the 2F-140's slowest is 30 mm/s and its weakest 10 N (the
+/// driver clamps to the model's range, the device's registers hold it), so the serial close
+/// overruns the first touch and squeezes the cup deeper. On this trial's cup the in-process
+/// squeeze lands in the target band and the serial one past it (12.5 mm peak against 9.6).
 #[test]
 fn where_they_differ_the_serial_gripper_touched_at_its_minimum_speed() {
     let a = trial("cup_deformation_vtla_real", 1, 19, TrialGripper::InProcess);
     let b = trial("cup_deformation_vtla_real", 1, 19, SERIAL);
     assert_went_over_the_wire(&b);
     let (ca, cb) = (cup(&a), cup(&b));
-    assert!(ca.overall && cb.overall, "{ca:?} vs {cb:?}");
+    assert!(ca.overall && cb.over_compressed, "{ca:?} vs {cb:?}");
     assert_eq!(
         (a.end_phase.as_str(), b.end_phase.as_str()),
         ("done", "done")
