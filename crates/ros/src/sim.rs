@@ -271,6 +271,8 @@ mod tests {
             let a = ArmCommand {
                 header: Header::new(Stamp::ZERO, "g"),
                 target: "cup".into(),
+                x_m: 0.45,
+                y_m: 0.0,
                 z_m: 0.04,
                 lift_m: 0.0,
                 reason: String::new(),

@@ -521,7 +521,7 @@ fn an_offset_grasp_closes_where_the_cup_stands_not_on_its_true_centre() {
     let placed = w0.spec().object("cup").unwrap().placed_m;
     let pad2 = 2.0 * cfg.gripper.pad_m;
     let wide = cup.diameter_m + pad2 + 0.03;
-    let (centred, c0) = grip_offset(&mut w0.clone(), [0.0, 0.0], wide);
+    let (_, c0) = grip_offset(&mut w0.clone(), [0.0, 0.0], wide);
     let c0 = c0.unwrap();
     assert!((c0 - (cup.diameter_m + pad2)).abs() < 1e-3, "{c0}");
     // Across the closing axis within the pad's half width: the full diameter, and the cup stays

@@ -2,8 +2,9 @@
 //! what the world's gripper is driven with, and what happens after the world steps.
 //!
 //! Two sides:
-//! - in-process (`sim`, the default): the world's own gripper, its status straight from the
-//!   world's truth ([`crate::bridge::gripper_status`]) and the command passed through unchanged;
+//! - in-process (`sim`, the default): the world's own gripper, its status read from the
+//!   world's gripper through its measurement model ([`crate::bridge::GripperGauge`]) and the
+//!   command passed through unchanged;
 //! - serial ([`crate::serial`]): the real Modbus RTU driver talking to a simulated device on a
 //!   pseudo-terminal whose fingers are the world's gripper.
 //!

@@ -9,7 +9,7 @@
 //!    control period.
 //!
 //! The gripper is one seam ([`crate::gripper`], chosen by [`TrialGripper`]): in process (the
-//! status from the world's truth, [`crate::bridge::gripper_status`], the command as the policy
+//! status from the world's gripper through [`crate::bridge::GripperGauge`], the command as the policy
 //! gave it) or serial (the Modbus driver and a simulated device on a pty whose fingers are the
 //! world's gripper, [`crate::serial`]: the status is the driver's, the world is driven with the
 //! command as the device's registers hold it).
