@@ -49,6 +49,9 @@ pub const MAX_TRIAL_S: f64 = 600.0;
 const KEPT_REJECTIONS: usize = 20;
 /// Phase changes kept per trial.
 pub const KEPT_PHASES: usize = 64;
+/// The phase in which a policy has made its choice (fabric selection): the arm target then is
+/// the decision the selection criterion scores.
+pub const DECISION_PHASE: &str = "approach_grasp";
 
 /// A trial that could not run to its end.
 #[derive(Debug, Error)]
@@ -491,6 +494,10 @@ pub fn run_trial_on(
             record
                 .phases
                 .push(format!("{t:.3} {}: {}", status.phase, status.message));
+        }
+        // The scene controllers announce their choice by going to approach_grasp, aimed at it.
+        if status.phase == DECISION_PHASE {
+            world.decide(&a.target);
         }
         record.end_phase = status.phase;
         record.end_reason = status.message;

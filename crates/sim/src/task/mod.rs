@@ -401,6 +401,15 @@ impl TaskWorld {
         &self.cfg
     }
 
+    /// The policy announced its decision: the object called `name` (fabric selection's choice,
+    /// scored apart from the grasp). The first announcement counts; an unknown name is ignored.
+    /// Without one, the decision is the object the policy first lifted.
+    pub fn decide(&mut self, name: &str) {
+        if self.decision.is_none() {
+            self.decision = self.spec.objects.iter().position(|o| o.name == name);
+        }
+    }
+
     /// Change one hidden variable of a freshly reset trial (see [`Hidden`]); the trial's random
     /// streams are untouched.
     pub fn perturb(&mut self, h: Hidden) {
@@ -857,7 +866,8 @@ impl TaskWorld {
                 truth.collision,
             )),
             TaskKind::Fabric => {
-                // The decision: the object the policy first lifted, else the one it holds.
+                // The decision: the one the policy announced ([`TaskWorld::decide`]) or first
+                // lifted, else the one it holds.
                 let chosen = self
                     .decision
                     .or(held)
