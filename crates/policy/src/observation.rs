@@ -201,6 +201,12 @@ pub fn input(name: &str) -> Option<&'static InputSpec> {
     INPUTS.iter().find(|i| i.name == name)
 }
 
+/// How far an input's stamp may be after the tick's (its own budget if smaller) \[s]: a message
+/// captured a little after the gripper status that triggers the tick may be stored first; one
+/// stamped further ahead is from a clock that cannot be trusted, an invalid input (`stamp ahead
+/// by ...`) until a message with a plausible stamp replaces it.
+pub const MAX_AHEAD_S: f64 = 0.1;
+
 /// An input's state at a tick.
 #[derive(Debug, Clone, PartialEq)]
 pub enum InputStatus {
@@ -392,8 +398,8 @@ impl Assembler {
                     let age = now.secs_since(m.stamp());
                     let status = if age > *budget {
                         InputStatus::Stale
-                    } else if age < -budget {
-                        InputStatus::Invalid(format!("stamped {:.3} s in the future", -age))
+                    } else if age < -budget.min(MAX_AHEAD_S) {
+                        InputStatus::Invalid(format!("stamp ahead by {:.3} s", -age))
                     } else {
                         match (spec.features)(m, &self.layout, &mut vector) {
                             Ok(()) if vector.len() == start + width => InputStatus::Fresh,

@@ -45,7 +45,18 @@ pub struct PolicyStage {
     last_gripper: Option<(f64, String)>,
     /// Inputs whose producer a transport saw disappear, with why.
     lost: std::collections::BTreeMap<&'static str, String>,
+    /// The stage's present \[ns]: the stamp of the latest control tick (a GripperStatus's or the
+    /// watchdog's). Only a tick moves it; a status stamped far from it is not a tick.
+    present: Option<i64>,
+    /// GripperStatus stamps in a row that were too far from the present, each about a control
+    /// period after the one before: the last one's stamp and how many.
+    off_run: Option<(i64, u32)>,
 }
+
+/// GripperStatus messages in a row, a control period apart, that move the present to their time
+/// line when it jumped (a gripper back after a long silence with no watchdog running, a
+/// restarted sim). One stamp from a bad clock never does.
+const RESYNC_STATUSES: u32 = 3;
 
 impl std::fmt::Debug for PolicyStage {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -105,6 +116,8 @@ impl PolicyStage {
             next_tick: None,
             last_gripper: None,
             lost: std::collections::BTreeMap::new(),
+            present: None,
+            off_run: None,
             params,
         })
     }
@@ -155,16 +168,17 @@ impl PolicyStage {
             return Vec::new();
         };
         let period = self.period_ns();
-        if now.0 < due + period {
+        if now.0 < due.saturating_add(period) {
             return Vec::new();
         }
         // This tick stands for the one missed; the next is due now, so while nothing comes the
         // watchdog ticks once per period.
         self.next_tick = Some(now.0);
-        let last = due - period;
+        self.present = Some(self.present.map_or(now.0, |p| p.max(now.0)));
+        let last = due.saturating_sub(period);
         let why = format!(
             "gripper: no status for {:.3} s (control period {:.3} s)",
-            (now.0 - last) as f64 * 1e-9,
+            now.0.saturating_sub(last) as f64 * 1e-9,
             period as f64 * 1e-9
         );
         self.queue.clear();
@@ -176,11 +190,53 @@ impl PolicyStage {
     /// fell a whole period behind.
     fn schedule_after(&mut self, now: i64, due: i64) {
         let period = self.period_ns();
-        self.next_tick = Some(if now - due < period {
-            due + period
+        self.next_tick = Some(if now.saturating_sub(due) < period {
+            due.saturating_add(period)
         } else {
-            now + period
+            now.saturating_add(period)
         });
+    }
+
+    /// How far a GripperStatus may be stamped from the present and still be a tick \[ns]: the
+    /// gripper's freshness budget, at least two control periods.
+    fn off_limit_ns(&self) -> i64 {
+        let budget_ns = self.params.budget("gripper").unwrap_or(0.0) * 1e9;
+        (budget_ns.round() as i64).max(2 * self.period_ns())
+    }
+
+    /// Whether a GripperStatus stamped `t` is on the stage's time line: within the limit of the
+    /// present, or the last of [`RESYNC_STATUSES`] in a row that agree on a new one. Err: how
+    /// far it is ahead (positive) or behind (negative) of the present \[ns].
+    fn on_time_line(&mut self, t: i64) -> Result<(), i64> {
+        let Some(present) = self.present else {
+            return Ok(());
+        };
+        let off = t.saturating_sub(present);
+        let limit = self.off_limit_ns();
+        if off <= limit && off >= -limit {
+            self.off_run = None;
+            return Ok(());
+        }
+        let period = self.period_ns();
+        let count = match self.off_run {
+            Some((last, n)) => {
+                let step = t.saturating_sub(last);
+                if step >= period / 2 && step <= period + period / 2 {
+                    n + 1
+                } else {
+                    1
+                }
+            }
+            None => 1,
+        };
+        if count >= RESYNC_STATUSES {
+            // A new time line: the schedule starts again from this status.
+            self.off_run = None;
+            self.next_tick = None;
+            return Ok(());
+        }
+        self.off_run = Some((t, count));
+        Err(off)
     }
 
     /// One control tick at `now`, triggered by `g`.
@@ -261,23 +317,43 @@ impl Stage for PolicyStage {
         "policy"
     }
 
-    fn process(&mut self, input: &Msg, clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
-        self.assembler.offer(input);
+    /// The tick's time is the GripperStatus's own stamp, not `clock` (the chain's clock is the
+    /// latest stamp seen and never moves back, so one input stamped in the future would hold
+    /// it there): a status stamped further from the stage's present than the gripper's budget
+    /// is an invalid input, answered with the safe action stamped at the present, and moves
+    /// nothing; other inputs stamped ahead of a tick are invalid at that tick.
+    fn process(&mut self, input: &Msg, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
         let Msg::Gripper(g) = input else {
+            self.assembler.offer(input);
             return Ok(Vec::new());
         };
+        let now = g.header.stamp;
+        if let Err(off) = self.on_time_line(now.0) {
+            let (Some(present), true) = (self.present, off > 0) else {
+                // Behind the present: an old status, not a tick.
+                return Ok(Vec::new());
+            };
+            let why = format!(
+                "gripper: invalid (stamp ahead by {:.3} s of the last control tick)",
+                off as f64 * 1e-9
+            );
+            let opening = self.last_gripper.as_ref().map(|(o, _)| *o);
+            let d = self.safety.decide(Err(why), opening);
+            return Ok(self.messages(Stamp(present), &g.header.frame_id, d));
+        }
+        self.assembler.offer(input);
         self.last_gripper = Some((g.opening_m, g.header.frame_id.clone()));
-        let now = clock.now();
         // Ticks on a fixed schedule at the control rate (no drift); a status up to 5 % of a
         // period early still ticks, so jitter does not skip a period.
         let period = self.period_ns();
         if let Some(due) = self.next_tick {
-            if now.0 < due - period / 20 {
+            if now.0 < due.saturating_sub(period / 20) {
                 return Ok(Vec::new());
             }
         }
         let due = self.next_tick.unwrap_or(now.0);
         self.schedule_after(now.0, due);
+        self.present = Some(self.present.map_or(now.0, |p| p.max(now.0)));
         Ok(self.tick(now, g))
     }
 }
