@@ -210,6 +210,9 @@ fn describe(s: &GripperState) -> String {
     if let Some(f) = s.force_n {
         out += &format!(", force {f:.1} N");
     }
+    if let Some(n) = &s.out_of_range {
+        out += &format!(", {n}");
+    }
     out += &match &s.fault {
         None => ", no fault".into(),
         Some(Fault::Minor { code, what }) => format!(", minor fault 0x{code:02X}: {what}"),

@@ -32,6 +32,10 @@ pub struct PolicyParams {
     /// Bounds of every command (the gripper's limits and the scene's).
     pub min_opening_m: f64,
     pub max_opening_m: f64,
+    /// The gripper's full stroke \[m] (not a command bound: the scene's `max_opening_m` may be
+    /// narrower): a GripperStatus reporting an opening outside [0, stroke_m] is an invalid
+    /// input. The default is the widest supported gripper's (Robotiq 2F-140, the sim's).
+    pub stroke_m: f64,
     pub max_speed_m_s: f64,
     pub max_force_n: f64,
     pub max_step_m: f64,
@@ -110,6 +114,7 @@ impl Default for PolicyParams {
             budget_visual_s: 0.5,
             min_opening_m: 0.0,
             max_opening_m: 0.085,
+            stroke_m: 0.14,
             max_speed_m_s: 0.15,
             max_force_n: 40.0,
             max_step_m: 0.005,
@@ -182,6 +187,7 @@ impl PolicyParams {
             ("target_deformation_m", self.target_deformation_m),
             ("deformation_tolerance_m", self.deformation_tolerance_m),
             ("min_stiffness_n_per_m", self.min_stiffness_n_per_m),
+            ("stroke_m", self.stroke_m),
             ("force_margin", self.force_margin),
         ];
         for (k, v) in positive {
@@ -307,6 +313,7 @@ impl PolicyParams {
         Layout {
             latent_len: self.latent_len,
             visual_names: self.visual_names.clone(),
+            stroke_m: Some(self.stroke_m),
         }
     }
 
