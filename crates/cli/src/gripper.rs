@@ -5,7 +5,7 @@
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
-use unitac_gripper::bench::{self, BenchResult};
+use unitac_gripper::bench::{self, BenchResult, Cycle};
 use unitac_gripper::client::{ClientConfig, RtuClient};
 use unitac_gripper::device::physics::SimObject;
 use unitac_gripper::device::{DeviceConfig, SimDevice};
@@ -24,8 +24,8 @@ pub enum Action {
     Close,
     /// Print the state once.
     Status,
-    /// Command -> status round trips per second against the wire limit, and the simulated
-    /// device on a pty paced and unpaced.
+    /// Status round trips per second against the wire limit, and the simulated device on a pty
+    /// paced and unpaced; reads only unless --allow-motion (then command -> status cycles).
     Bench,
     /// Run a simulated gripper for --seconds, reachable at --port (a symlink to its pty, like a
     /// /dev/serial/by-id name), for a driver or node in another process.
@@ -56,6 +56,10 @@ pub struct GripperArgs {
     pub seconds: f64,
     #[arg(long)]
     pub json: bool,
+    /// bench: write commands every cycle (they move the gripper: a Robotiq is activated and
+    /// opened at full speed). Without it the bench reads status only.
+    #[arg(long)]
+    pub allow_motion: bool,
     pub action: Action,
 }
 
@@ -227,6 +231,14 @@ fn describe(s: &GripperState) -> String {
 fn run_bench(a: &GripperArgs) -> anyhow::Result<bool> {
     let baud = a.baud.unwrap_or(a.model.default_baud());
     let d = Duration::from_secs_f64(a.seconds);
+    let kind = if a.allow_motion {
+        Cycle::Motion
+    } else {
+        Cycle::StatusOnly
+    };
+    if kind == Cycle::Motion && a.port != "sim" {
+        eprintln!("{} on {}: {}", a.model, a.port, kind.describe(a.model));
+    }
     let mut results: Vec<BenchResult> = Vec::new();
     if a.port != "sim" {
         let p = unitac_gripper::port::open(&PathBuf::from(&a.port), baud)?;
@@ -239,12 +251,12 @@ fn run_bench(a: &GripperArgs) -> anyhow::Result<bool> {
         );
         let label = format!("{} on {}", a.model, a.port);
         results.push(
-            bench::run(&label, &mut c, &bench::cycle(a.model), d)
+            bench::run(&label, &mut c, a.model, kind, d)
                 .with_context(|| format!("{label}: the device does not answer"))?,
         );
     }
     for paced in [true, false] {
-        results.push(bench::run_sim(a.model, baud, paced, d).map_err(anyhow::Error::msg)?);
+        results.push(bench::run_sim(a.model, kind, baud, paced, d).map_err(anyhow::Error::msg)?);
     }
     if a.json {
         println!("{}", serde_json::to_string(&results)?);
@@ -267,10 +279,11 @@ fn run_bench(a: &GripperArgs) -> anyhow::Result<bool> {
             r.failures
         );
     }
+    println!("each cycle: {}", kind.describe(a.model));
     println!(
-        "wire limit: one command -> status cycle ({} frame(s)) at {baud} baud, 8N1, with a \
-         3.5-character silence after every frame; the unpaced row is the pty's own rate",
-        bench::cycle(a.model).len()
+        "wire limit: one cycle ({} frame(s)) at {baud} baud, 8N1, with a 3.5-character silence \
+         after every frame; the unpaced row is the pty's own rate",
+        bench::cycle(a.model, kind).len()
     );
     Ok(true)
 }

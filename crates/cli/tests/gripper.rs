@@ -118,3 +118,79 @@ fn a_simulated_gripper_in_one_process_is_driven_from_another() {
     let _ = sim.wait();
     let _ = std::fs::remove_file(&link);
 }
+
+/// A `simulate` process serving an inactive Robotiq 2F-85 at a fresh link, and the link.
+fn simulated(tag: &str) -> (std::process::Child, std::path::PathBuf) {
+    let link =
+        std::env::temp_dir().join(format!("unitac-gripper-cli-{tag}-{}", std::process::id()));
+    let sim = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args([
+            "gripper",
+            "--port",
+            link.to_str().unwrap(),
+            "--model",
+            "robotiq_2f85",
+        ])
+        .args(["--seconds", "30", "simulate"])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while !link.exists() && t0.elapsed() < std::time::Duration::from_secs(10) {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    (sim, link)
+}
+
+#[test]
+fn bench_reads_status_only_unless_motion_is_allowed() {
+    let (mut sim, link) = simulated("bench");
+    let port = link.to_str().unwrap();
+    let status = |port: &str| {
+        let o = unitac(&[
+            "--port",
+            port,
+            "--model",
+            "robotiq_2f85",
+            "--json",
+            "status",
+        ]);
+        serde_json::from_str::<serde_json::Value>(text(&o).0.trim()).unwrap()
+    };
+    let before = status(port);
+    assert_eq!(before["activation"], "inactive", "{before}");
+    let o = unitac(&[
+        "--port",
+        port,
+        "--model",
+        "robotiq_2f85",
+        "--seconds",
+        "0.3",
+        "bench",
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{out}{err}");
+    assert!(out.contains("status reads only"), "{out}");
+    // The bench wrote nothing: the gripper is still inactive, the fingers where they were.
+    let after = status(port);
+    assert_eq!(after["activation"], "inactive", "{after}");
+    assert_eq!(after["raw_position"], before["raw_position"], "{after}");
+    // With --allow-motion it says what it writes, and does.
+    let o = unitac(&[
+        "--port",
+        port,
+        "--model",
+        "robotiq_2f85",
+        "--seconds",
+        "0.3",
+        "--allow-motion",
+        "bench",
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{out}{err}");
+    assert!(err.contains("an inactive gripper is activated"), "{err}");
+    assert_ne!(status(port)["activation"], "inactive");
+    sim.kill().unwrap();
+    let _ = sim.wait();
+    let _ = std::fs::remove_file(&link);
+}
