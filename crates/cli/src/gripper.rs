@@ -32,6 +32,13 @@ pub enum Action {
     Simulate,
 }
 
+/// A fault `simulate` starts with.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Inject {
+    Overcurrent,
+    OvercurrentPersistent,
+}
+
 #[derive(clap::Args, Debug)]
 pub struct GripperArgs {
     /// Serial port, best its stable name (/dev/serial/by-id/...); `sim` for a simulated device.
@@ -60,6 +67,10 @@ pub struct GripperArgs {
     /// opened at full speed). Without it the bench reads status only.
     #[arg(long)]
     pub allow_motion: bool,
+    /// simulate: start active with this fault (overcurrent: Robotiq major fault 0x0E, cleared
+    /// by re-activation; overcurrent-persistent: back after every re-activation).
+    #[arg(long, value_enum)]
+    pub inject: Option<Inject>,
     pub action: Action,
 }
 
@@ -98,10 +109,48 @@ pub fn run(a: GripperArgs) -> anyhow::Result<bool> {
     match a.action {
         Action::Status | Action::Bench | Action::Simulate => {}
         Action::Activate => {
-            g.activate()?;
+            if let Some(Fault::Major { code, what }) = g.state().fault {
+                // The documented clear: an rACT rising edge (the driver writes rACT 0, then 1).
+                eprintln!(
+                    "{}: major fault 0x{code:02X} ({what}): clearing it by re-activation (rACT 0, \
+                     then 1; the fingers move through their stroke)",
+                    a.model
+                );
+                g.clear_fault()?;
+                // Out of the faulted state (reset or activating), then active again.
+                wait(&g, deadline, &cfg, |s| {
+                    s.activation != Activation::Active
+                        || !matches!(s.fault, Some(Fault::Major { .. }))
+                })?;
+            } else {
+                g.activate()?;
+            }
             wait(&g, deadline, &cfg, |s| s.activation == Activation::Active)?;
+            // A fault that comes back at once (a blocked finger, a motor fault) persists.
+            let n = g.state().updates;
+            wait(&g, deadline, &cfg, |s| s.updates >= n + 10)?;
+            if let Some(Fault::Major { code, what }) = g.state().fault {
+                bail!(
+                    "the major fault 0x{code:02X} ({what}) persists after re-activation (rACT 0 \
+                     then 1): switch the gripper's power off, free the fingers of whatever blocks \
+                     them (check the load and the force asked), power it on, then run \
+                     `unitac gripper --port {} --model {} activate` again; if it still comes \
+                     back, contact Robotiq support with the fault code",
+                    a.port,
+                    a.model
+                );
+            }
         }
         Action::Open | Action::Close => {
+            if let Some(Fault::Major { code, what }) = g.state().fault {
+                bail!(
+                    "the gripper has a major fault 0x{code:02X} ({what}) and will not move: clear \
+                     it with `unitac gripper --port {} --model {} activate` (rACT 0 then 1; the \
+                     fingers move through their stroke)",
+                    a.port,
+                    a.model
+                );
+            }
             if g.state().activation != Activation::Active {
                 bail!(
                     "the gripper is not activated ({:?}); run `unitac gripper ... activate` first",
@@ -153,8 +202,14 @@ fn simulate(a: &GripperArgs) -> anyhow::Result<bool> {
     cfg.baud = a.baud.unwrap_or(cfg.baud);
     let link = PathBuf::from(&a.port);
     cfg.link = Some(link.clone());
+    cfg.start_active |= a.inject.is_some();
     let dev = SimDevice::spawn(cfg.clone())
         .with_context(|| format!("starting the simulated gripper at {}", link.display()))?;
+    match a.inject {
+        Some(Inject::Overcurrent) => dev.overcurrent(),
+        Some(Inject::OvercurrentPersistent) => dev.overcurrent_persists(true),
+        None => {}
+    }
     println!(
         "simulated {} (slave {}, {} baud) at {}",
         a.model,
@@ -220,9 +275,10 @@ fn describe(s: &GripperState) -> String {
     out += &match &s.fault {
         None => ", no fault".into(),
         Some(Fault::Minor { code, what }) => format!(", minor fault 0x{code:02X}: {what}"),
-        Some(Fault::Major { code, what }) => {
-            format!(", MAJOR fault 0x{code:02X}: {what} (clear it by re-activating)")
-        }
+        Some(Fault::Major { code, what }) => format!(
+            ", MAJOR fault 0x{code:02X}: {what} (clear it by re-activation: `unitac gripper ... \
+             activate` writes rACT 0 then 1)"
+        ),
         Some(Fault::Link { what }) => format!(", link fault: {what}"),
     };
     out

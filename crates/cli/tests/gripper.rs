@@ -119,8 +119,9 @@ fn a_simulated_gripper_in_one_process_is_driven_from_another() {
     let _ = std::fs::remove_file(&link);
 }
 
-/// A `simulate` process serving an inactive Robotiq 2F-85 at a fresh link, and the link.
-fn simulated(tag: &str) -> (std::process::Child, std::path::PathBuf) {
+/// A `simulate` process serving a Robotiq 2F-85 at a fresh link (`extra`: more arguments of
+/// `simulate`), and the link.
+fn simulated(tag: &str, extra: &[&str]) -> (std::process::Child, std::path::PathBuf) {
     let link =
         std::env::temp_dir().join(format!("unitac-gripper-cli-{tag}-{}", std::process::id()));
     let sim = Command::new(env!("CARGO_BIN_EXE_unitac"))
@@ -131,7 +132,9 @@ fn simulated(tag: &str) -> (std::process::Child, std::path::PathBuf) {
             "--model",
             "robotiq_2f85",
         ])
-        .args(["--seconds", "30", "simulate"])
+        .args(["--seconds", "30"])
+        .args(extra)
+        .arg("simulate")
         .stdout(std::process::Stdio::piped())
         .spawn()
         .unwrap();
@@ -144,7 +147,7 @@ fn simulated(tag: &str) -> (std::process::Child, std::path::PathBuf) {
 
 #[test]
 fn bench_reads_status_only_unless_motion_is_allowed() {
-    let (mut sim, link) = simulated("bench");
+    let (mut sim, link) = simulated("bench", &[]);
     let port = link.to_str().unwrap();
     let status = |port: &str| {
         let o = unitac(&[
@@ -190,6 +193,56 @@ fn bench_reads_status_only_unless_motion_is_allowed() {
     assert!(o.status.success(), "{out}{err}");
     assert!(err.contains("an inactive gripper is activated"), "{err}");
     assert_ne!(status(port)["activation"], "inactive");
+    sim.kill().unwrap();
+    let _ = sim.wait();
+    let _ = std::fs::remove_file(&link);
+}
+
+#[test]
+fn activate_clears_a_major_fault_and_open_refuses_while_it_is_there() {
+    let (mut sim, link) = simulated("fault", &["--inject", "overcurrent"]);
+    let port = link.to_str().unwrap();
+    let o = unitac(&["--port", port, "--model", "robotiq_2f85", "status"]);
+    let (out, _) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{out}");
+    assert!(out.contains("MAJOR fault 0x0E"), "{out}");
+    assert!(out.contains("activate"), "says how to clear it: {out}");
+    // No motion command while the fault is there: it says what to do instead.
+    let o = unitac(&["--port", port, "--model", "robotiq_2f85", "open"]);
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{out}{err}");
+    assert!(
+        err.contains("major fault 0x0E") && err.contains("activate"),
+        "{err}"
+    );
+    // activate writes rACT 0 then 1: the fault is gone, the gripper active.
+    let o = unitac(&[
+        "--port",
+        port,
+        "--model",
+        "robotiq_2f85",
+        "--json",
+        "activate",
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{out}{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(v["activation"], "active", "{out}");
+    assert_eq!(v["fault"], serde_json::Value::Null, "{out}");
+    sim.kill().unwrap();
+    let _ = sim.wait();
+    let _ = std::fs::remove_file(&link);
+}
+
+#[test]
+fn a_major_fault_that_persists_after_re_activation_is_refused_with_what_to_do() {
+    let (mut sim, link) = simulated("stuck", &["--inject", "overcurrent-persistent"]);
+    let port = link.to_str().unwrap();
+    let o = unitac(&["--port", port, "--model", "robotiq_2f85", "activate"]);
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{out}{err}");
+    assert!(err.contains("persists after re-activation"), "{err}");
+    assert!(err.contains("power"), "{err}");
     sim.kill().unwrap();
     let _ = sim.wait();
     let _ = std::fs::remove_file(&link);

@@ -82,6 +82,7 @@ struct Shared {
     faults: Mutex<Faults>,
     snap: Mutex<Snapshot>,
     overcurrent: AtomicBool,
+    overcurrent_persists: AtomicBool,
     unplugged: AtomicBool,
     stop: AtomicBool,
     path: Mutex<PathBuf>,
@@ -144,6 +145,13 @@ impl SimDevice {
     /// Trip the overcurrent protection (Robotiq: major fault 0x0E).
     pub fn overcurrent(&self) {
         self.shared.overcurrent.store(true, Ordering::Relaxed);
+    }
+
+    /// A persistent overcurrent (a finger blocked, a motor fault): while `on`, the device trips
+    /// Robotiq's major fault 0x0E again as soon as it is active without a fault, so every
+    /// re-activation ends in the fault.
+    pub fn overcurrent_persists(&self, on: bool) {
+        self.shared.overcurrent_persists.store(on, Ordering::Relaxed);
     }
 
     /// Pull the USB adapter: the pty closes (the driver's port hangs up) and the link goes.
@@ -299,6 +307,12 @@ fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<
             (now - last_tick).as_secs_f64(),
             (now - last_rx).as_secs_f64(),
         );
+        if shared.overcurrent_persists.load(Ordering::Relaxed) {
+            let s = regs.snapshot();
+            if s.active && s.fault == 0 {
+                regs.overcurrent();
+            }
+        }
         last_tick = now;
         for frame in frames {
             if frame.slave != cfg.slave {
