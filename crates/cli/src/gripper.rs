@@ -6,7 +6,7 @@ use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use unitac_gripper::bench::{self, BenchResult, Cycle};
-use unitac_gripper::client::{ClientConfig, RtuClient};
+use unitac_gripper::client::{CameBack, ClientConfig, RtuClient};
 use unitac_gripper::device::physics::SimObject;
 use unitac_gripper::device::{DeviceConfig, SimDevice};
 use unitac_gripper::{
@@ -37,6 +37,8 @@ pub enum Action {
 pub enum Inject {
     Overcurrent,
     OvercurrentPersistent,
+    /// Every reply with a corrupted CRC (line noise, a wrong termination).
+    BadCrc,
 }
 
 #[derive(clap::Args, Debug)]
@@ -67,8 +69,9 @@ pub struct GripperArgs {
     /// opened at full speed). Without it the bench reads status only.
     #[arg(long)]
     pub allow_motion: bool,
-    /// simulate: start active with this fault (overcurrent: Robotiq major fault 0x0E, cleared
-    /// by re-activation; overcurrent-persistent: back after every re-activation).
+    /// simulate: start with this fault (overcurrent: active with Robotiq's major fault 0x0E,
+    /// cleared by re-activation; overcurrent-persistent: back after every re-activation;
+    /// bad-crc: every reply's CRC corrupted).
     #[arg(long, value_enum)]
     pub inject: Option<Inject>,
     pub action: Action,
@@ -202,12 +205,16 @@ fn simulate(a: &GripperArgs) -> anyhow::Result<bool> {
     cfg.baud = a.baud.unwrap_or(cfg.baud);
     let link = PathBuf::from(&a.port);
     cfg.link = Some(link.clone());
-    cfg.start_active |= a.inject.is_some();
+    cfg.start_active |= matches!(
+        a.inject,
+        Some(Inject::Overcurrent | Inject::OvercurrentPersistent)
+    );
     let dev = SimDevice::spawn(cfg.clone())
         .with_context(|| format!("starting the simulated gripper at {}", link.display()))?;
     match a.inject {
         Some(Inject::Overcurrent) => dev.overcurrent(),
         Some(Inject::OvercurrentPersistent) => dev.overcurrent_persists(true),
+        Some(Inject::BadCrc) => dev.faults(|f| f.corrupt_crc = u32::MAX),
         None => {}
     }
     println!(
@@ -238,18 +245,60 @@ fn wait(
         if Instant::now() >= deadline {
             let st = g.stats();
             if s.updates == 0 {
-                bail!(
-                    "no reply from slave {} on {} at {} baud ({}): check the gripper's power, \
-                     the RS-485 wiring (A/B swapped?), --slave and --baud",
-                    cfg.slave,
-                    st.port.display(),
-                    cfg.baud,
-                    st.last_error.unwrap_or_else(|| "nothing received".into())
-                );
+                bail!("{}", no_update(cfg, &st));
             }
             bail!("timed out: {}", describe(&s));
         }
         std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Why no exchange succeeded, from what came back: only a silent bus is "no reply".
+fn no_update(cfg: &DriverConfig, st: &unitac_gripper::DriverStats) -> String {
+    let last = st
+        .last_error
+        .clone()
+        .unwrap_or_else(|| "nothing received".into());
+    let on = format!(
+        "slave {} on {} at {} baud",
+        cfg.slave,
+        st.port.display(),
+        cfg.baud
+    );
+    match st.link.came_back() {
+        CameBack::Nothing => format!(
+            "no reply from {on} ({last}): check the gripper's power, the RS-485 wiring (A/B \
+             swapped?), --slave and --baud"
+        ),
+        CameBack::Exceptions => format!(
+            "{on} answered, with an exception reply ({last}; {} exception(s)): a device is there \
+             and the line works, but it refused the {} requests: check --model (is it a {}?) \
+             and --slave",
+            st.link.exceptions, cfg.model, cfg.model
+        ),
+        CameBack::WrongReplies => format!(
+            "{on} answered, but not to the request ({last}; {} such reply(ies)): a device is \
+             there and the line works, but it does not speak the {} register map: check \
+             --model and --slave",
+            st.link.bad_replies, cfg.model
+        ),
+        CameBack::WrongSlave => format!(
+            "a reply came from another slave than {} on {} ({last}): set --slave to the id that \
+             answered, or take the second device off the bus",
+            cfg.slave,
+            st.port.display()
+        ),
+        CameBack::Garbled => format!(
+            "bytes came back from {} but no valid frame ({last}; {} reply(ies) failed their \
+             CRC): the line is connected; check --baud (a wrong rate garbles every frame, \
+             8N1 expected), the RS-485 termination and ground",
+            st.port.display(),
+            st.link.garbled
+        ),
+        CameBack::Incomplete => format!(
+            "only part of a reply came back from {on} ({last}): check --baud, the adapter and \
+             the cable"
+        ),
     }
 }
 

@@ -247,3 +247,63 @@ fn a_major_fault_that_persists_after_re_activation_is_refused_with_what_to_do() 
     let _ = sim.wait();
     let _ = std::fs::remove_file(&link);
 }
+
+/// `unitac gripper --port LINK --model MODEL [extra] --seconds 1 status`: (exit code, stderr).
+fn status_of(link: &std::path::Path, model: &str, extra: &[&str]) -> (Option<i32>, String) {
+    let mut args = vec!["--port", link.to_str().unwrap(), "--model", model];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--seconds", "1", "status"]);
+    let o = unitac(&args);
+    (o.status.code(), text(&o).1)
+}
+
+#[test]
+fn a_device_that_answers_wrongly_is_not_reported_as_silent() {
+    // A DH controller on the bus where a Robotiq is expected: it answers Robotiq's status read
+    // (FC 0x04) with an exception.
+    let link = std::env::temp_dir().join(format!("unitac-gripper-cli-dh-{}", std::process::id()));
+    let mut sim = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args([
+            "gripper",
+            "--port",
+            link.to_str().unwrap(),
+            "--model",
+            "dh_ag95",
+        ])
+        .args(["--seconds", "30", "simulate"])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while !link.exists() && t0.elapsed() < std::time::Duration::from_secs(10) {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let (code, err) = status_of(&link, "robotiq_2f85", &["--slave", "1"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(!err.contains("no reply"), "{err}");
+    assert!(err.contains("Modbus exception 0x01"), "{err}");
+    assert!(err.contains("--model"), "{err}");
+    sim.kill().unwrap();
+    let _ = sim.wait();
+    let _ = std::fs::remove_file(&link);
+
+    // Replies that all fail their CRC.
+    let (mut sim, link) = simulated("crc", &["--inject", "bad-crc"]);
+    let (code, err) = status_of(&link, "robotiq_2f85", &[]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(!err.contains("no reply"), "{err}");
+    assert!(err.contains("CRC"), "{err}");
+    assert!(err.contains("--baud"), "{err}");
+    sim.kill().unwrap();
+    let _ = sim.wait();
+    let _ = std::fs::remove_file(&link);
+
+    // A silent bus is still "no reply" (a slave id nobody answers to).
+    let (mut sim, link) = simulated("silent", &[]);
+    let (code, err) = status_of(&link, "robotiq_2f85", &["--slave", "7"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("no reply from slave 7"), "{err}");
+    sim.kill().unwrap();
+    let _ = sim.wait();
+    let _ = std::fs::remove_file(&link);
+}

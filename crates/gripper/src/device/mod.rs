@@ -151,7 +151,9 @@ impl SimDevice {
     /// Robotiq's major fault 0x0E again as soon as it is active without a fault, so every
     /// re-activation ends in the fault.
     pub fn overcurrent_persists(&self, on: bool) {
-        self.shared.overcurrent_persists.store(on, Ordering::Relaxed);
+        self.shared
+            .overcurrent_persists
+            .store(on, Ordering::Relaxed);
     }
 
     /// Pull the USB adapter: the pty closes (the driver's port hangs up) and the link goes.
