@@ -391,7 +391,10 @@ mod tests {
         let other = Response::Registers(vec![0, 0, 0]).encode(9, 0x03);
         let mut wrong = client(other);
         let e = wrong.call(&READ).unwrap_err();
-        assert!(e.to_string().contains("function 0x03, expected 0x04"), "{e}");
+        assert!(
+            e.to_string().contains("function 0x03, expected 0x04"),
+            "{e}"
+        );
         assert_eq!(wrong.stats().bad_replies, 2);
         assert_eq!(wrong.stats().came_back(), CameBack::WrongReplies);
         // An exception reply.
