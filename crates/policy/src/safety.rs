@@ -175,7 +175,12 @@ impl SafetyLayer {
         };
         GripperAction {
             mode: g.mode,
-            position_m: last_pos.map_or(pos, |p| step(p, pos, b.max_step_m)),
+            // Rate limited from the last command or, before the first, from the measured
+            // opening, which may lie outside the bounds (a gripper wider open than the scene
+            // allows): the bounds win over the rate limit.
+            position_m: last_pos.map_or(pos, |p| {
+                step(p, pos, b.max_step_m).clamp(b.min_opening_m, b.max_opening_m)
+            }),
             speed_m_s: speed,
             force_n: last_force.map_or(force.min(b.max_force_step_n), |f| {
                 step(f, force, b.max_force_step_n)

@@ -41,8 +41,9 @@ pub struct PolicyStage {
     queue: VecDeque<Action>,
     /// When the next control tick is due \[ns].
     next_tick: Option<i64>,
-    /// The last GripperStatus's opening and frame id (for the watchdog's safe action).
-    last_gripper: Option<(f64, String)>,
+    /// The last trusted opening (None: none yet) and the last GripperStatus's frame id, for the
+    /// safe action.
+    last_gripper: Option<(Option<f64>, String)>,
     /// Inputs whose producer a transport saw disappear, with why.
     lost: std::collections::BTreeMap<&'static str, String>,
     /// The stage's present \[ns]: the stamp of the latest control tick (a GripperStatus's or the
@@ -182,7 +183,7 @@ impl PolicyStage {
             period as f64 * 1e-9
         );
         self.queue.clear();
-        let d = self.safety.decide(Err(why), Some(opening));
+        let d = self.safety.decide(Err(why), opening);
         self.messages(now, &frame_id, d)
     }
 
@@ -230,9 +231,10 @@ impl PolicyStage {
             None => 1,
         };
         if count >= RESYNC_STATUSES {
-            // A new time line: the schedule starts again from this status.
+            // A new time line: the schedule and the present start again from this status.
             self.off_run = None;
             self.next_tick = None;
+            self.present = None;
             return Ok(());
         }
         self.off_run = Some((t, count));
@@ -277,7 +279,8 @@ impl PolicyStage {
             self.queue.clear();
             Err(problems.join("; "))
         };
-        let d = self.safety.decide(proposed, Some(g.opening_m));
+        let opening = self.last_gripper.as_ref().and_then(|(o, _)| *o);
+        let d = self.safety.decide(proposed, opening);
         self.messages(now, &g.header.frame_id, d)
     }
 
@@ -337,12 +340,17 @@ impl Stage for PolicyStage {
                 "gripper: invalid (stamp ahead by {:.3} s of the last control tick)",
                 off as f64 * 1e-9
             );
-            let opening = self.last_gripper.as_ref().map(|(o, _)| *o);
+            let opening = self.last_gripper.as_ref().and_then(|(o, _)| *o);
             let d = self.safety.decide(Err(why), opening);
             return Ok(self.messages(Stamp(present), &g.header.frame_id, d));
         }
         self.assembler.offer(input);
-        self.last_gripper = Some((g.opening_m, g.header.frame_id.clone()));
+        // The opening a hold keeps: the last one within the stroke (a reading outside it, or
+        // not finite, is an invalid input and never where the safe action goes).
+        let opening = Some(g.opening_m)
+            .filter(|o| (0.0..=self.params.stroke_m).contains(o))
+            .or(self.last_gripper.as_ref().and_then(|(o, _)| *o));
+        self.last_gripper = Some((opening, g.header.frame_id.clone()));
         // Ticks on a fixed schedule at the control rate (no drift); a status up to 5 % of a
         // period early still ticks, so jitter does not skip a period.
         let period = self.period_ns();

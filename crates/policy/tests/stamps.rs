@@ -201,3 +201,22 @@ fn a_gripper_back_after_a_long_silence_ticks_again_from_its_third_status() {
     let t = rig.tick();
     assert_eq!(t.status.header.stamp, t.stamp);
 }
+
+#[test]
+fn a_wrong_first_stamp_is_left_after_three_statuses_on_the_real_time_line() {
+    // Nothing is known before the first status, so a first one stamped 1000 s ahead is taken
+    // for the time line; the gripper's own statuses, a period apart, take it back.
+    let mut rig = Rig::new(params(CUP_VTLA_PRED));
+    let out = rig.chain.run(status_at(&rig, rig.now + 1_000_000_000_000));
+    assert_eq!(out.produced.len(), 3);
+    for i in 0..2 {
+        let out = rig.chain.run(status_at(&rig, rig.now));
+        assert!(out.produced.is_empty(), "{i}: {out:?}");
+        rig.now += TICK_NS;
+    }
+    // The third ticks on its own stamp, and the schedule goes on from it.
+    for _ in 0..5 {
+        let t = rig.tick();
+        assert_eq!(t.status.header.stamp, t.stamp);
+    }
+}
