@@ -12,7 +12,7 @@ pub mod physics;
 pub mod registers;
 pub mod relay;
 
-use crate::frame::{Decoder, Direction, Request};
+use crate::frame::{Decoder, Direction, FrameError, Request, Response};
 use crate::model::Model;
 use physics::{Kinematic, Physics, SimObject};
 use registers::{Registers, Snapshot};
@@ -321,11 +321,20 @@ fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<
                 continue;
             }
             let adu_len = frame.data.len() + 4;
-            let Ok(req) = Request::decode(&frame) else {
-                continue;
-            };
             last_rx = now;
-            let reply = regs.handle(&req);
+            let (reply, function) = match Request::decode(&frame) {
+                Ok(req) => (regs.handle(&req), req.function()),
+                // A function no gripper serves, or a quantity out of range: the exception reply
+                // a Modbus slave gives (illegal function, illegal data value).
+                Err(e) => {
+                    let code = match e {
+                        FrameError::Function(_) => 0x01,
+                        _ => 0x03,
+                    };
+                    let f = frame.function;
+                    (Some(Response::Exception { function: f, code }), f)
+                }
+            };
             // Counted before the reply leaves: a driver that has the reply sees it counted.
             *lock(&shared.snap) = regs.snapshot();
             let Some(reply) = reply else { continue };
@@ -342,7 +351,7 @@ fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<
                 faults.wrong_slave -= 1;
                 slave = cfg.slave.wrapping_add(1);
             }
-            let mut bytes = reply.encode(slave, req.function());
+            let mut bytes = reply.encode(slave, function);
             if faults.corrupt_crc > 0 {
                 faults.corrupt_crc -= 1;
                 if let Some(b) = bytes.last_mut() {
