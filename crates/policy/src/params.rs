@@ -48,6 +48,14 @@ pub struct PolicyParams {
     pub safe_action: SafeAction,
     /// Force limit of the hold safe action \[N].
     pub hold_force_n: f64,
+    /// The tactile reflex (src/reflex.rs): on slip while holding or lifting, raise the grip
+    /// force by `reflex_force_step_n` per tick (to `max_force_n`), close a position-mode grip by
+    /// `reflex_squeeze_m`, stop the lift; with `confirm_grasp`, hold a lift while the gripper's
+    /// object-detect and the tactile contact do not both report the object.
+    pub reflex: bool,
+    pub reflex_force_step_n: f64,
+    pub reflex_squeeze_m: f64,
+    pub confirm_grasp: bool,
     /// Objects the arm may go to (besides "home"); for a pick task the first two are touched as
     /// A and B, in this order.
     pub objects: Vec<String>,
@@ -125,6 +133,10 @@ impl Default for PolicyParams {
             max_lift_step_m: 0.01,
             safe_action: SafeAction::Hold,
             hold_force_n: 5.0,
+            reflex: true,
+            reflex_force_step_n: 1.0,
+            reflex_squeeze_m: 0.0005,
+            confirm_grasp: true,
             objects: vec!["fabric_a".into(), "fabric_b".into()],
             latent_len: 0,
             visual_names: Vec::new(),
@@ -197,6 +209,8 @@ impl PolicyParams {
         }
         let non_negative = [
             ("hold_force_n", self.hold_force_n),
+            ("reflex_force_step_n", self.reflex_force_step_n),
+            ("reflex_squeeze_m", self.reflex_squeeze_m),
             ("approach_s", self.approach_s),
             ("touch_force_n", self.touch_force_n),
             ("touch_hold_s", self.touch_hold_s),
@@ -306,6 +320,15 @@ impl PolicyParams {
             max_lift_m: self.max_lift_m,
             max_lift_step_m: self.max_lift_step_m,
             objects: self.objects.clone(),
+        }
+    }
+
+    pub fn reflex(&self) -> crate::reflex::ReflexParams {
+        crate::reflex::ReflexParams {
+            enabled: self.reflex,
+            force_step_n: self.reflex_force_step_n,
+            squeeze_m: self.reflex_squeeze_m,
+            confirm_grasp: self.confirm_grasp,
         }
     }
 

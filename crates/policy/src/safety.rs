@@ -130,6 +130,11 @@ impl SafetyLayer {
         &self.bounds
     }
 
+    /// The last command sent: grip force \[N] and lift \[m] (None before the first).
+    pub fn last_force_and_lift(&self) -> Option<(f64, f64)> {
+        self.last.as_ref().map(|(g, a)| (g.force_n, a.lift_m))
+    }
+
     /// The command for this tick: `proposed` through the bounds and rate limits, or the safe
     /// action when it is refused. `opening_m`: the measured opening (None or non-finite: unknown).
     pub fn decide(&mut self, proposed: Result<Action, String>, opening_m: Option<f64>) -> Decision {

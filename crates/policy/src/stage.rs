@@ -9,11 +9,14 @@ use crate::observation::Assembler;
 use crate::params::PolicyParams;
 use crate::policy::{Action, Policy};
 use crate::readout::Readout;
+use crate::reflex::{Reflex, ReflexCounters, Touch};
 use crate::safety::SafetyLayer;
 use crate::task::Task;
 use std::collections::VecDeque;
 use std::path::Path;
-use unitac_core::msg::{ArmCommand, GripperCommand, GripperStatus, Header, Msg, PolicyStatus};
+use unitac_core::msg::{
+    ArmCommand, ContactState, GripperCommand, GripperStatus, Header, Msg, PolicyStatus, SlipState,
+};
 use unitac_core::{Clock, Stage, StageError, Stamp};
 
 /// The params' checks plus the scene's stage list against the mode: `kinds` are the stage kinds
@@ -52,6 +55,11 @@ pub struct PolicyStage {
     /// GripperStatus stamps in a row that were too far from the present, each about a control
     /// period after the one before: the last one's stamp and how many.
     off_run: Option<(i64, u32)>,
+    /// The tactile reflex, and the latest slip and contact states it reads (whatever the mode's
+    /// observation holds).
+    reflex: Reflex,
+    slip: Option<SlipState>,
+    contact: Option<ContactState>,
 }
 
 /// GripperStatus messages in a row, a control period apart, that move the present to their time
@@ -119,6 +127,9 @@ impl PolicyStage {
             lost: std::collections::BTreeMap::new(),
             present: None,
             off_run: None,
+            reflex: Reflex::new(params.reflex()),
+            slip: None,
+            contact: None,
             params,
         })
     }
@@ -132,6 +143,36 @@ impl PolicyStage {
     /// [`Policy::awaited`]): a transport watches these producers.
     pub fn awaited_inputs(&self) -> Vec<&'static str> {
         self.policy.awaited()
+    }
+
+    /// What the tactile reflex did since the stage was built (src/reflex.rs).
+    pub fn reflex_counters(&self) -> ReflexCounters {
+        self.reflex.counters()
+    }
+
+    /// The tactile facts at tick `now`: the slip and contact states if fresh (the contact budget,
+    /// not stamped ahead) and valid.
+    fn touch<'a>(
+        slip: &'a Option<SlipState>,
+        contact: &'a Option<ContactState>,
+        budget: f64,
+        now: Stamp,
+        g: &GripperStatus,
+        opening_m: Option<f64>,
+    ) -> Touch<'a> {
+        let fresh = |t: Stamp| {
+            let age = now.secs_since(t);
+            age <= budget && age >= -budget.min(crate::observation::MAX_AHEAD_S)
+        };
+        Touch {
+            slip: slip.as_ref().filter(|s| s.valid && fresh(s.header.stamp)),
+            contact: contact
+                .as_ref()
+                .filter(|c| fresh(c.header.stamp) && c.area_mm2.is_finite()),
+            object_detected: g.object_detected,
+            opening_m,
+            force_n: Some(g.force_n).filter(|f| f.is_finite()),
+        }
     }
 
     /// The control period \[ns].
@@ -280,6 +321,27 @@ impl PolicyStage {
             Err(problems.join("; "))
         };
         let opening = self.last_gripper.as_ref().and_then(|(o, _)| *o);
+        // The tactile reflex, under whatever policy proposed the action.
+        let last = self.safety.last_force_and_lift();
+        let touch = Self::touch(
+            &self.slip,
+            &self.contact,
+            self.params.budget_contact_s,
+            now,
+            g,
+            opening,
+        );
+        let bounds = self.safety.bounds().clone();
+        let proposed = proposed.map(|mut a| {
+            if let Some(r) = self.reflex.apply(&mut a, &touch, last, &bounds) {
+                a.note = if a.note.is_empty() {
+                    r
+                } else {
+                    format!("{r}; {}", a.note)
+                };
+            }
+            a
+        });
         let d = self.safety.decide(proposed, opening);
         self.messages(now, &g.header.frame_id, d)
     }
@@ -327,6 +389,11 @@ impl Stage for PolicyStage {
     /// nothing; other inputs stamped ahead of a tick are invalid at that tick.
     fn process(&mut self, input: &Msg, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
         let Msg::Gripper(g) = input else {
+            match input {
+                Msg::Slip(s) => self.slip = Some(s.clone()),
+                Msg::Contact(c) => self.contact = Some(c.clone()),
+                _ => {}
+            }
             self.assembler.offer(input);
             return Ok(Vec::new());
         };
