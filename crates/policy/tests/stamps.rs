@@ -220,3 +220,33 @@ fn a_wrong_first_stamp_is_left_after_three_statuses_on_the_real_time_line() {
         assert_eq!(t.status.header.stamp, t.stamp);
     }
 }
+
+#[test]
+fn after_a_message_stamped_at_the_end_of_time_the_policy_acts_normally() {
+    // Through the chain, whose clock the message takes to i64::MAX: the ticks keep their own
+    // stamps and the camera-fed approach acts (before, every later tick ran at the end of time
+    // and saw every input stale: the safe action forever, or an overflow in a debug build).
+    let mut rig = Rig::new(params(
+        "{mode: vla, task: squeeze the cup, objects: [cup], visual_names: [cup_width_m]}",
+    ));
+    let camera = |rig: &Rig| {
+        Msg::Visual(VisualObservation {
+            header: rig.header(),
+            names: vec!["cup_width_m".into()],
+            values: vec![0.08],
+        })
+    };
+    for i in 0..10 {
+        if i == 3 {
+            rig.send(Msg::Comparison(PropertyComparison {
+                header: Header::new(Stamp(i64::MAX), "x"),
+                ..unitac_core::msg::samples::property_comparison()
+            }));
+        }
+        let c = camera(&rig);
+        rig.send(c);
+        let t = rig.tick();
+        assert!(t.status.safety_ok, "tick {i}: {:?}", t.status);
+        assert_eq!(t.status.header.stamp, t.stamp);
+    }
+}
