@@ -332,7 +332,8 @@ fn a_gripper_driver_that_stops_and_returns_gets_the_safe_action_then_control_aga
             .starts_with("gripper: no status for")
     };
     // While gone: the watchdog's safe action, the first once the tick due a period after the
-    // last state is a period overdue (the node's timer adds up to a period more).
+    // last state is a period overdue (the stage's rule, exact in crates/policy/tests/watchdog.rs;
+    // the node's timer and a loaded machine's scheduling add up to two periods more here).
     let gap: Vec<&Value> = st
         .iter()
         .filter(|s| {
@@ -342,7 +343,7 @@ fn a_gripper_driver_that_stops_and_returns_gets_the_safe_action_then_control_aga
         .collect();
     assert!(gap.len() >= 10 && gap.iter().all(watchdog), "{gap:?}");
     assert!(
-        gap[0]["stamp"].as_i64().unwrap() - gone <= 3 * PERIOD_NS,
+        gap[0]["stamp"].as_i64().unwrap() - gone <= 4 * PERIOD_NS,
         "{:?}",
         gap[0]
     );
@@ -355,6 +356,8 @@ fn a_gripper_driver_that_stops_and_returns_gets_the_safe_action_then_control_aga
         })
         .collect();
     assert!(!again.is_empty(), "{st:?}");
+    // (On a loaded machine a state more than a period late lets the watchdog tick in between:
+    // the states are sent on system time by another process. So: ticks of their own, not all.)
     let own = again.iter().filter(|s| !watchdog(s)).count();
-    assert!(2 * own > again.len(), "{again:?}");
+    assert!(own >= 5, "{again:?}");
 }
