@@ -5,8 +5,8 @@
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
-use unitac_gripper::bench::{self, BenchResult};
-use unitac_gripper::client::{ClientConfig, RtuClient};
+use unitac_gripper::bench::{self, BenchResult, Cycle};
+use unitac_gripper::client::{CameBack, ClientConfig, RtuClient};
 use unitac_gripper::device::physics::SimObject;
 use unitac_gripper::device::{DeviceConfig, SimDevice};
 use unitac_gripper::{
@@ -24,12 +24,21 @@ pub enum Action {
     Close,
     /// Print the state once.
     Status,
-    /// Command -> status round trips per second against the wire limit, and the simulated
-    /// device on a pty paced and unpaced.
+    /// Status round trips per second against the wire limit, and the simulated device on a pty
+    /// paced and unpaced; reads only unless --allow-motion (then command -> status cycles).
     Bench,
     /// Run a simulated gripper for --seconds, reachable at --port (a symlink to its pty, like a
     /// /dev/serial/by-id name), for a driver or node in another process.
     Simulate,
+}
+
+/// A fault `simulate` starts with.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Inject {
+    Overcurrent,
+    OvercurrentPersistent,
+    /// Every reply with a corrupted CRC (line noise, a wrong termination).
+    BadCrc,
 }
 
 #[derive(clap::Args, Debug)]
@@ -56,6 +65,15 @@ pub struct GripperArgs {
     pub seconds: f64,
     #[arg(long)]
     pub json: bool,
+    /// bench: write commands every cycle (they move the gripper: a Robotiq is activated and
+    /// opened at full speed). Without it the bench reads status only.
+    #[arg(long)]
+    pub allow_motion: bool,
+    /// simulate: start with this fault (overcurrent: active with Robotiq's major fault 0x0E,
+    /// cleared by re-activation; overcurrent-persistent: back after every re-activation;
+    /// bad-crc: every reply's CRC corrupted).
+    #[arg(long, value_enum)]
+    pub inject: Option<Inject>,
     pub action: Action,
 }
 
@@ -94,10 +112,48 @@ pub fn run(a: GripperArgs) -> anyhow::Result<bool> {
     match a.action {
         Action::Status | Action::Bench | Action::Simulate => {}
         Action::Activate => {
-            g.activate()?;
+            if let Some(Fault::Major { code, what }) = g.state().fault {
+                // The documented clear: an rACT rising edge (the driver writes rACT 0, then 1).
+                eprintln!(
+                    "{}: major fault 0x{code:02X} ({what}): clearing it by re-activation (rACT 0, \
+                     then 1; the fingers move through their stroke)",
+                    a.model
+                );
+                g.clear_fault()?;
+                // Out of the faulted state (reset or activating), then active again.
+                wait(&g, deadline, &cfg, |s| {
+                    s.activation != Activation::Active
+                        || !matches!(s.fault, Some(Fault::Major { .. }))
+                })?;
+            } else {
+                g.activate()?;
+            }
             wait(&g, deadline, &cfg, |s| s.activation == Activation::Active)?;
+            // A fault that comes back at once (a blocked finger, a motor fault) persists.
+            let n = g.state().updates;
+            wait(&g, deadline, &cfg, |s| s.updates >= n + 10)?;
+            if let Some(Fault::Major { code, what }) = g.state().fault {
+                bail!(
+                    "the major fault 0x{code:02X} ({what}) persists after re-activation (rACT 0 \
+                     then 1): switch the gripper's power off, free the fingers of whatever blocks \
+                     them (check the load and the force asked), power it on, then run \
+                     `unitac gripper --port {} --model {} activate` again; if it still comes \
+                     back, contact Robotiq support with the fault code",
+                    a.port,
+                    a.model
+                );
+            }
         }
         Action::Open | Action::Close => {
+            if let Some(Fault::Major { code, what }) = g.state().fault {
+                bail!(
+                    "the gripper has a major fault 0x{code:02X} ({what}) and will not move: clear \
+                     it with `unitac gripper --port {} --model {} activate` (rACT 0 then 1; the \
+                     fingers move through their stroke)",
+                    a.port,
+                    a.model
+                );
+            }
             if g.state().activation != Activation::Active {
                 bail!(
                     "the gripper is not activated ({:?}); run `unitac gripper ... activate` first",
@@ -149,8 +205,18 @@ fn simulate(a: &GripperArgs) -> anyhow::Result<bool> {
     cfg.baud = a.baud.unwrap_or(cfg.baud);
     let link = PathBuf::from(&a.port);
     cfg.link = Some(link.clone());
+    cfg.start_active |= matches!(
+        a.inject,
+        Some(Inject::Overcurrent | Inject::OvercurrentPersistent)
+    );
     let dev = SimDevice::spawn(cfg.clone())
         .with_context(|| format!("starting the simulated gripper at {}", link.display()))?;
+    match a.inject {
+        Some(Inject::Overcurrent) => dev.overcurrent(),
+        Some(Inject::OvercurrentPersistent) => dev.overcurrent_persists(true),
+        Some(Inject::BadCrc) => dev.faults(|f| f.corrupt_crc = u32::MAX),
+        None => {}
+    }
     println!(
         "simulated {} (slave {}, {} baud) at {}",
         a.model,
@@ -179,18 +245,60 @@ fn wait(
         if Instant::now() >= deadline {
             let st = g.stats();
             if s.updates == 0 {
-                bail!(
-                    "no reply from slave {} on {} at {} baud ({}): check the gripper's power, \
-                     the RS-485 wiring (A/B swapped?), --slave and --baud",
-                    cfg.slave,
-                    st.port.display(),
-                    cfg.baud,
-                    st.last_error.unwrap_or_else(|| "nothing received".into())
-                );
+                bail!("{}", no_update(cfg, &st));
             }
             bail!("timed out: {}", describe(&s));
         }
         std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Why no exchange succeeded, from what came back: only a silent bus is "no reply".
+fn no_update(cfg: &DriverConfig, st: &unitac_gripper::DriverStats) -> String {
+    let last = st
+        .last_error
+        .clone()
+        .unwrap_or_else(|| "nothing received".into());
+    let on = format!(
+        "slave {} on {} at {} baud",
+        cfg.slave,
+        st.port.display(),
+        cfg.baud
+    );
+    match st.link.came_back() {
+        CameBack::Nothing => format!(
+            "no reply from {on} ({last}): check the gripper's power, the RS-485 wiring (A/B \
+             swapped?), --slave and --baud"
+        ),
+        CameBack::Exceptions => format!(
+            "{on} answered, with an exception reply ({last}; {} exception(s)): a device is there \
+             and the line works, but it refused the {} requests: check --model (is it a {}?) \
+             and --slave",
+            st.link.exceptions, cfg.model, cfg.model
+        ),
+        CameBack::WrongReplies => format!(
+            "{on} answered, but not to the request ({last}; {} such reply(ies)): a device is \
+             there and the line works, but it does not speak the {} register map: check \
+             --model and --slave",
+            st.link.bad_replies, cfg.model
+        ),
+        CameBack::WrongSlave => format!(
+            "a reply came from another slave than {} on {} ({last}): set --slave to the id that \
+             answered, or take the second device off the bus",
+            cfg.slave,
+            st.port.display()
+        ),
+        CameBack::Garbled => format!(
+            "bytes came back from {} but no valid frame ({last}; {} reply(ies) failed their \
+             CRC): the line is connected; check --baud (a wrong rate garbles every frame, \
+             8N1 expected), the RS-485 termination and ground",
+            st.port.display(),
+            st.link.garbled
+        ),
+        CameBack::Incomplete => format!(
+            "only part of a reply came back from {on} ({last}): check --baud, the adapter and \
+             the cable"
+        ),
     }
 }
 
@@ -210,12 +318,16 @@ fn describe(s: &GripperState) -> String {
     if let Some(f) = s.force_n {
         out += &format!(", force {f:.1} N");
     }
+    if let Some(n) = &s.out_of_range {
+        out += &format!(", {n}");
+    }
     out += &match &s.fault {
         None => ", no fault".into(),
         Some(Fault::Minor { code, what }) => format!(", minor fault 0x{code:02X}: {what}"),
-        Some(Fault::Major { code, what }) => {
-            format!(", MAJOR fault 0x{code:02X}: {what} (clear it by re-activating)")
-        }
+        Some(Fault::Major { code, what }) => format!(
+            ", MAJOR fault 0x{code:02X}: {what} (clear it by re-activation: `unitac gripper ... \
+             activate` writes rACT 0 then 1)"
+        ),
         Some(Fault::Link { what }) => format!(", link fault: {what}"),
     };
     out
@@ -224,6 +336,14 @@ fn describe(s: &GripperState) -> String {
 fn run_bench(a: &GripperArgs) -> anyhow::Result<bool> {
     let baud = a.baud.unwrap_or(a.model.default_baud());
     let d = Duration::from_secs_f64(a.seconds);
+    let kind = if a.allow_motion {
+        Cycle::Motion
+    } else {
+        Cycle::StatusOnly
+    };
+    if kind == Cycle::Motion && a.port != "sim" {
+        eprintln!("{} on {}: {}", a.model, a.port, kind.describe(a.model));
+    }
     let mut results: Vec<BenchResult> = Vec::new();
     if a.port != "sim" {
         let p = unitac_gripper::port::open(&PathBuf::from(&a.port), baud)?;
@@ -236,12 +356,12 @@ fn run_bench(a: &GripperArgs) -> anyhow::Result<bool> {
         );
         let label = format!("{} on {}", a.model, a.port);
         results.push(
-            bench::run(&label, &mut c, &bench::cycle(a.model), d)
+            bench::run(&label, &mut c, a.model, kind, d)
                 .with_context(|| format!("{label}: the device does not answer"))?,
         );
     }
     for paced in [true, false] {
-        results.push(bench::run_sim(a.model, baud, paced, d).map_err(anyhow::Error::msg)?);
+        results.push(bench::run_sim(a.model, kind, baud, paced, d).map_err(anyhow::Error::msg)?);
     }
     if a.json {
         println!("{}", serde_json::to_string(&results)?);
@@ -264,10 +384,11 @@ fn run_bench(a: &GripperArgs) -> anyhow::Result<bool> {
             r.failures
         );
     }
+    println!("each cycle: {}", kind.describe(a.model));
     println!(
-        "wire limit: one command -> status cycle ({} frame(s)) at {baud} baud, 8N1, with a \
-         3.5-character silence after every frame; the unpaced row is the pty's own rate",
-        bench::cycle(a.model).len()
+        "wire limit: one cycle ({} frame(s)) at {baud} baud, 8N1, with a 3.5-character silence \
+         after every frame; the unpaced row is the pty's own rate",
+        bench::cycle(a.model, kind).len()
     );
     Ok(true)
 }

@@ -144,6 +144,8 @@ struct TrialLine<'a> {
     outcome: &'a TaskOutcome,
     /// Ticks per value its proposal had beyond a bound by more than 2 % of the range.
     clamped: &'a BTreeMap<String, u64>,
+    /// Ticks per kind the tactile reflex acted on.
+    reflex: &'a BTreeMap<String, u64>,
     /// What went over the wire (serial grippers).
     #[serde(skip_serializing_if = "Option::is_none")]
     serial: Option<&'a SerialReport>,
@@ -280,11 +282,13 @@ impl Variant {
     }
 }
 
-/// Per mode: ticks, and per value the ticks it was reported clamped (summed over the trials).
+/// Per mode: ticks, per value the ticks it was reported clamped, and per kind the ticks the
+/// tactile reflex acted on (summed over the trials).
 #[derive(Debug, Default, Serialize)]
 struct Clamps {
     ticks: u64,
     clamped: BTreeMap<String, u64>,
+    reflex: BTreeMap<String, u64>,
     /// The largest share of ticks any one value was clamped in.
     worst_share: f64,
 }
@@ -295,6 +299,9 @@ fn clamps(rs: &[TrialRecord]) -> Clamps {
         c.ticks += r.ticks;
         for (k, n) in &r.clamped {
             *c.clamped.entry(k.clone()).or_default() += n;
+        }
+        for (k, n) in &r.reflex {
+            *c.reflex.entry(k.clone()).or_default() += n;
         }
     }
     c.worst_share = c
@@ -430,6 +437,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
                             rejected: r.rejected,
                             outcome: &r.outcome,
                             clamped: &r.clamped,
+                            reflex: &r.reflex,
                             serial: r.serial.as_ref(),
                         })
                         .collect(),
@@ -487,6 +495,15 @@ fn text_report(
             ));
         }
         let c = clamps(rs);
+        if !c.reflex.is_empty() {
+            let list: Vec<String> = c.reflex.iter().map(|(k, n)| format!("{k} {n}")).collect();
+            text.push_str(&format!(
+                "{}: tactile reflex acted, ticks of {}: {}\n",
+                m.name(),
+                c.ticks,
+                list.join(", ")
+            ));
+        }
         if !c.clamped.is_empty() {
             let list: Vec<String> = c.clamped.iter().map(|(k, n)| format!("{k} {n}")).collect();
             text.push_str(&format!(

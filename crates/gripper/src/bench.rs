@@ -1,10 +1,17 @@
-//! Command -> status round trips per second, against the limit the wire sets.
+//! Round trips per second against a gripper, against the limit the wire sets.
+//!
+//! A benchmark reads status only ([`Cycle::StatusOnly`]): a device on a bench may be inactive,
+//! holding something or have a hand near its fingers, and a benchmark must not move it. The
+//! command cycle ([`Cycle::Motion`]) writes the command registers every cycle and is for a gripper
+//! that may move (`unitac gripper ... bench --allow-motion`).
 //!
 //! Wire limit of one cycle at `baud` (8N1: 10 bits a character): the request and reply bytes plus
-//! a 3.5-character silence after each frame. Robotiq: one 0x17 exchange (19-byte request writing
-//! three registers and reading three, 11-byte reply) = 37 character times = 3.212 ms at 115200
-//! baud, 311.4 cycles/s. DH: a 0x06 write (8 + 8 bytes) and a 0x03 read of three registers (8 + 11
-//! bytes) = 49 character times, 235.1 cycles/s.
+//! a 3.5-character silence after each frame. Status only, Robotiq and DH alike: one read of three
+//! registers (FC 0x04 / 0x03, 8-byte request, 11-byte reply) = 26 character times = 2.257 ms at
+//! 115200 baud, 443.1 cycles/s. Motion: Robotiq one 0x17 exchange (19-byte request writing three
+//! registers and reading three, 11-byte reply) = 37 character times = 3.212 ms, 311.4 cycles/s;
+//! DH a 0x06 write (8 + 8 bytes) and a 0x03 read of three registers (8 + 11 bytes) = 49 character
+//! times, 235.1 cycles/s.
 
 use crate::client::{ClientConfig, Link, ModbusError, RtuClient};
 use crate::device::{DeviceConfig, SimDevice};
@@ -15,16 +22,59 @@ use crate::protocol::{dh, robotiq};
 use serde::Serialize;
 use std::time::{Duration, Instant};
 
-/// The requests of one command -> status cycle of `model`.
-pub fn cycle(model: Model) -> Vec<Request> {
-    match model.family() {
-        Family::Robotiq => vec![Request::ReadWrite {
+/// What one benchmark cycle does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Cycle {
+    /// Read the status registers; nothing is written.
+    StatusOnly,
+    /// Write a command and read the status: Robotiq rACT | rGTO, rPR = 0 (open), rSP = 255, which
+    /// activates an inactive gripper and opens it at full speed; DH position 1000 (open).
+    Motion,
+}
+
+impl Cycle {
+    /// One line for the user: what the cycle does to the gripper.
+    pub fn describe(self, model: Model) -> &'static str {
+        match (self, model.family()) {
+            (Cycle::StatusOnly, Family::Robotiq) => {
+                "status reads only (FC 0x04, 3 registers at 0x07D0): nothing is written, the \
+                 gripper does not move; --allow-motion benchmarks command writes instead"
+            }
+            (Cycle::StatusOnly, Family::Dh) => {
+                "status reads only (FC 0x03, 3 registers at 0x0200): nothing is written, the \
+                 gripper does not move; --allow-motion benchmarks command writes instead"
+            }
+            (Cycle::Motion, Family::Robotiq) => {
+                "with --allow-motion: every cycle writes rACT | rGTO, rPR = 0, rSP = 255 (FC 0x17): \
+                 an inactive gripper is activated and the fingers open at full speed"
+            }
+            (Cycle::Motion, Family::Dh) => {
+                "with --allow-motion: every cycle writes position 1000 (FC 0x06, the fingers \
+                 open) and reads the status (FC 0x03)"
+            }
+        }
+    }
+}
+
+/// The requests of one benchmark cycle of `model`.
+pub fn cycle(model: Model, kind: Cycle) -> Vec<Request> {
+    match (kind, model.family()) {
+        (Cycle::StatusOnly, Family::Robotiq) => vec![Request::ReadInput {
+            addr: robotiq::STATUS,
+            qty: 3,
+        }],
+        (Cycle::StatusOnly, Family::Dh) => vec![Request::ReadHolding {
+            addr: dh::INIT_STATE,
+            qty: 3,
+        }],
+        (Cycle::Motion, Family::Robotiq) => vec![Request::ReadWrite {
             read_addr: robotiq::STATUS,
             read_qty: 3,
             write_addr: robotiq::CMD,
             values: robotiq::command_regs(robotiq::ACT | robotiq::GTO, 0, 255, 0),
         }],
-        Family::Dh => vec![
+        (Cycle::Motion, Family::Dh) => vec![
             Request::WriteSingle {
                 addr: dh::POSITION,
                 value: 1000,
@@ -62,6 +112,8 @@ pub fn wire_time(cycle: &[Request], baud: u32) -> f64 {
 #[derive(Debug, Clone, Serialize)]
 pub struct BenchResult {
     pub label: String,
+    /// What each cycle did (status reads only, or command writes that move the gripper).
+    pub cycle: Cycle,
     pub cycles: u64,
     pub failures: u64,
     pub seconds: f64,
@@ -73,14 +125,16 @@ pub struct BenchResult {
     pub rtt_p99_ms: Option<f64>,
 }
 
-/// Run `cycle` back to back for `duration` over `client`.
+/// Run the `kind` cycle of `model` back to back for `duration` over `client`.
 pub fn run<L: Link>(
     label: &str,
     client: &mut RtuClient<L>,
-    cycle: &[Request],
+    model: Model,
+    kind: Cycle,
     duration: Duration,
 ) -> Result<BenchResult, ModbusError> {
     let baud = client.config().baud;
+    let cycle = &cycle(model, kind)[..];
     // One cycle first: a device that does not answer is an error, not a rate of zero.
     for r in cycle {
         client.call(r)?;
@@ -107,6 +161,7 @@ pub fn run<L: Link>(
     let s = client.stats();
     Ok(BenchResult {
         label: label.into(),
+        cycle: kind,
         cycles,
         failures,
         seconds,
@@ -121,6 +176,7 @@ pub fn run<L: Link>(
 /// The same cycle against a simulated `model` on a pty, paced at `baud` or not.
 pub fn run_sim(
     model: Model,
+    kind: Cycle,
     baud: u32,
     paced: bool,
     duration: Duration,
@@ -149,7 +205,7 @@ pub fn run_sim(
             "unpaced".into()
         }
     );
-    run(&label, &mut client, &cycle(model), duration).map_err(|e| e.to_string())
+    run(&label, &mut client, model, kind, duration).map_err(|e| e.to_string())
 }
 
 #[cfg(test)]
@@ -158,12 +214,30 @@ mod tests {
 
     #[test]
     fn wire_limits_from_frame_sizes() {
-        let r = cycle(Model::Robotiq2F85);
+        let r = cycle(Model::Robotiq2F85, Cycle::Motion);
         assert_eq!(r[0].encode(9).unwrap().len(), 19);
         assert_eq!(reply_len(&r[0]), 11);
         let hz = 1.0 / wire_time(&r, 115_200);
         assert!((hz - 115_200.0 / 370.0).abs() < 1e-9, "{hz}");
-        let d = 1.0 / wire_time(&cycle(Model::DhAg95), 115_200);
+        let d = 1.0 / wire_time(&cycle(Model::DhAg95, Cycle::Motion), 115_200);
         assert!((d - 115_200.0 / 490.0).abs() < 1e-9, "{d}");
+        for m in [Model::Robotiq2F85, Model::DhAg95] {
+            let r = cycle(m, Cycle::StatusOnly);
+            assert_eq!(r[0].encode(9).unwrap().len(), 8);
+            let hz = 1.0 / wire_time(&r, 115_200);
+            assert!((hz - 115_200.0 / 260.0).abs() < 1e-9, "{hz}");
+        }
+    }
+
+    #[test]
+    fn a_status_only_cycle_writes_nothing() {
+        for m in Model::ALL {
+            assert!(
+                cycle(m, Cycle::StatusOnly)
+                    .iter()
+                    .all(|r| matches!(r, Request::ReadInput { .. } | Request::ReadHolding { .. })),
+                "{m}"
+            );
+        }
     }
 }

@@ -124,6 +124,9 @@ pub struct LinkStats {
     pub garbled: u64,
     pub wrong_slave: u64,
     pub exceptions: u64,
+    /// Valid frames from the slave that do not answer the request (another function code, a
+    /// wrong length or echo).
+    pub bad_replies: u64,
     pub dropped_bytes: u64,
     #[serde(skip)]
     rtt_us: Vec<u32>,
@@ -131,10 +134,46 @@ pub struct LinkStats {
     rtt_next: usize,
 }
 
+/// What came back from the bus for requests that failed, the most telling kind first: a device
+/// that answered wrongly is there (power and wiring work), unlike a silent one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CameBack {
+    /// Not a byte.
+    Nothing,
+    /// Modbus exception replies: the slave is there and refused the request.
+    Exceptions,
+    /// Valid frames from the slave that do not answer the request (another function code).
+    WrongReplies,
+    /// Replies from another slave id.
+    WrongSlave,
+    /// Bytes with no valid frame (CRC errors).
+    Garbled,
+    /// The start of a frame, never its end.
+    Incomplete,
+}
+
 /// Round trips kept for the percentiles.
 const RTT_WINDOW: usize = 1024;
 
 impl LinkStats {
+    /// What came back for the failed requests so far (see [`CameBack`]).
+    pub fn came_back(&self) -> CameBack {
+        if self.exceptions > 0 {
+            CameBack::Exceptions
+        } else if self.bad_replies > 0 {
+            CameBack::WrongReplies
+        } else if self.wrong_slave > 0 {
+            CameBack::WrongSlave
+        } else if self.garbled > 0 {
+            CameBack::Garbled
+        } else if self.incomplete > 0 {
+            CameBack::Incomplete
+        } else {
+            CameBack::Nothing
+        }
+    }
+
     fn record_rtt(&mut self, d: Duration) {
         let us = d.as_micros().min(u128::from(u32::MAX)) as u32;
         if self.rtt_us.len() < RTT_WINDOW {
@@ -209,6 +248,7 @@ impl<L: Link> RtuClient<L> {
                         ModbusError::Incomplete { .. } => self.stats.incomplete += 1,
                         ModbusError::Garbled { .. } => self.stats.garbled += 1,
                         ModbusError::WrongSlave { .. } => self.stats.wrong_slave += 1,
+                        ModbusError::Frame(_) => self.stats.bad_replies += 1,
                         _ => {}
                     }
                     if !e.retryable() || attempt >= self.cfg.retries {
@@ -286,5 +326,96 @@ impl<L: Link> RtuClient<L> {
             received += n;
             self.dec.push(&self.buf[..n]);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::*;
+
+    /// A link that answers every request with `reply` at once.
+    struct Canned {
+        reply: Vec<u8>,
+        pending: bool,
+    }
+
+    impl Link for Canned {
+        fn write_all(&mut self, _: &[u8]) -> io::Result<()> {
+            self.pending = true;
+            Ok(())
+        }
+        fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
+            if !std::mem::take(&mut self.pending) {
+                std::thread::sleep(timeout.min(Duration::from_millis(1)));
+                return Ok(0);
+            }
+            let n = self.reply.len().min(buf.len());
+            buf[..n].copy_from_slice(&self.reply[..n]);
+            Ok(n)
+        }
+        fn clear_input(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    fn client(reply: Vec<u8>) -> RtuClient<Canned> {
+        let cfg = ClientConfig {
+            timeout: Duration::from_millis(5),
+            retries: 1,
+            ..ClientConfig::new(9, 115_200)
+        };
+        RtuClient::new(
+            Canned {
+                reply,
+                pending: false,
+            },
+            cfg,
+        )
+    }
+
+    const READ: Request = Request::ReadInput {
+        addr: 0x07D0,
+        qty: 3,
+    };
+
+    #[test]
+    fn what_came_back_is_told_apart_from_silence() {
+        let mut silent = client(Vec::new());
+        assert!(matches!(
+            silent.call(&READ),
+            Err(ModbusError::NoReply { .. })
+        ));
+        assert_eq!(silent.stats().came_back(), CameBack::Nothing);
+        // A valid frame of another function (0x03 for a 0x04 read).
+        let other = Response::Registers(vec![0, 0, 0]).encode(9, 0x03);
+        let mut wrong = client(other);
+        let e = wrong.call(&READ).unwrap_err();
+        assert!(
+            e.to_string().contains("function 0x03, expected 0x04"),
+            "{e}"
+        );
+        assert_eq!(wrong.stats().bad_replies, 2);
+        assert_eq!(wrong.stats().came_back(), CameBack::WrongReplies);
+        // An exception reply.
+        let exc = Response::Exception {
+            function: 0x04,
+            code: 0x02,
+        }
+        .encode(9, 0x04);
+        let mut refused = client(exc);
+        assert!(matches!(
+            refused.call(&READ),
+            Err(ModbusError::Exception { code: 0x02, .. })
+        ));
+        assert_eq!(refused.stats().came_back(), CameBack::Exceptions);
+        // A reply with a corrupted CRC.
+        let mut bad = Response::Registers(vec![0, 0, 0]).encode(9, 0x04);
+        if let Some(b) = bad.last_mut() {
+            *b ^= 0xA5;
+        }
+        let mut garbled = client(bad);
+        assert!(garbled.call(&READ).is_err());
+        assert_eq!(garbled.stats().came_back(), CameBack::Garbled);
     }
 }

@@ -350,6 +350,12 @@ pub fn frame_len(dir: Direction, b: &[u8]) -> Head {
             FC_READ_HOLDING | FC_READ_INPUT | FC_WRITE_SINGLE => Head::Len(8),
             FC_WRITE_MULTIPLE => counted(6, 9),
             FC_READ_WRITE => counted(10, 13),
+            // Functions no gripper here serves, framed so that a device can refuse them with an
+            // exception: read coils / discrete inputs, write single coil (fixed 8 bytes), write
+            // multiple coils (counted), mask write register (10 bytes).
+            0x01 | 0x02 | 0x05 => Head::Len(8),
+            0x0F => counted(6, 9),
+            0x16 => Head::Len(10),
             _ => Head::Invalid,
         },
     }

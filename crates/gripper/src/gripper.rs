@@ -82,6 +82,9 @@ pub struct GripperState {
     pub raw_position: Option<u16>,
     /// The device's echo of the requested opening \[m].
     pub target_m: Option<f64>,
+    /// A raw position or target outside the calibrated range, read as the nearest end of the
+    /// stroke (the opening never leaves [0, stroke]): what came and what to do (None: in range).
+    pub out_of_range: Option<String>,
     /// Grip force estimate \[N] (Robotiq: from the motor current, a rough figure; sim: exact).
     pub force_n: Option<f64>,
     /// Motor current \[A] where the device reports one.
@@ -186,6 +189,13 @@ impl Linear {
     }
     pub fn to_si(&self, raw: f64) -> f64 {
         self.si_a + (raw - self.raw_a) * (self.si_b - self.si_a) / (self.raw_b - self.raw_a)
+    }
+    /// The SI value of `raw` clamped to the raw range first, and whether it was outside it (a
+    /// device reporting past its calibrated end: the SI value stays within the SI range).
+    pub fn to_si_clamped(&self, raw: f64) -> (f64, bool) {
+        let (lo, hi) = (self.raw_a.min(self.raw_b), self.raw_a.max(self.raw_b));
+        let r = raw.clamp(lo, hi);
+        (self.to_si(r), r != raw)
     }
     /// Nearest raw value, clamped to the raw range.
     pub fn to_raw(&self, si: f64) -> u16 {

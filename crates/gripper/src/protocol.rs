@@ -9,7 +9,7 @@
 //! asked to.
 
 use crate::frame::{Request, Response};
-use crate::gripper::{Activation, Fault, GripCommand, GripperState, Motion};
+use crate::gripper::{Activation, Fault, GripCommand, GripperState, Linear, Motion};
 use crate::model::{Calibration, Family, Model};
 
 /// What the user asked for; the protocol consumes the one-shot requests when it has acted on them.
@@ -336,9 +336,15 @@ impl Session {
             Motion::Moving | Motion::Idle => false,
             _ => self.was_caught,
         };
-        state.opening_m = Some(c.position.to_si(f64::from(s.po)));
+        let (opening, po_out) = c.position.to_si_clamped(f64::from(s.po));
+        let (target, pr_out) = c.position.to_si_clamped(f64::from(s.pr));
+        state.opening_m = Some(opening);
         state.raw_position = Some(u16::from(s.po));
-        state.target_m = Some(c.position.to_si(f64::from(s.pr)));
+        state.target_m = Some(target);
+        state.out_of_range = out_of_range(
+            &c.position,
+            &[("gPO", s.po.into(), po_out), ("gPR", s.pr.into(), pr_out)],
+        );
         state.current_a = Some(f64::from(s.cu) * 0.01);
         state.force_n = None;
         state.fault = match s.flt {
@@ -399,14 +405,33 @@ impl Session {
                     3 => Motion::Dropped,
                     _ => Motion::Unknown,
                 };
-                state.opening_m = Some(self.cal.position.to_si(f64::from(pos)));
+                let (opening, out) = self.cal.position.to_si_clamped(f64::from(pos));
+                state.opening_m = Some(opening);
                 state.raw_position = Some(pos);
                 state.target_m = self.dh_written[2].map(|v| self.cal.position.to_si(f64::from(v)));
+                state.out_of_range = out_of_range(&self.cal.position, &[("position", pos, out)]);
                 state.fault = None;
             }
             _ => {}
         }
     }
+}
+
+/// The note for raw positions outside the calibration (`(what, raw, outside)`), None if none is.
+fn out_of_range(cal: &Linear, raws: &[(&str, u16, bool)]) -> Option<String> {
+    let (lo, hi) = (cal.raw_a.min(cal.raw_b), cal.raw_a.max(cal.raw_b));
+    let bad: Vec<String> = raws
+        .iter()
+        .filter(|(_, _, out)| *out)
+        .map(|(what, raw, _)| format!("{what} {raw}"))
+        .collect();
+    (!bad.is_empty()).then(|| {
+        format!(
+            "{} outside the calibrated raw range {lo}..{hi}, read as the nearest end of the stroke: \
+             check the calibration's raw ends (README, hardware checklist)",
+            bad.join(", ")
+        )
+    })
 }
 
 #[cfg(test)]
@@ -433,6 +458,51 @@ mod tests {
             ..s
         };
         assert_eq!(done.to_regs()[0] >> 8, 0xF9);
+    }
+
+    #[test]
+    fn a_raw_position_beyond_the_calibration_is_clamped_and_flagged() {
+        // gPO 230 with fully closed calibrated at 227 read as an opening of -1.12 mm.
+        let mut s = Session::new(Model::Robotiq2F85);
+        let mut wants = Wants::default();
+        let mut st = GripperState::default();
+        let r = s.next_request(&wants, &st);
+        let past = robotiq::Status {
+            act: true,
+            gto: true,
+            sta: 3,
+            obj: 3,
+            pr: 255,
+            po: 230,
+            ..Default::default()
+        };
+        s.on_reply(
+            &r,
+            &Response::Registers(past.to_regs().to_vec()),
+            &mut wants,
+            &mut st,
+        );
+        assert_eq!(st.opening_m, Some(0.0));
+        assert_eq!(st.target_m, Some(0.0));
+        assert_eq!(st.raw_position, Some(230));
+        let note = st.out_of_range.clone().unwrap();
+        assert!(note.starts_with("gPO 230, gPR 255 outside"), "{note}");
+        // Back in range: the flag goes.
+        let ok = robotiq::Status {
+            pr: 200,
+            po: 100,
+            ..past
+        };
+        s.on_reply(
+            &r,
+            &Response::Registers(ok.to_regs().to_vec()),
+            &mut wants,
+            &mut st,
+        );
+        assert!(
+            st.opening_m.unwrap() > 0.0 && st.out_of_range.is_none(),
+            "{st:?}"
+        );
     }
 
     #[test]

@@ -408,3 +408,27 @@ fn sim_world_gripper_in_process_and_over_the_pty_agree() {
     );
     assert!((19.0..21.5).contains(&lf), "force {lf}");
 }
+
+#[test]
+fn requests_no_gripper_serves_get_exception_replies_on_the_wire() {
+    // Raw frames on the pty, as any Modbus master may send them.
+    let dev = device(Model::Robotiq2F85, false, None);
+    let mut port = unitac_gripper::port::open(&dev.path(), 115_200).unwrap();
+    port.set_timeout(Duration::from_millis(500)).unwrap();
+    let mut ask = |pdu: &[u8]| {
+        let mut frame = vec![9];
+        frame.extend_from_slice(pdu);
+        unitac_gripper::crc::append_crc(&mut frame);
+        std::io::Write::write_all(&mut port, &frame).unwrap();
+        let mut reply = vec![0u8; 5];
+        std::io::Read::read_exact(&mut port, &mut reply).unwrap();
+        assert!(unitac_gripper::crc::crc_ok(&reply), "{reply:02X?}");
+        (reply[1], reply[2])
+    };
+    // Read coils (FC 0x01): illegal function.
+    assert_eq!(ask(&[0x01, 0x00, 0x00, 0x00, 0x08]), (0x81, 0x01));
+    // A read of 0 registers: illegal data value.
+    assert_eq!(ask(&[0x04, 0x07, 0xD0, 0x00, 0x00]), (0x84, 0x03));
+    // A read past the status block: illegal data address.
+    assert_eq!(ask(&[0x04, 0x07, 0xD2, 0x00, 0x02]), (0x84, 0x02));
+}

@@ -75,6 +75,8 @@ pub enum FeatureError {
     NotFinite { name: String, value: f64 },
     #[error("gripper fault: {0}")]
     GripperFault(String),
+    #[error("opening {opening_m} m outside the stroke [0, {stroke_m}] m")]
+    OpeningOutsideStroke { opening_m: f64, stroke_m: f64 },
     #[error("latent marked invalid: {0}")]
     LatentInvalid(String),
     #[error("latent has {got} values, the observation layout has {want} (latent_len)")]

@@ -14,6 +14,7 @@ pub mod onnx;
 pub mod params;
 pub mod policy;
 pub mod readout;
+pub mod reflex;
 pub mod safety;
 pub mod stage;
 pub mod task;
@@ -22,4 +23,5 @@ pub use error::{FeatureError, InputError, PolicyLoadError, Problems, SceneStages
 pub use mode::Mode;
 pub use params::PolicyParams;
 pub use policy::{Action, ArmAction, GripperAction, Policy, PolicyError};
+pub use reflex::ReflexCounters;
 pub use stage::{PolicyStage, check_scene};

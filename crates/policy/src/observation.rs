@@ -18,6 +18,9 @@ pub struct Layout {
     pub latent_len: usize,
     /// Names read from the VisualObservation into `observation.visual`, in this order.
     pub visual_names: Vec<String>,
+    /// The gripper's stroke \[m]: a GripperStatus whose opening is outside [0, stroke] is
+    /// invalid (None: only a negative opening is).
+    pub stroke_m: Option<f64>,
 }
 
 /// One named input.
@@ -63,11 +66,19 @@ fn maybe(name: &str, v: f64, out: &mut Vec<f32>) -> Result<(), FeatureError> {
     Ok(())
 }
 
-fn gripper_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
+fn gripper_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
     let Msg::Gripper(g) = m else {
         return Err(FeatureError::WrongKind("gripper status"));
     };
-    out.push(finite("opening_m", g.opening_m)?);
+    let opening = finite("opening_m", g.opening_m)?;
+    let stroke = l.stroke_m.unwrap_or(f64::INFINITY);
+    if !(0.0..=stroke).contains(&g.opening_m) {
+        return Err(FeatureError::OpeningOutsideStroke {
+            opening_m: g.opening_m,
+            stroke_m: stroke,
+        });
+    }
+    out.push(opening);
     maybe("target_m", g.target_m, out)?;
     maybe("force_n", g.force_n, out)?;
     maybe("current_a", g.current_a, out)?;
@@ -200,6 +211,12 @@ pub static INPUTS: &[InputSpec] = &[
 pub fn input(name: &str) -> Option<&'static InputSpec> {
     INPUTS.iter().find(|i| i.name == name)
 }
+
+/// How far an input's stamp may be after the tick's (its own budget if smaller) \[s]: a message
+/// captured a little after the gripper status that triggers the tick may be stored first; one
+/// stamped further ahead is from a clock that cannot be trusted, an invalid input (`stamp ahead
+/// by ...`) until a message with a plausible stamp replaces it.
+pub const MAX_AHEAD_S: f64 = 0.1;
 
 /// An input's state at a tick.
 #[derive(Debug, Clone, PartialEq)]
@@ -392,8 +409,8 @@ impl Assembler {
                     let age = now.secs_since(m.stamp());
                     let status = if age > *budget {
                         InputStatus::Stale
-                    } else if age < -budget {
-                        InputStatus::Invalid(format!("stamped {:.3} s in the future", -age))
+                    } else if age < -budget.min(MAX_AHEAD_S) {
+                        InputStatus::Invalid(format!("stamp ahead by {:.3} s", -age))
                     } else {
                         match (spec.features)(m, &self.layout, &mut vector) {
                             Ok(()) if vector.len() == start + width => InputStatus::Fresh,
@@ -450,6 +467,7 @@ mod tests {
             Layout {
                 latent_len: 6,
                 visual_names: vec!["cup_width_m".into()],
+                stroke_m: Some(0.085),
             },
         )
         .unwrap()
@@ -562,5 +580,38 @@ mod tests {
             .unwrap()
             .assemble(Stamp(5), "");
         assert_eq!(o.inputs[0].status, InputStatus::Missing);
+    }
+
+    #[test]
+    fn an_opening_outside_the_stroke_is_an_invalid_gripper_input() {
+        let mut a = Assembler::new(
+            &["gripper"],
+            |_| None,
+            Layout {
+                stroke_m: Some(0.085),
+                ..Layout::default()
+            },
+        )
+        .unwrap();
+        let reading = |a: &mut Assembler, opening_m: f64| {
+            let mut g = samples::gripper_status();
+            g.header = at(0);
+            g.fault.clear();
+            g.opening_m = opening_m;
+            a.offer(&Msg::Gripper(g));
+            a.assemble(Stamp(0), "").inputs[0].clone()
+        };
+        // A Robotiq gPO of 230 read through the 0..227 calibration: -1.12 mm.
+        assert_eq!(
+            reading(&mut a, -0.00112).problem().unwrap(),
+            "gripper: invalid (opening -0.00112 m outside the stroke [0, 0.085] m)"
+        );
+        assert_eq!(
+            reading(&mut a, 0.0851).status,
+            InputStatus::Invalid("opening 0.0851 m outside the stroke [0, 0.085] m".into())
+        );
+        for ok in [0.0, 0.04, 0.085] {
+            assert_eq!(reading(&mut a, ok).status, InputStatus::Fresh, "{ok}");
+        }
     }
 }

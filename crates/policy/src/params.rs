@@ -32,6 +32,10 @@ pub struct PolicyParams {
     /// Bounds of every command (the gripper's limits and the scene's).
     pub min_opening_m: f64,
     pub max_opening_m: f64,
+    /// The gripper's full stroke \[m] (not a command bound: the scene's `max_opening_m` may be
+    /// narrower): a GripperStatus reporting an opening outside [0, stroke_m] is an invalid
+    /// input. The default is the widest supported gripper's (Robotiq 2F-140, the sim's).
+    pub stroke_m: f64,
     pub max_speed_m_s: f64,
     pub max_force_n: f64,
     pub max_step_m: f64,
@@ -46,6 +50,14 @@ pub struct PolicyParams {
     pub safe_action: SafeAction,
     /// Force limit of the hold safe action \[N].
     pub hold_force_n: f64,
+    /// The tactile reflex (src/reflex.rs): on slip while holding or lifting, raise the grip
+    /// force by `reflex_force_step_n` per tick (to `max_force_n`), close a position-mode grip by
+    /// `reflex_squeeze_m`, stop the lift; with `confirm_grasp`, hold a lift while the gripper's
+    /// object-detect and the tactile contact do not both report the object.
+    pub reflex: bool,
+    pub reflex_force_step_n: f64,
+    pub reflex_squeeze_m: f64,
+    pub confirm_grasp: bool,
     /// Objects the arm may go to (besides "home"); for a pick task the first two are touched as
     /// A and B, in this order.
     pub objects: Vec<String>,
@@ -120,6 +132,7 @@ impl Default for PolicyParams {
             budget_visual_s: 0.5,
             min_opening_m: 0.0,
             max_opening_m: 0.085,
+            stroke_m: 0.14,
             max_speed_m_s: 0.15,
             max_force_n: 40.0,
             max_step_m: 0.005,
@@ -131,6 +144,10 @@ impl Default for PolicyParams {
             max_reach_m: 1.0,
             safe_action: SafeAction::Hold,
             hold_force_n: 5.0,
+            reflex: true,
+            reflex_force_step_n: 1.0,
+            reflex_squeeze_m: 0.0005,
+            confirm_grasp: true,
             objects: vec!["fabric_a".into(), "fabric_b".into()],
             latent_len: 0,
             visual_names: Vec::new(),
@@ -195,6 +212,7 @@ impl PolicyParams {
             ("target_deformation_m", self.target_deformation_m),
             ("deformation_tolerance_m", self.deformation_tolerance_m),
             ("min_stiffness_n_per_m", self.min_stiffness_n_per_m),
+            ("stroke_m", self.stroke_m),
             ("force_margin", self.force_margin),
         ];
         for (k, v) in positive {
@@ -204,6 +222,8 @@ impl PolicyParams {
         }
         let non_negative = [
             ("hold_force_n", self.hold_force_n),
+            ("reflex_force_step_n", self.reflex_force_step_n),
+            ("reflex_squeeze_m", self.reflex_squeeze_m),
             ("approach_s", self.approach_s),
             ("touch_force_n", self.touch_force_n),
             ("touch_hold_s", self.touch_hold_s),
@@ -324,10 +344,20 @@ impl PolicyParams {
         }
     }
 
+    pub fn reflex(&self) -> crate::reflex::ReflexParams {
+        crate::reflex::ReflexParams {
+            enabled: self.reflex,
+            force_step_n: self.reflex_force_step_n,
+            squeeze_m: self.reflex_squeeze_m,
+            confirm_grasp: self.confirm_grasp,
+        }
+    }
+
     pub fn layout(&self) -> Layout {
         Layout {
             latent_len: self.latent_len,
             visual_names: self.visual_names.clone(),
+            stroke_m: Some(self.stroke_m),
         }
     }
 

@@ -146,6 +146,11 @@ impl SafetyLayer {
         &self.bounds
     }
 
+    /// The last command sent: grip force \[N] and lift \[m] (None before the first).
+    pub fn last_force_and_lift(&self) -> Option<(f64, f64)> {
+        self.last.as_ref().map(|(g, a)| (g.force_n, a.lift_m))
+    }
+
     /// The command for this tick: `proposed` through the bounds and rate limits, or the safe
     /// action when it is refused. `opening_m`: the measured opening (None or non-finite: unknown).
     pub fn decide(&mut self, proposed: Result<Action, String>, opening_m: Option<f64>) -> Decision {
@@ -221,7 +226,12 @@ impl SafetyLayer {
         };
         GripperAction {
             mode: g.mode,
-            position_m: last_pos.map_or(pos, |p| step(p, pos, b.max_step_m)),
+            // Rate limited from the last command or, before the first, from the measured
+            // opening, which may lie outside the bounds (a gripper wider open than the scene
+            // allows): the bounds win over the rate limit.
+            position_m: last_pos.map_or(pos, |p| {
+                step(p, pos, b.max_step_m).clamp(b.min_opening_m, b.max_opening_m)
+            }),
             speed_m_s: speed,
             force_n: last_force.map_or(force.min(b.max_force_step_n), |f| {
                 step(f, force, b.max_force_step_n)

@@ -9,11 +9,14 @@ use crate::observation::Assembler;
 use crate::params::PolicyParams;
 use crate::policy::{Action, Policy};
 use crate::readout::Readout;
+use crate::reflex::{Reflex, ReflexCounters, Touch};
 use crate::safety::SafetyLayer;
 use crate::task::Task;
 use std::collections::VecDeque;
 use std::path::Path;
-use unitac_core::msg::{ArmCommand, GripperCommand, GripperStatus, Header, Msg, PolicyStatus};
+use unitac_core::msg::{
+    ArmCommand, ContactState, GripperCommand, GripperStatus, Header, Msg, PolicyStatus, SlipState,
+};
 use unitac_core::{Clock, Stage, StageError, Stamp};
 
 /// The params' checks plus the scene's stage list against the mode: `kinds` are the stage kinds
@@ -41,11 +44,28 @@ pub struct PolicyStage {
     queue: VecDeque<Action>,
     /// When the next control tick is due \[ns].
     next_tick: Option<i64>,
-    /// The last GripperStatus's opening and frame id (for the watchdog's safe action).
-    last_gripper: Option<(f64, String)>,
+    /// The last trusted opening (None: none yet) and the last GripperStatus's frame id, for the
+    /// safe action.
+    last_gripper: Option<(Option<f64>, String)>,
     /// Inputs whose producer a transport saw disappear, with why.
     lost: std::collections::BTreeMap<&'static str, String>,
+    /// The stage's present \[ns]: the stamp of the latest control tick (a GripperStatus's or the
+    /// watchdog's). Only a tick moves it; a status stamped far from it is not a tick.
+    present: Option<i64>,
+    /// GripperStatus stamps in a row that were too far from the present, each about a control
+    /// period after the one before: the last one's stamp and how many.
+    off_run: Option<(i64, u32)>,
+    /// The tactile reflex, and the latest slip and contact states it reads (whatever the mode's
+    /// observation holds).
+    reflex: Reflex,
+    slip: Option<SlipState>,
+    contact: Option<ContactState>,
 }
+
+/// GripperStatus messages in a row, a control period apart, that move the present to their time
+/// line when it jumped (a gripper back after a long silence with no watchdog running, a
+/// restarted sim). One stamp from a bad clock never does.
+const RESYNC_STATUSES: u32 = 3;
 
 impl std::fmt::Debug for PolicyStage {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -105,6 +125,11 @@ impl PolicyStage {
             next_tick: None,
             last_gripper: None,
             lost: std::collections::BTreeMap::new(),
+            present: None,
+            off_run: None,
+            reflex: Reflex::new(params.reflex()),
+            slip: None,
+            contact: None,
             params,
         })
     }
@@ -118,6 +143,36 @@ impl PolicyStage {
     /// [`Policy::awaited`]): a transport watches these producers.
     pub fn awaited_inputs(&self) -> Vec<&'static str> {
         self.policy.awaited()
+    }
+
+    /// What the tactile reflex did since the stage was built (src/reflex.rs).
+    pub fn reflex_counters(&self) -> ReflexCounters {
+        self.reflex.counters()
+    }
+
+    /// The tactile facts at tick `now`: the slip and contact states if fresh (the contact budget,
+    /// not stamped ahead) and valid.
+    fn touch<'a>(
+        slip: &'a Option<SlipState>,
+        contact: &'a Option<ContactState>,
+        budget: f64,
+        now: Stamp,
+        g: &GripperStatus,
+        opening_m: Option<f64>,
+    ) -> Touch<'a> {
+        let fresh = |t: Stamp| {
+            let age = now.secs_since(t);
+            age <= budget && age >= -budget.min(crate::observation::MAX_AHEAD_S)
+        };
+        Touch {
+            slip: slip.as_ref().filter(|s| s.valid && fresh(s.header.stamp)),
+            contact: contact
+                .as_ref()
+                .filter(|c| fresh(c.header.stamp) && c.area_mm2.is_finite()),
+            object_detected: g.object_detected,
+            opening_m,
+            force_n: Some(g.force_n).filter(|f| f.is_finite()),
+        }
     }
 
     /// The control period \[ns].
@@ -155,20 +210,21 @@ impl PolicyStage {
             return Vec::new();
         };
         let period = self.period_ns();
-        if now.0 < due + period {
+        if now.0 < due.saturating_add(period) {
             return Vec::new();
         }
         // This tick stands for the one missed; the next is due now, so while nothing comes the
         // watchdog ticks once per period.
         self.next_tick = Some(now.0);
-        let last = due - period;
+        self.present = Some(self.present.map_or(now.0, |p| p.max(now.0)));
+        let last = due.saturating_sub(period);
         let why = format!(
             "gripper: no status for {:.3} s (control period {:.3} s)",
-            (now.0 - last) as f64 * 1e-9,
+            now.0.saturating_sub(last) as f64 * 1e-9,
             period as f64 * 1e-9
         );
         self.queue.clear();
-        let d = self.safety.decide(Err(why), Some(opening));
+        let d = self.safety.decide(Err(why), opening);
         self.messages(now, &frame_id, d)
     }
 
@@ -176,11 +232,54 @@ impl PolicyStage {
     /// fell a whole period behind.
     fn schedule_after(&mut self, now: i64, due: i64) {
         let period = self.period_ns();
-        self.next_tick = Some(if now - due < period {
-            due + period
+        self.next_tick = Some(if now.saturating_sub(due) < period {
+            due.saturating_add(period)
         } else {
-            now + period
+            now.saturating_add(period)
         });
+    }
+
+    /// How far a GripperStatus may be stamped from the present and still be a tick \[ns]: the
+    /// gripper's freshness budget, at least two control periods.
+    fn off_limit_ns(&self) -> i64 {
+        let budget_ns = self.params.budget("gripper").unwrap_or(0.0) * 1e9;
+        (budget_ns.round() as i64).max(2 * self.period_ns())
+    }
+
+    /// Whether a GripperStatus stamped `t` is on the stage's time line: within the limit of the
+    /// present, or the last of [`RESYNC_STATUSES`] in a row that agree on a new one. Err: how
+    /// far it is ahead (positive) or behind (negative) of the present \[ns].
+    fn on_time_line(&mut self, t: i64) -> Result<(), i64> {
+        let Some(present) = self.present else {
+            return Ok(());
+        };
+        let off = t.saturating_sub(present);
+        let limit = self.off_limit_ns();
+        if off <= limit && off >= -limit {
+            self.off_run = None;
+            return Ok(());
+        }
+        let period = self.period_ns();
+        let count = match self.off_run {
+            Some((last, n)) => {
+                let step = t.saturating_sub(last);
+                if step >= period / 2 && step <= period + period / 2 {
+                    n + 1
+                } else {
+                    1
+                }
+            }
+            None => 1,
+        };
+        if count >= RESYNC_STATUSES {
+            // A new time line: the schedule and the present start again from this status.
+            self.off_run = None;
+            self.next_tick = None;
+            self.present = None;
+            return Ok(());
+        }
+        self.off_run = Some((t, count));
+        Err(off)
     }
 
     /// One control tick at `now`, triggered by `g`.
@@ -221,7 +320,29 @@ impl PolicyStage {
             self.queue.clear();
             Err(problems.join("; "))
         };
-        let mut d = self.safety.decide(proposed, Some(g.opening_m));
+        let opening = self.last_gripper.as_ref().and_then(|(o, _)| *o);
+        // The tactile reflex, under whatever policy proposed the action.
+        let last = self.safety.last_force_and_lift();
+        let touch = Self::touch(
+            &self.slip,
+            &self.contact,
+            self.params.budget_contact_s,
+            now,
+            g,
+            opening,
+        );
+        let bounds = self.safety.bounds().clone();
+        let proposed = proposed.map(|mut a| {
+            if let Some(r) = self.reflex.apply(&mut a, &touch, last, &bounds) {
+                a.note = if a.note.is_empty() {
+                    r
+                } else {
+                    format!("{r}; {}", a.note)
+                };
+            }
+            a
+        });
+        let mut d = self.safety.decide(proposed, opening);
         d.clamped.extend(self.policy.take_clamped());
         self.messages(now, &g.header.frame_id, d)
     }
@@ -265,23 +386,53 @@ impl Stage for PolicyStage {
         "policy"
     }
 
-    fn process(&mut self, input: &Msg, clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
-        self.assembler.offer(input);
+    /// The tick's time is the GripperStatus's own stamp, not `clock` (the chain's clock is the
+    /// latest stamp seen and never moves back, so one input stamped in the future would hold
+    /// it there): a status stamped further from the stage's present than the gripper's budget
+    /// is an invalid input, answered with the safe action stamped at the present, and moves
+    /// nothing; other inputs stamped ahead of a tick are invalid at that tick.
+    fn process(&mut self, input: &Msg, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
         let Msg::Gripper(g) = input else {
+            match input {
+                Msg::Slip(s) => self.slip = Some(s.clone()),
+                Msg::Contact(c) => self.contact = Some(c.clone()),
+                _ => {}
+            }
+            self.assembler.offer(input);
             return Ok(Vec::new());
         };
-        self.last_gripper = Some((g.opening_m, g.header.frame_id.clone()));
-        let now = clock.now();
+        let now = g.header.stamp;
+        if let Err(off) = self.on_time_line(now.0) {
+            let (Some(present), true) = (self.present, off > 0) else {
+                // Behind the present: an old status, not a tick.
+                return Ok(Vec::new());
+            };
+            let why = format!(
+                "gripper: invalid (stamp ahead by {:.3} s of the last control tick)",
+                off as f64 * 1e-9
+            );
+            let opening = self.last_gripper.as_ref().and_then(|(o, _)| *o);
+            let d = self.safety.decide(Err(why), opening);
+            return Ok(self.messages(Stamp(present), &g.header.frame_id, d));
+        }
+        self.assembler.offer(input);
+        // The opening a hold keeps: the last one within the stroke (a reading outside it, or
+        // not finite, is an invalid input and never where the safe action goes).
+        let opening = Some(g.opening_m)
+            .filter(|o| (0.0..=self.params.stroke_m).contains(o))
+            .or(self.last_gripper.as_ref().and_then(|(o, _)| *o));
+        self.last_gripper = Some((opening, g.header.frame_id.clone()));
         // Ticks on a fixed schedule at the control rate (no drift); a status up to 5 % of a
         // period early still ticks, so jitter does not skip a period.
         let period = self.period_ns();
         if let Some(due) = self.next_tick {
-            if now.0 < due - period / 20 {
+            if now.0 < due.saturating_sub(period / 20) {
                 return Ok(Vec::new());
             }
         }
         let due = self.next_tick.unwrap_or(now.0);
         self.schedule_after(now.0, due);
+        self.present = Some(self.present.map_or(now.0, |p| p.max(now.0)));
         Ok(self.tick(now, g))
     }
 }

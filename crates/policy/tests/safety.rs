@@ -283,3 +283,30 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn the_first_command_is_within_bounds_when_the_fingers_are_wider_than_the_scene_allows() {
+    // A 2F-140 open at 132 mm under a scene bounded at 85 mm: the first command is rate
+    // limited from the measured opening, and still inside the bounds.
+    let b = bounds();
+    let mut s = SafetyLayer::new(b.clone(), SafeAction::Hold, 5.0);
+    let a = Action {
+        gripper: GripperAction {
+            mode: GripperMode::Position,
+            position_m: 0.05,
+            speed_m_s: 0.05,
+            force_n: 10.0,
+        },
+        arm: ArmAction {
+            target: "cup".into(),
+            x_m: 0.45,
+            y_m: 0.0,
+            z_m: 0.05,
+            lift_m: 0.0,
+        },
+        note: "p".into(),
+    };
+    let d = s.decide(Ok(a), Some(0.1325));
+    assert!(d.ok);
+    assert_eq!(d.gripper.position_m, b.max_opening_m);
+}

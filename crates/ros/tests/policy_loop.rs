@@ -227,3 +227,137 @@ fn without_gripper_states_the_policy_node_sends_the_safe_action_on_its_timer() {
         "{held:?}"
     );
 }
+
+/// The inference node killed while the policy closes on the cup, then started again: the next
+/// tick after the kill holds (one control period of sim time), and once a new inference node
+/// publishes the policy goes on where it stopped: the probe touch, its latent from the new node,
+/// the squeeze, the target deformation.
+#[test]
+fn a_killed_inference_node_holds_the_policy_and_the_trial_resumes_when_it_returns() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let n = ns("resume");
+    let mut obs = Observer::start(HERE, &n, 150);
+    // The plain trial's 12 s of sim time, and time for the hold.
+    let mut l = Loop::start(HERE, &n, 14.0, &obs);
+    obs.wait_for(|s| s.starts_with("phase close"), 60);
+    l.freeze_sim(true);
+    stop(l.inference.take().unwrap());
+    obs.ask("publishers tactile_latent 0", "publishers ", 20);
+    let killed = obs.mark();
+    l.freeze_sim(false);
+    // Held a while (sim time goes on), then a new inference node.
+    std::thread::sleep(Duration::from_secs(1));
+    l.freeze_sim(true);
+    let held_until = obs.mark();
+    l.inference = Some(node(
+        env!("CARGO_BIN_EXE_unitac_inference_node"),
+        &n,
+        &["-p", &format!("scene:={SCENE}"), "-p", "use_sim_time:=true"],
+    ));
+    obs.ask("publishers tactile_latent 1", "publishers ", 30);
+    l.freeze_sim(false);
+    obs.wait_for(|s| s == "outcome", 120);
+    let got = obs.finish();
+    l.stop();
+    let st = statuses(&got);
+    let why = format!("latent_real: no publisher on {n}/tactile_latent");
+    let first = st
+        .iter()
+        .find(|s| s["stamp"].as_i64().unwrap() > killed)
+        .expect("a tick after the kill");
+    assert!(
+        first["stamp"].as_i64().unwrap() - killed <= PERIOD_NS + 1,
+        "{first}"
+    );
+    assert_eq!(first["safety_ok"], false, "{first}");
+    assert_eq!(first["message"], why.as_str(), "{first}");
+    // Held until the new node was there, then acting again, to the end of the trial.
+    let after: Vec<&Value> = st
+        .iter()
+        .filter(|s| s["stamp"].as_i64().unwrap() > held_until)
+        .collect();
+    let resumed = after
+        .iter()
+        .position(|s| s["safety_ok"] == true)
+        .expect("the policy acts again");
+    assert!(
+        after[..resumed]
+            .iter()
+            .all(|s| s["message"] == why.as_str()),
+        "{:?}",
+        &after[..resumed]
+    );
+    let p = phases(&got);
+    for want in ["probe", "await_latent", "squeeze", "hold"] {
+        assert!(p.contains(&want), "{p:?}");
+    }
+    let cup = &got["outcome"]["outcome"]["cup"];
+    assert_eq!(cup["deformation"], true, "{cup}");
+}
+
+/// A gripper driver's JointState stream that stops and comes back (system time, no sim): the
+/// watchdog's safe action on the policy's timer while it is gone, its own ticks again once it
+/// is back.
+#[test]
+fn a_gripper_driver_that_stops_and_returns_gets_the_safe_action_then_control_again() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let n = ns("gripper_back");
+    let mut obs = Observer::start(HERE, &n, 60);
+    let policy = node(
+        env!("CARGO_BIN_EXE_unitac_policy_node"),
+        &n,
+        &[
+            "-p",
+            &format!("scene:={SCENE}"),
+            "-p",
+            "gripper_input:=joint_states",
+        ],
+    );
+    obs.wait_for(|l| l == "ready", 30);
+    obs.send("joint_states 30");
+    let first = obs.wait_for(|l| l.starts_with("published "), 30);
+    let gone: i64 = first["published ".len()..].parse().unwrap();
+    std::thread::sleep(Duration::from_secs(1));
+    obs.send("joint_states 30");
+    let second = obs.wait_for(|l| l.starts_with("published "), 30);
+    let back: i64 = second["published ".len()..].parse().unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let got = obs.finish();
+    stop(policy);
+    let st = statuses(&got);
+    let watchdog = |s: &&Value| {
+        s["message"]
+            .as_str()
+            .unwrap()
+            .starts_with("gripper: no status for")
+    };
+    // While gone: the watchdog's safe action, the first once the tick due a period after the
+    // last state is a period overdue (the stage's rule, exact in crates/policy/tests/watchdog.rs;
+    // the node's timer and a loaded machine's scheduling add up to two periods more here).
+    let gap: Vec<&Value> = st
+        .iter()
+        .filter(|s| {
+            let t = s["stamp"].as_i64().unwrap();
+            t > gone && t < back - PERIOD_NS * 30
+        })
+        .collect();
+    assert!(gap.len() >= 10 && gap.iter().all(watchdog), "{gap:?}");
+    assert!(
+        gap[0]["stamp"].as_i64().unwrap() - gone <= 4 * PERIOD_NS,
+        "{:?}",
+        gap[0]
+    );
+    // Back: the states' own ticks again (held for the lost encoder latent, not the gripper).
+    let again: Vec<&Value> = st
+        .iter()
+        .filter(|s| {
+            let t = s["stamp"].as_i64().unwrap();
+            t > back - PERIOD_NS * 25 && t <= back
+        })
+        .collect();
+    assert!(!again.is_empty(), "{st:?}");
+    // (On a loaded machine a state more than a period late lets the watchdog tick in between:
+    // the states are sent on system time by another process. So: ticks of their own, not all.)
+    let own = again.iter().filter(|s| !watchdog(s)).count();
+    assert!(own >= 5, "{again:?}");
+}

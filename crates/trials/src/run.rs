@@ -202,6 +202,9 @@ pub struct TrialRecord {
     /// 2 % of its range (PolicyStatus.clamped: the safety layer's and the readouts').
     pub ticks: u64,
     pub clamped: std::collections::BTreeMap<String, u64>,
+    /// Ticks on which the safety layer's tactile reflex acted, per kind (`slip`, `grasp not
+    /// confirmed`; PolicyStatus.message names every reflex action, `reflex: ...`).
+    pub reflex: std::collections::BTreeMap<String, u64>,
     /// Per tick, when [`TrialOptions::record_io`].
     #[serde(skip)]
     pub io: Vec<TickIo>,
@@ -383,6 +386,7 @@ pub fn run_trial_on(
         serial: None,
         ticks: 0,
         clamped: Default::default(),
+        reflex: Default::default(),
         io: Vec::new(),
     };
     let gripper_error = move |t_s: f64| {
@@ -464,6 +468,16 @@ pub fn run_trial_on(
         record.ticks += 1;
         for c in &status.clamped {
             *record.clamped.entry(c.clone()).or_default() += 1;
+        }
+        if let Some(r) = status.message.strip_prefix("reflex: ") {
+            let kind = if r.starts_with("slip") {
+                "slip"
+            } else if r.starts_with("grasp not confirmed") {
+                "grasp not confirmed"
+            } else {
+                "other"
+            };
+            *record.reflex.entry(kind.to_string()).or_default() += 1;
         }
         if opts.record_io {
             record.io.push(TickIo {

@@ -12,7 +12,7 @@ pub mod physics;
 pub mod registers;
 pub mod relay;
 
-use crate::frame::{Decoder, Direction, Request};
+use crate::frame::{Decoder, Direction, FrameError, Request, Response};
 use crate::model::Model;
 use physics::{Kinematic, Physics, SimObject};
 use registers::{Registers, Snapshot};
@@ -82,6 +82,7 @@ struct Shared {
     faults: Mutex<Faults>,
     snap: Mutex<Snapshot>,
     overcurrent: AtomicBool,
+    overcurrent_persists: AtomicBool,
     unplugged: AtomicBool,
     stop: AtomicBool,
     path: Mutex<PathBuf>,
@@ -144,6 +145,15 @@ impl SimDevice {
     /// Trip the overcurrent protection (Robotiq: major fault 0x0E).
     pub fn overcurrent(&self) {
         self.shared.overcurrent.store(true, Ordering::Relaxed);
+    }
+
+    /// A persistent overcurrent (a finger blocked, a motor fault): while `on`, the device trips
+    /// Robotiq's major fault 0x0E again as soon as it is active without a fault, so every
+    /// re-activation ends in the fault.
+    pub fn overcurrent_persists(&self, on: bool) {
+        self.shared
+            .overcurrent_persists
+            .store(on, Ordering::Relaxed);
     }
 
     /// Pull the USB adapter: the pty closes (the driver's port hangs up) and the link goes.
@@ -299,17 +309,32 @@ fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<
             (now - last_tick).as_secs_f64(),
             (now - last_rx).as_secs_f64(),
         );
+        if shared.overcurrent_persists.load(Ordering::Relaxed) {
+            let s = regs.snapshot();
+            if s.active && s.fault == 0 {
+                regs.overcurrent();
+            }
+        }
         last_tick = now;
         for frame in frames {
             if frame.slave != cfg.slave {
                 continue;
             }
             let adu_len = frame.data.len() + 4;
-            let Ok(req) = Request::decode(&frame) else {
-                continue;
-            };
             last_rx = now;
-            let reply = regs.handle(&req);
+            let (reply, function) = match Request::decode(&frame) {
+                Ok(req) => (regs.handle(&req), req.function()),
+                // A function no gripper serves, or a quantity out of range: the exception reply
+                // a Modbus slave gives (illegal function, illegal data value).
+                Err(e) => {
+                    let code = match e {
+                        FrameError::Function(_) => 0x01,
+                        _ => 0x03,
+                    };
+                    let f = frame.function;
+                    (Some(Response::Exception { function: f, code }), f)
+                }
+            };
             // Counted before the reply leaves: a driver that has the reply sees it counted.
             *lock(&shared.snap) = regs.snapshot();
             let Some(reply) = reply else { continue };
@@ -326,7 +351,7 @@ fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<
                 faults.wrong_slave -= 1;
                 slave = cfg.slave.wrapping_add(1);
             }
-            let mut bytes = reply.encode(slave, req.function());
+            let mut bytes = reply.encode(slave, function);
             if faults.corrupt_crc > 0 {
                 faults.corrupt_crc -= 1;
                 if let Some(b) = bytes.last_mut() {

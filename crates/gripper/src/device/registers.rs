@@ -1,12 +1,17 @@
 //! Register maps of the simulated devices: what a Robotiq 2F or a DH AG/PGE controller does with
 //! each request, on top of a [`Physics`] model of the fingers.
 //!
-//! Behaviour taken from the manuals: Robotiq's action/status bytes, activation (gSTA 1 -> 3),
-//! gOBJ, major faults cleared only by an rACT rising edge, no exception replies; DH's init,
-//! force/speed/position registers and grip states. Sim-model assumptions (not from a manual): the
-//! activation takes `activation_s` and leaves the fingers open; fault 0x09 (no communication for
-//! 1 s) is reported by reads and cleared by the next command write; the motor is off under a major
-//! fault; the current reads 5 mA per newton.
+//! Behaviour taken from the manuals: Robotiq's register map (the command block 0x03E8-0x03EA and
+//! the status block 0x07D0-0x07D2, each readable and writable at any start and count inside it:
+//! FC 0x03 / 0x04 reads, FC 0x06 / 0x10 writes, FC 0x17 both), its action/status bytes,
+//! activation (gSTA 1 -> 3), gOBJ, major faults cleared only by an rACT rising edge; DH's init,
+//! force/speed/position registers and grip states. Both answer a request they cannot serve with a
+//! Modbus exception (0x01 illegal function, 0x02 illegal data address, 0x03 illegal data value),
+//! as the Modbus specification has a slave do. Sim-model assumptions (not from a manual): the
+//! activation takes `activation_s` and leaves the fingers open; gOBJ is 0 from a reset or an rACT
+//! rising edge until the next motion ends; fault 0x09 (no communication for 1 s) is reported by
+//! reads and cleared by the next command write; the motor is off under a major fault; the
+//! current reads 5 mA per newton of grip force (0 with no object held).
 
 use super::physics::{Drive, Fingers, Physics};
 use crate::frame::{Request, Response};
@@ -62,6 +67,9 @@ pub fn for_model(
 struct RobotiqRegs {
     cal: Calibration,
     phys: Box<dyn Physics>,
+    /// The command block as last written (0x03E8: action byte, reserved; 0x03E9: reserved, rPR;
+    /// 0x03EA: rSP, rFR).
+    cmd: [u16; 3],
     act: bool,
     gto: bool,
     pr: u8,
@@ -79,11 +87,21 @@ impl RobotiqRegs {
     fn new(model: Model, phys: Box<dyn Physics>, activation_s: f64, active: bool) -> Self {
         let cal = model.calibration();
         let f = phys.fingers();
+        let pr = cal.position.to_raw(f.opening_m) as u8;
         Self {
             cal,
+            cmd: [
+                if active {
+                    u16::from(robotiq::ACT) << 8
+                } else {
+                    0
+                },
+                u16::from(pr),
+                (255 << 8) | 128,
+            ],
             act: active,
             gto: false,
-            pr: cal.position.to_raw(f.opening_m) as u8,
+            pr,
             sp: 255,
             fr: 128,
             sta: if active { 3 } else { 0 },
@@ -110,77 +128,124 @@ impl RobotiqRegs {
         }
     }
 
-    fn write(&mut self, values: &[u16]) {
-        let action = values.first().map_or(0, |v| (v >> 8) as u8);
-        let act = action & robotiq::ACT != 0;
-        if act && !self.act {
-            // Rising edge: clears faults and (re)activates.
-            self.flt = 0;
-            self.sta = 1;
-            self.activating_left = self.activation_s;
-            self.snap.activations += 1;
+    /// Write `values` into the command block from register `offset` (checked by the caller).
+    fn write(&mut self, offset: usize, values: &[u16]) {
+        for (r, v) in self.cmd.iter_mut().skip(offset).zip(values) {
+            *r = *v;
         }
-        if !act {
-            self.snap.deactivations += 1;
-            self.sta = 0;
-            self.flt = 0;
+        if offset == 0 {
+            let action = (self.cmd[0] >> 8) as u8;
+            let act = action & robotiq::ACT != 0;
+            if act && !self.act {
+                // Rising edge: clears faults and (re)activates.
+                self.flt = 0;
+                self.sta = 1;
+                self.obj = 0;
+                self.activating_left = self.activation_s;
+                self.snap.activations += 1;
+            }
+            if !act {
+                self.snap.deactivations += 1;
+                self.sta = 0;
+                self.flt = 0;
+                self.obj = 0;
+            }
+            self.act = act;
+            self.gto = action & robotiq::GTO != 0;
         }
-        self.act = act;
-        self.gto = action & robotiq::GTO != 0;
-        if let (Some(&r1), Some(&r2)) = (values.get(1), values.get(2)) {
-            self.pr = r1 as u8;
-            self.sp = (r2 >> 8) as u8;
-            self.fr = r2 as u8;
-        }
+        self.pr = self.cmd[1] as u8;
+        self.sp = (self.cmd[2] >> 8) as u8;
+        self.fr = self.cmd[2] as u8;
         if self.flt == robotiq::FAULT_NO_COMM {
             self.flt = 0;
         }
-        if self.gto && !act {
+        if self.gto && !self.act {
             self.flt = 0x07;
         }
         if self.gto {
+            // A new motion: gOBJ says "moving" until it ends.
             self.obj = 0;
         }
     }
+
+    /// Registers `addr .. addr + qty` of the status or the command block.
+    fn read(&self, addr: u16, qty: u16) -> Result<Vec<u16>, u8> {
+        if let Some(o) = in_block(robotiq::STATUS, addr, qty) {
+            return Ok(self.status().to_regs()[o..o + usize::from(qty)].to_vec());
+        }
+        if let Some(o) = in_block(robotiq::CMD, addr, qty) {
+            return Ok(self.cmd[o..o + usize::from(qty)].to_vec());
+        }
+        Err(ILLEGAL_ADDRESS)
+    }
+}
+
+/// Registers in a Robotiq block.
+const ROBOTIQ_BLOCK: u16 = 3;
+
+/// The offset of `addr .. addr + qty` in the block starting at `start`, when it lies inside it.
+fn in_block(start: u16, addr: u16, qty: u16) -> Option<usize> {
+    let end = u32::from(addr) + u32::from(qty);
+    (qty > 0 && addr >= start && end <= u32::from(start) + u32::from(ROBOTIQ_BLOCK))
+        .then(|| usize::from(addr - start))
 }
 
 impl Registers for RobotiqRegs {
     fn handle(&mut self, req: &Request) -> Option<Response> {
         self.snap.requests += 1;
-        let status = |s: &Self, qty: u16| {
-            let r = s.status().to_regs();
-            Response::Registers(r[..usize::from(qty).min(3)].to_vec())
+        let exc = |code| Response::Exception {
+            function: req.function(),
+            code,
+        };
+        let cmd_offset = |addr: u16, n: usize| {
+            u16::try_from(n)
+                .ok()
+                .and_then(|n| in_block(robotiq::CMD, addr, n))
+                .ok_or(ILLEGAL_ADDRESS)
         };
         let resp = match req {
-            Request::ReadInput { addr, qty } | Request::ReadHolding { addr, qty }
-                if *addr == robotiq::STATUS && *qty <= 3 =>
-            {
-                status(self, *qty)
+            Request::ReadInput { addr, qty } | Request::ReadHolding { addr, qty } => {
+                self.read(*addr, *qty).map_or_else(exc, Response::Registers)
             }
-            Request::WriteMultiple { addr, values }
-                if *addr == robotiq::CMD && values.len() <= 3 =>
-            {
-                self.write(values);
-                Response::WriteMultiple {
-                    addr: *addr,
-                    qty: values.len() as u16,
+            Request::WriteSingle { addr, value } => match cmd_offset(*addr, 1) {
+                Ok(o) => {
+                    self.write(o, &[*value]);
+                    Response::WriteSingle {
+                        addr: *addr,
+                        value: *value,
+                    }
                 }
-            }
+                Err(code) => exc(code),
+            },
+            Request::WriteMultiple { addr, values } => match cmd_offset(*addr, values.len()) {
+                Ok(o) => {
+                    self.write(o, values);
+                    Response::WriteMultiple {
+                        addr: *addr,
+                        qty: values.len() as u16,
+                    }
+                }
+                Err(code) => exc(code),
+            },
             Request::ReadWrite {
                 read_addr,
                 read_qty,
                 write_addr,
                 values,
-            } if *read_addr == robotiq::STATUS
-                && *read_qty <= 3
-                && *write_addr == robotiq::CMD
-                && values.len() <= 3 =>
-            {
-                self.write(values);
-                status(self, *read_qty)
+            } => {
+                // Both ranges are checked before anything is written.
+                match (
+                    cmd_offset(*write_addr, values.len()),
+                    self.read(*read_addr, *read_qty),
+                ) {
+                    (Ok(o), Ok(_)) => {
+                        self.write(o, values);
+                        self.read(*read_addr, *read_qty)
+                            .map_or_else(exc, Response::Registers)
+                    }
+                    (Err(code), _) | (_, Err(code)) => exc(code),
+                }
             }
-            // The Robotiq controller sends no exception responses.
-            _ => return None,
         };
         self.snap.replies += 1;
         Some(resp)
@@ -225,10 +290,15 @@ impl Registers for RobotiqRegs {
             if self.activating_left <= 0.0 {
                 self.sta = 3;
                 self.pr = c.position.to_raw(f.opening_m) as u8;
+                self.cmd[1] = (self.cmd[1] & 0xFF00) | u16::from(self.pr);
             }
         }
         if self.act && self.sta == 3 && self.gto && !major {
-            let target = c.position.to_si(f64::from(self.pr));
+            // A request past the end of the stroke (rPR 255 on a 2F-85) is reached at the stop.
+            let target = c
+                .position
+                .to_si(f64::from(self.pr))
+                .clamp(0.0, c.limits.max_opening_m);
             let count = c.limits.max_opening_m / 255.0;
             // An object once detected stays detected until the next command (the force may
             // dip under the limit while the grip settles).
@@ -428,4 +498,199 @@ impl Registers for DhRegs {
     }
 
     fn overcurrent(&mut self) {}
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::panic)]
+    use super::*;
+    use crate::device::physics::Kinematic;
+
+    fn robotiq() -> Box<dyn Registers> {
+        let m = Model::Robotiq2F85;
+        let max = m.calibration().limits.max_opening_m;
+        for_model(m, Box::new(Kinematic::new(max, None)), 0.05, false)
+    }
+
+    fn run(r: &mut dyn Registers, seconds: f64) {
+        for _ in 0..(seconds / 0.001) as usize {
+            r.tick(0.001, 0.0);
+        }
+    }
+
+    fn regs(resp: Option<Response>) -> Vec<u16> {
+        match resp {
+            Some(Response::Registers(v)) => v,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn exception(resp: Option<Response>) -> u8 {
+        match resp {
+            Some(Response::Exception { code, .. }) => code,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn robotiq_blocks_answer_any_start_and_count_inside_them() {
+        let mut r = robotiq();
+        // Activate with one FC 0x06 write of the action register.
+        let w = r.handle(&Request::WriteSingle {
+            addr: 0x03E8,
+            value: 0x0900,
+        });
+        assert_eq!(
+            w,
+            Some(Response::WriteSingle {
+                addr: 0x03E8,
+                value: 0x0900
+            })
+        );
+        run(r.as_mut(), 0.2);
+        // Position, speed and force from 0x03E9 (FC 0x10, two registers), as pyRobotiqGripper
+        // writes them.
+        let w = r.handle(&Request::WriteMultiple {
+            addr: 0x03E9,
+            values: vec![0x00E6, 0xFF00],
+        });
+        assert_eq!(
+            w,
+            Some(Response::WriteMultiple {
+                addr: 0x03E9,
+                qty: 2
+            })
+        );
+        // Every start and count inside the status block, by FC 0x03 and 0x04.
+        let all = regs(r.handle(&Request::ReadInput {
+            addr: 0x07D0,
+            qty: 3,
+        }));
+        for addr in 0x07D0..0x07D3u16 {
+            for qty in 1..=(0x07D3 - addr) {
+                for req in [
+                    Request::ReadInput { addr, qty },
+                    Request::ReadHolding { addr, qty },
+                ] {
+                    let o = usize::from(addr - 0x07D0);
+                    assert_eq!(
+                        regs(r.handle(&req)),
+                        all[o..o + usize::from(qty)],
+                        "{req:?}"
+                    );
+                }
+            }
+        }
+        // gPR echoes the request written at 0x03E9.
+        assert_eq!(all[1] & 0xFF, 0xE6);
+        // The command block reads back as written.
+        assert_eq!(
+            regs(r.handle(&Request::ReadHolding {
+                addr: 0x03E9,
+                qty: 2
+            })),
+            [0x00E6, 0xFF00]
+        );
+        // FC 0x17 writing at 0x03EA and reading from 0x07D1.
+        let rw = regs(r.handle(&Request::ReadWrite {
+            read_addr: 0x07D1,
+            read_qty: 2,
+            write_addr: 0x03EA,
+            values: vec![0x8010],
+        }));
+        assert_eq!(rw.len(), 2);
+        assert_eq!(
+            regs(r.handle(&Request::ReadHolding {
+                addr: 0x03EA,
+                qty: 1
+            })),
+            [0x8010]
+        );
+    }
+
+    #[test]
+    fn robotiq_refuses_what_lies_outside_the_blocks_with_exceptions() {
+        let mut r = robotiq();
+        let bad_reads = [
+            (0x07D2, 2),
+            (0x07CF, 1),
+            (0x03EA, 2),
+            (0x0000, 3),
+            (0xFFFF, 1),
+        ];
+        for (addr, qty) in bad_reads {
+            assert_eq!(
+                exception(r.handle(&Request::ReadInput { addr, qty })),
+                ILLEGAL_ADDRESS
+            );
+        }
+        assert_eq!(
+            exception(r.handle(&Request::WriteMultiple {
+                addr: 0x03E9,
+                values: vec![1, 2, 3]
+            })),
+            ILLEGAL_ADDRESS
+        );
+        assert_eq!(
+            exception(r.handle(&Request::WriteSingle {
+                addr: 0x07D0,
+                value: 1
+            })),
+            ILLEGAL_ADDRESS
+        );
+        // An FC 0x17 with a bad read range writes nothing.
+        assert_eq!(
+            exception(r.handle(&Request::ReadWrite {
+                read_addr: 0x07D3,
+                read_qty: 1,
+                write_addr: 0x03E8,
+                values: vec![0x0100],
+            })),
+            ILLEGAL_ADDRESS
+        );
+        run(r.as_mut(), 0.2);
+        assert!(!r.snapshot().active && !r.snapshot().activating);
+        assert_eq!(r.snapshot().activations, 0);
+    }
+
+    #[test]
+    fn robotiq_reactivation_clears_the_object_and_a_full_close_is_reached_at_the_stop() {
+        let m = Model::Robotiq2F85;
+        let obj = crate::device::physics::SimObject {
+            width_m: 0.04,
+            stiffness_n_per_m: 20_000.0,
+        };
+        let mut r = for_model(m, Box::new(Kinematic::new(0.085, Some(obj))), 0.05, false);
+        let write = |r: &mut Box<dyn Registers>, v: Vec<u16>| {
+            r.handle(&Request::WriteMultiple {
+                addr: 0x03E8,
+                values: v,
+            })
+        };
+        write(&mut r, vec![0x0900, 0, 0xFF00]);
+        run(r.as_mut(), 0.1);
+        write(&mut r, vec![0x0900, 255, 0xFF00]);
+        run(r.as_mut(), 1.0);
+        assert_eq!(r.snapshot().object, 2, "{:?}", r.snapshot());
+        // Reset, then rACT again: no catch reported from before.
+        write(&mut r, vec![0, 0, 0]);
+        run(r.as_mut(), 0.001);
+        assert_eq!(r.snapshot().object, 0);
+        write(&mut r, vec![0x0900, 0, 0]);
+        run(r.as_mut(), 1.0);
+        assert_eq!(r.snapshot().object, 3, "{:?}", r.snapshot());
+        // Nothing between the fingers: rPR 255 ends at the stop, reached (gOBJ 3).
+        let mut r = robotiq();
+        write(&mut r, vec![0x0900, 0, 0xFF00]);
+        run(r.as_mut(), 0.1);
+        write(&mut r, vec![0x0900, 255, 0xFF00]);
+        run(r.as_mut(), 1.0);
+        let st = regs(r.handle(&Request::ReadInput {
+            addr: 0x07D0,
+            qty: 3,
+        }));
+        assert_eq!(st[0] >> 14, 3, "gOBJ: {st:04X?}");
+        assert_eq!(st[2] >> 8, 227, "gPO at the stop: {st:04X?}");
+        assert_eq!(st[2] & 0xFF, 0, "no current without an object: {st:04X?}");
+    }
 }
