@@ -26,7 +26,7 @@ ARGUMENTS = {
     "inference": ("true", "Run the inference node for the scene's encoder/compare/sampler stages (true | false)"),
     "sensor": ("true", "Run the sensor node (false when images come from elsewhere)"),
     "params_file": ("", "Extra --params-file YAML applied to every node"),
-    "split": ("train", "Sim source: train | unseen objects (cups 60/65/70 mm vs 90 mm; fabric has one set)"),
+    "split": ("train", "Sim source: train | unseen objects (objects/split.yaml: cups by diameter range, fabrics by type)"),
     "seed": ("1", "Sim source: the trial draw's seed"),
     "trial": ("0", "Sim source: the trial index"),
     "duration_s": ("", "Sim source: sim time of the trial [s] (empty: the task's, cup 12.0, fabric 25.0)"),

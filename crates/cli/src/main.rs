@@ -215,7 +215,7 @@ enum Cmd {
     },
     /// Bring-up of a serial gripper: `gripper --port P --model M activate|open|close|status|bench`.
     Gripper(gripper::GripperArgs),
-    /// Closed-loop grasp trials in the sim world (issue 13): each mode's scene
+    /// Closed-loop grasp trials in the sim world: each mode's scene
     /// (`<scene>_<mode>.yaml`) N times, the success table beside the paper's (`--json`, `--plot DIR`).
     Trials(trials::TrialsArgs),
     /// List the scenes found in the scene directories.

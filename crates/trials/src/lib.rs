@@ -1,4 +1,4 @@
-//! Closed-loop trials of the paper's two tasks (issue 13): a sim task world
+//! Closed-loop trials of the paper's two tasks: a sim task world
 //! ([`unitac_sim::task::TaskWorld`]) driven by the scene's stages and policy through messages.
 //!
 //! - [`bridge`]: the one conversion between the world and the messages (GripperStatus,
