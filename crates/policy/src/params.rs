@@ -237,9 +237,9 @@ impl PolicyParams {
             ("pad_m", self.pad_m),
             ("pregrasp_margin_m", self.pregrasp_margin_m),
         ];
-        if !(self.vla_offset_m.is_finite() && self.vla_offset_m.abs() <= self.max_opening_m) {
+        if !(self.vla_offset_m.is_finite() && self.vla_offset_m.abs() <= 1.0) {
             bad.push(format!(
-                "vla_offset_m = {} must be finite and within +-max_opening_m",
+                "vla_offset_m = {} must be finite and within +-1 m",
                 self.vla_offset_m
             ));
         }

@@ -88,7 +88,7 @@ fn full_params() -> [serde_json::Map<String, Value>; 6] {
         serde_json::to_value(SamplerParams::default()).unwrap(),
         sampler_special,
     );
-    // vtla_pred on a pick task reads what all four stages make (the scene check passes).
+    // vtla_pred on a pick task (the scene check passes with encoder and compare after it).
     let policy = non_default(
         serde_json::to_value(PolicyParams::default()).unwrap(),
         json!({"mode": "vtla_pred", "task": "pick the rougher fabric", "safe_action": "open",
@@ -112,10 +112,12 @@ fn scene(name: &str, p: &[serde_json::Map<String, Value>; 6]) -> PathBuf {
     let stages = json!([
         {"kind": "contact", "params": p[0]},
         {"kind": "slip", "params": p[1]},
-        {"kind": "encoder", "models": ["reference"], "params": p[2]},
-        {"kind": "compare", "params": p[3]},
         {"kind": "sampler", "models": ["reference"], "params": p[4]},
         {"kind": "policy", "params": policy},
+        // After the policy: vtla_pred reads no live comparison, and the scene check looks at the
+        // stages before the policy only.
+        {"kind": "encoder", "models": ["reference"], "params": p[2]},
+        {"kind": "compare", "params": p[3]},
     ]);
     let yaml = format!(
         "scene: {name}\nsource: {{kind: mock, sensor: gelsight-mini, scenario: fabric_selection}}\n\
@@ -210,6 +212,9 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
     let full_scene = scene("full", &full);
     let want = run_lines(&full_scene);
     assert_eq!(want.len(), 6, "{want:?}");
+    // The scene's order: contact, slip, sampler, policy, encoder, compare; the inference node's
+    // stages are the sampler, encoder and compare ones, the policy's is the fourth.
+    let want_infer: Vec<String> = [2, 4, 5].iter().map(|&i| want[i].clone()).collect();
     // The values really are the non-default ones (not the defaults the scene left out).
     let defaults = run_lines(&scene("defaults", &Default::default()));
     for (w, d) in want.iter().zip(&defaults) {
@@ -230,7 +235,7 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
         &format!("    scene: {}\n", full_scene.display()),
         3,
     );
-    assert_eq!(infer, want[2..5], "{log}");
+    assert_eq!(infer, want_infer, "{log}");
 
     // 2. A scene with default params plus `<stage>.<key>` ROS parameters for every key ROS can
     // carry (nested lists such as compare.pairs cannot be ROS parameters: scene file only).
@@ -255,7 +260,7 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
         + &overrides("compare", &full[3])
         + &overrides("sampler", &full[4]);
     let (infer, _, log) = node_lines(INFERENCE, "i2", &(head + &body), 3);
-    assert_eq!(infer, want[2..5], "{log}");
+    assert_eq!(infer, want_infer, "{log}");
 
     // 3. The policy stage (its ROS node comes later): every `policy.<key>` through the same
     // override path the nodes use reaches the typed params exactly as the scene file does.
@@ -272,7 +277,7 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
     unitac_pipeline::overrides::apply(&mut s, &["policy"], &policy).unwrap();
     let got = unitac_pipeline::effective_params(&s).unwrap();
     // The stage carries its scene's name (PolicyStatus.scene): the two scenes differ only there.
-    assert_eq!(got[5].replace("\"overridden\"", "\"full\""), want[5]);
+    assert_eq!(got[3].replace("\"overridden\"", "\"full\""), want[3]);
 }
 
 #[test]
