@@ -162,3 +162,107 @@ fn a_serial_gripper_trial_reports_its_wire_in_the_json() {
     assert_eq!(j["gripper"], "sim");
     assert!(j["modes"][0]["trials"][0].get("serial").is_none());
 }
+
+#[test]
+fn the_sweep_the_clamps_and_the_noise_sources_are_in_the_json() {
+    // The cup VLA (no model to load): the sweep's six variations of the world, each a table of
+    // the same shape; per mode the ticks and clamps; every noise figure with its source.
+    let o = unitac(&[
+        "trials",
+        "--scene",
+        "cup_deformation",
+        "--modes",
+        "vla",
+        "--trials",
+        "2",
+        "--seed",
+        "3",
+        "--sweep",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let sweep = j["sweep"].as_array().unwrap();
+    let names: Vec<&str> = sweep
+        .iter()
+        .map(|s| s["variant"]["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "camera noise x0.5",
+            "camera noise x2",
+            "cup stiffness x0.5",
+            "cup stiffness x2",
+            "cup size -10 mm",
+            "cup size +10 mm"
+        ]
+    );
+    for s in sweep {
+        assert_eq!(s["table"].as_array().unwrap().len(), 3);
+    }
+    let clamps = &j["modes"][0]["clamps"];
+    assert!(clamps["ticks"].as_u64().unwrap() > 100, "{clamps}");
+    assert!(clamps["clamped"].is_object() && clamps["reflex"].is_object());
+    let figures = j["noise_figures"].as_array().unwrap();
+    assert!(figures.len() >= 10);
+    for f in figures {
+        let source = f["source"].as_str().unwrap();
+        assert!(
+            !source.is_empty() && f["value"].as_f64().unwrap() > 0.0,
+            "{f}"
+        );
+    }
+    // The camera's assumed figures say they are swept.
+    assert!(figures.iter().any(
+        |f| f["name"].as_str().unwrap().starts_with("camera position")
+            && f["source"].as_str().unwrap().contains("swept")
+    ));
+}
+
+#[test]
+fn the_vla_rule_is_calibrated_on_training_cups_only() {
+    let o = unitac(&[
+        "trials",
+        "--scene",
+        "cup_deformation",
+        "--modes",
+        "vla",
+        "--train",
+        "--trials",
+        "3",
+        "--seed",
+        "1",
+        "--calibrate-vla",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let line = text
+        .lines()
+        .find_map(|l| l.strip_prefix("vla_offset_m: "))
+        .unwrap_or_else(|| panic!("{text}"));
+    let v: f64 = line.trim().parse().unwrap();
+    assert!(v.is_finite() && v.abs() < 0.01, "{v}");
+    // Not on the unseen split, nor another mode.
+    for args in [
+        &[
+            "trials",
+            "--scene",
+            "cup_deformation",
+            "--modes",
+            "vla",
+            "--calibrate-vla",
+        ][..],
+        &[
+            "trials",
+            "--scene",
+            "cup_deformation",
+            "--modes",
+            "vtla_real",
+            "--train",
+            "--calibrate-vla",
+        ][..],
+    ] {
+        assert_eq!(unitac(args).status.code(), Some(2), "{args:?}");
+    }
+}
