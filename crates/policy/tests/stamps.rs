@@ -12,8 +12,8 @@ use unitac_core::msg::{
 use unitac_core::{ManualClock, Stage, Stamp};
 use unitac_policy::PolicyStage;
 
-const CUP_VTLA_PRED: &str =
-    "{mode: vtla_pred, task: squeeze the cup by 1 cm, objects: [cup], latent_len: 4}";
+const CUP_VTLA_PRED: &str = "{mode: vtla_pred, task: squeeze the cup by 1 cm, objects: [cup], \
+    latent_len: 4, visual_names: [cup_x_m, cup_y_m, cup_width_m]}";
 
 fn status_at(rig: &Rig, t: i64) -> Msg {
     Msg::Gripper(GripperStatus {
@@ -31,7 +31,7 @@ fn status_at(rig: &Rig, t: i64) -> Msg {
 
 /// The cup vtla_pred run until the controller is squeezing (phase close, force mode).
 fn squeezing() -> Rig {
-    let mut rig = Rig::new(params(CUP_VTLA_PRED));
+    let mut rig = Rig::new(params(CUP_VTLA_PRED)).with_cup_camera();
     let l = rig.latent(LatentSource::Predicted, vec![0.5; 4]);
     rig.send(l);
     let mut t = rig.tick();
@@ -84,7 +84,7 @@ fn the_watchdog_still_ticks_after_a_gripper_status_from_the_future() {
     let t0 = 1_000_000_000;
     // The clock as the chain keeps it: the latest stamp seen.
     let clock = ManualClock::new(Stamp(t0));
-    let rig = Rig::new(params(CUP_VTLA_PRED));
+    let rig = Rig::new(params(CUP_VTLA_PRED)).with_cup_camera();
     assert_eq!(s.process(&status_at(&rig, t0), &clock).unwrap().len(), 3);
     let future = t0 + 1_000_000_000_000;
     clock.set(Stamp(future));
@@ -206,7 +206,7 @@ fn a_gripper_back_after_a_long_silence_ticks_again_from_its_third_status() {
 fn a_wrong_first_stamp_is_left_after_three_statuses_on_the_real_time_line() {
     // Nothing is known before the first status, so a first one stamped 1000 s ahead is taken
     // for the time line; the gripper's own statuses, a period apart, take it back.
-    let mut rig = Rig::new(params(CUP_VTLA_PRED));
+    let mut rig = Rig::new(params(CUP_VTLA_PRED)).with_cup_camera();
     let out = rig.chain.run(status_at(&rig, rig.now + 1_000_000_000_000));
     assert_eq!(out.produced.len(), 3);
     for i in 0..2 {
@@ -227,13 +227,14 @@ fn after_a_message_stamped_at_the_end_of_time_the_policy_acts_normally() {
     // stamps and the camera-fed approach acts (before, every later tick ran at the end of time
     // and saw every input stale: the safe action forever, or an overflow in a debug build).
     let mut rig = Rig::new(params(
-        "{mode: vla, task: squeeze the cup, objects: [cup], visual_names: [cup_width_m]}",
+        "{mode: vla, task: squeeze the cup, objects: [cup], \
+         visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
     ));
     let camera = |rig: &Rig| {
         Msg::Visual(VisualObservation {
             header: rig.header(),
-            names: vec!["cup_width_m".into()],
-            values: vec![0.08],
+            names: vec!["cup_x_m".into(), "cup_y_m".into(), "cup_width_m".into()],
+            values: vec![0.45, 0.0, 0.08],
         })
     };
     for i in 0..10 {

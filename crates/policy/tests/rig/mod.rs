@@ -32,6 +32,8 @@ pub struct Rig {
     pub object_detected: bool,
     pub motion: String,
     pub ticks: Vec<Tick>,
+    /// A camera frame (names, values) sent before every tick, stamped then (None: none).
+    pub camera: Option<(Vec<String>, Vec<f64>)>,
 }
 
 impl Rig {
@@ -48,7 +50,17 @@ impl Rig {
             object_detected: false,
             motion: "stopped".into(),
             ticks: Vec::new(),
+            camera: None,
         }
+    }
+
+    /// Send the cup scenes' camera (an 80 mm cup at (0.45, 0)) before every tick.
+    pub fn with_cup_camera(mut self) -> Self {
+        self.camera = Some((
+            vec!["cup_x_m".into(), "cup_y_m".into(), "cup_width_m".into()],
+            vec![0.45, 0.0, 0.08],
+        ));
+        self
     }
 
     pub fn header(&self) -> Header {
@@ -85,6 +97,14 @@ impl Rig {
 
     /// One control tick: the GripperStatus now; returns what the stage sent.
     pub fn tick(&mut self) -> Tick {
+        if let Some((names, values)) = self.camera.clone() {
+            let m = Msg::Visual(unitac_core::msg::VisualObservation {
+                header: self.header(),
+                names,
+                values,
+            });
+            self.chain.run(m);
+        }
         let g = GripperStatus {
             header: self.header(),
             opening_m: self.opening,
