@@ -403,7 +403,7 @@ fn fuzz_regressions_child() {
     assert!(n >= 1);
 }
 
-/// Issue 16 item 5: an oversized sqlite message is not read (its length is checked in the
+/// An oversized sqlite message is not read (its length is checked in the
 /// query), it is one error item, and the replay goes on to the next message.
 #[test]
 fn oversized_sqlite_message_is_skipped_unread() {
@@ -465,7 +465,7 @@ fn oversized_sqlite_message_is_skipped_unread() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// Issue 16 item 2: a metadata.yaml nested 100 000 deep inside offered_qos_profiles (200 KB)
+/// A metadata.yaml nested 100 000 deep inside offered_qos_profiles (200 KB)
 /// took 30 s to refuse; the depth bound refuses it before parsing.
 #[test]
 fn deeply_nested_metadata_is_refused_before_parsing() {

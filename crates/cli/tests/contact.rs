@@ -209,7 +209,7 @@ fn all_good_files_exit_0_and_bad_background_exits_2() {
     );
 }
 
-/// A sensor that changes resolution (issue 16): a bag whose first image is 32x24 and the next 60
+/// A sensor that changes resolution: a bag whose first image is 32x24 and the next 60
 /// are 64x48. The odd first frame does not lock the stage: the new size is learned after a few
 /// frames, and contact states come out for the rest.
 #[test]
@@ -273,7 +273,7 @@ fn replay_learns_a_new_frame_size() {
     assert!(lines.iter().all(|l| l["contact"] != true));
 }
 
-/// Issue 15's fixtures through the command line: DIGIT's large press (60 % of the gel) and a
+/// The fixtures through the command line: DIGIT's large press (60 % of the gel) and a
 /// light one under 40 DN of shading and 8 DN of noise at 640x480, and the same with no press,
 /// each against one background image. `unitac contact` says what the library's detector says
 /// (same area, centroid and contact, so the same code path), the press's area is within x1.5 of

@@ -1,4 +1,4 @@
-//! Hostile input and faults at the command line (issue 16): closed and full stdout, oversized
+//! Hostile input and faults at the command line: closed and full stdout, oversized
 //! images, bad configuration, corrupt and cut bags, full disks, endless replays. Each test failed
 //! on the code before the fix it guards.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]

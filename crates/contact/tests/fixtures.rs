@@ -1,4 +1,4 @@
-//! Issue 15's fixtures: presses under smooth shading (0-40 DN) and camera noise (1-8 DN per
+//! The fixtures: presses under smooth shading (0-40 DN) and camera noise (1-8 DN per
 //! channel), light, medium, large and near the border, on GelSight Mini and DIGIT at 320x240 and
 //! 640x480, each against a single background frame (as `unitac contact` runs). Plus the same
 //! shading and noise with no press at all.

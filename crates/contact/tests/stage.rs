@@ -132,7 +132,7 @@ fn a_sustained_new_frame_size_is_learned_again_and_an_odd_frame_is_only_rejected
     let p = ContactParams::default();
     let (learn, n) = (p.learn_frames as usize, p.new_size_frames as usize);
     let mut stage = ContactStage::new(p, SensorKind::Digit.spec()).unwrap();
-    // One 32x24 frame first, then 60 of 64x48 (issue 16: the first frame locked the size).
+    // One 32x24 frame first, then 60 of 64x48 (the first frame used to lock the size).
     let mut frames = sized_frames(32, 24, 0..1);
     frames.extend(sized_frames(64, 48, 1..61));
     let (errors, states, bgs) = feed(&mut stage, frames);

@@ -508,7 +508,7 @@ mod tests {
 
     #[test]
     fn deep_nesting_and_stage_order_and_slow_sources_are_refused() {
-        // Issue 16 item 2: 100 000 levels took 30 s inside serde_yaml; refused before parsing.
+        // 100 000 levels took 30 s inside serde_yaml; refused before parsing.
         let deep = format!(
             "{OK}    params: {{a: {}{}}}\n",
             "[".repeat(100_000),
@@ -519,7 +519,7 @@ mod tests {
             e.to_string().contains("nested more than 64 deep at line 5"),
             "{e}"
         );
-        // Issue 16 item 11: an encoder before the contact stage never sees a clip.
+        // An encoder before the contact stage never sees a clip.
         let mut c = ctx();
         c.known_stages.push("encoder".into());
         c.needs.insert("encoder".into(), "contact".into());

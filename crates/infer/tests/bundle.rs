@@ -111,7 +111,7 @@ fn edit_text(d: &std::path::Path) {
     .unwrap();
 }
 
-/// Issue 16 item 6: preprocessing that does not make the clip the encoder declares is one line
+/// Preprocessing that does not make the clip the encoder declares is one line
 /// when the bundle opens (it used to load, then fail in ONNX Runtime on every episode).
 #[test]
 fn preprocess_must_match_the_encoder_input_shape() {

@@ -1,4 +1,4 @@
-//! VTLA policy stages (issue 13): observation assembly with freshness budgets, scene controllers,
+//! VTLA policy stages: observation assembly with freshness budgets, scene controllers,
 //! ONNX policies, and the safety layer between any policy and any gripper.
 //!
 //! Every stage here implements `unitac_core::Stage` with an injected clock, like the contact and

@@ -123,7 +123,7 @@ fn contact_node_answers_every_image_with_a_contact_state() {
     );
 }
 
-/// Issue 16: an image with an invalid stamp (negative seconds, nanoseconds past a second) or an
+/// An image with an invalid stamp (negative seconds, nanoseconds past a second) or an
 /// encoding no node takes is counted once, as an error, never also as a drop, and its stamp is
 /// never rewritten; stamps a minute away from the node's clock are not averaged into latency.
 #[test]

@@ -1,4 +1,4 @@
-//! The closed loop over ROS (issue 13): sim node -> contact node -> inference node -> policy node
+//! The closed loop over ROS: sim node -> contact node -> inference node -> policy node
 //! -> sim node, in lock-step sim time, checked by an rclpy observer (tests/ros/policy_observer.py)
 //! that records PolicyStatus, GripperCommand, /clock and the sim's outcome. scripts/test runs
 //! this in a loopback-only network namespace. Nothing here times wall clocks for pass/fail: the
