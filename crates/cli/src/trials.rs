@@ -495,23 +495,19 @@ fn text_report(
             ));
         }
         let c = clamps(rs);
-        if !c.reflex.is_empty() {
-            let list: Vec<String> = c.reflex.iter().map(|(k, n)| format!("{k} {n}")).collect();
-            text.push_str(&format!(
-                "{}: tactile reflex acted, ticks of {}: {}\n",
-                m.name(),
-                c.ticks,
-                list.join(", ")
-            ));
-        }
-        if !c.clamped.is_empty() {
-            let list: Vec<String> = c.clamped.iter().map(|(k, n)| format!("{k} {n}")).collect();
-            text.push_str(&format!(
-                "{}: proposals beyond a bound by > 2 % of its range, ticks of {}: {}\n",
-                m.name(),
-                c.ticks,
-                list.join(", ")
-            ));
+        for (what, counts) in [
+            ("tactile reflex acted", &c.reflex),
+            ("proposals beyond a bound by > 2 % of its range", &c.clamped),
+        ] {
+            if !counts.is_empty() {
+                let list: Vec<String> = counts.iter().map(|(k, n)| format!("{k} {n}")).collect();
+                text.push_str(&format!(
+                    "{}: {what}, ticks of {}: {}\n",
+                    m.name(),
+                    c.ticks,
+                    list.join(", ")
+                ));
+            }
         }
     }
     for row in sweep {

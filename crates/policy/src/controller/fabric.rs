@@ -58,7 +58,6 @@ pub struct FabricController {
     /// The two objects touched, A and B.
     objects: [String; 2],
     t: Timed<Phase>,
-    press_force_n: f64,
     contact_at: Option<Stamp>,
     /// Comparisons stamped before the second touch began are not about this trial.
     second_touch_at: Option<Stamp>,
@@ -92,7 +91,6 @@ impl FabricController {
                 Phase::Look
             }),
 
-            press_force_n: p.touch_force_n,
             contact_at: None,
             second_touch_at: None,
             chosen: None,
@@ -350,11 +348,11 @@ impl FabricController {
                     p.min_opening_m
                 };
                 action(
-                    position(target, p.touch_speed_m_s, self.press_force_n),
+                    position(target, p.touch_speed_m_s, p.touch_force_n),
                     arm(&self.objects[i], self.place(i), self.touch_z(i), 0.0),
                     format!(
                         "touching {} ({:.2} N limit)",
-                        self.objects[i], self.press_force_n
+                        self.objects[i], p.touch_force_n
                     ),
                 )
             }
