@@ -11,7 +11,9 @@
 #      for each venv: the librmw_implementation shim (.build/ros-shim, .build/jazzy/ros-shim) and
 #      the rewrite of build-container paths in the wheels' CMake
 #   4. msg/unitac_msgs built with plain cmake into .build/msgs/install (Kilted) and
-#      .build/jazzy/msgs/install (Jazzy)
+#      .build/jazzy/msgs/install (Jazzy); msg/control_msgs (the GripperCommand action of
+#      ros-controls/control_msgs, which no wheel carries) into .build/control_msgs/install and
+#      .build/jazzy/control_msgs/install
 #   5. the reference model bundle in .build/models/reference: `unitac dataset fabrics` renders
 #      mock presses through the real contact stage, models/generate_reference.py builds the ONNX
 #      models and fits the property head on them (~1 min; only when its inputs changed)
@@ -93,22 +95,30 @@ make_shim() {
 make_shim "$BUILD/ros-shim" "$VENV"
 make_shim "$BUILD/jazzy/ros-shim" "$VENV_JAZZY"
 
-# --- 4. msg/unitac_msgs -------------------------------------------------------------------------
-# build_msgs: msg/unitac_msgs into $B/msgs/install with the environment of the distro that
+# --- 4. msg/unitac_msgs, msg/control_msgs ------------------------------------------------------
+# build_msgs: the interface packages in msg/ into $B/msgs/install with the environment of the distro that
 # scripts/env.sh selected (UNITAC_VENV, CARGO_TARGET_DIR), B the distro's build dir.
 build_msgs() {
   local b="$1" key
   key="$(hash_of $(find msg -type f | sort) "$UNITAC_VENV/.unitac-stamp")"
   [ "$(cat "$b/msgs/.stamp" 2>/dev/null)" != "$key" ] || return 0
-  log "msgs: building msg/unitac_msgs for $UNITAC_ROS"
-  rm -rf "$b/msgs"
+  log "msgs: building msg/unitac_msgs and msg/control_msgs for $UNITAC_ROS"
+  rm -rf "$b/msgs" "$b/control_msgs"
   mkdir -p "$b"
-  cmake -S msg/unitac_msgs -B "$b/msgs/build" -DCMAKE_INSTALL_PREFIX="$b/msgs/install" \
-    -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$UNITAC_VENV/bin/python" >"$b/msgs-cmake.log" 2>&1 \
-    || { cat "$b/msgs-cmake.log" >&2; exit 1; }
-  cmake --build "$b/msgs/build" -j2 >>"$b/msgs-cmake.log" 2>&1 \
-    && cmake --install "$b/msgs/build" >>"$b/msgs-cmake.log" 2>&1 \
-    || { tail -50 "$b/msgs-cmake.log" >&2; exit 1; }
+  : >"$b/msgs-cmake.log"
+  # unitac_msgs is this repository's (colcon builds it too); control_msgs stands for the robot's
+  # installed ros2_control interfaces: a prefix of its own, which colcon workspaces leave alone.
+  local pkg prefix
+  for pkg in unitac_msgs control_msgs; do
+    prefix="$b/msgs"
+    [ "$pkg" = unitac_msgs ] || prefix="$b/$pkg"
+    cmake -S "msg/$pkg" -B "$prefix/build" -DCMAKE_INSTALL_PREFIX="$prefix/install" \
+      -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$UNITAC_VENV/bin/python" >>"$b/msgs-cmake.log" 2>&1 \
+      || { tail -50 "$b/msgs-cmake.log" >&2; exit 1; }
+    cmake --build "$prefix/build" -j2 >>"$b/msgs-cmake.log" 2>&1 \
+      && cmake --install "$prefix/build" >>"$b/msgs-cmake.log" 2>&1 \
+      || { tail -50 "$b/msgs-cmake.log" >&2; exit 1; }
+  done
   # r2r caches generated bindings in its OUT_DIR keyed on the environment, not on the message
   # files: drop both crates' build outputs so the bindings are generated again.
   if [ -d "${CARGO_TARGET_DIR:-target}" ]; then
