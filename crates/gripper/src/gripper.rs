@@ -6,6 +6,7 @@
 
 use serde::Serialize;
 use thiserror::Error;
+use unitac_core::msg::GripperMode;
 
 /// A motion command: go to `opening_m` at no more than `speed_m_s`, squeezing with at most
 /// `force_n` (the fingers stop on an object when the grip force reaches it).
@@ -17,6 +18,29 @@ pub struct GripCommand {
     pub speed_m_s: f64,
     /// Grip force limit \[N].
     pub force_n: f64,
+}
+
+impl GripCommand {
+    /// The motion a `unitac_msgs/GripperCommand` asks for, as the message defines it: POSITION
+    /// goes to `position_m` with `force_n` as the force limit; FORCE closes (target 0) until the
+    /// grip force reaches `force_n`; STOP holds the measured opening `opening_now` with `force_n`
+    /// (None without a measured opening: nothing to hold yet). Every gripper interface (the
+    /// serial node, the ros2_control action client) turns a command into a motion here.
+    pub fn from_msg(
+        c: &unitac_core::msg::GripperCommand,
+        opening_now: Option<f64>,
+    ) -> Option<Self> {
+        let opening_m = match c.mode {
+            GripperMode::Position => c.position_m,
+            GripperMode::Force => 0.0,
+            GripperMode::Stop => opening_now?,
+        };
+        Some(Self {
+            opening_m,
+            speed_m_s: c.speed_m_s,
+            force_n: c.force_n,
+        })
+    }
 }
 
 /// Activation of the gripper's controller.

@@ -52,32 +52,6 @@ impl Default for Params {
     }
 }
 
-/// The driver command for a GripperCommand (None: nothing to do).
-fn to_command(
-    c: &r2r::unitac_msgs::msg::GripperCommand,
-    opening_now: Option<f64>,
-) -> Option<GripCommand> {
-    use r2r::unitac_msgs::msg::GripperCommand as M;
-    // The mode constants are bindgen integer types; compare as u64.
-    let mode = u64::from(c.mode);
-    let (opening_m, force_n) = if mode == M::MODE_POSITION as u64 {
-        (c.position_m, c.force_n)
-    } else if mode == M::MODE_FORCE as u64 {
-        // Close until the grip force reaches force_n.
-        (0.0, c.force_n)
-    } else if mode == M::MODE_STOP as u64 {
-        // Hold where the fingers are.
-        (opening_now?, c.force_n)
-    } else {
-        return None;
-    };
-    Some(GripCommand {
-        opening_m,
-        speed_m_s: c.speed_m_s,
-        force_n,
-    })
-}
-
 fn run() -> anyhow::Result<()> {
     let mut base = NodeBase::<Params>::new("unitac_gripper", &[])?;
     let p = base.params()?;
@@ -121,12 +95,12 @@ fn run() -> anyhow::Result<()> {
         base.spin(Duration::from_millis(2));
         while let Some(Some(c)) = commands.next().now_or_never() {
             let now = gripper.state().opening_m;
-            let r = match to_command(&c, now) {
-                Some(cmd) => gripper.command(cmd).map_err(|e| e.to_string()),
-                None => Err(format!(
-                    "unknown mode {} (or no opening yet for STOP)",
-                    c.mode
-                )),
+            let r = match unitac_ros::convert::gripper_command_from(&c) {
+                Err(e) => Err(e.to_string()),
+                Ok(c) => match GripCommand::from_msg(&c, now) {
+                    Some(cmd) => gripper.command(cmd).map_err(|e| e.to_string()),
+                    None => Err("STOP before the first measured opening".to_string()),
+                },
             };
             if let Err(e) = r {
                 command_errors += 1;
