@@ -9,6 +9,7 @@
 //! - [`device::SimDevice`]: simulated serial grippers on a pseudo-terminal, with fault injection,
 //!   for tests and benchmarks without hardware.
 
+pub mod action;
 pub mod bench;
 pub mod client;
 pub mod crc;
