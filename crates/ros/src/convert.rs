@@ -353,9 +353,68 @@ pub fn joint_state(
     }
 }
 
+/// The arm target of an ArmCommand as a `geometry_msgs/PoseStamped` for a Cartesian controller or
+/// MoveIt Servo: the fingertip centre at (x_m, y_m, z_m + lift_m) in `frame` (the frame of the
+/// policy's table coordinates), the tool turned by `tool_rpy` (roll, pitch, yaw about the frame's
+/// fixed axes, as in URDF). None for `home`: the arm stack's own named pose, not a place.
+pub fn arm_pose(
+    a: &unitac_core::msg::ArmCommand,
+    frame: &str,
+    tool_rpy: [f64; 3],
+) -> Option<r2r::geometry_msgs::msg::PoseStamped> {
+    if a.target == "home" {
+        return None;
+    }
+    let [r, p, y] = tool_rpy.map(|v| v / 2.0);
+    let (sr, cr, sp, cp, sy, cy) = (r.sin(), r.cos(), p.sin(), p.cos(), y.sin(), y.cos());
+    let orientation = r2r::geometry_msgs::msg::Quaternion {
+        x: sr * cp * cy - cr * sp * sy,
+        y: cr * sp * cy + sr * cp * sy,
+        z: cr * cp * sy - sr * sp * cy,
+        w: cr * cp * cy + sr * sp * sy,
+    };
+    let mut header = header(&a.header);
+    header.frame_id = frame.to_string();
+    Some(r2r::geometry_msgs::msg::PoseStamped {
+        header,
+        pose: r2r::geometry_msgs::msg::Pose {
+            position: r2r::geometry_msgs::msg::Point {
+                x: a.x_m,
+                y: a.y_m,
+                z: a.z_m + a.lift_m,
+            },
+            orientation,
+        },
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_arm_command_is_a_pose_in_the_arm_frame_and_home_is_none() {
+        let mut a = unitac_core::msg::samples::arm_command();
+        a.target = "cup".into();
+        (a.x_m, a.y_m, a.z_m, a.lift_m) = (0.4, -0.1, 0.05, 0.1);
+        let p = arm_pose(&a, "table", [std::f64::consts::PI, 0.0, 0.0]).unwrap();
+        assert_eq!(p.header.frame_id, "table");
+        assert_eq!(stamp(&p.header.stamp), a.header.stamp);
+        let q = &p.pose.orientation;
+        let pos = &p.pose.position;
+        assert_eq!((pos.x, pos.y), (0.4, -0.1));
+        assert!((pos.z - 0.15).abs() < 1e-12);
+        // Roll by pi: the tool's z axis points down.
+        assert!((q.x.abs() - 1.0).abs() < 1e-12 && q.y.abs() < 1e-12 && q.w.abs() < 1e-12);
+        let q = arm_pose(&a, "table", [0.0, 0.0, std::f64::consts::FRAC_PI_2])
+            .unwrap()
+            .pose
+            .orientation;
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        assert!((q.z - h).abs() < 1e-12 && (q.w - h).abs() < 1e-12);
+        a.target = "home".into();
+        assert!(arm_pose(&a, "table", [0.0; 3]).is_none());
+    }
 
     #[test]
     fn joint_states_become_gripper_status_with_unknowns_nan() {

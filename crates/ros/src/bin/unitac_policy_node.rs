@@ -3,7 +3,16 @@
 //! sim or a driver, or `joint_states`, sensor_msgs/JointState: `gripper_input`), and what the
 //! scene's mode reads: `contact_state`, `tactile_latent` (real or predicted), `property_comparison`,
 //! `visual_observation`; GripperCommand (`gripper_command`), ArmCommand (`arm_command`) and
-//! PolicyStatus (`policy_status`) out, one each per control tick; /diagnostics once a second.
+//! PolicyStatus (`policy_status`) out, one each per control tick; the arm target also as
+//! geometry_msgs/PoseStamped (`arm_pose`, in `arm_frame`; none for `home`) for a Cartesian
+//! controller or MoveIt Servo; /diagnostics once a second.
+//!
+//! With `gripper_output: action` the gripper commands go to a ros2_control gripper controller
+//! instead: a `control_msgs/action/GripperCommand` client of `gripper_action` sends a goal
+//! (position, max_effort) when the command changes, and what the goals' results and feedback say
+//! (stall = object caught, abort, preemption by another client, no server) is merged into the
+//! gripper state from `joint_states` before the stage sees it (unitac_gripper::action), so a
+//! fault there reaches the same safety layer and gets the safe action on the next tick.
 //!
 //! The stage keeps the clock rule: its clock is its input's stamp (the latest stamp seen), and a
 //! control tick is the arrival of a gripper state at the control rate. What only a transport can
@@ -18,14 +27,19 @@
 //!   `<input>: no publisher on <topic>`;
 //! - SIGINT / SIGTERM end the loop; the node stops spinning and exits 0.
 
-use futures::StreamExt;
-use futures::stream::{BoxStream, SelectAll};
+use futures::channel::mpsc;
+use futures::future::LocalBoxFuture;
+use futures::stream::{BoxStream, FuturesUnordered, SelectAll};
+use futures::{FutureExt, StreamExt};
 use r2r::{QosProfile, RosParams};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::signal::unix::{SignalKind, signal};
+use unitac_core::msg::GripperStatus;
 use unitac_core::{ManualClock, Msg, Stage, Stamp};
+use unitac_gripper::GripCommand;
+use unitac_gripper::action::{ActionLink, Goal, GoalEnd, Report, Resend};
 use unitac_pipeline::StageConfig;
 use unitac_policy::PolicyStage;
 use unitac_ros::node::{AsyncNode, ros_now, spin_in_background};
@@ -42,6 +56,19 @@ struct Params {
     gripper_input: String,
     /// The gripper's joint in joint_states (empty: the only joint)
     joint_name: String,
+    /// gripper_command: unitac_msgs/GripperCommand on `gripper_command` (the serial gripper
+    /// node, the sim); action: goals for a control_msgs/action/GripperCommand server
+    /// (`gripper_action`; use with gripper_input joint_states)
+    gripper_output: String,
+    /// The GripperCommand action server (gripper_output action)
+    gripper_action: String,
+    /// TF frame of `arm_pose`: the frame of the policy's table coordinates
+    arm_frame: String,
+    /// The tool's orientation in `arm_frame` for `arm_pose`: roll, pitch, yaw [rad] (default:
+    /// turned over, fingers pointing down a z-up frame)
+    tool_roll: f64,
+    tool_pitch: f64,
+    tool_yaw: f64,
 }
 
 impl Default for Params {
@@ -50,6 +77,12 @@ impl Default for Params {
             scene: "cup_deformation_vtla_real".into(),
             gripper_input: "gripper_status".into(),
             joint_name: "gripper_finger_opening".into(),
+            gripper_output: "gripper_command".into(),
+            gripper_action: "/gripper_controller/gripper_cmd".into(),
+            arm_frame: "base_link".into(),
+            tool_roll: std::f64::consts::PI,
+            tool_pitch: 0.0,
+            tool_yaw: 0.0,
         }
     }
 }
@@ -196,18 +229,151 @@ fn build(
     Ok((name.clone(), stage))
 }
 
+type GripperAction = r2r::control_msgs::action::GripperCommand::Action;
+
+/// Where the gripper commands go.
+enum GripperOut {
+    Topic(r2r::Publisher<r2r::unitac_msgs::msg::GripperCommand>),
+    Action {
+        client: r2r::ActionClient<GripperAction>,
+        link: ActionLink,
+        events: mpsc::UnboundedSender<ActionEvent>,
+        /// Goals under way: each ends with its result.
+        goals: FuturesUnordered<LocalBoxFuture<'static, ()>>,
+        /// Where the latest goal was sent to, e.g. for diagnostics.
+        name: String,
+    },
+}
+
+/// What the action server said about goal `.0`.
+enum ActionEvent {
+    Answered(u64, bool),
+    Feedback(u64, Report),
+    Finished(u64, GoalEnd, Report),
+    Failed(u64, String),
+}
+
+fn report(position: f64, effort: f64, stalled: bool, reached_goal: bool) -> Report {
+    Report {
+        position_m: position,
+        effort_n: effort,
+        stalled,
+        reached_goal,
+    }
+}
+
+/// Goal `id` to the server; its answer, feedback and result come back on `events`.
+fn send_goal(
+    client: &r2r::ActionClient<GripperAction>,
+    id: u64,
+    goal: Goal,
+    events: mpsc::UnboundedSender<ActionEvent>,
+) -> LocalBoxFuture<'static, ()> {
+    use r2r::control_msgs::action::GripperCommand as G;
+    let msg = G::Goal {
+        command: r2r::control_msgs::msg::GripperCommand {
+            position: goal.position_m,
+            max_effort: goal.max_effort_n,
+        },
+    };
+    let sent = client.send_goal_request(msg);
+    async move {
+        let send = |e: ActionEvent| {
+            // (The receiver lives as long as the node's loop.)
+            let _ = events.unbounded_send(e);
+        };
+        let accepted = match sent {
+            Err(e) => return send(ActionEvent::Failed(id, format!("goal not sent: {e}"))),
+            Ok(f) => f.await,
+        };
+        let (_handle, result, mut feedback) = match accepted {
+            Err(r2r::Error::RCL_RET_ACTION_GOAL_REJECTED) => {
+                return send(ActionEvent::Answered(id, false));
+            }
+            Err(e) => return send(ActionEvent::Failed(id, format!("goal lost: {e}"))),
+            Ok(a) => a,
+        };
+        send(ActionEvent::Answered(id, true));
+        let mut result = std::pin::pin!(result);
+        loop {
+            tokio::select! {
+                f = feedback.next() => {
+                    if let Some(f) = f {
+                        send(ActionEvent::Feedback(
+                            id,
+                            report(f.position, f.effort, f.stalled, f.reached_goal),
+                        ));
+                    }
+                }
+                r = &mut result => {
+                    match r {
+                        Ok((status, r)) => {
+                            let end = match status {
+                                r2r::GoalStatus::Succeeded => GoalEnd::Succeeded,
+                                r2r::GoalStatus::Canceled => GoalEnd::Canceled,
+                                _ => GoalEnd::Aborted,
+                            };
+                            send(ActionEvent::Finished(
+                                id,
+                                end,
+                                report(r.position, r.effort, r.stalled, r.reached_goal),
+                            ));
+                        }
+                        Err(e) => send(ActionEvent::Failed(id, format!("no result: {e}"))),
+                    }
+                    return;
+                }
+            }
+        }
+    }
+    .boxed_local()
+}
+
 struct Publishers {
-    command: r2r::Publisher<r2r::unitac_msgs::msg::GripperCommand>,
+    gripper: GripperOut,
     arm: r2r::Publisher<r2r::unitac_msgs::msg::ArmCommand>,
+    pose: r2r::Publisher<r2r::geometry_msgs::msg::PoseStamped>,
     status: r2r::Publisher<r2r::unitac_msgs::msg::PolicyStatus>,
+    arm_frame: String,
+    tool_rpy: [f64; 3],
+    /// The latest measured opening (a STOP holds it).
+    opening_m: Option<f64>,
 }
 
 impl Publishers {
-    fn publish(&self, out: Vec<Msg>, counters: &mut diagnostics::Counters, last: &mut String) {
+    fn goals_under_way(&self) -> bool {
+        matches!(&self.gripper, GripperOut::Action { goals, .. } if !goals.is_empty())
+    }
+
+    fn publish(&mut self, out: Vec<Msg>, counters: &mut diagnostics::Counters, last: &mut String) {
         for m in out {
             let r = match &m {
-                Msg::Command(c) => self.command.publish(&convert::gripper_command(c)),
-                Msg::Arm(a) => self.arm.publish(&convert::arm_command(a)),
+                Msg::Command(c) => match &mut self.gripper {
+                    GripperOut::Topic(p) => p.publish(&convert::gripper_command(c)),
+                    GripperOut::Action {
+                        client,
+                        link,
+                        events,
+                        goals,
+                        ..
+                    } => {
+                        match GripCommand::from_msg(c, self.opening_m) {
+                            Some(cmd) => {
+                                if let Some((id, goal)) = link.command(&cmd, c.header.stamp) {
+                                    goals.push(send_goal(client, id, goal, events.clone()));
+                                }
+                            }
+                            None => counters.error("gripper: STOP before a measured opening"),
+                        }
+                        continue;
+                    }
+                },
+                Msg::Arm(a) => {
+                    if let Some(p) = convert::arm_pose(a, &self.arm_frame, self.tool_rpy) {
+                        counters.published(self.pose.publish(&p));
+                    }
+                    self.arm.publish(&convert::arm_command(a))
+                }
                 Msg::Status(s) => {
                     *last = format!(
                         "{} ({})",
@@ -219,6 +385,27 @@ impl Publishers {
                 _ => continue,
             };
             counters.published(r);
+        }
+    }
+
+    /// A measured gripper state as the stage sees it: with the action's view merged in.
+    fn gripper_state(&mut self, g: GripperStatus) -> GripperStatus {
+        self.opening_m = g.opening_m.is_finite().then_some(g.opening_m);
+        match &self.gripper {
+            GripperOut::Topic(_) => g,
+            GripperOut::Action { link, .. } => link.status(g),
+        }
+    }
+
+    /// What the action server said.
+    fn action_event(&mut self, e: ActionEvent) {
+        if let GripperOut::Action { link, .. } = &mut self.gripper {
+            match e {
+                ActionEvent::Answered(id, ok) => link.answered(id, ok),
+                ActionEvent::Feedback(id, r) => link.feedback(id, &r),
+                ActionEvent::Finished(id, end, r) => link.finished(id, end, &r),
+                ActionEvent::Failed(id, why) => link.send_failed(id, &why),
+            }
         }
     }
 }
@@ -252,6 +439,21 @@ impl Producers {
     }
 }
 
+impl Producers {
+    /// Why the gripper action server `name` (fully qualified) is not there, or None when it is
+    /// (a server publishes its goals' status).
+    fn action_server_missing(&self, name: &str) -> anyhow::Result<Option<String>> {
+        let topic = format!("{name}/_action/status");
+        let n = self
+            .node
+            .lock()
+            .map_err(|_| anyhow::anyhow!("node lock poisoned"))?
+            .get_publishers_info_by_topic(&topic, false)?
+            .len();
+        Ok((n == 0).then(|| format!("gripper action: no server on {name}")))
+    }
+}
+
 /// `topic` (relative) in the node's namespace, as the graph names it.
 fn qualified(namespace: &str, topic: &str) -> String {
     format!("{}/{topic}", namespace.trim_end_matches('/'))
@@ -272,16 +474,50 @@ async fn run_async() -> anyhow::Result<()> {
             p.gripper_input
         );
     }
+    if !matches!(p.gripper_output.as_str(), "gripper_command" | "action") {
+        anyhow::bail!(
+            "gripper_output must be gripper_command or action, got '{}'",
+            p.gripper_output
+        );
+    }
+    let tool_rpy = [p.tool_roll, p.tool_pitch, p.tool_yaw];
+    if tool_rpy.iter().any(|v| !v.is_finite()) {
+        anyhow::bail!("tool_roll, tool_pitch and tool_yaw must be finite, got {tool_rpy:?}");
+    }
     let (scene, mut stage) = build(&p, &overrides)?;
     let inputs = stage.inputs();
     let mut incoming = subscribe(&mut node, &inputs, &p)?;
     let reliable = QosProfile::default;
-    let pubs = Publishers {
-        command: node.create_publisher("gripper_command", reliable())?,
-        arm: node.create_publisher("arm_command", reliable())?,
-        status: node.create_publisher("policy_status", reliable())?,
-    };
     let namespace = node.namespace()?;
+    let (events_tx, mut events) = mpsc::unbounded::<ActionEvent>();
+    let (gripper, action_name) = if p.gripper_output == "action" {
+        let name = if p.gripper_action.starts_with('/') {
+            p.gripper_action.clone()
+        } else {
+            qualified(&namespace, &p.gripper_action)
+        };
+        let client = node.create_action_client::<GripperAction>(&name)?;
+        let out = GripperOut::Action {
+            client,
+            link: ActionLink::new(Resend::default()),
+            events: events_tx,
+            goals: FuturesUnordered::new(),
+            name: name.clone(),
+        };
+        (out, Some(name))
+    } else {
+        let out = GripperOut::Topic(node.create_publisher("gripper_command", reliable())?);
+        (out, None)
+    };
+    let mut pubs = Publishers {
+        gripper,
+        arm: node.create_publisher("arm_command", reliable())?,
+        pose: node.create_publisher("arm_pose", reliable())?,
+        status: node.create_publisher("policy_status", reliable())?,
+        arm_frame: p.arm_frame.clone(),
+        tool_rpy,
+        opening_m: None,
+    };
     let mut diag = diagnostics::Updater::new(
         &format!("unitac_policy: {}", node.fully_qualified_name()?),
         &scene,
@@ -326,12 +562,17 @@ async fn run_async() -> anyhow::Result<()> {
                         continue;
                     }
                 };
-                if matches!(m, Msg::Gripper(_)) {
-                    // A tick: the producers as they are now, so a loss shows in this tick.
-                    if let Err(e) = producers.check(&mut stage) {
-                        counters.error(format!("graph: {e:#}"));
+                let m = match m {
+                    Msg::Gripper(g) => {
+                        // A tick: the producers as they are now, so a loss shows in this tick.
+                        if let Err(e) = producers.check(&mut stage) {
+                            counters.error(format!("graph: {e:#}"));
+                        }
+                        check_server(&producers, &mut pubs, action_name.as_deref(), &mut counters);
+                        Msg::Gripper(pubs.gripper_state(g))
                     }
-                }
+                    m => m,
+                };
                 let stamp = m.stamp();
                 let c = clock_of(&mut latest, stamp);
                 match stage.process(&m, &c) {
@@ -345,10 +586,13 @@ async fn run_async() -> anyhow::Result<()> {
                 }
                 counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
             }
+            Some(e) = events.next() => pubs.action_event(e),
+            Some(()) = next_goal(&mut pubs), if pubs.goals_under_way() => {}
             _ = control.tick() => {
                 if let Err(e) = producers.check(&mut stage) {
                     counters.error(format!("graph: {e:#}"));
                 }
+                check_server(&producers, &mut pubs, action_name.as_deref(), &mut counters);
                 let now = convert::stamp(&ros_now(&clock));
                 let out = stage.watchdog_tick(now);
                 if !out.is_empty() {
@@ -357,10 +601,15 @@ async fn run_async() -> anyhow::Result<()> {
                 }
             }
             _ = diag_timer.tick() => {
-                let extra = [
+                let mut extra = vec![
                     ("status", last_status.clone()),
                     ("watchdog_ticks", watchdog_ticks.to_string()),
                 ];
+                if let GripperOut::Action { link, name, .. } = &pubs.gripper {
+                    extra.push(("gripper_action", name.clone()));
+                    extra.push(("gripper_goals_sent", link.goals_sent().to_string()));
+                    extra.push(("gripper_action_fault", link.fault().unwrap_or("none").to_string()));
+                }
                 if let Some(a) = diag.tick(&mut counters, ros_now(&clock), &extra) {
                     if let Err(e) = pub_diag.publish(&a) {
                         counters.error(format!("diagnostics: {e}"));
@@ -374,6 +623,30 @@ async fn run_async() -> anyhow::Result<()> {
     stop.store(true, Ordering::SeqCst);
     spinner.await?;
     Ok(())
+}
+
+/// Mark the gripper action server missing or present (nothing without one).
+fn check_server(
+    producers: &Producers,
+    pubs: &mut Publishers,
+    name: Option<&str>,
+    counters: &mut diagnostics::Counters,
+) {
+    let (Some(name), GripperOut::Action { link, .. }) = (name, &mut pubs.gripper) else {
+        return;
+    };
+    match producers.action_server_missing(name) {
+        Ok(missing) => link.set_server_missing(missing),
+        Err(e) => counters.error(format!("graph: {e:#}")),
+    }
+}
+
+/// The next goal under way to end (pending forever without one).
+async fn next_goal(pubs: &mut Publishers) -> Option<()> {
+    match &mut pubs.gripper {
+        GripperOut::Action { goals, .. } if !goals.is_empty() => goals.next().await,
+        _ => std::future::pending().await,
+    }
 }
 
 /// Seconds from `stamp` to now on the node's clock.
