@@ -13,14 +13,17 @@
 //! waits for the
 //! GripperCommand (`gripper_command`) and ArmCommand (`arm_command`) stamped t; after
 //! `command_timeout_s` of wall time without them it steps with the last command and counts it
-//! (`repeated_steps`). At the end (`duration_s` of sim time) it publishes the world's outcome
+//! (`repeated_steps`). With `gripper_commands: held` the gripper is a controller's: a
+//! GripperCommand on `gripper_command` is a setpoint held until the next one, whatever its stamp
+//! (what a ros2_control gripper controller behind its action server sends), and each step waits
+//! for the ArmCommand only. At the end (`duration_s` of sim time) it publishes the world's outcome
 //! once, as one JSON object on `sim/outcome` (std_msgs/String, transient-local), prints the same
 //! line on stdout, and keeps serving until stopped. The other nodes run with `use_sim_time`.
 
 use futures::{FutureExt, StreamExt};
 use r2r::{QosProfile, RosParams};
 use std::time::{Duration, Instant};
-use unitac_core::msg::{ArmCommand, GripperCommand};
+use unitac_core::msg::{ArmCommand, GripperCommand, GripperMode};
 use unitac_core::{SensorKind, Stamp};
 use unitac_ros::node::NodeBase;
 use unitac_ros::sim::{LockStep, SimSpec};
@@ -59,6 +62,11 @@ struct Params {
     /// state (up to `command_timeout_s`), so the policy's tick sees the contact of its own time
     /// as in the embedded loop
     sync_contact: bool,
+    /// stamped: one GripperCommand per step, stamped with it (the policy's); held: the latest
+    /// GripperCommand is a held setpoint (a gripper controller's), steps wait for the arm only
+    gripper_commands: String,
+    /// Start once this many subscriptions matched on joint_states too (a policy reading them)
+    wait_joint_subscribers: i32,
 }
 
 impl Default for Params {
@@ -78,6 +86,8 @@ impl Default for Params {
             wait_image_subscribers: 0,
             joint_name: "gripper_finger_opening".into(),
             sync_contact: true,
+            gripper_commands: "stamped".into(),
+            wait_joint_subscribers: 0,
         }
     }
 }
@@ -104,6 +114,20 @@ fn run() -> anyhow::Result<()> {
         sensor_id: p.sensor_id.clone(),
     };
     let mut sim = LockStep::new(&spec)?;
+    let held_mode = match p.gripper_commands.as_str() {
+        "stamped" => false,
+        "held" => true,
+        other => anyhow::bail!("gripper_commands must be stamped or held, got '{other}'"),
+    };
+    // Held mode: the setpoint until a controller sends one is to stay where the fingers are.
+    let mut held = GripperCommand {
+        header: unitac_core::msg::Header::new(Stamp::ZERO, ""),
+        mode: GripperMode::Stop,
+        position_m: 0.0,
+        speed_m_s: 0.0,
+        force_n: 0.0,
+        reason: "no setpoint yet".into(),
+    };
     if !(p.command_timeout_s.is_finite() && p.command_timeout_s > 0.0) {
         anyhow::bail!("command_timeout_s must be > 0, got {}", p.command_timeout_s);
     }
@@ -150,7 +174,8 @@ fn run() -> anyhow::Result<()> {
 
     let wanted = usize::try_from(p.wait_subscribers).unwrap_or(0);
     let wanted_images = usize::try_from(p.wait_image_subscribers).unwrap_or(0);
-    if wanted + wanted_images > 0 {
+    let wanted_joints = usize::try_from(p.wait_joint_subscribers).unwrap_or(0);
+    if wanted + wanted_images + wanted_joints > 0 {
         let matched = || {
             pub_status
                 .get_inter_process_subscription_count()
@@ -160,13 +185,17 @@ fn run() -> anyhow::Result<()> {
                     .get_inter_process_subscription_count()
                     .unwrap_or(0)
                     >= wanted_images
+                && pub_joint
+                    .get_inter_process_subscription_count()
+                    .unwrap_or(0)
+                    >= wanted_joints
         };
         if !base.spin_until(Duration::from_secs(60), matched) {
             if base.stopped() {
                 return Ok(());
             }
             anyhow::bail!(
-                "fewer than {wanted} subscribers on gripper_status or {wanted_images} on image_raw within 60 s"
+                "fewer than {wanted} subscribers on gripper_status, {wanted_images} on image_raw or {wanted_joints} on joint_states within 60 s"
             );
         }
     }
@@ -229,12 +258,17 @@ fn run() -> anyhow::Result<()> {
         let mut got = |pending: &mut Pending, base: &mut NodeBase<Params>| {
             base.spin(Duration::from_millis(1));
             while let Some(Some(c)) = sub_cmd.next().now_or_never() {
-                take(
-                    &mut pending.gripper,
-                    convert::gripper_command_from(&c),
-                    o.stamp,
-                    &mut counters,
-                );
+                let c = convert::gripper_command_from(&c);
+                match c {
+                    Ok(c) if held_mode => held = c,
+                    Err(e) if held_mode => counters.error(format!("setpoint: {e}")),
+                    c => take(&mut pending.gripper, c, o.stamp, &mut counters),
+                }
+            }
+            if held_mode {
+                let mut c = held.clone();
+                c.header.stamp = o.stamp;
+                pending.gripper = Some(c);
             }
             while let Some(Some(a)) = sub_arm.next().now_or_never() {
                 take(
