@@ -8,7 +8,7 @@ in_contact) and NS/tactile_latent (stamps, transient-local like the policy's sub
 subscribes to NS/gripper_status and NS/image_raw too (counting them), so the sim's wait for
 subscribers waits for it as well. Talks to the test on
 stdin/stdout, one line each:
-  out: "ready"             once the policy node's PolicyStatus and GripperCommand publishers
+  out: "ready"             once the policy node's PolicyStatus and ArmCommand publishers
                            are matched (start the sim after this)
   out: "phase NAME T_NS"   the first PolicyStatus of each phase (T_NS its stamp)
   in:  "mark"              record the latest PolicyStatus stamp as the mark (the test froze the
@@ -175,7 +175,7 @@ def main():
     t0 = time.monotonic()
     while time.monotonic() - t0 < seconds and not (
             node.count_publishers(ns + "/policy_status") > 0
-            and node.count_publishers(ns + "/gripper_command") > 0):
+            and node.count_publishers(ns + "/arm_command") > 0):
         rclpy.spin_once(node, timeout_sec=0.05)
     say("ready")
     while not end.is_set() and time.monotonic() - t0 < seconds:

@@ -43,10 +43,15 @@ pub struct Observer {
 impl Observer {
     /// The observer on the robot, for `seconds` at most.
     pub fn start(at: Launcher, ns: &str, seconds: u32) -> Self {
+        Self::script(at, "policy_observer.py", &[ns, &seconds.to_string()])
+    }
+
+    /// An rclpy peer of tests/ros on the robot, talking line by line like the observer.
+    pub fn script(at: Launcher, script: &str, args: &[&str]) -> Self {
         let py = python();
         let mut child = at("robot", py.to_str().unwrap())
-            .arg(root().join("tests/ros/policy_observer.py"))
-            .args([ns, &seconds.to_string()])
+            .arg(root().join("tests/ros").join(script))
+            .args(args)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .spawn()
@@ -146,11 +151,35 @@ pub struct Loop {
     pub inference: Option<Child>,
     pub policy: Child,
     pub sim: Child,
+    /// The gripper controller peer (GripperPath::Action).
+    pub controller: Option<Observer>,
+}
+
+/// How the policy's gripper commands reach the sim's gripper.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GripperPath {
+    /// unitac_msgs/GripperCommand on `gripper_command`, one per tick (what the serial gripper
+    /// node reads).
+    Commands,
+    /// Goals of control_msgs/action/GripperCommand to a GripperActionController peer
+    /// (tests/ros/gripper_action_server.py) that holds the sim gripper's setpoint.
+    Action,
 }
 
 impl Loop {
     /// Start the nodes; the sim once `obs` matched the policy's outputs.
     pub fn start(at: Launcher, ns: &str, duration_s: f64, obs: &Observer) -> Self {
+        Self::start_with(at, ns, duration_s, obs, GripperPath::Commands)
+    }
+
+    /// [`Self::start`] with the gripper reached through `path`.
+    pub fn start_with(
+        at: Launcher,
+        ns: &str,
+        duration_s: f64,
+        obs: &Observer,
+        path: GripperPath,
+    ) -> Self {
         let scene = format!("scene:={SCENE}");
         let sim_time = ["-p", "use_sim_time:=true"];
         let contact = node(
@@ -174,47 +203,84 @@ impl Loop {
             ns,
             &["-p", &scene, sim_time[0], sim_time[1]],
         );
+        let mut policy_args = vec!["-p", &scene, sim_time[0], sim_time[1]];
+        // Through the action: the policy reads the sim's joint states (as from a robot's
+        // joint_state_broadcaster) and sends goals to the controller peer, which holds the sim
+        // gripper's setpoint; the sim waits for the arm's commands only.
+        let action_policy = [
+            "-p",
+            "gripper_input:=joint_states",
+            "-p",
+            "gripper_output:=action",
+            "-p",
+            "gripper_action:=gripper_cmd",
+        ];
+        if path == GripperPath::Action {
+            policy_args.extend(action_policy);
+        }
         let policy = node(
             at,
             "robot",
             env!("CARGO_BIN_EXE_unitac_policy_node"),
             ns,
-            &["-p", &scene, sim_time[0], sim_time[1]],
+            &policy_args,
         );
         obs.wait_for(|l| l == "ready", 30);
-        // Two subscribers each on gripper_status (policy, observer) and image_raw (contact,
-        // observer).
+        let controller = (path == GripperPath::Action).then(|| {
+            let c = Observer::script(
+                at,
+                "gripper_action_server.py",
+                &[ns, "gripper_cmd", "120", "forward"],
+            );
+            c.wait_for(|l| l == "ready", 30);
+            c
+        });
+        let duration = format!("duration_s:={duration_s:.1}");
+        let mut sim_args = vec![
+            "-p",
+            "task:=cup",
+            "-p",
+            "split:=train",
+            "-p",
+            "seed:=1",
+            "-p",
+            "trial:=0",
+            "-p",
+            &duration,
+            // Two subscribers each on gripper_status (the policy or the controller, and the
+            // observer) and image_raw (contact, observer).
+            "-p",
+            "wait_subscribers:=2",
+            "-p",
+            "wait_image_subscribers:=2",
+            // Real time at most: the latent comes from the inference node at its own pace
+            // (the sim waits for the contact states and the commands, not for it).
+            "-p",
+            "max_rate:=1.0",
+        ];
+        if path == GripperPath::Action {
+            sim_args.extend([
+                "-p",
+                "gripper_commands:=held",
+                "-r",
+                "gripper_command:=controller/gripper_setpoint",
+                "-p",
+                "wait_joint_subscribers:=1",
+            ]);
+        }
         let sim = node(
             at,
             "robot",
             env!("CARGO_BIN_EXE_unitac_sim_node"),
             ns,
-            &[
-                "-p",
-                "task:=cup",
-                "-p",
-                "split:=train",
-                "-p",
-                "seed:=1",
-                "-p",
-                "trial:=0",
-                "-p",
-                &format!("duration_s:={duration_s:.1}"),
-                "-p",
-                "wait_subscribers:=2",
-                "-p",
-                "wait_image_subscribers:=2",
-                // Real time at most: the latent comes from the inference node at its own pace
-                // (the sim waits for the contact states and the commands, not for it).
-                "-p",
-                "max_rate:=1.0",
-            ],
+            &sim_args,
         );
         Self {
             contact,
             inference: Some(inference),
             policy,
             sim,
+            controller,
         }
     }
 
@@ -239,6 +305,9 @@ impl Drop for Loop {
             .args(["-CONT", &self.sim.id().to_string()])
             .status();
         stop_mut(&mut self.sim);
+        if let Some(c) = &mut self.controller {
+            stop_mut(&mut c.child);
+        }
         stop_mut(&mut self.policy);
         if let Some(i) = &mut self.inference {
             stop_mut(i);
