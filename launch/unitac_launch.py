@@ -32,13 +32,25 @@ ARGUMENTS = {
     "duration_s": ("", "Sim source: sim time of the trial [s] (empty: the task's, cup 12.0, fabric 25.0)"),
     "max_rate": ("1.0", "Sim source: at most this many sim seconds per wall second (0: as fast as the loop runs)"),
     "gripper": ("", "Gripper: robotiq_2f85 | robotiq_2f140 | dh_ag95 | dh_pge50 (the serial gripper node) | sim "
-                    "(the sim node's gripper) | none (the arm stack owns it and publishes gripper_status); "
-                    "empty: sim with source:=sim, else none"),
+                    "(the sim node's gripper) | action (a ros2_control gripper controller through "
+                    "control_msgs/action/GripperCommand; the policy reads the robot's joint_states) | none "
+                    "(the arm stack owns it and publishes gripper_status); empty: sim with source:=sim, else none"),
     "gripper_port": ("/dev/ttyUSB0", "Serial port of the gripper, best its /dev/serial/by-id name"),
+    "gripper_action": ("/gripper_controller/gripper_cmd",
+                       "gripper:=action: the control_msgs/action/GripperCommand server the policy sends its "
+                       "targets to (a GripperActionController's <controller>/gripper_cmd)"),
+    "gripper_joint": ("gripper_finger_opening",
+                      "gripper:=action: the robot's gripper joint in joint_states whose position is the finger "
+                      "opening in metres; no name is universal, so set it to your robot's (the default is what "
+                      "our gripper and sim nodes publish)"),
+    "joint_states": ("/joint_states", "gripper:=action: the robot's sensor_msgs/JointState topic (joint_state_broadcaster's)"),
+    "arm_frame": ("base_link", "TF frame of the policy's arm target (arm_pose, geometry_msgs/PoseStamped)"),
 }
 
 # Serial gripper models the gripper node drives (crates/gripper).
 SERIAL_GRIPPERS = ("robotiq_2f85", "robotiq_2f140", "dh_ag95", "dh_pge50")
+# Every value of the gripper argument.
+GRIPPERS = SERIAL_GRIPPERS + ("sim", "action", "none")
 
 # Stage kind -> the node that runs it. Nodes read their stages' parameters from the scene file
 # themselves, through the same registry and typed structs as `unitac run`; nothing is copied here,
@@ -77,8 +89,8 @@ def plan(scene_name, args=None):
     nodes, skipped = [], []
     kinds = [st["kind"] for st in scene.get("stages", [])]
     gripper = a["gripper"] or ("sim" if source == "sim" else "none")
-    if gripper not in SERIAL_GRIPPERS + ("sim", "none"):
-        raise ValueError(f"gripper:={gripper} is not one of {', '.join(SERIAL_GRIPPERS + ('sim', 'none'))}")
+    if gripper not in GRIPPERS:
+        raise ValueError(f"gripper:={gripper} is not one of {', '.join(GRIPPERS)}")
     if gripper == "sim" and source != "sim":
         raise ValueError("gripper:=sim needs source:=sim (the sim node is that gripper)")
     if source == "sim" and gripper != "sim":
@@ -126,8 +138,14 @@ def plan(scene_name, args=None):
             skipped.append((k, "no ROS node for this stage kind"))
             continue
         if k == "policy":
+            p, remaps = {"scene": scene_path, "arm_frame": a["arm_frame"]}, []
+            if gripper == "action":
+                # The robot's gripper controller: GripperCommand goals out, its joint_states in.
+                p.update({"gripper_input": "joint_states", "gripper_output": "action",
+                          "gripper_action": a["gripper_action"], "joint_name": a["gripper_joint"]})
+                remaps = [("joint_states", a["joint_states"])]
             nodes.append({"executable": STAGE_NODES[k], "name": "unitac_policy", "namespace": a["namespace"],
-                          "parameters": [{"scene": scene_path}] + timing + extra, "remappings": []})
+                          "parameters": [p] + timing + extra, "remappings": remaps})
             continue
         params = {"scene": scene_path, "image_transport": a["image_transport"], **sensor_kind}
         if source != "bag":
