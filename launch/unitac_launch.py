@@ -4,12 +4,16 @@
 launch arguments into a list of node specs; it imports nothing from ROS, so it is tested without
 `ros2 launch`. `description()` wraps the plan in launch/launch_ros actions for the per-scene
 `*.launch.py` files. Stages that have no ROS node yet are reported, not silently dropped.
+With tf:=true the sensor's frames come from its xacro macro in urdf/, expanded with `xacro`.
 """
 import os
+from xml.sax.saxutils import quoteattr
 
 import yaml
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+# urdf/ beside launch/, in the source tree and in share/unitac_ros of an install.
+URDF_DIR = os.path.join(os.path.dirname(HERE), "urdf")
 PACKAGE = "unitac_ros"
 
 # Launch arguments: name -> (default, description). Every setting is a declared argument.
@@ -45,12 +49,21 @@ ARGUMENTS = {
                       "our gripper and sim nodes publish)"),
     "joint_states": ("/joint_states", "gripper:=action: the robot's sensor_msgs/JointState topic (joint_state_broadcaster's)"),
     "arm_frame": ("base_link", "TF frame of the policy's arm target (arm_pose, geometry_msgs/PoseStamped)"),
+    "tf": ("false", "Publish the sensor's frames as static transforms (true | false): true only when the "
+                    "robot's URDF lacks the sensor (robot_state_publisher publishes them otherwise)"),
+    "sensor_parent": ("", "tf:=true: the robot link the sensor is mounted on, e.g. a fingertip link"),
+    "sensor_mount_xyz": ("0 0 0", "tf:=true: the sensor body's position in sensor_parent, \"x y z\" [m]"),
+    "sensor_mount_rpy": ("0 0 0", "tf:=true: the sensor body's orientation in sensor_parent, \"roll pitch yaw\" [rad] "
+                                  "(URDF convention; the body's +x points out of the gel)"),
 }
 
 # Serial gripper models the gripper node drives (crates/gripper).
 SERIAL_GRIPPERS = ("robotiq_2f85", "robotiq_2f140", "dh_ag95", "dh_pge50")
 # Every value of the gripper argument.
 GRIPPERS = SERIAL_GRIPPERS + ("sim", "action", "none")
+# Sensor kind -> (file in urdf/, macro): the frames tf:=true publishes.
+SENSOR_MACROS = {"gelsight-mini": ("gelsight_mini.urdf.xacro", "gelsight_mini"),
+                 "digit": ("digit.urdf.xacro", "digit")}
 
 # Stage kind -> the node that runs it. Nodes read their stages' parameters from the scene file
 # themselves, through the same registry and typed structs as `unitac run`; nothing is copied here,
@@ -70,9 +83,59 @@ def load_scene(name):
         return yaml.safe_load(f), os.path.abspath(path)
 
 
+def triple(name, value):
+    """Three numbers from a launch argument such as sensor_mount_xyz:="0 0.01 0.02"."""
+    try:
+        v = [float(x) for x in value.split()]
+    except ValueError:
+        v = []
+    if len(v) != 3:
+        raise ValueError(f"{name}:={value!r} is not three numbers")
+    return v
+
+
+def sensor_frames(kind, sensor_id, parent, xyz, rpy):
+    """The sensor's fixed joints as the robot description has them: the sensor's xacro macro
+    expanded (with `xacro`) on `parent` at the mount origin. [(parent, child, xyz, rpy)]:
+    parent -> <sensor_id>_link, <sensor_id>_link -> <sensor_id>_optical_frame."""
+    import xml.etree.ElementTree as ET
+
+    import xacro
+
+    if kind not in SENSOR_MACROS:
+        raise ValueError(f"tf:=true needs a sensor with a URDF macro ({', '.join(SENSOR_MACROS)}), not {kind}")
+    file, macro = SENSOR_MACROS[kind]
+    num = " ".join(repr(float(v)) for v in xyz), " ".join(repr(float(v)) for v in rpy)
+    doc = (f'<robot name="unitac_sensor_mount" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+           f'<xacro:include filename={quoteattr(os.path.join(URDF_DIR, file))}/>'
+           f'<link name={quoteattr(parent)}/>'
+           f'<xacro:{macro} name={quoteattr(sensor_id)} parent={quoteattr(parent)}>'
+           f'<origin xyz="{num[0]}" rpy="{num[1]}"/></xacro:{macro}></robot>')
+    d = xacro.parse(doc)
+    xacro.process_doc(d)
+    frames = []
+    for j in ET.fromstring(d.toxml()).findall("joint"):
+        o = j.find("origin")
+        frames.append((j.find("parent").get("link"), j.find("child").get("link"),
+                       [float(v) for v in o.get("xyz", "0 0 0").split()],
+                       [float(v) for v in o.get("rpy", "0 0 0").split()]))
+    return frames
+
+
+def static_transform(name, namespace, parent, child, xyz, rpy):
+    """A tf2_ros static_transform_publisher node spec (its named-argument form)."""
+    args = []
+    for flag, v in zip(["--x", "--y", "--z", "--roll", "--pitch", "--yaw"], list(xyz) + list(rpy)):
+        args += [flag, repr(float(v))]
+    return {"package": "tf2_ros", "executable": "static_transform_publisher", "name": name,
+            "namespace": namespace, "parameters": [], "remappings": [],
+            "arguments": args + ["--frame-id", parent, "--child-frame-id", child]}
+
+
 def plan(scene_name, args=None):
-    """Node specs for a scene: [{"executable", "name", "namespace", "parameters", "remappings"}],
-    plus "skipped": [(what, why)]. An argument that is not declared is an error (ValueError)."""
+    """Node specs for a scene: [{"package", "executable", "name", "namespace", "parameters",
+    "remappings", "arguments"}], plus "skipped": [(what, why)]. An argument that is not declared,
+    or a value that cannot be, is an error (ValueError)."""
     unknown = sorted(set(args or {}) - set(ARGUMENTS) - {"scene"})
     if unknown:
         raise ValueError(f"unknown launch argument(s) {', '.join(unknown)} (known: {', '.join(ARGUMENTS)})")
@@ -91,6 +154,8 @@ def plan(scene_name, args=None):
     gripper = a["gripper"] or ("sim" if source == "sim" else "none")
     if gripper not in GRIPPERS:
         raise ValueError(f"gripper:={gripper} is not one of {', '.join(GRIPPERS)}")
+    if a["tf"] not in ("true", "false"):
+        raise ValueError(f"tf:={a['tf']} is not true or false")
     if gripper == "sim" and source != "sim":
         raise ValueError("gripper:=sim needs source:=sim (the sim node is that gripper)")
     if source == "sim" and gripper != "sim":
@@ -157,6 +222,19 @@ def plan(scene_name, args=None):
         nodes.append({"executable": "unitac_inference_node", "name": "unitac_inference",
                       "namespace": a["namespace"], "parameters": [{"scene": scene_path}] + timing + extra,
                       "remappings": []})
+    if a["tf"] == "true":
+        if not a["sensor_parent"]:
+            raise ValueError("tf:=true needs sensor_parent:=<the robot link the sensor is mounted on>")
+        kind = a["sensor_kind"] or src.get("sensor", "gelsight-mini")
+        frames = sensor_frames(kind, a["sensor_id"], a["sensor_parent"],
+                               triple("sensor_mount_xyz", a["sensor_mount_xyz"]),
+                               triple("sensor_mount_rpy", a["sensor_mount_rpy"]))
+        for (parent, child, xyz, rpy), what in zip(frames, ["link", "optical"]):
+            nodes.append(static_transform(f"unitac_tf_{a['sensor_id']}_{what}", a["namespace"],
+                                          parent, child, xyz, rpy))
+    for n in nodes:
+        n.setdefault("package", PACKAGE)
+        n.setdefault("arguments", [])
     return {"scene": scene["scene"], "nodes": nodes, "skipped": skipped}
 
 
@@ -182,9 +260,9 @@ def description(scene_name=None, overrides=None):
         p = plan(args.pop("scene", None) or scene_name, args)
         actions = [LogInfo(msg=f"unitac {p['scene']}: {k} not started: {why}") for k, why in p["skipped"]]
         for n in p["nodes"]:
-            actions.append(Node(package=PACKAGE, executable=n["executable"], name=n["name"],
+            actions.append(Node(package=n["package"], executable=n["executable"], name=n["name"],
                                 namespace=n["namespace"], parameters=n["parameters"],
-                                remappings=n["remappings"], output="screen"))
+                                remappings=n["remappings"], arguments=n["arguments"], output="screen"))
         return actions
 
     decls = [DeclareLaunchArgument(k, default_value=d, description=desc) for k, (d, desc) in declared.items()]
