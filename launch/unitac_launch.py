@@ -132,6 +132,11 @@ def static_transform(name, namespace, parent, child, xyz, rpy):
             "arguments": args + ["--frame-id", parent, "--child-frame-id", child]}
 
 
+def rename(args, renamed):
+    """A launch file's own argument names (`renamed`: its name -> the planner's) as the planner's."""
+    return {renamed.get(k, k): v for k, v in (args or {}).items()}
+
+
 def plan(scene_name, args=None):
     """Node specs for a scene: [{"package", "executable", "name", "namespace", "parameters",
     "remappings", "arguments"}], plus "skipped": [(what, why)]. An argument that is not declared,
@@ -238,9 +243,11 @@ def plan(scene_name, args=None):
     return {"scene": scene["scene"], "nodes": nodes, "skipped": skipped}
 
 
-def description(scene_name=None, overrides=None):
+def description(scene_name=None, overrides=None, renamed=None):
     """A LaunchDescription for `ros2 launch` (imports launch/launch_ros only here). Without a
-    scene name the scene is a launch argument too (the replay launch file)."""
+    scene name the scene is a launch argument too (the replay and robot launch files).
+    `overrides`: argument -> default; `renamed`: the file's name for an argument -> the planner's
+    (declared under the file's name only)."""
     from launch import LaunchDescription
     from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
     from launch.substitutions import LaunchConfiguration
@@ -251,12 +258,15 @@ def description(scene_name=None, overrides=None):
         declared["scene"] = ("fabric_selection", "Scene file name in launch/scenes, or a path to one")
     for k, v in (overrides or {}).items():
         declared[k] = (v, declared[k][1])
+    for new, old in (renamed or {}).items():
+        declared[new] = declared.pop(old)
 
     def build(context):
         unknown = sorted(set(getattr(context, "launch_configurations", {})) - set(declared))
         if unknown:
             raise ValueError(f"unknown launch argument(s) {', '.join(unknown)} (known: {', '.join(declared)})")
         args = {k: LaunchConfiguration(k).perform(context) for k in declared}
+        args = rename(args, renamed or {})
         p = plan(args.pop("scene", None) or scene_name, args)
         actions = [LogInfo(msg=f"unitac {p['scene']}: {k} not started: {why}") for k, why in p["skipped"]]
         for n in p["nodes"]:
