@@ -7,6 +7,7 @@ launch arguments into a list of node specs; it imports nothing from ROS, so it i
 With tf:=true the sensor's frames come from its xacro macro in urdf/, expanded with `xacro`.
 """
 import os
+import re
 from xml.sax.saxutils import quoteattr
 
 import yaml
@@ -119,6 +120,8 @@ def sensor_frames(kind, sensor_id, parent, xyz, rpy):
         frames.append((j.find("parent").get("link"), j.find("child").get("link"),
                        [float(v) for v in o.get("xyz", "0 0 0").split()],
                        [float(v) for v in o.get("rpy", "0 0 0").split()]))
+    if [f[1] for f in frames] != [f"{sensor_id}_link", f"{sensor_id}_optical_frame"]:
+        raise ValueError(f"{file}: expected the frames {sensor_id}_link and {sensor_id}_optical_frame, got {frames}")
     return frames
 
 
@@ -234,8 +237,9 @@ def plan(scene_name, args=None):
         frames = sensor_frames(kind, a["sensor_id"], a["sensor_parent"],
                                triple("sensor_mount_xyz", a["sensor_mount_xyz"]),
                                triple("sensor_mount_rpy", a["sensor_mount_rpy"]))
+        node_id = re.sub(r"[^A-Za-z0-9_]", "_", a["sensor_id"])  # a ROS node name's characters
         for (parent, child, xyz, rpy), what in zip(frames, ["link", "optical"]):
-            nodes.append(static_transform(f"unitac_tf_{a['sensor_id']}_{what}", a["namespace"],
+            nodes.append(static_transform(f"unitac_tf_{node_id}_{what}", a["namespace"],
                                           parent, child, xyz, rpy))
     for n in nodes:
         n.setdefault("package", PACKAGE)
