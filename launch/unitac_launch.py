@@ -4,12 +4,17 @@
 launch arguments into a list of node specs; it imports nothing from ROS, so it is tested without
 `ros2 launch`. `description()` wraps the plan in launch/launch_ros actions for the per-scene
 `*.launch.py` files. Stages that have no ROS node yet are reported, not silently dropped.
+With tf:=true the sensor's frames come from its xacro macro in urdf/, expanded with `xacro`.
 """
 import os
+import re
+from xml.sax.saxutils import quoteattr
 
 import yaml
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+# urdf/ beside launch/, in the source tree and in share/unitac_ros of an install.
+URDF_DIR = os.path.join(os.path.dirname(HERE), "urdf")
 PACKAGE = "unitac_ros"
 
 # Launch arguments: name -> (default, description). Every setting is a declared argument.
@@ -32,13 +37,34 @@ ARGUMENTS = {
     "duration_s": ("", "Sim source: sim time of the trial [s] (empty: the task's, cup 12.0, fabric 25.0)"),
     "max_rate": ("1.0", "Sim source: at most this many sim seconds per wall second (0: as fast as the loop runs)"),
     "gripper": ("", "Gripper: robotiq_2f85 | robotiq_2f140 | dh_ag95 | dh_pge50 (the serial gripper node) | sim "
-                    "(the sim node's gripper) | none (the arm stack owns it and publishes gripper_status); "
-                    "empty: sim with source:=sim, else none"),
+                    "(the sim node's gripper) | action (a ros2_control gripper controller through "
+                    "control_msgs/action/GripperCommand; the policy reads the robot's joint_states) | none "
+                    "(the arm stack owns it and publishes gripper_status); empty: sim with source:=sim, else none"),
     "gripper_port": ("/dev/ttyUSB0", "Serial port of the gripper, best its /dev/serial/by-id name"),
+    "gripper_action": ("/gripper_controller/gripper_cmd",
+                       "gripper:=action: the control_msgs/action/GripperCommand server the policy sends its "
+                       "targets to (a GripperActionController's <controller>/gripper_cmd)"),
+    "gripper_joint": ("gripper_finger_opening",
+                      "gripper:=action: the robot's gripper joint in joint_states whose position is the finger "
+                      "opening in metres; no name is universal, so set it to your robot's (the default is what "
+                      "our gripper and sim nodes publish)"),
+    "joint_states": ("/joint_states", "gripper:=action: the robot's sensor_msgs/JointState topic (joint_state_broadcaster's)"),
+    "arm_frame": ("base_link", "TF frame of the policy's arm target (arm_pose, geometry_msgs/PoseStamped)"),
+    "tf": ("false", "Publish the sensor's frames as static transforms (true | false): true only when the "
+                    "robot's URDF lacks the sensor (robot_state_publisher publishes them otherwise)"),
+    "sensor_parent": ("", "tf:=true: the robot link the sensor is mounted on, e.g. a fingertip link"),
+    "sensor_mount_xyz": ("0 0 0", "tf:=true: the sensor body's position in sensor_parent, \"x y z\" [m]"),
+    "sensor_mount_rpy": ("0 0 0", "tf:=true: the sensor body's orientation in sensor_parent, \"roll pitch yaw\" [rad] "
+                                  "(URDF convention; the body's +x points out of the gel)"),
 }
 
 # Serial gripper models the gripper node drives (crates/gripper).
 SERIAL_GRIPPERS = ("robotiq_2f85", "robotiq_2f140", "dh_ag95", "dh_pge50")
+# Every value of the gripper argument.
+GRIPPERS = SERIAL_GRIPPERS + ("sim", "action", "none")
+# Sensor kind -> (file in urdf/, macro): the frames tf:=true publishes.
+SENSOR_MACROS = {"gelsight-mini": ("gelsight_mini.urdf.xacro", "gelsight_mini"),
+                 "digit": ("digit.urdf.xacro", "digit")}
 
 # Stage kind -> the node that runs it. Nodes read their stages' parameters from the scene file
 # themselves, through the same registry and typed structs as `unitac run`; nothing is copied here,
@@ -58,9 +84,66 @@ def load_scene(name):
         return yaml.safe_load(f), os.path.abspath(path)
 
 
+def triple(name, value):
+    """Three numbers from a launch argument such as sensor_mount_xyz:="0 0.01 0.02"."""
+    try:
+        v = [float(x) for x in value.split()]
+    except ValueError:
+        v = []
+    if len(v) != 3:
+        raise ValueError(f"{name}:={value!r} is not three numbers")
+    return v
+
+
+def sensor_frames(kind, sensor_id, parent, xyz, rpy):
+    """The sensor's fixed joints as the robot description has them: the sensor's xacro macro
+    expanded (with `xacro`) on `parent` at the mount origin. [(parent, child, xyz, rpy)]:
+    parent -> <sensor_id>_link, <sensor_id>_link -> <sensor_id>_optical_frame."""
+    import xml.etree.ElementTree as ET
+
+    import xacro
+
+    if kind not in SENSOR_MACROS:
+        raise ValueError(f"tf:=true needs a sensor with a URDF macro ({', '.join(SENSOR_MACROS)}), not {kind}")
+    file, macro = SENSOR_MACROS[kind]
+    num = " ".join(repr(float(v)) for v in xyz), " ".join(repr(float(v)) for v in rpy)
+    doc = (f'<robot name="unitac_sensor_mount" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+           f'<xacro:include filename={quoteattr(os.path.join(URDF_DIR, file))}/>'
+           f'<link name={quoteattr(parent)}/>'
+           f'<xacro:{macro} name={quoteattr(sensor_id)} parent={quoteattr(parent)}>'
+           f'<origin xyz="{num[0]}" rpy="{num[1]}"/></xacro:{macro}></robot>')
+    d = xacro.parse(doc)
+    xacro.process_doc(d)
+    frames = []
+    for j in ET.fromstring(d.toxml()).findall("joint"):
+        o = j.find("origin")
+        frames.append((j.find("parent").get("link"), j.find("child").get("link"),
+                       [float(v) for v in o.get("xyz", "0 0 0").split()],
+                       [float(v) for v in o.get("rpy", "0 0 0").split()]))
+    if [f[1] for f in frames] != [f"{sensor_id}_link", f"{sensor_id}_optical_frame"]:
+        raise ValueError(f"{file}: expected the frames {sensor_id}_link and {sensor_id}_optical_frame, got {frames}")
+    return frames
+
+
+def static_transform(name, namespace, parent, child, xyz, rpy):
+    """A tf2_ros static_transform_publisher node spec (its named-argument form)."""
+    args = []
+    for flag, v in zip(["--x", "--y", "--z", "--roll", "--pitch", "--yaw"], list(xyz) + list(rpy)):
+        args += [flag, repr(float(v))]
+    return {"package": "tf2_ros", "executable": "static_transform_publisher", "name": name,
+            "namespace": namespace, "parameters": [], "remappings": [],
+            "arguments": args + ["--frame-id", parent, "--child-frame-id", child]}
+
+
+def rename(args, renamed):
+    """A launch file's own argument names (`renamed`: its name -> the planner's) as the planner's."""
+    return {renamed.get(k, k): v for k, v in (args or {}).items()}
+
+
 def plan(scene_name, args=None):
-    """Node specs for a scene: [{"executable", "name", "namespace", "parameters", "remappings"}],
-    plus "skipped": [(what, why)]. An argument that is not declared is an error (ValueError)."""
+    """Node specs for a scene: [{"package", "executable", "name", "namespace", "parameters",
+    "remappings", "arguments"}], plus "skipped": [(what, why)]. An argument that is not declared,
+    or a value that cannot be, is an error (ValueError)."""
     unknown = sorted(set(args or {}) - set(ARGUMENTS) - {"scene"})
     if unknown:
         raise ValueError(f"unknown launch argument(s) {', '.join(unknown)} (known: {', '.join(ARGUMENTS)})")
@@ -77,8 +160,10 @@ def plan(scene_name, args=None):
     nodes, skipped = [], []
     kinds = [st["kind"] for st in scene.get("stages", [])]
     gripper = a["gripper"] or ("sim" if source == "sim" else "none")
-    if gripper not in SERIAL_GRIPPERS + ("sim", "none"):
-        raise ValueError(f"gripper:={gripper} is not one of {', '.join(SERIAL_GRIPPERS + ('sim', 'none'))}")
+    if gripper not in GRIPPERS:
+        raise ValueError(f"gripper:={gripper} is not one of {', '.join(GRIPPERS)}")
+    if a["tf"] not in ("true", "false"):
+        raise ValueError(f"tf:={a['tf']} is not true or false")
     if gripper == "sim" and source != "sim":
         raise ValueError("gripper:=sim needs source:=sim (the sim node is that gripper)")
     if source == "sim" and gripper != "sim":
@@ -126,8 +211,14 @@ def plan(scene_name, args=None):
             skipped.append((k, "no ROS node for this stage kind"))
             continue
         if k == "policy":
+            p, remaps = {"scene": scene_path, "arm_frame": a["arm_frame"]}, []
+            if gripper == "action":
+                # The robot's gripper controller: GripperCommand goals out, its joint_states in.
+                p.update({"gripper_input": "joint_states", "gripper_output": "action",
+                          "gripper_action": a["gripper_action"], "joint_name": a["gripper_joint"]})
+                remaps = [("joint_states", a["joint_states"])]
             nodes.append({"executable": STAGE_NODES[k], "name": "unitac_policy", "namespace": a["namespace"],
-                          "parameters": [{"scene": scene_path}] + timing + extra, "remappings": []})
+                          "parameters": [p] + timing + extra, "remappings": remaps})
             continue
         params = {"scene": scene_path, "image_transport": a["image_transport"], **sensor_kind}
         if source != "bag":
@@ -139,12 +230,28 @@ def plan(scene_name, args=None):
         nodes.append({"executable": "unitac_inference_node", "name": "unitac_inference",
                       "namespace": a["namespace"], "parameters": [{"scene": scene_path}] + timing + extra,
                       "remappings": []})
+    if a["tf"] == "true":
+        if not a["sensor_parent"]:
+            raise ValueError("tf:=true needs sensor_parent:=<the robot link the sensor is mounted on>")
+        kind = a["sensor_kind"] or src.get("sensor", "gelsight-mini")
+        frames = sensor_frames(kind, a["sensor_id"], a["sensor_parent"],
+                               triple("sensor_mount_xyz", a["sensor_mount_xyz"]),
+                               triple("sensor_mount_rpy", a["sensor_mount_rpy"]))
+        node_id = re.sub(r"[^A-Za-z0-9_]", "_", a["sensor_id"])  # a ROS node name's characters
+        for (parent, child, xyz, rpy), what in zip(frames, ["link", "optical"]):
+            nodes.append(static_transform(f"unitac_tf_{node_id}_{what}", a["namespace"],
+                                          parent, child, xyz, rpy))
+    for n in nodes:
+        n.setdefault("package", PACKAGE)
+        n.setdefault("arguments", [])
     return {"scene": scene["scene"], "nodes": nodes, "skipped": skipped}
 
 
-def description(scene_name=None, overrides=None):
+def description(scene_name=None, overrides=None, renamed=None):
     """A LaunchDescription for `ros2 launch` (imports launch/launch_ros only here). Without a
-    scene name the scene is a launch argument too (the replay launch file)."""
+    scene name the scene is a launch argument too (the replay and robot launch files).
+    `overrides`: argument -> default; `renamed`: the file's name for an argument -> the planner's
+    (declared under the file's name only)."""
     from launch import LaunchDescription
     from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
     from launch.substitutions import LaunchConfiguration
@@ -155,18 +262,21 @@ def description(scene_name=None, overrides=None):
         declared["scene"] = ("fabric_selection", "Scene file name in launch/scenes, or a path to one")
     for k, v in (overrides or {}).items():
         declared[k] = (v, declared[k][1])
+    for new, old in (renamed or {}).items():
+        declared[new] = declared.pop(old)
 
     def build(context):
         unknown = sorted(set(getattr(context, "launch_configurations", {})) - set(declared))
         if unknown:
             raise ValueError(f"unknown launch argument(s) {', '.join(unknown)} (known: {', '.join(declared)})")
         args = {k: LaunchConfiguration(k).perform(context) for k in declared}
+        args = rename(args, renamed or {})
         p = plan(args.pop("scene", None) or scene_name, args)
         actions = [LogInfo(msg=f"unitac {p['scene']}: {k} not started: {why}") for k, why in p["skipped"]]
         for n in p["nodes"]:
-            actions.append(Node(package=PACKAGE, executable=n["executable"], name=n["name"],
+            actions.append(Node(package=n["package"], executable=n["executable"], name=n["name"],
                                 namespace=n["namespace"], parameters=n["parameters"],
-                                remappings=n["remappings"], output="screen"))
+                                remappings=n["remappings"], arguments=n["arguments"], output="screen"))
         return actions
 
     decls = [DeclareLaunchArgument(k, default_value=d, description=desc) for k, (d, desc) in declared.items()]

@@ -1,7 +1,10 @@
 """Check the launch files without `ros2 launch` (not installable from PyPI): each *.launch.py
 imports, builds its description (against recording stand-ins for launch/launch_ros, since only
 their constructor arguments matter here), declares every argument with a description, and the
-plan it runs names executables that exist and scenes that exist. Prints a JSON summary.
+plan it runs names executables that exist and scenes that exist; the description starts the
+plan's nodes as planned. Executables of other packages (EXTERNAL) are not built here: they must be
+ones this check knows. With tf:=true, the sensor's static transforms are printed beside the
+sensor's joints in its xacro macro, expanded here on its own. Prints a JSON summary.
 
 usage: check_launch.py LAUNCH_DIR BIN_DIR
 """
@@ -11,6 +14,17 @@ import json
 import os
 import sys
 import types
+import xml.etree.ElementTree as ET
+
+import xacro
+
+# Executables of other ROS packages a plan may start (installed with ROS, not built here).
+EXTERNAL = {"tf2_ros": {"static_transform_publisher"}}
+# Sensor kind -> the file and macro of its frames in urdf/.
+MACROS = {"gelsight-mini": ("gelsight_mini.urdf.xacro", "gelsight_mini"), "digit": ("digit.urdf.xacro", "digit")}
+# A sensor mounted by tf:=true in the plans below.
+TF_ARGS = {"tf": "true", "sensor_parent": "right_fingertip", "sensor_mount_xyz": "0.01 -0.005 0.02",
+           "sensor_mount_rpy": "0 0.1 -1.5707963267948966"}
 
 
 class Recorder:
@@ -24,9 +38,57 @@ def install_stand_ins():
     mods["launch"].LaunchDescription = Recorder
     for name in ["DeclareLaunchArgument", "LogInfo", "OpaqueFunction"]:
         setattr(mods["launch.actions"], name, type(name, (Recorder,), {}))
-    mods["launch.substitutions"].LaunchConfiguration = type("LaunchConfiguration", (Recorder,), {})
+    mods["launch.substitutions"].LaunchConfiguration = type(
+        "LaunchConfiguration", (Recorder,), {"perform": lambda self, context: context.launch_configurations[self.args[0]]})
     mods["launch_ros.actions"].Node = type("Node", (Recorder,), {})
     sys.modules.update(mods)
+
+
+def launched(description, configurations):
+    """The nodes the description's OpaqueFunction starts with these launch configurations (what
+    `ros2 launch` would hold: every declared argument's value), as plan-style dicts."""
+    build = next(a for a in description.args[0] if type(a).__name__ == "OpaqueFunction").kwargs["function"]
+    context = types.SimpleNamespace(launch_configurations=dict(configurations))
+    return [{k: n.kwargs.get(k) for k in ["package", "executable", "name", "namespace", "parameters",
+                                          "remappings", "arguments"]}
+            for n in build(context) if type(n).__name__ == "Node"]
+
+
+def urdf_frames(urdf_dir, kind, sensor_id, parent, xyz, rpy):
+    """The sensor's fixed joints from its xacro macro on `parent` at the mount origin:
+    [{"parent", "child", "xyz", "rpy"}]."""
+    file, macro = MACROS[kind]
+    doc = xacro.parse(f"""<robot name="check" xmlns:xacro="http://www.ros.org/wiki/xacro">
+  <xacro:include filename="{os.path.join(urdf_dir, file)}"/>
+  <link name="{parent}"/>
+  <xacro:{macro} name="{sensor_id}" parent="{parent}"><origin xyz="{xyz}" rpy="{rpy}"/></xacro:{macro}>
+</robot>""")
+    xacro.process_doc(doc)
+    return [{"parent": j.find("parent").get("link"), "child": j.find("child").get("link"),
+             "xyz": [float(v) for v in j.find("origin").get("xyz").split()],
+             "rpy": [float(v) for v in j.find("origin").get("rpy").split()]}
+            for j in ET.fromstring(doc.toxml()).findall("joint")]
+
+
+def transforms(nodes):
+    """The static_transform_publisher nodes' transforms, read back from their arguments."""
+    out = []
+    for n in nodes:
+        if n["executable"] != "static_transform_publisher":
+            continue
+        a = dict(zip(n["arguments"][::2], n["arguments"][1::2]))
+        t = {k[2:].replace("-", "_"): a[k] for k in ["--frame-id", "--child-frame-id"]}
+        t.update({k[2:]: float(a[k]) for k in ["--x", "--y", "--z", "--roll", "--pitch", "--yaw"]})
+        out.append(t)
+    return out
+
+
+def error_of(f):
+    try:
+        f()
+        return "accepted"
+    except ValueError as e:
+        return str(e)
 
 
 def main():
@@ -41,6 +103,7 @@ def main():
         m = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(m)
         d = m.generate_launch_description()
+        renamed = getattr(m, "RENAMED", {})
         decls = [a for a in d.args[0] if type(a).__name__ == "DeclareLaunchArgument"]
         for a in decls:
             if not a.kwargs.get("description"):
@@ -61,10 +124,16 @@ def main():
         plans = {}
         for args in [{}, {"inference": "false"}, {"sensor": "false"}, {"source": "v4l"},
                      {"source": "bag", "bag": "recorded.mcap"},
-                     {"source": "v4l", "gripper": "robotiq_2f85", "gripper_port": "/dev/ttyGRIP"}]:
-            p = unitac_launch.plan(scene, {**overrides, **args})
+                     {"source": "v4l", "gripper": "robotiq_2f85", "gripper_port": "/dev/ttyGRIP"},
+                     {"sensor_serial": "GS0001"}, TF_ARGS]:
+            if set(args) - set(declared):
+                continue  # an argument this file does not have
+            p = unitac_launch.plan(scene, unitac_launch.rename({**overrides, **args}, renamed))
             for n in p["nodes"]:
-                if not os.path.isfile(os.path.join(bin_dir, n["executable"])):
+                if n["package"] != unitac_launch.PACKAGE:
+                    if n["executable"] not in EXTERNAL.get(n["package"], ()):
+                        out["problems"].append(f"{f}: {n['package']} {n['executable']} is not a known external executable")
+                elif not os.path.isfile(os.path.join(bin_dir, n["executable"])):
                     out["problems"].append(f"{f}: executable {n['executable']} does not exist")
                 for extra in n["parameters"]:
                     if isinstance(extra, str) and not os.path.isfile(extra):
@@ -72,11 +141,30 @@ def main():
                 for params in n["parameters"]:
                     if isinstance(params, dict) and "scene" in params and not os.path.isfile(params["scene"]):
                         out["problems"].append(f"{f}: scene file {params['scene']} does not exist")
+            # What `ros2 launch` starts: the description, given these arguments, starts the plan.
+            started = launched(d, {**declared, **args})
+            planned = [{k: n[k] for k in ["package", "executable", "name", "namespace", "parameters",
+                                          "remappings", "arguments"]} for n in p["nodes"]]
+            if started != planned:
+                out["problems"].append(f"{f}: with {args} the description starts {started}, the plan is {planned}")
+            ours = [n for n in p["nodes"] if n["package"] == unitac_launch.PACKAGE]
             plans[json.dumps(args)] = {
                 "nodes": [n["executable"] for n in p["nodes"]], "skipped": p["skipped"],
                 "parameters": {n["executable"]: {k: v for d in n["parameters"] if isinstance(d, dict)
-                                                 for k, v in d.items()} for n in p["nodes"]}}
+                                                 for k, v in d.items()} for n in ours},
+                "remappings": {n["executable"]: [list(r) for r in n["remappings"]] for n in ours},
+                "transforms": transforms(p["nodes"])}
+            if args == TF_ARGS:
+                sensor_id = {**declared, **args}["sensor_id"]
+                kind = {**declared, **args}["sensor_kind"] or unitac_launch.load_scene(scene)[0]["source"]["sensor"]
+                plans[json.dumps(args)]["urdf"] = urdf_frames(
+                    os.path.join(os.path.dirname(os.path.abspath(launch_dir)), "urdf"), kind, sensor_id,
+                    args["sensor_parent"], args["sensor_mount_xyz"], args["sensor_mount_rpy"])
         out["files"][name] = {"scene": scene, "arguments": list(declared), "plans": plans}
+        if renamed:
+            # The planner's name for a renamed argument is not this file's: an unknown argument.
+            old = next(iter(renamed.values()))
+            out["files"][name]["renamed_argument"] = error_of(lambda: launched(d, {**declared, old: "x"}))
     try:
         unitac_launch.plan("fabric_selection", {"noise_k": "4"})
         out["unknown_argument"] = "accepted"
@@ -91,6 +179,18 @@ def main():
             out["bad_gripper"][name] = "accepted"
         except ValueError as e:
             out["bad_gripper"][name] = str(e)
+    out["bad_tf"] = {}
+    for name, args in {"no_parent": {"tf": "true"},
+                       "bad_xyz": {**TF_ARGS, "sensor_mount_xyz": "0 0"},
+                       "generic": {**TF_ARGS, "sensor_kind": "generic"},
+                       "not_bool": {"tf": "yes"}}.items():
+        out["bad_tf"][name] = error_of(lambda: unitac_launch.plan("cup_deformation_vtla_real", args))
+    # A DIGIT's frames come from its own macro.
+    digit = unitac_launch.plan("fabric_selection", {**TF_ARGS, "sensor_kind": "digit", "sensor_id": "digit1"})
+    out["tf_digit"] = {"transforms": transforms(digit["nodes"]),
+                       "urdf": urdf_frames(os.path.join(os.path.dirname(os.path.abspath(launch_dir)), "urdf"),
+                                           "digit", "digit1", TF_ARGS["sensor_parent"],
+                                           TF_ARGS["sensor_mount_xyz"], TF_ARGS["sensor_mount_rpy"])}
     print(json.dumps(out))
 
 

@@ -262,3 +262,153 @@ fn planned_parameters_are_accepted_by_the_nodes() {
     }
     assert_eq!(started, 10);
 }
+
+/// Static transforms (static_transform_publisher's arguments, read back) against the joints of
+/// the sensor's xacro macro (parent, child, xyz, rpy), in order.
+fn assert_transforms_are_the_urdfs(transforms: &serde_json::Value, urdf: &serde_json::Value) {
+    let (ts, us) = (transforms.as_array().unwrap(), urdf.as_array().unwrap());
+    assert_eq!(ts.len(), 2, "{transforms}");
+    assert_eq!(ts.len(), us.len(), "{transforms} vs {urdf}");
+    for (t, u) in ts.iter().zip(us) {
+        assert_eq!(t["frame_id"], u["parent"], "{t} vs {u}");
+        assert_eq!(t["child_frame_id"], u["child"], "{t} vs {u}");
+        for (i, (k, r)) in [("x", "roll"), ("y", "pitch"), ("z", "yaw")]
+            .into_iter()
+            .enumerate()
+        {
+            let dx = t[k].as_f64().unwrap() - u["xyz"][i].as_f64().unwrap();
+            let dr = t[r].as_f64().unwrap() - u["rpy"][i].as_f64().unwrap();
+            assert!(dx.abs() < 1e-12 && dr.abs() < 1e-12, "{t} vs {u}");
+        }
+    }
+}
+
+/// robot.launch.py, a real arm that runs ros2_control: our nodes only (the V4L2 sensor by its
+/// serial, contact, inference, the policy on the robot's GripperCommand action and joint_states),
+/// no sim node and no gripper node; with tf:=true the sensor's frames as static transforms that
+/// equal the URDF's.
+#[test]
+fn robot_file_starts_our_nodes_on_the_robots_controllers() {
+    let (j, _) = check_launch();
+    assert_eq!(j["problems"], serde_json::json!([]), "{j}");
+    let f = &j["files"]["robot"];
+    assert_eq!(f["scene"], "cup_deformation_vtla_real", "{f}");
+    let args: Vec<&str> = f["arguments"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a.as_str().unwrap())
+        .collect();
+    for a in [
+        "scene",
+        "sensor_serial",
+        "sensor_id",
+        "gripper_action",
+        "gripper_joint",
+        "joint_states",
+        "arm_frame",
+        "tf",
+        "sensor_parent",
+        "sensor_mount_xyz",
+        "sensor_mount_rpy",
+    ] {
+        assert!(args.contains(&a), "robot: {a} not declared");
+    }
+    // One name per setting: here the sensor's serial is sensor_serial, and serial is unknown.
+    assert!(!args.contains(&"serial"), "{args:?}");
+    let e = f["renamed_argument"].as_str().unwrap();
+    assert!(e.contains("unknown launch argument(s) serial"), "{e}");
+
+    let ours = serde_json::json!([
+        "unitac_sensor_node",
+        "unitac_contact_node",
+        "unitac_policy_node",
+        "unitac_inference_node"
+    ]);
+    let plan = &f["plans"][r#"{"sensor_serial": "GS0001"}"#];
+    assert_eq!(plan["nodes"], ours, "{plan}");
+    let params = &plan["parameters"];
+    let sensor = &params["unitac_sensor_node"];
+    assert_eq!(sensor["source"], "v4l", "{sensor}");
+    assert_eq!(sensor["serial"], "GS0001", "{sensor}");
+    let policy = &params["unitac_policy_node"];
+    assert_eq!(policy["gripper_input"], "joint_states", "{policy}");
+    assert_eq!(policy["gripper_output"], "action", "{policy}");
+    assert_eq!(
+        policy["gripper_action"], "/gripper_controller/gripper_cmd",
+        "{policy}"
+    );
+    assert_eq!(policy["joint_name"], "gripper_finger_opening", "{policy}");
+    assert_eq!(policy["arm_frame"], "base_link", "{policy}");
+    assert_eq!(
+        plan["remappings"]["unitac_policy_node"],
+        serde_json::json!([["joint_states", "/joint_states"]])
+    );
+    // Real time: nothing here publishes /clock.
+    for (exe, p) in params.as_object().unwrap() {
+        assert!(p["use_sim_time"].is_null(), "{exe}: {p}");
+    }
+    // No serial given: the only sensor of its kind connected. tf:=false (the default): the
+    // robot's URDF holds the sensor, so no transforms.
+    assert_eq!(f["plans"]["{}"]["nodes"], ours);
+    assert!(f["plans"]["{}"]["parameters"]["unitac_sensor_node"]["serial"].is_null());
+    assert_eq!(plan["transforms"], serde_json::json!([]));
+
+    // tf:=true: sensor_parent -> <sensor_id>_link at the mount, then the GelSight Mini macro's
+    // <sensor_id>_link -> <sensor_id>_optical_frame, the frame_id the nodes publish.
+    let tf = &f["plans"][r#"{"tf": "true", "sensor_parent": "right_fingertip", "sensor_mount_xyz": "0.01 -0.005 0.02", "sensor_mount_rpy": "0 0.1 -1.5707963267948966"}"#];
+    assert_eq!(
+        tf["nodes"],
+        serde_json::json!([
+            "unitac_sensor_node",
+            "unitac_contact_node",
+            "unitac_policy_node",
+            "unitac_inference_node",
+            "static_transform_publisher",
+            "static_transform_publisher"
+        ]),
+        "{tf}"
+    );
+    let sensor_id = tf["parameters"]["unitac_sensor_node"]["sensor_id"]
+        .as_str()
+        .unwrap();
+    assert_eq!(
+        tf["parameters"]["unitac_contact_node"]["sensor_id"],
+        sensor_id
+    );
+    let t = &tf["transforms"];
+    assert_eq!(t[0]["frame_id"], "right_fingertip", "{t}");
+    assert_eq!(t[0]["child_frame_id"], format!("{sensor_id}_link"), "{t}");
+    // The mount is the arguments' (x, y, z, roll, pitch, yaw).
+    for (k, v) in [
+        ("x", 0.01),
+        ("y", -0.005),
+        ("z", 0.02),
+        ("roll", 0.0),
+        ("pitch", 0.1),
+        ("yaw", -std::f64::consts::FRAC_PI_2),
+    ] {
+        assert!((t[0][k].as_f64().unwrap() - v).abs() < 1e-12, "{k}: {t}");
+    }
+    assert_eq!(t[1]["frame_id"], format!("{sensor_id}_link"), "{t}");
+    assert_eq!(
+        t[1]["child_frame_id"],
+        format!("{sensor_id}_optical_frame"),
+        "{t}"
+    );
+    assert_transforms_are_the_urdfs(t, &tf["urdf"]);
+    // A DIGIT's frames come from its own macro.
+    let d = &j["tf_digit"];
+    assert_eq!(d["transforms"][1]["child_frame_id"], "digit1_optical_frame");
+    assert_transforms_are_the_urdfs(&d["transforms"], &d["urdf"]);
+    // Frames that cannot be: each a one-line error naming what is missing or wrong.
+    let bad = &j["bad_tf"];
+    for (case, says) in [
+        ("no_parent", "needs sensor_parent"),
+        ("bad_xyz", "is not three numbers"),
+        ("generic", "needs a sensor with a URDF macro"),
+        ("not_bool", "tf:=yes is not true or false"),
+    ] {
+        assert!(bad[case].as_str().unwrap().contains(says), "{case}: {bad}");
+    }
+}
