@@ -23,12 +23,12 @@ MODE own: a gripper simulated here on its own sim time (10 ms steps, paced at re
   (geometry_msgs/PoseStamped) as a Cartesian controller would: it records each target's frame
   and position.
 
-stdin, one line each (answers on stdout):
+stdin, one line each (answers on stdout); both wait for a goal to be executing:
   "abort"    abort the active goal (a controller fault, stalled false): "aborted T_NS"
   "preempt"  a second client sends a goal (hold where the fingers are), preempting the active
              one: "preempted T_NS"
-  own mode: the clock stops after either (T_NS: the last published sim time) until the goal's end
-  has had 0.5 s of wall time to reach the client, then goes on.
+  own mode: the clock stops at an executing goal (T_NS: the last published sim time) until the
+  goal's end has had 0.5 s of wall time to reach the client, then goes on.
   "end"      print a JSON summary and exit
 out: "ready" once the server is up; "goal P E" for each accepted goal.
 """
@@ -253,22 +253,36 @@ def main():
             time.sleep(0.5)
             paused.clear()
 
+    def pause_at_active_goal():
+        """Own mode: stop the clock while a goal is executing (at most 20 s of waiting)."""
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 20:
+            with lock:
+                g = active["goal"]
+                busy = g is not None and g["flag"] is None
+            if busy:
+                if mode != "own":
+                    return
+                paused.set()
+                time.sleep(0.05)
+                with lock:
+                    if active["goal"] is g:
+                        return
+                paused.clear()
+            time.sleep(0.002)
+
     def read_stdin():
         for line in sys.stdin:
             cmd = line.strip()
             if cmd == "abort":
-                if mode == "own":
-                    paused.set()
-                    time.sleep(0.05)
+                pause_at_active_goal()
                 with lock:
                     g = active["goal"]
                     if g is not None:
                         g["flag"] = "aborted"
                 after_fault("aborted")
             elif cmd == "preempt":
-                if mode == "own":
-                    paused.set()
-                    time.sleep(0.05)
+                pause_at_active_goal()
                 goal = GripperAction.Goal()
                 with lock:
                     goal.command.position = state["position"] or 0.0

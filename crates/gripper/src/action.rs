@@ -10,7 +10,9 @@
 //! - a goal succeeds when the position is within the controller's tolerance (`reached_goal`);
 //! - fingers that stop short of the goal for the stall timeout have `stalled`: the goal succeeds
 //!   with `allow_stalling`, else it is aborted. Either way the fingers stopped on something:
-//!   that is the gripper's object detection here;
+//!   that is the gripper's object detection here. So is a closing goal that ended (reached
+//!   within the controller's tolerance, 1 cm by default) with the fingers more than
+//!   [`CAUGHT_SHORT_M`] short of it, as a Robotiq's own detection reports a stop on contact;
 //! - a cancel request holds the current position.
 //!
 //! What is a fault (the policy's safety layer answers a gripper fault with the safe action on
@@ -72,6 +74,9 @@ struct Current {
     phase: Phase,
     stalled: bool,
 }
+
+/// Fingers that ended a closing goal more than this short of it \[m] stopped on an object.
+pub const CAUGHT_SHORT_M: f64 = 1e-3;
 
 /// When to send a goal again.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -229,11 +234,12 @@ impl ActionLink {
     pub fn status(&self, mut s: GripperStatus) -> GripperStatus {
         if let Some(c) = &self.current {
             s.target_m = c.goal.position_m;
+            let short = s.opening_m > c.goal.position_m + CAUGHT_SHORT_M;
             let (motion, held) = match c.phase {
                 Phase::Sent | Phase::Active if c.stalled => ("caught", true),
                 Phase::Sent | Phase::Active => ("moving", false),
-                Phase::Done { stalled: true } => ("caught", true),
-                Phase::Done { stalled: false } => ("reached", false),
+                Phase::Done { stalled } if stalled || short => ("caught", true),
+                Phase::Done { .. } => ("reached", false),
                 Phase::Failed => ("idle", false),
             };
             s.motion = motion.into();
@@ -308,12 +314,31 @@ mod tests {
         assert_eq!(l.fault(), None);
         l.answered(b, true);
         l.finished(b, GoalEnd::Succeeded, &report(false, true));
-        let s = l.status(measured());
+        let mut m = measured();
+        m.opening_m = 0.04;
+        let s = l.status(m);
         assert_eq!((s.motion.as_str(), s.target_m), ("reached", 0.04));
         assert!(s.fault.is_empty() && !s.object_detected);
         // Done and the same command: nothing to send.
         assert!(l.command(&cmd(0.04, 20.0), T).is_none());
         assert_eq!(l.goals_sent(), 2);
+    }
+
+    #[test]
+    fn a_closing_goal_reached_short_of_its_position_is_a_caught_object() {
+        let mut l = ActionLink::new(Resend::default());
+        // Sent to 60 mm, reached within the controller's 1 cm at 65 mm: on the object.
+        let (a, _) = l.command(&cmd(0.060, 40.0), T).unwrap();
+        l.answered(a, true);
+        l.finished(a, GoalEnd::Succeeded, &report(false, true));
+        let mut m = measured();
+        m.opening_m = 0.065;
+        let s = l.status(m.clone());
+        assert!(s.object_detected && s.motion == "caught", "{s:?}");
+        // At the goal (within a millimetre): reached, nothing caught.
+        m.opening_m = 0.0605;
+        let s = l.status(m);
+        assert!(!s.object_detected && s.motion == "reached", "{s:?}");
     }
 
     #[test]
@@ -352,7 +377,8 @@ mod tests {
 
     #[test]
     fn abort_rejection_and_foreign_preemption_are_faults_until_a_goal_of_ours_succeeds() {
-        let cases: [(&str, fn(&mut ActionLink, u64)); 3] = [
+        type End = fn(&mut ActionLink, u64);
+        let cases: [(&str, End); 3] = [
             ("aborted", |l, id| {
                 l.answered(id, true);
                 l.finished(id, GoalEnd::Aborted, &report(false, false));

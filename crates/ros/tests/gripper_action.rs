@@ -92,7 +92,7 @@ fn abort_and_preemption_get_the_safe_action_on_the_next_tick_and_arm_targets_are
     std::thread::sleep(Duration::from_secs(1));
     let aborted = ctl.ask("abort", "aborted ", 30);
     let aborted: i64 = aborted["aborted ".len()..].parse().unwrap();
-    std::thread::sleep(Duration::from_secs(2));
+    std::thread::sleep(Duration::from_millis(500));
     let preempted = ctl.ask("preempt", "preempted ", 30);
     let preempted: i64 = preempted["preempted ".len()..].parse().unwrap();
     std::thread::sleep(Duration::from_secs(2));
