@@ -64,7 +64,7 @@ struct Params {
     gripper_action: String,
     /// TF frame of `arm_pose`: the frame of the policy's table coordinates
     arm_frame: String,
-    /// The tool's orientation in `arm_frame` for `arm_pose`: roll, pitch, yaw [rad] (default:
+    /// The tool's orientation in `arm_frame` for `arm_pose`: roll, pitch, yaw in radians (default:
     /// turned over, fingers pointing down a z-up frame)
     tool_roll: f64,
     tool_pitch: f64,
