@@ -125,8 +125,12 @@ impl ActionLink {
     }
 
     /// The goal to send for `cmd` at `now` and its id, or None when the current goal already
-    /// asks for it (and is under way or done).
+    /// asks for it (and is under way or done), or when there is no server to send it to (a goal
+    /// sent then is lost, and its result never comes).
     pub fn command(&mut self, cmd: &GripCommand, now: Stamp) -> Option<(u64, Goal)> {
+        if self.server.is_some() {
+            return None;
+        }
         let goal = Goal {
             position_m: cmd.opening_m,
             max_effort_n: cmd.force_n,
@@ -425,7 +429,10 @@ mod tests {
         let mut m = measured();
         m.fault = "link: port gone".into();
         assert_eq!(l.status(m).fault, "link: port gone");
+        // Nothing is sent to a missing server; once it is back, the command goes out.
+        assert!(l.command(&cmd(0.03, 20.0), T).is_none());
         l.set_server_missing(None);
         assert!(l.status(measured()).fault.is_empty());
+        assert!(l.command(&cmd(0.03, 20.0), T).is_some());
     }
 }
