@@ -530,18 +530,20 @@ fn a_stalled_subscriber_loses_frames_counted_and_blocks_nothing() {
     let slow_got = finish(slow);
     let [t_stop, t_cont] = [0, 1].map(|i| got["stop_window"][i].as_f64().unwrap());
     assert!(t_cont - t_stop >= 1.9, "{}", got["stop_window"]);
-    // The sensor kept its rate while one subscriber was stalled and another was slow.
+    // The sensor kept its rate while one subscriber was stalled and another was slow: its
+    // published count over the stall (from its diagnostics, once a second) grew at its 25 fps.
+    // (The mean over the window, not each second's rate: on a loaded machine the mock's pacer
+    // catches up after a late second, which a per-second figure shows as a dip and a burst.)
     let sd = diag_of(&got, &n, "unitac_sensor");
-    let during: Vec<f64> = sd
+    let during: Vec<(f64, f64)> = sd
         .iter()
-        .filter(|d| (t_stop + 0.5..t_cont + 1.0).contains(&d["t"].as_f64().unwrap()))
-        .map(|d| num(&d["values"]["rate_hz"]))
+        .map(|d| (d["t"].as_f64().unwrap(), num(&d["values"]["messages_out"])))
+        .filter(|(t, _)| (t_stop..t_cont + 1.5).contains(t))
         .collect();
-    assert!(!during.is_empty(), "{sd:?} {}", got["stop_window"]);
-    assert!(
-        during.iter().all(|r| (20.0..=30.0).contains(r)),
-        "{during:?}"
-    );
+    assert!(during.len() >= 2, "{sd:?} {}", got["stop_window"]);
+    let ((t0, m0), (t1, m1)) = (during[0], during[during.len() - 1]);
+    let rate = (m1 - m0) / (t1 - t0);
+    assert!((20.0..=30.0).contains(&rate), "{rate} Hz over {during:?}");
     // Frames kept flowing to the other subscribers during the stall.
     let seen = got["image_times"]
         .as_array()
