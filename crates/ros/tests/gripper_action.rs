@@ -10,7 +10,7 @@
 
 mod common;
 use common::closed_loop::{
-    GripperPath, Launcher, Loop, Observer, PERIOD_NS, SCENE, here, phases, statuses,
+    ACTION_POLICY, GripperPath, Launcher, Loop, Observer, PERIOD_NS, SCENE, here, phases, statuses,
 };
 use common::stop;
 use serde_json::Value;
@@ -73,19 +73,17 @@ fn abort_and_preemption_get_the_safe_action_on_the_next_tick_and_arm_targets_are
         env!("CARGO_BIN_EXE_unitac_policy_node"),
         &n,
         &[
-            "-p",
-            "scene:=cup_deformation_vla",
-            "-p",
-            "use_sim_time:=true",
-            "-p",
-            "gripper_input:=joint_states",
-            "-p",
-            "gripper_output:=action",
-            "-p",
-            "gripper_action:=gripper_cmd",
-            "-p",
-            "arm_frame:=table",
-        ],
+            &[
+                "-p",
+                "scene:=cup_deformation_vla",
+                "-p",
+                "use_sim_time:=true",
+                "-p",
+                "arm_frame:=table",
+            ][..],
+            &ACTION_POLICY,
+        ]
+        .concat(),
     );
     // The policy's first goal (the approach's opening), then a second of control.
     ctl.wait_for(|l| l.starts_with("goal "), 60);

@@ -25,18 +25,23 @@ fn check_launch() -> (serde_json::Value, PathBuf) {
     (serde_json::from_slice(&o.stdout).unwrap(), bin_dir)
 }
 
+/// The arguments a launch file declares, as check_launch.py lists them.
+fn arguments(f: &serde_json::Value) -> Vec<&str> {
+    f["arguments"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a.as_str().unwrap())
+        .collect()
+}
+
 #[test]
 fn launch_files_are_consistent_with_scenes_and_executables() {
     let (j, _) = check_launch();
     assert_eq!(j["problems"], serde_json::json!([]), "{j}");
     for file in ["fabric_selection", "cup_deformation", "replay"] {
         let f = &j["files"][file];
-        let args: Vec<&str> = f["arguments"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|a| a.as_str().unwrap())
-            .collect();
+        let args = arguments(f);
         for a in [
             "source",
             "sensor_kind",
@@ -293,12 +298,7 @@ fn robot_file_starts_our_nodes_on_the_robots_controllers() {
     assert_eq!(j["problems"], serde_json::json!([]), "{j}");
     let f = &j["files"]["robot"];
     assert_eq!(f["scene"], "cup_deformation_vtla_real", "{f}");
-    let args: Vec<&str> = f["arguments"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|a| a.as_str().unwrap())
-        .collect();
+    let args = arguments(f);
     for a in [
         "scene",
         "sensor_serial",

@@ -240,7 +240,7 @@ enum GripperOut {
         events: mpsc::UnboundedSender<ActionEvent>,
         /// Goals under way: each ends with its result.
         goals: FuturesUnordered<LocalBoxFuture<'static, ()>>,
-        /// Where the latest goal was sent to, e.g. for diagnostics.
+        /// The action server's fully qualified name.
         name: String,
     },
 }
@@ -341,10 +341,6 @@ struct Publishers {
 }
 
 impl Publishers {
-    fn goals_under_way(&self) -> bool {
-        matches!(&self.gripper, GripperOut::Action { goals, .. } if !goals.is_empty())
-    }
-
     fn publish(&mut self, out: Vec<Msg>, counters: &mut diagnostics::Counters, last: &mut String) {
         for m in out {
             let r = match &m {
@@ -490,24 +486,22 @@ async fn run_async() -> anyhow::Result<()> {
     let reliable = QosProfile::default;
     let namespace = node.namespace()?;
     let (events_tx, mut events) = mpsc::unbounded::<ActionEvent>();
-    let (gripper, action_name) = if p.gripper_output == "action" {
+    let gripper = if p.gripper_output == "action" {
         let name = if p.gripper_action.starts_with('/') {
             p.gripper_action.clone()
         } else {
             qualified(&namespace, &p.gripper_action)
         };
         let client = node.create_action_client::<GripperAction>(&name)?;
-        let out = GripperOut::Action {
+        GripperOut::Action {
             client,
             link: ActionLink::new(Resend::default()),
             events: events_tx,
             goals: FuturesUnordered::new(),
-            name: name.clone(),
-        };
-        (out, Some(name))
+            name,
+        }
     } else {
-        let out = GripperOut::Topic(node.create_publisher("gripper_command", reliable())?);
-        (out, None)
+        GripperOut::Topic(node.create_publisher("gripper_command", reliable())?)
     };
     let mut pubs = Publishers {
         gripper,
@@ -568,7 +562,7 @@ async fn run_async() -> anyhow::Result<()> {
                         if let Err(e) = producers.check(&mut stage) {
                             counters.error(format!("graph: {e:#}"));
                         }
-                        check_server(&producers, &mut pubs, action_name.as_deref(), &mut counters);
+                        check_server(&producers, &mut pubs, &mut counters);
                         Msg::Gripper(pubs.gripper_state(g))
                     }
                     m => m,
@@ -587,12 +581,12 @@ async fn run_async() -> anyhow::Result<()> {
                 counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
             }
             Some(e) = events.next() => pubs.action_event(e),
-            Some(()) = next_goal(&mut pubs), if pubs.goals_under_way() => {}
+            Some(()) = next_goal(&mut pubs) => {}
             _ = control.tick() => {
                 if let Err(e) = producers.check(&mut stage) {
                     counters.error(format!("graph: {e:#}"));
                 }
-                check_server(&producers, &mut pubs, action_name.as_deref(), &mut counters);
+                check_server(&producers, &mut pubs, &mut counters);
                 let now = convert::stamp(&ros_now(&clock));
                 let out = stage.watchdog_tick(now);
                 if !out.is_empty() {
@@ -629,10 +623,9 @@ async fn run_async() -> anyhow::Result<()> {
 fn check_server(
     producers: &Producers,
     pubs: &mut Publishers,
-    name: Option<&str>,
     counters: &mut diagnostics::Counters,
 ) {
-    let (Some(name), GripperOut::Action { link, .. }) = (name, &mut pubs.gripper) else {
+    let GripperOut::Action { link, name, .. } = &mut pubs.gripper else {
         return;
     };
     match producers.action_server_missing(name) {

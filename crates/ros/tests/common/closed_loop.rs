@@ -11,6 +11,16 @@ use std::time::Duration;
 
 /// The scene every closed-loop test runs.
 pub const SCENE: &str = "cup_deformation_vtla_real";
+/// The policy node's parameters for a gripper behind the GripperCommand action `gripper_cmd` (in
+/// its namespace), read from `joint_states`.
+pub const ACTION_POLICY: [&str; 6] = [
+    "-p",
+    "gripper_input:=joint_states",
+    "-p",
+    "gripper_output:=action",
+    "-p",
+    "gripper_action:=gripper_cmd",
+];
 /// The scene's control period \[ns] (30 Hz).
 pub const PERIOD_NS: i64 = 33_333_333;
 
@@ -207,16 +217,8 @@ impl Loop {
         // Through the action: the policy reads the sim's joint states (as from a robot's
         // joint_state_broadcaster) and sends goals to the controller peer, which holds the sim
         // gripper's setpoint; the sim waits for the arm's commands only.
-        let action_policy = [
-            "-p",
-            "gripper_input:=joint_states",
-            "-p",
-            "gripper_output:=action",
-            "-p",
-            "gripper_action:=gripper_cmd",
-        ];
         if path == GripperPath::Action {
-            policy_args.extend(action_policy);
+            policy_args.extend(ACTION_POLICY);
         }
         let policy = node(
             at,
