@@ -258,17 +258,10 @@ fn run() -> anyhow::Result<()> {
         let mut got = |pending: &mut Pending, base: &mut NodeBase<Params>| {
             base.spin(Duration::from_millis(1));
             while let Some(Some(c)) = sub_cmd.next().now_or_never() {
-                let c = convert::gripper_command_from(&c);
-                match c {
+                match convert::gripper_command_from(&c) {
                     Ok(c) if held_mode => held = c,
-                    Err(e) if held_mode => counters.error(format!("setpoint: {e}")),
                     c => take(&mut pending.gripper, c, o.stamp, &mut counters),
                 }
-            }
-            if held_mode {
-                let mut c = held.clone();
-                c.header.stamp = o.stamp;
-                pending.gripper = Some(c);
             }
             while let Some(Some(a)) = sub_arm.next().now_or_never() {
                 take(
@@ -278,7 +271,7 @@ fn run() -> anyhow::Result<()> {
                     &mut counters,
                 );
             }
-            pending.gripper.is_some() && pending.arm.is_some()
+            (held_mode || pending.gripper.is_some()) && pending.arm.is_some()
         };
         let mut answered = false;
         while !base.stopped() && waited.elapsed() < timeout {
@@ -290,6 +283,11 @@ fn run() -> anyhow::Result<()> {
         if answered {
             round_trip_us.push(sent.elapsed().as_secs_f64() * 1e6);
             answered_s.push(start.elapsed().as_secs_f64());
+        }
+        if held_mode {
+            let mut c = held.clone();
+            c.header.stamp = o.stamp;
+            pending.gripper = Some(c);
         }
         let cmds = std::mem::take(&mut pending);
         let r = match (&cmds.gripper, &cmds.arm) {
