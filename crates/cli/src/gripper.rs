@@ -10,7 +10,7 @@ use unitac_gripper::client::{CameBack, ClientConfig, RtuClient};
 use unitac_gripper::device::physics::SimObject;
 use unitac_gripper::device::{DeviceConfig, SimDevice};
 use unitac_gripper::{
-    Activation, DriverConfig, Fault, GripCommand, Gripper, GripperState, Model, Motion,
+    Activation, DriverConfig, Fault, Gripper, GripperSetpoint, GripperState, Model, Motion,
     SerialGripper,
 };
 
@@ -165,7 +165,7 @@ pub fn run(a: GripperArgs) -> anyhow::Result<bool> {
             } else {
                 0.0
             };
-            g.command(GripCommand {
+            g.command(GripperSetpoint {
                 opening_m,
                 speed_m_s: speed,
                 force_n: force,

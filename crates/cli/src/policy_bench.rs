@@ -263,12 +263,7 @@ impl Script {
         ) else {
             bail!("a control tick sent no gripper or arm command: {produced:?}");
         };
-        let cmd = bridge::task_command(
-            g,
-            a,
-            self.truth.gripper.opening_m,
-            &self.world.config().gripper,
-        )?;
+        let cmd = bridge::task_command(g, a, Some(self.truth.gripper.opening_m))?;
         self.target_m = match g.mode {
             GripperMode::Stop => f64::NAN,
             _ => cmd.gripper.opening_m,

@@ -21,7 +21,7 @@
 //! preempted is not a fault. A fault clears when a later goal of ours succeeds or stalls (the
 //! controller does what it is told again).
 
-use crate::GripCommand;
+use crate::GripperSetpoint;
 use serde::Serialize;
 use unitac_core::Stamp;
 use unitac_core::msg::GripperStatus;
@@ -127,7 +127,7 @@ impl ActionLink {
     /// The goal to send for `cmd` at `now` and its id, or None when the current goal already
     /// asks for it (and is under way or done), or when there is no server to send it to (a goal
     /// sent then is lost, and its result never comes).
-    pub fn command(&mut self, cmd: &GripCommand, now: Stamp) -> Option<(u64, Goal)> {
+    pub fn command(&mut self, cmd: &GripperSetpoint, now: Stamp) -> Option<(u64, Goal)> {
         if self.server.is_some() {
             return None;
         }
@@ -266,8 +266,8 @@ mod tests {
 
     const T: Stamp = Stamp(1_000);
 
-    fn cmd(opening_m: f64, force_n: f64) -> GripCommand {
-        GripCommand {
+    fn cmd(opening_m: f64, force_n: f64) -> GripperSetpoint {
+        GripperSetpoint {
             opening_m,
             speed_m_s: 0.02,
             force_n,

@@ -6,7 +6,7 @@
 //! a row) closes the port and re-opens it with a back-off until the adapter returns.
 
 use crate::client::{ClientConfig, LinkStats, RtuClient};
-use crate::gripper::{Fault, GripCommand, Gripper, GripperError, GripperState, Limits};
+use crate::gripper::{Fault, Gripper, GripperError, GripperSetpoint, GripperState, Limits};
 use crate::model::{Calibration, Model};
 use crate::port::{self, BY_ID};
 use crate::protocol::{Session, Wants};
@@ -149,7 +149,7 @@ impl Gripper for SerialGripper {
         lock(&self.shared.wants).activate = true;
         Ok(())
     }
-    fn command(&mut self, cmd: GripCommand) -> Result<(), GripperError> {
+    fn command(&mut self, cmd: GripperSetpoint) -> Result<(), GripperError> {
         self.alive()?;
         let limits = self.limits();
         let asked = cmd;
@@ -189,7 +189,11 @@ impl Gripper for SerialGripper {
 }
 
 /// "speed 0.010 -> 0.030 m/s, ..." for the fields `what` names.
-fn clamp_text(asked: &GripCommand, done: &GripCommand, what: crate::gripper::Clamped) -> String {
+fn clamp_text(
+    asked: &GripperSetpoint,
+    done: &GripperSetpoint,
+    what: crate::gripper::Clamped,
+) -> String {
     let mut parts = Vec::new();
     if what.opening {
         parts.push(format!(

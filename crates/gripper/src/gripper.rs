@@ -6,42 +6,7 @@
 
 use serde::Serialize;
 use thiserror::Error;
-use unitac_core::msg::GripperMode;
-
-/// A motion command: go to `opening_m` at no more than `speed_m_s`, squeezing with at most
-/// `force_n` (the fingers stop on an object when the grip force reaches it).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct GripCommand {
-    /// Distance between the fingertips \[m].
-    pub opening_m: f64,
-    /// Opening/closing speed of the fingertip distance [m/s].
-    pub speed_m_s: f64,
-    /// Grip force limit \[N].
-    pub force_n: f64,
-}
-
-impl GripCommand {
-    /// The motion a `unitac_msgs/GripperCommand` asks for, as the message defines it: POSITION
-    /// goes to `position_m` with `force_n` as the force limit; FORCE closes (target 0) until the
-    /// grip force reaches `force_n`; STOP holds the measured opening `opening_now` with `force_n`
-    /// (None without a measured opening: nothing to hold yet). Every gripper interface (the
-    /// serial node, the ros2_control action client) turns a command into a motion here.
-    pub fn from_msg(
-        c: &unitac_core::msg::GripperCommand,
-        opening_now: Option<f64>,
-    ) -> Option<Self> {
-        let opening_m = match c.mode {
-            GripperMode::Position => c.position_m,
-            GripperMode::Force => 0.0,
-            GripperMode::Stop => opening_now?,
-        };
-        Some(Self {
-            opening_m,
-            speed_m_s: c.speed_m_s,
-            force_n: c.force_n,
-        })
-    }
-}
+pub use unitac_core::GripperSetpoint;
 
 /// Activation of the gripper's controller.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Default)]
@@ -147,7 +112,7 @@ pub trait Gripper: Send {
     fn activate(&mut self) -> Result<(), GripperError>;
     /// Request a motion. Values outside the model's range are clamped to it; non-finite values are
     /// refused.
-    fn command(&mut self, cmd: GripCommand) -> Result<(), GripperError>;
+    fn command(&mut self, cmd: GripperSetpoint) -> Result<(), GripperError>;
     /// The latest state (never waits for the device).
     fn state(&self) -> GripperState;
     /// Request recovery from a major fault (re-activation). Does nothing without one.
@@ -170,7 +135,7 @@ impl Clamped {
 
 impl Limits {
     /// Which fields of a finite `asked` command [`Limits::clamp`] changes into `done`.
-    pub fn clamped(asked: &GripCommand, done: &GripCommand) -> Clamped {
+    pub fn clamped(asked: &GripperSetpoint, done: &GripperSetpoint) -> Clamped {
         Clamped {
             opening: asked.opening_m != done.opening_m,
             speed: asked.speed_m_s != done.speed_m_s,
@@ -179,13 +144,13 @@ impl Limits {
     }
 
     /// Check `cmd` is finite and clamp it to the limits.
-    pub fn clamp(&self, cmd: GripCommand) -> Result<GripCommand, GripperError> {
+    pub fn clamp(&self, cmd: GripperSetpoint) -> Result<GripperSetpoint, GripperError> {
         if !(cmd.opening_m.is_finite() && cmd.speed_m_s.is_finite() && cmd.force_n.is_finite()) {
             return Err(GripperError::BadCommand(format!(
                 "non-finite value in {cmd:?}"
             )));
         }
-        Ok(GripCommand {
+        Ok(GripperSetpoint {
             opening_m: cmd.opening_m.clamp(0.0, self.max_opening_m),
             speed_m_s: cmd.speed_m_s.clamp(self.min_speed_m_s, self.max_speed_m_s),
             force_n: cmd.force_n.clamp(self.min_force_n, self.max_force_n),
@@ -248,14 +213,14 @@ mod tests {
             max_force_n: 235.0,
         };
         let c = l
-            .clamp(GripCommand {
+            .clamp(GripperSetpoint {
                 opening_m: 1.0,
                 speed_m_s: 0.0,
                 force_n: 1e9,
             })
             .unwrap();
         assert_eq!((c.opening_m, c.speed_m_s, c.force_n), (0.085, 0.02, 235.0));
-        let asked = GripCommand {
+        let asked = GripperSetpoint {
             opening_m: 0.05,
             speed_m_s: 0.01,
             force_n: 50.0,
@@ -273,7 +238,7 @@ mod tests {
         assert!(what.any());
         assert!(!Limits::clamped(&done, &done).any());
         assert!(
-            l.clamp(GripCommand {
+            l.clamp(GripperSetpoint {
                 opening_m: f64::NAN,
                 speed_m_s: 0.1,
                 force_n: 50.0

@@ -24,5 +24,7 @@ pub mod sim_world;
 pub mod status;
 
 pub use driver::{DriverConfig, DriverStats, SerialGripper};
-pub use gripper::{Activation, Fault, GripCommand, Gripper, GripperError, GripperState, Motion};
+pub use gripper::{
+    Activation, Fault, Gripper, GripperError, GripperSetpoint, GripperState, Motion,
+};
 pub use model::Model;

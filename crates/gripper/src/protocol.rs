@@ -9,14 +9,14 @@
 //! asked to.
 
 use crate::frame::{Request, Response};
-use crate::gripper::{Activation, Fault, GripCommand, GripperState, Linear, Motion};
+use crate::gripper::{Activation, Fault, GripperSetpoint, GripperState, Linear, Motion};
 use crate::model::{Calibration, Family, Model};
 
 /// What the user asked for; the protocol consumes the one-shot requests when it has acted on them.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Wants {
     /// Latest motion command and its sequence number (increases with every command).
-    pub command: Option<(u64, GripCommand)>,
+    pub command: Option<(u64, GripperSetpoint)>,
     pub activate: bool,
     pub clear_fault: bool,
 }

@@ -9,7 +9,7 @@
 
 use crate::device::physics::{Drive, Fingers, Physics};
 use crate::gripper::{
-    Activation, GripCommand, Gripper, GripperError, GripperState, Limits, Motion,
+    Activation, Gripper, GripperError, GripperSetpoint, GripperState, Limits, Motion,
 };
 use unitac_sim::{Command, World, WorldError, WorldTruth};
 
@@ -102,7 +102,7 @@ impl Physics for WorldFingers {
 pub struct SimWorldGripper {
     fingers: WorldFingers,
     limits: Limits,
-    cmd: Option<GripCommand>,
+    cmd: Option<GripperSetpoint>,
     state: GripperState,
     t: f64,
 }
@@ -184,7 +184,7 @@ impl Gripper for SimWorldGripper {
     fn activate(&mut self) -> Result<(), GripperError> {
         Ok(())
     }
-    fn command(&mut self, cmd: GripCommand) -> Result<(), GripperError> {
+    fn command(&mut self, cmd: GripperSetpoint) -> Result<(), GripperError> {
         let cmd = self.limits.clamp(cmd)?;
         if self.cmd != Some(cmd) {
             self.state.motion = Motion::Moving;
@@ -217,7 +217,7 @@ mod tests {
         let mut g = SimWorldGripper::new(world, limits);
         let start = g.state().opening_m.unwrap();
         assert!(start > 0.060, "starts open: {start}");
-        g.command(GripCommand {
+        g.command(GripperSetpoint {
             opening_m: 0.0,
             speed_m_s: 0.02,
             force_n: 5.0,

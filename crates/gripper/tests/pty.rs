@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use unitac_gripper::device::physics::SimObject;
 use unitac_gripper::device::{DeviceConfig, SimDevice};
 use unitac_gripper::{
-    Activation, DriverConfig, Fault, GripCommand, Gripper, Model, Motion, SerialGripper,
+    Activation, DriverConfig, Fault, Gripper, GripperSetpoint, Model, Motion, SerialGripper,
 };
 
 const WAIT: Duration = Duration::from_secs(10);
@@ -50,8 +50,8 @@ fn driver(dev: &SimDevice, model: Model) -> SerialGripper {
     SerialGripper::start(cfg).unwrap()
 }
 
-fn cmd(opening_m: f64, force_n: f64) -> GripCommand {
-    GripCommand {
+fn cmd(opening_m: f64, force_n: f64) -> GripperSetpoint {
+    GripperSetpoint {
         opening_m,
         speed_m_s: 0.15,
         force_n,
@@ -115,7 +115,7 @@ fn robotiq_activation_position_and_force() {
     assert_eq!(g.stats().clamped_commands, 0);
     let min = g.limits().min_speed_m_s;
     for _ in 0..2 {
-        g.command(GripCommand {
+        g.command(GripperSetpoint {
             speed_m_s: 0.001,
             ..cmd(0.0, 40.0)
         })
@@ -369,7 +369,7 @@ fn sim_world_gripper_in_process_and_over_the_pty_agree() {
     use unitac_sim::{Cup, World, WorldConfig};
     let world = || World::new(WorldConfig::new(Cup::paper(60.0)));
     let limits = Model::Robotiq2F85.calibration().limits;
-    let close = GripCommand {
+    let close = GripperSetpoint {
         opening_m: 0.0,
         speed_m_s: 0.15,
         force_n: 20.0,

@@ -127,8 +127,7 @@ impl LockStep {
                 lift_m: 0.0,
                 reason: String::new(),
             },
-            world.truth().gripper.opening_m,
-            &cfg.gripper,
+            Some(world.truth().gripper.opening_m),
         )?;
         Ok(Self {
             gauge: bridge::GripperGauge::for_trial(&world, seed, trial),
@@ -184,7 +183,7 @@ impl LockStep {
         match cmd {
             Some((g, a)) => {
                 let opening = self.world.truth().gripper.opening_m;
-                let c = bridge::task_command(g, a, opening, &self.world.config().gripper)?;
+                let c = bridge::task_command(g, a, Some(opening))?;
                 self.target_m = c.gripper.opening_m;
                 self.last = c;
             }

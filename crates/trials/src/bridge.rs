@@ -18,8 +18,8 @@ use unitac_core::msg::{
     ArmCommand, GripperCommand, GripperMode, GripperStatus, Header, VisualObservation,
 };
 use unitac_sim::task::{
-    self, ArmSetpoint, ArmTarget, GripperLimits, GripperSensing, GripperSetpoint, TaskCommand,
-    TaskTruth, TaskWorld, trial_rng,
+    self, ArmSetpoint, ArmTarget, GripperSensing, GripperSetpoint, TaskCommand, TaskTruth,
+    TaskWorld, trial_rng,
 };
 use unitac_sim::{EPOCH, GroundTruth, MockSensor, SplitMix64};
 
@@ -38,6 +38,8 @@ pub enum BridgeError {
     NotFinite { field: &'static str, value: f64 },
     #[error("arm command target is empty")]
     EmptyTarget,
+    #[error("gripper STOP before the first measured opening: nothing to hold")]
+    NothingToHold,
 }
 
 /// World time -> stamp.
@@ -128,33 +130,29 @@ fn finite(field: &'static str, value: f64) -> Result<f64, BridgeError> {
     }
 }
 
-/// The policy's two commands as one world command. `opening_m` is the measured opening (a stop
-/// holds it). Position mode: move to `position_m` with `force_n` as the force bound; force mode:
-/// close (target 0) until the fingers stall at `force_n`; stop: stay where the fingers are.
-/// Values beyond the gripper's range are left for the world to clamp or refuse, as a gripper
-/// does; NaN or inf is an error here.
+/// The policy's two commands as one world command. The gripper part is the one setpoint every
+/// gripper takes ([`GripperSetpoint::from_command`], the message's meaning of each mode; a stop
+/// holds `opening_now`, the measured opening, with the command's force). Values beyond the
+/// gripper's range are left for the world to clamp or refuse, as a gripper does; NaN or inf is
+/// an error here.
 pub fn task_command(
     g: &GripperCommand,
     a: &ArmCommand,
-    opening_m: f64,
-    limits: &GripperLimits,
+    opening_now: Option<f64>,
 ) -> Result<TaskCommand, BridgeError> {
-    let speed = finite("speed_m_s", g.speed_m_s)?;
-    let force = finite("force_n", g.force_n)?;
-    let (opening, force) = match g.mode {
-        GripperMode::Position => (finite("position_m", g.position_m)?, force),
-        GripperMode::Force => (0.0, force),
-        GripperMode::Stop => (finite("opening_m", opening_m)?, limits.max_force_n),
-    };
+    finite("speed_m_s", g.speed_m_s)?;
+    finite("force_n", g.force_n)?;
+    if g.mode == GripperMode::Position {
+        finite("position_m", g.position_m)?;
+    }
+    let gripper =
+        GripperSetpoint::from_command(g, opening_now).ok_or(BridgeError::NothingToHold)?;
+    finite("opening_m", gripper.opening_m)?;
     if a.target.is_empty() {
         return Err(BridgeError::EmptyTarget);
     }
     Ok(TaskCommand {
-        gripper: GripperSetpoint {
-            opening_m: opening,
-            speed_m_s: speed,
-            force_n: force,
-        },
+        gripper,
         arm: ArmSetpoint {
             target: ArmTarget::named(&a.target),
             xy_m: [finite("x_m", a.x_m)?, finite("y_m", a.y_m)?],
@@ -208,7 +206,7 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)]
     use super::*;
     use unitac_core::SensorKind;
-    use unitac_sim::task::{Split, TaskConfig, TaskWorld};
+    use unitac_sim::task::{GripperLimits, Split, TaskConfig, TaskWorld};
     use unitac_sim::{MockConfig, Scenario};
 
     fn cmd(mode: GripperMode, position_m: f64) -> GripperCommand {
@@ -243,27 +241,50 @@ mod tests {
 
     #[test]
     fn modes_become_world_setpoints() {
-        let lim = GripperLimits::default();
-        let p = task_command(&cmd(GripperMode::Position, 0.05), &arm("cup"), 0.08, &lim).unwrap();
+        let p = task_command(&cmd(GripperMode::Position, 0.05), &arm("cup"), Some(0.08)).unwrap();
         assert_eq!(p.gripper.opening_m, 0.05);
         assert_eq!(p.gripper.force_n, 12.0);
         assert_eq!(p.arm.target, ArmTarget::Object("cup".into()));
         assert_eq!(p.arm.xy_m, [0.45, 0.01]);
-        let f = task_command(&cmd(GripperMode::Force, 0.05), &arm("home"), 0.08, &lim).unwrap();
+        let f = task_command(&cmd(GripperMode::Force, 0.05), &arm("home"), Some(0.08)).unwrap();
         assert_eq!((f.gripper.opening_m, f.gripper.force_n), (0.0, 12.0));
         assert_eq!(f.arm.target, ArmTarget::Home);
-        let s = task_command(&cmd(GripperMode::Stop, f64::NAN), &arm("cup"), 0.08, &lim).unwrap();
-        assert_eq!(s.gripper.opening_m, 0.08);
+        let s = task_command(&cmd(GripperMode::Stop, f64::NAN), &arm("cup"), Some(0.08)).unwrap();
+        assert_eq!((s.gripper.opening_m, s.gripper.force_n), (0.08, 12.0));
+        assert_eq!(
+            task_command(&cmd(GripperMode::Stop, 0.05), &arm("cup"), None),
+            Err(BridgeError::NothingToHold)
+        );
+    }
+
+    /// The gripper node on the robot turns a command into a motion with
+    /// `GripperSetpoint::from_command` and the gripper's measured opening; the sim (trials, the
+    /// ROS sim node) through this bridge. Both give the same setpoint for every mode, and a STOP
+    /// holds with the command's force, never the gripper's maximum.
+    #[test]
+    fn the_robot_and_the_sim_turn_a_command_into_the_same_setpoint() {
+        let lim = GripperLimits::default();
+        for mode in [GripperMode::Position, GripperMode::Force, GripperMode::Stop] {
+            for (position_m, force_n, opening) in [(0.05, 12.0, 0.08), (0.0, 3.5, 0.031)] {
+                let mut c = cmd(mode, position_m);
+                c.force_n = force_n;
+                let robot = GripperSetpoint::from_command(&c, Some(opening)).unwrap();
+                let sim = task_command(&c, &arm("cup"), Some(opening))
+                    .unwrap()
+                    .gripper;
+                assert_eq!(robot, sim, "{mode:?}");
+                assert_eq!(sim.force_n, force_n);
+                assert!(sim.force_n < lim.max_force_n);
+            }
+        }
     }
 
     #[test]
     fn non_finite_commands_are_errors_naming_the_field() {
-        let lim = GripperLimits::default();
         let e = task_command(
             &cmd(GripperMode::Position, f64::NAN),
             &arm("cup"),
-            0.08,
-            &lim,
+            Some(0.08),
         );
         assert!(matches!(
             e,
@@ -274,7 +295,7 @@ mod tests {
         ));
         let mut a = arm("cup");
         a.lift_m = f64::INFINITY;
-        let e = task_command(&cmd(GripperMode::Position, 0.05), &a, 0.08, &lim);
+        let e = task_command(&cmd(GripperMode::Position, 0.05), &a, Some(0.08));
         assert!(matches!(
             e,
             Err(BridgeError::NotFinite {
@@ -282,7 +303,7 @@ mod tests {
                 ..
             })
         ));
-        let e = task_command(&cmd(GripperMode::Position, 0.05), &arm(""), 0.08, &lim);
+        let e = task_command(&cmd(GripperMode::Position, 0.05), &arm(""), Some(0.08));
         assert_eq!(e, Err(BridgeError::EmptyTarget));
     }
 

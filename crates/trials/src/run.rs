@@ -486,7 +486,7 @@ pub fn run_trial_on(
                 touching,
             });
         }
-        let mut cmd = task_command(&g, &a, truth.gripper.opening_m, &task.gripper)
+        let mut cmd = task_command(&g, &a, Some(truth.gripper.opening_m))
             .map_err(|source| TrialError::Bridge { t_s: t, source })?;
         cmd.gripper = side.command(cmd.gripper).map_err(gripper_error(t))?;
         let held = truth.objects.iter().find(|o| o.held);

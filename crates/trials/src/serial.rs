@@ -50,10 +50,10 @@ use unitac_gripper::device::{DeviceConfig, SimDevice};
 use unitac_gripper::gripper::Linear;
 use unitac_gripper::model::Calibration;
 use unitac_gripper::{
-    Activation, DriverConfig, Fault, GripCommand, Gripper, GripperError, GripperState, Model,
+    Activation, DriverConfig, Fault, Gripper, GripperError, GripperSetpoint, GripperState, Model,
     SerialGripper,
 };
-use unitac_sim::task::{GripperSetpoint, TaskTruth};
+use unitac_sim::task::TaskTruth;
 
 /// Driver exchanges per second (the device is unpaced: a pty exchange takes well under 1 ms).
 pub const RATE_HZ: f64 = 1000.0;
@@ -204,7 +204,7 @@ impl GripperSide for SerialSide {
     }
 
     fn command(&mut self, want: GripperSetpoint) -> Result<GripperSetpoint, SerialError> {
-        let cmd = GripCommand {
+        let cmd = GripperSetpoint {
             opening_m: want.opening_m,
             speed_m_s: want.speed_m_s,
             force_n: want.force_n,

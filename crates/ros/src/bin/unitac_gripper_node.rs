@@ -16,7 +16,7 @@
 use futures::{FutureExt, StreamExt};
 use r2r::{QosProfile, RosParams};
 use std::time::Duration;
-use unitac_gripper::{DriverConfig, GripCommand, Gripper, Model, SerialGripper};
+use unitac_gripper::{DriverConfig, Gripper, GripperSetpoint, Model, SerialGripper};
 use unitac_ros::diagnostics;
 use unitac_ros::node::NodeBase;
 
@@ -97,7 +97,7 @@ fn run() -> anyhow::Result<()> {
             let now = gripper.state().opening_m;
             let r = match unitac_ros::convert::gripper_command_from(&c) {
                 Err(e) => Err(e.to_string()),
-                Ok(c) => match GripCommand::from_msg(&c, now) {
+                Ok(c) => match GripperSetpoint::from_command(&c, now) {
                     Some(cmd) => gripper.command(cmd).map_err(|e| e.to_string()),
                     None => Err("STOP before the first measured opening".to_string()),
                 },

@@ -38,7 +38,7 @@ use std::time::{Duration, Instant};
 use tokio::signal::unix::{SignalKind, signal};
 use unitac_core::msg::GripperStatus;
 use unitac_core::{ManualClock, Msg, Stage, Stamp};
-use unitac_gripper::GripCommand;
+use unitac_gripper::GripperSetpoint;
 use unitac_gripper::action::{ActionLink, Goal, GoalEnd, Report, Resend};
 use unitac_pipeline::StageConfig;
 use unitac_policy::PolicyStage;
@@ -353,7 +353,7 @@ impl Publishers {
                         goals,
                         ..
                     } => {
-                        match GripCommand::from_msg(c, self.opening_m) {
+                        match GripperSetpoint::from_command(c, self.opening_m) {
                             Some(cmd) => {
                                 if let Some((id, goal)) = link.command(&cmd, c.header.stamp) {
                                     goals.push(send_goal(client, id, goal, events.clone()));

@@ -119,13 +119,15 @@ fn run() -> anyhow::Result<()> {
         "held" => true,
         other => anyhow::bail!("gripper_commands must be stamped or held, got '{other}'"),
     };
-    // Held mode: the setpoint until a controller sends one is to stay where the fingers are.
+    // Held mode: the setpoint until a controller sends one is to stay where the fingers are
+    // (a stop holds with the command's force: the gripper's maximum, as before any command).
+    let limits = sim.world().config().gripper;
     let mut held = GripperCommand {
         header: unitac_core::msg::Header::new(Stamp::ZERO, ""),
         mode: GripperMode::Stop,
         position_m: 0.0,
-        speed_m_s: 0.0,
-        force_n: 0.0,
+        speed_m_s: limits.max_speed_m_s,
+        force_n: limits.max_force_n,
         reason: "no setpoint yet".into(),
     };
     if !(p.command_timeout_s.is_finite() && p.command_timeout_s > 0.0) {

@@ -4,14 +4,9 @@ use serde::Serialize;
 
 use crate::world::WorldError;
 
-/// The gripper part of a command (SI): target opening, speed bound (opening rate), force bound
-/// per finger (closing stalls at it).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct GripperSetpoint {
-    pub opening_m: f64,
-    pub speed_m_s: f64,
-    pub force_n: f64,
-}
+/// The gripper part of a command: the one setpoint every gripper takes (see
+/// [`unitac_core::GripperSetpoint`]).
+pub use unitac_core::GripperSetpoint;
 
 /// Where the arm goes.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
