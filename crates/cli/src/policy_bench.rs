@@ -22,17 +22,20 @@
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use unitac_core::SensorKind;
 use unitac_core::msg::{
-    ContactState, GripperMode, LatentSource, PropertyComparison, TactileLatent, Winner, samples,
+    ContactState, LatentSource, PropertyComparison, TactileLatent, Winner, samples,
 };
 use unitac_core::{Chain, Msg, Pacer, Stamp, period_jitter, tail};
 use unitac_pipeline::StageConfig;
 use unitac_policy::bench::TickRow;
 use unitac_policy::onnx::{NamedInputs, OnnxPolicy, RuntimeConfig};
 use unitac_policy::{Mode, PolicyParams, PolicyStage};
-use unitac_sim::SplitMix64;
 use unitac_sim::task::{Split, TaskConfig, TaskTruth, TaskWorld, trial_rng};
+use unitac_sim::{MockConfig, MockSensor, Scenario};
+use unitac_trials::TrialGripper;
 use unitac_trials::bridge;
+use unitac_trials::stepper::WorldStepper;
 
 /// The shipped scene per task and mode.
 pub const SCENES: [&str; 6] = [
@@ -82,19 +85,14 @@ pub struct PolicyBench {
 /// What the tactile stages and the camera would publish, scripted from a task world, and the
 /// world moved by the policy's commands.
 struct Script {
-    world: TaskWorld,
+    world: WorldStepper,
     truth: TaskTruth,
-    rng: SplitMix64,
-    gauge: bridge::GripperGauge,
     mode: Mode,
     fabric: bool,
     latent_len: usize,
     gel_indent_m_per_mm2: f64,
     objects: Vec<String>,
     visual_names: Vec<String>,
-    dt_s: f64,
-    /// The opening the last command asked for (NaN before the first).
-    target_m: f64,
     in_contact: bool,
     touching: String,
     touched: Vec<String>,
@@ -103,7 +101,7 @@ struct Script {
 }
 
 impl Script {
-    fn new(p: &PolicyParams, episode: u32) -> Self {
+    fn new(p: &PolicyParams, episode: u32) -> anyhow::Result<Self> {
         let fabric = p.task.starts_with("pick");
         let cfg = if fabric {
             TaskConfig::fabric(Split::Train)
@@ -111,25 +109,36 @@ impl Script {
             TaskConfig::cup(Split::Train)
         };
         let world = TaskWorld::reset(&cfg, SEED, episode);
-        Script {
-            gauge: bridge::GripperGauge::for_trial(&world, SEED, episode),
-            truth: world.truth(),
+        let truth = world.truth();
+        // The tactile stages are scripted from the world (no frames are rendered); the sensor
+        // only completes the stepper.
+        let sensor = MockSensor::new(
+            MockConfig::new(SensorKind::GelsightMini, SEED),
+            Scenario::idle(1.0),
+        );
+        let world = WorldStepper::new(
             world,
-            rng: trial_rng(SEED ^ 0x5EED, episode),
+            sensor,
+            trial_rng(SEED ^ 0x5EED, episode),
+            TrialGripper::InProcess,
+            (SEED, episode),
+            1.0 / p.control_rate_hz,
+        )?;
+        Ok(Script {
+            truth,
+            world,
             mode: p.mode,
             fabric,
             latent_len: p.latent_len,
             gel_indent_m_per_mm2: p.gel_indent_m_per_mm2,
             objects: p.objects.clone(),
             visual_names: p.visual_names.clone(),
-            dt_s: 1.0 / p.control_rate_hz,
-            target_m: f64::NAN,
             in_contact: false,
             touching: String::new(),
             touched: Vec::new(),
             latent_sent: false,
             comparison_sent: false,
-        }
+        })
     }
 
     fn stamp(&self) -> Stamp {
@@ -209,7 +218,7 @@ impl Script {
     /// The camera's estimate with the values the scene names, under the bridge's message names
     /// (NaN for a name the sim camera does not give).
     fn visual(&mut self) -> Msg {
-        let cam = self.world.observe_visual(&mut self.rng);
+        let cam = self.world.visual();
         let mut msg = bridge::visual_message(&cam);
         let values = self
             .visual_names
@@ -227,7 +236,7 @@ impl Script {
             self.objects.first().cloned().unwrap_or_default(),
             self.objects.get(1).cloned().unwrap_or_default(),
         );
-        let a_smoother = self.world.spec().smoother() == a;
+        let a_smoother = self.world.world().spec().smoother() == a;
         Msg::Comparison(PropertyComparison {
             header: unitac_core::msg::Header::new(self.stamp(), "gel"),
             property: "roughness".into(),
@@ -245,8 +254,8 @@ impl Script {
     }
 
     /// The gripper's status now: the tick.
-    fn status(&mut self) -> Msg {
-        Msg::Gripper(self.gauge.status(&self.truth, self.target_m))
+    fn status(&mut self) -> anyhow::Result<Msg> {
+        Ok(Msg::Gripper(self.world.status()?))
     }
 
     /// The tick's commands move the world one control period.
@@ -263,12 +272,8 @@ impl Script {
         ) else {
             bail!("a control tick sent no gripper or arm command: {produced:?}");
         };
-        let cmd = bridge::task_command(g, a, Some(self.truth.gripper.opening_m))?;
-        self.target_m = match g.mode {
-            GripperMode::Stop => f64::NAN,
-            _ => cmd.gripper.opening_m,
-        };
-        self.truth = self.world.step(&cmd, self.dt_s)?;
+        let cmd = self.world.command(g, a)?;
+        self.truth = self.world.step(Some(cmd))?;
         Ok(())
     }
 }
@@ -373,7 +378,7 @@ fn run_pass(
         let (params, scene) = (&sp.params, &sp.scene);
         let stage = sp.stage()?;
         let mut chain = Chain::new(vec![Box::new(stage)]);
-        let mut script = Script::new(params, episode as u32);
+        let mut script = Script::new(params, episode as u32)?;
         if let Some((p, _)) = onnx.as_mut() {
             p.reset();
         }
@@ -386,7 +391,7 @@ fn run_pass(
                     bail!("{scene}: scripted input rejected: {e}");
                 }
             }
-            let status = script.status();
+            let status = script.status()?;
             let stamp = status.stamp();
             if paced_ticks.is_some() {
                 pacer.wait(stamp, |d| {

@@ -34,7 +34,6 @@ pub mod diagnostics;
 pub mod drops;
 pub mod image;
 pub mod node;
-pub mod sim;
 
 /// The stages of `scene` (a name or a path) whose kind is in `kinds`, built by the same registry
 /// `unitac run` uses, from the scene's params with the node's `<stage>.<key>` overrides applied.

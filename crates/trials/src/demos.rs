@@ -32,7 +32,8 @@ use unitac_sim::task::{
 };
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
-use crate::bridge::SensorRig;
+use crate::gripper::TrialGripper;
+use crate::stepper::{StepError, WorldStepper};
 
 /// Salt of the camera noise stream of a demonstration (its own, apart from the trial's draw).
 const VISION_SALT: u64 = 0x4445_4D4F_5649_5301;
@@ -189,7 +190,7 @@ pub fn record(
         ));
     }
     let cfg = TaskConfig::cup(split);
-    let mut world = TaskWorld::reset(&cfg, seed, trial);
+    let world = TaskWorld::reset(&cfg, seed, trial);
     let spec = world.spec().clone();
     let Some(cup) = spec.cup().cloned() else {
         return Err(DemoError::World {
@@ -198,15 +199,22 @@ pub fn record(
             msg: "the trial has no cup".into(),
         });
     };
-    let mut rig = SensorRig::new(demo_sensor(sensor, seed, trial));
-    let mut chain = Chain::new(stages);
-    let mut rng = trial_rng(seed ^ VISION_SALT, trial);
-    let visual = world.observe_visual(&mut rng);
-    let world_err = |e: unitac_sim::WorldError| DemoError::World {
+    let world_err = |e: StepError| DemoError::World {
         seed,
         trial,
         msg: e.to_string(),
     };
+    let mut world = WorldStepper::new(
+        world,
+        demo_sensor(sensor, seed, trial),
+        trial_rng(seed ^ VISION_SALT, trial),
+        TrialGripper::InProcess,
+        (seed, trial),
+        c.dt_s,
+    )
+    .map_err(world_err)?;
+    let mut chain = Chain::new(stages);
+    let visual = world.visual();
 
     let mut phase = Phase::Approach;
     let mut since = 0.0;
@@ -258,14 +266,14 @@ pub fn record(
     };
     loop {
         let t = world.time();
-        for (frame, _truth) in rig.frames_until(&world, t) {
+        for (frame, _truth) in world.frames() {
             let out = chain.run(Msg::Frame(frame));
             if let Some(r) = out.errors.first() {
                 return Err(stage_err(r));
             }
             keep(out.produced, t, &mut contact, &mut touches, &mut latents);
         }
-        let truth = world.truth();
+        let truth = world.world().truth();
         let expert = expert_command(&truth, &spec, &cfg);
         let in_contact = contact.as_ref().is_some_and(|s| s.in_contact);
         let elapsed = t - since;
@@ -317,7 +325,7 @@ pub fn record(
                 },
             },
         };
-        world.step(&cmd, c.dt_s).map_err(world_err)?;
+        world.step(Some(cmd.clone())).map_err(world_err)?;
         if phase == Phase::Expert {
             last_cmd = Some(cmd);
         }
@@ -328,7 +336,7 @@ pub fn record(
     }
     let t = world.time();
     keep(out.produced, t, &mut contact, &mut touches, &mut latents);
-    let truth = world.truth();
+    let truth = world.world().truth();
     let task::TaskOutcome::Cup(outcome) = world.outcome() else {
         return Err(DemoError::World {
             seed,

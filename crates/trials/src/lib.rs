@@ -8,6 +8,9 @@
 //!   simulated device on a pty whose fingers are the world's gripper);
 //! - [`run`]: one closed-loop trial (the world as the scene's source, the scene's stages driven
 //!   by `unitac_core::chain`, a per-tick trace and the world's outcome);
+//! - [`stepper`]: the one lock-step world stepper (frames, camera, gripper status out; one
+//!   command per control period in), used by the trials, the demonstrations, the ROS sim node
+//!   and the policy bench;
 //! - [`table`]: the paper-style success table, our counts beside the paper's;
 //! - [`demos`]: the scripted expert's cup demonstrations recorded with what a policy could
 //!   observe (the scene's tactile stages' latents, the camera, the gripper) and its labels.
@@ -17,6 +20,7 @@ pub mod demos;
 pub mod gripper;
 pub mod run;
 pub mod serial;
+pub mod stepper;
 pub mod table;
 
 pub use gripper::TrialGripper;

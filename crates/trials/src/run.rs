@@ -28,9 +28,10 @@
 //! The trial ends one settle period ([`TrialOptions::settle_s`]) after the policy reports phase
 //! `done` or `failed`, or at the task's time limit; the outcome is the world's judgement then.
 
-use crate::bridge::{BridgeError, GripperGauge, SensorRig, task_command, visual_message};
+use crate::bridge::visual_message;
 use crate::gripper::TrialGripper;
-use crate::serial::{SerialError, SerialReport};
+use crate::serial::SerialReport;
+use crate::stepper::{StepError, WorldStepper};
 use serde::Serialize;
 use thiserror::Error;
 use unitac_core::chain::Chain;
@@ -38,7 +39,7 @@ use unitac_core::msg::{ArmCommand, GripperCommand, PolicyStatus};
 use unitac_core::{Msg, Scene, Stage};
 use unitac_policy::PolicyParams;
 use unitac_sim::task::{Hidden, TaskConfig, TaskKind, TaskOutcome, TaskWorld, trial_rng};
-use unitac_sim::{MockConfig, MockSensor, Scenario, WorldError};
+use unitac_sim::{MockConfig, MockSensor, Scenario};
 
 /// Salts of the sensor's seed and the camera's noise stream (apart from the trial's own draw).
 const SENSOR_SALT: u64 = 0x5345_4E53_4F52_0001;
@@ -68,24 +69,14 @@ pub enum TrialError {
         missing: &'static str,
         rejections: Vec<String>,
     },
-    #[error("t = {t_s:.3} s: {source}")]
-    Bridge {
-        t_s: f64,
-        #[source]
-        source: BridgeError,
-    },
+    /// The world could not take the tick's step (a refused command, a serial gripper's failure,
+    /// the world's refusal).
     #[error("t = {t_s:.3} s: gripper {gripper}: {source}")]
-    Gripper {
+    Step {
         t_s: f64,
         gripper: &'static str,
         #[source]
-        source: SerialError,
-    },
-    #[error("t = {t_s:.3} s: the world refused the command: {source}")]
-    World {
-        t_s: f64,
-        #[source]
-        source: WorldError,
+        source: StepError,
     },
 }
 
@@ -363,15 +354,29 @@ pub fn run_trial_on(
             ),
         });
     }
-    let mut rig = SensorRig::new(trial_sensor(scene, seed, trial));
-    let mut camera = trial_rng(seed ^ CAMERA_SALT, trial);
+    let step_error = move |t_s: f64| {
+        move |source: StepError| TrialError::Step {
+            t_s,
+            gripper: gripper.name(),
+            source,
+        }
+    };
+    let mut world = WorldStepper::new(
+        world,
+        trial_sensor(scene, seed, trial),
+        trial_rng(seed ^ CAMERA_SALT, trial),
+        gripper,
+        (seed, trial),
+        dt,
+    )
+    .map_err(step_error(0.0))?;
     let mut chain = Chain::new(stages);
     let mut record = TrialRecord {
         scene: scene.name.clone(),
         mode: params.mode.as_str().to_string(),
         seed,
         trial,
-        objects: describe(&world),
+        objects: describe(world.world()),
         control_rate_hz: params.control_rate_hz,
         duration_s: 0.0,
         frames: 0,
@@ -389,17 +394,6 @@ pub fn run_trial_on(
         reflex: Default::default(),
         io: Vec::new(),
     };
-    let gripper_error = move |t_s: f64| {
-        move |source: SerialError| TrialError::Gripper {
-            t_s,
-            gripper: gripper.name(),
-            source,
-        }
-    };
-    let gauge = GripperGauge::for_trial(&world, seed, trial);
-    let mut side = gripper
-        .start(&world.truth(), gauge)
-        .map_err(gripper_error(0.0))?;
     let mut slip_detected = None;
     let mut ended_at: Option<f64> = None;
     let ticks = (opts.max_s / dt).ceil() as u64;
@@ -415,8 +409,8 @@ pub fn run_trial_on(
         let t = world.time();
         let mut inputs = Fnv::new();
         let mut outputs = Fnv::new();
-        let touching = opts.record_io && world.truth().contact.penetration_m > 0.0;
-        for (frame, _) in rig.frames_until(&world, t) {
+        let touching = opts.record_io && world.world().truth().contact.penetration_m > 0.0;
+        for (frame, _) in world.frames() {
             record.frames += 1;
             let frame = Msg::Frame(frame);
             if opts.record_io {
@@ -430,14 +424,14 @@ pub fn run_trial_on(
             }
             keep(&mut record, out.errors);
         }
-        let visual = Msg::Visual(visual_message(&world.observe_visual(&mut camera)));
+        let visual = Msg::Visual(visual_message(&world.visual()));
         if opts.record_io {
             inputs.msg(&visual);
         }
         let out = chain.run(visual);
         keep(&mut record, out.errors);
-        let truth = world.truth();
-        let status = Msg::Gripper(side.status(&truth).map_err(gripper_error(t))?);
+        let truth = world.world().truth();
+        let status = Msg::Gripper(world.status().map_err(step_error(t))?);
         if opts.record_io {
             inputs.msg(&status);
         }
@@ -486,9 +480,7 @@ pub fn run_trial_on(
                 touching,
             });
         }
-        let mut cmd = task_command(&g, &a, Some(truth.gripper.opening_m))
-            .map_err(|source| TrialError::Bridge { t_s: t, source })?;
-        cmd.gripper = side.command(cmd.gripper).map_err(gripper_error(t))?;
+        let cmd = world.command(&g, &a).map_err(step_error(t))?;
         let held = truth.objects.iter().find(|o| o.held);
         record.trace.push(TraceRow {
             t_s: t,
@@ -511,7 +503,7 @@ pub fn run_trial_on(
         }
         // The scene controllers announce their choice by going to approach_grasp, aimed at it.
         if status.phase == DECISION_PHASE {
-            world.decide(&a.target);
+            world.world_mut().decide(&a.target);
         }
         record.end_phase = status.phase;
         record.end_reason = status.message;
@@ -521,12 +513,9 @@ pub fn run_trial_on(
         if ended_at.is_some_and(|e| t - e >= opts.settle_s) {
             break;
         }
-        let next = world
-            .step(&cmd, dt)
-            .map_err(|source| TrialError::World { t_s: t, source })?;
-        side.stepped(&next).map_err(gripper_error(t))?;
+        world.step(Some(cmd)).map_err(step_error(t))?;
     }
-    record.serial = side.report();
+    record.serial = world.report();
     record.duration_s = world.time();
     record.outcome = world.outcome();
     Ok(record)

@@ -1,7 +1,8 @@
 //! Sim node: a task world of the paper's two tasks (cup deformation, fabric selection) as a ROS
 //! node, in lock-step sim time, so the whole closed loop (sim -> contact -> inference -> policy ->
 //! sim) runs over ROS on one machine. The world and every conversion are crates/sim's
-//! `TaskWorld` and crates/trials' bridge (through `unitac_ros::sim::LockStep`).
+//! `TaskWorld` and crates/trials' bridge (through `unitac_trials::stepper::WorldStepper`, the one
+//! world stepper).
 //!
 //! Each control period at world time t it publishes `/clock` = t, the tactile frames due up to t
 //! on `image_raw` (sensor_msgs/Image, the mock sensor's frames rendered from the world), the
@@ -26,8 +27,8 @@ use std::time::{Duration, Instant};
 use unitac_core::msg::{ArmCommand, GripperCommand, GripperMode};
 use unitac_core::{SensorKind, Stamp};
 use unitac_ros::node::NodeBase;
-use unitac_ros::sim::{LockStep, SimSpec};
 use unitac_ros::{convert, diagnostics, image};
+use unitac_trials::stepper::{SimSpec, WorldStepper};
 
 #[derive(RosParams, Debug, Clone)]
 struct Params {
@@ -113,7 +114,7 @@ fn run() -> anyhow::Result<()> {
         sensor,
         sensor_id: p.sensor_id.clone(),
     };
-    let mut sim = LockStep::new(&spec)?;
+    let mut sim = WorldStepper::for_spec(&spec)?;
     let held_mode = match p.gripper_commands.as_str() {
         "stamped" => false,
         "held" => true,
@@ -210,7 +211,7 @@ fn run() -> anyhow::Result<()> {
     let mut answered_s: Vec<f64> = Vec::new();
     while !base.stopped() && !sim.done() {
         let t0 = Instant::now();
-        let o = sim.observe();
+        let o = sim.observe()?;
         let now = convert::time(o.stamp);
         counters
             .published(pub_clock.publish(&r2r::rosgraph_msgs::msg::Clock { clock: now.clone() }));
@@ -293,7 +294,7 @@ fn run() -> anyhow::Result<()> {
         }
         let cmds = std::mem::take(&mut pending);
         let r = match (&cmds.gripper, &cmds.arm) {
-            (Some(g), Some(a)) => sim.step(Some((g, a))),
+            (Some(g), Some(a)) => sim.step_commands(Some((g, a))),
             _ => sim.step(None),
         };
         if let Err(e) = r {
@@ -307,7 +308,7 @@ fn run() -> anyhow::Result<()> {
         let extra = [
             ("sim_time_s", format!("{:.3}", sim.time())),
             ("steps", steps.to_string()),
-            ("repeated_steps", sim.repeated.to_string()),
+            ("repeated_steps", sim.repeated().to_string()),
             ("contact_timeouts", contact_timeouts.to_string()),
         ];
         if let Some(a) = diag.tick(&mut counters, now, &extra) {
@@ -321,7 +322,7 @@ fn run() -> anyhow::Result<()> {
         "trial": p.trial,
         "t_s": sim.time(),
         "steps": steps,
-        "repeated_steps": sim.repeated,
+        "repeated_steps": sim.repeated(),
         "contact_timeouts": contact_timeouts,
         "outcome": sim.outcome(),
         // Status published -> its two commands received (DDS both ways + the policy's tick).
