@@ -7,12 +7,12 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use unitac_gripper::bench::{self, BenchResult, Cycle};
 use unitac_gripper::client::{CameBack, ClientConfig, RtuClient};
-use unitac_gripper::device::physics::SimObject;
-use unitac_gripper::device::{DeviceConfig, SimDevice};
 use unitac_gripper::{
     Activation, DriverConfig, Fault, Gripper, GripperSetpoint, GripperState, Model, Motion,
     SerialGripper,
 };
+use unitac_gripper_sim::device::physics::SimObject;
+use unitac_gripper_sim::device::{DeviceConfig, SimDevice};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Action {
@@ -222,7 +222,7 @@ fn simulate(a: &GripperArgs) -> anyhow::Result<bool> {
         a.model,
         cfg.slave,
         cfg.baud,
-        unitac_gripper::device::describe(&dev.path())
+        unitac_gripper_sim::device::describe(&dev.path())
     );
     std::thread::sleep(Duration::from_secs_f64(a.seconds));
     drop(dev);
@@ -361,7 +361,9 @@ fn run_bench(a: &GripperArgs) -> anyhow::Result<bool> {
         );
     }
     for paced in [true, false] {
-        results.push(bench::run_sim(a.model, kind, baud, paced, d).map_err(anyhow::Error::msg)?);
+        results.push(unitac_gripper_sim::bench::run_sim(
+            a.model, kind, baud, paced, d,
+        )?);
     }
     if a.json {
         println!("{}", serde_json::to_string(&results)?);

@@ -206,12 +206,8 @@ fn run_trials(
                     if trial >= trials {
                         break;
                     }
-                    let r = unitac_pipeline::build_stages(scene)
-                        .map_err(|e| config(e.to_string()))
-                        .and_then(|stages| {
-                            run_trial_on(scene, stages, task, seed, trial, opts, gripper)
-                                .with_context(|| format!("{} trial {trial}", scene.name))
-                        });
+                    let r = run_trial_on(scene, task, seed, trial, opts, gripper)
+                        .with_context(|| format!("{} trial {trial}", scene.name));
                     bar.inc(1);
                     let failed = r.is_err();
                     if let Ok(mut all) = results.lock()

@@ -13,11 +13,9 @@
 //! DH a 0x06 write (8 + 8 bytes) and a 0x03 read of three registers (8 + 11 bytes) = 49 character
 //! times, 235.1 cycles/s.
 
-use crate::client::{ClientConfig, Link, ModbusError, RtuClient};
-use crate::device::{DeviceConfig, SimDevice};
+use crate::client::{Link, ModbusError, RtuClient};
 use crate::frame::{Request, Response};
 use crate::model::{Family, Model};
-use crate::port;
 use crate::protocol::{dh, robotiq};
 use serde::Serialize;
 use std::time::{Duration, Instant};
@@ -171,41 +169,6 @@ pub fn run<L: Link>(
         rtt_p50_ms: s.rtt_percentile(0.5).map(|x| x * 1e3),
         rtt_p99_ms: s.rtt_percentile(0.99).map(|x| x * 1e3),
     })
-}
-
-/// The same cycle against a simulated `model` on a pty, paced at `baud` or not.
-pub fn run_sim(
-    model: Model,
-    kind: Cycle,
-    baud: u32,
-    paced: bool,
-    duration: Duration,
-) -> Result<BenchResult, String> {
-    let mut cfg = DeviceConfig::new(model);
-    cfg.baud = baud;
-    cfg.paced = paced;
-    cfg.spin = paced;
-    cfg.start_active = true;
-    let dev = SimDevice::spawn(cfg).map_err(|e| format!("sim device: {e}"))?;
-    let p = port::open(&dev.path(), baud).map_err(|e| e.to_string())?;
-    let mut client = RtuClient::new(
-        p,
-        ClientConfig {
-            timeout: Duration::from_millis(100),
-            retries: 0,
-            ..ClientConfig::new(model.default_slave(), baud)
-        },
-    );
-    let label = format!(
-        "sim {} on a pty, {}",
-        model,
-        if paced {
-            format!("paced at {baud} baud")
-        } else {
-            "unpaced".into()
-        }
-    );
-    run(&label, &mut client, model, kind, duration).map_err(|e| e.to_string())
 }
 
 #[cfg(test)]

@@ -8,18 +8,23 @@
 //!   with one line;
 //! - [`registry::stage_configs`] turns each stage's `params:` into its typed struct
 //!   ([`StageConfig`]), [`registry::build_stages`] builds the stages, [`registry::build_source`]
-//!   the frame source (mock sensor, V4L2 sensor, bag).
+//!   the frame source (mock sensor, bag, and with the `v4l` feature a live V4L2 sensor:
+//!   [`open_v4l`] when built with it).
 //!
 //! Driving the stages is not done here: every transport uses `unitac_core::chain` (the one chain
 //! driver) and `unitac_core::pace` (the one pacer).
 
 pub mod overrides;
 pub mod registry;
+#[cfg(feature = "v4l")]
+pub mod v4l;
 
 pub use registry::{
-    KNOWN_STAGES, StageConfig, build_source, build_stage, build_stages, check_modes, open_v4l,
-    scene_context, scene_dirs, stage_configs,
+    KNOWN_STAGES, StageConfig, build_source, build_stage, build_stages, check_modes, scene_context,
+    scene_dirs, stage_configs,
 };
+#[cfg(feature = "v4l")]
+pub use v4l::open_v4l;
 
 use std::path::PathBuf;
 use unitac_core::{Scene, SceneError};

@@ -13,80 +13,6 @@ use unitac_infer::predict::{SamplerParams, SamplerStage};
 use unitac_policy::{PolicyParams, PolicyStage};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
-/// Root of the sysfs tree live sensors are discovered in (`/` unless `UNITAC_SYSFS_ROOT` says
-/// otherwise, e.g. a fixture tree in tests).
-fn sysfs_root() -> std::path::PathBuf {
-    std::env::var_os("UNITAC_SYSFS_ROOT")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| "/".into())
-}
-
-/// A live GelSight Mini or DIGIT of kind `want` by serial (or the only one of that kind on the
-/// bus). Per-serial calibration files are read from `UNITAC_CALIBRATION_DIR` when set. Errors
-/// are one line and name the field they come from (`source.serial`, `source.sensor`).
-pub fn open_v4l(
-    want: unitac_core::SensorKind,
-    serial: Option<&str>,
-) -> Result<Box<dyn Source>, (&'static str, String)> {
-    let root = sysfs_root();
-    let name = serial
-        .map(|s| format!("v4l:{s}"))
-        .unwrap_or_else(|| "v4l".into());
-    let found = unitac_driver::discover::discover(&root).map_err(|e| {
-        (
-            "source.serial",
-            format!("{name}: cannot look for sensors: {e}"),
-        )
-    })?;
-    let serial = match serial {
-        Some(s) => s.to_string(),
-        None => {
-            let of_kind: Vec<&str> = found
-                .sensors
-                .iter()
-                .filter(|s| s.kind == want)
-                .map(|s| s.serial.as_str())
-                .collect();
-            match of_kind.as_slice() {
-                [one] => one.to_string(),
-                [] => {
-                    return Err((
-                        "source.serial",
-                        format!(
-                            "no {want} sensor found (`unitac devices` lists what is connected)"
-                        ),
-                    ));
-                }
-                many => {
-                    return Err((
-                        "source.serial",
-                        format!(
-                            "{} {want} sensors found ({}): name one with --sensor v4l:<serial>",
-                            many.len(),
-                            many.join(", ")
-                        ),
-                    ));
-                }
-            }
-        }
-    };
-    if let Some(s) = found.sensors.iter().find(|s| s.serial == serial) {
-        if s.kind != want {
-            return Err((
-                "source.sensor",
-                format!(
-                    "the scene is for a {want} but {serial} is a {}; use a scene for that sensor",
-                    s.kind
-                ),
-            ));
-        }
-    }
-    let cal_dir = std::env::var_os("UNITAC_CALIBRATION_DIR").map(std::path::PathBuf::from);
-    let stream = unitac_driver::open_v4l(&root, &serial, cal_dir.as_deref())
-        .map_err(|e| ("source.serial", format!("v4l:{serial}: {e}")))?;
-    Ok(Box::new(stream))
-}
-
 /// Where scene names are looked up: `extra` first, then `UNITAC_SCENES`, `$UNITAC_ROOT/launch/scenes`,
 /// `./launch/scenes` and the source tree this binary was built from.
 pub fn scene_dirs(extra: Option<PathBuf>) -> Vec<PathBuf> {
@@ -392,7 +318,19 @@ pub fn build_source(scene: &Scene, arg: Option<&SensorArg>) -> Result<Box<dyn So
                 Some(SensorArg::V4l(s)) => s.clone(),
                 _ => scene.source.serial.clone(),
             };
-            open_v4l(scene.source.sensor, serial.as_deref()).map_err(|(field, msg)| bad(field, msg))
+            #[cfg(feature = "v4l")]
+            {
+                crate::v4l::open_v4l(scene.source.sensor, serial.as_deref())
+                    .map_err(|(field, msg)| bad(field, msg))
+            }
+            #[cfg(not(feature = "v4l"))]
+            {
+                let _ = serial;
+                Err(bad(
+                    "source.kind",
+                    "this build has no live sensors (the pipeline's v4l feature is off)".into(),
+                ))
+            }
         }
         SourceKind::Bag => {
             let path = match arg {

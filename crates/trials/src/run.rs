@@ -15,10 +15,9 @@
 //! command as the device's registers hold it).
 //!
 //! The stages are driven by [`unitac_core::chain::Chain`] (the one chain driver: a stage's clock
-//! is its input's stamp). They are built by the caller from the scene (`unitac_pipeline::
-//! build_stages`, fresh for each trial: stages keep state). This crate does not depend on the
-//! pipeline because the pipeline links the V4L2 driver, which a sim crate must not (its layering
-//! rule); the CLI and the tests build the stages and hand them in.
+//! is its input's stamp). They are built from the scene by the pipeline's registry
+//! (`unitac_pipeline::build_stages`, the one every transport uses), fresh for each trial (stages
+//! keep state); the pipeline's live-sensor part (its `v4l` feature) is not linked here.
 //!
 //! The scene's `source:` is not used: the world is the source. The mock sensor is the scene's
 //! sensor kind (its `fps` and `sensor_id` if given), seeded from (seed, trial). The camera's
@@ -36,7 +35,7 @@ use serde::Serialize;
 use thiserror::Error;
 use unitac_core::chain::Chain;
 use unitac_core::msg::{ArmCommand, GripperCommand, PolicyStatus};
-use unitac_core::{Msg, Scene, Stage};
+use unitac_core::{Msg, Scene};
 use unitac_policy::PolicyParams;
 use unitac_sim::task::{Hidden, TaskConfig, TaskKind, TaskOutcome, TaskWorld, trial_rng};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
@@ -292,33 +291,23 @@ struct TickOutput {
     status: Option<PolicyStatus>,
 }
 
-/// Run trial `trial` of `seed` of `scene` on the task `task` with the scene's `stages` (built
+/// Run trial `trial` of `seed` of `scene` on the task `task` with the scene's stages (built
 /// from the scene, fresh), the in-process gripper. Errors: the scene cannot drive a trial, the
 /// policy left a tick unanswered, or a command the bridge or the world refuses.
 pub fn run_trial(
     scene: &Scene,
-    stages: Vec<Box<dyn Stage>>,
     task: &TaskConfig,
     seed: u64,
     trial: u32,
     opts: &TrialOptions,
 ) -> Result<TrialRecord, TrialError> {
-    run_trial_on(
-        scene,
-        stages,
-        task,
-        seed,
-        trial,
-        opts,
-        TrialGripper::InProcess,
-    )
+    run_trial_on(scene, task, seed, trial, opts, TrialGripper::InProcess)
 }
 
 /// [`run_trial`] with the gripper `gripper`; a serial gripper that fails (cannot start, a fault,
 /// no answer) is an error too.
 pub fn run_trial_on(
     scene: &Scene,
-    stages: Vec<Box<dyn Stage>>,
     task: &TaskConfig,
     seed: u64,
     trial: u32,
@@ -327,6 +316,10 @@ pub fn run_trial_on(
 ) -> Result<TrialRecord, TrialError> {
     opts.check()?;
     let params = policy_params(scene)?;
+    let stages = unitac_pipeline::build_stages(scene).map_err(|e| TrialError::Scene {
+        scene: scene.name.clone(),
+        msg: e.to_string(),
+    })?;
     let dt = 1.0 / params.control_rate_hz;
     let mut world = TaskWorld::reset(task, seed, trial);
     if let Some(h) = opts.hidden {

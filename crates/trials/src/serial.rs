@@ -44,15 +44,15 @@ use serde::Serialize;
 use std::time::{Duration, Instant};
 use thiserror::Error;
 use unitac_core::msg::GripperStatus;
-use unitac_gripper::device::physics::{Drive, Fingers};
-use unitac_gripper::device::relay::{RelayHandle, relay};
-use unitac_gripper::device::{DeviceConfig, SimDevice};
 use unitac_gripper::gripper::Linear;
 use unitac_gripper::model::Calibration;
 use unitac_gripper::{
     Activation, DriverConfig, Fault, Gripper, GripperError, GripperSetpoint, GripperState, Model,
     SerialGripper,
 };
+use unitac_gripper_sim::device::physics::{Drive, Fingers};
+use unitac_gripper_sim::device::relay::{RelayHandle, relay};
+use unitac_gripper_sim::device::{DeviceConfig, SimDevice};
 use unitac_sim::task::TaskTruth;
 
 /// Driver exchanges per second (the device is unpaced: a pty exchange takes well under 1 ms).

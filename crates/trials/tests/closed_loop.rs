@@ -15,8 +15,7 @@ fn opts(task: &TaskConfig, max_s: f64) -> TrialOptions {
 
 fn trial(scene: &str, task: &TaskConfig, seed: u64, n: u32, max_s: f64) -> TrialRecord {
     let scene = unitac_pipeline::load_scene(scene, None).unwrap();
-    let stages = unitac_pipeline::build_stages(&scene).unwrap();
-    run_trial(&scene, stages, task, seed, n, &opts(task, max_s)).unwrap()
+    run_trial(&scene, task, seed, n, &opts(task, max_s)).unwrap()
 }
 
 #[test]
@@ -121,15 +120,13 @@ fn a_scene_that_cannot_drive_the_world_is_an_error() {
         "no_policy",
         "scene: no_policy\nsource: {kind: mock, sensor: gelsight-mini}\nstages:\n  - kind: contact\n",
     );
-    let stages = unitac_pipeline::build_stages(&s).unwrap();
-    let e = run_trial(&s, stages, &task, 1, 0, &opts(&task, 2.0)).unwrap_err();
+    let e = run_trial(&s, &task, 1, 0, &opts(&task, 2.0)).unwrap_err();
     assert!(matches!(e, TrialError::Scene { .. }), "{e}");
     assert!(e.to_string().contains("no policy stage"), "{e}");
     // The cup scene on the fabric world: its object is not there.
     let cup = unitac_pipeline::load_scene("cup_deformation_vla", None).unwrap();
     let fabric = TaskConfig::fabric(Split::Unseen);
-    let stages = unitac_pipeline::build_stages(&cup).unwrap();
-    let e = run_trial(&cup, stages, &fabric, 1, 0, &opts(&fabric, 2.0)).unwrap_err();
+    let e = run_trial(&cup, &fabric, 1, 0, &opts(&fabric, 2.0)).unwrap_err();
     assert!(
         e.to_string().contains(
             "policy objects [\"cup\"] are not in the fabric task's world (fabric_a, fabric_b)"
@@ -138,8 +135,7 @@ fn a_scene_that_cannot_drive_the_world_is_an_error() {
     );
     // Time limits outside their range.
     for bad in [0.0, -1.0, f64::NAN, 1e9] {
-        let stages = unitac_pipeline::build_stages(&cup).unwrap();
-        let e = run_trial(&cup, stages, &task, 1, 0, &opts(&task, bad)).unwrap_err();
+        let e = run_trial(&cup, &task, 1, 0, &opts(&task, bad)).unwrap_err();
         assert!(matches!(e, TrialError::Options(_)), "{bad}: {e}");
     }
 }

@@ -16,14 +16,13 @@ fn trial(
     max_s: f64,
 ) -> TrialRecord {
     let scene = unitac_pipeline::load_scene(scene, None).unwrap();
-    let stages = unitac_pipeline::build_stages(&scene).unwrap();
     let opts = TrialOptions {
         max_s,
         hidden,
         record_io: true,
         ..TrialOptions::for_task(task.kind)
     };
-    run_trial(&scene, stages, task, 3, n, &opts).unwrap()
+    run_trial(&scene, task, 3, n, &opts).unwrap()
 }
 
 /// Ticks before the first on which either trial had the gels touching.

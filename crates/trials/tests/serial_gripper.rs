@@ -19,9 +19,8 @@ fn trial(scene: &str, seed: u64, n: u32, gripper: TrialGripper) -> TrialRecord {
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let task = TaskConfig::cup(Split::Unseen);
     let scene = unitac_pipeline::load_scene(scene, None).unwrap();
-    let stages = unitac_pipeline::build_stages(&scene).unwrap();
     let opts = TrialOptions::for_task(task.kind);
-    run_trial_on(&scene, stages, &task, seed, n, &opts, gripper).unwrap()
+    run_trial_on(&scene, &task, seed, n, &opts, gripper).unwrap()
 }
 
 fn cup(r: &TrialRecord) -> &CupOutcome {

@@ -14,9 +14,9 @@
 //! current reads 5 mA per newton of grip force (0 with no object held).
 
 use super::physics::{Drive, Fingers, Physics};
-use crate::frame::{Request, Response};
-use crate::model::{Calibration, Model};
-use crate::protocol::{dh, robotiq};
+use unitac_gripper::frame::{Request, Response};
+use unitac_gripper::model::{Calibration, Model};
+use unitac_gripper::protocol::{dh, robotiq};
 
 /// What a test can see of a simulated device.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -55,10 +55,10 @@ pub fn for_model(
     start_active: bool,
 ) -> Box<dyn Registers> {
     match model.family() {
-        crate::model::Family::Robotiq => {
+        unitac_gripper::model::Family::Robotiq => {
             Box::new(RobotiqRegs::new(model, physics, activation_s, start_active))
         }
-        crate::model::Family::Dh => {
+        unitac_gripper::model::Family::Dh => {
             Box::new(DhRegs::new(model, physics, activation_s, start_active))
         }
     }

@@ -9,8 +9,8 @@
 use std::path::PathBuf;
 use std::process::Command;
 use unitac_gripper::Model;
-use unitac_gripper::device::physics::SimObject;
-use unitac_gripper::device::{DeviceConfig, SimDevice};
+use unitac_gripper_sim::device::physics::SimObject;
+use unitac_gripper_sim::device::{DeviceConfig, SimDevice};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")

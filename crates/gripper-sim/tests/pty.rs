@@ -7,11 +7,11 @@
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
-use unitac_gripper::device::physics::SimObject;
-use unitac_gripper::device::{DeviceConfig, SimDevice};
 use unitac_gripper::{
     Activation, DriverConfig, Fault, Gripper, GripperSetpoint, Model, Motion, SerialGripper,
 };
+use unitac_gripper_sim::device::physics::SimObject;
+use unitac_gripper_sim::device::{DeviceConfig, SimDevice};
 
 const WAIT: Duration = Duration::from_secs(10);
 
@@ -158,7 +158,7 @@ fn link_faults_are_retried_or_reported_and_never_block() {
     wait_for("active", &g, |g| g.state().activation == Activation::Active);
 
     // One-off faults: recovered by the retry, the state stays fault-free.
-    type Inject = fn(&mut unitac_gripper::device::Faults);
+    type Inject = fn(&mut unitac_gripper_sim::device::Faults);
     let one_offs: [(&str, Inject); 5] = [
         ("no reply", |f| f.no_reply = 1),
         ("half frame", |f| f.half_frame = 1),
@@ -365,7 +365,7 @@ fn every_model_activates_and_reaches_a_position_in_si_units() {
 /// pty, closed on the same cup at the same force limit, end in the same place.
 #[test]
 fn sim_world_gripper_in_process_and_over_the_pty_agree() {
-    use unitac_gripper::sim_world::{SimWorldGripper, WorldFingers};
+    use unitac_gripper_sim::sim_world::{SimWorldGripper, WorldFingers};
     use unitac_sim::{Cup, World, WorldConfig};
     let world = || World::new(WorldConfig::new(Cup::paper(60.0)));
     let limits = Model::Robotiq2F85.calibration().limits;

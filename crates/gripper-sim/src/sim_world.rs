@@ -8,7 +8,7 @@
 //! Opening = the world's `width_mm` (cup diameter - 2 x finger position).
 
 use crate::device::physics::{Drive, Fingers, Physics};
-use crate::gripper::{
+use unitac_gripper::gripper::{
     Activation, Gripper, GripperError, GripperSetpoint, GripperState, Limits, Motion,
 };
 use unitac_sim::{Command, World, WorldError, WorldTruth};
@@ -203,7 +203,7 @@ impl Gripper for SimWorldGripper {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::Model;
+    use unitac_gripper::model::Model;
     use unitac_sim::{Cup, WorldConfig};
 
     #[test]

@@ -12,8 +12,6 @@ pub mod physics;
 pub mod registers;
 pub mod relay;
 
-use crate::frame::{Decoder, Direction, FrameError, Request, Response};
-use crate::model::Model;
 use physics::{Kinematic, Physics, SimObject};
 use registers::{Registers, Snapshot};
 use serialport::{SerialPort, TTYPort};
@@ -23,6 +21,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
+use unitac_gripper::frame::{Decoder, Direction, FrameError, Request, Response};
+use unitac_gripper::model::Model;
 
 /// Settings of a simulated device.
 #[derive(Debug, Clone, PartialEq)]
