@@ -16,7 +16,7 @@
 
 use crate::clock::{Clock, ManualClock, Stamp};
 use crate::msg::Msg;
-use crate::stage::Stage;
+use crate::stage::{Stage, StageError};
 use std::time::Instant;
 
 /// Rejections whose message is kept per runner (the count goes on).
@@ -149,6 +149,36 @@ impl StageRunner {
         rejected
     }
 
+    /// The stage's timer hook at the transport's time `now` (the clock moves to it, never
+    /// back): `emit` gets what the stage sends.
+    pub fn timer(&mut self, now: Stamp, emit: &mut dyn FnMut(Msg)) -> Option<Rejection> {
+        self.last = self.last.max(now);
+        self.clock.set(self.last);
+        match self.timed(|s, _| s.timer(now)) {
+            Ok(outs) => {
+                self.stats.output += outs.len() as u64;
+                outs.into_iter().for_each(emit);
+                None
+            }
+            Err(e) => Some(self.reject("timer", now, e.to_string())),
+        }
+    }
+
+    /// The stage's timer period \[ns] (None: it has no timer).
+    pub fn timer_period_ns(&self) -> Option<i64> {
+        self.stage.timer_period_ns()
+    }
+
+    /// The inputs whose producer the stage needs alive now.
+    pub fn awaited_inputs(&self) -> Vec<&'static str> {
+        self.stage.awaited_inputs()
+    }
+
+    /// Tell the stage the producer of input `name` is gone (`Some(why)`) or back (`None`).
+    pub fn set_input_lost(&mut self, name: &str, why: Option<String>) -> Result<(), StageError> {
+        self.stage.set_input_lost(name, why)
+    }
+
     /// The input ended: `emit` gets what the stage still holds (e.g. an open episode), on the
     /// clock of the last input.
     pub fn finish(&mut self, emit: &mut dyn FnMut(Msg)) -> Option<Rejection> {
@@ -215,14 +245,64 @@ impl Chain {
 
     /// Every stage's `finish` in order; what a stage flushes passes through the later stages.
     pub fn finish(&mut self) -> ChainOutput {
+        self.each(|r, emit| r.finish(emit))
+    }
+
+    /// The timer hook of every stage that has a timer, in order, at the transport's time `now`;
+    /// what a stage sends passes through the later stages. A transport calls it every
+    /// [`Chain::timer_period_ns`].
+    pub fn timer(&mut self, now: Stamp) -> ChainOutput {
+        self.each(|r, emit| {
+            r.timer_period_ns()
+                .is_some()
+                .then(|| r.timer(now, emit))
+                .flatten()
+        })
+    }
+
+    /// The shortest timer period any stage asks for \[ns] (None: no stage has a timer).
+    pub fn timer_period_ns(&self) -> Option<i64> {
+        self.runners
+            .iter()
+            .filter_map(StageRunner::timer_period_ns)
+            .min()
+    }
+
+    /// The inputs whose producer some stage needs alive now.
+    pub fn awaited_inputs(&self) -> Vec<&'static str> {
+        let mut all: Vec<&'static str> = Vec::new();
+        for r in &self.runners {
+            for i in r.awaited_inputs() {
+                if !all.contains(&i) {
+                    all.push(i);
+                }
+            }
+        }
+        all
+    }
+
+    /// Tell every stage the producer of input `name` is gone (`Some(why)`) or back (`None`);
+    /// the first stage that refuses the word answers.
+    pub fn set_input_lost(&mut self, name: &str, why: Option<String>) -> Result<(), StageError> {
+        for r in &mut self.runners {
+            r.set_input_lost(name, why.clone())?;
+        }
+        Ok(())
+    }
+
+    /// `hook` on every runner in order, each one's outputs through the later runners.
+    fn each(
+        &mut self,
+        mut hook: impl FnMut(&mut StageRunner, &mut dyn FnMut(Msg)) -> Option<Rejection>,
+    ) -> ChainOutput {
         let mut out = ChainOutput::default();
         for i in 0..self.runners.len() {
             let (this, later) = self.runners.split_at_mut(i + 1);
             let Some(r) = this.last_mut() else { continue };
-            let mut flushed = Vec::new();
-            out.errors.extend(r.finish(&mut |m| flushed.push(m)));
-            Self::pass(later, &mut flushed, &mut out.errors);
-            out.produced.extend(flushed);
+            let mut sent = Vec::new();
+            out.errors.extend(hook(r, &mut |m| sent.push(m)));
+            Self::pass(later, &mut sent, &mut out.errors);
+            out.produced.extend(sent);
         }
         out
     }
@@ -303,6 +383,42 @@ mod tests {
         assert_eq!(out.errors[0].stage, "a");
         assert_eq!(ch.runners()[0].stats().errors, 1);
         assert_eq!(ch.runners()[0].recent_errors().len(), 1);
+    }
+
+    /// A stage that only acts on its timer, asking for one every 100 ns.
+    struct Every;
+    impl Stage for Every {
+        fn name(&self) -> &str {
+            "every"
+        }
+        fn process(&mut self, _m: &Msg, _c: &dyn Clock) -> Result<Vec<Msg>, StageError> {
+            Ok(Vec::new())
+        }
+        fn timer_period_ns(&self) -> Option<i64> {
+            Some(100)
+        }
+        fn timer(&mut self, now: Stamp) -> Result<Vec<Msg>, StageError> {
+            Ok(vec![status(&format!("t@{}", now.0), now.0)])
+        }
+    }
+
+    #[test]
+    fn the_timer_hook_sends_through_later_stages_on_the_transports_time() {
+        let mut ch = Chain::new(vec![
+            Box::new(Tag("a")),
+            Box::new(Every),
+            Box::new(Tag("b")),
+        ]);
+        assert_eq!(ch.timer_period_ns(), Some(100));
+        assert_eq!(Chain::new(vec![Box::new(Tag("a"))]).timer_period_ns(), None);
+        ch.run(status("x", 10));
+        let out = ch.timer(Stamp(250));
+        let got: Vec<&str> = out.produced.iter().map(text).collect();
+        // Tags have no timer: only Every's message, and b's answer to it on b's clock.
+        assert_eq!(got, ["b(t@250)@250", "t@250"]);
+        // The timer moved Every's clock; a later input stamped earlier does not move it back.
+        assert_eq!(ch.runners()[1].now(), Stamp(250));
+        assert_eq!(ch.runners()[0].now(), Stamp(10));
     }
 
     #[test]

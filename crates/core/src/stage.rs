@@ -4,7 +4,7 @@
 //! (crates/ros) are two thin drivers that feed it messages; neither adds logic. Same inputs and
 //! same clock readings give the same outputs.
 
-use crate::clock::Clock;
+use crate::clock::{Clock, Stamp};
 use crate::frame::{Frame, FrameError};
 use crate::msg::Msg;
 use thiserror::Error;
@@ -41,6 +41,32 @@ pub trait Stage: Send {
     /// contact episode.
     fn finish(&mut self, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
         Ok(Vec::new())
+    }
+
+    /// How often the stage wants [`Stage::timer`] called \[ns]; None (the default): never. A
+    /// stage that must act when an input does not come (the policy's watchdog) asks for one.
+    fn timer_period_ns(&self) -> Option<i64> {
+        None
+    }
+
+    /// The timer hook: called by the transport every [`Stage::timer_period_ns`] with its time
+    /// `now` (the same time line as the inputs' stamps: sim time under a sim clock). What it
+    /// returns goes downstream like any output. Default: nothing.
+    fn timer(&mut self, _now: Stamp) -> Result<Vec<Msg>, StageError> {
+        Ok(Vec::new())
+    }
+
+    /// The inputs whose producer must be alive now (message kinds or input names the stage
+    /// documents); a transport that can see producers (ROS publishers) watches them and reports
+    /// through [`Stage::set_input_lost`]. Default: none.
+    fn awaited_inputs(&self) -> Vec<&'static str> {
+        Vec::new()
+    }
+
+    /// A transport's word that the producer of input `name` is gone (`Some(why)`) or back
+    /// (`None`). Default: ignored.
+    fn set_input_lost(&mut self, _name: &str, _why: Option<String>) -> Result<(), StageError> {
+        Ok(())
     }
 }
 

@@ -435,4 +435,24 @@ impl Stage for PolicyStage {
         self.present = Some(self.present.map_or(now.0, |p| p.max(now.0)));
         Ok(self.tick(now, g))
     }
+
+    /// The watchdog's control period.
+    fn timer_period_ns(&self) -> Option<i64> {
+        Some(self.period_ns())
+    }
+
+    /// The watchdog ([`PolicyStage::watchdog_tick`]): the safe action when no gripper state
+    /// came for a control period.
+    fn timer(&mut self, now: Stamp) -> Result<Vec<Msg>, StageError> {
+        Ok(self.watchdog_tick(now))
+    }
+
+    fn awaited_inputs(&self) -> Vec<&'static str> {
+        PolicyStage::awaited_inputs(self)
+    }
+
+    fn set_input_lost(&mut self, name: &str, why: Option<String>) -> Result<(), StageError> {
+        PolicyStage::set_input_lost(self, name, why)
+            .map_err(|e| StageError::BadInput(e.to_string()))
+    }
 }

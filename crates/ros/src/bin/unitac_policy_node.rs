@@ -14,13 +14,14 @@
 //! gripper state from `joint_states` before the stage sees it (unitac_gripper::action), so a
 //! fault there reaches the same safety layer and gets the safe action on the next tick.
 //!
-//! The stage keeps the clock rule: its clock is its input's stamp (the latest stamp seen), and a
-//! control tick is the arrival of a gripper state at the control rate. What only a transport can
-//! see goes through the stage's pure API, on tokio timers in one `select!` with the inputs and the
-//! signals (no sleep-polling):
-//! - the control interval: when no gripper state came for the due tick, the stage's
-//!   `watchdog_tick(now)` (now on the node's ROS clock: sim time under `use_sim_time`) sends the
-//!   safe action with the reason;
+//! The stage runs in the one chain driver (`unitac_core::Chain`, as in every other node and the
+//! embedded runtime): its clock is its input's stamp (the latest stamp seen), and a control tick
+//! is the arrival of a gripper state at the control rate. What only a transport can see goes
+//! through the stage hooks, on tokio timers in one `select!` with the inputs and the signals (no
+//! sleep-polling):
+//! - the control interval: the chain's timer hook (`Chain::timer(now)`, now on the node's ROS
+//!   clock: sim time under `use_sim_time`) at the stage's timer period; the policy's watchdog
+//!   sends the safe action with the reason when no gripper state came for the due tick;
 //! - producers: on every control interval and before every gripper tick, the publisher count of
 //!   each input topic the current phase awaits (`awaited_inputs`) is read from the ROS graph; none
 //!   left marks the input lost (`set_input_lost`), so the next tick sends the safe action with
@@ -37,7 +38,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use tokio::signal::unix::{SignalKind, signal};
 use unitac_core::msg::GripperStatus;
-use unitac_core::{ManualClock, Msg, Stage, Stamp};
+use unitac_core::{Chain, Msg, Stamp};
 use unitac_gripper::GripperSetpoint;
 use unitac_gripper::action::{ActionLink, Goal, GoalEnd, Report, Resend};
 use unitac_pipeline::StageConfig;
@@ -415,8 +416,8 @@ struct Producers {
 
 impl Producers {
     /// Mark each awaited input whose topic has no publisher lost, and every other one not.
-    fn check(&self, stage: &mut PolicyStage) -> anyhow::Result<()> {
-        let awaited = stage.awaited_inputs();
+    fn check(&self, chain: &mut Chain) -> anyhow::Result<()> {
+        let awaited = chain.awaited_inputs();
         for (input, topic) in &self.topics {
             let lost = if awaited.contains(input) {
                 let n = self
@@ -429,7 +430,7 @@ impl Producers {
             } else {
                 None
             };
-            stage.set_input_lost(input, lost)?;
+            chain.set_input_lost(input, lost)?;
         }
         Ok(())
     }
@@ -480,8 +481,10 @@ async fn run_async() -> anyhow::Result<()> {
     if tool_rpy.iter().any(|v| !v.is_finite()) {
         anyhow::bail!("tool_roll, tool_pitch and tool_yaw must be finite, got {tool_rpy:?}");
     }
-    let (scene, mut stage) = build(&p, &overrides)?;
+    let (scene, stage) = build(&p, &overrides)?;
     let inputs = stage.inputs();
+    // The stage through the one chain driver (its clock rule, its timer hook: the watchdog).
+    let mut chain = Chain::new(vec![Box::new(stage)]);
     let mut incoming = subscribe(&mut node, &inputs, &p)?;
     let reliable = QosProfile::default;
     let namespace = node.namespace()?;
@@ -530,19 +533,16 @@ async fn run_async() -> anyhow::Result<()> {
 
     let mut sigint = signal(SignalKind::interrupt())?;
     let mut sigterm = signal(SignalKind::terminate())?;
-    let period = Duration::from_nanos(u64::try_from(stage.period_ns()).unwrap_or(33_333_333));
+    let period = chain
+        .timer_period_ns()
+        .and_then(|ns| u64::try_from(ns).ok())
+        .map_or(Duration::from_millis(33), Duration::from_nanos);
     let mut control = tokio::time::interval(period);
     control.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut diag_timer = tokio::time::interval(Duration::from_millis(200));
     diag_timer.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut counters = diagnostics::Counters::default();
     let (mut watchdog_ticks, mut last_status) = (0u64, String::new());
-    // The stage's clock: the latest input stamp (the chain driver's rule).
-    let mut latest = Stamp::ZERO;
-    let clock_of = |latest: &mut Stamp, t: Stamp| {
-        *latest = (*latest).max(t);
-        ManualClock::new(*latest)
-    };
     loop {
         tokio::select! {
             m = incoming.next() => {
@@ -559,7 +559,7 @@ async fn run_async() -> anyhow::Result<()> {
                 let m = match m {
                     Msg::Gripper(g) => {
                         // A tick: the producers as they are now, so a loss shows in this tick.
-                        if let Err(e) = producers.check(&mut stage) {
+                        if let Err(e) = producers.check(&mut chain) {
                             counters.error(format!("graph: {e:#}"));
                         }
                         check_server(&producers, &mut pubs, &mut counters);
@@ -568,30 +568,31 @@ async fn run_async() -> anyhow::Result<()> {
                     m => m,
                 };
                 let stamp = m.stamp();
-                let c = clock_of(&mut latest, stamp);
-                match stage.process(&m, &c) {
-                    Ok(out) => {
-                        if !out.is_empty() {
-                            counters.latency(age_s(&clock, stamp));
-                        }
-                        pubs.publish(out, &mut counters, &mut last_status);
-                    }
-                    Err(e) => counters.error(e.to_string()),
+                let out = chain.run(m);
+                for e in &out.errors {
+                    counters.error(e.error.clone());
                 }
+                if !out.produced.is_empty() {
+                    counters.latency(age_s(&clock, stamp));
+                }
+                pubs.publish(out.produced, &mut counters, &mut last_status);
                 counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
             }
             Some(e) = events.next() => pubs.action_event(e),
             Some(()) = next_goal(&mut pubs) => {}
             _ = control.tick() => {
-                if let Err(e) = producers.check(&mut stage) {
+                if let Err(e) = producers.check(&mut chain) {
                     counters.error(format!("graph: {e:#}"));
                 }
                 check_server(&producers, &mut pubs, &mut counters);
                 let now = convert::stamp(&ros_now(&clock));
-                let out = stage.watchdog_tick(now);
-                if !out.is_empty() {
+                let out = chain.timer(now);
+                for e in &out.errors {
+                    counters.error(e.error.clone());
+                }
+                if !out.produced.is_empty() {
                     watchdog_ticks += 1;
-                    pubs.publish(out, &mut counters, &mut last_status);
+                    pubs.publish(out.produced, &mut counters, &mut last_status);
                 }
             }
             _ = diag_timer.tick() => {
