@@ -10,7 +10,9 @@ use anyhow::{Context, bail};
 use std::io::Write;
 use std::path::Path;
 use unitac_contact::{ContactParams, ContactStage};
-use unitac_core::{ManualClock, Msg, SensorKind, Stage};
+use unitac_core::chain::ChainOutput;
+use unitac_core::msg::EpisodeClip;
+use unitac_core::{Chain, Msg, SensorKind};
 use unitac_infer::preprocess::Preprocess;
 use unitac_sim::{MockConfig, MockSensor, Object, Phase, Scenario, SplitMix64};
 
@@ -62,6 +64,36 @@ pub fn press(object: &Object, depth: f64) -> Scenario {
     }
 }
 
+/// The first contact episode's clip of `sensor` through a contact stage keeping `clip_frames`
+/// frames, driven by the one chain driver (the stage's clock is each frame's stamp, as in every
+/// transport).
+pub fn first_clip(mut sensor: MockSensor, clip_frames: u32) -> anyhow::Result<EpisodeClip> {
+    let kind = sensor.config().sensor;
+    let p = ContactParams {
+        clip_frames,
+        ..Default::default()
+    };
+    let stage = ContactStage::new(p, kind.spec()).map_err(anyhow::Error::msg)?;
+    let mut chain = Chain::new(vec![Box::new(stage)]);
+    let mut clip = None;
+    let mut keep = |out: ChainOutput| -> anyhow::Result<()> {
+        if let Some(e) = out.errors.first() {
+            bail!("{e}");
+        }
+        for m in out.produced {
+            if let Msg::Clip(c) = m {
+                clip.get_or_insert(c);
+            }
+        }
+        Ok(())
+    };
+    while let Some((f, _)) = sensor.next_with_truth() {
+        keep(chain.run(Msg::Frame(f)))?;
+    }
+    keep(chain.finish())?;
+    clip.context("the contact stage found no episode")
+}
+
 /// Run one press through the contact stage; the episode's clip, preprocessed.
 pub fn clip_of(
     kind: SensorKind,
@@ -69,30 +101,8 @@ pub fn clip_of(
     scenario: Scenario,
     pre: &Preprocess,
 ) -> anyhow::Result<(Vec<f32>, Vec<f32>)> {
-    let mut sensor = MockSensor::new(MockConfig::new(kind, seed), scenario);
-    let p = ContactParams {
-        clip_frames: pre.clip_frames * 2,
-        ..Default::default()
-    };
-    let mut stage = ContactStage::new(p, kind.spec()).map_err(anyhow::Error::msg)?;
-    let clock = ManualClock::default();
-    let mut clip = None;
-    while let Some((f, _)) = sensor.next_with_truth() {
-        for m in stage
-            .process(&Msg::Frame(f), &clock)
-            .map_err(|e| anyhow::anyhow!("{e}"))?
-        {
-            if let Msg::Clip(c) = m {
-                clip.get_or_insert(c);
-            }
-        }
-    }
-    for m in stage.finish(&clock).map_err(|e| anyhow::anyhow!("{e}"))? {
-        if let Msg::Clip(c) = m {
-            clip.get_or_insert(c);
-        }
-    }
-    let c = clip.context("the contact stage found no episode")?;
+    let sensor = MockSensor::new(MockConfig::new(kind, seed), scenario);
+    let c = first_clip(sensor, pre.clip_frames * 2)?;
     let bg = c.background.as_ref().context("clip without background")?;
     let x = pre.clip(&c.frames, c.peak_index).context("empty clip")?;
     let mut b = Vec::new();
@@ -172,22 +182,9 @@ mod tests {
         for i in 0..40 {
             let (obj, depth, _) = fabric(&mut rng, "unseen");
             let kind = SensorKind::GelsightMini;
-            let mut sensor = MockSensor::new(MockConfig::new(kind, 777 + i), press(&obj, depth));
-            let p = ContactParams {
-                clip_frames: pre.clip_frames * 2,
-                ..Default::default()
-            };
-            let mut stage = ContactStage::new(p, kind.spec()).unwrap();
-            let clock = ManualClock::default();
-            let mut clip = None;
-            while let Some((f, _)) = sensor.next_with_truth() {
-                for m in stage.process(&Msg::Frame(f), &clock).unwrap() {
-                    if let Msg::Clip(c) = m {
-                        clip = Some(c);
-                    }
-                }
-            }
-            let out = enc.encode(&clip.expect("an episode")).unwrap();
+            let sensor = MockSensor::new(MockConfig::new(kind, 777 + i), press(&obj, depth));
+            let clip = first_clip(sensor, pre.clip_frames * 2).unwrap();
+            let out = enc.encode(&clip).unwrap();
             seen.push((obj.roughness_mm, out.scores[1]));
         }
         let (mut right, mut total) = (0, 0);

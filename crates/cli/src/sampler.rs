@@ -481,30 +481,12 @@ fn encoder_latency(reps: usize) -> anyhow::Result<f64> {
         unitac_infer::encoder::EncoderStage::new(&bundle_dir()?, &RuntimeConfig::default())?;
     let pre = unitac_infer::preprocess::Preprocess::reference();
     let obj = unitac_sim::Scenario::fabric("bench", 0.04, 0.9);
-    let mut sensor = unitac_sim::MockSensor::new(
+    let sensor = unitac_sim::MockSensor::new(
         unitac_sim::MockConfig::new(SensorKind::GelsightMini, 3),
         crate::dataset::press(&obj, 0.5),
     );
-    let p = unitac_contact::ContactParams {
-        clip_frames: pre.clip_frames * 2,
-        ..Default::default()
-    };
-    let mut stage = unitac_contact::ContactStage::new(p, SensorKind::GelsightMini.spec())
-        .map_err(anyhow::Error::msg)?;
-    let clock = unitac_core::ManualClock::default();
-    let mut clip = None;
-    while let Some((f, _)) = sensor.next_with_truth() {
-        use unitac_core::Stage;
-        for m in stage
-            .process(&unitac_core::Msg::Frame(f), &clock)
-            .map_err(|e| anyhow::anyhow!("{e}"))?
-        {
-            if let unitac_core::Msg::Clip(c) = m {
-                clip = Some(c);
-            }
-        }
-    }
-    let clip = clip.context("no episode")?;
+    let clip = crate::dataset::first_clip(sensor, pre.clip_frames * 2)?;
+
     let mut t = Vec::new();
     for _ in 0..reps {
         let t0 = Instant::now();
