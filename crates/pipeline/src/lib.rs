@@ -8,18 +8,23 @@
 //!   with one line;
 //! - [`registry::stage_configs`] turns each stage's `params:` into its typed struct
 //!   ([`StageConfig`]), [`registry::build_stages`] builds the stages, [`registry::build_source`]
-//!   the frame source (mock sensor, V4L2 sensor, bag).
+//!   the frame source (mock sensor, V4L2 sensor, bag);
+//! - [`scenes`] is the one list of scenes (the files in the scene directories) and of the tasks
+//!   run per mode (`<task>_<mode>` scenes).
 //!
 //! Driving the stages is not done here: every transport uses `unitac_core::chain` (the one chain
 //! driver) and `unitac_core::pace` (the one pacer).
 
 pub mod overrides;
 pub mod registry;
+pub mod scenes;
 
 pub use registry::{
     KNOWN_STAGES, StageConfig, build_source, build_stage, build_stages, check_modes, open_v4l,
     scene_context, scene_dirs, stage_configs,
 };
+
+pub use scenes::{mode_scene, scene_names, split_mode, tasks};
 
 use std::path::PathBuf;
 use unitac_core::{Scene, SceneError};

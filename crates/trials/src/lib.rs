@@ -8,6 +8,7 @@
 //!   simulated device on a pty whose fingers are the world's gripper);
 //! - [`run`]: one closed-loop trial (the world as the scene's source, the scene's stages driven
 //!   by `unitac_core::chain`, a per-tick trace and the world's outcome);
+//! - [`scene`]: the sim task a scene's policy stage names;
 //! - [`table`]: the paper-style success table, our counts beside the paper's;
 //! - [`demos`]: the scripted expert's cup demonstrations recorded with what a policy could
 //!   observe (the scene's tactile stages' latents, the camera, the gripper) and its labels.
@@ -16,6 +17,7 @@ pub mod bridge;
 pub mod demos;
 pub mod gripper;
 pub mod run;
+pub mod scene;
 pub mod serial;
 pub mod table;
 
