@@ -22,6 +22,10 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 URDF_DIR = os.path.join(os.path.dirname(HERE), "urdf")
 PACKAGE = "unitac_ros"
 
+# Serial gripper models the gripper node drives: crates/gripper's Model::ALL, by name, in its order
+# (crates/ros/tests/launch.rs checks that they are the same).
+SERIAL_GRIPPERS = ("robotiq_2f85", "robotiq_2f140", "dh_ag95", "dh_pge50")
+
 # Launch arguments: name -> (default, description). Every setting is a declared argument.
 ARGUMENTS = {
     "source": ("", "Frame source: mock | v4l | bag | sim (sim: the task world node, closed loop; empty: the scene's)"),
@@ -41,7 +45,7 @@ ARGUMENTS = {
     "trial": ("0", "Sim source: the trial index"),
     "duration_s": ("", "Sim source: sim time of the trial [s] (empty: the task's trial length, as `unitac trials` runs it)"),
     "max_rate": ("1.0", "Sim source: at most this many sim seconds per wall second (0: as fast as the loop runs)"),
-    "gripper": ("", "Gripper: robotiq_2f85 | robotiq_2f140 | dh_ag95 | dh_pge50 (the serial gripper node) | sim "
+    "gripper": ("", "Gripper: " + " | ".join(SERIAL_GRIPPERS) + " (the serial gripper node) | sim "
                     "(the sim node's gripper) | action (a ros2_control gripper controller through "
                     "control_msgs/action/GripperCommand; the policy reads the robot's joint_states) | none "
                     "(the arm stack owns it and publishes gripper_status); empty: sim with source:=sim, else none"),
@@ -63,9 +67,6 @@ ARGUMENTS = {
                                   "(URDF convention; the body's +x points out of the gel)"),
 }
 
-# Serial gripper models the gripper node drives: crates/gripper's Model::ALL, by name, in its order
-# (crates/ros/tests/launch.rs checks that they are the same).
-SERIAL_GRIPPERS = ("robotiq_2f85", "robotiq_2f140", "dh_ag95", "dh_pge50")
 # Every value of the gripper argument.
 GRIPPERS = SERIAL_GRIPPERS + ("sim", "action", "none")
 # Sensor kind -> (file in urdf/, macro): the frames tf:=true publishes.
