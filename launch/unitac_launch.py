@@ -5,6 +5,11 @@ launch arguments into a list of node specs; it imports nothing from ROS, so it i
 `ros2 launch`. `description()` wraps the plan in launch/launch_ros actions for the per-scene
 `*.launch.py` files. Stages that have no ROS node yet are reported, not silently dropped.
 With tf:=true the sensor's frames come from its xacro macro in urdf/, expanded with `xacro`.
+
+The scenes are the files in the scene directories (`scenes()`: $UNITAC_SCENES first, then
+scenes/ beside this file), as `unitac scenes` lists them: a YAML file added there is launched by
+scene.launch.py scene:=<name> with no other edit. What a scene runs at (the sim task, its control
+rate and trial length) is read by the nodes from the scene file, not copied here.
 """
 import os
 import re
@@ -16,6 +21,10 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 # urdf/ beside launch/, in the source tree and in share/unitac_ros of an install.
 URDF_DIR = os.path.join(os.path.dirname(HERE), "urdf")
 PACKAGE = "unitac_ros"
+
+# Serial gripper models the gripper node drives: crates/gripper's Model::ALL, by name, in its order
+# (crates/ros/tests/launch.rs checks that they are the same).
+SERIAL_GRIPPERS = ("robotiq_2f85", "robotiq_2f140", "dh_ag95", "dh_pge50")
 
 # Launch arguments: name -> (default, description). Every setting is a declared argument.
 ARGUMENTS = {
@@ -34,9 +43,9 @@ ARGUMENTS = {
     "split": ("train", "Sim source: train | unseen objects (objects/split.yaml: cups by diameter range, fabrics by type)"),
     "seed": ("1", "Sim source: the trial draw's seed"),
     "trial": ("0", "Sim source: the trial index"),
-    "duration_s": ("", "Sim source: sim time of the trial [s] (empty: the task's, cup 12.0, fabric 25.0)"),
+    "duration_s": ("", "Sim source: sim time of the trial [s] (empty: the task's trial length, as `unitac trials` runs it)"),
     "max_rate": ("1.0", "Sim source: at most this many sim seconds per wall second (0: as fast as the loop runs)"),
-    "gripper": ("", "Gripper: robotiq_2f85 | robotiq_2f140 | dh_ag95 | dh_pge50 (the serial gripper node) | sim "
+    "gripper": ("", "Gripper: " + " | ".join(SERIAL_GRIPPERS) + " (the serial gripper node) | sim "
                     "(the sim node's gripper) | action (a ros2_control gripper controller through "
                     "control_msgs/action/GripperCommand; the policy reads the robot's joint_states) | none "
                     "(the arm stack owns it and publishes gripper_status); empty: sim with source:=sim, else none"),
@@ -58,28 +67,44 @@ ARGUMENTS = {
                                   "(URDF convention; the body's +x points out of the gel)"),
 }
 
-# Serial gripper models the gripper node drives (crates/gripper).
-SERIAL_GRIPPERS = ("robotiq_2f85", "robotiq_2f140", "dh_ag95", "dh_pge50")
 # Every value of the gripper argument.
 GRIPPERS = SERIAL_GRIPPERS + ("sim", "action", "none")
 # Sensor kind -> (file in urdf/, macro): the frames tf:=true publishes.
 SENSOR_MACROS = {"gelsight-mini": ("gelsight_mini.urdf.xacro", "gelsight_mini"),
                  "digit": ("digit.urdf.xacro", "digit")}
 
-# Stage kind -> the node that runs it. Nodes read their stages' parameters from the scene file
+# Stage kind -> the node that runs it (one node per executable: the contact node runs the slip
+# stage too, after its contact stage). Nodes read their stages' parameters from the scene file
 # themselves, through the same registry and typed structs as `unitac run`; nothing is copied here,
 # so nothing can be dropped. Override a stage parameter with `<stage>.<key>` in params_file.
-STAGE_NODES = {"contact": "unitac_contact_node", "policy": "unitac_policy_node"}
-# Scene name prefix -> the sim node's task.
-SIM_TASKS = {"cup_deformation": "cup", "fabric_selection": "fabric"}
-# The sim's trial length per task [s] when duration_s is not given.
-SIM_DURATION_S = {"cup": 12.0, "fabric": 25.0}
+STAGE_NODES = {"contact": "unitac_contact_node", "slip": "unitac_contact_node", "policy": "unitac_policy_node"}
 # These run in one inference node.
 INFERENCE_STAGES = {"encoder", "compare", "sampler"}
 
 
+def scene_dirs():
+    """Where scene names are looked up: $UNITAC_SCENES (when set), then scenes/ beside this file."""
+    extra = [os.environ["UNITAC_SCENES"]] if os.environ.get("UNITAC_SCENES") else []
+    return extra + [os.path.join(HERE, "scenes")]
+
+
+def scenes():
+    """Every scene name (the stem of a .yaml file in scene_dirs()), sorted, each once."""
+    names = set()
+    for d in scene_dirs():
+        if os.path.isdir(d):
+            names.update(f[: -len(".yaml")] for f in os.listdir(d) if f.endswith(".yaml"))
+    return sorted(names)
+
+
 def load_scene(name):
-    path = name if name.endswith(".yaml") else os.path.join(HERE, "scenes", name + ".yaml")
+    """A scene by name (looked up in scene_dirs()) or by path: (its YAML, its absolute path)."""
+    if name.endswith((".yaml", ".yml")) or "/" in name:
+        path = name
+    else:
+        path = next((p for p in (os.path.join(d, name + ".yaml") for d in scene_dirs()) if os.path.isfile(p)), None)
+        if path is None:
+            raise ValueError(f"scene {name} not found in {', '.join(scene_dirs())} (scenes: {', '.join(scenes())})")
     with open(path) as f:
         return yaml.safe_load(f), os.path.abspath(path)
 
@@ -172,14 +197,15 @@ def plan(scene_name, args=None):
         nodes.append({"executable": "unitac_gripper_node", "name": "unitac_gripper", "namespace": a["namespace"],
                       "parameters": [{"model": gripper, "port": a["gripper_port"]}] + extra, "remappings": []})
     if a["sensor"] == "true" and source == "sim":
-        task = next((t for prefix, t in SIM_TASKS.items() if scene["scene"].startswith(prefix)), None)
-        if task is None:
-            skipped.append(("source", f"no sim task for scene {scene['scene']} ({', '.join(SIM_TASKS)})"))
+        if "policy" not in kinds:
+            skipped.append(("source", f"source:=sim needs a scene with a policy stage (its task is the sim's); "
+                                      f"{scene['scene']} has none"))
         else:
-            policy = next((st.get("params") or {} for st in scene.get("stages", []) if st["kind"] == "policy"), {})
-            p = {"task": task, "split": a["split"], "seed": int(a["seed"]), "trial": int(a["trial"]),
-                 "duration_s": float(a["duration_s"] or SIM_DURATION_S[task]), "max_rate": float(a["max_rate"]),
-                 "control_rate_hz": float(policy.get("control_rate_hz", 30.0)),
+            # The sim node reads its task and control rate from the scene's policy stage, and
+            # runs the task's trial length unless duration_s is given.
+            p = {"scene": scene_path, "split": a["split"], "seed": int(a["seed"]), "trial": int(a["trial"]),
+                 **({"duration_s": float(a["duration_s"])} if a["duration_s"] else {}),
+                 "max_rate": float(a["max_rate"]),
                  "sensor": a["sensor_kind"] or src.get("sensor", "gelsight-mini"), "sensor_id": a["sensor_id"],
                  # Start once the policy (and the contact node, when the scene has one) listen.
                  "wait_subscribers": int("policy" in kinds),
@@ -210,6 +236,8 @@ def plan(scene_name, args=None):
         if k not in STAGE_NODES:
             skipped.append((k, "no ROS node for this stage kind"))
             continue
+        if any(n["executable"] == STAGE_NODES[k] for n in nodes):
+            continue  # that node runs this stage as well
         if k == "policy":
             p, remaps = {"scene": scene_path, "arm_frame": a["arm_frame"]}, []
             if gripper == "action":

@@ -4,7 +4,9 @@ their constructor arguments matter here), declares every argument with a descrip
 plan it runs names executables that exist and scenes that exist; the description starts the
 plan's nodes as planned. Executables of other packages (EXTERNAL) are not built here: they must be
 ones this check knows. With tf:=true, the sensor's static transforms are printed beside the
-sensor's joints in its xacro macro, expanded here on its own. Prints a JSON summary.
+sensor's joints in its xacro macro, expanded here on its own. Every scene the planner finds
+(`unitac_launch.scenes()`: $UNITAC_SCENES, then LAUNCH_DIR/scenes) is planned through
+scene.launch.py, a closed-loop one (a policy stage) also with source:=sim. Prints a JSON summary.
 
 usage: check_launch.py LAUNCH_DIR BIN_DIR
 """
@@ -83,6 +85,32 @@ def transforms(nodes):
     return out
 
 
+def node_problems(f, p):
+    """What is wrong with a plan's nodes: executables or files that do not exist."""
+    import unitac_launch
+    problems = []
+    for n in p["nodes"]:
+        if n["package"] != unitac_launch.PACKAGE:
+            if n["executable"] not in EXTERNAL.get(n["package"], ()):
+                problems.append(f"{f}: {n['package']} {n['executable']} is not a known external executable")
+        elif not os.path.isfile(os.path.join(BIN_DIR, n["executable"])):
+            problems.append(f"{f}: executable {n['executable']} does not exist")
+        for extra in n["parameters"]:
+            if isinstance(extra, str) and not os.path.isfile(extra):
+                problems.append(f"{f}: params file {extra} does not exist")
+        for params in n["parameters"]:
+            if isinstance(params, dict) and "scene" in params and not os.path.isfile(params["scene"]):
+                problems.append(f"{f}: scene file {params['scene']} does not exist")
+    return problems
+
+
+def parameters(p):
+    """Our nodes' parameters in a plan, merged per executable."""
+    import unitac_launch
+    return {n["executable"]: {k: v for d in n["parameters"] if isinstance(d, dict) for k, v in d.items()}
+            for n in p["nodes"] if n["package"] == unitac_launch.PACKAGE}
+
+
 def error_of(f):
     try:
         f()
@@ -91,8 +119,13 @@ def error_of(f):
         return str(e)
 
 
+BIN_DIR = None
+
+
 def main():
+    global BIN_DIR
     launch_dir, bin_dir = sys.argv[1:3]
+    BIN_DIR = bin_dir
     install_stand_ins()
     sys.path.insert(0, launch_dir)
     import unitac_launch
@@ -115,7 +148,7 @@ def main():
                 out["problems"].append(f"{f}: no SCENE and no scene argument")
                 continue
             scene = declared["scene"]
-        if not os.path.isfile(os.path.join(launch_dir, "scenes", scene + ".yaml")):
+        if scene not in unitac_launch.scenes():
             out["problems"].append(f"{f}: scene {scene} does not exist")
         overrides = getattr(m, "OVERRIDES", {})
         for k, v in overrides.items():
@@ -129,18 +162,7 @@ def main():
             if set(args) - set(declared):
                 continue  # an argument this file does not have
             p = unitac_launch.plan(scene, unitac_launch.rename({**overrides, **args}, renamed))
-            for n in p["nodes"]:
-                if n["package"] != unitac_launch.PACKAGE:
-                    if n["executable"] not in EXTERNAL.get(n["package"], ()):
-                        out["problems"].append(f"{f}: {n['package']} {n['executable']} is not a known external executable")
-                elif not os.path.isfile(os.path.join(bin_dir, n["executable"])):
-                    out["problems"].append(f"{f}: executable {n['executable']} does not exist")
-                for extra in n["parameters"]:
-                    if isinstance(extra, str) and not os.path.isfile(extra):
-                        out["problems"].append(f"{f}: params file {extra} does not exist")
-                for params in n["parameters"]:
-                    if isinstance(params, dict) and "scene" in params and not os.path.isfile(params["scene"]):
-                        out["problems"].append(f"{f}: scene file {params['scene']} does not exist")
+            out["problems"] += node_problems(f, p)
             # What `ros2 launch` starts: the description, given these arguments, starts the plan.
             started = launched(d, {**declared, **args})
             planned = [{k: n[k] for k in ["package", "executable", "name", "namespace", "parameters",
@@ -150,8 +172,7 @@ def main():
             ours = [n for n in p["nodes"] if n["package"] == unitac_launch.PACKAGE]
             plans[json.dumps(args)] = {
                 "nodes": [n["executable"] for n in p["nodes"]], "skipped": p["skipped"],
-                "parameters": {n["executable"]: {k: v for d in n["parameters"] if isinstance(d, dict)
-                                                 for k, v in d.items()} for n in ours},
+                "parameters": parameters(p),
                 "remappings": {n["executable"]: [list(r) for r in n["remappings"]] for n in ours},
                 "transforms": transforms(p["nodes"])}
             if args == TF_ARGS:
@@ -165,6 +186,30 @@ def main():
             # The planner's name for a renamed argument is not this file's: an unknown argument.
             old = next(iter(renamed.values()))
             out["files"][name]["renamed_argument"] = error_of(lambda: launched(d, {**declared, old: "x"}))
+    # Every scene, by name through scene.launch.py: what it plans is what the description starts.
+    generic = os.path.join(launch_dir, "scene.launch.py")
+    spec = importlib.util.spec_from_file_location("scene", generic)
+    m = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(m)
+    d = m.generate_launch_description()
+    declared = {a.args[0]: a.kwargs.get("default_value") for a in d.args[0]
+                if type(a).__name__ == "DeclareLaunchArgument"}
+    out["serial_grippers"] = list(unitac_launch.SERIAL_GRIPPERS)
+    out["scenes"] = {}
+    for scene in unitac_launch.scenes():
+        kinds = [st["kind"] for st in unitac_launch.load_scene(scene)[0].get("stages", [])]
+        plans = {}
+        for args in [{}] + ([{"source": "sim"}] if "policy" in kinds else []):
+            p = unitac_launch.plan(scene, args)
+            out["problems"] += node_problems(f"{generic} scene:={scene}", p)
+            started = launched(d, {**declared, "scene": scene, **args})
+            planned = [{k: n[k] for k in ["package", "executable", "name", "namespace", "parameters",
+                                          "remappings", "arguments"]} for n in p["nodes"]]
+            if started != planned:
+                out["problems"].append(f"{generic}: scene:={scene} with {args} starts {started}, the plan is {planned}")
+            plans[json.dumps(args)] = {"nodes": [n["executable"] for n in p["nodes"]], "skipped": p["skipped"],
+                                       "parameters": parameters(p)}
+        out["scenes"][scene] = plans
     try:
         unitac_launch.plan("fabric_selection", {"noise_k": "4"})
         out["unknown_argument"] = "accepted"

@@ -218,7 +218,9 @@ enum Cmd {
     /// Closed-loop grasp trials in the sim world: each mode's scene
     /// (`<scene>_<mode>.yaml`) N times, the success table beside the paper's (`--json`, `--plot DIR`).
     Trials(trials::TrialsArgs),
-    /// List the scenes found in the scene directories.
+    /// List the scenes: every `<name>.yaml` in the scene directories (`--scene-dir`,
+    /// `$UNITAC_SCENES`, `$UNITAC_ROOT/launch/scenes`, `./launch/scenes`, the source tree's), one
+    /// name a line, sorted. The one list the tests, the scripts and `trials` take scenes from.
     Scenes {
         #[arg(long)]
         scene_dir: Option<PathBuf>,
@@ -296,10 +298,6 @@ fn emit(text: impl std::fmt::Display) -> anyhow::Result<()> {
 
 /// When `main` began: `unitac run` reports how long it took to have its stages built.
 static STARTED: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
-
-fn scene_dirs(extra: Option<PathBuf>) -> Vec<PathBuf> {
-    unitac_pipeline::scene_dirs(extra)
-}
 
 #[allow(clippy::too_many_arguments)] // one per flag of `unitac run`
 fn cmd_run(
@@ -694,15 +692,13 @@ fn main() -> ExitCode {
         }
         Cmd::Gripper(args) => gripper::run(args),
         Cmd::Trials(args) => trials::run(args),
-        Cmd::Scenes { scene_dir } => {
-            let mut names: Vec<String> = scene_dirs(scene_dir)
+        Cmd::Scenes { scene_dir } => emit(
+            unitac_pipeline::scene_names(scene_dir)
                 .iter()
-                .flat_map(|d| unitac_core::scene::list(d))
-                .collect();
-            names.sort();
-            names.dedup();
-            emit(names.iter().map(|n| format!("{n}\n")).collect::<String>()).map(|()| true)
-        }
+                .map(|n| format!("{n}\n"))
+                .collect::<String>(),
+        )
+        .map(|()| true),
     };
     match result {
         Ok(true) => ExitCode::SUCCESS,

@@ -1,6 +1,6 @@
 //! `unitac bench policy`: the policy stage's control tick (observation -> command), embedded.
 //!
-//! For each shipped scene x mode (`launch/scenes/<task>_<mode>.yaml`) the scene's own policy stage
+//! For each scene x mode (`launch/scenes/<task>_<mode>.yaml`, `unitac_pipeline::tasks`) the scene's own policy stage
 //! is built from the scene file and ticked through `unitac_core::chain` at the control rate, as
 //! every transport drives it. Its inputs are scripted from a sim task world (a training cup, 60 to
 //! 70 mm: the unseen 90 mm cup blocks the arm, since the policy bounds the opening to 85 mm; or
@@ -31,21 +31,20 @@ use unitac_pipeline::StageConfig;
 use unitac_policy::bench::TickRow;
 use unitac_policy::onnx::{NamedInputs, OnnxPolicy, RuntimeConfig};
 use unitac_policy::{Mode, PolicyParams, PolicyStage};
-use unitac_sim::task::{Split, TaskConfig, TaskTruth, TaskWorld, trial_rng};
+use unitac_sim::task::{Split, TaskConfig, TaskKind, TaskTruth, TaskWorld, trial_rng};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 use unitac_trials::TrialGripper;
 use unitac_trials::bridge;
 use unitac_trials::stepper::WorldStepper;
 
-/// The shipped scene per task and mode.
-pub const SCENES: [&str; 6] = [
-    "cup_deformation_vla",
-    "cup_deformation_vtla_real",
-    "cup_deformation_vtla_pred",
-    "fabric_selection_vla",
-    "fabric_selection_vtla_real",
-    "fabric_selection_vtla_pred",
-];
+/// Every scene per task and mode (`<task>_<mode>` in the scene directories), by task, then in
+/// the modes' order.
+pub fn scenes() -> Vec<String> {
+    unitac_pipeline::tasks(None)
+        .iter()
+        .flat_map(|(task, modes)| modes.iter().map(|m| unitac_pipeline::mode_scene(task, *m)))
+        .collect()
+}
 
 /// Longest unpaced episode \[ticks] (60 s at 30 Hz); an episode also ends at `done` or `failed`.
 const MAX_EPISODE_TICKS: usize = 1800;
@@ -102,7 +101,7 @@ struct Script {
 
 impl Script {
     fn new(p: &PolicyParams, episode: u32) -> anyhow::Result<Self> {
-        let fabric = p.task.starts_with("pick");
+        let fabric = unitac_trials::scene::task_kind(p) == Ok(TaskKind::Fabric);
         let cfg = if fabric {
             TaskConfig::fabric(Split::Train)
         } else {
@@ -587,8 +586,8 @@ pub fn bench_policy(opts: &Options) -> anyhow::Result<PolicyBench> {
         let mut rows = Vec::new();
         let mut act_all = Vec::new();
         let mut act_inferred = Vec::new();
-        for name in SCENES {
-            let sp = scene_policy(name)?;
+        for name in scenes() {
+            let sp = scene_policy(&name)?;
             let (params, scene) = (&sp.params, &sp.scene);
             let period_ms = 1e3 / params.control_rate_hz;
             let row = |what: &str, s: &Samples, inferred: bool| TickRow {

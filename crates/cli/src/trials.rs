@@ -7,13 +7,14 @@
 use crate::ConfigError;
 use crate::progress;
 use anyhow::{Context, Result};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU32, Ordering};
-use unitac_gripper::Model;
 use unitac_plot::{Axis, Band, Chart, Figure, PALETTE, Series, Stroke};
+use unitac_policy::Mode;
 use unitac_sim::task::{Split, TaskConfig, TaskKind, TaskOutcome};
 use unitac_trials::serial::SerialReport;
 use unitac_trials::table::{self, Row};
@@ -24,78 +25,26 @@ pub const MAX_TRIALS: u32 = 1000;
 /// Trials per mode drawn in the plots.
 const PLOTTED: usize = 3;
 
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TrialScene {
-    /// Squeeze an unseen-size cup by 1 cm and lift it.
-    #[value(name = "cup_deformation")]
-    CupDeformation,
-    /// Touch two fabrics, grasp the smoother one, lift it.
-    #[value(name = "fabric_selection")]
-    FabricSelection,
+/// `--modes`: the library's modes ([`Mode::ALL`]) by name.
+fn mode_parser() -> impl TypedValueParser<Value = Mode> {
+    PossibleValuesParser::new(Mode::names()).try_map(|s| s.parse::<Mode>())
 }
 
-impl TrialScene {
-    fn name(self) -> &'static str {
-        match self {
-            TrialScene::CupDeformation => "cup_deformation",
-            TrialScene::FabricSelection => "fabric_selection",
-        }
-    }
-}
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TrialMode {
-    #[value(name = "vla")]
-    Vla,
-    #[value(name = "vtla_real")]
-    VtlaReal,
-    #[value(name = "vtla_pred")]
-    VtlaPred,
-}
-
-impl TrialMode {
-    fn name(self) -> &'static str {
-        match self {
-            TrialMode::Vla => "vla",
-            TrialMode::VtlaReal => "vtla_real",
-            TrialMode::VtlaPred => "vtla_pred",
-        }
-    }
-}
-
-/// The gripper a trial drives.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TrialGripperArg {
-    /// The task world's gripper, in process.
-    #[value(name = "sim")]
-    Sim,
-    /// The serial driver and a simulated Robotiq 2F-140 on a pty, fingers = the world's gripper.
-    #[value(name = "robotiq_2f140")]
-    Robotiq2F140,
-    /// The same with a simulated DH AG-95 (95 mm stroke: too narrow for the unseen 90 mm cup
-    /// between 2 x 3 mm gel pads).
-    #[value(name = "dh_ag95")]
-    DhAg95,
-}
-
-impl TrialGripperArg {
-    fn gripper(self) -> TrialGripper {
-        match self {
-            TrialGripperArg::Sim => TrialGripper::InProcess,
-            TrialGripperArg::Robotiq2F140 => TrialGripper::Serial(Model::Robotiq2F140),
-            TrialGripperArg::DhAg95 => TrialGripper::Serial(Model::DhAg95),
-        }
-    }
+/// `--gripper`: the grippers a trial can drive ([`TrialGripper::offered`]) by name.
+fn gripper_parser() -> impl TypedValueParser<Value = TrialGripper> {
+    PossibleValuesParser::new(TrialGripper::offered().into_iter().map(|g| g.name()))
+        .try_map(|s| s.parse::<TrialGripper>())
 }
 
 #[derive(clap::Args, Debug)]
 pub struct TrialsArgs {
-    /// Task: cup_deformation | fabric_selection (runs `launch/scenes/<scene>_<mode>.yaml`).
+    /// Task: a scene name with a `<scene>_<mode>.yaml` per mode in the scene directories
+    /// (`unitac scenes`; e.g. cup_deformation runs `launch/scenes/cup_deformation_<mode>.yaml`).
     #[arg(long)]
-    pub scene: TrialScene,
-    /// Modes, comma separated: vla, vtla_real, vtla_pred.
-    #[arg(long, value_delimiter = ',', default_value = "vla,vtla_real,vtla_pred")]
-    pub modes: Vec<TrialMode>,
+    pub scene: String,
+    /// Modes, comma separated (default: every mode the task has a scene for).
+    #[arg(long, value_delimiter = ',', value_parser = mode_parser())]
+    pub modes: Vec<Mode>,
     /// Trials per mode (1..=1000).
     #[arg(long, default_value_t = 20)]
     pub trials: u32,
@@ -115,9 +64,10 @@ pub struct TrialsArgs {
     #[arg(long)]
     pub calibrate_vla: bool,
     /// The gripper: sim (the world's own, in process) or a serial model (the Modbus driver
-    /// talking to a simulated device on a pty whose fingers are the world's gripper).
-    #[arg(long, value_enum, default_value = "sim")]
-    pub gripper: TrialGripperArg,
+    /// talking to a simulated device on a pty whose fingers are the world's gripper); the models
+    /// whose stroke opens around an unseen cup with its gel pads.
+    #[arg(long, value_parser = gripper_parser(), default_value = "sim")]
+    pub gripper: TrialGripper,
     /// Print the table and every trial's outcome as one JSON object.
     #[arg(long)]
     pub json: bool,
@@ -315,18 +265,24 @@ struct SweepRow {
     table: Vec<Row>,
 }
 
-type Records = Vec<(TrialMode, Vec<TrialRecord>)>;
+type Records = Vec<(Mode, Vec<TrialRecord>)>;
 
 fn outcomes(records: &Records) -> Vec<(String, Vec<TaskOutcome>)> {
     records
         .iter()
         .map(|(m, rs)| {
             (
-                m.name().to_string(),
+                m.as_str().to_string(),
                 rs.iter().map(|r| r.outcome.clone()).collect(),
             )
         })
         .collect()
+}
+
+fn calibrate_usage() -> String {
+    "--calibrate-vla fits the cup VLA rule on the training cups: give --scene \
+     cup_deformation --modes vla --train"
+        .into()
 }
 
 /// Run every mode's trials; Ok(true) when every trial ran to its end (successful or not).
@@ -337,46 +293,73 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             a.trials
         )));
     }
-    let mut modes = a.modes.clone();
-    modes.dedup();
-    if modes.is_empty() {
-        return Err(config("--modes names no mode".into()));
-    }
-    let kind = match a.scene {
-        TrialScene::CupDeformation => TaskKind::Cup,
-        TrialScene::FabricSelection => TaskKind::Fabric,
+    let tasks = unitac_pipeline::tasks(a.scene_dir.clone());
+    let Some(task_modes) = tasks.get(&a.scene) else {
+        let known: Vec<&str> = tasks.keys().map(String::as_str).collect();
+        return Err(config(format!(
+            "--scene {}: no scene <task>_<mode> (mode: {}) has that task in the scene \
+             directories (tasks: {})",
+            a.scene,
+            Mode::names().join(", "),
+            if known.is_empty() {
+                "none".into()
+            } else {
+                known.join(", ")
+            }
+        )));
     };
-    let split = if a.train { Split::Train } else { Split::Unseen };
-    let task = TaskConfig::new(kind, split);
-    if a.calibrate_vla && (kind != TaskKind::Cup || !a.train || modes != [TrialMode::Vla]) {
-        return Err(config(
-            "--calibrate-vla fits the cup VLA rule on the training cups: give --scene \
-             cup_deformation --modes vla --train"
-                .into(),
-        ));
+    let mut modes = if a.modes.is_empty() {
+        task_modes.clone()
+    } else {
+        a.modes.clone()
+    };
+    modes.dedup();
+    if a.calibrate_vla && (!a.train || modes != [Mode::Vla]) {
+        return Err(config(calibrate_usage()));
     }
-    // Every scene loads (and its stages build once) before any trial runs.
+    // Every scene loads (and its stages build once) before any trial runs; the sim task is the
+    // one their policy stages name, the same for every mode.
     let mut scenes = Vec::new();
+    let mut kinds = Vec::new();
     for m in &modes {
-        let name = format!("{}_{}", a.scene.name(), m.name());
+        let name = unitac_pipeline::mode_scene(&a.scene, *m);
         let scene = unitac_pipeline::load_scene(&name, a.scene_dir.clone())
             .map_err(|e| config(e.to_string()))?;
         unitac_pipeline::build_stages(&scene).map_err(|e| config(e.to_string()))?;
-        unitac_trials::run::policy_params(&scene).map_err(|e| config(e.to_string()))?;
-        scenes.push((*m, scene));
+        let (_, kind) =
+            unitac_trials::scene::scene_task(&scene).map_err(|e| config(e.to_string()))?;
+        kinds.push(format!("{} ({})", scene.name, kind.as_str()));
+        scenes.push((*m, kind, scene));
     }
+    let kind = match scenes.as_slice() {
+        [(_, k, _), rest @ ..] if rest.iter().all(|(_, r, _)| r == k) => *k,
+        _ => {
+            return Err(config(format!(
+                "--scene {}: its mode scenes name different tasks: {}",
+                a.scene,
+                kinds.join(", ")
+            )));
+        }
+    };
+    let scenes: Vec<(Mode, unitac_core::Scene)> =
+        scenes.into_iter().map(|(m, _, s)| (m, s)).collect();
+    if a.calibrate_vla && kind != TaskKind::Cup {
+        return Err(config(calibrate_usage()));
+    }
+    let split = if a.train { Split::Train } else { Split::Unseen };
+    let task = TaskConfig::new(kind, split);
     let opts = TrialOptions::for_task(kind);
-    let gripper = a.gripper.gripper();
+    let gripper = a.gripper;
     let variants = if a.sweep {
         Variant::sweep(kind)
     } else {
         Vec::new()
     };
     let total = u64::from(a.trials) * (modes.len() * (1 + variants.len())) as u64;
-    let bar = progress::bar(total, &format!("trials {}", a.scene.name()));
+    let bar = progress::bar(total, &format!("trials {}", a.scene));
     let mut records: Records = Vec::new();
     for (m, scene) in &scenes {
-        bar.set_message(format!("trials {} {}", a.scene.name(), m.name()));
+        bar.set_message(format!("trials {} {}", a.scene, m.as_str()));
         let rs = run_trials(scene, &task, a.seed, a.trials, &opts, gripper, &bar)?;
         records.push((*m, rs));
     }
@@ -386,7 +369,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         let t = v.apply(&task);
         let mut rs_all = Vec::new();
         for (m, scene) in &scenes {
-            bar.set_message(format!("sweep {} {}", v.name, m.name()));
+            bar.set_message(format!("sweep {} {}", v.name, m.as_str()));
             rs_all.push((
                 *m,
                 run_trials(scene, &t, a.seed, a.trials, &opts, gripper, &bar)?,
@@ -402,11 +385,11 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         return calibrate_vla(&a, &task, &records);
     }
     if let Some(dir) = &a.plot {
-        plot(dir, a.scene, &records)?;
+        plot(dir, &a.scene, kind, &records)?;
     }
     if a.json {
         let report = Report {
-            task: a.scene.name(),
+            task: &a.scene,
             split: task.split,
             seed: a.seed,
             trials: a.trials,
@@ -417,7 +400,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             modes: records
                 .iter()
                 .map(|(m, rs)| ModeReport {
-                    mode: m.name(),
+                    mode: m.as_str(),
                     scene: rs.first().map_or("", |r| r.scene.as_str()),
                     clamps: clamps(rs),
                     trials: rs
@@ -486,7 +469,7 @@ fn text_report(
         if !failed.is_empty() {
             text.push_str(&format!(
                 "{}: not overall: trials {}\n",
-                m.name(),
+                m.as_str(),
                 failed.join(", ")
             ));
         }
@@ -499,7 +482,7 @@ fn text_report(
                 let list: Vec<String> = counts.iter().map(|(k, n)| format!("{k} {n}")).collect();
                 text.push_str(&format!(
                     "{}: {what}, ticks of {}: {}\n",
-                    m.name(),
+                    m.as_str(),
                     c.ticks,
                     list.join(", ")
                 ));
@@ -555,12 +538,12 @@ fn series(r: &TrialRecord, f: impl Fn(&unitac_trials::TraceRow) -> f64) -> Vec<(
 
 /// One PNG per task: cup, deformation over time per mode (the target band); fabric, grip force
 /// and slip since the grasp over time per mode. The first few trials of each mode.
-fn plot(dir: &Path, scene: TrialScene, records: &[(TrialMode, Vec<TrialRecord>)]) -> Result<()> {
+fn plot(dir: &Path, scene: &str, kind: TaskKind, records: &Records) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("--plot {}", dir.display()))?;
     let strokes = [Stroke::Solid, Stroke::Dashed, Stroke::Solid];
     let mut figure;
-    match scene {
-        TrialScene::CupDeformation => {
+    match kind {
+        TaskKind::Cup => {
             let mut chart = Chart::new(
                 "cup deformation (loss of diameter)",
                 Axis::linear("t [s]"),
@@ -579,14 +562,14 @@ fn plot(dir: &Path, scene: TrialScene, records: &[(TrialMode, Vec<TrialRecord>)]
                     )
                     .stroke(strokes[j % strokes.len()]);
                     if j == 0 {
-                        s = s.label(m.name());
+                        s = s.label(m.as_str());
                     }
                     chart = chart.series(s);
                 }
             }
             figure = Figure::new(1000, 560).panel(chart);
         }
-        TrialScene::FabricSelection => {
+        TaskKind::Fabric => {
             let mut force = Chart::new(
                 "grip force",
                 Axis::linear("t [s]"),
@@ -604,7 +587,7 @@ fn plot(dir: &Path, scene: TrialScene, records: &[(TrialMode, Vec<TrialRecord>)]
                     let mut f = Series::new(colour, series(r, |row| row.force_n)).stroke(stroke);
                     let s = Series::new(colour, series(r, |row| row.slip_m * 1e3)).stroke(stroke);
                     if j == 0 {
-                        f = f.label(m.name());
+                        f = f.label(m.as_str());
                     }
                     force = force.series(f);
                     slip = slip.series(s);
@@ -616,10 +599,10 @@ fn plot(dir: &Path, scene: TrialScene, records: &[(TrialMode, Vec<TrialRecord>)]
     figure = figure
         .title(format!(
             "{}: the first {PLOTTED} trials per mode (solid, dashed, solid)",
-            scene.name()
+            scene
         ))
         .legend_from_series();
-    let path = dir.join(format!("{}.png", scene.name()));
+    let path = dir.join(format!("{}.png", scene));
     figure
         .save(&path)
         .with_context(|| format!("writing {}", path.display()))?;

@@ -1,5 +1,6 @@
-//! Golden outputs: the event streams of the two scenes on the mock sensor (fixed seeds) are
-//! committed in tests/golden/<scene>.jsonl. The embedded runtime (`unitac run --fast --events`)
+//! Golden outputs: the event streams of the scenes on the mock sensor (fixed seeds) are
+//! committed in tests/golden/<scene>.jsonl; every scene (`unitac scenes`) with such a file is
+//! checked, so a scene added with its golden is checked with no other edit. The embedded runtime (`unitac run --fast --events`)
 //! and `unitac replay --scene` of the bag that run recorded (`--out`) must both reproduce them
 //! (crates/ros/tests/golden.rs checks the ROS nodes on the same bag). `bash scripts/bless-goldens`
 //! regenerates them on purpose after an intended change of a stage's output.
@@ -9,10 +10,27 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use unitac_core::golden::{diff, parse_lines};
 
-const SCENES: [&str; 2] = ["fabric_selection", "cup_deformation"];
-
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// The scenes with a golden: every discovered scene that has tests/golden/<scene>.jsonl. A
+/// golden file whose scene is gone fails here.
+fn golden_scenes() -> Vec<String> {
+    let names = unitac_pipeline::scene_names(None);
+    let dir = root().join("tests/golden");
+    let scenes = unitac_pipeline::scenes::with_golden(&names, &dir);
+    for f in std::fs::read_dir(&dir).unwrap() {
+        let name = f.unwrap().file_name().into_string().unwrap();
+        if let Some(scene) = name.strip_suffix(".jsonl") {
+            assert!(
+                scenes.iter().any(|s| s == scene),
+                "tests/golden/{name} has no scene {scene}"
+            );
+        }
+    }
+    assert!(!scenes.is_empty());
+    scenes
 }
 
 fn tmp(name: &str) -> PathBuf {
@@ -73,7 +91,8 @@ fn replay(bag: &Path, scene: &str) -> Vec<serde_json::Value> {
 
 #[test]
 fn the_embedded_runtime_and_bag_replay_reproduce_the_goldens() {
-    for scene in SCENES {
+    for scene in golden_scenes() {
+        let scene = scene.as_str();
         let want = golden(scene);
         assert!(want.len() > 100, "{scene}: {} events", want.len());
         let (got, bag) = run(scene);

@@ -9,13 +9,16 @@
 //! - [`registry::stage_configs`] turns each stage's `params:` into its typed struct
 //!   ([`StageConfig`]), [`registry::build_stages`] builds the stages, [`registry::build_source`]
 //!   the frame source (mock sensor, bag, and with the `v4l` feature a live V4L2 sensor:
-//!   [`open_v4l`] when built with it).
+//!   [`open_v4l`] when built with it);
+//! - [`scenes`] is the one list of scenes (the files in the scene directories) and of the tasks
+//!   run per mode (`<task>_<mode>` scenes).
 //!
 //! Driving the stages is not done here: every transport uses `unitac_core::chain` (the one chain
 //! driver) and `unitac_core::pace` (the one pacer).
 
 pub mod overrides;
 pub mod registry;
+pub mod scenes;
 #[cfg(feature = "v4l")]
 pub mod v4l;
 
@@ -25,6 +28,8 @@ pub use registry::{
 };
 #[cfg(feature = "v4l")]
 pub use v4l::open_v4l;
+
+pub use scenes::{mode_scene, scene_names, split_mode, tasks};
 
 use std::path::PathBuf;
 use unitac_core::{Scene, SceneError};

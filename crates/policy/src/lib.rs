@@ -20,7 +20,7 @@ pub mod stage;
 pub mod task;
 
 pub use error::{FeatureError, InputError, PolicyLoadError, Problems, SceneStagesError};
-pub use mode::Mode;
+pub use mode::{Mode, UnknownMode};
 pub use params::PolicyParams;
 pub use policy::{Action, ArmAction, GripperAction, Policy, PolicyError};
 pub use reflex::ReflexCounters;

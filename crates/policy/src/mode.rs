@@ -8,6 +8,8 @@
 use crate::error::SceneStagesError;
 use crate::observation::{INPUTS, input};
 use serde::{Deserialize, Serialize};
+use std::str::FromStr;
+use thiserror::Error;
 
 /// vla: vision only. vtla_real: live latents from the touch encoder. vtla_pred: latents
 /// predicted by the flow sampler from the sensor prior, before or without touch.
@@ -20,7 +22,20 @@ pub enum Mode {
     VtlaPred,
 }
 
+/// A name that is no mode; says which are.
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("unknown mode '{0}' (known: {known})", known = Mode::names().join(", "))]
+pub struct UnknownMode(pub String);
+
 impl Mode {
+    /// Every mode, in the paper's order (the table's columns).
+    pub const ALL: [Mode; 3] = [Mode::Vla, Mode::VtlaReal, Mode::VtlaPred];
+
+    /// The names of [`Mode::ALL`], in its order.
+    pub fn names() -> Vec<&'static str> {
+        Mode::ALL.iter().map(|m| m.as_str()).collect()
+    }
+
     pub fn as_str(self) -> &'static str {
         match self {
             Mode::Vla => "vla",
@@ -47,6 +62,22 @@ impl Mode {
             (Mode::VtlaPred, _) => v.extend(["latent_pred", "visual"]),
         }
         v
+    }
+}
+
+impl FromStr for Mode {
+    type Err = UnknownMode;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Mode::ALL
+            .into_iter()
+            .find(|m| m.as_str() == s)
+            .ok_or_else(|| UnknownMode(s.to_string()))
+    }
+}
+
+impl std::fmt::Display for Mode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
     }
 }
 
@@ -107,6 +138,16 @@ mod tests {
         ("sampler", "contact"),
         ("compare", "encoder"),
     ];
+
+    #[test]
+    fn names_parse_back_and_the_error_lists_every_mode() {
+        for m in Mode::ALL {
+            assert_eq!(m.as_str().parse::<Mode>(), Ok(m));
+            assert_eq!(m.to_string(), m.as_str());
+        }
+        let e = "vtla".parse::<Mode>().unwrap_err().to_string();
+        assert_eq!(e, "unknown mode 'vtla' (known: vla, vtla_real, vtla_pred)");
+    }
 
     #[test]
     fn each_mode_needs_its_producers_and_nothing_else() {

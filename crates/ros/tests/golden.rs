@@ -1,4 +1,5 @@
-//! Golden outputs over ROS: the bag `unitac run --out` records of each scene on the mock sensor,
+//! Golden outputs over ROS: the bag `unitac run --out` records of each scene with a golden
+//! (tests/golden/<scene>.jsonl) on the mock sensor,
 //! replayed by the sensor node (with /clock) into the contact and inference nodes under
 //! use_sim_time, gives the same contact states, episodes, properties, comparisons and latents as
 //! the committed tests/golden/<scene>.jsonl (which the embedded runtime and `unitac replay`
@@ -181,8 +182,15 @@ fn check_scene(scene: &str) {
     }
 }
 
+/// Every scene (as `unitac scenes` lists them) with a committed golden.
 #[test]
 fn ros_nodes_replaying_the_recorded_bag_reproduce_the_goldens() {
-    check_scene("fabric_selection");
-    check_scene("cup_deformation");
+    let scenes = unitac_pipeline::scenes::with_golden(
+        &unitac_pipeline::scene_names(None),
+        &root().join("tests/golden"),
+    );
+    assert!(!scenes.is_empty());
+    for scene in scenes {
+        check_scene(&scene);
+    }
 }

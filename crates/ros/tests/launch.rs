@@ -6,6 +6,12 @@ use std::path::PathBuf;
 use std::process::Command;
 
 fn check_launch() -> (serde_json::Value, PathBuf) {
+    check_launch_with(None)
+}
+
+/// check_launch.py's summary, with `UNITAC_SCENES` (a further scene directory, looked in first)
+/// when given; without, the variable is unset for the check.
+fn check_launch_with(scenes: Option<&std::path::Path>) -> (serde_json::Value, PathBuf) {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
     let py = std::env::var_os("UNITAC_VENV")
         .map(PathBuf::from)
@@ -15,12 +21,15 @@ fn check_launch() -> (serde_json::Value, PathBuf) {
         .parent()
         .unwrap()
         .to_path_buf();
-    let o = Command::new(py)
-        .arg(root.join("tests/ros/check_launch.py"))
+    let mut c = Command::new(py);
+    c.arg(root.join("tests/ros/check_launch.py"))
         .arg(root.join("launch"))
-        .arg(&bin_dir)
-        .output()
-        .unwrap();
+        .arg(&bin_dir);
+    match scenes {
+        Some(d) => c.env("UNITAC_SCENES", d),
+        None => c.env_remove("UNITAC_SCENES"),
+    };
+    let o = c.output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     (serde_json::from_slice(&o.stdout).unwrap(), bin_dir)
 }
@@ -160,12 +169,11 @@ fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
         "unitac_policy_node",
         "unitac_inference_node"
     ]);
-    for (task, sim_task, duration) in [
-        ("cup_deformation", "cup", 12.0),
-        ("fabric_selection", "fabric", 25.0),
-    ] {
-        for mode in ["vla", "vtla_real", "vtla_pred"] {
-            let file = format!("{task}_{mode}");
+    let tasks = unitac_pipeline::tasks(None);
+    assert!(tasks.len() >= 2, "{tasks:?}");
+    for (task, modes) in &tasks {
+        for mode in modes.iter().map(|m| m.as_str()) {
+            let file = unitac_pipeline::mode_scene(task, mode.parse().unwrap());
             let f = &j["files"][file.as_str()];
             assert_eq!(f["scene"], file.as_str());
             for a in ["split", "seed", "trial", "duration_s", "max_rate"] {
@@ -184,8 +192,18 @@ fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
             }
             let params = &plan["parameters"];
             let sim = &params["unitac_sim_node"];
-            assert_eq!(sim["task"], sim_task, "{file}");
-            assert_eq!(sim["duration_s"], duration, "{file}");
+            // The sim node reads its task, control rate and trial length from the scene (the
+            // same file as the policy node); none of them is copied into the plan.
+            assert!(
+                sim["scene"]
+                    .as_str()
+                    .unwrap()
+                    .ends_with(&format!("scenes/{file}.yaml")),
+                "{sim}"
+            );
+            for copied in ["task", "control_rate_hz", "duration_s"] {
+                assert!(sim[copied].is_null(), "{file}: {copied} in {sim}");
+            }
             assert_eq!(sim["wait_subscribers"], 1);
             assert_eq!(sim["wait_image_subscribers"], i32::from(mode != "vla"));
             assert!(sim["use_sim_time"].is_null(), "the sim publishes /clock");
@@ -220,7 +238,8 @@ fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
 
 /// The parameters the launch plan gives each node are ones the node accepts (names and types:
 /// r2r refuses a float where an integer is declared): every planned node starts with them and
-/// shuts down cleanly on SIGINT.
+/// shuts down cleanly on SIGINT. The sim node takes its task, control rate and trial length from
+/// the scene's policy stage and `unitac trials`' trial length.
 #[test]
 fn planned_parameters_are_accepted_by_the_nodes() {
     let (j, bin_dir) = check_launch();
@@ -256,12 +275,21 @@ fn planned_parameters_are_accepted_by_the_nodes() {
                 .status()
                 .unwrap();
             let out = c.wait_with_output().unwrap();
+            let stderr = String::from_utf8_lossy(&out.stderr);
             assert!(
                 early.is_none() && out.status.success(),
-                "{file}: {exe} with\n{yaml}exited {:?}: {}",
+                "{file}: {exe} with\n{yaml}exited {:?}: {stderr}",
                 out.status,
-                String::from_utf8_lossy(&out.stderr)
             );
+            if exe == "unitac_sim_node" {
+                let cup = unitac_trials::TrialOptions::for_task(unitac_sim::task::TaskKind::Cup);
+                let want = format!(
+                    "the cup task at {} Hz for {} s of sim time",
+                    unitac_policy::PolicyParams::default().control_rate_hz,
+                    cup.max_s
+                );
+                assert!(stderr.contains(&want), "{file}: {want} not in {stderr}");
+            }
             started += 1;
         }
     }
@@ -411,4 +439,87 @@ fn robot_file_starts_our_nodes_on_the_robots_controllers() {
     ] {
         assert!(bad[case].as_str().unwrap().contains(says), "{case}: {bad}");
     }
+}
+
+/// A scene is a file: copies of shipped scenes under new names in a further scene directory
+/// (`UNITAC_SCENES`, so the tree is not touched) are accepted by the launch planner and
+/// scene.launch.py with no other edit: a touch scene with a slip stage plans the contact node
+/// once (it runs the slip stage; nothing is reported not started), a closed-loop scene plans the
+/// sim node on that scene's file. The serial gripper models are the gripper crate's.
+#[test]
+fn a_scene_file_added_is_launched_by_name_with_no_other_edit() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let dir = std::env::temp_dir().join(format!("unitac-launch-scenes-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let copy = |from: &str, to: &str, edit: &dyn Fn(String) -> String| {
+        let text =
+            std::fs::read_to_string(root.join(format!("launch/scenes/{from}.yaml"))).unwrap();
+        let renamed = text.replace(&format!("scene: {from}\n"), &format!("scene: {to}\n"));
+        assert_ne!(renamed, text, "{from}");
+        std::fs::write(dir.join(format!("{to}.yaml")), edit(renamed)).unwrap();
+    };
+    copy("fabric_selection", "fabric_slip_copy", &|t| {
+        let with_slip = t.replace("  - kind: encoder", "  - kind: slip\n  - kind: encoder");
+        assert_ne!(with_slip, t);
+        with_slip
+    });
+    copy("cup_deformation_vtla_real", "cup_copy_vtla_real", &|t| t);
+    let (j, _) = check_launch_with(Some(&dir));
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(j["problems"], serde_json::json!([]), "{j}");
+    let scenes = &j["scenes"];
+    for s in unitac_pipeline::scene_names(None) {
+        assert!(scenes.get(&s).is_some(), "{s} not offered: {scenes}");
+    }
+
+    let slip = &scenes["fabric_slip_copy"]["{}"];
+    assert_eq!(
+        slip["nodes"],
+        serde_json::json!([
+            "unitac_sensor_node",
+            "unitac_contact_node",
+            "unitac_inference_node"
+        ]),
+        "{slip}"
+    );
+    assert_eq!(slip["skipped"], serde_json::json!([]), "{slip}");
+    assert!(
+        slip["parameters"]["unitac_contact_node"]["scene"]
+            .as_str()
+            .unwrap()
+            .ends_with("fabric_slip_copy.yaml")
+    );
+
+    let sim = &scenes["cup_copy_vtla_real"][r#"{"source": "sim"}"#];
+    assert_eq!(
+        sim["nodes"],
+        serde_json::json!([
+            "unitac_sim_node",
+            "unitac_contact_node",
+            "unitac_policy_node",
+            "unitac_inference_node"
+        ]),
+        "{sim}"
+    );
+    for exe in ["unitac_sim_node", "unitac_policy_node"] {
+        assert!(
+            sim["parameters"][exe]["scene"]
+                .as_str()
+                .unwrap()
+                .ends_with("cup_copy_vtla_real.yaml"),
+            "{sim}"
+        );
+    }
+    // Only a scene with a policy stage has a task for the sim.
+    assert!(
+        scenes["fabric_slip_copy"]
+            .get(r#"{"source": "sim"}"#)
+            .is_none()
+    );
+
+    let models: Vec<&str> = unitac_gripper::Model::ALL
+        .iter()
+        .map(|m| m.name())
+        .collect();
+    assert_eq!(j["serial_grippers"], serde_json::json!(models));
 }

@@ -31,6 +31,23 @@ pub enum TrialGripper {
 }
 
 impl TrialGripper {
+    /// The grippers a trial can drive: the world's own, then each serial model (in
+    /// [`Model::ALL`]'s order) whose stroke opens around the narrowest unseen cup with a gel pad
+    /// on each finger (objects/split.yaml; 84 + 2 x 3 mm): a narrower one collides with every
+    /// unseen cup.
+    pub fn offered() -> Vec<TrialGripper> {
+        let narrowest_m = unitac_sim::task::split::SPLIT.cups.unseen_diameter_mm.0 * 1e-3
+            + 2.0 * unitac_sim::task::GripperLimits::default().pad_m;
+        std::iter::once(TrialGripper::InProcess)
+            .chain(
+                Model::ALL
+                    .into_iter()
+                    .filter(|m| m.calibration().limits.max_opening_m >= narrowest_m)
+                    .map(TrialGripper::Serial),
+            )
+            .collect()
+    }
+
     /// `sim` or the model's name.
     pub fn name(self) -> &'static str {
         match self {
@@ -125,5 +142,18 @@ mod tests {
         }
         let e = "robotiq_3f".parse::<TrialGripper>().unwrap_err();
         assert!(e.contains("robotiq_2f140") && e.ends_with("or sim"), "{e}");
+    }
+
+    #[test]
+    fn offered_are_the_world_and_the_models_that_open_around_an_unseen_cup() {
+        // 84 mm + two 3 mm pads: the 85 mm 2F-85 and the 50 mm PGE-50 cannot.
+        assert_eq!(
+            TrialGripper::offered(),
+            [
+                TrialGripper::InProcess,
+                TrialGripper::Serial(Model::Robotiq2F140),
+                TrialGripper::Serial(Model::DhAg95),
+            ]
+        );
     }
 }

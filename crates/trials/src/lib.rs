@@ -8,6 +8,7 @@
 //!   simulated device on a pty whose fingers are the world's gripper);
 //! - [`run`]: one closed-loop trial (the world as the scene's source, the scene's stages driven
 //!   by `unitac_core::chain`, a per-tick trace and the world's outcome);
+//! - [`scene`]: the sim task a scene's policy stage names;
 //! - [`stepper`]: the one lock-step world stepper (frames, camera, gripper status out; one
 //!   command per control period in), used by the trials, the demonstrations, the ROS sim node
 //!   and the policy bench;
@@ -19,6 +20,7 @@ pub mod bridge;
 pub mod demos;
 pub mod gripper;
 pub mod run;
+pub mod scene;
 pub mod serial;
 pub mod stepper;
 pub mod table;

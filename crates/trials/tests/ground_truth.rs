@@ -47,7 +47,7 @@ fn hidden_variables_change_nothing_a_policy_sees_before_contact() {
             TaskKind::Cup => "cup_deformation",
             TaskKind::Fabric => "fabric_selection",
         };
-        for mode in ["vla", "vtla_real", "vtla_pred"] {
+        for mode in unitac_policy::Mode::ALL {
             let scene = format!("{base}_{mode}");
             // A trial in which the gels touch something (a policy may also miss, e.g. the fabric
             // VLA grasping above a fold the camera misjudged).

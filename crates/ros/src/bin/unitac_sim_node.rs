@@ -28,20 +28,25 @@ use unitac_core::msg::{ArmCommand, GripperCommand, GripperMode};
 use unitac_core::{SensorKind, Stamp};
 use unitac_ros::node::NodeBase;
 use unitac_ros::{convert, diagnostics, image};
+use unitac_sim::task::TaskKind;
 use unitac_trials::stepper::{SimSpec, WorldStepper};
 
 #[derive(RosParams, Debug, Clone)]
 struct Params {
-    /// cup | fabric
+    /// A closed-loop scene (name or path, as the policy node's): its policy stage names the task
+    /// and the control rate (empty: `task` and `control_rate_hz` say them)
+    scene: String,
+    /// cup | fabric (empty: the scene's; without a scene, cup)
     task: String,
     /// train | unseen (cups: 60/65/70 mm vs 90 mm; the fabric task has one set)
     split: String,
     /// The trial draw: seed and trial index
     seed: i64,
     trial: i64,
-    /// Control rate = sim steps per sim second
+    /// Control rate = sim steps per sim second (0: the scene's; without a scene, the policy's
+    /// default)
     control_rate_hz: f64,
-    /// Sim time of the trial, in seconds
+    /// Sim time of the trial, in seconds (0: the task's trial length, as `unitac trials` runs it)
     duration_s: f64,
     /// Mock tactile sensor: gelsight-mini | digit | generic, and its id (frame_id
     /// `<sensor_id>_optical_frame`)
@@ -73,12 +78,13 @@ struct Params {
 impl Default for Params {
     fn default() -> Self {
         Self {
-            task: "cup".into(),
+            scene: String::new(),
+            task: String::new(),
             split: "train".into(),
             seed: 1,
             trial: 0,
-            control_rate_hz: 30.0,
-            duration_s: 12.0,
+            control_rate_hz: 0.0,
+            duration_s: 0.0,
             sensor: "gelsight-mini".into(),
             sensor_id: "gsmini".into(),
             command_timeout_s: 1.0,
@@ -100,9 +106,57 @@ struct Pending {
     arm: Option<ArmCommand>,
 }
 
+/// The task, control rate and trial length filled in: from the scene's policy stage when `scene`
+/// is set (a `task` or `control_rate_hz` given as well must agree with it), the defaults
+/// otherwise; a `duration_s` of 0 is the task's trial length (`TrialOptions::for_task`).
+fn resolve(mut p: Params) -> anyhow::Result<Params> {
+    if p.scene.is_empty() {
+        if p.task.is_empty() {
+            p.task = TaskKind::Cup.as_str().into();
+        }
+        if p.control_rate_hz == 0.0 {
+            p.control_rate_hz = unitac_policy::PolicyParams::default().control_rate_hz;
+        }
+    } else {
+        let scene = unitac_pipeline::load_scene(&p.scene, None)?;
+        let (policy, kind) = unitac_trials::scene::scene_task(&scene)?;
+        if !p.task.is_empty() && p.task != kind.as_str() {
+            anyhow::bail!(
+                "task:={} but scene {}'s policy stage is the {} task",
+                p.task,
+                scene.name,
+                kind.as_str()
+            );
+        }
+        if p.control_rate_hz != 0.0 && p.control_rate_hz != policy.control_rate_hz {
+            anyhow::bail!(
+                "control_rate_hz:={} but scene {}'s policy runs at {} Hz",
+                p.control_rate_hz,
+                scene.name,
+                policy.control_rate_hz
+            );
+        }
+        p.task = kind.as_str().into();
+        p.control_rate_hz = policy.control_rate_hz;
+    }
+    if p.duration_s == 0.0 {
+        let kind = [TaskKind::Cup, TaskKind::Fabric]
+            .into_iter()
+            .find(|k| k.as_str() == p.task);
+        if let Some(k) = kind {
+            p.duration_s = unitac_trials::TrialOptions::for_task(k).max_s;
+        }
+    }
+    Ok(p)
+}
+
 fn run() -> anyhow::Result<()> {
     let mut base = NodeBase::<Params>::new("unitac_sim", &[])?;
-    let p = base.params()?;
+    let p = resolve(base.params()?)?;
+    eprintln!(
+        "unitac_sim: the {} task at {} Hz for {} s of sim time",
+        p.task, p.control_rate_hz, p.duration_s
+    );
     let sensor: SensorKind = p.sensor.parse().map_err(anyhow::Error::msg)?;
     let spec = SimSpec {
         task: p.task.clone(),

@@ -1,0 +1,47 @@
+//! What a closed-loop scene asks of the sim world: the task its policy stage names (`squeeze the
+//! cup ...` is the cup task, `pick the ...` the fabric task). The trials, the policy benchmark and
+//! the ROS sim node all take the task from the scene this way, so no list maps scene names to
+//! tasks.
+
+use crate::run::{TrialError, policy_params};
+use unitac_core::Scene;
+use unitac_policy::PolicyParams;
+use unitac_policy::task::{Task, TaskError};
+use unitac_sim::task::TaskKind;
+
+/// The sim task of a policy's task string.
+pub fn task_kind(p: &PolicyParams) -> Result<TaskKind, TaskError> {
+    Ok(match Task::parse(&p.task)? {
+        Task::Pick { .. } => TaskKind::Fabric,
+        Task::Squeeze { .. } => TaskKind::Cup,
+    })
+}
+
+/// The scene's policy params (checked) and the sim task they ask for.
+pub fn scene_task(scene: &Scene) -> Result<(PolicyParams, TaskKind), TrialError> {
+    let p = policy_params(scene)?;
+    let kind = task_kind(&p).map_err(|e| TrialError::Scene {
+        scene: scene.name.clone(),
+        msg: e.to_string(),
+    })?;
+    Ok((p, kind))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_task_string_names_the_sim_task() {
+        let p = |task: &str| PolicyParams {
+            task: task.into(),
+            ..PolicyParams::default()
+        };
+        assert_eq!(task_kind(&p("squeeze the cup by 1 cm")), Ok(TaskKind::Cup));
+        assert_eq!(
+            task_kind(&p("pick the rougher fabric")),
+            Ok(TaskKind::Fabric)
+        );
+        assert!(task_kind(&p("dance")).is_err());
+    }
+}
