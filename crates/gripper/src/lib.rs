@@ -25,4 +25,4 @@ pub mod status;
 
 pub use driver::{DriverConfig, DriverStats, SerialGripper};
 pub use gripper::{Activation, Fault, GripCommand, Gripper, GripperError, GripperState, Motion};
-pub use model::Model;
+pub use model::{Model, UnknownModel};

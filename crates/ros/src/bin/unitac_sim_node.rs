@@ -102,7 +102,7 @@ struct Pending {
 fn run() -> anyhow::Result<()> {
     let mut base = NodeBase::<Params>::new("unitac_sim", &[])?;
     let p = base.params()?;
-    let sensor: SensorKind = p.sensor.parse().map_err(anyhow::Error::msg)?;
+    let sensor: SensorKind = p.sensor.parse()?;
     let spec = SimSpec {
         task: p.task.clone(),
         split: p.split.clone(),
