@@ -361,7 +361,7 @@ fn run_bench(a: &GripperArgs) -> anyhow::Result<bool> {
         );
     }
     for paced in [true, false] {
-        results.push(bench::run_sim(a.model, kind, baud, paced, d).map_err(anyhow::Error::msg)?);
+        results.push(bench::run_sim(a.model, kind, baud, paced, d)?);
     }
     if a.json {
         println!("{}", serde_json::to_string(&results)?);

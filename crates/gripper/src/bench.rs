@@ -17,10 +17,22 @@ use crate::client::{ClientConfig, Link, ModbusError, RtuClient};
 use crate::device::{DeviceConfig, SimDevice};
 use crate::frame::{Request, Response};
 use crate::model::{Family, Model};
-use crate::port;
+use crate::port::{self, PortError};
 use crate::protocol::{dh, robotiq};
 use serde::Serialize;
 use std::time::{Duration, Instant};
+use thiserror::Error;
+
+/// Why a benchmark against a simulated gripper did not run.
+#[derive(Debug, Error)]
+pub enum SimBenchError {
+    #[error("sim device: {0}")]
+    Device(std::io::Error),
+    #[error(transparent)]
+    Port(#[from] PortError),
+    #[error(transparent)]
+    Modbus(#[from] ModbusError),
+}
 
 /// What one benchmark cycle does.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -180,14 +192,14 @@ pub fn run_sim(
     baud: u32,
     paced: bool,
     duration: Duration,
-) -> Result<BenchResult, String> {
+) -> Result<BenchResult, SimBenchError> {
     let mut cfg = DeviceConfig::new(model);
     cfg.baud = baud;
     cfg.paced = paced;
     cfg.spin = paced;
     cfg.start_active = true;
-    let dev = SimDevice::spawn(cfg).map_err(|e| format!("sim device: {e}"))?;
-    let p = port::open(&dev.path(), baud).map_err(|e| e.to_string())?;
+    let dev = SimDevice::spawn(cfg).map_err(SimBenchError::Device)?;
+    let p = port::open(&dev.path(), baud)?;
     let mut client = RtuClient::new(
         p,
         ClientConfig {
@@ -205,7 +217,7 @@ pub fn run_sim(
             "unpaced".into()
         }
     );
-    run(&label, &mut client, model, kind, duration).map_err(|e| e.to_string())
+    Ok(run(&label, &mut client, model, kind, duration)?)
 }
 
 #[cfg(test)]
