@@ -52,11 +52,24 @@ struct FabricType {
     layers: [u32; 2],
 }
 
-fn range(name: &str, r: [f64; 2], min: f64, max: f64) -> Result<String, String> {
+/// A range of the split outside its allowed span, or upside down.
+#[derive(Debug, thiserror::Error)]
+#[error("{name} = {r:?}: needs {min} <= low <= high <= {max}")]
+struct RangeError {
+    name: String,
+    r: [f64; 2],
+    min: f64,
+    max: f64,
+}
+
+fn range(name: &str, r: [f64; 2], min: f64, max: f64) -> Result<String, RangeError> {
     if !(r[0].is_finite() && r[1].is_finite() && min <= r[0] && r[0] <= r[1] && r[1] <= max) {
-        return Err(format!(
-            "{name} = {r:?}: needs {min} <= low <= high <= {max}"
-        ));
+        return Err(RangeError {
+            name: name.to_string(),
+            r,
+            min,
+            max,
+        });
     }
     Ok(format!("Uniform({:?}, {:?})", r[0], r[1]))
 }
@@ -79,12 +92,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     writeln!(
         out,
         "        train_diameter_mm: {},",
-        range("cups.train.diameter_mm", c.train.diameter_mm, 20.0, 200.0).map_err(bad)?
+        range("cups.train.diameter_mm", c.train.diameter_mm, 20.0, 200.0)
+            .map_err(|e| bad(e.to_string()))?
     )?;
     writeln!(
         out,
         "        unseen_diameter_mm: {},",
-        range("cups.unseen.diameter_mm", c.unseen.diameter_mm, 20.0, 200.0).map_err(bad)?
+        range("cups.unseen.diameter_mm", c.unseen.diameter_mm, 20.0, 200.0)
+            .map_err(|e| bad(e.to_string()))?
     )?;
     for (k, v, lo, hi) in [
         ("stiffness_factor", c.stiffness_factor, 0.01, 100.0),
@@ -94,7 +109,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         writeln!(
             out,
             "        {k}: {},",
-            range(&format!("cups.{k}"), v, lo, hi).map_err(bad)?
+            range(&format!("cups.{k}"), v, lo, hi).map_err(|e| bad(e.to_string()))?
         )?;
     }
     writeln!(out, "    }},")?;
@@ -142,7 +157,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ("friction", t.friction, 0.01, 5.0),
             ("mass_kg", t.mass_kg, 0.001, 5.0),
         ] {
-            let r = range(&format!("fabrics.types.{name}.{k}"), v, lo, hi).map_err(bad)?;
+            let r = range(&format!("fabrics.types.{name}.{k}"), v, lo, hi)
+                .map_err(|e| bad(e.to_string()))?;
             writeln!(out, "                {k}: {r},")?;
         }
         let [l0, l1] = t.layers;

@@ -27,7 +27,7 @@ pub use read::{BagReader, McapError, RawMessage, ReadOptions, SqliteError, Topic
 pub use repair::{RepairReport, repair};
 pub use replay::{BagSource, ReplayOptions};
 pub use ros::{CompressedImage, Image, RosMessage};
-pub use write::{BagWriter, Compression, WriteOptions};
+pub use write::{BagWriter, Compression, UnknownCompression, WriteOptions};
 
 use std::path::PathBuf;
 use thiserror::Error;

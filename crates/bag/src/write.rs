@@ -37,14 +37,19 @@ impl Compression {
     }
 }
 
+/// A compression name that is none of none, zstd, lz4.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("'{0}' is not one of: none, zstd, lz4")]
+pub struct UnknownCompression(pub String);
+
 impl std::str::FromStr for Compression {
-    type Err = String;
+    type Err = UnknownCompression;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "none" | "" => Ok(Compression::None),
             "zstd" => Ok(Compression::Zstd),
             "lz4" => Ok(Compression::Lz4),
-            _ => Err(format!("'{s}' is not one of: none, zstd, lz4")),
+            _ => Err(UnknownCompression(s.to_string())),
         }
     }
 }

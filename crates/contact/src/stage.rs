@@ -51,9 +51,6 @@ impl ContactStage {
     pub fn detector(&self) -> &ContactDetector {
         &self.det
     }
-    pub fn detector_mut(&mut self) -> &mut ContactDetector {
-        &mut self.det
-    }
     /// Why the saved background could not be used, if it could not (the stage learned instead).
     pub fn store_error(&self) -> Option<&str> {
         self.store_error.as_deref()

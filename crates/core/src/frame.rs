@@ -92,9 +92,6 @@ impl Frame {
     pub fn data_mut(&mut self) -> &mut [u8] {
         &mut self.data
     }
-    pub fn into_data(self) -> Vec<u8> {
-        self.data
-    }
     /// RGB of pixel (x, y), or None outside the image.
     pub fn pixel(&self, x: u32, y: u32) -> Option<[u8; 3]> {
         if x >= self.width || y >= self.height {

@@ -70,15 +70,18 @@ impl fmt::Display for SensorKind {
     }
 }
 
+/// A sensor kind name that is none of [`SensorKind::ALL`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown sensor kind '{0}' (known: gelsight-mini, digit, generic)")]
+pub struct UnknownSensorKind(pub String);
+
 impl FromStr for SensorKind {
-    type Err = String;
+    type Err = UnknownSensorKind;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         SensorKind::ALL
             .into_iter()
             .find(|k| k.as_str() == s)
-            .ok_or_else(|| {
-                format!("unknown sensor kind '{s}' (known: gelsight-mini, digit, generic)")
-            })
+            .ok_or_else(|| UnknownSensorKind(s.to_string()))
     }
 }
 

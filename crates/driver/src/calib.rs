@@ -4,8 +4,8 @@
 //! same crop and scale for every unit: the file is keyed by serial and read at open and at every
 //! reconnect. YAML or JSON (JSON is YAML), bounded in size, unknown fields rejected.
 
-use crate::controls::CameraSettings;
-use crate::decode::{Crop, DecodeConfig, Rotation};
+use crate::controls::{CameraSettings, SettingsError};
+use crate::decode::{Crop, DecodeConfig, DecodeError, Rotation};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use thiserror::Error;
@@ -25,8 +25,26 @@ pub enum CalibrationError {
     TooLarge { path: String, size: u64 },
     #[error("{path}: {msg}")]
     Parse { path: String, msg: String },
-    #[error("{path}: {msg}")]
-    Invalid { path: String, msg: String },
+    #[error("{path}: {source}")]
+    Invalid {
+        path: String,
+        source: InvalidCalibration,
+    },
+}
+
+/// What a parsed calibration gets wrong.
+#[derive(Debug, PartialEq, Error)]
+pub enum InvalidCalibration {
+    #[error("serial must be 1..=64 characters")]
+    Serial,
+    #[error(transparent)]
+    Decode(#[from] DecodeError),
+    #[error("mm_per_px {0} is outside (0, 10)")]
+    MmPerPx(f64),
+    #[error(transparent)]
+    Camera(#[from] SettingsError),
+    #[error("file is for serial {file}, not {wanted}")]
+    OtherSerial { file: String, wanted: String },
 }
 
 /// Calibration of one sensor unit.
@@ -95,15 +113,15 @@ impl Calibration {
         }
     }
 
-    fn validate(&self) -> Result<(), String> {
+    fn validate(&self) -> Result<(), InvalidCalibration> {
         if self.serial.is_empty() || self.serial.len() > 64 {
-            return Err("serial must be 1..=64 characters".into());
+            return Err(InvalidCalibration::Serial);
         }
-        self.decode_config().check().map_err(|e| e.to_string())?;
+        self.decode_config().check()?;
         if !(self.mm_per_px.is_finite() && self.mm_per_px > 0.0 && self.mm_per_px < 10.0) {
-            return Err(format!("mm_per_px {} is outside (0, 10)", self.mm_per_px));
+            return Err(InvalidCalibration::MmPerPx(self.mm_per_px));
         }
-        self.camera.validate().map_err(|e| e.to_string())
+        Ok(self.camera.validate()?)
     }
 
     pub fn parse(text: &str, path: &str) -> Result<Self, CalibrationError> {
@@ -111,9 +129,9 @@ impl Calibration {
             path: path.to_string(),
             msg: e.to_string(),
         })?;
-        c.validate().map_err(|msg| CalibrationError::Invalid {
+        c.validate().map_err(|source| CalibrationError::Invalid {
             path: path.to_string(),
-            msg,
+            source,
         })?;
         Ok(c)
     }
@@ -136,7 +154,10 @@ impl Calibration {
         if c.serial != serial {
             return Err(CalibrationError::Invalid {
                 path: path.display().to_string(),
-                msg: format!("file is for serial {}, not {serial}", c.serial),
+                source: InvalidCalibration::OtherSerial {
+                    file: c.serial,
+                    wanted: serial.to_string(),
+                },
             });
         }
         Ok(c)

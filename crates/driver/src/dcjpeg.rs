@@ -426,32 +426,6 @@ fn u16_at(d: &[u8], i: usize) -> Result<usize, DcError> {
     }
 }
 
-/// Read just the frame size (SOF) of a JPEG.
-pub fn jpeg_size(data: &[u8]) -> Result<(u32, u32), DcError> {
-    let mut pos = 2;
-    if data.get(..2) != Some(&[0xFF, 0xD8][..]) {
-        return corrupt("no SOI");
-    }
-    loop {
-        while data.get(pos) == Some(&0xFF) && data.get(pos + 1) == Some(&0xFF) {
-            pos += 1;
-        }
-        let (Some(&0xFF), Some(&m)) = (data.get(pos), data.get(pos + 1)) else {
-            return corrupt("marker expected");
-        };
-        let len = u16_at(data, pos + 2)?;
-        if matches!(m, 0xC0..=0xC3 | 0xC5..=0xC7 | 0xC9..=0xCB | 0xCD..=0xCF) {
-            let h = u16_at(data, pos + 5)?;
-            let w = u16_at(data, pos + 7)?;
-            return Ok((w as u32, h as u32));
-        }
-        if m == 0xD9 || m == 0xDA {
-            return corrupt("no frame header");
-        }
-        pos += 2 + len;
-    }
-}
-
 /// A region of the 1/8-scale image in its pixels (one pixel per 8x8 block), ends exclusive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct BlockRect {

@@ -282,9 +282,6 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
     pub fn backend(&self) -> &B {
         &self.backend
     }
-    pub fn backend_mut(&mut self) -> &mut B {
-        &mut self.backend
-    }
 
     /// Change the camera settings: written now (if streaming) and after every reconnect.
     pub fn set_camera_settings(

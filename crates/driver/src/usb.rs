@@ -94,10 +94,6 @@ impl Usb {
         })
     }
 
-    pub fn has_hotplug(&self) -> bool {
-        self.registration.is_some()
-    }
-
     /// USB reset of the device at this sysfs port (`3-1.4`): the software replug. The device
     /// re-enumerates afterwards (libusb may report that as "not found": that is success here).
     pub fn reset_port(&self, port: &str) -> Result<(), DeviceError> {

@@ -221,13 +221,6 @@ impl V4lBackend {
         };
         Self { root, usb }
     }
-    /// Whether stalls can be fixed by a USB reset here, and arrivals wake reconnects.
-    pub fn usb_features(&self) -> (bool, bool) {
-        (
-            self.usb.is_some(),
-            self.usb.as_ref().is_some_and(Usb::has_hotplug),
-        )
-    }
 }
 
 fn not_found(e: DiscoverError) -> DeviceError {

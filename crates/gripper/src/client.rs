@@ -92,7 +92,7 @@ pub struct ClientConfig {
     pub timeout: Duration,
     /// Extra tries after a failed one (0 = one try only).
     pub retries: u8,
-    /// Line rate, for the inter-frame silence.
+    /// Line rate (what a benchmark's wire limit is computed for).
     pub baud: u32,
 }
 
@@ -104,12 +104,6 @@ impl ClientConfig {
             retries: 2,
             baud,
         }
-    }
-    /// The 3.5-character silence that ends an RTU frame (11 bits per character, as the Modbus
-    /// serial line specification counts it; 1.75 ms fixed above 19200 baud per the same spec is a
-    /// device-side receive rule and not needed by a client).
-    pub fn silence(&self) -> Duration {
-        Duration::from_secs_f64(3.5 * 11.0 / f64::from(self.baud.max(1)))
     }
 }
 
@@ -220,9 +214,6 @@ impl<L: Link> RtuClient<L> {
     }
     pub fn stats(&self) -> &LinkStats {
         &self.stats
-    }
-    pub fn link_mut(&mut self) -> &mut L {
-        &mut self.link
     }
 
     /// Send `req` and return its reply, trying at most `1 + retries` times.

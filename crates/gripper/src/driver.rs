@@ -11,7 +11,7 @@ use crate::model::{Calibration, Model};
 use crate::port::{self, BY_ID};
 use crate::protocol::{Session, Wants};
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
@@ -273,7 +273,7 @@ fn run(cfg: DriverConfig, port: PathBuf, shared: Arc<Shared>) {
     let mut window: (Instant, u64) = (Instant::now(), 0);
     while !shared.stop.load(Ordering::Relaxed) {
         if client.is_none() {
-            match open(&port, cfg.baud) {
+            match port::open(&port, cfg.baud) {
                 Ok(p) => {
                     client = Some(RtuClient::new(p, ccfg));
                     session.reset();
@@ -283,7 +283,7 @@ fn run(cfg: DriverConfig, port: PathBuf, shared: Arc<Shared>) {
                     s.opens += 1;
                 }
                 Err(e) => {
-                    set_link_fault(&shared, e);
+                    set_link_fault(&shared, e.to_string());
                     lock(&shared.stats).connected = false;
                     if !nap(&shared, Instant::now() + backoff) {
                         break;
@@ -358,8 +358,4 @@ fn run(cfg: DriverConfig, port: PathBuf, shared: Arc<Shared>) {
             break;
         }
     }
-}
-
-fn open(port: &Path, baud: u32) -> Result<Box<dyn serialport::SerialPort>, String> {
-    port::open(port, baud).map_err(|e| e.to_string())
 }

@@ -26,4 +26,4 @@ pub use driver::{DriverConfig, DriverStats, SerialGripper};
 pub use gripper::{
     Activation, Fault, Gripper, GripperError, GripperSetpoint, GripperState, Motion,
 };
-pub use model::Model;
+pub use model::{Model, UnknownModel};

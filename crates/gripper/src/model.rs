@@ -119,17 +119,24 @@ impl fmt::Display for Model {
     }
 }
 
+/// A gripper model name that is none of [`Model::ALL`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown gripper model {name:?} (known: {known})", name = .0, known = known_models())]
+pub struct UnknownModel(pub String);
+
+fn known_models() -> String {
+    let names: Vec<_> = Model::ALL.iter().map(|m| m.name()).collect();
+    names.join(", ")
+}
+
 impl FromStr for Model {
-    type Err = String;
+    type Err = UnknownModel;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         let k = s.to_ascii_lowercase().replace(['-', ' '], "_");
         Model::ALL
             .into_iter()
             .find(|m| m.name() == k || m.name().replace('_', "") == k.replace('_', ""))
-            .ok_or_else(|| {
-                let names: Vec<_> = Model::ALL.iter().map(|m| m.name()).collect();
-                format!("unknown gripper model {s:?} (known: {})", names.join(", "))
-            })
+            .ok_or_else(|| UnknownModel(s.to_string()))
     }
 }
 
@@ -147,6 +154,7 @@ mod tests {
             "robotiq_3f"
                 .parse::<Model>()
                 .unwrap_err()
+                .to_string()
                 .contains("dh_ag95")
         );
     }

@@ -169,10 +169,10 @@ fn check_io(
 /// [batch, clip_frames, 3, size, size] and `background` [batch, 3, size, size] (fixed dimensions
 /// only; a symbolic one matches anything). Checked when the bundle opens, so a mismatch is one
 /// line at load instead of an ONNX Runtime error on every episode (and, for a large `size`, a
-/// large allocation per episode first).
-fn check_encoder_inputs(m: &Manifest) -> Result<(), String> {
+/// large allocation per episode first). One line per mismatch.
+fn encoder_input_problems(m: &Manifest) -> Vec<String> {
     let Some(enc) = m.models.get("encoder") else {
-        return Ok(());
+        return Vec::new();
     };
     let (t, s) = (
         i64::from(m.preprocess.clip_frames),
@@ -213,11 +213,7 @@ fn check_encoder_inputs(m: &Manifest) -> Result<(), String> {
             ));
         }
     }
-    if problems.is_empty() {
-        Ok(())
-    } else {
-        Err(format!("manifest.json: {}", problems.join("; ")))
-    }
+    problems
 }
 
 impl Bundle {
@@ -242,7 +238,10 @@ impl Bundle {
             .preprocess
             .check()
             .map_err(|e| err(e.to_string()))?;
-        check_encoder_inputs(&manifest).map_err(err)?;
+        let problems = encoder_input_problems(&manifest);
+        if !problems.is_empty() {
+            return Err(err(format!("manifest.json: {}", problems.join("; "))));
+        }
         Ok(Bundle {
             dir: dir.to_path_buf(),
             manifest,

@@ -35,13 +35,6 @@ impl Solver {
             Solver::Heun => "heun",
         }
     }
-    /// Velocity evaluations per step.
-    pub fn calls_per_step(self) -> u32 {
-        match self {
-            Solver::Euler => 1,
-            Solver::Midpoint | Solver::Heun => 2,
-        }
-    }
 }
 
 /// A solver name that is none of [`Solver::ALL`].

@@ -186,12 +186,11 @@ fn with_model(name: &str, mode: &str, latent_len: usize, model: &str) -> PathBuf
     path
 }
 
-fn build_policy(path: &std::path::Path) -> Result<(), String> {
-    let s = load_scene(path.to_str().unwrap(), None).map_err(|e| e.to_string())?;
-    let cfgs = stage_configs(&s).map_err(|e| e.to_string())?;
-    unitac_pipeline::build_stage(&s, cfgs.last().unwrap().clone())
-        .map(|_| ())
-        .map_err(|e| e.to_string())
+fn build_policy(path: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
+    let s = load_scene(path.to_str().unwrap(), None)?;
+    let cfgs = stage_configs(&s)?;
+    unitac_pipeline::build_stage(&s, cfgs.last().unwrap().clone())?;
+    Ok(())
 }
 
 #[test]
@@ -213,7 +212,8 @@ fn a_missing_or_wrong_stiffness_model_is_a_load_error() {
         3072,
         "${UNITAC_MODELS}/policy/no_such_model/manifest.json",
     ))
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("no_such_model"), "{e}");
     // Wrong: the real-latent model for the sampler's 64 values.
     let e = build_policy(&with_model(
@@ -222,7 +222,8 @@ fn a_missing_or_wrong_stiffness_model_is_a_load_error() {
         64,
         real.to_str().unwrap(),
     ))
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(
         e.contains("stiffness model")
             && e.contains(
@@ -239,6 +240,7 @@ fn a_missing_or_wrong_stiffness_model_is_a_load_error() {
         3072,
         "${UNITAC_MODELS}/reference/manifest.json",
     ))
-    .unwrap_err();
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("stiffness model"), "{e}");
 }

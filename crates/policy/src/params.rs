@@ -379,8 +379,8 @@ mod tests {
     #![allow(clippy::unwrap_used)]
     use super::*;
 
-    fn parse(yaml: &str) -> Result<PolicyParams, String> {
-        serde_yaml::from_str(yaml).map_err(|e| e.to_string())
+    fn parse(yaml: &str) -> Result<PolicyParams, serde_yaml::Error> {
+        serde_yaml::from_str(yaml)
     }
 
     #[test]
@@ -424,8 +424,14 @@ mod tests {
         assert!(
             parse("{no_such_key: 1}")
                 .unwrap_err()
+                .to_string()
                 .contains("no_such_key")
         );
-        assert!(parse("{mode: vlx}").unwrap_err().contains("vlx"));
+        assert!(
+            parse("{mode: vlx}")
+                .unwrap_err()
+                .to_string()
+                .contains("vlx")
+        );
     }
 }

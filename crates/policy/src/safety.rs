@@ -13,9 +13,39 @@
 //! are); the next proposed action is rate limited from it. No NaN or infinity ever leaves here.
 
 use crate::error::Problems;
-use crate::policy::{Action, ArmAction, GripperAction};
+use crate::policy::{Action, ArmAction, GripperAction, PolicyError};
 use serde::{Deserialize, Serialize};
+use thiserror::Error;
 use unitac_core::msg::GripperMode;
+
+/// Why a tick gets the safe action: no action was proposed, or the one proposed is refused.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum Refusal {
+    /// Inputs the policy needs now that are stale, invalid or lost, every one listed.
+    #[error("{}", .0.join("; "))]
+    Inputs(Vec<String>),
+    #[error("policy: {0}")]
+    Policy(#[from] PolicyError),
+    #[error("policy returned no action")]
+    NoAction,
+    /// No GripperStatus for a whole control period where one was due.
+    #[error("gripper: no status for {silent_s:.3} s (control period {period_s:.3} s)")]
+    GripperSilent { silent_s: f64, period_s: f64 },
+    /// A GripperStatus stamped further ahead of the last control tick than the gripper's budget.
+    #[error("gripper: invalid (stamp ahead by {ahead_s:.3} s of the last control tick)")]
+    GripperAhead { ahead_s: f64 },
+    #[error("policy output not finite: {field} = {value}")]
+    NotFinite { field: &'static str, value: f64 },
+    /// An arm target that is not "home" or one of the scene's objects (its first 64 characters).
+    #[error(
+        "policy chose arm target '{target}', not home or one of the scene's objects ({})",
+        .objects.join(", ")
+    )]
+    ArmTarget {
+        target: String,
+        objects: Vec<String>,
+    },
+}
 
 /// What the scene does when the policy cannot be trusted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -153,7 +183,11 @@ impl SafetyLayer {
 
     /// The command for this tick: `proposed` through the bounds and rate limits, or the safe
     /// action when it is refused. `opening_m`: the measured opening (None or non-finite: unknown).
-    pub fn decide(&mut self, proposed: Result<Action, String>, opening_m: Option<f64>) -> Decision {
+    pub fn decide(
+        &mut self,
+        proposed: Result<Action, Refusal>,
+        opening_m: Option<f64>,
+    ) -> Decision {
         let opening = opening_m.filter(|o| o.is_finite());
         let checked = proposed.and_then(|a| self.refuse(&a).map_or(Ok(a), Err));
         let d = match checked {
@@ -164,24 +198,23 @@ impl SafetyLayer {
                 ok: true,
                 reason: a.note,
             },
-            Err(reason) => self.safe_action(opening, reason),
+            Err(reason) => self.safe_action(opening, reason.to_string()),
         };
         self.last = Some((d.gripper.clone(), d.arm.clone()));
         d
     }
 
     /// Why `a` cannot be executed at all (None: it can, after clamping).
-    fn refuse(&self, a: &Action) -> Option<String> {
-        if let Some((k, v)) = a.values().into_iter().find(|(_, v)| !v.is_finite()) {
-            return Some(format!("policy output not finite: {k} = {v}"));
+    fn refuse(&self, a: &Action) -> Option<Refusal> {
+        if let Some((field, value)) = a.values().into_iter().find(|(_, v)| !v.is_finite()) {
+            return Some(Refusal::NotFinite { field, value });
         }
         let t = &a.arm.target;
         if t != "home" && !self.bounds.objects.iter().any(|o| o == t) {
-            return Some(format!(
-                "policy chose arm target '{}', not home or one of the scene's objects ({})",
-                t.chars().take(64).collect::<String>(),
-                self.bounds.objects.join(", ")
-            ));
+            return Some(Refusal::ArmTarget {
+                target: t.chars().take(64).collect(),
+                objects: self.bounds.objects.clone(),
+            });
         }
         None
     }
@@ -385,16 +418,16 @@ mod tests {
         assert_eq!(d.gripper.force_n, 5.0);
         let d = s.decide(Ok(act(0.03, 1.0, "table")), Some(0.04));
         assert!(d.reason.contains("'table'"), "{}", d.reason);
-        let d = s.decide(Err("contact: stale".into()), None);
+        let d = s.decide(Err(Refusal::Inputs(vec!["contact: stale".into()])), None);
         assert_eq!(d.reason, "contact: stale");
         // Unknown opening: the last command's.
         assert_eq!(d.gripper.position_m, 0.04);
         let mut open = SafetyLayer::new(bounds(), SafeAction::Open, 5.0);
-        let d = open.decide(Err("x".into()), None);
+        let d = open.decide(Err(Refusal::NoAction), None);
         assert_eq!(d.gripper.position_m, 0.085);
         assert_eq!(d.arm.target, "home");
         let mut fresh = SafetyLayer::new(bounds(), SafeAction::Hold, 500.0);
-        let d = fresh.decide(Err("x".into()), None);
+        let d = fresh.decide(Err(Refusal::NoAction), None);
         assert_eq!(d.gripper.mode, GripperMode::Stop);
         assert_eq!(d.gripper.force_n, 20.0);
     }

@@ -10,7 +10,7 @@ use crate::params::PolicyParams;
 use crate::policy::{Action, Policy};
 use crate::readout::Readout;
 use crate::reflex::{Reflex, ReflexCounters, Touch};
-use crate::safety::SafetyLayer;
+use crate::safety::{Refusal, SafetyLayer};
 use crate::task::Task;
 use std::collections::VecDeque;
 use std::path::Path;
@@ -218,11 +218,10 @@ impl PolicyStage {
         self.next_tick = Some(now.0);
         self.present = Some(self.present.map_or(now.0, |p| p.max(now.0)));
         let last = due.saturating_sub(period);
-        let why = format!(
-            "gripper: no status for {:.3} s (control period {:.3} s)",
-            now.0.saturating_sub(last) as f64 * 1e-9,
-            period as f64 * 1e-9
-        );
+        let why = Refusal::GripperSilent {
+            silent_s: now.0.saturating_sub(last) as f64 * 1e-9,
+            period_s: period as f64 * 1e-9,
+        };
         self.queue.clear();
         let d = self.safety.decide(Err(why), opening);
         self.messages(now, &frame_id, d)
@@ -305,20 +304,16 @@ impl PolicyStage {
                         self.queue.extend(chunk);
                         Ok(())
                     }
-                    Err(e) => Err(format!("policy: {e}")),
+                    Err(e) => Err(Refusal::Policy(e)),
                 }
             } else {
                 Ok(())
             };
-            planned.and_then(|()| {
-                self.queue
-                    .pop_front()
-                    .ok_or_else(|| "policy returned no action".to_string())
-            })
+            planned.and_then(|()| self.queue.pop_front().ok_or(Refusal::NoAction))
         } else {
             // A chunk planned on inputs that went bad is dropped.
             self.queue.clear();
-            Err(problems.join("; "))
+            Err(Refusal::Inputs(problems))
         };
         let opening = self.last_gripper.as_ref().and_then(|(o, _)| *o);
         // The tactile reflex, under whatever policy proposed the action.
@@ -407,10 +402,9 @@ impl Stage for PolicyStage {
                 // Behind the present: an old status, not a tick.
                 return Ok(Vec::new());
             };
-            let why = format!(
-                "gripper: invalid (stamp ahead by {:.3} s of the last control tick)",
-                off as f64 * 1e-9
-            );
+            let why = Refusal::GripperAhead {
+                ahead_s: off as f64 * 1e-9,
+            };
             let opening = self.last_gripper.as_ref().and_then(|(o, _)| *o);
             let d = self.safety.decide(Err(why), opening);
             return Ok(self.messages(Stamp(present), &g.header.frame_id, d));

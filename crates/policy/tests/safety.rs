@@ -10,7 +10,7 @@ use unitac_core::msg::{
 };
 use unitac_core::{Chain, Stamp};
 use unitac_policy::observation::Observation;
-use unitac_policy::safety::{Bounds, SafeAction, SafetyLayer};
+use unitac_policy::safety::{Bounds, Refusal, SafeAction, SafetyLayer};
 use unitac_policy::{Action, ArmAction, GripperAction, Policy, PolicyError, PolicyParams};
 
 fn bounds() -> Bounds {
@@ -89,7 +89,11 @@ proptest! {
             let a = if flip && i % 2 == 1 { negate(a) } else { a };
             let non_finite = a.values().iter().any(|(_, v)| !v.is_finite());
             let bad_target = a.arm.target == "table";
-            let proposed = if fail { Err("policy: crashed".to_string()) } else { Ok(a) };
+            let proposed = if fail {
+                Err(Refusal::Policy(PolicyError::Failed("crashed".into())))
+            } else {
+                Ok(a)
+            };
             let d = s.decide(proposed, Some(opening));
             let g = &d.gripper;
             for v in [g.position_m, g.speed_m_s, g.force_n, d.arm.z_m, d.arm.lift_m] {
@@ -133,7 +137,7 @@ proptest! {
 /// the live latent at every tick.
 #[derive(Debug)]
 struct Scripted {
-    script: Vec<Result<Action, String>>,
+    script: Vec<Result<Action, PolicyError>>,
     i: usize,
 }
 
@@ -149,9 +153,9 @@ impl Policy for Scripted {
             .script
             .get(self.i)
             .cloned()
-            .unwrap_or(Err("end".into()));
+            .unwrap_or(Err(PolicyError::Failed("end".into())));
         self.i += 1;
-        r.map(|a| vec![a]).map_err(PolicyError::Failed)
+        r.map(|a| vec![a])
     }
 }
 
@@ -212,7 +216,13 @@ proptest! {
         };
         let script = seq
             .iter()
-            .map(|s| if s.policy_fails { Err("crashed".into()) } else { Ok(good_action()) })
+            .map(|s| {
+                if s.policy_fails {
+                    Err(PolicyError::Failed("crashed".into()))
+                } else {
+                    Ok(good_action())
+                }
+            })
             .collect();
         let stage = unitac_policy::PolicyStage::with_policy(
             "s",

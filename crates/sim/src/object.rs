@@ -112,16 +112,6 @@ impl Object {
         let wave = self.roughness_mm * (k * x_mm).sin() * (k * y_mm * 0.8 + 0.5).cos();
         wave + self.bump(x_mm, y_mm).0
     }
-    pub fn texture_gradient(&self, x_mm: f64, y_mm: f64) -> (f64, f64) {
-        let k = std::f64::consts::TAU / self.period_mm;
-        let (sx, cx) = (k * x_mm).sin_cos();
-        let (sy, cy) = (k * y_mm * 0.8 + 0.5).sin_cos();
-        let (_, bx, by) = self.bump(x_mm, y_mm);
-        (
-            self.roughness_mm * k * cx * cy + bx,
-            -self.roughness_mm * k * 0.8 * sx * sy + by,
-        )
-    }
 
     /// Height and gradient of the bump field at (x, y) \[mm]: one dome (1 - d^2/r^2)^2 per grid
     /// cell of side 1/sqrt(density), placed at a hashed offset that keeps it inside its cell.

@@ -358,7 +358,7 @@ impl<'a> Press<'a> {
             };
             let cap = self.depth - g;
             if cap > 0.0 {
-                // Texture (Object::texture_height / texture_gradient, with the trigonometry
+                // Texture (Object::texture_height and its gradient, with the trigonometry
                 // per row and column).
                 let (sx, cx) = self
                     .cols

@@ -179,10 +179,6 @@ impl SensorRig {
     pub fn sensor(&self) -> &MockSensor {
         &self.sensor
     }
-    /// Index of the next frame to render.
-    pub fn next_index(&self) -> u64 {
-        self.next
-    }
     /// World time of frame `index` \[s].
     pub fn frame_time(&self, index: u64) -> f64 {
         index as f64 / self.sensor.config().fps

@@ -17,7 +17,7 @@ use crate::serial::{SerialError, SerialReport, SerialSide};
 use std::fmt;
 use std::str::FromStr;
 use unitac_core::msg::GripperStatus;
-use unitac_gripper::Model;
+use unitac_gripper::{Model, UnknownModel};
 use unitac_sim::task::{GripperSetpoint, TaskTruth};
 
 /// Which gripper a trial drives.
@@ -79,15 +79,20 @@ impl fmt::Display for TrialGripper {
     }
 }
 
+/// A trial gripper name that is neither `sim` nor a gripper model.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}, or sim")]
+pub struct UnknownTrialGripper(pub UnknownModel);
+
 impl FromStr for TrialGripper {
-    type Err = String;
+    type Err = UnknownTrialGripper;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         if s == "sim" {
             return Ok(TrialGripper::InProcess);
         }
         s.parse::<Model>()
             .map(TrialGripper::Serial)
-            .map_err(|e| format!("{e}, or sim"))
+            .map_err(UnknownTrialGripper)
     }
 }
 
@@ -140,7 +145,10 @@ mod tests {
         ] {
             assert_eq!(g.name().parse::<TrialGripper>().unwrap(), g);
         }
-        let e = "robotiq_3f".parse::<TrialGripper>().unwrap_err();
+        let e = "robotiq_3f"
+            .parse::<TrialGripper>()
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("robotiq_2f140") && e.ends_with("or sim"), "{e}");
     }
 

@@ -25,5 +25,5 @@ pub mod serial;
 pub mod stepper;
 pub mod table;
 
-pub use gripper::TrialGripper;
+pub use gripper::{TrialGripper, UnknownTrialGripper};
 pub use run::{TraceRow, TrialError, TrialOptions, TrialRecord, run_trial, run_trial_on};

@@ -120,6 +120,18 @@ pub struct ManifestError {
     pub msg: String,
 }
 
+/// Manifest text that is not a manifest: the JSON error, with a hint where the text has the
+/// non-finite numbers JSON cannot spell.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "{json}{}",
+    if *.non_finite { " (JSON has no NaN or Infinity: the exporter wrote non-finite statistics)" } else { "" }
+)]
+pub struct ManifestParseError {
+    json: String,
+    non_finite: bool,
+}
+
 impl PolicyManifest {
     /// Read and parse `path` (bounded size).
     pub fn read(path: &Path) -> Result<PolicyManifest, ManifestError> {
@@ -135,18 +147,14 @@ impl PolicyManifest {
             )));
         }
         let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
-        Self::parse(&text).map_err(err)
+        Self::parse(&text).map_err(|e| err(e.to_string()))
     }
 
-    /// Parse manifest text (the message is wrapped into a [`ManifestError`] by `read`).
-    pub(crate) fn parse(text: &str) -> Result<PolicyManifest, String> {
-        serde_json::from_str(text).map_err(|e| {
-            let hint = if text.contains("NaN") || text.contains("Infinity") {
-                " (JSON has no NaN or Infinity: the exporter wrote non-finite statistics)"
-            } else {
-                ""
-            };
-            format!("{e}{hint}")
+    /// Parse manifest text (the error is wrapped into a [`ManifestError`] by `read`).
+    pub(crate) fn parse(text: &str) -> Result<PolicyManifest, ManifestParseError> {
+        serde_json::from_str(text).map_err(|json| ManifestParseError {
+            json: json.to_string(),
+            non_finite: text.contains("NaN") || text.contains("Infinity"),
         })
     }
 }

@@ -53,18 +53,19 @@ const STAGES: &[&str] = &["contact", "slip"];
 
 /// An image received: its header stamp (checked) and the converted frame.
 struct Received {
-    stamp: Result<unitac_core::Stamp, String>,
-    frame: Result<unitac_core::Frame, String>,
+    stamp: anyhow::Result<unitac_core::Stamp>,
+    frame: Result<unitac_core::Frame, unitac_bag::ImageError>,
 }
 
 /// A header stamp as a capture time, or why it cannot be one (ROS time is unsigned; nanosec
 /// below 1e9). Never rewritten silently.
-fn checked_stamp(t: &r2r::builtin_interfaces::msg::Time) -> Result<unitac_core::Stamp, String> {
+fn checked_stamp(t: &r2r::builtin_interfaces::msg::Time) -> anyhow::Result<unitac_core::Stamp> {
     if t.sec < 0 || t.nanosec > 999_999_999 {
-        return Err(format!(
+        anyhow::bail!(
             "header stamp {}.{:09} is not a valid ROS time",
-            t.sec, t.nanosec
-        ));
+            t.sec,
+            t.nanosec
+        );
     }
     Ok(convert::stamp(t))
 }
@@ -160,8 +161,7 @@ fn run() -> anyhow::Result<()> {
                 seq += 1;
                 Received {
                     stamp: checked_stamp(&m.header.stamp),
-                    frame: image::to_frame(m, &id(&m.header.frame_id), n)
-                        .map_err(|e| e.to_string()),
+                    frame: image::to_frame(m, &id(&m.header.frame_id), n),
                 }
             });
         }
@@ -172,8 +172,7 @@ fn run() -> anyhow::Result<()> {
                 seq += 1;
                 Received {
                     stamp: checked_stamp(&m.header.stamp),
-                    frame: image::compressed_to_frame(m, &id(&m.header.frame_id), n)
-                        .map_err(|e| e.to_string()),
+                    frame: image::compressed_to_frame(m, &id(&m.header.frame_id), n),
                 }
             });
         }
@@ -190,12 +189,12 @@ fn run() -> anyhow::Result<()> {
                 }
                 (Err(e), _) => {
                     drops.arrived_without_stamp();
-                    counters.error(e);
+                    counters.error(e.to_string());
                     continue;
                 }
                 (Ok(stamp), Err(e)) => {
                     drops.observe(stamp.0);
-                    counters.error(e);
+                    counters.error(e.to_string());
                     continue;
                 }
             };

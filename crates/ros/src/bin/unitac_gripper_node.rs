@@ -55,7 +55,7 @@ impl Default for Params {
 fn run() -> anyhow::Result<()> {
     let mut base = NodeBase::<Params>::new("unitac_gripper", &[])?;
     let p = base.params()?;
-    let model: Model = p.model.parse().map_err(anyhow::Error::msg)?;
+    let model: Model = p.model.parse()?;
     let mut cfg = DriverConfig::new(&p.port, model);
     if p.slave_id != 0 {
         cfg.slave = u8::try_from(p.slave_id)

@@ -102,8 +102,8 @@ fn topic_of(input: &str, p: &Params) -> &'static str {
     }
 }
 
-/// A converted input, or why its message was refused.
-type Incoming = Result<Msg, String>;
+/// A converted input, or why its message was refused (with its topic).
+type Incoming = anyhow::Result<Msg>;
 
 /// The subscriptions the mode's inputs need, merged into one stream.
 fn subscribe(
@@ -113,7 +113,8 @@ fn subscribe(
 ) -> anyhow::Result<SelectAll<BoxStream<'static, Incoming>>> {
     let mut all = SelectAll::new();
     let reliable = || QosProfile::default().keep_last(10);
-    let err = |topic: &'static str| move |e: convert::ConvertError| format!("{topic}: {e}");
+    let err =
+        |topic: &'static str| move |e: convert::ConvertError| anyhow::Error::new(e).context(topic);
     for input in inputs {
         match *input {
             "gripper" if p.gripper_input == "joint_states" => {
@@ -552,7 +553,7 @@ async fn run_async() -> anyhow::Result<()> {
                 let m = match m {
                     Ok(m) => m,
                     Err(e) => {
-                        counters.error(e);
+                        counters.error(format!("{e:#}"));
                         continue;
                     }
                 };

@@ -14,7 +14,8 @@ use r2r::unitac_msgs::msg as ros;
 use std::time::Duration;
 use unitac_core::Stamp;
 use unitac_core::msg::{ArmCommand, ContactState, Header, Msg, PropertyComparison, Winner};
-use unitac_ros::{convert, spin_until};
+use unitac_ros::convert::{self, ConvertError};
+use unitac_ros::spin_until;
 
 const TIMEOUT: Duration = Duration::from_secs(30);
 
@@ -102,13 +103,13 @@ fn publish(prefix: &str) -> anyhow::Result<()> {
 }
 
 /// Drains `stream`; the first message, converted, goes into `slot` (later ones are dropped).
-fn first<M, E: std::fmt::Display>(
+fn first<M>(
     stream: &mut (impl futures::Stream<Item = M> + Unpin),
-    slot: &mut Option<Result<Msg, String>>,
-    convert: impl Fn(&M) -> Result<Msg, E>,
+    slot: &mut Option<Result<Msg, ConvertError>>,
+    convert: impl Fn(&M) -> Result<Msg, ConvertError>,
 ) {
     while let Some(Some(m)) = stream.next().now_or_never() {
-        slot.get_or_insert_with(|| convert(&m).map_err(|e| e.to_string()));
+        slot.get_or_insert_with(|| convert(&m));
     }
 }
 
@@ -132,7 +133,7 @@ fn echo(prefix: &str) -> anyhow::Result<()> {
         QosProfile::default(),
     )?;
     // The first message of each topic, converted back (None until it arrives).
-    let mut got: [Option<Result<Msg, String>>; 4] = Default::default();
+    let mut got: [Option<Result<Msg, ConvertError>>; 4] = Default::default();
     spin_until(&mut node, TIMEOUT, || {
         first(&mut s1, &mut got[0], |m| {
             convert::tactile_latent_from(m).map(Msg::Latent)

@@ -110,7 +110,7 @@ fn scene_of(p: &Params) -> anyhow::Result<Scene> {
         };
     }
     if !p.sensor_kind.is_empty() {
-        src.sensor = p.sensor_kind.parse().map_err(anyhow::Error::msg)?;
+        src.sensor = p.sensor_kind.parse()?;
     }
     if !p.sensor_id.is_empty() {
         src.sensor_id = Some(p.sensor_id.clone());

@@ -157,7 +157,7 @@ fn run() -> anyhow::Result<()> {
         "unitac_sim: the {} task at {} Hz for {} s of sim time",
         p.task, p.control_rate_hz, p.duration_s
     );
-    let sensor: SensorKind = p.sensor.parse().map_err(anyhow::Error::msg)?;
+    let sensor: SensorKind = p.sensor.parse()?;
     let spec = SimSpec {
         task: p.task.clone(),
         split: p.split.clone(),
