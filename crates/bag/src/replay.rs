@@ -344,17 +344,17 @@ pub struct ReplayReport {
 /// Output topics of the events written to an output bag.
 pub fn output_topic(m: &Msg) -> Option<(&'static str, &'static str)> {
     Some(match m {
-        Msg::Contact(_) => ("/unitac/contact_state", ContactState::TYPE),
-        Msg::Episode(_) => ("/unitac/contact_episode", ContactEpisode::TYPE),
-        Msg::Properties(_) => ("/unitac/tactile_properties", TactileProperties::TYPE),
-        Msg::Comparison(_) => ("/unitac/property_comparison", PropertyComparison::TYPE),
-        Msg::Latent(_) => ("/unitac/tactile_latent", TactileLatent::TYPE),
-        Msg::Command(_) => ("/unitac/gripper_command", GripperCommand::TYPE),
-        Msg::Status(_) => ("/unitac/policy_status", PolicyStatus::TYPE),
-        Msg::Gripper(_) => ("/unitac/gripper_status", GripperStatus::TYPE),
-        Msg::Arm(_) => ("/unitac/arm_command", ArmCommand::TYPE),
-        Msg::Visual(_) => ("/unitac/visual_observation", VisualObservation::TYPE),
-        Msg::Slip(_) => ("/unitac/slip_state", SlipState::TYPE),
+        Msg::ContactState(_) => ("/unitac/contact_state", ContactState::TYPE),
+        Msg::ContactEpisode(_) => ("/unitac/contact_episode", ContactEpisode::TYPE),
+        Msg::TactileProperties(_) => ("/unitac/tactile_properties", TactileProperties::TYPE),
+        Msg::PropertyComparison(_) => ("/unitac/property_comparison", PropertyComparison::TYPE),
+        Msg::TactileLatent(_) => ("/unitac/tactile_latent", TactileLatent::TYPE),
+        Msg::GripperCommand(_) => ("/unitac/gripper_command", GripperCommand::TYPE),
+        Msg::PolicyStatus(_) => ("/unitac/policy_status", PolicyStatus::TYPE),
+        Msg::GripperStatus(_) => ("/unitac/gripper_status", GripperStatus::TYPE),
+        Msg::ArmCommand(_) => ("/unitac/arm_command", ArmCommand::TYPE),
+        Msg::VisualObservation(_) => ("/unitac/visual_observation", VisualObservation::TYPE),
+        Msg::SlipState(_) => ("/unitac/slip_state", SlipState::TYPE),
         Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return None,
     })
 }
@@ -407,17 +407,17 @@ impl OutputBag {
         let id = self.topic(name, ty)?;
         let t = m.stamp().0;
         let data = match m {
-            Msg::Contact(x) => x.to_cdr(),
-            Msg::Episode(x) => x.to_cdr(),
-            Msg::Properties(x) => x.to_cdr(),
-            Msg::Comparison(x) => x.to_cdr(),
-            Msg::Latent(x) => x.to_cdr(),
-            Msg::Command(x) => x.to_cdr(),
-            Msg::Status(x) => x.to_cdr(),
-            Msg::Gripper(x) => x.to_cdr(),
-            Msg::Arm(x) => x.to_cdr(),
-            Msg::Visual(x) => x.to_cdr(),
-            Msg::Slip(x) => x.to_cdr(),
+            Msg::ContactState(x) => x.to_cdr(),
+            Msg::ContactEpisode(x) => x.to_cdr(),
+            Msg::TactileProperties(x) => x.to_cdr(),
+            Msg::PropertyComparison(x) => x.to_cdr(),
+            Msg::TactileLatent(x) => x.to_cdr(),
+            Msg::GripperCommand(x) => x.to_cdr(),
+            Msg::PolicyStatus(x) => x.to_cdr(),
+            Msg::GripperStatus(x) => x.to_cdr(),
+            Msg::ArmCommand(x) => x.to_cdr(),
+            Msg::VisualObservation(x) => x.to_cdr(),
+            Msg::SlipState(x) => x.to_cdr(),
             Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return Ok(()),
         };
         self.writer.write_raw(id, t, &data)

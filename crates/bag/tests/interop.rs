@@ -20,7 +20,7 @@ fn contact_states(events: &[Msg]) -> Vec<ContactState> {
     events
         .iter()
         .filter_map(|m| match m {
-            Msg::Contact(c) => Some(c.clone()),
+            Msg::ContactState(c) => Some(c.clone()),
             _ => None,
         })
         .collect()

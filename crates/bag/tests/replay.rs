@@ -111,7 +111,7 @@ fn replaying_twice_gives_byte_identical_output_bags() {
         .iter()
         .flat_map(|(_, ev, _)| ev.iter())
         .filter_map(|m| match m {
-            Msg::Contact(c) => Some(c.clone()),
+            Msg::ContactState(c) => Some(c.clone()),
             _ => None,
         })
         .collect();

@@ -69,7 +69,7 @@ fn eval_sensor(kind: SensorKind, idle_s: f64) -> anyhow::Result<SensorReport> {
     let mut per_depth: Vec<(u64, u64, f64)> = vec![(0, 0, 0.0); DEPTHS.len()];
     while let Some((f, truth)) = sensor.next_with_truth() {
         let out = det.step(&f).map_err(|e| anyhow::anyhow!("{e}"))?;
-        let Some(Msg::Contact(c)) = out.first() else {
+        let Some(Msg::ContactState(c)) = out.first() else {
             continue;
         };
         let pen = truth.penetration_mm;
@@ -119,8 +119,8 @@ fn eval_sensor(kind: SensorKind, idle_s: f64) -> anyhow::Result<SensorReport> {
     while let Some((f, _)) = idle.next_with_truth() {
         for m in det.step(&f).map_err(|e| anyhow::anyhow!("{e}"))? {
             match m {
-                Msg::Episode(_) => episodes += 1,
-                Msg::Contact(c) if c.in_contact => frames_on += 1,
+                Msg::ContactEpisode(_) => episodes += 1,
+                Msg::ContactState(c) if c.in_contact => frames_on += 1,
                 _ => {}
             }
         }

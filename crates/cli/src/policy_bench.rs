@@ -146,7 +146,7 @@ impl Script {
 
     fn latent(&self, source: LatentSource) -> Msg {
         let n = self.latent_len.max(1);
-        Msg::Latent(TactileLatent {
+        Msg::TactileLatent(TactileLatent {
             header: unitac_core::msg::Header::new(self.stamp(), "gel"),
             source,
             shape: vec![1, n as u32],
@@ -183,7 +183,7 @@ impl Script {
             self.touched.push(std::mem::take(&mut self.touching));
         }
         self.in_contact = now_in;
-        out.push(Msg::Contact(ContactState {
+        out.push(Msg::ContactState(ContactState {
             header: unitac_core::msg::Header::new(self.stamp(), "gel"),
             in_contact: now_in,
             area_mm2: area as f32,
@@ -226,7 +226,7 @@ impl Script {
             .collect();
         msg.values = values;
         msg.names = self.visual_names.clone();
-        Msg::Visual(msg)
+        Msg::VisualObservation(msg)
     }
 
     /// The compare stage's answer: the rougher of the two fabrics wins "roughness".
@@ -236,7 +236,7 @@ impl Script {
             self.objects.get(1).cloned().unwrap_or_default(),
         );
         let a_smoother = self.world.world().spec().smoother() == a;
-        Msg::Comparison(PropertyComparison {
+        Msg::PropertyComparison(PropertyComparison {
             header: unitac_core::msg::Header::new(self.stamp(), "gel"),
             property: "roughness".into(),
             episode_a: 1,
@@ -254,18 +254,18 @@ impl Script {
 
     /// The gripper's status now: the tick.
     fn status(&mut self) -> anyhow::Result<Msg> {
-        Ok(Msg::Gripper(self.world.status()?))
+        Ok(Msg::GripperStatus(self.world.status()?))
     }
 
     /// The tick's commands move the world one control period.
     fn apply(&mut self, produced: &[Msg]) -> anyhow::Result<()> {
         let (Some(g), Some(a)) = (
             produced.iter().find_map(|m| match m {
-                Msg::Command(c) => Some(c),
+                Msg::GripperCommand(c) => Some(c),
                 _ => None,
             }),
             produced.iter().find_map(|m| match m {
-                Msg::Arm(a) => Some(a),
+                Msg::ArmCommand(a) => Some(a),
                 _ => None,
             }),
         ) else {
@@ -424,7 +424,7 @@ fn run_pass(
                 }
             }
             let phase = out.produced.iter().find_map(|m| match m {
-                Msg::Status(st) => Some(st.phase.clone()),
+                Msg::PolicyStatus(st) => Some(st.phase.clone()),
                 _ => None,
             });
             let phase = phase.unwrap_or_default();

@@ -35,7 +35,7 @@ fn config(msg: String) -> anyhow::Error {
 /// The JSON line of one image message.
 pub fn line(r: &ImageResult) -> serde_json::Value {
     let state = r.events.iter().find_map(|m| match m {
-        Msg::Contact(c) => Some(c),
+        Msg::ContactState(c) => Some(c),
         _ => None,
     });
     let mut v = match state {
@@ -153,7 +153,7 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
                 }
             }
             for m in &r.events {
-                if let Msg::Episode(e) = m {
+                if let Msg::ContactEpisode(e) = m {
                     episode_count += 1;
                     if episodes.len() < MAX_LISTED_EPISODES {
                         episodes.push(e.clone());
@@ -168,7 +168,7 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
         if a.events && write_err.is_none() {
             write_err = writeln!(w, "{}", m.to_json()).err();
         }
-        if let Msg::Episode(e) = m {
+        if let Msg::ContactEpisode(e) = m {
             episode_count += 1;
             if episodes.len() < MAX_LISTED_EPISODES {
                 episodes.push(e.clone());

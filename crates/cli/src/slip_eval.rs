@@ -221,7 +221,7 @@ fn run_case(case: &Case, seed: u64) -> anyhow::Result<Outcome> {
             anyhow::bail!("frame {k}: {e}");
         }
         last = out.produced.into_iter().rev().find_map(|m| match m {
-            Msg::Slip(s) => Some(s),
+            Msg::SlipState(s) => Some(s),
             _ => None,
         });
     }

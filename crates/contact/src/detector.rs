@@ -561,7 +561,7 @@ impl ContactDetector {
             episode_id: self.episodes.last_episode(),
             background_age_s: bg_age,
         };
-        out.insert(0, Msg::Contact(state));
+        out.insert(0, Msg::ContactState(state));
         if !closed.is_empty() {
             out.splice(0..0, closed);
         }

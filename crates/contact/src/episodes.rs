@@ -154,7 +154,7 @@ impl Episodes {
             .and_then(|i| p.episode_labels.get(i))
             .cloned()
             .unwrap_or_default();
-        let mut out = vec![Msg::Episode(ContactEpisode {
+        let mut out = vec![Msg::ContactEpisode(ContactEpisode {
             header: Header::optical(ep.last, sensor_id),
             sensor_id: sensor_id.to_string(),
             episode_id: ep.id,

@@ -35,8 +35,8 @@ fn press(kind: SensorKind, scale: u32) -> (Vec<ContactState>, ContactEpisode, f6
         f.stamp = Stamp(1_000_000_000 + i * 40_000_000);
         for m in det.step(&f).unwrap() {
             match m {
-                Msg::Contact(c) if c.in_contact || i < 4 => states.push(c),
-                Msg::Episode(e) => episode = Some(e),
+                Msg::ContactState(c) if c.in_contact || i < 4 => states.push(c),
+                Msg::ContactEpisode(e) => episode = Some(e),
                 _ => {}
             }
         }

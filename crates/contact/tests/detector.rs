@@ -28,8 +28,8 @@ fn run(cfg: MockConfig, scenario: Scenario, p: ContactParams) -> Run {
     let take = |msgs: Vec<Msg>, truth: f64, r: &mut Run| {
         for m in msgs {
             match m {
-                Msg::Contact(c) => r.frames.push((c.in_contact, truth)),
-                Msg::Episode(e) => r.episodes.push(e),
+                Msg::ContactState(c) => r.frames.push((c.in_contact, truth)),
+                Msg::ContactEpisode(e) => r.episodes.push(e),
                 Msg::Clip(c) => r.clips.push(c),
                 _ => {}
             }
@@ -161,7 +161,7 @@ fn saturated_dark_and_wrong_size_frames_are_errors_and_leave_state_intact() {
     assert!(det.step(&small).unwrap_err().to_string().contains("4x4"));
     assert_eq!(det.background().unwrap(), &bg_before);
     let out = det.step(&sensor.next_with_truth().unwrap().0).unwrap();
-    assert!(matches!(&out[0], Msg::Contact(c) if !c.in_contact && c.area_px == 0.0));
+    assert!(matches!(&out[0], Msg::ContactState(c) if !c.in_contact && c.area_px == 0.0));
 }
 
 #[test]
@@ -382,7 +382,7 @@ fn stage_saves_its_background_and_the_next_run_starts_without_learning() {
     assert!(matches!(out.first(), Some(Msg::Background(_))), "{out:?}");
     assert!(
         out.iter()
-            .any(|m| matches!(m, Msg::Contact(c) if !c.in_contact)),
+            .any(|m| matches!(m, Msg::ContactState(c) if !c.in_contact)),
         "{out:?}"
     );
     std::fs::remove_dir_all(dir).ok();

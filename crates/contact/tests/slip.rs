@@ -21,7 +21,7 @@ fn chain(kind: SensorKind) -> Chain {
 fn slip_states(out: Vec<Msg>) -> Vec<SlipState> {
     out.into_iter()
         .filter_map(|m| match m {
-            Msg::Slip(s) => Some(s),
+            Msg::SlipState(s) => Some(s),
             _ => None,
         })
         .collect()
@@ -143,7 +143,7 @@ fn a_frame_of_another_size_is_rejected_and_tracking_goes_on() {
         c.in_contact = true;
         c.area_px = 7000.0;
         c.centroid_px = [160.0, 120.0];
-        Msg::Contact(c)
+        Msg::ContactState(c)
     };
     let mut run = |f: Frame| {
         slip.process(&contact(f.seq), &clock).unwrap();
@@ -166,7 +166,7 @@ fn a_frame_of_another_size_is_rejected_and_tracking_goes_on() {
     assert!(err.to_string().contains("160x120"), "{err}");
     let (f, _) = sensor.render_contact(5, Some((&fabric, 0.8)), None);
     let out = run(f).unwrap();
-    let Some(Msg::Slip(s)) = out.first() else {
+    let Some(Msg::SlipState(s)) = out.first() else {
         panic!("{out:?}")
     };
     assert!(s.valid && s.shear_x_m.abs() < 0.02e-3, "{s:?}");

@@ -21,7 +21,7 @@ fn feed(
             Ok(out) => {
                 for m in out {
                     match m {
-                        Msg::Contact(_) => states += 1,
+                        Msg::ContactState(_) => states += 1,
                         Msg::Background(_) => bgs += 1,
                         _ => {}
                     }

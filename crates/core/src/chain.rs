@@ -316,7 +316,7 @@ mod tests {
     use crate::stage::StageError;
 
     fn status(text: &str, t: i64) -> Msg {
-        Msg::Status(PolicyStatus {
+        Msg::PolicyStatus(PolicyStatus {
             header: Header::new(Stamp(t), ""),
             scene: String::new(),
             mode: String::new(),
@@ -328,7 +328,7 @@ mod tests {
     }
     fn text(m: &Msg) -> &str {
         match m {
-            Msg::Status(s) => &s.message,
+            Msg::PolicyStatus(s) => &s.message,
             _ => panic!("{m:?}"),
         }
     }

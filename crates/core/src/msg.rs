@@ -167,102 +167,78 @@ pub struct EpisodeClip {
     pub background: Option<Frame>,
 }
 
-/// Everything that flows between stages. Frames may be dropped under load (drop-oldest edges);
-/// every other variant is an event and is never dropped.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Msg {
-    Frame(Frame),
-    Contact(ContactState),
-    Episode(ContactEpisode),
-    Clip(EpisodeClip),
-    /// The contact stage's non-contact frame, announced when it is learned or loaded: the
-    /// sensor prior (Z_sen) for the flow sampler.
-    Background(Frame),
-    Properties(TactileProperties),
-    Comparison(PropertyComparison),
-    Latent(TactileLatent),
-    Command(GripperCommand),
-    Status(PolicyStatus),
-    /// The gripper's state (driver or sim); its arrival is the policy's control tick.
-    Gripper(GripperStatus),
-    Arm(ArmCommand),
-    Visual(VisualObservation),
-    Slip(SlipState),
+/// [`Msg`] and its per-variant methods, from the message list of the `.msg` files
+/// ([`for_each_message!`](crate::for_each_message)): one variant per message, named after it,
+/// plus the three that are not ROS messages of their own (a frame, the background frame, an
+/// episode's clip).
+macro_rules! declare_msg {
+    (
+        messages { $( $name:ident [$snake:ident, $from:ident] { $( $field:ident : $ty:ty => $max:expr, )* } )* }
+        enums { $( $e:path, )* }
+    ) => {
+        /// Everything that flows between stages. Frames may be dropped under load (drop-oldest
+        /// edges); every other variant is an event and is never dropped.
+        #[derive(Debug, Clone, PartialEq)]
+        pub enum Msg {
+            Frame(Frame),
+            /// The contact stage's non-contact frame, announced when it is learned or loaded: the
+            /// sensor prior (Z_sen) for the flow sampler.
+            Background(Frame),
+            /// An episode's frames (the ContactClip message's Rust side).
+            Clip(EpisodeClip),
+            $(
+                #[doc = concat!("unitac_msgs/", stringify!($name), ".")]
+                $name($name),
+            )*
+        }
+
+        impl Msg {
+            pub fn is_frame(&self) -> bool {
+                matches!(self, Msg::Frame(_))
+            }
+            /// The time this message belongs to (capture time for frames, header stamp otherwise).
+            pub fn stamp(&self) -> Stamp {
+                match self {
+                    Msg::Frame(f) | Msg::Background(f) => f.stamp,
+                    Msg::Clip(m) => m.frames.last().map_or(Stamp::ZERO, |f| f.stamp),
+                    $( Msg::$name(m) => m.header.stamp, )*
+                }
+            }
+            /// Short type name, as used in counters and JSON (`"frame"`, `"contact_state"`, ...:
+            /// a message's name in snake case).
+            pub fn kind(&self) -> &'static str {
+                match self {
+                    Msg::Frame(_) => "frame",
+                    Msg::Background(_) => "background",
+                    Msg::Clip(_) => "episode_clip",
+                    $( Msg::$name(_) => stringify!($snake), )*
+                }
+            }
+            /// JSON of an event (`{"type": kind, ...fields}`); frames give only their metadata.
+            pub fn to_json(&self) -> serde_json::Value {
+                let body = match self {
+                    Msg::Frame(f) | Msg::Background(f) => serde_json::json!({
+                        "sensor_id": f.sensor_id, "seq": f.seq, "stamp": f.stamp,
+                        "width": f.width, "height": f.height,
+                    }),
+                    Msg::Clip(m) => serde_json::json!({
+                        "sensor_id": m.sensor_id, "episode_id": m.episode_id, "label": m.label,
+                        "peak_index": m.peak_index,
+                        "frame_seqs": m.frames.iter().map(|f| f.seq).collect::<Vec<_>>(),
+                    }),
+                    $( Msg::$name(m) => serde_json::to_value(m).unwrap_or_default(), )*
+                };
+                let mut v = serde_json::json!({ "type": self.kind() });
+                if let (Some(obj), serde_json::Value::Object(fields)) = (v.as_object_mut(), body) {
+                    obj.extend(fields);
+                }
+                v
+            }
+        }
+    };
 }
 
-impl Msg {
-    pub fn is_frame(&self) -> bool {
-        matches!(self, Msg::Frame(_))
-    }
-    /// The time this message belongs to (capture time for frames, header stamp otherwise).
-    pub fn stamp(&self) -> Stamp {
-        match self {
-            Msg::Frame(f) => f.stamp,
-            Msg::Contact(m) => m.header.stamp,
-            Msg::Episode(m) => m.header.stamp,
-            Msg::Clip(m) => m.frames.last().map_or(Stamp::ZERO, |f| f.stamp),
-            Msg::Background(f) => f.stamp,
-            Msg::Properties(m) => m.header.stamp,
-            Msg::Comparison(m) => m.header.stamp,
-            Msg::Latent(m) => m.header.stamp,
-            Msg::Command(m) => m.header.stamp,
-            Msg::Status(m) => m.header.stamp,
-            Msg::Gripper(m) => m.header.stamp,
-            Msg::Arm(m) => m.header.stamp,
-            Msg::Visual(m) => m.header.stamp,
-            Msg::Slip(m) => m.header.stamp,
-        }
-    }
-    /// Short type name, as used in counters and JSON (`"frame"`, `"contact_state"`, ...).
-    pub fn kind(&self) -> &'static str {
-        match self {
-            Msg::Frame(_) => "frame",
-            Msg::Contact(_) => "contact_state",
-            Msg::Episode(_) => "contact_episode",
-            Msg::Clip(_) => "episode_clip",
-            Msg::Background(_) => "background",
-            Msg::Properties(_) => "tactile_properties",
-            Msg::Comparison(_) => "property_comparison",
-            Msg::Latent(_) => "tactile_latent",
-            Msg::Command(_) => "gripper_command",
-            Msg::Status(_) => "policy_status",
-            Msg::Gripper(_) => "gripper_status",
-            Msg::Arm(_) => "arm_command",
-            Msg::Visual(_) => "visual_observation",
-            Msg::Slip(_) => "slip_state",
-        }
-    }
-    /// JSON of an event (`{"type": kind, ...fields}`); frames give only their metadata.
-    pub fn to_json(&self) -> serde_json::Value {
-        let body = match self {
-            Msg::Frame(f) | Msg::Background(f) => serde_json::json!({
-                "sensor_id": f.sensor_id, "seq": f.seq, "stamp": f.stamp,
-                "width": f.width, "height": f.height,
-            }),
-            Msg::Contact(m) => serde_json::to_value(m).unwrap_or_default(),
-            Msg::Episode(m) => serde_json::to_value(m).unwrap_or_default(),
-            Msg::Clip(m) => serde_json::json!({
-                "sensor_id": m.sensor_id, "episode_id": m.episode_id, "label": m.label,
-                "peak_index": m.peak_index,
-                "frame_seqs": m.frames.iter().map(|f| f.seq).collect::<Vec<_>>(),
-            }),
-            Msg::Properties(m) => serde_json::to_value(m).unwrap_or_default(),
-            Msg::Comparison(m) => serde_json::to_value(m).unwrap_or_default(),
-            Msg::Latent(m) => serde_json::to_value(m).unwrap_or_default(),
-            Msg::Command(m) => serde_json::to_value(m).unwrap_or_default(),
-            Msg::Status(m) => serde_json::to_value(m).unwrap_or_default(),
-            Msg::Gripper(m) => serde_json::to_value(m).unwrap_or_default(),
-            Msg::Arm(m) => serde_json::to_value(m).unwrap_or_default(),
-            Msg::Visual(m) => serde_json::to_value(m).unwrap_or_default(),
-            Msg::Slip(m) => serde_json::to_value(m).unwrap_or_default(),
-        };
-        let mut v = serde_json::json!({ "type": self.kind() });
-        if let (Some(obj), serde_json::Value::Object(fields)) = (v.as_object_mut(), body) {
-            obj.extend(fields);
-        }
-        v
-    }
-}
+for_each_message!(declare_msg);
 
 #[cfg(test)]
 mod tests {
@@ -270,7 +246,7 @@ mod tests {
 
     #[test]
     fn json_carries_type_and_fields() {
-        let m = Msg::Status(PolicyStatus {
+        let m = Msg::PolicyStatus(PolicyStatus {
             header: Header::new(Stamp(1), "base"),
             scene: "fabric_selection".into(),
             mode: "vtla_real".into(),

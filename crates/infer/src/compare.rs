@@ -147,13 +147,13 @@ impl Stage for CompareStage {
         "compare"
     }
     fn process(&mut self, input: &Msg, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
-        let Msg::Properties(props) = input else {
+        let Msg::TactileProperties(props) = input else {
             return Ok(Vec::new());
         };
         let mut out = Vec::new();
         if self.p.pairs.is_empty() {
             if let Some(prev) = self.seen.back() {
-                out.push(Msg::Comparison(self.compare(prev, props)));
+                out.push(Msg::PropertyComparison(self.compare(prev, props)));
             }
         } else {
             for pair in self.p.pairs.clone() {
@@ -168,7 +168,7 @@ impl Stage for CompareStage {
                     }
                 };
                 if let (Some(a), Some(b)) = (find(&pair[0]), find(&pair[1])) {
-                    out.push(Msg::Comparison(self.compare(a, b)));
+                    out.push(Msg::PropertyComparison(self.compare(a, b)));
                     self.done.push(pair);
                 }
             }
@@ -211,14 +211,14 @@ mod tests {
         let mut st = CompareStage::new(p).unwrap();
         let c = unitac_core::ManualClock::default();
         assert!(
-            st.process(&Msg::Properties(props(1, "fabric_a", 0.8)), &c)
+            st.process(&Msg::TactileProperties(props(1, "fabric_a", 0.8)), &c)
                 .unwrap()
                 .is_empty()
         );
         let out = st
-            .process(&Msg::Properties(props(2, "fabric_b", 0.2)), &c)
+            .process(&Msg::TactileProperties(props(2, "fabric_b", 0.2)), &c)
             .unwrap();
-        let Some(Msg::Comparison(k)) = out.first() else {
+        let Some(Msg::PropertyComparison(k)) = out.first() else {
             panic!("{out:?}")
         };
         assert_eq!(k.winner, Winner::A);
@@ -227,7 +227,7 @@ mod tests {
         assert!(k.confidence > 0.99);
         // Touching fabric_b again does not repeat the comparison.
         assert!(
-            st.process(&Msg::Properties(props(3, "fabric_b", 0.2)), &c)
+            st.process(&Msg::TactileProperties(props(3, "fabric_b", 0.2)), &c)
                 .unwrap()
                 .is_empty()
         );
@@ -237,12 +237,12 @@ mod tests {
     fn ties_and_last_two_pairing() {
         let mut st = CompareStage::new(CompareParams::default()).unwrap();
         let c = unitac_core::ManualClock::default();
-        st.process(&Msg::Properties(props(1, "", 0.50)), &c)
+        st.process(&Msg::TactileProperties(props(1, "", 0.50)), &c)
             .unwrap();
         let out = st
-            .process(&Msg::Properties(props(2, "", 0.51)), &c)
+            .process(&Msg::TactileProperties(props(2, "", 0.51)), &c)
             .unwrap();
-        let Some(Msg::Comparison(k)) = out.first() else {
+        let Some(Msg::PropertyComparison(k)) = out.first() else {
             panic!()
         };
         assert_eq!(k.winner, Winner::Tie);

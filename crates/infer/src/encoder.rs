@@ -172,6 +172,9 @@ impl Stage for EncoderStage {
             texture_std: sd[2],
             model_id: self.head.id.clone(),
         };
-        Ok(vec![Msg::Latent(latent), Msg::Properties(props)])
+        Ok(vec![
+            Msg::TactileLatent(latent),
+            Msg::TactileProperties(props),
+        ])
     }
 }

@@ -237,7 +237,7 @@ impl Stage for SamplerStage {
         let out = sample(&mut self.velocity, &self.cfg, &guards, &prior, &cond)
             .map_err(|e| StageError::Model(e.to_string()))?;
         self.predicted = true;
-        Ok(vec![Msg::Latent(TactileLatent {
+        Ok(vec![Msg::TactileLatent(TactileLatent {
             header: Header::optical(bg.stamp, &bg.sensor_id),
             source: LatentSource::Predicted,
             sensor_id: bg.sensor_id.clone(),

@@ -67,7 +67,7 @@ fn maybe(name: &str, v: f64, out: &mut Vec<f32>) -> Result<(), FeatureError> {
 }
 
 fn gripper_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
-    let Msg::Gripper(g) = m else {
+    let Msg::GripperStatus(g) = m else {
         return Err(FeatureError::WrongKind("gripper status"));
     };
     let opening = finite("opening_m", g.opening_m)?;
@@ -90,7 +90,7 @@ fn gripper_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), Featu
 }
 
 fn contact_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
-    let Msg::Contact(c) = m else {
+    let Msg::ContactState(c) = m else {
         return Err(FeatureError::WrongKind("contact state"));
     };
     out.push(if c.in_contact { 1.0 } else { 0.0 });
@@ -100,7 +100,7 @@ fn contact_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), Featu
 }
 
 fn latent_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
-    let Msg::Latent(t) = m else {
+    let Msg::TactileLatent(t) = m else {
         return Err(FeatureError::WrongKind("tactile latent"));
     };
     if !t.valid {
@@ -120,7 +120,7 @@ fn latent_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), Featur
 }
 
 fn comparison_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
-    let Msg::Comparison(c) = m else {
+    let Msg::PropertyComparison(c) = m else {
         return Err(FeatureError::WrongKind("property comparison"));
     };
     let one_hot = |w: Winner| if c.winner == w { 1.0 } else { 0.0 };
@@ -131,7 +131,7 @@ fn comparison_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), Fe
 }
 
 fn visual_features(m: &Msg, l: &Layout, out: &mut Vec<f32>) -> Result<(), FeatureError> {
-    let Msg::Visual(v) = m else {
+    let Msg::VisualObservation(v) = m else {
         return Err(FeatureError::WrongKind("visual observation"));
     };
     for name in &l.visual_names {
@@ -151,7 +151,7 @@ pub static INPUTS: &[InputSpec] = &[
         feature: "observation.state",
         produced_by: None,
         default_budget_s: 0.2,
-        accepts: |m| matches!(m, Msg::Gripper(_)),
+        accepts: |m| matches!(m, Msg::GripperStatus(_)),
         width: |_| 8,
         features: gripper_features,
     },
@@ -161,7 +161,7 @@ pub static INPUTS: &[InputSpec] = &[
         feature: "observation.contact",
         produced_by: Some("contact"),
         default_budget_s: 0.25,
-        accepts: |m| matches!(m, Msg::Contact(_)),
+        accepts: |m| matches!(m, Msg::ContactState(_)),
         width: |_| 3,
         features: contact_features,
     },
@@ -171,7 +171,7 @@ pub static INPUTS: &[InputSpec] = &[
         feature: "observation.tactile_latent",
         produced_by: Some("encoder"),
         default_budget_s: 60.0,
-        accepts: |m| matches!(m, Msg::Latent(l) if l.source == LatentSource::Real),
+        accepts: |m| matches!(m, Msg::TactileLatent(l) if l.source == LatentSource::Real),
         width: |l| l.latent_len,
         features: latent_features,
     },
@@ -181,7 +181,7 @@ pub static INPUTS: &[InputSpec] = &[
         feature: "observation.tactile_latent",
         produced_by: Some("sampler"),
         default_budget_s: 600.0,
-        accepts: |m| matches!(m, Msg::Latent(l) if l.source == LatentSource::Predicted),
+        accepts: |m| matches!(m, Msg::TactileLatent(l) if l.source == LatentSource::Predicted),
         width: |l| l.latent_len,
         features: latent_features,
     },
@@ -191,7 +191,7 @@ pub static INPUTS: &[InputSpec] = &[
         feature: "observation.comparison",
         produced_by: Some("compare"),
         default_budget_s: 600.0,
-        accepts: |m| matches!(m, Msg::Comparison(_)),
+        accepts: |m| matches!(m, Msg::PropertyComparison(_)),
         width: |_| 5,
         features: comparison_features,
     },
@@ -201,7 +201,7 @@ pub static INPUTS: &[InputSpec] = &[
         feature: "observation.visual",
         produced_by: None,
         default_budget_s: 0.5,
-        accepts: |m| matches!(m, Msg::Visual(_)),
+        accepts: |m| matches!(m, Msg::VisualObservation(_)),
         width: |l| l.visual_names.len(),
         features: visual_features,
     },
@@ -301,13 +301,13 @@ impl Observation {
     }
     pub fn gripper(&self) -> Option<&GripperStatus> {
         match self.fresh("gripper")? {
-            Msg::Gripper(g) => Some(g),
+            Msg::GripperStatus(g) => Some(g),
             _ => None,
         }
     }
     pub fn contact(&self) -> Option<&ContactState> {
         match self.fresh("contact")? {
-            Msg::Contact(c) => Some(c),
+            Msg::ContactState(c) => Some(c),
             _ => None,
         }
     }
@@ -317,19 +317,19 @@ impl Observation {
             .fresh("latent_real")
             .or_else(|| self.fresh("latent_pred"))?
         {
-            Msg::Latent(l) => Some(l),
+            Msg::TactileLatent(l) => Some(l),
             _ => None,
         }
     }
     pub fn comparison(&self) -> Option<&PropertyComparison> {
         match self.fresh("comparison")? {
-            Msg::Comparison(c) => Some(c),
+            Msg::PropertyComparison(c) => Some(c),
             _ => None,
         }
     }
     pub fn visual(&self) -> Option<&VisualObservation> {
         match self.fresh("visual")? {
-            Msg::Visual(v) => Some(v),
+            Msg::VisualObservation(v) => Some(v),
             _ => None,
         }
     }
@@ -501,20 +501,20 @@ mod tests {
         g.header = at(t);
         g.fault.clear();
         g.current_a = f64::NAN;
-        assert!(a.offer(&Msg::Gripper(g)));
+        assert!(a.offer(&Msg::GripperStatus(g)));
         let mut c = samples::contact_state();
         c.header = at(t - 200_000_000); // 0.2 s old, budget 0.1 s
-        assert!(a.offer(&Msg::Contact(c)));
+        assert!(a.offer(&Msg::ContactState(c)));
         let mut l = samples::tactile_latent();
         l.source = LatentSource::Real;
         l.header = at(t - 1_000_000_000);
         l.data[2] = f32::NAN;
-        assert!(a.offer(&Msg::Latent(l.clone())));
+        assert!(a.offer(&Msg::TactileLatent(l.clone())));
         // A predicted latent is not this mode's input.
-        assert!(!a.offer(&Msg::Latent(samples::tactile_latent())));
+        assert!(!a.offer(&Msg::TactileLatent(samples::tactile_latent())));
         let mut v = samples::visual_observation();
         v.header = at(t);
-        assert!(a.offer(&Msg::Visual(v)));
+        assert!(a.offer(&Msg::VisualObservation(v)));
 
         let o = a.assemble(Stamp(t), "squeeze the cup");
         let st: Vec<_> = o.inputs.iter().map(|r| r.status.clone()).collect();
@@ -541,7 +541,7 @@ mod tests {
 
         // A fresh valid latent replaces the bad one.
         l.data[2] = 2.25;
-        a.offer(&Msg::Latent(l));
+        a.offer(&Msg::TactileLatent(l));
         let o = a.assemble(Stamp(t), "");
         assert_eq!(o.reading("latent_real").unwrap().status, InputStatus::Fresh);
         assert_eq!(
@@ -563,10 +563,10 @@ mod tests {
         .unwrap();
         let mut g = samples::gripper_status();
         g.header = at(0);
-        a.offer(&Msg::Gripper(g));
+        a.offer(&Msg::GripperStatus(g));
         let mut l = samples::tactile_latent();
         l.header = at(0);
-        a.offer(&Msg::Latent(l));
+        a.offer(&Msg::TactileLatent(l));
         let o = a.assemble(Stamp(0), "");
         assert_eq!(
             o.reading("gripper").unwrap().problem().unwrap(),
@@ -598,7 +598,7 @@ mod tests {
             g.header = at(0);
             g.fault.clear();
             g.opening_m = opening_m;
-            a.offer(&Msg::Gripper(g));
+            a.offer(&Msg::GripperStatus(g));
             a.assemble(Stamp(0), "").inputs[0].clone()
         };
         // A Robotiq gPO of 230 read through the 0..227 calibration: -1.12 mm.

@@ -346,7 +346,7 @@ impl PolicyStage {
     fn messages(&self, now: Stamp, frame_id: &str, d: crate::safety::Decision) -> Vec<Msg> {
         let header = Header::new(now, frame_id);
         vec![
-            Msg::Command(GripperCommand {
+            Msg::GripperCommand(GripperCommand {
                 header: header.clone(),
                 mode: d.gripper.mode,
                 position_m: d.gripper.position_m,
@@ -354,7 +354,7 @@ impl PolicyStage {
                 force_n: d.gripper.force_n,
                 reason: d.reason.clone(),
             }),
-            Msg::Arm(ArmCommand {
+            Msg::ArmCommand(ArmCommand {
                 header: header.clone(),
                 target: d.arm.target,
                 x_m: d.arm.x_m,
@@ -363,7 +363,7 @@ impl PolicyStage {
                 lift_m: d.arm.lift_m,
                 reason: d.reason.clone(),
             }),
-            Msg::Status(PolicyStatus {
+            Msg::PolicyStatus(PolicyStatus {
                 header,
                 scene: self.scene.clone(),
                 mode: self.params.mode.as_str().into(),
@@ -387,10 +387,10 @@ impl Stage for PolicyStage {
     /// is an invalid input, answered with the safe action stamped at the present, and moves
     /// nothing; other inputs stamped ahead of a tick are invalid at that tick.
     fn process(&mut self, input: &Msg, _clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
-        let Msg::Gripper(g) = input else {
+        let Msg::GripperStatus(g) = input else {
             match input {
-                Msg::Slip(s) => self.slip = Some(s.clone()),
-                Msg::Contact(c) => self.contact = Some(c.clone()),
+                Msg::SlipState(s) => self.slip = Some(s.clone()),
+                Msg::ContactState(c) => self.contact = Some(c.clone()),
                 _ => {}
             }
             self.assembler.offer(input);

@@ -15,7 +15,7 @@ const FABRIC: &str = "{mode: vtla_real, task: pick the smoother fabric, \
 
 /// A camera frame of an 80 mm cup at (0.45, 0.01).
 fn cup_camera(rig: &mut Rig) {
-    let m = Msg::Visual(VisualObservation {
+    let m = Msg::VisualObservation(VisualObservation {
         header: rig.header(),
         names: vec!["cup_x_m".into(), "cup_y_m".into(), "cup_width_m".into()],
         values: vec![0.45, 0.01, 0.08],
@@ -30,7 +30,7 @@ const EDGE_B_M: f64 = 0.0024;
 
 /// The camera's frame `n` of the fabric run.
 fn camera(rig: &Rig, n: usize) -> Msg {
-    Msg::Visual(VisualObservation {
+    Msg::VisualObservation(VisualObservation {
         header: rig.header(),
         names: vec![
             "fabric_a_x_m".into(),
@@ -73,7 +73,7 @@ fn fabric_run(rig: &mut Rig, send_comparison: bool, drop_contact: usize, max_tic
         }
         if send_comparison && last.status.phase == "compare" && !sent {
             sent = true;
-            rig.send(Msg::Comparison(PropertyComparison {
+            rig.send(Msg::PropertyComparison(PropertyComparison {
                 header: rig.header(),
                 property: "roughness".into(),
                 episode_a: 1,
@@ -184,7 +184,7 @@ fn a_camera_without_the_edge_height_fails_the_approach_with_the_reason() {
     );
     assert_eq!(t.status.phase, "approach_a");
     // NaN for a listed name: the observation is invalid, the safety layer holds.
-    rig.send(Msg::Visual(VisualObservation {
+    rig.send(Msg::VisualObservation(VisualObservation {
         header: rig.header(),
         names: vec![
             "fabric_a_x_m".into(),
@@ -203,7 +203,7 @@ fn a_camera_without_the_edge_height_fails_the_approach_with_the_reason() {
     let mut rig = Rig::new(params(
         "{mode: vtla_real, task: pick the smoother fabric, visual_names: [fabric_b_edge_height_m]}",
     ));
-    rig.send(Msg::Visual(VisualObservation {
+    rig.send(Msg::VisualObservation(VisualObservation {
         header: rig.header(),
         names: vec!["fabric_b_edge_height_m".into()],
         values: vec![0.002],
@@ -450,7 +450,7 @@ fn invalid_latents_hold_within_the_tick_they_arrive() {
          visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
     ));
     let mut bad = rig.latent(LatentSource::Predicted, vec![0.5; 4]);
-    if let Msg::Latent(l) = &mut bad {
+    if let Msg::TactileLatent(l) = &mut bad {
         l.valid = false;
         l.guard_report = "velocity blew up".into();
     }
@@ -487,11 +487,13 @@ fn ticks_follow_the_control_rate_not_every_gripper_status() {
     let mut ticks = 0;
     for _ in 0..30 {
         // GripperStatus at 100 Hz.
-        let out = rig.chain.run(Msg::Gripper(unitac_core::msg::GripperStatus {
-            header: Header::new(unitac_core::Stamp(rig.now), "g"),
-            fault: String::new(),
-            ..unitac_core::msg::samples::gripper_status()
-        }));
+        let out = rig
+            .chain
+            .run(Msg::GripperStatus(unitac_core::msg::GripperStatus {
+                header: Header::new(unitac_core::Stamp(rig.now), "g"),
+                fault: String::new(),
+                ..unitac_core::msg::samples::gripper_status()
+            }));
         if !out.produced.is_empty() {
             ticks += 1;
         }

@@ -15,7 +15,7 @@ fn the_policy_does_not_act_on_an_opening_outside_the_stroke() {
     let l = rig.latent(unitac_core::msg::LatentSource::Predicted, vec![0.5; 4]);
     rig.send(l);
     let camera = |rig: &Rig| {
-        unitac_core::msg::Msg::Visual(unitac_core::msg::VisualObservation {
+        unitac_core::msg::Msg::VisualObservation(unitac_core::msg::VisualObservation {
             header: rig.header(),
             names: vec!["cup_x_m".into(), "cup_y_m".into(), "cup_width_m".into()],
             values: vec![0.45, 0.0, 0.08],

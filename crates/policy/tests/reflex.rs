@@ -105,7 +105,7 @@ fn run(reflex: bool) -> Run {
     let header = |t: i64| Header::new(Stamp(t), "gripper");
     stage
         .process(
-            &Msg::Latent(TactileLatent {
+            &Msg::TactileLatent(TactileLatent {
                 header: header(now),
                 source: LatentSource::Predicted,
                 shape: vec![1, 4],
@@ -135,9 +135,9 @@ fn run(reflex: bool) -> Run {
             valid: w.touching(),
             ..samples::slip_state()
         };
-        stage.process(&Msg::Contact(contact), &clock).unwrap();
-        stage.process(&Msg::Slip(slip), &clock).unwrap();
-        let camera = Msg::Visual(unitac_core::msg::VisualObservation {
+        stage.process(&Msg::ContactState(contact), &clock).unwrap();
+        stage.process(&Msg::SlipState(slip), &clock).unwrap();
+        let camera = Msg::VisualObservation(unitac_core::msg::VisualObservation {
             header: header(now),
             names: vec!["cup_x_m".into(), "cup_y_m".into(), "cup_width_m".into()],
             values: vec![0.45, 0.0, DIAMETER_M],
@@ -154,8 +154,13 @@ fn run(reflex: bool) -> Run {
             motion: "stopped".into(),
             fault: String::new(),
         };
-        let out = stage.process(&Msg::Gripper(g), &clock).unwrap();
-        let [Msg::Command(c), Msg::Arm(a), Msg::Status(s)] = out.as_slice() else {
+        let out = stage.process(&Msg::GripperStatus(g), &clock).unwrap();
+        let [
+            Msg::GripperCommand(c),
+            Msg::ArmCommand(a),
+            Msg::PolicyStatus(s),
+        ] = out.as_slice()
+        else {
             panic!("{out:?}");
         };
         assert!(c.force_n <= max_force && c.force_n.is_finite(), "{c:?}");

@@ -238,7 +238,7 @@ proptest! {
             let now = 1_000_000_000 + i as i64 * tick_ns;
             let h = Header::new(Stamp(now), "g");
             if s.contact {
-                chain.run(Msg::Contact(ContactState { header: h.clone(), ..samples::contact_state() }));
+                chain.run(Msg::ContactState(ContactState { header: h.clone(), ..samples::contact_state() }));
                 last_contact = Some(now);
             }
             if let Some(kind) = s.latent {
@@ -253,16 +253,16 @@ proptest! {
                 if kind == 2 {
                     l.data[1] = f32::NAN;
                 }
-                chain.run(Msg::Latent(l));
+                chain.run(Msg::TactileLatent(l));
                 latent_ok = Some(kind == 0);
             }
-            let out = chain.run(Msg::Gripper(GripperStatus {
+            let out = chain.run(Msg::GripperStatus(GripperStatus {
                 header: h,
                 fault: String::new(),
                 opening_m: 0.05,
                 ..samples::gripper_status()
             }));
-            let [Msg::Command(cmd), Msg::Arm(_), Msg::Status(st)] = out.produced.as_slice() else {
+            let [Msg::GripperCommand(cmd), Msg::ArmCommand(_), Msg::PolicyStatus(st)] = out.produced.as_slice() else {
                 panic!("{:?}", out.produced);
             };
             // What the test knows independently of the stage.

@@ -74,7 +74,7 @@ fn value() -> impl Strategy<Value = f64> {
 }
 
 fn status(t: i64, opening_m: f64, force_n: f64, object_detected: bool) -> Msg {
-    Msg::Gripper(GripperStatus {
+    Msg::GripperStatus(GripperStatus {
         header: Header::new(Stamp(t), "gripper"),
         opening_m,
         target_m: f64::NAN,
@@ -92,19 +92,19 @@ fn hostile(kind: u8, t: i64, v: f64) -> Msg {
     let header = Header::new(Stamp(t), "x");
     match kind % 6 {
         0 => {
-            let Msg::Gripper(mut g) = status(t, v, v, true) else {
+            let Msg::GripperStatus(mut g) = status(t, v, v, true) else {
                 unreachable!()
             };
             g.header = header;
-            Msg::Gripper(g)
+            Msg::GripperStatus(g)
         }
-        1 => Msg::Contact(ContactState {
+        1 => Msg::ContactState(ContactState {
             header,
             in_contact: v > 0.05,
             area_mm2: v as f32,
             ..samples::contact_state()
         }),
-        2 => Msg::Latent(TactileLatent {
+        2 => Msg::TactileLatent(TactileLatent {
             header,
             source: LatentSource::Predicted,
             shape: vec![1, 4],
@@ -113,7 +113,7 @@ fn hostile(kind: u8, t: i64, v: f64) -> Msg {
             guard_report: String::new(),
             ..samples::tactile_latent()
         }),
-        3 => Msg::Latent(TactileLatent {
+        3 => Msg::TactileLatent(TactileLatent {
             header,
             source: LatentSource::Real,
             shape: vec![1, 4],
@@ -122,11 +122,11 @@ fn hostile(kind: u8, t: i64, v: f64) -> Msg {
             guard_report: String::new(),
             ..samples::tactile_latent()
         }),
-        4 => Msg::Comparison(PropertyComparison {
+        4 => Msg::PropertyComparison(PropertyComparison {
             header,
             ..samples::property_comparison()
         }),
-        _ => Msg::Visual(VisualObservation {
+        _ => Msg::VisualObservation(VisualObservation {
             header,
             names: vec![
                 "cup_width_m".into(),
@@ -181,7 +181,7 @@ fn check_out(out: &[Msg], p: &PolicyParams) -> Result<(), TestCaseError> {
     let b = p.bounds();
     for m in out {
         match m {
-            Msg::Command(c) => {
+            Msg::GripperCommand(c) => {
                 for v in [c.position_m, c.speed_m_s, c.force_n] {
                     prop_assert!(v.is_finite(), "{c:?}");
                 }
@@ -189,12 +189,12 @@ fn check_out(out: &[Msg], p: &PolicyParams) -> Result<(), TestCaseError> {
                 prop_assert!((0.0..=b.max_speed_m_s).contains(&c.speed_m_s), "{c:?}");
                 prop_assert!((0.0..=b.max_force_n).contains(&c.force_n), "{c:?}");
             }
-            Msg::Arm(a) => {
+            Msg::ArmCommand(a) => {
                 prop_assert!(a.z_m.is_finite() && a.lift_m.is_finite(), "{a:?}");
                 prop_assert!((b.min_z_m..=b.max_z_m).contains(&a.z_m), "{a:?}");
                 prop_assert!((0.0..=b.max_lift_m).contains(&a.lift_m), "{a:?}");
             }
-            Msg::Status(s) => prop_assert!(!s.phase.is_empty()),
+            Msg::PolicyStatus(s) => prop_assert!(!s.phase.is_empty()),
             other => prop_assert!(false, "unexpected {other:?}"),
         }
     }

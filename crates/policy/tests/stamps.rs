@@ -16,7 +16,7 @@ const CUP_VTLA_PRED: &str = "{mode: vtla_pred, task: squeeze the cup by 1 cm, ob
     latent_len: 4, visual_names: [cup_x_m, cup_y_m, cup_width_m]}";
 
 fn status_at(rig: &Rig, t: i64) -> Msg {
-    Msg::Gripper(GripperStatus {
+    Msg::GripperStatus(GripperStatus {
         header: Header::new(Stamp(t), "gripper"),
         opening_m: rig.opening,
         target_m: f64::NAN,
@@ -56,7 +56,12 @@ fn a_gripper_status_from_the_future_is_an_invalid_input_not_the_clock() {
     let hostile = status_at(&rig, rig.now - TICK_NS / 2 + 1_000_000_000_000);
     let out = rig.chain.run(hostile);
     assert!(out.errors.is_empty(), "{:?}", out.errors);
-    let [Msg::Command(c), Msg::Arm(_), Msg::Status(st)] = out.produced.as_slice() else {
+    let [
+        Msg::GripperCommand(c),
+        Msg::ArmCommand(_),
+        Msg::PolicyStatus(st),
+    ] = out.produced.as_slice()
+    else {
         panic!("the hostile status is answered with the safe action: {out:?}");
     };
     assert!(!st.safety_ok);
@@ -92,7 +97,7 @@ fn the_watchdog_still_ticks_after_a_gripper_status_from_the_future() {
     // Nothing else comes: the watchdog on the transport's clock sends the safe action once the
     // tick due at t0 + P is a period overdue.
     let out = s.watchdog_tick(Stamp(t0 + 2 * TICK_NS));
-    let Some(Msg::Status(st)) = out.last() else {
+    let Some(Msg::PolicyStatus(st)) = out.last() else {
         panic!("the watchdog is silent after a status from the future: {out:?}");
     };
     assert!(!st.safety_ok);
@@ -110,7 +115,7 @@ fn a_latent_or_contact_from_the_future_leaves_every_tick_answered() {
     ));
     rig.tick();
     let mut l = rig.latent(LatentSource::Real, vec![0.5; 4]);
-    if let Msg::Latent(x) = &mut l {
+    if let Msg::TactileLatent(x) = &mut l {
         x.header.stamp = Stamp(rig.now + 10_000_000_000);
     }
     rig.send(l);
@@ -119,7 +124,7 @@ fn a_latent_or_contact_from_the_future_leaves_every_tick_answered() {
         rig.tick();
     }
     let mut c = rig.contact(true, 20.0);
-    if let Msg::Contact(x) = &mut c {
+    if let Msg::ContactState(x) = &mut c {
         x.header.stamp = Stamp(rig.now + 5_000_000_000);
     }
     rig.send(c);
@@ -134,7 +139,7 @@ fn an_input_from_the_future_is_invalid_with_the_reason() {
     let mut rig = Rig::new(params(
         "{mode: vla, task: squeeze the cup, objects: [cup], visual_names: [cup_width_m]}",
     ));
-    let v = Msg::Visual(VisualObservation {
+    let v = Msg::VisualObservation(VisualObservation {
         header: Header::new(Stamp(rig.now + 5_000_000_000), "camera"),
         names: vec!["cup_width_m".into()],
         values: vec![0.08],
@@ -158,14 +163,14 @@ fn a_comparison_stamped_at_the_end_of_time_neither_panics_nor_freezes_control() 
          visual_names: [fabric_a_edge_height_m, fabric_b_edge_height_m]}",
     ));
     rig.tick();
-    rig.send(Msg::Comparison(PropertyComparison {
+    rig.send(Msg::PropertyComparison(PropertyComparison {
         header: Header::new(Stamp(i64::MAX), "x"),
         ..unitac_core::msg::samples::property_comparison()
     }));
     for _ in 0..5 {
         rig.tick();
     }
-    rig.send(Msg::Comparison(PropertyComparison {
+    rig.send(Msg::PropertyComparison(PropertyComparison {
         header: Header::new(Stamp(i64::MIN), "x"),
         ..unitac_core::msg::samples::property_comparison()
     }));
@@ -184,7 +189,7 @@ fn a_gripper_back_after_a_long_silence_ticks_again_from_its_third_status() {
     for i in 0..3 {
         let g = status_at(&rig, rig.now);
         let out = rig.chain.run(g);
-        let Some(Msg::Status(st)) = out.produced.last() else {
+        let Some(Msg::PolicyStatus(st)) = out.produced.last() else {
             panic!("status {i} after the silence is answered: {out:?}");
         };
         if i < 2 {
@@ -231,7 +236,7 @@ fn after_a_message_stamped_at_the_end_of_time_the_policy_acts_normally() {
          visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
     ));
     let camera = |rig: &Rig| {
-        Msg::Visual(VisualObservation {
+        Msg::VisualObservation(VisualObservation {
             header: rig.header(),
             names: vec!["cup_x_m".into(), "cup_y_m".into(), "cup_width_m".into()],
             values: vec![0.45, 0.0, 0.08],
@@ -239,7 +244,7 @@ fn after_a_message_stamped_at_the_end_of_time_the_policy_acts_normally() {
     };
     for i in 0..10 {
         if i == 3 {
-            rig.send(Msg::Comparison(PropertyComparison {
+            rig.send(Msg::PropertyComparison(PropertyComparison {
                 header: Header::new(Stamp(i64::MAX), "x"),
                 ..unitac_core::msg::samples::property_comparison()
             }));

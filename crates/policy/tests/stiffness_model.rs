@@ -191,7 +191,7 @@ fn the_cup_controller_squeezes_with_the_models_stiffness() {
     let mut rig = rig::Rig::with_stage(stage);
     let data = latent([4, 6], 77, 0.0).data;
     let sent = rig.latent(LatentSource::Predicted, data.clone());
-    let Msg::Latent(l) = &sent else {
+    let Msg::TactileLatent(l) = &sent else {
         panic!("a latent")
     };
     let k = Readout::load(&dir, 24)
@@ -204,7 +204,7 @@ fn the_cup_controller_squeezes_with_the_models_stiffness() {
     // Close in force mode toward F = k x 1 cm (ramped 2 N per tick).
     let mut close = None;
     for _ in 0..60 {
-        let cam = Msg::Visual(unitac_core::msg::VisualObservation {
+        let cam = Msg::VisualObservation(unitac_core::msg::VisualObservation {
             header: rig.header(),
             names: vec!["cup_x_m".into(), "cup_y_m".into(), "cup_width_m".into()],
             values: vec![0.45, 0.0, 0.08],

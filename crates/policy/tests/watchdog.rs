@@ -10,7 +10,7 @@ use unitac_core::{ManualClock, Stage, Stamp};
 use unitac_policy::PolicyStage;
 
 fn status(t: i64, opening: f64) -> Msg {
-    Msg::Gripper(GripperStatus {
+    Msg::GripperStatus(GripperStatus {
         header: Header::new(Stamp(t), "gripper"),
         opening_m: opening,
         target_m: f64::NAN,
@@ -26,7 +26,7 @@ fn status(t: i64, opening: f64) -> Msg {
 fn policy_status(out: &[Msg]) -> &PolicyStatus {
     out.iter()
         .find_map(|m| match m {
-            Msg::Status(s) => Some(s),
+            Msg::PolicyStatus(s) => Some(s),
             _ => None,
         })
         .expect("a PolicyStatus")
@@ -47,7 +47,7 @@ fn step(
     opening: f64,
     clock: &ManualClock,
 ) -> Result<Vec<Msg>, unitac_core::StageError> {
-    let cam = Msg::Visual(unitac_core::msg::VisualObservation {
+    let cam = Msg::VisualObservation(unitac_core::msg::VisualObservation {
         header: unitac_core::msg::Header::new(Stamp(t), "camera"),
         names: vec!["cup_x_m".into(), "cup_y_m".into(), "cup_width_m".into()],
         values: vec![0.45, 0.0, 0.08],
@@ -70,7 +70,12 @@ fn a_missing_gripper_status_gives_the_safe_action_a_period_after_its_tick_was_du
     assert!(s.watchdog_tick(Stamp(t0 + p)).is_empty());
     assert!(s.watchdog_tick(Stamp(t0 + 2 * p - 1)).is_empty());
     let out = s.watchdog_tick(Stamp(t0 + 2 * p));
-    let [Msg::Command(c), Msg::Arm(a), Msg::Status(st)] = out.as_slice() else {
+    let [
+        Msg::GripperCommand(c),
+        Msg::ArmCommand(a),
+        Msg::PolicyStatus(st),
+    ] = out.as_slice()
+    else {
         panic!("{out:?}");
     };
     assert!(!st.safety_ok);
@@ -154,7 +159,7 @@ fn once_the_latent_is_used_its_producer_may_go() {
             0.0
         };
         let mut c = rig.contact(touching, area);
-        if let Msg::Contact(c) = &mut c {
+        if let Msg::ContactState(c) = &mut c {
             c.header.stamp = Stamp(t);
         }
         clock.set(Stamp(t));
@@ -162,13 +167,13 @@ fn once_the_latent_is_used_its_producer_may_go() {
         if last.as_deref() == Some("await_latent") && !sent {
             sent = true;
             let mut l = rig.latent(LatentSource::Real, vec![0.1, 0.2, 0.3, 0.4]);
-            if let Msg::Latent(l) = &mut l {
+            if let Msg::TactileLatent(l) = &mut l {
                 l.header.stamp = Stamp(t);
             }
             s.process(&l, &clock).unwrap();
         }
         let out = step(&mut s, t, opening, &clock).unwrap();
-        let Msg::Command(cmd) = &out[0] else {
+        let Msg::GripperCommand(cmd) = &out[0] else {
             panic!("{out:?}")
         };
         let step = cmd.speed_m_s * TICK_NS as f64 * 1e-9;

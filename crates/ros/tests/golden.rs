@@ -64,11 +64,13 @@ fn hex(s: &str) -> Vec<u8> {
 /// One observed message as the event JSON `unitac run --events` prints.
 fn event(topic: &str, cdr: &[u8]) -> serde_json::Value {
     let m = match topic {
-        "contact_state" => Msg::Contact(ContactState::from_cdr(cdr).unwrap()),
-        "contact_episode" => Msg::Episode(ContactEpisode::from_cdr(cdr).unwrap()),
-        "tactile_properties" => Msg::Properties(TactileProperties::from_cdr(cdr).unwrap()),
-        "property_comparison" => Msg::Comparison(PropertyComparison::from_cdr(cdr).unwrap()),
-        "tactile_latent" => Msg::Latent(TactileLatent::from_cdr(cdr).unwrap()),
+        "contact_state" => Msg::ContactState(ContactState::from_cdr(cdr).unwrap()),
+        "contact_episode" => Msg::ContactEpisode(ContactEpisode::from_cdr(cdr).unwrap()),
+        "tactile_properties" => Msg::TactileProperties(TactileProperties::from_cdr(cdr).unwrap()),
+        "property_comparison" => {
+            Msg::PropertyComparison(PropertyComparison::from_cdr(cdr).unwrap())
+        }
+        "tactile_latent" => Msg::TactileLatent(TactileLatent::from_cdr(cdr).unwrap()),
         other => panic!("{other}"),
     };
     m.to_json()

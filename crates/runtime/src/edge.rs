@@ -129,7 +129,7 @@ mod tests {
         Msg::Frame(Frame::new("s", seq, Stamp(seq as i64), 1, 1, vec![0, 0, 0]).unwrap())
     }
     fn event(n: i64) -> Msg {
-        Msg::Status(PolicyStatus {
+        Msg::PolicyStatus(PolicyStatus {
             header: Header::new(Stamp(n), ""),
             scene: String::new(),
             mode: String::new(),

@@ -171,11 +171,13 @@ pub fn run(
         }
         *event_counts.entry(m.kind().to_string()).or_default() += 1;
         match m {
-            Msg::Episode(e) if episodes.len() < MAX_KEPT_EVENTS => episodes.push(e),
-            Msg::Properties(p) if properties.len() < MAX_KEPT_EVENTS => properties.push(p),
-            Msg::Comparison(c) if comparisons.len() < MAX_KEPT_EVENTS => comparisons.push(c),
-            Msg::Latent(l) if latents.len() < MAX_KEPT_EVENTS => {
-                let mut j = Msg::Latent(l).to_json();
+            Msg::ContactEpisode(e) if episodes.len() < MAX_KEPT_EVENTS => episodes.push(e),
+            Msg::TactileProperties(p) if properties.len() < MAX_KEPT_EVENTS => properties.push(p),
+            Msg::PropertyComparison(c) if comparisons.len() < MAX_KEPT_EVENTS => {
+                comparisons.push(c)
+            }
+            Msg::TactileLatent(l) if latents.len() < MAX_KEPT_EVENTS => {
+                let mut j = Msg::TactileLatent(l).to_json();
                 if let Some(o) = j.as_object_mut() {
                     o.remove("data");
                 }

@@ -66,7 +66,7 @@ impl Stage for Slow {
             return Err(StageError::BadInput(format!("frame {}", f.seq)));
         }
         let _ = clock.now();
-        Ok(vec![Msg::Status(unitac_core::msg::PolicyStatus {
+        Ok(vec![Msg::PolicyStatus(unitac_core::msg::PolicyStatus {
             header: unitac_core::msg::Header::new(f.stamp, ""),
             scene: String::new(),
             mode: String::new(),
@@ -97,7 +97,7 @@ fn slow_consumer_drops_oldest_frames_counts_them_and_keeps_every_event() {
         stages,
         &RunOptions::default(),
         |m| {
-            if matches!(m, Msg::Status(_)) {
+            if matches!(m, Msg::PolicyStatus(_)) {
                 statuses += 1;
             }
         },

@@ -231,23 +231,25 @@ pub fn record(
                 latents: &mut Vec<LatentRecord>| {
         for m in out {
             match m {
-                Msg::Contact(s) => {
+                Msg::ContactState(s) => {
                     if s.in_contact && !contact.as_ref().is_some_and(|c| c.in_contact) {
                         *touches += 1;
                     }
                     *contact = Some(s);
                 }
-                Msg::Latent(l) if latents.len() < MAX_LATENTS => latents.push(LatentRecord {
-                    t_s,
-                    touch: *touches,
-                    source: match l.source {
-                        LatentSource::Real => "real",
-                        _ => "predicted",
-                    }
-                    .into(),
-                    shape: l.shape,
-                    data: l.data,
-                }),
+                Msg::TactileLatent(l) if latents.len() < MAX_LATENTS => {
+                    latents.push(LatentRecord {
+                        t_s,
+                        touch: *touches,
+                        source: match l.source {
+                            LatentSource::Real => "real",
+                            _ => "predicted",
+                        }
+                        .into(),
+                        shape: l.shape,
+                        data: l.data,
+                    })
+                }
                 _ => {}
             }
         }

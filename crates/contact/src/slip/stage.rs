@@ -261,7 +261,7 @@ impl Stage for SlipStage {
                 self.learn_reference(bg);
                 Ok(Vec::new())
             }
-            Msg::Contact(c) => {
+            Msg::ContactState(c) => {
                 if !c.in_contact {
                     self.reset_contact();
                 }
@@ -277,7 +277,7 @@ impl Stage for SlipStage {
                 }
                 let c = c.clone();
                 // On a rejected frame the tracking state is left as it was.
-                Ok(vec![Msg::Slip(self.step(f, &c)?)])
+                Ok(vec![Msg::SlipState(self.step(f, &c)?)])
             }
             _ => Ok(Vec::new()),
         }

@@ -75,7 +75,7 @@ impl Rig {
     }
 
     pub fn contact(&self, in_contact: bool, area_mm2: f32) -> Msg {
-        Msg::Contact(ContactState {
+        Msg::ContactState(ContactState {
             header: self.header(),
             in_contact,
             area_mm2,
@@ -84,7 +84,7 @@ impl Rig {
     }
 
     pub fn latent(&self, source: LatentSource, data: Vec<f32>) -> Msg {
-        Msg::Latent(TactileLatent {
+        Msg::TactileLatent(TactileLatent {
             header: self.header(),
             source,
             shape: vec![1, data.len() as u32],
@@ -98,7 +98,7 @@ impl Rig {
     /// One control tick: the GripperStatus now; returns what the stage sent.
     pub fn tick(&mut self) -> Tick {
         if let Some((names, values)) = self.camera.clone() {
-            let m = Msg::Visual(unitac_core::msg::VisualObservation {
+            let m = Msg::VisualObservation(unitac_core::msg::VisualObservation {
                 header: self.header(),
                 names,
                 values,
@@ -116,9 +116,13 @@ impl Rig {
             motion: self.motion.clone(),
             fault: String::new(),
         };
-        let out = self.chain.run(Msg::Gripper(g));
+        let out = self.chain.run(Msg::GripperStatus(g));
         assert!(out.errors.is_empty(), "{:?}", out.errors);
-        let [Msg::Command(cmd), Msg::Arm(arm), Msg::Status(status)] = out.produced.as_slice()
+        let [
+            Msg::GripperCommand(cmd),
+            Msg::ArmCommand(arm),
+            Msg::PolicyStatus(status),
+        ] = out.produced.as_slice()
         else {
             panic!("a tick gives command, arm, status: {:?}", out.produced);
         };

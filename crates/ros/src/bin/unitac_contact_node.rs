@@ -135,14 +135,14 @@ fn run() -> anyhow::Result<()> {
     let publish = |out: Vec<Msg>, in_contact: &mut bool, counters: &mut diagnostics::Counters| {
         for m in out {
             let r = match m {
-                Msg::Contact(c) => {
+                Msg::ContactState(c) => {
                     *in_contact = c.in_contact;
                     pub_state.publish(&convert::contact_state(&c))
                 }
-                Msg::Episode(e) => pub_ep.publish(&convert::contact_episode(&e)),
+                Msg::ContactEpisode(e) => pub_ep.publish(&convert::contact_episode(&e)),
                 Msg::Clip(c) => pub_clip.publish(&convert::contact_clip(&c)),
                 Msg::Background(f) => pub_bg.publish(&image::from_frame(&f)),
-                Msg::Slip(s) => pub_slip.publish(&convert::slip_state(&s)),
+                Msg::SlipState(s) => pub_slip.publish(&convert::slip_state(&s)),
                 _ => continue,
             };
             counters.published(r);

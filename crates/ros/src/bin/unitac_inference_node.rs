@@ -144,9 +144,9 @@ fn run() -> anyhow::Result<()> {
         }
         for m in out.produced {
             let r = match &m {
-                Msg::Properties(x) => pub_props.publish(&convert::tactile_properties(x)),
-                Msg::Latent(x) => pub_latent.publish(&convert::tactile_latent(x)),
-                Msg::Comparison(x) => pub_cmp.publish(&convert::property_comparison(x)),
+                Msg::TactileProperties(x) => pub_props.publish(&convert::tactile_properties(x)),
+                Msg::TactileLatent(x) => pub_latent.publish(&convert::tactile_latent(x)),
+                Msg::PropertyComparison(x) => pub_cmp.publish(&convert::property_comparison(x)),
                 _ => continue,
             };
             counters.published(r);

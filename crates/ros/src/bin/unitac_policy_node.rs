@@ -124,7 +124,7 @@ fn subscribe(
                 all.push(
                     s.map(move |m| {
                         convert::gripper_status_from_joint_state(&m, &joint)
-                            .map(Msg::Gripper)
+                            .map(Msg::GripperStatus)
                             .map_err(err("joint_states"))
                     })
                     .boxed(),
@@ -138,7 +138,7 @@ fn subscribe(
                 all.push(
                     s.map(move |m| {
                         convert::gripper_status_from(&m)
-                            .map(Msg::Gripper)
+                            .map(Msg::GripperStatus)
                             .map_err(err("gripper_status"))
                     })
                     .boxed(),
@@ -152,7 +152,7 @@ fn subscribe(
                 all.push(
                     s.map(move |m| {
                         convert::contact_state_from(&m)
-                            .map(Msg::Contact)
+                            .map(Msg::ContactState)
                             .map_err(err("contact_state"))
                     })
                     .boxed(),
@@ -171,7 +171,7 @@ fn subscribe(
                 all.push(
                     s.map(move |m| {
                         convert::tactile_latent_from(&m)
-                            .map(Msg::Latent)
+                            .map(Msg::TactileLatent)
                             .map_err(err("tactile_latent"))
                     })
                     .boxed(),
@@ -185,7 +185,7 @@ fn subscribe(
                 all.push(
                     s.map(move |m| {
                         convert::property_comparison_from(&m)
-                            .map(Msg::Comparison)
+                            .map(Msg::PropertyComparison)
                             .map_err(err("property_comparison"))
                     })
                     .boxed(),
@@ -199,7 +199,7 @@ fn subscribe(
                 all.push(
                     s.map(move |m| {
                         convert::visual_observation_from(&m)
-                            .map(Msg::Visual)
+                            .map(Msg::VisualObservation)
                             .map_err(err("visual_observation"))
                     })
                     .boxed(),
@@ -346,7 +346,7 @@ impl Publishers {
     fn publish(&mut self, out: Vec<Msg>, counters: &mut diagnostics::Counters, last: &mut String) {
         for m in out {
             let r = match &m {
-                Msg::Command(c) => match &mut self.gripper {
+                Msg::GripperCommand(c) => match &mut self.gripper {
                     GripperOut::Topic(p) => p.publish(&convert::gripper_command(c)),
                     GripperOut::Action {
                         client,
@@ -366,13 +366,13 @@ impl Publishers {
                         continue;
                     }
                 },
-                Msg::Arm(a) => {
+                Msg::ArmCommand(a) => {
                     if let Some(p) = convert::arm_pose(a, &self.arm_frame, self.tool_rpy) {
                         counters.published(self.pose.publish(&p));
                     }
                     self.arm.publish(&convert::arm_command(a))
                 }
-                Msg::Status(s) => {
+                Msg::PolicyStatus(s) => {
                     *last = format!(
                         "{} ({})",
                         s.phase,
@@ -558,13 +558,13 @@ async fn run_async() -> anyhow::Result<()> {
                     }
                 };
                 let m = match m {
-                    Msg::Gripper(g) => {
+                    Msg::GripperStatus(g) => {
                         // A tick: the producers as they are now, so a loss shows in this tick.
                         if let Err(e) = producers.check(&mut chain) {
                             counters.error(format!("graph: {e:#}"));
                         }
                         check_server(&producers, &mut pubs, &mut counters);
-                        Msg::Gripper(pubs.gripper_state(g))
+                        Msg::GripperStatus(pubs.gripper_state(g))
                     }
                     m => m,
                 };

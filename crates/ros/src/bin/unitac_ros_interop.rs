@@ -136,16 +136,16 @@ fn echo(prefix: &str) -> anyhow::Result<()> {
     let mut got: [Option<Result<Msg, ConvertError>>; 4] = Default::default();
     spin_until(&mut node, TIMEOUT, || {
         first(&mut s1, &mut got[0], |m| {
-            convert::tactile_latent_from(m).map(Msg::Latent)
+            convert::tactile_latent_from(m).map(Msg::TactileLatent)
         });
         first(&mut s2, &mut got[1], |m| {
-            convert::gripper_command_from(m).map(Msg::Command)
+            convert::gripper_command_from(m).map(Msg::GripperCommand)
         });
         first(&mut s3, &mut got[2], |m| {
-            convert::gripper_status_from(m).map(Msg::Gripper)
+            convert::gripper_status_from(m).map(Msg::GripperStatus)
         });
         first(&mut s4, &mut got[3], |m| {
-            convert::visual_observation_from(m).map(Msg::Visual)
+            convert::visual_observation_from(m).map(Msg::VisualObservation)
         });
         got.iter().all(Option::is_some) || got.iter().flatten().any(Result::is_err)
     });

@@ -257,6 +257,9 @@ fn run() -> anyhow::Result<()> {
         }
     }
     let start = Instant::now();
+    // The one pacer (as the sensor node's and the runtime's sources): step t is due t / max_rate
+    // after the first; 0 = unpaced.
+    let mut pacer = unitac_core::Pacer::new((p.max_rate > 0.0).then_some(p.max_rate))?;
     let mut steps = 0u64;
     let mut pending = Pending::default();
     // Over-ROS tick timing (a benchmark's figures, reported with the outcome): GripperStatus
@@ -297,13 +300,10 @@ fn run() -> anyhow::Result<()> {
         // Pace: at most max_rate sim seconds per wall second. The wait is here, between the
         // frames and the tick, so the contact states have that long to reach the policy too
         // (they come from another process than the status: their order there is not given).
-        if p.max_rate > 0.0 {
-            let due = Duration::from_secs_f64(sim.time() / p.max_rate);
-            let left = due.saturating_sub(start.elapsed());
-            if !left.is_zero() {
-                base.spin(left);
-            }
-        }
+        pacer.wait(o.stamp, |slice| {
+            base.spin(slice);
+            !base.stopped()
+        });
         let t1 = Instant::now();
         counters.published(pub_visual.publish(&convert::visual_observation(&o.visual)));
         counters.published(pub_joint.publish(&convert::joint_state(&o.gripper, &p.joint_name)));
