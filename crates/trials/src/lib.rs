@@ -26,4 +26,6 @@ pub mod stepper;
 pub mod table;
 
 pub use gripper::{TrialGripper, UnknownTrialGripper};
-pub use run::{TraceRow, TrialError, TrialOptions, TrialRecord, run_trial, run_trial_on};
+pub use run::{
+    ChainMessage, TraceRow, TrialError, TrialOptions, TrialRecord, run_trial, run_trial_on,
+};

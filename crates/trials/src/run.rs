@@ -99,6 +99,9 @@ pub struct TrialOptions {
     /// Record a digest of every tick's inputs to the chain and of its outputs
     /// ([`TrialRecord::io`]).
     pub record_io: bool,
+    /// Keep every message the chain took but frames, and every message it produced, in order
+    /// ([`TrialRecord::messages`]: the policy golden's inputs and outputs).
+    pub keep_messages: bool,
 }
 
 impl TrialOptions {
@@ -113,6 +116,7 @@ impl TrialOptions {
             settle_s: 1.0,
             hidden: None,
             record_io: false,
+            keep_messages: false,
         }
     }
     fn check(&self) -> Result<(), TrialError> {
@@ -198,6 +202,29 @@ pub struct TrialRecord {
     /// Per tick, when [`TrialOptions::record_io`].
     #[serde(skip)]
     pub io: Vec<TickIo>,
+    /// When [`TrialOptions::keep_messages`]: the chain's inputs but frames and its outputs, in
+    /// the order they went in and came out.
+    #[serde(skip)]
+    pub messages: Vec<ChainMessage>,
+}
+
+/// A message that went into the chain (`input`) or came out of it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChainMessage {
+    pub input: bool,
+    pub msg: Msg,
+}
+
+impl ChainMessage {
+    /// The message's JSON ([`Msg::to_json`]) with `"input": true` on an input: a line of the
+    /// policy golden files.
+    pub fn to_json(&self) -> serde_json::Value {
+        let mut v = self.msg.to_json();
+        if let (true, Some(o)) = (self.input, v.as_object_mut()) {
+            o.insert("input".into(), serde_json::Value::Bool(true));
+        }
+        v
+    }
 }
 
 /// FNV-1a 64: a stable digest of bytes (the same on every platform and Rust version).
@@ -386,6 +413,7 @@ pub fn run_trial_on(
         clamped: Default::default(),
         reflex: Default::default(),
         io: Vec::new(),
+        messages: Vec::new(),
     };
     let mut slip_detected = None;
     let mut ended_at: Option<f64> = None;
@@ -397,6 +425,10 @@ pub fn run_trial_on(
                 record.rejections.push(e.to_string());
             }
         }
+    };
+    let output = |m: &Msg| ChainMessage {
+        input: false,
+        msg: m.clone(),
     };
     for _ in 0..ticks {
         let t = world.time();
@@ -411,34 +443,55 @@ pub fn run_trial_on(
             }
             let out = chain.run(frame);
             for m in &out.produced {
-                if let Msg::Slip(s) = m {
+                if let Msg::SlipState(s) = m {
                     slip_detected = Some(s.slip);
                 }
             }
+            if opts.keep_messages {
+                record.messages.extend(out.produced.iter().map(output));
+            }
             keep(&mut record, out.errors);
         }
-        let visual = Msg::Visual(visual_message(&world.visual()));
+        let visual = Msg::VisualObservation(visual_message(&world.visual()));
         if opts.record_io {
             inputs.msg(&visual);
         }
+        if opts.keep_messages {
+            record.messages.push(ChainMessage {
+                input: true,
+                msg: visual.clone(),
+            });
+        }
         let out = chain.run(visual);
+        if opts.keep_messages {
+            record.messages.extend(out.produced.iter().map(output));
+        }
         keep(&mut record, out.errors);
         let truth = world.world().truth();
-        let status = Msg::Gripper(world.status().map_err(step_error(t))?);
+        let status = Msg::GripperStatus(world.status().map_err(step_error(t))?);
         if opts.record_io {
             inputs.msg(&status);
         }
+        if opts.keep_messages {
+            record.messages.push(ChainMessage {
+                input: true,
+                msg: status.clone(),
+            });
+        }
         let out = chain.run(status);
+        if opts.keep_messages {
+            record.messages.extend(out.produced.iter().map(output));
+        }
         let mut tick = TickOutput::default();
         for m in out.produced {
             if opts.record_io {
                 outputs.msg(&m);
             }
             match m {
-                Msg::Command(c) => tick.gripper = Some(c),
-                Msg::Arm(a) => tick.arm = Some(a),
-                Msg::Status(s) => tick.status = Some(s),
-                Msg::Slip(s) => slip_detected = Some(s.slip),
+                Msg::GripperCommand(c) => tick.gripper = Some(c),
+                Msg::ArmCommand(a) => tick.arm = Some(a),
+                Msg::PolicyStatus(s) => tick.status = Some(s),
+                Msg::SlipState(s) => slip_detected = Some(s.slip),
                 _ => {}
             }
         }
