@@ -426,9 +426,29 @@ pub fn run_trial_on(
             }
         }
     };
-    let output = |m: &Msg| ChainMessage {
-        input: false,
-        msg: m.clone(),
+    // One input through the chain, with what the options keep of it: its digest (`record_io`),
+    // it and what the chain made of it (`keep_messages`; frames are not kept).
+    let feed = |chain: &mut Chain, record: &mut TrialRecord, digest: &mut Fnv, m: Msg| {
+        if opts.record_io {
+            digest.msg(&m);
+        }
+        let kept = opts.keep_messages && !m.is_frame();
+        if kept {
+            record.messages.push(ChainMessage {
+                input: true,
+                msg: m.clone(),
+            });
+        }
+        let out = chain.run(m);
+        if opts.keep_messages {
+            record
+                .messages
+                .extend(out.produced.iter().map(|m| ChainMessage {
+                    input: false,
+                    msg: m.clone(),
+                }));
+        }
+        out
     };
     for _ in 0..ticks {
         let t = world.time();
@@ -437,51 +457,20 @@ pub fn run_trial_on(
         let touching = opts.record_io && world.world().truth().contact.penetration_m > 0.0;
         for (frame, _) in world.frames() {
             record.frames += 1;
-            let frame = Msg::Frame(frame);
-            if opts.record_io {
-                inputs.msg(&frame);
-            }
-            let out = chain.run(frame);
+            let out = feed(&mut chain, &mut record, &mut inputs, Msg::Frame(frame));
             for m in &out.produced {
                 if let Msg::SlipState(s) = m {
                     slip_detected = Some(s.slip);
                 }
             }
-            if opts.keep_messages {
-                record.messages.extend(out.produced.iter().map(output));
-            }
             keep(&mut record, out.errors);
         }
         let visual = Msg::VisualObservation(visual_message(&world.visual()));
-        if opts.record_io {
-            inputs.msg(&visual);
-        }
-        if opts.keep_messages {
-            record.messages.push(ChainMessage {
-                input: true,
-                msg: visual.clone(),
-            });
-        }
-        let out = chain.run(visual);
-        if opts.keep_messages {
-            record.messages.extend(out.produced.iter().map(output));
-        }
+        let out = feed(&mut chain, &mut record, &mut inputs, visual);
         keep(&mut record, out.errors);
         let truth = world.world().truth();
         let status = Msg::GripperStatus(world.status().map_err(step_error(t))?);
-        if opts.record_io {
-            inputs.msg(&status);
-        }
-        if opts.keep_messages {
-            record.messages.push(ChainMessage {
-                input: true,
-                msg: status.clone(),
-            });
-        }
-        let out = chain.run(status);
-        if opts.keep_messages {
-            record.messages.extend(out.produced.iter().map(output));
-        }
+        let out = feed(&mut chain, &mut record, &mut inputs, status);
         let mut tick = TickOutput::default();
         for m in out.produced {
             if opts.record_io {
