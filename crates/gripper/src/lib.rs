@@ -6,7 +6,7 @@
 //! - [`status::status`]: a gripper's state as the `GripperStatus` message (the gripper node and
 //!   the serial trial gripper both use it).
 //! - [`action::ActionLink`]: a ros2_control gripper action's goals from our commands.
-//! - [`bench`]: round trips per second against a gripper, against the wire's limit.
+//! - [`mod@bench`]: round trips per second against a gripper, against the wire's limit.
 //!
 //! Simulated devices (a pty Robotiq or DH, the sim world's gripper) live in unitac-gripper-sim.
 

@@ -15,7 +15,7 @@
 //! expert:   the expert's own commands (squeeze to its setpoint, settle, lift) for expert_s
 //! ```
 //!
-//! The frames are rendered at the sensor's own frame times by [`SensorRig`] and pushed through
+//! The frames are rendered at the sensor's own frame times by [`crate::bridge::SensorRig`] and pushed through
 //! the scene's tactile stages with [`Chain`] (contact + encoder for vtla_real, contact + sampler
 //! for vtla_pred): the stages are built by the caller from the scene, so this module sees only
 //! `Stage`s. Every latent the stages send is kept with the number of contacts begun before it

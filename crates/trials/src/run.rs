@@ -1,12 +1,12 @@
 //! One closed-loop trial: a task world driven by a scene's stages through messages.
 //!
 //! Each control tick (the policy's `control_rate_hz`, world time t):
-//! 1. the mock sensor's frames captured up to t ([`SensorRig::frames_until`], rendered from the
-//!    world's sensor view) go through the chain (contact, slip, encoder, ... stages);
+//! 1. the mock sensor's frames captured up to t ([`crate::stepper::WorldStepper::frames`],
+//!    rendered from the world's sensor view) go through the chain (contact, slip, encoder, ...);
 //! 2. then the camera's observation ([`visual_message`]);
 //! 3. then the gripper's status at t: the policy's tick. The chain's GripperCommand and
-//!    ArmCommand for it become the world's command ([`task_command`]) and the world steps one
-//!    control period.
+//!    ArmCommand for it become the world's command ([`crate::bridge::task_command`]) and the
+//!    world steps one control period.
 //!
 //! The gripper is one seam ([`crate::gripper`], chosen by [`TrialGripper`]): in process (the
 //! status from the world's gripper through [`crate::bridge::GripperGauge`], the command as the policy
