@@ -355,7 +355,7 @@ pub fn output_topic(m: &Msg) -> Option<(&'static str, &'static str)> {
         Msg::ArmCommand(_) => ("/unitac/arm_command", ArmCommand::TYPE),
         Msg::VisualObservation(_) => ("/unitac/visual_observation", VisualObservation::TYPE),
         Msg::SlipState(_) => ("/unitac/slip_state", SlipState::TYPE),
-        Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return None,
+        Msg::Frame(_) | Msg::ContactClip(_) | Msg::Background(_) => return None,
     })
 }
 
@@ -418,7 +418,7 @@ impl OutputBag {
             Msg::ArmCommand(x) => x.to_cdr(),
             Msg::VisualObservation(x) => x.to_cdr(),
             Msg::SlipState(x) => x.to_cdr(),
-            Msg::Frame(_) | Msg::Clip(_) | Msg::Background(_) => return Ok(()),
+            Msg::Frame(_) | Msg::ContactClip(_) | Msg::Background(_) => return Ok(()),
         };
         self.writer.write_raw(id, t, &data)
     }

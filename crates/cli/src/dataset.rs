@@ -11,7 +11,7 @@ use std::io::Write;
 use std::path::Path;
 use unitac_contact::{ContactParams, ContactStage};
 use unitac_core::chain::ChainOutput;
-use unitac_core::msg::EpisodeClip;
+use unitac_core::msg::ContactClip;
 use unitac_core::{Chain, Msg, SensorKind};
 use unitac_infer::preprocess::Preprocess;
 use unitac_sim::{MockConfig, MockSensor, Object, Phase, Scenario, SplitMix64};
@@ -67,7 +67,7 @@ pub fn press(object: &Object, depth: f64) -> Scenario {
 /// The first contact episode's clip of `sensor` through a contact stage keeping `clip_frames`
 /// frames, driven by the one chain driver (the stage's clock is each frame's stamp, as in every
 /// transport).
-pub fn first_clip(mut sensor: MockSensor, clip_frames: u32) -> anyhow::Result<EpisodeClip> {
+pub fn first_clip(mut sensor: MockSensor, clip_frames: u32) -> anyhow::Result<ContactClip> {
     let kind = sensor.config().sensor;
     let p = ContactParams {
         clip_frames,
@@ -81,7 +81,7 @@ pub fn first_clip(mut sensor: MockSensor, clip_frames: u32) -> anyhow::Result<Ep
             bail!("{e}");
         }
         for m in out.produced {
-            if let Msg::Clip(c) = m {
+            if let Msg::ContactClip(c) = m {
                 clip.get_or_insert(c);
             }
         }

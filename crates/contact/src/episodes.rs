@@ -4,7 +4,7 @@
 
 use crate::params::ContactParams;
 use std::collections::VecDeque;
-use unitac_core::msg::{ContactEpisode, EpisodeClip, Header};
+use unitac_core::msg::{ContactClip, ContactEpisode, Header};
 use unitac_core::{Frame, Msg, Stamp};
 
 #[derive(Debug, Clone)]
@@ -168,7 +168,7 @@ impl Episodes {
         })];
         if p.clip_frames > 0 {
             if let Some(clip) = self.take_clip(sensor_id, &ep, label, p.clip_frames, background) {
-                out.push(Msg::Clip(clip));
+                out.push(Msg::ContactClip(clip));
             }
         }
         out
@@ -183,7 +183,7 @@ impl Episodes {
         label: String,
         cap: u32,
         background: impl FnOnce() -> Option<Frame>,
-    ) -> Option<EpisodeClip> {
+    ) -> Option<ContactClip> {
         let peak = self.peak_frame.take()?;
         let cap = cap as usize;
         let mut frames: Vec<Frame> = self.clip.drain(..).collect();
@@ -201,7 +201,7 @@ impl Episodes {
                 0
             }
         };
-        Some(EpisodeClip {
+        Some(ContactClip {
             sensor_id: sensor_id.to_string(),
             episode_id: ep.id,
             label,

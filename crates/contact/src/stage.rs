@@ -1,5 +1,5 @@
 //! The detector as a runtime [`Stage`]: frames in; ContactState per frame, ContactEpisode (and
-//! EpisodeClip) on release, and the background announced downstream when it is learned.
+//! ContactClip) on release, and the background announced downstream when it is learned.
 //! Saved backgrounds come from an injected [`BackgroundStore`]: the stage does no file I/O.
 
 use crate::detector::ContactDetector;
@@ -8,7 +8,7 @@ use crate::store::{BackgroundStore, DirStore};
 use unitac_core::{Clock, Frame, Msg, SensorSpec, Stage, StageError};
 
 /// The detector as a runtime stage: consumes frames, emits ContactState per frame and
-/// ContactEpisode (plus an EpisodeClip when `clip_frames` > 0) on release.
+/// ContactEpisode (plus an ContactClip when `clip_frames` > 0) on release.
 #[derive(Debug)]
 pub struct ContactStage {
     det: ContactDetector,

@@ -10,7 +10,7 @@ struct Run {
     episodes: Vec<ContactEpisode>,
     /// (detected in_contact, truth penetration) per frame after learning.
     frames: Vec<(bool, f64)>,
-    clips: Vec<unitac_core::msg::EpisodeClip>,
+    clips: Vec<unitac_core::msg::ContactClip>,
     errors: usize,
 }
 
@@ -30,7 +30,7 @@ fn run(cfg: MockConfig, scenario: Scenario, p: ContactParams) -> Run {
             match m {
                 Msg::ContactState(c) => r.frames.push((c.in_contact, truth)),
                 Msg::ContactEpisode(e) => r.episodes.push(e),
-                Msg::Clip(c) => r.clips.push(c),
+                Msg::ContactClip(c) => r.clips.push(c),
                 _ => {}
             }
         }

@@ -9,7 +9,7 @@
 use std::fmt;
 
 /// Messages that get no generated mirror: ContactClip carries images; its Rust side is
-/// `EpisodeClip` (frames as `Frame`), converted by hand in crates/ros.
+/// `ContactClip` (frames as `Frame`), converted by hand in crates/ros.
 pub const NOT_GENERATED: &[&str] = &["ContactClip"];
 
 /// Rust names of constant-backed enums, where the field name alone would be too vague

@@ -1,7 +1,8 @@
 //! Rust mirror of msg/unitac_msgs, and [`Msg`], what flows between stages.
 //!
 //! # One definition: the `.msg` files
-//! Every message of msg/unitac_msgs (but ContactClip, whose Rust side is [`EpisodeClip`]) is
+//! Every message of msg/unitac_msgs (but ContactClip, whose Rust side [`ContactClip`] holds
+//! frames, not images, and is written by hand) is
 //! generated at build time from its `.msg` file by crates/core/build.rs (the generator is
 //! crates/core/build/msggen.rs): the struct with the same field names in the same order (field
 //! docs are the `.msg` comments), an enum for each `uint8` field that has `FIELD_*` constants
@@ -156,7 +157,7 @@ impl VisualObservation {
 /// The frames of one contact episode, centred on its peak (for the touch encoder). Bounded by the
 /// contact stage's `clip_frames`. Not a ROS message: nodes pass frames as sensor_msgs/Image.
 #[derive(Debug, Clone, PartialEq)]
-pub struct EpisodeClip {
+pub struct ContactClip {
     pub sensor_id: String,
     pub episode_id: u64,
     pub label: String,
@@ -184,8 +185,8 @@ macro_rules! declare_msg {
             /// The contact stage's non-contact frame, announced when it is learned or loaded: the
             /// sensor prior (Z_sen) for the flow sampler.
             Background(Frame),
-            /// An episode's frames (the ContactClip message's Rust side).
-            Clip(EpisodeClip),
+            /// unitac_msgs/ContactClip (an episode's frames, for the encoder).
+            ContactClip(ContactClip),
             $(
                 #[doc = concat!("unitac_msgs/", stringify!($name), ".")]
                 $name($name),
@@ -200,7 +201,7 @@ macro_rules! declare_msg {
             pub fn stamp(&self) -> Stamp {
                 match self {
                     Msg::Frame(f) | Msg::Background(f) => f.stamp,
-                    Msg::Clip(m) => m.frames.last().map_or(Stamp::ZERO, |f| f.stamp),
+                    Msg::ContactClip(m) => m.frames.last().map_or(Stamp::ZERO, |f| f.stamp),
                     $( Msg::$name(m) => m.header.stamp, )*
                 }
             }
@@ -210,7 +211,7 @@ macro_rules! declare_msg {
                 match self {
                     Msg::Frame(_) => "frame",
                     Msg::Background(_) => "background",
-                    Msg::Clip(_) => "episode_clip",
+                    Msg::ContactClip(_) => "contact_clip",
                     $( Msg::$name(_) => stringify!($snake), )*
                 }
             }
@@ -221,7 +222,7 @@ macro_rules! declare_msg {
                         "sensor_id": f.sensor_id, "seq": f.seq, "stamp": f.stamp,
                         "width": f.width, "height": f.height,
                     }),
-                    Msg::Clip(m) => serde_json::json!({
+                    Msg::ContactClip(m) => serde_json::json!({
                         "sensor_id": m.sensor_id, "episode_id": m.episode_id, "label": m.label,
                         "peak_index": m.peak_index,
                         "frame_seqs": m.frames.iter().map(|f| f.seq).collect::<Vec<_>>(),

@@ -5,7 +5,7 @@ use crate::preprocess::Preprocess;
 use crate::runtime::{InferError, RuntimeConfig};
 use std::path::Path;
 use std::time::Instant;
-use unitac_core::msg::{EpisodeClip, Header, LatentSource, TactileLatent, TactileProperties};
+use unitac_core::msg::{ContactClip, Header, LatentSource, TactileLatent, TactileProperties};
 use unitac_core::{Clock, Msg, Stage, StageError};
 
 // Kept at its old path for callers that name `encoder::CompareStage`.
@@ -29,7 +29,7 @@ pub struct Encoded {
     pub stds: Vec<f32>,
 }
 
-/// Encoder + property head on each `EpisodeClip`: a real `TactileLatent` and `TactileProperties`.
+/// Encoder + property head on each `ContactClip`: a real `TactileLatent` and `TactileProperties`.
 #[derive(Debug)]
 pub struct EncoderStage {
     pre: Preprocess,
@@ -67,7 +67,7 @@ impl EncoderStage {
     }
 
     /// Run the models on one clip.
-    pub fn encode(&mut self, clip: &EpisodeClip) -> Result<Encoded, StageError> {
+    pub fn encode(&mut self, clip: &ContactClip) -> Result<Encoded, StageError> {
         let bg = clip
             .background
             .as_ref()
@@ -123,7 +123,7 @@ impl Stage for EncoderStage {
         "encoder"
     }
     fn process(&mut self, input: &Msg, clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
-        let Msg::Clip(clip) = input else {
+        let Msg::ContactClip(clip) = input else {
             return Ok(Vec::new());
         };
         // Compute time through the injected clock: real when live, 0 in replay, so replayed

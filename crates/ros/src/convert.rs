@@ -14,7 +14,7 @@ use r2r::unitac_msgs::msg as ros;
 use thiserror::Error;
 use unitac_bag::cdr::{MAX_SEQUENCE, MAX_STRING};
 use unitac_core::Stamp;
-use unitac_core::msg::{EpisodeClip, Header, Message, MsgError};
+use unitac_core::msg::{ContactClip, Header, Message, MsgError};
 
 /// Most frames a ContactClip may carry (the contact stage's clip_frames is far below this).
 pub const MAX_CLIP_FRAMES: usize = 256;
@@ -221,7 +221,7 @@ macro_rules! unitac_conversions {
 
 unitac_core::for_each_message!(unitac_conversions);
 
-pub fn contact_clip(m: &EpisodeClip) -> ros::ContactClip {
+pub fn contact_clip(m: &ContactClip) -> ros::ContactClip {
     let last = m.frames.last();
     let mut header = RosHeader::default();
     if let Some(f) = last {
@@ -244,7 +244,7 @@ pub fn contact_clip(m: &EpisodeClip) -> ros::ContactClip {
 }
 
 /// A clip from the wire: frame count bounded, every image checked, peak index in range.
-pub fn contact_clip_from(m: &ros::ContactClip) -> Result<EpisodeClip, ConvertError> {
+pub fn contact_clip_from(m: &ros::ContactClip) -> Result<ContactClip, ConvertError> {
     // Every field named: a field added to ContactClip.msg fails to compile here until handled.
     let ros::ContactClip {
         header: _,
@@ -283,7 +283,7 @@ pub fn contact_clip_from(m: &ros::ContactClip) -> Result<EpisodeClip, ConvertErr
     } else {
         Some(image("background".into(), background, 0)?)
     };
-    Ok(EpisodeClip {
+    Ok(ContactClip {
         sensor_id,
         episode_id: *episode_id,
         label,
@@ -524,7 +524,7 @@ mod tests {
         let empty = ros::ContactClip::default();
         assert_eq!(contact_clip_from(&empty), Err(ConvertError::ClipFrames(0)));
         let frame = unitac_core::Frame::new("gs", 0, Stamp(5), 2, 2, vec![9; 12]).unwrap();
-        let clip = EpisodeClip {
+        let clip = ContactClip {
             sensor_id: "gs".into(),
             episode_id: 4,
             label: "cup".into(),

@@ -140,7 +140,7 @@ fn run() -> anyhow::Result<()> {
                     pub_state.publish(&convert::contact_state(&c))
                 }
                 Msg::ContactEpisode(e) => pub_ep.publish(&convert::contact_episode(&e)),
-                Msg::Clip(c) => pub_clip.publish(&convert::contact_clip(&c)),
+                Msg::ContactClip(c) => pub_clip.publish(&convert::contact_clip(&c)),
                 Msg::Background(f) => pub_bg.publish(&image::from_frame(&f)),
                 Msg::SlipState(s) => pub_slip.publish(&convert::slip_state(&s)),
                 _ => continue,

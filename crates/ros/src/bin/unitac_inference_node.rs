@@ -170,7 +170,7 @@ fn run() -> anyhow::Result<()> {
             match convert::contact_clip_from(&c) {
                 Ok(clip) => {
                     let captured = clip.frames.last().map(|f| f.stamp);
-                    handle(Msg::Clip(clip), &mut counters, &mut chain);
+                    handle(Msg::ContactClip(clip), &mut counters, &mut chain);
                     if let Some(t) = captured {
                         counters.latency(base.age_s(t));
                     }
