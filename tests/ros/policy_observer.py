@@ -16,6 +16,8 @@ stdin/stdout, one line each:
                            "marked T_NS"
   in:  "publishers TOPIC N"  wait until the graph shows N publishers on NS/TOPIC (a producer's host
                            went away or came back), answer "publishers TOPIC N"
+  in:  "subscribers TOPIC N" the same for subscriptions (a restarted consumer is listening),
+                           answer "subscribers TOPIC N"
   in:  "holds N"           answer "held T_NS" once N PolicyStatus after the mark were holds
                            (safety_ok false), T_NS the N-th's stamp
   out: "outcome"           the sim's outcome arrived
@@ -156,9 +158,9 @@ def main():
                 with lock:
                     got["mark_ns"] = max((s["stamp"] for s in got["status"]), default=0)
                 say(f"marked {got['mark_ns']}")
-            elif cmd.startswith("publishers "):
-                _, topic, n = cmd.split()
-                wanted[0] = (topic, int(n))
+            elif cmd.startswith("publishers ") or cmd.startswith("subscribers "):
+                what, topic, n = cmd.split()
+                wanted[0] = (what, topic, int(n))
             elif cmd.startswith("holds "):
                 with lock:
                     holds["want"] = int(cmd.split()[1])
@@ -169,7 +171,8 @@ def main():
                 break
         end.set()
 
-    # (topic, count) the test waits for; checked on the spinning thread, which owns the graph.
+    # (publishers | subscribers, topic, count) the test waits for; checked on the spinning
+    # thread, which owns the graph.
     wanted = [None]
     threading.Thread(target=read_stdin, daemon=True).start()
     t0 = time.monotonic()
@@ -181,9 +184,10 @@ def main():
     while not end.is_set() and time.monotonic() - t0 < seconds:
         rclpy.spin_once(node, timeout_sec=0.02)
         w = wanted[0]
-        if w is not None and node.count_publishers(f"{ns}/{w[0]}") == w[1]:
+        count = node.count_publishers if w and w[0] == "publishers" else node.count_subscribers
+        if w is not None and count(f"{ns}/{w[1]}") == w[2]:
             wanted[0] = None
-            say(f"publishers {w[0]} {w[1]}")
+            say(f"{w[0]} {w[1]} {w[2]}")
     with lock:
         say(json.dumps(got))
     node.destroy_node()
