@@ -42,20 +42,33 @@ fn host() -> String {
         .to_string()
 }
 
-fn metadata() -> Value {
+/// `cargo ARGS --offline --locked` in the workspace root: its stdout (a failure fails the test).
+fn cargo(args: &[&str]) -> Vec<u8> {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let out = std::process::Command::new(cargo)
-        .args(["metadata", "--format-version", "1", "--locked", "--offline"])
-        .args(["--filter-platform", &host()])
+        .args(args)
+        .args(["--offline", "--locked"])
         .current_dir(workspace_root())
         .output()
-        .expect("cargo metadata runs");
+        .expect("cargo runs");
     assert!(
         out.status.success(),
-        "cargo metadata failed: {}",
+        "cargo {}: {}",
+        args.join(" "),
         String::from_utf8_lossy(&out.stderr)
     );
-    serde_json::from_slice(&out.stdout).expect("cargo metadata prints JSON")
+    out.stdout
+}
+
+fn metadata() -> Value {
+    let out = cargo(&[
+        "metadata",
+        "--format-version",
+        "1",
+        "--filter-platform",
+        &host(),
+    ]);
+    serde_json::from_slice(&out).expect("cargo metadata prints JSON")
 }
 
 /// Package names of the workspace members, with their manifest directories.
@@ -84,27 +97,18 @@ fn members(meta: &Value) -> BTreeMap<String, PathBuf> {
 /// feature another workspace crate turns on (the pipeline's `v4l` for the binaries) does not
 /// count against a crate that leaves it off.
 fn graph(krate: &str) -> Graph {
-    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let out = std::process::Command::new(cargo)
-        .args([
-            "tree",
-            "-p",
-            krate,
-            "-e",
-            "normal,build",
-            "--prefix",
-            "depth",
-        ])
-        .args(["-f", "{p}", "--offline", "--locked"])
-        .current_dir(workspace_root())
-        .output()
-        .expect("cargo tree runs");
-    assert!(
-        out.status.success(),
-        "cargo tree -p {krate} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    parse_tree(&String::from_utf8_lossy(&out.stdout))
+    let out = cargo(&[
+        "tree",
+        "-p",
+        krate,
+        "-e",
+        "normal,build",
+        "--prefix",
+        "depth",
+        "-f",
+        "{p}",
+    ]);
+    parse_tree(&String::from_utf8_lossy(&out))
 }
 
 /// `cargo tree --prefix depth -f {p}` lines (`<depth><name> v<version> ...`) as a graph.
