@@ -530,20 +530,34 @@ fn a_stalled_subscriber_loses_frames_counted_and_blocks_nothing() {
     let slow_got = finish(slow);
     let [t_stop, t_cont] = [0, 1].map(|i| got["stop_window"][i].as_f64().unwrap());
     assert!(t_cont - t_stop >= 1.9, "{}", got["stop_window"]);
-    // The sensor kept its rate while one subscriber was stalled and another was slow: its
-    // published count over the stall (from its diagnostics, once a second) grew at its 25 fps.
-    // (The mean over the window, not each second's rate: on a loaded machine the mock's pacer
-    // catches up after a late second, which a per-second figure shows as a dip and a burst.)
+    // The sensor kept publishing while one subscriber was stalled and another was slow: its
+    // published count (from its diagnostics, once a second) grew through the stall, and over the
+    // whole run it held its 25 fps. (On a loaded machine the mock's pacer catches up after a late
+    // second, which a window of two or three seconds shows as a dip and a burst, so the rate is
+    // bounded over the run and only its lower side over the stall.)
     let sd = diag_of(&got, &n, "unitac_sensor");
-    let during: Vec<(f64, f64)> = sd
+    let counts: Vec<(f64, f64)> = sd
         .iter()
         .map(|d| (d["t"].as_f64().unwrap(), num(&d["values"]["messages_out"])))
+        .collect();
+    let during: Vec<(f64, f64)> = counts
+        .iter()
+        .copied()
         .filter(|(t, _)| (t_stop..t_cont + 1.5).contains(t))
         .collect();
     assert!(during.len() >= 2, "{sd:?} {}", got["stop_window"]);
-    let ((t0, m0), (t1, m1)) = (during[0], during[during.len() - 1]);
-    let rate = (m1 - m0) / (t1 - t0);
-    assert!((20.0..=30.0).contains(&rate), "{rate} Hz over {during:?}");
+    let rate = |s: &[(f64, f64)]| {
+        let ((t0, m0), (t1, m1)) = (s[0], s[s.len() - 1]);
+        (m1 - m0) / (t1 - t0)
+    };
+    let stall_rate = rate(&during);
+    assert!(stall_rate >= 20.0, "{stall_rate} Hz over {during:?}");
+    assert!(counts.len() >= 5, "{counts:?}");
+    let run_rate = rate(&counts[1..]);
+    assert!(
+        (20.0..=30.0).contains(&run_rate),
+        "{run_rate} Hz over {counts:?}"
+    );
     // Frames kept flowing to the other subscribers during the stall.
     let seen = got["image_times"]
         .as_array()
