@@ -1,5 +1,6 @@
 //! `unitac devices`: the tactile sensors on the USB bus, with serial, firmware, V4L2 node and the
-//! modes the node offers.
+//! modes the node offers; and the execution providers the ONNX Runtime library has (where a
+//! scene's `providers: [cuda, cpu]` will run its models).
 
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -29,6 +30,25 @@ pub struct DevicesReport {
     pub firmware_update_mode: Vec<String>,
     pub other_cameras: Vec<String>,
     pub message: String,
+    /// The ONNX Runtime library's execution providers: "cpu: yes", "cuda: no", ... or why the
+    /// library could not be loaded.
+    pub onnxruntime: Vec<String>,
+}
+
+/// Which execution providers the process's ONNX Runtime library has.
+fn providers() -> Vec<String> {
+    use unitac_infer::ExecutionProvider;
+    match unitac_infer::runtime::environment(None) {
+        Err(e) => vec![format!("not loaded: {e}")],
+        Ok(_) => ExecutionProvider::ALL
+            .iter()
+            .map(|p| match p.available() {
+                Ok(true) => format!("{p}: yes"),
+                Ok(false) => format!("{p}: no"),
+                Err(e) => format!("{p}: unknown ({})", e.lines().next().unwrap_or("")),
+            })
+            .collect(),
+    }
 }
 
 /// `root` is `/` on a robot; `UNITAC_SYSFS_ROOT` points it at a fixture tree.
@@ -86,6 +106,7 @@ pub fn devices(root: &Path) -> DevicesReport {
         firmware_update_mode: found.firmware_update,
         other_cameras: found.other_cameras,
         message,
+        onnxruntime: providers(),
     }
 }
 
@@ -118,6 +139,10 @@ impl DevicesReport {
         for c in &self.other_cameras {
             s += &format!("ignored camera: {c}\n");
         }
+        s += &format!(
+            "ONNX Runtime execution providers: {}\n",
+            self.onnxruntime.join(", ")
+        );
         s
     }
 }

@@ -42,13 +42,54 @@ pub enum InferError {
 
 /// Where models run. Only CPU can be tested on this project's machines (no GPU in CI); CUDA and
 /// TensorRT are registered through ort when the loaded library (onnxruntime-gpu) has them.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, serde::Serialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum ExecutionProvider {
     #[default]
     Cpu,
     Cuda,
     Tensorrt,
+}
+
+impl ExecutionProvider {
+    pub const ALL: [ExecutionProvider; 3] = [Self::Cpu, Self::Cuda, Self::Tensorrt];
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Cpu => "cpu",
+            Self::Cuda => "cuda",
+            Self::Tensorrt => "tensorrt",
+        }
+    }
+    /// Whether the process's ONNX Runtime library has this provider (the environment must be
+    /// loaded: [`environment`]).
+    pub fn available(self) -> Result<bool, String> {
+        use ort::ep::ExecutionProvider as _;
+        match self {
+            Self::Cpu => Ok(true),
+            Self::Cuda => ort::ep::CUDA::is_available().map_err(|e| e.to_string()),
+            Self::Tensorrt => ort::ep::TensorRT::is_available().map_err(|e| e.to_string()),
+        }
+    }
+}
+
+impl std::fmt::Display for ExecutionProvider {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// One provider name or a list of them.
+fn one_or_many<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<ExecutionProvider>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum OneOrMany {
+        One(ExecutionProvider),
+        Many(Vec<ExecutionProvider>),
+    }
+    Ok(match OneOrMany::deserialize(d)? {
+        OneOrMany::One(p) => vec![p],
+        OneOrMany::Many(v) => v,
+    })
 }
 
 #[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
@@ -58,7 +99,13 @@ pub struct RuntimeConfig {
     pub library: Option<PathBuf>,
     /// Intra-op threads per session (1 was fastest and steadiest on a shared 2-core machine).
     pub intra_threads: usize,
-    pub provider: ExecutionProvider,
+    /// Execution providers in order of preference (one name or a list; default `[cpu]`): a model
+    /// runs on the first one the loaded ONNX Runtime library has. One it lacks is passed over
+    /// with one line on stderr (once per provider and process) when another follows, e.g.
+    /// `[cuda, cpu]` on a CPU-only library; when none is left it is an error, never a silent
+    /// fall-back.
+    #[serde(deserialize_with = "one_or_many")]
+    pub providers: Vec<ExecutionProvider>,
 }
 
 impl Default for RuntimeConfig {
@@ -66,9 +113,51 @@ impl Default for RuntimeConfig {
         Self {
             library: None,
             intra_threads: 1,
-            provider: ExecutionProvider::Cpu,
+            providers: vec![ExecutionProvider::Cpu],
         }
     }
+}
+
+/// Providers already reported missing in this process.
+static NOTICED: OnceLock<std::sync::Mutex<Vec<ExecutionProvider>>> = OnceLock::new();
+
+/// The first of `providers` this library has. A missing one followed by another is reported on
+/// stderr in one line (once per provider and process); the line is returned too.
+pub fn choose_provider(
+    model: &str,
+    providers: &[ExecutionProvider],
+) -> Result<(ExecutionProvider, Option<String>), InferError> {
+    let err = |msg: String| InferError::Model {
+        model: model.to_string(),
+        msg,
+    };
+    let mut notice = None;
+    for (i, &p) in providers.iter().enumerate() {
+        let why = match p.available() {
+            Ok(true) => return Ok((p, notice)),
+            Ok(false) => "not in this ONNX Runtime library".to_string(),
+            Err(e) => e.lines().next().unwrap_or("").to_string(),
+        };
+        let Some(next) = providers.get(i + 1) else {
+            return Err(err(format!("provider {p} is not available: {why}")));
+        };
+        let line = format!("execution provider {p} is {why}; models that ask for it run on {next}");
+        let seen = NOTICED.get_or_init(Default::default);
+        let first = seen.lock().map(|mut s| {
+            let new = !s.contains(&p);
+            if new {
+                s.push(p);
+            }
+            new
+        });
+        if first.unwrap_or(true) {
+            eprintln!("unitac: {line}");
+        }
+        notice.get_or_insert(line);
+    }
+    Err(err(
+        "no execution provider given (providers: [cpu] runs everywhere)".into(),
+    ))
 }
 
 static ENV: OnceLock<Result<ort::environment::Environment, LibraryError>> = OnceLock::new();
@@ -104,7 +193,7 @@ pub fn session(
     model: &str,
     path: &Path,
     cfg: &RuntimeConfig,
-) -> Result<ort::session::Session, InferError> {
+) -> Result<(ort::session::Session, ExecutionProvider), InferError> {
     let env = environment(cfg.library.as_deref())?;
     let err = |e: String| InferError::Model {
         model: model.to_string(),
@@ -120,9 +209,10 @@ pub fn session(
             .with_config_entry("session.intra_op.allow_spinning", "0")
             .map_err(|e| err(e.to_string()))?;
     }
-    b = match cfg.provider {
+    let (provider, _) = choose_provider(model, &cfg.providers)?;
+    b = match provider {
         ExecutionProvider::Cpu => b,
-        // A provider that cannot be registered is an error, never a silent fall-back to CPU.
+        // Available, so a failure to register it is an error, never a silent fall-back to CPU.
         ExecutionProvider::Cuda => b
             .with_execution_providers([ort::ep::CUDA::default().build().error_on_failure()])
             .map_err(|e| err(format!("provider cuda is not available: {e}")))?,
@@ -130,7 +220,8 @@ pub fn session(
             .with_execution_providers([ort::ep::TensorRT::default().build().error_on_failure()])
             .map_err(|e| err(format!("provider tensorrt is not available: {e}")))?,
     };
-    b.commit_from_file(path).map_err(|e| err(e.to_string()))
+    let session = b.commit_from_file(path).map_err(|e| err(e.to_string()))?;
+    Ok((session, provider))
 }
 
 /// Largest tensor a model may return \[elements].
@@ -189,6 +280,7 @@ fn describe(outlets: &[ort::value::Outlet]) -> Vec<TensorInfo> {
 #[derive(Debug)]
 pub struct Session {
     model: String,
+    provider: ExecutionProvider,
     inputs: Vec<TensorInfo>,
     outputs: Vec<TensorInfo>,
     inner: ort::session::Session,
@@ -197,8 +289,9 @@ pub struct Session {
 impl Session {
     /// Open `path`; `model` names it in errors.
     pub fn open(model: &str, path: &Path, cfg: &RuntimeConfig) -> Result<Session, InferError> {
-        let inner = session(model, path, cfg)?;
+        let (inner, provider) = session(model, path, cfg)?;
         Ok(Session {
+            provider,
             model: model.to_string(),
             inputs: describe(inner.inputs()),
             outputs: describe(inner.outputs()),
@@ -208,6 +301,10 @@ impl Session {
 
     pub fn inputs(&self) -> &[TensorInfo] {
         &self.inputs
+    }
+    /// The execution provider the model runs on.
+    pub fn provider(&self) -> ExecutionProvider {
+        self.provider
     }
 
     pub fn outputs(&self) -> &[TensorInfo] {

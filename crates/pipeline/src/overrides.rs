@@ -129,7 +129,7 @@ mod tests {
             ("contact.no_such_key", Value::from(1), "no_such_key"),
             ("contact.noise_k", Value::from("loud"), "noise_k"),
             (
-                "encoder.provider",
+                "encoder.providers",
                 Value::from("cpu"),
                 "not a stage this node runs",
             ),
