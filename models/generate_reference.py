@@ -13,7 +13,7 @@ not public): small ONNX models that run through the same code path as a real exp
   velocity_gaussian.onnx the exact rectified-flow velocity of a Gaussian target N(mu, sigma^2 I)
                          whose cond rows encode [mu (D), log sigma]: a model with an exact solution,
                          so sampler error can be measured exactly (../shared notes: flow sampler).
-  velocity_dit.onnx      a small transformer velocity model (2 blocks, width 32, seeded random
+  velocity_timing_fixture.onnx  a small transformer velocity model (2 blocks, width 32, seeded random
                          weights, final LayerNorm): the shape of the paper's DiT projector, for
                          timing and for error against a fine-step reference.
   manifest.json          the bundle manifest the Rust loader checks every model against.
@@ -312,7 +312,7 @@ def main():
     p = lambda f: os.path.join(a.out, f)
     build_encoder(p("encoder.onnx"))
     build_velocity_gaussian(p("velocity_gaussian.onnx"))
-    build_velocity_dit(p("velocity_dit.onnx"))
+    build_velocity_dit(p("velocity_timing_fixture.onnx"))
     if not a.data:
         return 0
     fit = fit_properties(p("encoder.onnx"), a.data, p("properties.onnx"))
@@ -330,7 +330,8 @@ def main():
         "models": {
             "encoder": entry(a.out, "encoder.onnx"),
             "properties": entry(a.out, "properties.onnx", fit=fit),
-            "velocity": entry(a.out, "velocity_dit.onnx", time_convention="tau_data_at_1", sigma_min=SIGMA_MIN),
+            "velocity_timing_fixture": entry(a.out, "velocity_timing_fixture.onnx", time_convention="tau_data_at_1",
+                                             sigma_min=SIGMA_MIN),
             "velocity_gaussian": entry(a.out, "velocity_gaussian.onnx", time_convention="tau_data_at_1",
                                        sigma_min=SIGMA_MIN),
         },

@@ -17,10 +17,15 @@
 #   5. the reference model bundle in .build/models/reference: `unitac dataset fabrics` renders
 #      mock presses through the real contact stage, models/generate_reference.py builds the ONNX
 #      models and fits the property head on them (~1 min; only when its inputs changed)
-#   6. the reference policies in .build/models/policy: `unitac demos` records the scripted expert
-#      on training cups (and on the unseen cup, scored only) through each cup scene's tactile
-#      stages, scripts/fit_reference_policy.py fits the latent -> stiffness readouts and exports
-#      them to ONNX (~1-2 min on 2 cores; only when its inputs changed)
+#   6. the touch projector in .build/models/touch: `unitac dataset touch` pairs what the camera and
+#      the sensor tell before contact with the encoder's latent of the touch (training and unseen
+#      objects, GelSight Mini and DIGIT), models/train_projector.py trains the rectified-flow
+#      projector, evaluates it on the unseen objects (eval.json) and fits the pooled-latent
+#      stiffness readout (~5 min on 2 cores; only when its inputs changed)
+#   7. the reference policy in .build/models/policy: `unitac demos` records the scripted expert
+#      on training cups (and on unseen cups, scored only) through the vtla_real scene's tactile
+#      stages, scripts/fit_reference_policy.py fits the latent -> stiffness readout and exports
+#      it to ONNX (~1 min on 2 cores; only when its inputs changed)
 # Each step keeps a stamp of its inputs and is skipped when they did not change, so a re-run with
 # nothing changed takes a couple of seconds.
 set -euo pipefail
@@ -156,27 +161,49 @@ if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS
   mv "$MODELS/reference.tmp" "$MODELS/reference"
   echo "$models_key" >"$MODELS/.stamp"
 fi
-# --- 6. reference policies --------------------------------------------------------------------
+# --- 6. touch projector -----------------------------------------------------------------------
+# The camera's values and sensor prior of training objects before contact, with the encoder's
+# latent of their touch, on two sensors (`unitac dataset touch`); models/train_projector.py
+# trains the rectified-flow projector on the training split, evaluates it on the unseen split
+# and writes the bundle (encoder + projector + the pooled-latent stiffness readout).
+TOUCH="$MODELS/touch"
+touch_inputs=(models/train_projector.py Cargo.lock crates/cli/src/touch_dataset.rs crates/cli/src/dataset.rs
+  launch/scenes/cup_deformation_vtla_real.yaml objects/split.yaml
+  $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
+touch_key="$(hash_of "${touch_inputs[@]}" "$MODELS/.stamp")"
+if [ "$(cat "$TOUCH/.stamp" 2>/dev/null)" != "$touch_key" ] || [ ! -f "$TOUCH/manifest.json" ]; then
+  log "touch projector: touch dataset of training and unseen objects, training (~5 min on 2 cores)"
+  cargo build --release --locked -q -p unitac-cli
+  rm -rf "$TOUCH.tmp" && mkdir -p "$TOUCH.tmp/data"
+  for s in gelsight-mini digit; do
+    target/release/unitac dataset touch --split train --seeds 1,2,3 --trials 20 --sensor "$s" \
+      --out "$TOUCH.tmp/data/train-$s" >&2
+    target/release/unitac dataset touch --split unseen --seeds 101,102,103 --trials 20 --sensor "$s" \
+      --out "$TOUCH.tmp/data/unseen-$s" >&2
+  done
+  "$VENV/bin/python" models/train_projector.py --train "$TOUCH.tmp"/data/train-*/touch.json \
+    --unseen "$TOUCH.tmp"/data/unseen-*/touch.json --reference "$MODELS/reference" --out "$TOUCH.tmp" >/dev/null
+  rm -rf "$TOUCH.tmp/data" "$TOUCH"
+  mv "$TOUCH.tmp" "$TOUCH"
+  echo "$touch_key" >"$TOUCH/.stamp"
+fi
+# --- 7. reference policies --------------------------------------------------------------------
 POLICIES="$MODELS/policy"
 policy_inputs=(scripts/fit_reference_policy.py Cargo.lock launch/scenes/cup_deformation_vtla_real.yaml
-  launch/scenes/cup_deformation_vtla_pred.yaml crates/cli/src/demos.rs
+  crates/cli/src/demos.rs
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
 policy_key="$(hash_of "${policy_inputs[@]}" "$MODELS/.stamp")"
-if [ "$(cat "$POLICIES/.stamp" 2>/dev/null)" != "$policy_key" ] || [ ! -f "$POLICIES/cup_stiffness_pred/manifest.json" ]; then
-  log "policies: expert demonstrations on training cups, fitting the stiffness readouts"
+if [ "$(cat "$POLICIES/.stamp" 2>/dev/null)" != "$policy_key" ] || [ ! -f "$POLICIES/cup_stiffness_real/manifest.json" ]; then
+  log "policies: expert demonstrations on training cups, fitting the stiffness readout"
   cargo build --release --locked -q -p unitac-cli
   rm -rf "$POLICIES.tmp"
   mkdir -p "$POLICIES.tmp"
-  for m in real pred; do
-    demos="$POLICIES.tmp/demos/$m"
-    target/release/unitac demos --scene cup_deformation_vtla_$m --split train --seeds 1,2,3 --trials 20 --out "$demos/train" >&2
-    target/release/unitac demos --scene cup_deformation_vtla_$m --split unseen --seeds 101,102 --trials 10 --out "$demos/unseen" >&2
-    src=real
-    [ "$m" = real ] || src=predicted
-    "$VENV/bin/python" scripts/fit_reference_policy.py --train "$demos/train/demos.json" \
-      --eval "$demos/unseen/demos.json" --source "$src" --name "cup_stiffness_$m" \
-      --out "$POLICIES.tmp/cup_stiffness_$m" >/dev/null
-  done
+  demos="$POLICIES.tmp/demos"
+  target/release/unitac demos --scene cup_deformation_vtla_real --split train --seeds 1,2,3 --trials 20 --out "$demos/train" >&2
+  target/release/unitac demos --scene cup_deformation_vtla_real --split unseen --seeds 101,102 --trials 10 --out "$demos/unseen" >&2
+  "$VENV/bin/python" scripts/fit_reference_policy.py --train "$demos/train/demos.json" \
+    --eval "$demos/unseen/demos.json" --source real --name cup_stiffness_real \
+    --out "$POLICIES.tmp/cup_stiffness_real" >/dev/null
   rm -rf "$POLICIES.tmp/demos" "$POLICIES"
   mv "$POLICIES.tmp" "$POLICIES"
   echo "$policy_key" >"$POLICIES/.stamp"

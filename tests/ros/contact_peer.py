@@ -13,6 +13,8 @@
                                     {"until": {...}} arrived (then 0.5 s more) or SECONDS passed;
                                     {"wait_for": [topics]} publishers to discover first;
                                     {"compressed": true} images from NS/image_raw/compressed;
+                                    {"visual": {"names": [...], "values": [...]}} publish that
+                                    VisualObservation on NS/visual_observation at 5 Hz (a camera);
                                     {"stop_pid", "stop_after", "stop_seconds"} stall a process
                                     (SIGSTOP/SIGCONT) meanwhile; print a summary
   contact_peer.py slow NS SECONDS DELAY
@@ -31,7 +33,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from diagnostic_msgs.msg import DiagnosticArray
 from sensor_msgs.msg import CompressedImage, Image
 from rosgraph_msgs.msg import Clock
-from unitac_msgs.msg import (ContactClip, ContactEpisode, ContactState, PropertyComparison,
+from unitac_msgs.msg import (ContactClip, ContactEpisode, ContactState, PropertyComparison, VisualObservation,
                              TactileLatent, TactileProperties)
 
 
@@ -68,7 +70,8 @@ def collect(node, ns):
     latched = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     sub(TactileLatent, ns + "/tactile_latent", lambda m: got["latents"].append(
         {"source": m.source, "shape": list(m.shape), "n": len(m.data), "valid": m.valid,
-         "solver": m.solver, "steps": m.steps, "guidance": m.guidance,
+         "solver": m.solver, "steps": m.steps, "guidance": m.guidance, "object": m.object,
+         "condition_sources": list(m.condition_sources), "condition_age_s": list(m.condition_age_s),
          "finite": bool(np.all(np.isfinite(np.asarray(m.data, dtype=np.float32)))),
          "stamp": stamp_ns(m.header)}), latched)
     sub(DiagnosticArray, "/diagnostics", lambda m: got["diag"].extend(
@@ -129,7 +132,7 @@ def summary(got):
 
 
 def listen(ns, seconds, until, stop_pid=0, stop_after=0, stop_seconds=0.0,
-           wait_for=("/contact_state", "/contact_episode"), compressed=False):
+           wait_for=("/contact_state", "/contact_episode"), compressed=False, visual=None):
     """Collect until every count in `until` (e.g. {"episodes": 2}) is reached (then 0.5 s more)
     or `seconds` passed. With stop_pid: after `stop_after` images, SIGSTOP that process for
     `stop_seconds` (a stalled subscriber), then SIGCONT; the window goes into the summary."""
@@ -150,6 +153,16 @@ def listen(ns, seconds, until, stop_pid=0, stop_after=0, stop_seconds=0.0,
         node.create_subscription(CompressedImage, ns + "/image_raw/compressed", on_image, qos_profile_sensor_data)
     else:
         node.create_subscription(Image, ns + "/image_raw", on_image, qos_profile_sensor_data)
+    if visual:
+        cam = node.create_publisher(VisualObservation, ns + "/visual_observation", 10)
+
+        def tick():
+            m = VisualObservation()
+            m.header.stamp = node.get_clock().now().to_msg()
+            m.header.frame_id = "camera"
+            m.names, m.values = list(visual["names"]), [float(v) for v in visual["values"]]
+            cam.publish(m)
+        node.create_timer(0.2, tick)
     end = time.monotonic() + seconds
     stopped = None
     while time.monotonic() < end:
@@ -200,7 +213,7 @@ def main():
         return listen(sys.argv[2], float(sys.argv[3]), opts.get("until", {}),
                       opts.get("stop_pid", 0), opts.get("stop_after", 0), opts.get("stop_seconds", 0.0),
                       opts.get("wait_for", ("/contact_state", "/contact_episode")),
-                      opts.get("compressed", False))
+                      opts.get("compressed", False), opts.get("visual"))
     finally:
         rclpy.try_shutdown()
 

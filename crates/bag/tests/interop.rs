@@ -230,6 +230,9 @@ fn fixture() -> Written {
             elapsed_s: 0.015625,
             valid: true,
             guard_report: String::new(),
+            object: String::new(),
+            condition_sources: Vec::new(),
+            condition_age_s: Vec::new(),
         },
         cmd: GripperCommand {
             header: header(t + 5),

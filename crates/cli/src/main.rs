@@ -18,6 +18,7 @@ mod progress;
 mod replay;
 mod sampler;
 mod slip_eval;
+mod touch_dataset;
 mod trials;
 
 use anyhow::Context;
@@ -182,7 +183,11 @@ enum Cmd {
         #[arg(long, default_value_t = 5)]
         repeat: usize,
     },
-    /// Write a training set for the reference models: `dataset fabrics --out DIR`.
+    /// Write a training set: `dataset fabrics --out DIR` (mock presses on fabrics with known
+    /// properties, for the property head: --train, --test, --seed) or `dataset touch --split S
+    /// --seeds 1,2 --trials N --sensor K --out DIR` (the camera's values and the sensor prior of
+    /// cups and fabrics before contact, with the encoder's latent of their touch, for the touch
+    /// projector).
     Dataset {
         what: DatasetTarget,
         #[arg(long)]
@@ -193,6 +198,14 @@ enum Cmd {
         test: usize,
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        #[arg(long, value_enum, default_value = "train")]
+        split: DemoSplit,
+        #[arg(long, value_delimiter = ',', default_value = "1")]
+        seeds: Vec<u64>,
+        #[arg(long, default_value_t = 10)]
+        trials: u32,
+        #[arg(long, default_value = "gelsight-mini")]
+        sensor: String,
     },
     /// Cup demonstrations of the scripted expert with what a policy could observe, through the
     /// scene's tactile stages: `demos --scene S --split train --seeds 1,2,3 --trials 10 --out DIR`.
@@ -247,15 +260,25 @@ enum EvalTarget {
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum DemoSplit {
-    /// The training cups (60, 65, 70 mm).
+    /// The training objects of objects/split.yaml.
     Train,
-    /// The unseen cup (90 mm).
+    /// The unseen objects of objects/split.yaml.
     Unseen,
+}
+
+impl From<DemoSplit> for unitac_sim::task::Split {
+    fn from(s: DemoSplit) -> Self {
+        match s {
+            DemoSplit::Train => unitac_sim::task::Split::Train,
+            DemoSplit::Unseen => unitac_sim::task::Split::Unseen,
+        }
+    }
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum DatasetTarget {
     Fabrics,
+    Touch,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -660,22 +683,31 @@ fn main() -> ExitCode {
             train,
             test,
             seed,
+            ..
         } => dataset::fabrics(&out, train, test, seed).map(|()| true),
+        Cmd::Dataset {
+            what: DatasetTarget::Touch,
+            out,
+            split,
+            seeds,
+            trials,
+            sensor,
+            ..
+        } => sensor
+            .parse::<unitac_core::SensorKind>()
+            .map_err(|e| anyhow::Error::new(ConfigError(e.to_string())))
+            .and_then(|kind| touch_dataset::touch(split.into(), &seeds, trials, kind, &out))
+            .and_then(emit)
+            .map(|()| true),
         Cmd::Demos {
             scene,
             split,
             seeds,
             trials,
             out,
-        } => {
-            let split = match split {
-                DemoSplit::Train => unitac_sim::task::Split::Train,
-                DemoSplit::Unseen => unitac_sim::task::Split::Unseen,
-            };
-            demos::demos(&scene, split, &seeds, trials, &out)
-                .and_then(emit)
-                .map(|()| true)
-        }
+        } => demos::demos(&scene, split.into(), &seeds, trials, &out)
+            .and_then(emit)
+            .map(|()| true),
         Cmd::Devices { json } => {
             let root = std::env::var_os("UNITAC_SYSFS_ROOT")
                 .map(PathBuf::from)

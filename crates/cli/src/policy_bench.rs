@@ -153,6 +153,9 @@ impl Script {
             data: vec![0.1; n],
             valid: true,
             guard_report: String::new(),
+            object: String::new(),
+            condition_sources: Vec::new(),
+            condition_age_s: Vec::new(),
             ..samples::tactile_latent()
         })
     }

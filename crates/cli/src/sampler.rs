@@ -1,8 +1,12 @@
 //! `unitac report sampler` and `unitac bench sampler`: error against run time of the flow
-//! sampler (Euler / midpoint / Heun x steps x guidance) on the reference bundle's two velocity
-//! models: the analytic Gaussian (error against the exact solution) and the small transformer
-//! (error against a 1024-step Heun reference), with guards off so failures show as errors; the
-//! guard verdict is reported beside each row.
+//! sampler (Euler / midpoint / Heun x steps x guidance) on two velocity models: the reference
+//! bundle's analytic Gaussian (error against the exact solution) and the trained touch projector
+//! (the touch bundle's, error against a 1024-step Heun reference) on an unseen cup's condition
+//! (its camera values in the task world, the sensor prior of a mock GelSight Mini), with guards off
+//! so failures show as errors; the guard verdict is reported beside each row. The bench also times
+//! the two guidance branches as one batch-2 call against two calls, on the projector and on the
+//! reference bundle's random-weight transformer (a timing fixture of the paper's DiT shape),
+//! interleaved over several rounds, with the spread of the ratio.
 
 use anyhow::Context;
 use serde::Serialize;
@@ -15,7 +19,9 @@ use unitac_infer::{Bundle, RuntimeConfig};
 use unitac_plot::{self as plot, Axis, Chart, Figure, LegendEntry, Marker, PALETTE, Series};
 
 pub const STEPS: [u32; 6] = [4, 8, 16, 32, 50, 64];
-pub const GUIDANCE: [f64; 4] = [1.0, 1.5, 3.0, 7.5];
+pub const GUIDANCE: [f64; 6] = [0.0, 1.0, 1.5, 3.0, 7.5, 20.0];
+/// The trained case's name in rows and plots.
+pub const PROJECTOR: &str = "projector";
 const SEED: u64 = 17;
 /// Target sigma of the Gaussian case (>= the models' declared sigma_min of 0.1).
 const SIGMA_C: f64 = 0.2;
@@ -29,7 +35,7 @@ pub struct Row {
     pub model_calls: u32,
     /// Median wall time per sample \[us], batched guidance, one thread.
     pub time_us: f64,
-    /// RMS error of the sample against the exact (Gaussian) or fine-step (transformer) answer.
+    /// RMS error of the sample against the exact (Gaussian) or fine-step (projector) answer.
     pub error: f64,
     /// What the guards would say: "ok", or the start of their report.
     pub guard: String,
@@ -43,57 +49,108 @@ struct Case {
     mu: Vec<f32>,
 }
 
-fn bundle_dir() -> anyhow::Result<PathBuf> {
-    let models = std::env::var_os("UNITAC_MODELS")
+fn models_dir() -> anyhow::Result<PathBuf> {
+    std::env::var_os("UNITAC_MODELS")
         .map(PathBuf::from)
-        .context("UNITAC_MODELS is not set (use scripts/unitac)")?;
-    Ok(models.join("reference"))
+        .context("UNITAC_MODELS is not set (use scripts/unitac)")
 }
 
-fn cases() -> anyhow::Result<Vec<Case>> {
+fn bundle_dir() -> anyhow::Result<PathBuf> {
+    Ok(models_dir()?.join("reference"))
+}
+
+/// The Gaussian case: prior N(0, 1), conditional N(mu, SIGMA_C^2).
+fn gaussian_case() -> anyhow::Result<Case> {
     let b = Bundle::open(&bundle_dir()?)?;
-    let mut ms = b
-        .load(
-            &["velocity_gaussian", "velocity"],
-            &RuntimeConfig::default(),
-        )?
-        .into_iter();
-    let (Some(g), Some(t)) = (ms.next(), ms.next()) else {
-        anyhow::bail!("models missing")
-    };
-    let (g, t) = (OnnxVelocity::new(g)?, OnnxVelocity::new(t)?);
+    let g = b
+        .load(&["velocity_gaussian"], &RuntimeConfig::default())?
+        .into_iter()
+        .next()
+        .context("velocity_gaussian missing")?;
+    let g = OnnxVelocity::new(g)?;
     use unitac_infer::flow::Velocity;
     let d = g.dim();
     let mu: Vec<f32> = noise(SEED + 1, d).iter().map(|v| 0.8 * v).collect();
     let gp = vec![0.0; d + 1];
     let gc: Vec<f32> = mu.iter().copied().chain([SIGMA_C.ln() as f32]).collect();
-    // Transformer: prior = sensor only, conditional = object + sensor (SPSS layout).
+    Ok(Case {
+        name: "gaussian",
+        v: g,
+        prior: gp,
+        cond: gc,
+        mu,
+    })
+}
+
+/// The trained projector on an unseen cup: the cup the camera sees in the unseen split's first
+/// trial, the sensor prior of a mock GelSight Mini's background.
+fn projector_case() -> anyhow::Result<Case> {
+    use unitac_core::SensorKind;
+    let dir = models_dir()?.join("touch");
+    let b = Bundle::open(&dir)?;
+    let mut ms = b
+        .load(&["encoder", "velocity"], &RuntimeConfig::default())?
+        .into_iter();
+    let (Some(enc), Some(v)) = (ms.next(), ms.next()) else {
+        anyhow::bail!("{}: models missing", dir.display())
+    };
+    let v = OnnxVelocity::new(v)?;
+    let mut prior = unitac_infer::prior::SensorPrior::new(b.manifest.preprocess.clone(), enc);
+    let kind = SensorKind::GelsightMini;
+    let idle = unitac_sim::MockSensor::new(
+        unitac_sim::MockConfig::new(kind, 3),
+        unitac_sim::Scenario::idle(1.0),
+    );
+    let bg = crate::touch_dataset::background_of(idle, kind)?;
+    let z_sen = prior.of(&bg)?;
+    use unitac_sim::task::{Split, TaskConfig, TaskWorld, trial_rng};
+    let world = TaskWorld::reset(&TaskConfig::cup(Split::Unseen), 101, 0);
+    let visual =
+        unitac_trials::bridge::visual_message(&world.observe_visual(&mut trial_rng(101, 0)));
+    let (cond, prior) =
+        unitac_infer::predict::conditions(v.spec(), v.cond_dims(), "cup", &z_sen, &visual)
+            .map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok(Case {
+        name: PROJECTOR,
+        v,
+        prior,
+        cond,
+        mu: Vec::new(),
+    })
+}
+
+/// The reference bundle's random-weight transformer, for timing only (SPSS layout: prior =
+/// sensor only, conditional = object + sensor).
+fn timing_fixture_case() -> anyhow::Result<Case> {
+    let b = Bundle::open(&bundle_dir()?)?;
+    let t = b
+        .load(&["velocity_timing_fixture"], &RuntimeConfig::default())?
+        .into_iter()
+        .next()
+        .context("velocity_timing_fixture missing")?;
+    let t = OnnxVelocity::new(t)?;
+    use unitac_infer::flow::Velocity;
     let c = t.cond_dim();
     let half = (c - 1) / 2;
     let sen = noise(SEED + 2, half);
     let obj = noise(SEED + 3, half);
-    let tp: Vec<f32> = vec![0.0; half]
+    let prior: Vec<f32> = vec![0.0; half]
         .into_iter()
         .chain(sen.iter().copied())
         .chain([0.0])
         .collect();
-    let tc: Vec<f32> = obj.into_iter().chain(sen).chain([1.0]).collect();
-    Ok(vec![
-        Case {
-            name: "gaussian",
-            v: g,
-            prior: gp,
-            cond: gc,
-            mu,
-        },
-        Case {
-            name: "transformer",
-            v: t,
-            prior: tp,
-            cond: tc,
-            mu: Vec::new(),
-        },
-    ])
+    let cond: Vec<f32> = obj.into_iter().chain(sen).chain([1.0]).collect();
+    Ok(Case {
+        name: "timing fixture",
+        v: t,
+        prior,
+        cond,
+        mu: Vec::new(),
+    })
+}
+
+fn cases() -> anyhow::Result<Vec<Case>> {
+    Ok(vec![gaussian_case()?, projector_case()?])
 }
 
 fn rms(a: &[f32], b: &[f64]) -> f64 {
@@ -210,21 +267,22 @@ pub type StabilityMap = Vec<(Solver, Vec<(f64, Vec<(u32, bool)>)>)>;
 #[derive(Debug, Serialize)]
 pub struct Report {
     pub rows: Vec<Row>,
-    /// solver -> guidance -> steps -> stable (finite, error < 0.5) on the Gaussian case.
-    pub stability: StabilityMap,
+    /// Per model (Gaussian, projector): solver -> guidance -> steps -> stable (finite, error
+    /// < 0.5 against its reference).
+    pub stability: Vec<(String, StabilityMap)>,
     pub plots: Vec<PathBuf>,
 }
 
 pub const STAB_S: [f64; 6] = [1.0, 1.5, 3.0, 7.5, 20.0, 50.0];
 pub const STAB_N: [u32; 7] = [2, 4, 8, 16, 32, 64, 128];
 
-fn stability() -> anyhow::Result<StabilityMap> {
-    let mut case = cases()?.into_iter().next().context("gaussian case")?;
+/// Stable cells of `case` (finite, rms error < 0.5 against its reference).
+fn stability(case: &mut Case) -> anyhow::Result<StabilityMap> {
     let mut out = Vec::new();
     for solver in Solver::ALL {
         let mut by_s = Vec::new();
         for s in STAB_S {
-            let exact = truth(&mut case, s)?;
+            let exact = truth(case, s)?;
             let mut row = Vec::new();
             for n in STAB_N {
                 let cfg = SampleConfig {
@@ -247,15 +305,21 @@ fn stability() -> anyhow::Result<StabilityMap> {
 pub fn report(out_dir: &Path, reps: usize) -> anyhow::Result<Report> {
     std::fs::create_dir_all(out_dir).with_context(|| out_dir.display().to_string())?;
     let rows = table(reps)?;
-    let stab = stability()?;
     let p1 = out_dir.join("sampler_error_vs_time.png");
     error_vs_time(&rows).save(&p1)?;
-    let p2 = out_dir.join("sampler_stability.png");
-    stability_map(&stab).save(&p2)?;
+    let mut plots = vec![p1];
+    let mut stab = Vec::new();
+    for mut case in cases()? {
+        let map = stability(&mut case)?;
+        let p = out_dir.join(format!("sampler_stability_{}.png", case.name));
+        stability_map(case.name, &map).save(&p)?;
+        plots.push(p);
+        stab.push((case.name.to_string(), map));
+    }
     Ok(Report {
         rows,
         stability: stab,
-        plots: vec![p1, p2],
+        plots,
     })
 }
 
@@ -267,7 +331,7 @@ fn error_vs_time(rows: &[Row]) -> Figure {
     let mut fig = Figure::new(1720, 820)
         .columns(GUIDANCE.len())
         .title("flow sampler: rms error against time per sample (guards off)");
-    for model in ["gaussian", "transformer"] {
+    for model in ["gaussian", PROJECTOR] {
         for s in GUIDANCE {
             let what = if model == "gaussian" {
                 "vs exact"
@@ -301,14 +365,16 @@ fn error_vs_time(rows: &[Row]) -> Figure {
 }
 
 /// Stability map: one grid per solver, guidance (rows) x steps (columns).
-fn stability_map(stab: &StabilityMap) -> Figure {
+fn stability_map(model: &str, stab: &StabilityMap) -> Figure {
     const STABLE: plot::Rgb = [120, 200, 120];
     const UNSTABLE: plot::Rgb = [230, 110, 110];
     let cols: Vec<String> = STAB_N.iter().map(|n| n.to_string()).collect();
     let rows: Vec<String> = STAB_S.iter().map(|s| s.to_string()).collect();
     let mut fig = Figure::new(1500, 480)
         .columns(Solver::ALL.len())
-        .title("flow sampler on the Gaussian case: stable (finite, rms error < 0.5)");
+        .title(format!(
+            "flow sampler on the {model} case: stable (finite, rms error < 0.5)"
+        ));
     for (solver, by_s) in stab {
         let cells: Vec<Vec<(plot::Rgb, Option<String>)>> = by_s
             .iter()
@@ -334,7 +400,7 @@ impl Report {
         let mut s = String::from(
             "flow sampler: error against run time (guards off; 'guard' = what the guards would do)\n",
         );
-        for model in ["gaussian", "transformer"] {
+        for model in ["gaussian", PROJECTOR] {
             s += &format!(
                 "\n{model} ({})\n  s     solver    steps calls   time [us]     error   guard\n",
                 if model == "gaussian" {
@@ -356,21 +422,25 @@ impl Report {
                 );
             }
         }
-        s += "\nstability map (Gaussian, exact; S = finite and rms error < 0.5, U = not)\n";
-        for (solver, by_s) in &self.stability {
+        for (model, map) in &self.stability {
             s += &format!(
-                "  {:<9} steps {}\n",
-                solver.as_str(),
-                STAB_N.iter().map(|n| format!("{n:>4}")).collect::<String>()
+                "\nstability map ({model}; S = finite and rms error < 0.5 against its reference, U = not)\n"
             );
-            for (g, row) in by_s {
+            for (solver, by_s) in map {
                 s += &format!(
-                    "  {:<9} s={g:<4}{}\n",
-                    "",
-                    row.iter()
-                        .map(|(_, ok)| if *ok { "   S" } else { "   U" })
-                        .collect::<String>()
+                    "  {:<9} steps {}\n",
+                    solver.as_str(),
+                    STAB_N.iter().map(|n| format!("{n:>4}")).collect::<String>()
                 );
+                for (g, row) in by_s {
+                    s += &format!(
+                        "  {:<9} s={g:<4}{}\n",
+                        "",
+                        row.iter()
+                            .map(|(_, ok)| if *ok { "   S" } else { "   U" })
+                            .collect::<String>()
+                    );
+                }
             }
         }
         for p in &self.plots {
@@ -391,14 +461,66 @@ pub struct VersusEuler50 {
     pub best_time_ratio: Option<f64>,
 }
 
+/// Both guidance branches in one batch-2 call against two calls, Heun-16 at s = 1.5 on one
+/// model: medians of `rounds` interleaved rounds and the ratio's range over the rounds.
+#[derive(Debug, Serialize)]
+pub struct Batching {
+    pub model: String,
+    pub rounds: usize,
+    pub batched_us: f64,
+    pub two_calls_us: f64,
+    /// two calls / one batch-2 call: median and range over the rounds.
+    pub speedup: f64,
+    pub speedup_min: f64,
+    pub speedup_max: f64,
+}
+
 #[derive(Debug, Serialize)]
 pub struct Bench {
     pub versus_euler50: Vec<VersusEuler50>,
-    /// Heun-16 at s = 1.5 on the transformer: both guidance branches in one batch-2 call, or two.
-    pub batched_us: f64,
-    pub two_calls_us: f64,
-    pub batched_speedup: f64,
+    pub batching: Vec<Batching>,
     pub encoder_properties_us: f64,
+}
+
+/// Rounds of the batching comparison (each times both forms `reps` times, alternating).
+pub const BATCH_ROUNDS: usize = 7;
+
+fn batching(case: &mut Case, reps: usize) -> anyhow::Result<Batching> {
+    let heun16 = SampleConfig {
+        solver: Solver::Heun,
+        steps: 16,
+        guidance: 1.5,
+        seed: SEED,
+        batched: true,
+    };
+    let two = SampleConfig {
+        batched: false,
+        ..heun16.clone()
+    };
+    let (mut b, mut t, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..BATCH_ROUNDS {
+        let (tb, _) = timed(case, &heun16, reps)?;
+        let (tt, _) = timed(case, &two, reps)?;
+        b.push(tb);
+        t.push(tt);
+        ratio.push(tt / tb);
+    }
+    let med = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (lo, hi) = ratio
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(l, h), &r| (l.min(r), h.max(r)));
+    Ok(Batching {
+        model: case.name.into(),
+        rounds: BATCH_ROUNDS,
+        batched_us: med(&mut b),
+        two_calls_us: med(&mut t),
+        speedup: med(&mut ratio),
+        speedup_min: lo,
+        speedup_max: hi,
+    })
 }
 
 pub fn bench(reps: usize) -> anyhow::Result<Bench> {
@@ -448,28 +570,13 @@ pub fn bench(reps: usize) -> anyhow::Result<Bench> {
             best,
         });
     }
-    let case = all.get_mut(1).context("transformer case")?;
-    let heun16 = SampleConfig {
-        solver: Solver::Heun,
-        steps: 16,
-        guidance: s,
-        seed: SEED,
-        batched: true,
-    };
-    let (batched, _) = timed(case, &heun16, reps * 4)?;
-    let (two, _) = timed(
-        case,
-        &SampleConfig {
-            batched: false,
-            ..heun16
-        },
-        reps * 4,
-    )?;
+    let mut batch = Vec::new();
+    let projector = all.get_mut(1).context("projector case")?;
+    batch.push(batching(projector, reps * 2)?);
+    batch.push(batching(&mut timing_fixture_case()?, reps * 2)?);
     Ok(Bench {
         versus_euler50: versus,
-        batched_us: batched,
-        two_calls_us: two,
-        batched_speedup: two / batched,
+        batching: batch,
         encoder_properties_us: encoder_latency(reps * 4)?,
     })
 }
@@ -508,7 +615,7 @@ impl Bench {
                 if v.model == "gaussian" {
                     "error vs the exact solution"
                 } else {
-                    "error vs Heun-1024"
+                    "trained, unseen cup, error vs Heun-1024"
                 },
                 v.euler50_error,
                 v.euler50_us
@@ -525,9 +632,21 @@ impl Bench {
                 );
             }
         }
+        for b in &self.batching {
+            s += &format!(
+                "  guidance branches (Heun-16, {}): one batch-2 call {:.0} us, two calls {:.0} us: {:.2}x (median of {} rounds, range {:.2}-{:.2}x)\n",
+                b.model,
+                b.batched_us,
+                b.two_calls_us,
+                b.speedup,
+                b.rounds,
+                b.speedup_min,
+                b.speedup_max
+            );
+        }
         s += &format!(
-            "  guidance branches (Heun-16, transformer): one batch-2 call {:.0} us, two calls {:.0} us: {:.2}x\n  encoder + property head per episode: {:.0} us\n",
-            self.batched_us, self.two_calls_us, self.batched_speedup, self.encoder_properties_us
+            "  encoder + property head per episode: {:.0} us\n",
+            self.encoder_properties_us
         );
         s
     }

@@ -191,7 +191,7 @@ fn scene_error(name: &str, text: &str, needle: &str) {
 #[test]
 fn bad_configuration_is_one_line_exit_2() {
     const SRC: &str = "scene: fabric_selection\nsource: {kind: mock, seed: 7}\n";
-    let models = "models:\n  unitac: ${UNITAC_MODELS}/reference/manifest.json\n";
+    let models = "models:\n  unitac: ${UNITAC_MODELS}/touch/manifest.json\n";
     scene_error(
         "debounce",
         &format!(
@@ -222,13 +222,14 @@ fn bad_configuration_is_one_line_exit_2() {
         "encoder consumes the output of a contact stage, which must come before it",
     );
     for (name, params, needle) in [
+        ("nan", "guidance: .nan", "guidance must be in [0, 100]"),
         (
-            "nan",
-            "condition: [.nan, .inf, 0.5]",
-            "condition [NaN, inf, 0.5]",
+            "objects",
+            "objects: [bottle]",
+            "object 'bottle' is of category 'bottle'",
         ),
         ("budget", "budget_ms: 1e308", "budget_ms 1e308 is outside"),
-        ("cuda", "provider: cuda", "provider cuda is not available"),
+        ("cuda", "providers: cuda", "provider cuda is not available"),
     ] {
         scene_error(
             name,

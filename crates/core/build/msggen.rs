@@ -22,6 +22,12 @@ pub const ENUM_NAMES: &[(&str, &str, &str)] = &[
 /// Sequence bounds tighter than the CDR reader's default (a `const` of `unitac_core::msg`).
 pub const BOUNDS: &[(&str, &str, &str)] = &[
     ("TactileLatent", "shape", "MAX_LATENT_DIMS"),
+    (
+        "TactileLatent",
+        "condition_sources",
+        "MAX_CONDITION_SOURCES",
+    ),
+    ("TactileLatent", "condition_age_s", "MAX_CONDITION_SOURCES"),
     ("VisualObservation", "names", "MAX_VISUAL_VALUES"),
     ("VisualObservation", "values", "MAX_VISUAL_VALUES"),
 ];

@@ -64,6 +64,8 @@ impl Header {
 
 /// Most dimensions in a TactileLatent's shape.
 pub const MAX_LATENT_DIMS: usize = 16;
+/// Most condition sources a predicted TactileLatent names.
+pub const MAX_CONDITION_SOURCES: usize = 16;
 /// Most named values in a VisualObservation.
 pub const MAX_VISUAL_VALUES: usize = 64;
 
@@ -98,6 +100,10 @@ pub enum MsgError {
     NamesValues { names: usize, values: usize },
     #[error("{0} named values (at most {MAX_VISUAL_VALUES})")]
     TooManyValues(usize),
+    #[error(
+        "{sources} condition sources but {ages} ages (they pair up one to one, at most {MAX_CONDITION_SOURCES})"
+    )]
+    ConditionSources { sources: usize, ages: usize },
 }
 
 /// A wire value that is none of an enum's constants.
@@ -125,6 +131,14 @@ impl TactileLatent {
                 shape: self.shape.clone(),
                 needs,
                 data: self.data.len(),
+            });
+        }
+        if self.condition_sources.len() != self.condition_age_s.len()
+            || self.condition_sources.len() > MAX_CONDITION_SOURCES
+        {
+            return Err(MsgError::ConditionSources {
+                sources: self.condition_sources.len(),
+                ages: self.condition_age_s.len(),
             });
         }
         Ok(())

@@ -46,9 +46,46 @@ pub struct ModelSpec {
     /// Velocity models: smallest target sigma they represent (sets the s*h guard).
     #[serde(default)]
     pub sigma_min: Option<f64>,
+    /// Velocity models a sampler stage runs: what each condition input carries, in the model's
+    /// input order after `x` and `t` (empty: the model is only timed, never run by a stage).
+    #[serde(default)]
+    pub condition: Vec<ConditionSpec>,
+    /// Velocity models: the latent a sample stands for, `offset + scale * x` per element, and
+    /// the shape it is published with (empty: the sample itself, as [1, D]).
+    #[serde(default)]
+    pub latent_offset: Vec<f32>,
+    #[serde(default)]
+    pub latent_scale: Vec<f32>,
+    #[serde(default)]
+    pub latent_shape: Vec<u32>,
     /// Anything else the generator recorded (fit statistics, ...).
     #[serde(flatten)]
     pub extra: BTreeMap<String, serde_json::Value>,
+}
+
+/// Where a velocity model's condition input comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ConditionSource {
+    /// The object-level condition of one object: `fields` in order, each either
+    /// `category:<name>` (1 when the object is of that category, else 0) or a camera value of
+    /// the object (`<field>` read as `<object>_<field>` from the VisualObservation; 0 when the
+    /// camera has no such value for it). All zeros is the unconditional branch.
+    Object,
+    /// The sensor-level condition: the mean of the encoder's sensor tokens of the background.
+    SensorTokens,
+}
+
+/// One condition input of a velocity model.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConditionSpec {
+    /// The model's input name.
+    pub input: String,
+    pub source: ConditionSource,
+    /// `object`: what each value is (see [`ConditionSource::Object`]).
+    #[serde(default)]
+    pub fields: Vec<String>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -324,6 +361,10 @@ impl Bundle {
 impl Model {
     /// Run with float32 inputs given in the manifest's input order as (shape, data); returns
     /// float32 outputs in the manifest's output order as (shape, data). Output sizes are bounded.
+    /// The execution provider the model runs on.
+    pub fn provider(&self) -> crate::runtime::ExecutionProvider {
+        self.session.provider()
+    }
     pub fn run(&mut self, inputs: &[(&[i64], &[f32])]) -> Result<Vec<TensorF32>, InferError> {
         if inputs.len() != self.spec.inputs.len() {
             return Err(InferError::Model {

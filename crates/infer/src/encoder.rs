@@ -158,6 +158,9 @@ impl Stage for EncoderStage {
             elapsed_s: elapsed,
             valid: true,
             guard_report: String::new(),
+            object: String::new(),
+            condition_sources: Vec::new(),
+            condition_age_s: Vec::new(),
         };
         let props = TactileProperties {
             header,

@@ -65,12 +65,15 @@ pub trait Velocity {
     ) -> Result<Vec<f32>, InferError>;
 }
 
-/// A velocity model from a bundle, adapted to the sampler's time convention.
+/// A velocity model from a bundle, adapted to the sampler's time convention. Its inputs are
+/// `x [batch, D]`, `t [batch, 1]` and one or more condition inputs `[batch, C_i]`; the sampler
+/// sees one condition of `sum C_i` values per row, split over the inputs in their order.
 #[derive(Debug)]
 pub struct OnnxVelocity {
     model: Model,
     dim: usize,
-    cond_dim: usize,
+    /// Width of each condition input, in input order.
+    cond_dims: Vec<usize>,
     /// The model was trained with t' = 1 - tau as noise: feed 1 - tau and negate.
     flipped: bool,
     pub sigma_min: f64,
@@ -82,13 +85,17 @@ impl OnnxVelocity {
             model: model.name.clone(),
             msg: m.to_string(),
         };
+        let shape_err = "inputs must be x [batch, D], t [batch, 1] and condition inputs [batch, C] with fixed D and C";
         let fixed = |i: usize| match model.spec.inputs.get(i).and_then(|t| t.shape.get(1)) {
             Some(crate::bundle::Dim::Fixed(v)) if *v > 0 && *v <= 1 << 20 => Ok(*v as usize),
-            _ => Err(err(
-                "inputs must be x [batch, D], t [batch, 1], cond [batch, C] with fixed D and C",
-            )),
+            _ => Err(err(shape_err)),
         };
-        let (dim, cond_dim) = (fixed(0)?, fixed(2)?);
+        let dim = fixed(0)?;
+        let n = model.spec.inputs.len();
+        if n < 3 {
+            return Err(err(shape_err));
+        }
+        let cond_dims = (2..n).map(fixed).collect::<Result<Vec<_>, _>>()?;
         let flipped = match model.spec.time_convention.as_deref() {
             Some("tau_data_at_1") | None => false,
             Some("tau_noise_at_1") => true,
@@ -101,13 +108,21 @@ impl OnnxVelocity {
         Ok(Self {
             model,
             dim,
-            cond_dim,
+            cond_dims,
             flipped,
             sigma_min,
         })
     }
     pub fn id(&self) -> &str {
         &self.model.id
+    }
+    /// The model's manifest entry (condition sources, latent map).
+    pub fn spec(&self) -> &crate::bundle::ModelSpec {
+        &self.model.spec
+    }
+    /// Width of each condition input, in input order.
+    pub fn cond_dims(&self) -> &[usize] {
+        &self.cond_dims
     }
 }
 
@@ -116,7 +131,7 @@ impl Velocity for OnnxVelocity {
         self.dim
     }
     fn cond_dim(&self) -> usize {
-        self.cond_dim
+        self.cond_dims.iter().sum()
     }
     fn eval(
         &mut self,
@@ -126,16 +141,37 @@ impl Velocity for OnnxVelocity {
         batch: usize,
     ) -> Result<Vec<f32>, InferError> {
         let b = batch as i64;
+        let c = self.cond_dim();
+        if x.len() != batch * self.dim || t.len() != batch || cond.len() != batch * c {
+            return Err(InferError::Input(format!(
+                "velocity: {} states, {} times, {} condition values for batch {batch} (D {}, C {c})",
+                x.len(),
+                t.len(),
+                cond.len(),
+                self.dim
+            )));
+        }
         let tt: Vec<f32> = if self.flipped {
             t.iter().map(|v| 1.0 - v).collect()
         } else {
             t.to_vec()
         };
-        let outs = self.model.run(&[
-            (&[b, self.dim as i64], x),
-            (&[b, 1], &tt),
-            (&[b, self.cond_dim as i64], cond),
-        ])?;
+        // Each condition input's columns of every row.
+        let mut parts: Vec<Vec<f32>> = Vec::with_capacity(self.cond_dims.len());
+        let mut at = 0;
+        for &w in &self.cond_dims {
+            let mut p = Vec::with_capacity(batch * w);
+            for r in 0..batch {
+                p.extend_from_slice(&cond[r * c + at..r * c + at + w]);
+            }
+            parts.push(p);
+            at += w;
+        }
+        let shapes: Vec<[i64; 2]> = self.cond_dims.iter().map(|&w| [b, w as i64]).collect();
+        let (xs, ts) = ([b, self.dim as i64], [b, 1]);
+        let mut inputs: Vec<(&[i64], &[f32])> = vec![(&xs, x), (&ts, &tt)];
+        inputs.extend(shapes.iter().zip(&parts).map(|(s, p)| (&s[..], &p[..])));
+        let outs = self.model.run(&inputs)?;
         let (_, mut v) = outs.into_iter().next().ok_or_else(|| InferError::Output {
             model: self.model.name.clone(),
             msg: "no output".into(),

@@ -6,6 +6,9 @@
 //! - [`preprocess`]: clip frames -> encoder tensors, as the manifest says.
 //! - [`encoder`]: touch encoder + property head on contact-episode clips.
 //! - [`compare`]: Property Comparison between touched objects.
+//! - [`prior`]: the sensor-level condition (the encoder's sensor tokens of the background).
+//! - [`condition`]: the object-level condition (category and camera values of one object).
+//! - [`predict`]: the sampler stage: a predicted tactile latent per object before contact.
 //! - [`flow`]: rectified-flow sampling with sensor-prior guidance (SPSS), guards, exact Gaussian
 //!   oracle.
 //!
@@ -15,10 +18,12 @@
 
 pub mod bundle;
 pub mod compare;
+pub mod condition;
 pub mod encoder;
 pub mod flow;
 pub mod predict;
 pub mod preprocess;
+pub mod prior;
 pub mod runtime;
 
 pub use bundle::{Bundle, Manifest, ModelSpec};

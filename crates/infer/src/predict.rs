@@ -1,20 +1,35 @@
-//! The sampler stage (VTLA-pred): a predicted `TactileLatent` without live touch.
+//! The sampler stage (VTLA-pred): a predicted `TactileLatent` per object, before touching it.
 //!
-//! When the contact stage announces its background (the non-contact frame), the encoder's sensor
-//! tokens of that frame become Z_sen. The stage then samples a latent with sensor-prior guidance:
-//! prior branch conditioned on [0 | Z_sen | 0], conditional branch on [object | Z_sen | 1], where
-//! `object` carries the scene's target properties. The latent is published with its solver, steps,
-//! guidance, compute time and the guards' verdict; a latent that failed a guard has valid = false.
+//! The condition is built from messages that exist before contact, as the velocity model's
+//! manifest names them (`condition`, one entry per condition input):
+//! - `object`: the object-level condition of one object (its category and the camera's values
+//!   for it, [`crate::condition`]) from the latest VisualObservation;
+//! - `sensor_tokens`: Z_sen, the encoder's sensor tokens of the contact stage's background
+//!   ([`crate::prior`]).
+//!
+//! Once both have arrived, the stage samples one latent per object of its `objects` with
+//! sensor-prior guidance (SPSS): the prior branch is conditioned on the sensor alone (object
+//! values zero), the conditional branch on both. The sample is mapped to the encoder's latent
+//! space by the manifest's `latent_offset`/`latent_scale` and published with its object, solver,
+//! steps, guidance, compute time, the guards' verdict (valid = false if one failed) and its
+//! condition's provenance (the messages it came from and their ages). A new background (the
+//! sensor changed) predicts again.
 
-use crate::bundle::{Bundle, Model};
+use crate::bundle::{Bundle, ConditionSource, ModelSpec};
+use crate::condition::object_condition;
 use crate::flow::{Guards, OnnxVelocity, SampleConfig, Solver, Velocity, sample};
-use crate::preprocess::Preprocess;
+use crate::prior::SensorPrior;
 use crate::runtime::{InferError, RuntimeConfig};
 use serde::Deserialize;
 use std::path::Path;
 use std::time::Instant;
-use unitac_core::msg::{Header, LatentSource, TactileLatent};
-use unitac_core::{Clock, Frame, Msg, Stage, StageError};
+use unitac_core::msg::{Header, LatentSource, TactileLatent, VisualObservation};
+use unitac_core::{Clock, Msg, Stage, StageError, Stamp};
+
+/// Most objects one sampler stage predicts for.
+pub const MAX_OBJECTS: usize = 8;
+/// Most samples averaged per object.
+pub const MAX_SAMPLES: u32 = 64;
 
 #[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields, default)]
@@ -24,8 +39,12 @@ pub struct SamplerParams {
     /// SPSS guidance scale s (paper: 1.5).
     pub guidance: f64,
     pub seed: u64,
-    /// Target (hardness, roughness, texture) of the object whose touch is predicted, 0..1.
-    pub condition: [f32; 3],
+    /// The camera objects to predict a latent for (names as in the VisualObservation, e.g.
+    /// `cup`, `fabric_a`); each gets its own latent.
+    pub objects: Vec<String>,
+    /// Seeded samples per object; the published latent is their mean (a point estimate for
+    /// readouts; 1: the sample itself). Object i's sample k is seeded `seed + i * samples + k`.
+    pub samples: u32,
     /// Pick solver and steps to fit this compute budget per latent \[ms] instead (live use: the
     /// choice depends on the measured model-call time, so it is not for byte-exact replays).
     pub budget_ms: Option<f64>,
@@ -40,13 +59,13 @@ impl Default for SamplerParams {
             steps: 16,
             guidance: 1.5,
             seed: 0,
-            condition: [0.5; 3],
+            objects: vec!["cup".into()],
+            samples: 1,
             budget_ms: None,
             runtime: RuntimeConfig::default(),
         }
     }
 }
-
 /// Solver and steps for a budget, from the measured cost of one guided model call. Rule from the
 /// error-vs-time table (`unitac report sampler`): a second-order solver is more accurate per unit
 /// time from 4 steps on as long as s h <= 4 sigma_min; below that, Euler with as many steps as
@@ -80,14 +99,56 @@ pub fn choose_for_budget(
 /// Largest compute budget per latent a scene may ask for \[ms].
 pub const MAX_BUDGET_MS: f64 = 60_000.0;
 
+/// The conditional and the prior (sensor-only) conditions of `object` for a velocity model whose
+/// manifest entry is `spec` and whose condition inputs are `dims` wide: flat, in input order.
+pub fn conditions(
+    spec: &ModelSpec,
+    dims: &[usize],
+    object: &str,
+    z_sen: &[f32],
+    visual: &VisualObservation,
+) -> Result<(Vec<f32>, Vec<f32>), StageError> {
+    let (mut cond, mut prior) = (Vec::new(), Vec::new());
+    for (c, &w) in spec.condition.iter().zip(dims) {
+        match c.source {
+            ConditionSource::Object => {
+                let v = object_condition(&c.fields, object, visual)
+                    .map_err(|e| StageError::BadInput(e.to_string()))?;
+                prior.extend(std::iter::repeat_n(0.0, v.len()));
+                cond.extend(v);
+            }
+            ConditionSource::SensorTokens => {
+                if z_sen.len() != w {
+                    return Err(StageError::Model(format!(
+                        "sensor prior has {} values, the velocity model's {} takes {w}",
+                        z_sen.len(),
+                        c.input
+                    )));
+                }
+                prior.extend_from_slice(z_sen);
+                cond.extend_from_slice(z_sen);
+            }
+        }
+    }
+    Ok((cond, prior))
+}
+
+/// What the stage holds until it samples.
+#[derive(Debug, Default)]
+struct Inputs {
+    /// Z_sen and the background's stamp and sensor.
+    sensor: Option<(Vec<f32>, Stamp, String)>,
+    visual: Option<VisualObservation>,
+}
+
 #[derive(Debug)]
 pub struct SamplerStage {
     p: SamplerParams,
     cfg: SampleConfig,
-    pre: Preprocess,
-    encoder: Model,
+    prior: SensorPrior,
     velocity: OnnxVelocity,
     shape: Vec<u32>,
+    inputs: Inputs,
     predicted: bool,
 }
 
@@ -104,10 +165,16 @@ impl SamplerStage {
                 "guidance must be in [0, 100] and steps in 1..=10000".into()
             ));
         }
-        if !p.condition.iter().all(|c| (0.0..=1.0).contains(c)) {
+        if p.objects.is_empty() || p.objects.len() > MAX_OBJECTS {
             return Err(bad(format!(
-                "condition {:?} must be three values in [0, 1]",
-                p.condition
+                "objects: name 1 to {MAX_OBJECTS} camera objects to predict for (got {})",
+                p.objects.len()
+            )));
+        }
+        if !(1..=MAX_SAMPLES).contains(&p.samples) {
+            return Err(bad(format!(
+                "samples must be 1 to {MAX_SAMPLES} (got {})",
+                p.samples
             )));
         }
         if let Some(ms) = p.budget_ms {
@@ -126,12 +193,59 @@ impl SamplerStage {
         };
         let mut velocity = OnnxVelocity::new(vel)?;
         let d = velocity.dim();
-        let side = (d as f64).sqrt() as u32;
-        let shape = if (side * side) as usize == d {
-            vec![side, side]
-        } else {
+        let spec = velocity.spec().clone();
+        let inputs: Vec<&str> = spec
+            .inputs
+            .iter()
+            .skip(2)
+            .map(|t| t.name.as_str())
+            .collect();
+        let declared: Vec<&str> = spec.condition.iter().map(|c| c.input.as_str()).collect();
+        if inputs != declared {
+            return Err(bad(format!(
+                "velocity: its condition inputs are {inputs:?}, the manifest's `condition` describes {declared:?} (a stage needs one source per input, in order)"
+            )));
+        }
+        for (c, &w) in spec.condition.iter().zip(velocity.cond_dims()) {
+            if c.source == ConditionSource::Object && c.fields.len() != w {
+                return Err(bad(format!(
+                    "velocity: condition input {} has {w} values but {} fields",
+                    c.input,
+                    c.fields.len()
+                )));
+            }
+        }
+        for o in &p.objects {
+            let probe = VisualObservation {
+                header: Header::new(Stamp(0), ""),
+                names: Vec::new(),
+                values: Vec::new(),
+            };
+            for c in spec
+                .condition
+                .iter()
+                .filter(|c| c.source == ConditionSource::Object)
+            {
+                object_condition(&c.fields, o, &probe).map_err(|e| bad(e.to_string()))?;
+            }
+        }
+        let affine_ok =
+            |v: &[f32]| v.is_empty() || (v.len() == d && v.iter().all(|x| x.is_finite()));
+        if !affine_ok(&spec.latent_offset) || !affine_ok(&spec.latent_scale) {
+            return Err(bad(format!(
+                "velocity: latent_offset and latent_scale need {d} finite values each (or none)"
+            )));
+        }
+        let shape = if spec.latent_shape.is_empty() {
             vec![1, d as u32]
+        } else {
+            spec.latent_shape.clone()
         };
+        if shape.iter().map(|&v| v as usize).product::<usize>() != d {
+            return Err(bad(format!(
+                "velocity: latent_shape {shape:?} does not hold {d} values"
+            )));
+        }
         let mut cfg = SampleConfig {
             solver,
             steps: p.steps,
@@ -159,12 +273,12 @@ impl SamplerStage {
             cfg.steps = n;
         }
         Ok(Self {
-            pre: bundle.manifest.preprocess,
+            prior: SensorPrior::new(bundle.manifest.preprocess, encoder),
             p,
             cfg,
-            encoder,
             velocity,
             shape,
+            inputs: Inputs::default(),
             predicted: false,
         })
     }
@@ -173,32 +287,89 @@ impl SamplerStage {
         &self.cfg
     }
 
-    /// Z_sen: mean of the encoder's sensor tokens for the non-contact frame.
-    fn sensor_prior(&mut self, bg: &Frame) -> Result<Vec<f32>, StageError> {
-        let mut b = Vec::new();
-        self.pre.frame_into(bg, &mut b);
-        let clip: Vec<f32> = (0..self.pre.clip_frames)
-            .flat_map(|_| b.iter().copied())
-            .collect();
-        let (t, s) = (i64::from(self.pre.clip_frames), i64::from(self.pre.size));
-        let outs = self
-            .encoder
-            .run(&[(&[1, t, 3, s, s], &clip), (&[1, 3, s, s], &b)])
-            .map_err(|e| StageError::Model(e.to_string()))?;
-        let (shape, sen) = outs
-            .into_iter()
-            .nth(1)
-            .ok_or_else(|| StageError::Model("encoder: no sensor_tokens".into()))?;
-        let (n, w) = (
-            shape.get(1).copied().unwrap_or(1).max(1) as usize,
-            shape.get(2).copied().unwrap_or(0).max(0) as usize,
-        );
-        if sen.len() != n * w || sen.iter().any(|v| !v.is_finite()) {
-            return Err(StageError::Model("encoder: bad sensor tokens".into()));
+    fn predict(&mut self, clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
+        let (Some((z_sen, bg_stamp, sensor_id)), Some(visual)) =
+            (&self.inputs.sensor, &self.inputs.visual)
+        else {
+            return Ok(Vec::new());
+        };
+        if self.predicted {
+            return Ok(Vec::new());
         }
-        Ok((0..w)
-            .map(|j| (0..n).map(|i| sen[i * w + j]).sum::<f32>() / n as f32)
-            .collect())
+        let now = clock.now();
+        let uses =
+            |s: ConditionSource| self.velocity.spec().condition.iter().any(|c| c.source == s);
+        let mut sources = Vec::new();
+        let mut ages = Vec::new();
+        if uses(ConditionSource::Object) {
+            sources.push("visual_observation".to_string());
+            ages.push(now.secs_since(visual.header.stamp).max(0.0));
+        }
+        if uses(ConditionSource::SensorTokens) {
+            sources.push("background".to_string());
+            ages.push(now.secs_since(*bg_stamp).max(0.0));
+        }
+        let spec = self.velocity.spec().clone();
+        let guards = Guards::new(self.velocity.sigma_min);
+        let mut out = Vec::with_capacity(self.p.objects.len());
+        for (i, object) in self.p.objects.iter().enumerate() {
+            let (cond, prior) = conditions(
+                self.velocity.spec(),
+                self.velocity.cond_dims(),
+                object,
+                z_sen,
+                visual,
+            )?;
+            let k = self.p.samples;
+            let mut sum = vec![0.0f64; self.velocity.dim()];
+            let (mut valid, mut report) = (true, String::new());
+            for j in 0..k {
+                let cfg = SampleConfig {
+                    seed: self
+                        .cfg
+                        .seed
+                        .wrapping_add(i as u64 * u64::from(k) + u64::from(j)),
+                    ..self.cfg.clone()
+                };
+                let s = sample(&mut self.velocity, &cfg, &guards, &prior, &cond)
+                    .map_err(|e| StageError::Model(e.to_string()))?;
+                valid &= s.valid;
+                if report.is_empty() {
+                    report = s.report;
+                }
+                sum.iter_mut()
+                    .zip(&s.x)
+                    .for_each(|(a, &x)| *a += f64::from(x));
+            }
+            let data: Vec<f32> = sum
+                .iter()
+                .enumerate()
+                .map(|(j, x)| {
+                    let mean = (x / f64::from(k)) as f32;
+                    spec.latent_offset.get(j).copied().unwrap_or(0.0)
+                        + spec.latent_scale.get(j).copied().unwrap_or(1.0) * mean
+                })
+                .collect();
+            out.push(Msg::TactileLatent(TactileLatent {
+                header: Header::optical(now, sensor_id),
+                source: LatentSource::Predicted,
+                sensor_id: sensor_id.clone(),
+                shape: self.shape.clone(),
+                data,
+                model_id: self.velocity.id().to_string(),
+                solver: self.cfg.solver.as_str().into(),
+                steps: self.cfg.steps,
+                guidance: self.cfg.guidance as f32,
+                elapsed_s: clock.now().secs_since(now).max(0.0),
+                valid,
+                guard_report: report,
+                object: object.clone(),
+                condition_sources: sources.clone(),
+                condition_age_s: ages.clone(),
+            }));
+        }
+        self.predicted = true;
+        Ok(out)
     }
 }
 
@@ -207,50 +378,22 @@ impl Stage for SamplerStage {
         "sampler"
     }
     fn process(&mut self, input: &Msg, clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
-        let Msg::Background(bg) = input else {
-            return Ok(Vec::new());
-        };
-        if self.predicted {
-            return Ok(Vec::new());
+        match input {
+            Msg::Background(bg) => {
+                let z = self
+                    .prior
+                    .of(bg)
+                    .map_err(|e| StageError::Model(e.to_string()))?;
+                // A new background (the sensor changed): predict again.
+                self.predicted = false;
+                self.inputs.sensor = Some((z, bg.stamp, bg.sensor_id.clone()));
+            }
+            Msg::VisualObservation(v) if !self.predicted => {
+                self.inputs.visual = Some(v.clone());
+            }
+            _ => return Ok(Vec::new()),
         }
-        let c0 = clock.now();
-        let z_sen = self.sensor_prior(bg)?;
-        let c = self.velocity.cond_dim();
-        let half = (c.saturating_sub(1)) / 2;
-        if z_sen.len() != half {
-            return Err(StageError::Model(format!(
-                "sensor prior has {} values, the velocity model expects {half}",
-                z_sen.len()
-            )));
-        }
-        let mut obj = vec![0.0f32; half];
-        obj.iter_mut()
-            .zip(self.p.condition)
-            .for_each(|(o, v)| *o = v);
-        let prior: Vec<f32> = vec![0.0; half]
-            .into_iter()
-            .chain(z_sen.iter().copied())
-            .chain([0.0])
-            .collect();
-        let cond: Vec<f32> = obj.into_iter().chain(z_sen).chain([1.0]).collect();
-        let guards = Guards::new(self.velocity.sigma_min);
-        let out = sample(&mut self.velocity, &self.cfg, &guards, &prior, &cond)
-            .map_err(|e| StageError::Model(e.to_string()))?;
-        self.predicted = true;
-        Ok(vec![Msg::TactileLatent(TactileLatent {
-            header: Header::optical(bg.stamp, &bg.sensor_id),
-            source: LatentSource::Predicted,
-            sensor_id: bg.sensor_id.clone(),
-            shape: self.shape.clone(),
-            data: out.x,
-            model_id: self.velocity.id().to_string(),
-            solver: self.cfg.solver.as_str().into(),
-            steps: self.cfg.steps,
-            guidance: self.cfg.guidance as f32,
-            elapsed_s: clock.now().secs_since(c0).max(0.0),
-            valid: out.valid,
-            guard_report: out.report,
-        })])
+        self.predict(clock)
     }
 }
 

@@ -24,7 +24,12 @@ fn the_reference_bundle_loads_and_names_its_models() {
     let b = Bundle::open(&common::reference()).unwrap();
     let models = b
         .load(
-            &["encoder", "properties", "velocity", "velocity_gaussian"],
+            &[
+                "encoder",
+                "properties",
+                "velocity_timing_fixture",
+                "velocity_gaussian",
+            ],
             &RuntimeConfig::default(),
         )
         .unwrap();
@@ -61,17 +66,17 @@ fn wrong_sha256() {
 fn wrong_shape_and_dtype_are_listed_together() {
     let d = common::copy_reference("shape");
     edit(&d, |m| {
-        m["models"]["velocity"]["inputs"][0]["shape"][1] = 65.into();
-        m["models"]["velocity"]["outputs"][0]["dtype"] = "float64".into();
+        m["models"]["velocity_timing_fixture"]["inputs"][0]["shape"][1] = 65.into();
+        m["models"]["velocity_timing_fixture"]["outputs"][0]["dtype"] = "float64".into();
         m["models"]["encoder"]["inputs"][1]["name"] = "bg".into();
     });
-    let e = load_err(&d, &["encoder", "velocity"]);
+    let e = load_err(&d, &["encoder", "velocity_timing_fixture"]);
     assert!(
-        e.contains("velocity: input 'x' dim 1 is 64 in the file, declared 65"),
+        e.contains("velocity_timing_fixture: input 'x' dim 1 is 64 in the file, declared 65"),
         "{e}"
     );
     assert!(
-        e.contains("velocity: output 'v' is float32 in the file, declared float64"),
+        e.contains("velocity_timing_fixture: output 'v' is float32 in the file, declared float64"),
         "{e}"
     );
     assert!(

@@ -72,6 +72,9 @@ fn encoder_matches_python_bit_for_bit() {
 }
 
 #[test]
-fn transformer_velocity_matches_python_bit_for_bit() {
-    check("velocity", vec![vec![3, 64], vec![3, 1], vec![3, 97]]);
+fn timing_fixture_velocity_matches_python_bit_for_bit() {
+    check(
+        "velocity_timing_fixture",
+        vec![vec![3, 64], vec![3, 1], vec![3, 97]],
+    );
 }

@@ -112,6 +112,9 @@ fn run(reflex: bool) -> Run {
                 data: vec![0.5; 4],
                 valid: true,
                 guard_report: String::new(),
+                object: String::new(),
+                condition_sources: Vec::new(),
+                condition_age_s: Vec::new(),
                 ..samples::tactile_latent()
             }),
             &clock,

@@ -111,6 +111,9 @@ fn hostile(kind: u8, t: i64, v: f64) -> Msg {
             data: vec![v as f32; 4],
             valid: true,
             guard_report: String::new(),
+            object: String::new(),
+            condition_sources: Vec::new(),
+            condition_age_s: Vec::new(),
             ..samples::tactile_latent()
         }),
         3 => Msg::TactileLatent(TactileLatent {
@@ -120,6 +123,9 @@ fn hostile(kind: u8, t: i64, v: f64) -> Msg {
             data: vec![v as f32; 4],
             valid: true,
             guard_report: String::new(),
+            object: String::new(),
+            condition_sources: Vec::new(),
+            condition_age_s: Vec::new(),
             ..samples::tactile_latent()
         }),
         4 => Msg::PropertyComparison(PropertyComparison {

@@ -1,7 +1,8 @@
-//! The fitted latent -> stiffness readout (scripts/fit_reference_policy.py) as the controllers
-//! run it (`Readout`) against the Python onnxruntime oracle (tests/policy/policy_oracle.py) on
-//! the same latents: the model setup fitted on the expert's demonstrations, and one fitted here
-//! on synthetic demonstrations with a known linear law, which the fit must recover.
+//! The fitted latent -> stiffness readouts as the controllers run them (`Readout`) against the
+//! Python onnxruntime oracle (tests/policy/policy_oracle.py) on the same latents: the real
+//! latent's model setup fitted on the expert's demonstrations (scripts/fit_reference_policy.py),
+//! the touch bundle's pooled-latent model (models/train_projector.py), and one fitted here on synthetic demonstrations with a known linear law, which
+//! the fit must recover.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
@@ -80,21 +81,36 @@ fn worst(name: &str, ours: &[f64], theirs: &[f64]) -> f64 {
 fn the_setup_fitted_models_match_the_oracle() {
     let models =
         PathBuf::from(std::env::var_os("UNITAC_MODELS").expect("UNITAC_MODELS (scripts/env.sh)"));
-    for (name, shape) in [
-        ("cup_stiffness_real", [64, 48]),
-        ("cup_stiffness_pred", [8, 8]),
+    // Each readout on latents like its training ones: their mean + 0.5 std x noise, the same
+    // draw in every row so the pooled vector varies as theirs does. The real latent's statistics
+    // are its input normalisation; the pooled latent's come with the touch bundle's readout.
+    let json = |p: PathBuf| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let stat = |v: &serde_json::Value| -> Vec<f64> { serde_json::from_value(v.clone()).unwrap() };
+    let real = models.join("policy/cup_stiffness_real");
+    let m = json(real.join("manifest.json"));
+    let n = &m["inputs"][0]["normalization"];
+    let pooled = models.join("touch/stiffness");
+    let c = json(pooled.join("latents.json"));
+    for (name, dir, shape, mean, std) in [
+        (
+            "cup_stiffness_real",
+            real.clone(),
+            [64, 48],
+            stat(&n["mean"]),
+            stat(&n["std"]),
+        ),
+        (
+            "touch/stiffness",
+            pooled,
+            [2, 48],
+            stat(&c["mean"]),
+            stat(&c["std"]),
+        ),
     ] {
-        let dir = models.join("policy").join(name);
-        // Latents like the training ones: the model's input statistics, mean + 0.5 std x noise.
-        let m: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).unwrap())
-                .unwrap();
-        let norm = &m["inputs"][0]["normalization"];
-        let stat = |k: &str| -> Vec<f64> { serde_json::from_value(norm[k].clone()).unwrap() };
-        let (mean, std) = (stat("mean"), stat("std"));
         let latents: Vec<TactileLatent> = (0..12)
             .map(|i| {
-                // The same draw in every row, so the pooled vector varies as the training ones do.
                 let dim = shape[1] as usize;
                 let noise = unitac_infer::flow::noise(40 + i, dim);
                 let mut l = latent(shape, 0, 0.0);

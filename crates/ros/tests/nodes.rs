@@ -622,23 +622,31 @@ fn sensor_node_errors_are_one_line_and_exit_1() {
     }
 }
 
-/// The cup scene's sampler (VTLA-pred) in an inference node started after the background was
-/// learned and published: the latched background still reaches it, and it publishes a valid,
-/// finite predicted latent with the solver settings of the scene.
+/// The cup VTLA-pred scene's sampler in an inference node started after the background was
+/// learned and published: the latched background still reaches it, the camera's values come from
+/// an rclpy camera on `visual_observation`, and it publishes a valid, finite predicted latent of
+/// the cup with the solver settings of the scene and its condition's sources.
 #[test]
 fn a_late_inference_node_gets_the_latched_background_and_predicts_a_latent() {
     let _one = serial();
     let n = ns("cup");
     let sp = mock_sensor_params("csensor", "cup_deformation", true);
     let contact = fabric_contact_node(&n, &[]);
-    let l = listener(&n, 40, serde_json::json!({"until": {"latents": 1}}));
+    // A camera: the cup's diameter and height, five times a second.
+    let camera =
+        serde_json::json!({"names": ["cup_width_m", "cup_height_m"], "values": [0.09, 0.11]});
+    let l = listener(
+        &n,
+        40,
+        serde_json::json!({"until": {"latents": 1}, "visual": camera}),
+    );
     let sensor = node(env!("CARGO_BIN_EXE_unitac_sensor_node"), &n, sp.to_str());
     // 10 learning frames take 0.4 s at 25 fps: by 3 s the background went out long ago.
     std::thread::sleep(Duration::from_secs(3));
     let inference = spawn(
         env!("CARGO_BIN_EXE_unitac_inference_node"),
         &n,
-        &["-p", "scene:=cup_deformation"],
+        &["-p", "scene:=cup_deformation_vtla_pred"],
     );
     let got = finish(l);
     stop(sensor);
@@ -650,8 +658,15 @@ fn a_late_inference_node_gets_the_latched_background_and_predicts_a_latent() {
     assert_eq!(l0["source"], 1, "predicted: {l0}");
     assert_eq!(l0["valid"], true, "{l0}");
     assert_eq!(l0["finite"], true, "{l0}");
-    assert!(l0["n"].as_u64().unwrap() > 0);
-    // The scene's solver settings (launch/scenes/cup_deformation.yaml).
+    assert_eq!(l0["n"], 96, "{l0}");
+    // The cup the camera sees, from the camera's message and the latched background.
+    assert_eq!(l0["object"], "cup", "{l0}");
+    assert_eq!(
+        l0["condition_sources"],
+        serde_json::json!(["visual_observation", "background"]),
+        "{l0}"
+    );
+    // The scene's solver settings (launch/scenes/cup_deformation_vtla_pred.yaml).
     assert_eq!(
         (&l0["solver"], &l0["steps"], &l0["guidance"]),
         (

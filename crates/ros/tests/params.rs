@@ -69,7 +69,7 @@ fn full_params() -> [serde_json::Map<String, Value>; 6] {
         json!({}),
     );
     let runtime = json!({"library": std::env::var("UNITAC_ORT_LIB").unwrap_or_default(),
-                         "provider": "cuda", "intra_threads": 2});
+                         "providers": ["cuda", "cpu"], "intra_threads": 2});
     let encoder = non_default(
         serde_json::to_value(RuntimeConfig::default()).unwrap(),
         runtime.clone(),
@@ -78,7 +78,7 @@ fn full_params() -> [serde_json::Map<String, Value>; 6] {
         serde_json::to_value(CompareParams::default()).unwrap(),
         json!({"property": "hardness", "pairs": [["x", "y"]]}),
     );
-    let mut sampler_special = json!({"solver": "midpoint", "condition": [0.1, 0.2, 0.3],
+    let mut sampler_special = json!({"solver": "midpoint", "objects": ["fabric_x", "fabric_y"],
                                      "budget_ms": 50.0});
     sampler_special
         .as_object_mut()
@@ -93,7 +93,7 @@ fn full_params() -> [serde_json::Map<String, Value>; 6] {
         serde_json::to_value(PolicyParams::default()).unwrap(),
         json!({"mode": "vtla_pred", "task": "pick the rougher fabric", "safe_action": "open",
                "objects": ["fabric_x", "fabric_y"], "visual_names": ["fabric_x_roughness"],
-               "stiffness_weights": [1.0, 2.0], "latent_len": 64, "min_opening_m": 0.001,
+               "stiffness_weights": [1.0, 2.0], "latent_len": 96, "min_opening_m": 0.001,
                "max_opening_m": 0.1, "min_z_m": 0.01, "max_z_m": 0.4,
                "touch_z_m": -0.002, "grasp_z_m": -0.0005}),
     );
@@ -107,12 +107,12 @@ fn scene(name: &str, p: &[serde_json::Map<String, Value>; 6]) -> PathBuf {
     let mut policy = p[5].clone();
     if policy.is_empty() {
         policy.insert("mode".into(), json!("vtla_pred"));
-        policy.insert("latent_len".into(), json!(64));
+        policy.insert("latent_len".into(), json!(96));
     }
     let stages = json!([
         {"kind": "contact", "params": p[0]},
         {"kind": "slip", "params": p[1]},
-        {"kind": "sampler", "models": ["reference"], "params": p[4]},
+        {"kind": "sampler", "models": ["touch"], "params": p[4]},
         {"kind": "policy", "params": policy},
         // After the policy: vtla_pred reads no live comparison, and the scene check looks at the
         // stages before the policy only.
@@ -121,7 +121,8 @@ fn scene(name: &str, p: &[serde_json::Map<String, Value>; 6]) -> PathBuf {
     ]);
     let yaml = format!(
         "scene: {name}\nsource: {{kind: mock, sensor: gelsight-mini, scenario: fabric_selection}}\n\
-         models:\n  reference: ${{UNITAC_MODELS}}/reference/manifest.json\nstages: {stages}\n"
+         models:\n  reference: ${{UNITAC_MODELS}}/reference/manifest.json\n  \
+         touch: ${{UNITAC_MODELS}}/touch/manifest.json\nstages: {stages}\n"
     );
     let path = tmp(&format!("{name}.yaml"));
     std::fs::write(&path, yaml).unwrap();
@@ -306,7 +307,7 @@ fn unknown_and_mistyped_parameters_stop_a_node_with_one_line() {
         (
             INFERENCE,
             "u6",
-            "    encoder.provider: \"gpu\"\n",
+            "    encoder.providers: \"gpu\"\n",
             "provider",
         ),
     ] {

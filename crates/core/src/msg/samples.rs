@@ -87,6 +87,9 @@ pub fn tactile_latent() -> TactileLatent {
         elapsed_s: 0.01,
         valid: true,
         guard_report: "ok".into(),
+        object: String::new(),
+        condition_sources: Vec::new(),
+        condition_age_s: Vec::new(),
     }
 }
 

@@ -21,6 +21,17 @@ pub fn reference() -> PathBuf {
     dir
 }
 
+/// The touch projector bundle made by scripts/setup.sh (step 6). Its absence is a failure.
+pub fn touch() -> PathBuf {
+    let dir = reference().parent().unwrap().join("touch");
+    assert!(
+        dir.join("manifest.json").is_file(),
+        "{} is missing: run scripts/setup.sh",
+        dir.display()
+    );
+    dir
+}
+
 pub fn python() -> PathBuf {
     std::env::var_os("UNITAC_VENV")
         .map(PathBuf::from)

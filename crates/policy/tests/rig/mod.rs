@@ -91,6 +91,9 @@ impl Rig {
             data,
             valid: true,
             guard_report: String::new(),
+            object: String::new(),
+            condition_sources: Vec::new(),
+            condition_age_s: Vec::new(),
             ..samples::tactile_latent()
         })
     }

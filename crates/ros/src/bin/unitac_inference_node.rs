@@ -1,7 +1,8 @@
 //! Inference node: the inference stages of a scene (touch encoder + property head, Property
 //! Comparison, flow sampler with SPSS) on what the contact node publishes. ContactClip and the
-//! latched background Image in (reliable); TactileProperties, TactileLatent (real and predicted)
-//! and PropertyComparison out (reliable); /diagnostics once a second with model timings.
+//! latched background Image in (reliable), and the camera's VisualObservation (the sampler's
+//! object-level condition); TactileProperties, TactileLatent (real and predicted) and
+//! PropertyComparison out (reliable); /diagnostics once a second with model timings.
 //!
 //! The stages, their parameters and model bundles come from the scene file (the same file
 //! `unitac run` reads, through the same registry), so the robot and the embedded runtime run the
@@ -9,8 +10,8 @@
 //! the scene's stage params (an unknown key is an error). Each stage's clock is its input's
 //! stamp, as in every transport.
 //!
-//! Topics (relative): `contact_clip`, `background` in; `tactile_properties`, `tactile_latent`,
-//! `property_comparison` out.
+//! Topics (relative): `contact_clip`, `background`, `visual_observation` in;
+//! `tactile_properties`, `tactile_latent`, `property_comparison` out.
 
 use futures::{FutureExt, StreamExt};
 use r2r::{QosProfile, RosParams};
@@ -113,6 +114,10 @@ fn run() -> anyhow::Result<()> {
         "background",
         QosProfile::default().keep_last(1).transient_local(),
     )?;
+    let mut visuals = node.subscribe::<r2r::unitac_msgs::msg::VisualObservation>(
+        "visual_observation",
+        reliable().keep_last(10),
+    )?;
     let pub_props = node.create_publisher::<r2r::unitac_msgs::msg::TactileProperties>(
         "tactile_properties",
         reliable(),
@@ -159,6 +164,12 @@ fn run() -> anyhow::Result<()> {
             match image::to_frame(&bg, &id, 0) {
                 Ok(f) => handle(Msg::Background(f), &mut counters, &mut chain),
                 Err(e) => counters.error(format!("background: {e}")),
+            }
+        }
+        while let Some(Some(v)) = visuals.next().now_or_never() {
+            match convert::visual_observation_from(&v) {
+                Ok(v) => handle(Msg::VisualObservation(v), &mut counters, &mut chain),
+                Err(e) => counters.error(format!("visual_observation: {e}")),
             }
         }
         while let Some(Some(c)) = clips.next().now_or_never() {
