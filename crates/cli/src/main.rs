@@ -9,6 +9,7 @@ mod bench;
 mod dataset;
 mod decode_bench;
 mod demos;
+mod depth;
 mod devices;
 mod eval;
 mod gripper;
@@ -137,11 +138,21 @@ enum Cmd {
         #[command(subcommand)]
         cmd: BagCmd,
     },
-    /// Measure quality against ground truth (mock sensor): `eval contact`, `eval slip`.
+    /// Calibrations: `calibrate depth` (a sensor's photometric depth calibration from ball
+    /// presses), `calibrate mock-presses` (mock ball presses to try it on).
+    Calibrate {
+        #[command(subcommand)]
+        cmd: depth::CalibrateCmd,
+    },
+    /// Measure quality against ground truth (mock sensor): `eval contact`, `eval slip`,
+    /// `eval depth`.
     Eval {
         what: EvalTarget,
         #[arg(long)]
         json: bool,
+        /// `eval depth`: directory for PNGs of frame, estimated and true depth.
+        #[arg(long)]
+        out: Option<PathBuf>,
         /// Minutes of simulated idle time for the false-episode count.
         #[arg(long, default_value_t = 10.0)]
         idle_minutes: f64,
@@ -243,6 +254,10 @@ enum EvalTarget {
     Contact,
     /// The slip stage's shear, rotation and slip flag against the renderer's tangential truth.
     Slip,
+    /// Depth from one image on mock ball presses against their exact depth: RMSE, penetration
+    /// error, contact area against the Hertz and geometric discs, at several depths, noise and
+    /// shading levels.
+    Depth,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -269,6 +284,9 @@ enum BenchTarget {
     /// The policy tick per scene and mode (--repeat episodes each), with an ONNX policy's act,
     /// and a loop paced at the control rate (--ticks), vs Python onnxruntime.
     Policy,
+    /// Depth from one image per frame (320x240, 640x480) vs the numpy path a GelSight user
+    /// runs, the read-pass floor, and the share of one core at 25 fps.
+    Depth,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -568,7 +586,27 @@ fn main() -> ExitCode {
             what: EvalTarget::Contact,
             json,
             idle_minutes,
+            ..
         } => eval::eval_contact(idle_minutes.clamp(0.0, 600.0) * 60.0).and_then(|r| {
+            if json {
+                emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
+            } else {
+                emit(r.text())?;
+            }
+            Ok(true)
+        }),
+        Cmd::Calibrate {
+            cmd: depth::CalibrateCmd::Depth(a),
+        } => depth::calibrate_depth(&a),
+        Cmd::Calibrate {
+            cmd: depth::CalibrateCmd::MockPresses(a),
+        } => depth::mock_presses(&a),
+        Cmd::Eval {
+            what: EvalTarget::Depth,
+            json,
+            out,
+            ..
+        } => depth::eval_depth(out.as_deref()).and_then(|r| {
             if json {
                 emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
             } else {
@@ -625,6 +663,8 @@ fn main() -> ExitCode {
             let spinner = progress::spinner(&format!("bench {what:?}").to_lowercase());
             let text = match what {
                 BenchTarget::Contact => bench::bench_contact(frames, repeat, !no_python)
+                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
+                BenchTarget::Depth => depth::bench_depth(frames, repeat, !no_python)
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
                 BenchTarget::Replay => bench::bench_replay(frames, repeat, !no_python)
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),

@@ -10,7 +10,7 @@
 //! outside it is deformation, not contact. With a penetration under `min_penetration_mm` there
 //! is no contact.
 
-use super::model::{DepthCalibration, DepthError, features};
+use super::model::{DepthCalibration, DepthError, GradientModel, features};
 use super::poisson::PoissonSolver;
 use super::prep::Prep;
 use unitac_core::Frame;
@@ -61,6 +61,8 @@ pub struct DepthEstimator {
     mask: Vec<bool>,
     solver: PoissonSolver,
     stack: Vec<usize>,
+    border: Vec<f32>,
+    step_model: GradientModel,
 }
 
 impl DepthEstimator {
@@ -72,6 +74,11 @@ impl DepthEstimator {
     ) -> Result<Self, DepthError> {
         let mm_per_px = cal.mm_per_px_at(background.width, background.height)?;
         let (w, h) = (background.width as usize, background.height as usize);
+        let step = mm_per_px as f32;
+        let step_model = GradientModel {
+            gx: cal.model.gx.iter().map(|v| v * step).collect(),
+            gy: cal.model.gy.iter().map(|v| v * step).collect(),
+        };
         Ok(Self {
             cal,
             params,
@@ -86,6 +93,8 @@ impl DepthEstimator {
             mask: vec![false; w * h],
             solver: PoissonSolver::new(w, h),
             stack: Vec::new(),
+            border: Vec::new(),
+            step_model,
         })
     }
 
@@ -100,7 +109,7 @@ impl DepthEstimator {
     pub fn mask(&self) -> &[bool] {
         &self.mask
     }
-    /// The last frame's slopes (dh/dx, dh/dy), mm per mm.
+    /// The last frame's depth change per pixel step (x, y) \[mm].
     pub fn gradients(&self) -> (&[f32], &[f32]) {
         (&self.gx, &self.gy)
     }
@@ -121,22 +130,22 @@ impl DepthEstimator {
         }
         self.prep.run(frame.data(), self.background.data(), w, h);
         let (iw, ih) = (1.0 / w as f32, 1.0 / h as f32);
-        // Slopes in depth per pixel step [mm].
-        let step = self.mm_per_px as f32;
+        // Depth change per pixel step [mm]: the model's slopes times mm per pixel (folded into
+        // the coefficients at construction).
+        let model = &self.step_model;
         for y in 0..h {
             let v = y as f32 * ih - 0.5;
             let row = &self.prep.diff[y * w * 3..(y + 1) * w * 3];
-            for (x, d) in row.chunks_exact(3).enumerate() {
-                let (p, q) = self.cal.model.eval(&features(d, x as f32 * iw - 0.5, v));
-                self.gx[y * w + x] = p;
-                self.gy[y * w + x] = q;
+            let (ox, oy) = (
+                &mut self.gx[y * w..(y + 1) * w],
+                &mut self.gy[y * w..(y + 1) * w],
+            );
+            for (x, ((d, p), q)) in row.chunks_exact(3).zip(ox).zip(oy).enumerate() {
+                (*p, *q) = model.eval(&features(d, x as f32 * iw - 0.5, v));
             }
         }
-        let (gx, gy) = (&self.gx, &self.gy);
-        // The solver integrates per-step changes: scale into a scratch (the depth buffer).
-        let mut px: Vec<f32> = gx.iter().map(|v| v * step).collect();
-        let py: Vec<f32> = gy.iter().map(|v| v * step).collect();
-        self.solver.solve(&px, &py, &mut self.depth);
+        self.solver.solve(&self.gx, &self.gy, &mut self.depth);
+        let mut px = std::mem::take(&mut self.border);
         // Zero level: median of the two outermost rings.
         px.clear();
         for y in 0..h {
@@ -152,6 +161,7 @@ impl DepthEstimator {
         } else {
             *px.select_nth_unstable_by(mid, f32::total_cmp).1
         };
+        self.border = px;
         for v in &mut self.depth {
             *v -= zero;
         }
