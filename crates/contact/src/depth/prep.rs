@@ -44,42 +44,46 @@ impl Prep {
     }
 }
 
-/// 3 x 3 box mean per channel (the border averages what is inside the frame).
+/// 3 x 3 box mean per channel (the border averages what is inside the frame): a horizontal
+/// three-tap pass per row into `dst`, then a vertical one through a copy of the previous row,
+/// both written as slice arithmetic over whole rows so that they vectorise.
 fn box3(src: &[f32], dst: &mut [f32], w: usize, h: usize) {
-    // Horizontal pass into dst, vertical pass in place through a three-row window.
-    for y in 0..h {
-        let row = &src[y * w * 3..(y + 1) * w * 3];
-        let out = &mut dst[y * w * 3..(y + 1) * w * 3];
-        for x in 0..w {
-            let (a, b) = (x.saturating_sub(1), (x + 1).min(w - 1));
-            let k = 1.0 / (b - a + 1) as f32;
-            for c in 0..3 {
-                let mut s = 0.0;
-                for xx in a..=b {
-                    s += row[xx * 3 + c];
-                }
-                out[x * 3 + c] = s * k;
-            }
+    let stride = w * 3;
+    if w < 2 || h < 2 {
+        dst.copy_from_slice(src);
+        return;
+    }
+    const THIRD: f32 = 1.0 / 3.0;
+    for (row, out) in src.chunks_exact(stride).zip(dst.chunks_exact_mut(stride)) {
+        for c in 0..3 {
+            out[c] = (row[c] + row[3 + c]) * 0.5;
+            out[stride - 3 + c] = (row[stride - 6 + c] + row[stride - 3 + c]) * 0.5;
+        }
+        let n = stride - 6;
+        let (l, m, r) = (&row[..n], &row[3..3 + n], &row[6..6 + n]);
+        for (((o, a), b), c) in out[3..3 + n].iter_mut().zip(l).zip(m).zip(r) {
+            *o = (a + b + c) * THIRD;
         }
     }
-    let stride = w * 3;
     let mut prev = dst[..stride].to_vec();
     let mut cur = vec![0f32; stride];
     for y in 0..h {
         cur.copy_from_slice(&dst[y * stride..(y + 1) * stride]);
-        let next_start = (y + 1).min(h - 1) * stride;
-        let has_prev = y > 0;
-        let has_next = y + 1 < h;
-        let k = 1.0 / (1 + usize::from(has_prev) + usize::from(has_next)) as f32;
-        for i in 0..stride {
-            let mut s = cur[i];
-            if has_prev {
-                s += prev[i];
+        if y == 0 {
+            let (head, tail) = dst.split_at_mut(stride);
+            for (o, n) in head.iter_mut().zip(&tail[..stride]) {
+                *o = (*o + n) * 0.5;
             }
-            if has_next {
-                s += dst[next_start + i];
+        } else if y + 1 == h {
+            for (o, p) in dst[y * stride..].iter_mut().zip(&prev) {
+                *o = (*o + p) * 0.5;
             }
-            dst[y * stride + i] = s * k;
+        } else {
+            let (head, tail) = dst.split_at_mut((y + 1) * stride);
+            let out = &mut head[y * stride..];
+            for ((o, p), n) in out.iter_mut().zip(&prev).zip(&tail[..stride]) {
+                *o = (*o + p + n) * THIRD;
+            }
         }
         std::mem::swap(&mut prev, &mut cur);
     }
@@ -219,6 +223,33 @@ fn dot(t: &[f32; TERMS], k: &SVector<f64, TERMS>) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn box3_is_the_mean_of_the_neighbours_inside_the_frame() {
+        let (w, h) = (5usize, 4usize);
+        let src: Vec<f32> = (0..w * h * 3).map(|i| (i * 7 % 11) as f32).collect();
+        let mut dst = vec![0f32; src.len()];
+        box3(&src, &mut dst, w, h);
+        for y in 0..h {
+            for x in 0..w {
+                for c in 0..3 {
+                    let (mut s, mut n) = (0.0, 0.0);
+                    for yy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+                        for xx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+                            s += src[(yy * w + xx) * 3 + c];
+                            n += 1.0;
+                        }
+                    }
+                    let got = dst[(y * w + x) * 3 + c];
+                    assert!(
+                        (got - s / n).abs() < 1e-4,
+                        "({x}, {y}, {c}): {got} vs {}",
+                        s / n
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn a_smooth_tilt_is_removed_and_a_compact_press_is_kept() {
