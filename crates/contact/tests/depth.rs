@@ -182,3 +182,60 @@ fn a_calibration_applies_at_twice_the_size_and_refuses_another_aspect() {
     assert!(cal.check_serial("OTHER-0002").is_err());
     assert!(cal.check_serial("MOCK-0001").is_ok());
 }
+
+/// The contact stage with a depth calibration reports the press's physical contact area (the
+/// half-depth contour); without it, the colour residual's region takes in the skirt.
+#[test]
+fn the_contact_stage_takes_its_area_from_depth_when_a_scene_gives_a_calibration() {
+    use unitac_contact::{ContactParams, ContactStage};
+    use unitac_core::{Msg, Stage, Stamp};
+    let spec = SensorKind::GelsightMini.spec();
+    let (cal, _) = calibrate(spec, 1.0);
+    let press = BallPress {
+        center_px: [150.0, 110.0],
+        radius_mm: BALL_MM,
+        approach_mm: 0.6,
+    };
+    let noise = PressNoise {
+        noise_dn: 1.0,
+        shading_dn: 0.0,
+        seed: 13,
+    };
+    let (bg, rendered) = render_presses(&cfg(), spec, &[press, press, press], noise).unwrap();
+    let disc = std::f64::consts::PI * press.contact_radius_mm().powi(2);
+    let clock = unitac_core::ManualClock::new(Stamp::ZERO);
+    let mut last = Vec::new();
+    for with_depth in [false, true] {
+        let stage = ContactStage::new(ContactParams::default(), spec).unwrap();
+        let mut stage = if with_depth {
+            stage.with_depth(cal.clone())
+        } else {
+            stage
+        };
+        let mut area = None;
+        let frames = std::iter::repeat_n(&bg, 12).chain(rendered.iter().map(|p| &p.frame));
+        for (seq, f) in frames.enumerate() {
+            let mut f = f.clone();
+            f.seq = seq as u64;
+            f.stamp = Stamp(seq as i64 * 40_000_000);
+            for m in stage.process(&Msg::Frame(f), &clock).unwrap() {
+                if let Msg::ContactState(cs) = m {
+                    if cs.in_contact {
+                        area = Some((f64::from(cs.area_mm2), cs.centroid_px));
+                    }
+                }
+            }
+        }
+        let (a, c) = area.expect("in contact");
+        last.push(a / disc);
+        if with_depth {
+            assert!(
+                (0.8..1.15).contains(&(a / disc)),
+                "area {a} mm^2, disc {disc}"
+            );
+            let off = f64::from(c[0] - 150.0).hypot(f64::from(c[1] - 110.0));
+            assert!(off < 1.5, "{c:?}");
+        }
+    }
+    assert!(last[0] > 1.5, "without depth the skirt is in: {last:?}");
+}
