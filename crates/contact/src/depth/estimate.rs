@@ -10,10 +10,62 @@
 //! outside it is deformation, not contact. With a penetration under `min_penetration_mm` there
 //! is no contact.
 
-use super::model::{DepthCalibration, DepthError, GradientModel, features};
+use super::model::{COLOUR_SCALE, DepthCalibration, DepthError, GradientModel};
 use super::poisson::PoissonSolver;
 use super::prep::Prep;
 use unitac_core::Frame;
+
+/// One output of the gradient model for one row (`model::features` with v fixed and the colour
+/// scale folded into the coefficients): the same sum, in the same terms, as `GradientModel::eval`.
+#[derive(Debug, Clone, Copy)]
+struct RowModel {
+    c0: f32,
+    cu: f32,
+    lin: [f32; 3],
+    lin_u: [f32; 3],
+    quad: [f32; 6],
+}
+
+impl RowModel {
+    fn new(k: &[f32], v: f32, s: f32) -> Self {
+        let k = |i: usize| k.get(i).copied().unwrap_or(0.0);
+        let s2 = s * s;
+        Self {
+            c0: k(0) + k(11) * v,
+            cu: k(10),
+            lin: [
+                (k(1) + k(15) * v) * s,
+                (k(2) + k(16) * v) * s,
+                (k(3) + k(17) * v) * s,
+            ],
+            lin_u: [k(12) * s, k(13) * s, k(14) * s],
+            quad: [
+                k(4) * s2,
+                k(5) * s2,
+                k(6) * s2,
+                k(7) * s2,
+                k(8) * s2,
+                k(9) * s2,
+            ],
+        }
+    }
+
+    #[inline]
+    fn eval(&self, u: f32, r: f32, g: f32, b: f32) -> f32 {
+        let q = &self.quad;
+        self.c0
+            + self.cu * u
+            + (self.lin[0] + self.lin_u[0] * u) * r
+            + (self.lin[1] + self.lin_u[1] * u) * g
+            + (self.lin[2] + self.lin_u[2] * u) * b
+            + q[0] * r * r
+            + q[1] * g * g
+            + q[2] * b * b
+            + q[3] * r * g
+            + q[4] * r * b
+            + q[5] * g * b
+    }
+}
 
 /// Settings of the contact region from depth.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -128,20 +180,57 @@ impl DepthEstimator {
                 bh: self.background.height,
             });
         }
-        self.prep.run(frame.data(), self.background.data(), w, h);
-        let (iw, ih) = (1.0 / w as f32, 1.0 / h as f32);
+        let shading = self
+            .prep
+            .run_unsubtracted(frame.data(), self.background.data(), w, h);
         // Depth change per pixel step [mm]: the model's slopes times mm per pixel (folded into
-        // the coefficients at construction).
-        let model = &self.step_model;
+        // its coefficients at construction), with the colour scale and this row's v folded in
+        // here and the shading subtracted per pixel: one pass, no feature vector.
+        let iw = 1.0 / w as f32;
+        let cs = COLOUR_SCALE;
         for y in 0..h {
-            let v = y as f32 * ih - 0.5;
+            let v = y as f32 / h as f32 - 0.5;
+            let sh = shading.row(y);
+            let kx = RowModel::new(&self.step_model.gx, v, cs);
+            let ky = RowModel::new(&self.step_model.gy, v, cs);
             let row = &self.prep.diff[y * w * 3..(y + 1) * w * 3];
             let (ox, oy) = (
                 &mut self.gx[y * w..(y + 1) * w],
                 &mut self.gy[y * w..(y + 1) * w],
             );
-            for (x, ((d, p), q)) in row.chunks_exact(3).zip(ox).zip(oy).enumerate() {
-                (*p, *q) = model.eval(&features(d, x as f32 * iw - 0.5, v));
+            // Blocks of 32 pixels, de-interleaved into arrays, so that the arithmetic
+            // vectorises (the per-pixel loop over RGB triples did not).
+            const B: usize = 32;
+            let mut x0 = 0;
+            for ((d, p), q) in row
+                .chunks(3 * B)
+                .zip(ox.chunks_mut(B))
+                .zip(oy.chunks_mut(B))
+            {
+                let n = p.len();
+                let (mut r, mut g, mut b, mut u) = ([0f32; B], [0f32; B], [0f32; B], [0f32; B]);
+                for (k, px) in d.chunks_exact(3).enumerate().take(B) {
+                    r[k] = px[0];
+                    g[k] = px[1];
+                    b[k] = px[2];
+                    u[k] = (x0 + k) as f32;
+                }
+                for k in 0..B {
+                    let x = u[k];
+                    let s = (x - shading.cx()) * shading.inv();
+                    r[k] -= sh[0][0] + sh[0][1] * s + sh[0][2] * s * s;
+                    g[k] -= sh[1][0] + sh[1][1] * s + sh[1][2] * s * s;
+                    b[k] -= sh[2][0] + sh[2][1] * s + sh[2][2] * s * s;
+                    u[k] = x * iw - 0.5;
+                }
+                let (mut pa, mut qa) = ([0f32; B], [0f32; B]);
+                for k in 0..B {
+                    pa[k] = kx.eval(u[k], r[k], g[k], b[k]);
+                    qa[k] = ky.eval(u[k], r[k], g[k], b[k]);
+                }
+                p.copy_from_slice(&pa[..n]);
+                q.copy_from_slice(&qa[..n]);
+                x0 += n;
             }
         }
         self.solver.solve(&self.gx, &self.gy, &mut self.depth);
@@ -172,14 +261,20 @@ impl DepthEstimator {
     fn region(&mut self) -> DepthSummary {
         let (w, h) = (self.w, self.h);
         let d = &self.depth;
+        // The largest 3 x 3 sum: column sums of three rows, then three of those per pixel.
         let (mut best, mut at) = (f32::MIN, 0usize);
+        let mut col = vec![0f32; w];
         for y in 1..h.saturating_sub(1) {
+            let (a, b, c) = (
+                &d[(y - 1) * w..y * w],
+                &d[y * w..(y + 1) * w],
+                &d[(y + 1) * w..(y + 2) * w],
+            );
+            for (((o, p), q), r) in col.iter_mut().zip(a).zip(b).zip(c) {
+                *o = p + q + r;
+            }
             for x in 1..w.saturating_sub(1) {
-                let mut s = 0.0;
-                for yy in y - 1..=y + 1 {
-                    let r = &d[yy * w + x - 1..yy * w + x + 2];
-                    s += r[0] + r[1] + r[2];
-                }
+                let s = col[x - 1] + col[x] + col[x + 1];
                 if s > best {
                     best = s;
                     at = y * w + x;
@@ -234,5 +329,35 @@ impl DepthEstimator {
         summary.area_mm2 = n as f64 * self.mm_per_px * self.mm_per_px;
         summary.centroid_px = [(sx / nf) as f32, (sy / nf) as f32];
         summary
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::depth::model::features;
+
+    #[test]
+    fn the_row_model_is_the_feature_model() {
+        let k: Vec<f32> = (0..18)
+            .map(|i| ((i * 37 % 11) as f32 - 5.0) * 0.013)
+            .collect();
+        let m = GradientModel {
+            gx: k.clone(),
+            gy: k.iter().rev().copied().collect(),
+        };
+        for (u, v, d) in [
+            (-0.5f32, -0.5f32, [3.0f32, -7.0, 12.0]),
+            (0.2, 0.1, [40.0, 0.5, -22.0]),
+            (0.49, 0.3, [0.0, 0.0, 0.0]),
+        ] {
+            let (a, b) = m.eval(&features(&d, u, v));
+            let rx = RowModel::new(&m.gx, v, COLOUR_SCALE).eval(u, d[0], d[1], d[2]);
+            let ry = RowModel::new(&m.gy, v, COLOUR_SCALE).eval(u, d[0], d[1], d[2]);
+            assert!(
+                (a - rx).abs() < 1e-5 && (b - ry).abs() < 1e-5,
+                "{a} {rx} {b} {ry}"
+            );
+        }
     }
 }

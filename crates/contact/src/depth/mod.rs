@@ -19,4 +19,4 @@ pub use calib::{Circle, Fit, find_circle, prepare};
 pub use estimate::{DepthEstimator, DepthParams, DepthSummary};
 pub use model::{DepthCalibration, DepthError, GradientModel};
 pub use poisson::PoissonSolver;
-pub use prep::Prep;
+pub use prep::{Prep, Shading};
