@@ -691,3 +691,90 @@ pub fn bench_depth(n: usize, repeat: usize, with_python: bool) -> anyhow::Result
             .into(),
     })
 }
+
+/// `unitac contact --depth-calibration`: the calibration, checked against the sensor kind and
+/// the background's size, and its estimator on that background.
+pub fn contact_depth(
+    path: &Path,
+    sensor: SensorKind,
+    bg: &Frame,
+) -> anyhow::Result<DepthEstimator> {
+    let cal = DepthCalibration::load(path)?;
+    if cal.sensor != sensor {
+        bail!(
+            "{} is a calibration of a {}, the frames are from a {sensor}",
+            path.display(),
+            cal.sensor
+        );
+    }
+    Ok(DepthEstimator::new(
+        cal,
+        bg.clone(),
+        DepthParams::default(),
+    )?)
+}
+
+/// `<frame stem>.overlay.png` in `dir`: the frame with the contact region's outline (red) and
+/// centroid (a cross), and with a depth estimator, beside it the depth colour map (0 to 1 mm)
+/// with the depth's contact outline (white).
+pub fn overlay_png(
+    frame: &Frame,
+    mask: &[bool],
+    centroid: [f32; 2],
+    depth: Option<&DepthEstimator>,
+    dir: &Path,
+    source: &Path,
+) -> anyhow::Result<()> {
+    let (w, h) = (frame.width as usize, frame.height as usize);
+    let panels = if depth.is_some() { 2 } else { 1 };
+    let mut img = image::RgbImage::new((w * panels) as u32, h as u32);
+    let edge = |m: &[bool], x: usize, y: usize| {
+        let at = |x: usize, y: usize| m.get(y * w + x).copied().unwrap_or(false);
+        at(x, y)
+            && (x == 0
+                || y == 0
+                || x + 1 == w
+                || y + 1 == h
+                || !at(x - 1, y)
+                || !at(x + 1, y)
+                || !at(x, y - 1)
+                || !at(x, y + 1))
+    };
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let p = frame.data().get(i * 3..i * 3 + 3).unwrap_or(&[0, 0, 0]);
+            let c = if edge(mask, x, y) {
+                [255, 0, 0]
+            } else {
+                [p[0], p[1], p[2]]
+            };
+            img.put_pixel(x as u32, y as u32, image::Rgb(c));
+            if let Some(d) = depth {
+                let c = if edge(d.mask(), x, y) {
+                    [255, 255, 255]
+                } else {
+                    ramp(d.depth_mm().get(i).copied().unwrap_or(0.0))
+                };
+                img.put_pixel((w + x) as u32, y as u32, image::Rgb(c));
+            }
+        }
+    }
+    let (cx, cy) = (centroid[0].round() as i64, centroid[1].round() as i64);
+    if centroid != [0.0, 0.0] {
+        for k in -4..=4i64 {
+            for (x, y) in [(cx + k, cy), (cx, cy + k)] {
+                if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h {
+                    img.put_pixel(x as u32, y as u32, image::Rgb([255, 255, 0]));
+                }
+            }
+        }
+    }
+    let stem = source
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "frame".into());
+    let path = dir.join(format!("{stem}.overlay.png"));
+    img.save(&path)
+        .with_context(|| format!("{}", path.display()))
+}

@@ -93,6 +93,14 @@ enum Cmd {
         frames: Vec<PathBuf>,
         #[arg(long)]
         json: bool,
+        /// A depth calibration (`unitac calibrate depth`) of this sensor: each line also gets
+        /// the gel's depth: penetration, and the contact region's area and centroid from depth.
+        #[arg(long)]
+        depth_calibration: Option<PathBuf>,
+        /// Write `<frame>.overlay.png` per frame into this directory: the frame with the contact
+        /// outline and centroid, and beside it the depth colour map (with --depth-calibration).
+        #[arg(long)]
+        overlay: Option<PathBuf>,
     },
     /// Replay a rosbag2 bag (directory with metadata.yaml + .mcap/.db3, or a bare .mcap) through
     /// the contact stage. With --json: one line per image message {stamp, contact (null while the
@@ -418,11 +426,18 @@ fn cmd_run(
     Ok(true)
 }
 
+/// `unitac contact`'s optional depth and overlay.
+struct ContactExtras<'a> {
+    depth_calibration: Option<&'a std::path::Path>,
+    overlay: Option<&'a std::path::Path>,
+}
+
 fn cmd_contact(
     sensor: unitac_core::SensorKind,
     background: &std::path::Path,
     frames: &[PathBuf],
     json: bool,
+    extra: &ContactExtras<'_>,
 ) -> anyhow::Result<bool> {
     use unitac_contact::{ContactDetector, ContactParams};
     let bg = images::read_frame(background, sensor.as_str(), 0, None)
@@ -437,25 +452,61 @@ fn cmd_contact(
             .map(|s| (s * stride / std::f32::consts::SQRT_2 * 100.0).round() / 100.0)
     };
     let size = (bg.width, bg.height);
+    let mut depth =
+        match extra.depth_calibration {
+            Some(p) => Some(depth::contact_depth(p, sensor, &bg).map_err(|e| {
+                anyhow::Error::new(ConfigError(format!("--depth-calibration {e:#}")))
+            })?),
+            None => None,
+        };
+    if let Some(d) = extra.overlay {
+        std::fs::create_dir_all(d).map_err(|e| {
+            anyhow::Error::new(ConfigError(format!("--overlay {}: {e}", d.display())))
+        })?;
+    }
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let mut all_ok = true;
     for (i, path) in frames.iter().enumerate() {
         let file = path.display().to_string();
-        let result = images::read_frame(path, sensor.as_str(), i as u64 + 1, Some(size))
-            .and_then(|f| det.measure(&f).map_err(|e| anyhow::anyhow!("{file}: {e}")));
+        let result =
+            images::read_frame(path, sensor.as_str(), i as u64 + 1, Some(size)).and_then(|f| {
+                let m = det
+                    .measure(&f)
+                    .map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+                let d = match depth.as_mut() {
+                    Some(est) => Some(
+                        est.estimate(&f)
+                            .map_err(|e| anyhow::anyhow!("{file}: {e}"))?,
+                    ),
+                    None => None,
+                };
+                if let Some(dir) = extra.overlay {
+                    depth::overlay_png(&f, &det.mask_px(), m.centroid, depth.as_ref(), dir, path)?;
+                }
+                Ok((m, d))
+            });
         let line = match result {
-            Ok(m) => {
+            Ok((m, d)) => {
                 let contact = m.contact;
-                if json {
+                let dj = d.map(|d| {
                     serde_json::json!({
+                        "contact": d.contact, "penetration_mm": d.penetration_mm,
+                        "area_px": d.area_px, "area_mm2": d.area_mm2, "centroid": d.centroid_px,
+                    })
+                });
+                if json {
+                    let mut v = serde_json::json!({
                         "file": file, "contact": contact, "area_px": m.area_px,
                         "centroid": m.centroid, "bbox": m.bbox, "score": m.strength,
                         "noise_dn": noise_dn(&m),
-                    })
-                    .to_string()
+                    });
+                    if let Some(dj) = dj {
+                        v["depth"] = dj;
+                    }
+                    v.to_string()
                 } else {
-                    format!(
+                    let mut t = format!(
                         "{file}: contact {} area {:.0} px centroid ({:.1}, {:.1}) bbox {:?} score {:.2} noise {:?} DN",
                         if contact { "yes" } else { "no" },
                         m.area_px,
@@ -464,7 +515,14 @@ fn cmd_contact(
                         m.bbox,
                         m.strength,
                         noise_dn(&m)
-                    )
+                    );
+                    if let Some(d) = d {
+                        t += &format!(
+                            "; depth: penetration {:.3} mm area {:.2} mm^2 centroid ({:.1}, {:.1})",
+                            d.penetration_mm, d.area_mm2, d.centroid_px[0], d.centroid_px[1]
+                        );
+                    }
+                    t
                 }
             }
             Err(e) => {
@@ -547,8 +605,14 @@ fn main() -> ExitCode {
             background,
             frames,
             json,
+            depth_calibration,
+            overlay,
         } => {
-            match cmd_contact(sensor, &background, &frames, json) {
+            let extra = ContactExtras {
+                depth_calibration: depth_calibration.as_deref(),
+                overlay: overlay.as_deref(),
+            };
+            match cmd_contact(sensor, &background, &frames, json, &extra) {
                 // Any failed file: exit 2, after every other file was processed.
                 Ok(false) => return ExitCode::from(2),
                 other => other,

@@ -145,6 +145,56 @@ fn calibrate_review_correct_and_refuse() {
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("small.png") && err.contains("100x80"), "{err}");
     assert_eq!(json(&cal3)["presses_used"], 12);
+    // `unitac contact` with the calibration: depth's area near the physical disc, overlays.
+    let ov = d.join("overlay");
+    let (code, out, err) = unitac(&[
+        "contact",
+        "--sensor",
+        "gelsight-mini",
+        "--background",
+        bg.to_str().unwrap(),
+        "--depth-calibration",
+        cal.to_str().unwrap(),
+        "--overlay",
+        ov.to_str().unwrap(),
+        "--json",
+        &files[2],
+        &files[3],
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    for (line, t) in out.lines().zip(&truth.as_array().unwrap()[2..4]) {
+        let v: Value = serde_json::from_str(line).unwrap();
+        let disc = std::f64::consts::PI * t["contact_radius_px"].as_f64().unwrap().powi(2);
+        let ratio = v["depth"]["area_px"].as_f64().unwrap() / disc;
+        assert!((0.75..1.25).contains(&ratio), "{v} vs disc {disc}");
+        let pen = v["depth"]["penetration_mm"].as_f64().unwrap();
+        assert!(
+            (pen - t["approach_mm"].as_f64().unwrap()).abs() < 0.05,
+            "{v} {t}"
+        );
+        let name = t["file"].as_str().unwrap().replace(".png", ".overlay.png");
+        let img = image::open(ov.join(name)).unwrap().to_rgb8();
+        assert_eq!((img.width(), img.height()), (640, 240));
+        assert!(
+            img.pixels().any(|p| p.0 == [255, 0, 0]),
+            "the outline is drawn"
+        );
+    }
+    let (code, _, err) = unitac(&[
+        "contact",
+        "--sensor",
+        "digit",
+        "--background",
+        bg.to_str().unwrap(),
+        "--depth-calibration",
+        cal.to_str().unwrap(),
+        &files[2],
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("gelsight-mini") && err.contains("digit"),
+        "{err}"
+    );
     // Not a ball; too few presses.
     let mut bad = args.clone();
     bad[5] = "-1";
