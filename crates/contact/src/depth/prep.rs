@@ -48,11 +48,8 @@ impl Prep {
     ) -> Shading {
         let n = w * h * 3;
         self.diff.resize(n, 0.0);
-        self.tmp.resize(n, 0.0);
-        for ((t, &f), &b) in self.tmp.iter_mut().zip(frame).zip(background) {
-            *t = f32::from(f) - f32::from(b);
-        }
-        box3(&self.tmp, &mut self.diff, w, h);
+        self.tmp.resize(w * 3, 0.0);
+        box3_diff(frame, background, &mut self.tmp, &mut self.diff, w, h);
         fit_shading(&self.diff, w, h)
     }
 }
@@ -109,27 +106,53 @@ impl Shading {
     }
 }
 
-/// 3 x 3 box mean per channel (the border averages what is inside the frame): a horizontal
-/// three-tap pass per row into `dst`, then a vertical one through a copy of the previous row,
-/// both written as slice arithmetic over whole rows so that they vectorise.
-fn box3(src: &[f32], dst: &mut [f32], w: usize, h: usize) {
+/// `box3` of `frame - background` (u8), the difference taken row by row into `row` (one row
+/// of scratch) instead of a whole difference image.
+fn box3_diff(
+    frame: &[u8],
+    background: &[u8],
+    row: &mut [f32],
+    dst: &mut [f32],
+    w: usize,
+    h: usize,
+) {
     let stride = w * 3;
     if w < 2 || h < 2 {
-        dst.copy_from_slice(src);
+        for ((d, &f), &b) in dst.iter_mut().zip(frame).zip(background) {
+            *d = f32::from(f) - f32::from(b);
+        }
         return;
     }
     const THIRD: f32 = 1.0 / 3.0;
-    for (row, out) in src.chunks_exact(stride).zip(dst.chunks_exact_mut(stride)) {
-        for c in 0..3 {
-            out[c] = (row[c] + row[3 + c]) * 0.5;
-            out[stride - 3 + c] = (row[stride - 6 + c] + row[stride - 3 + c]) * 0.5;
+    for ((fr, bg), out) in frame
+        .chunks_exact(stride)
+        .zip(background.chunks_exact(stride))
+        .zip(dst.chunks_exact_mut(stride))
+    {
+        for ((t, &f), &b) in row.iter_mut().zip(fr).zip(bg) {
+            *t = f32::from(f) - f32::from(b);
         }
-        let n = stride - 6;
-        let (l, m, r) = (&row[..n], &row[3..3 + n], &row[6..6 + n]);
-        for (((o, a), b), c) in out[3..3 + n].iter_mut().zip(l).zip(m).zip(r) {
-            *o = (a + b + c) * THIRD;
-        }
+        horizontal3(row, out, stride, THIRD);
     }
+    vertical3(dst, w, h, THIRD);
+}
+
+/// One row's horizontal three-tap mean (two taps at the ends).
+fn horizontal3(row: &[f32], out: &mut [f32], stride: usize, third: f32) {
+    for c in 0..3 {
+        out[c] = (row[c] + row[3 + c]) * 0.5;
+        out[stride - 3 + c] = (row[stride - 6 + c] + row[stride - 3 + c]) * 0.5;
+    }
+    let n = stride - 6;
+    let (l, m, r) = (&row[..n], &row[3..3 + n], &row[6..6 + n]);
+    for (((o, a), b), c) in out[3..3 + n].iter_mut().zip(l).zip(m).zip(r) {
+        *o = (a + b + c) * third;
+    }
+}
+
+/// The vertical three-tap mean of `dst` in place (two taps at the first and last rows).
+fn vertical3(dst: &mut [f32], w: usize, h: usize, third: f32) {
+    let stride = w * 3;
     let mut prev = dst[..stride].to_vec();
     let mut cur = vec![0f32; stride];
     for y in 0..h {
@@ -147,11 +170,28 @@ fn box3(src: &[f32], dst: &mut [f32], w: usize, h: usize) {
             let (head, tail) = dst.split_at_mut((y + 1) * stride);
             let out = &mut head[y * stride..];
             for ((o, p), n) in out.iter_mut().zip(&prev).zip(&tail[..stride]) {
-                *o = (*o + p + n) * THIRD;
+                *o = (*o + p + n) * third;
             }
         }
         std::mem::swap(&mut prev, &mut cur);
     }
+}
+
+/// 3 x 3 box mean per channel (the border averages what is inside the frame): a horizontal
+/// three-tap pass per row into `dst`, then a vertical one through a copy of the previous row,
+/// both written as slice arithmetic over whole rows so that they vectorise.
+#[cfg(test)]
+fn box3(src: &[f32], dst: &mut [f32], w: usize, h: usize) {
+    let stride = w * 3;
+    if w < 2 || h < 2 {
+        dst.copy_from_slice(src);
+        return;
+    }
+    const THIRD: f32 = 1.0 / 3.0;
+    for (row, out) in src.chunks_exact(stride).zip(dst.chunks_exact_mut(stride)) {
+        horizontal3(row, out, stride, THIRD);
+    }
+    vertical3(dst, w, h, THIRD);
 }
 
 /// Fit and subtract the smooth shading per channel (module docs).
@@ -311,6 +351,12 @@ mod tests {
         let src: Vec<f32> = (0..w * h * 3).map(|i| (i * 7 % 11) as f32).collect();
         let mut dst = vec![0f32; src.len()];
         box3(&src, &mut dst, w, h);
+        // The same from two u8 images whose difference is src.
+        let frame: Vec<u8> = src.iter().map(|&v| v as u8 + 20).collect();
+        let background = vec![20u8; src.len()];
+        let mut fused = vec![0f32; src.len()];
+        let mut row = vec![0f32; w * 3];
+        box3_diff(&frame, &background, &mut row, &mut fused, w, h);
         for y in 0..h {
             for x in 0..w {
                 for c in 0..3 {
