@@ -12,7 +12,7 @@
 
 use super::model::{COLOUR_SCALE, DepthCalibration, DepthError, GradientModel};
 use super::poisson::PoissonSolver;
-use super::prep::Prep;
+use super::prep::{Prep, Shading};
 use unitac_core::Frame;
 
 /// One output of the gradient model for one row (`model::features` with v fixed and the colour
@@ -64,6 +64,67 @@ impl RowModel {
             + q[3] * r * g
             + q[4] * r * b
             + q[5] * g * b
+    }
+}
+
+/// Slopes per pixel step from the prepared difference (estimate's second pass), built for
+/// baseline x86-64 and for AVX2, taken at run time (no FMA, no reordered sums: the same bytes).
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn model_pass(
+    diff: &[f32],
+    w: usize,
+    h: usize,
+    shading: &Shading,
+    model: &GradientModel,
+    gx: &mut [f32],
+    gy: &mut [f32],
+) {
+    // Depth change per pixel step [mm]: the model's slopes times mm per pixel (folded into
+    // its coefficients at construction), with the colour scale and this row's v folded in
+    // here and the shading subtracted per pixel: one pass, no feature vector.
+    let iw = 1.0 / w as f32;
+    let cs = COLOUR_SCALE;
+    for y in 0..h {
+        let v = y as f32 / h as f32 - 0.5;
+        let sh = shading.row(y);
+        let kx = RowModel::new(&model.gx, v, cs);
+        let ky = RowModel::new(&model.gy, v, cs);
+        let row = &diff[y * w * 3..(y + 1) * w * 3];
+        let (ox, oy) = (&mut gx[y * w..(y + 1) * w], &mut gy[y * w..(y + 1) * w]);
+        // Blocks of 32 pixels, de-interleaved into arrays, so that the arithmetic
+        // vectorises (the per-pixel loop over RGB triples did not).
+        const B: usize = 32;
+        let mut x0 = 0;
+        for ((d, p), q) in row
+            .chunks(3 * B)
+            .zip(ox.chunks_mut(B))
+            .zip(oy.chunks_mut(B))
+        {
+            let n = p.len();
+            let (mut r, mut g, mut b, mut u) = ([0f32; B], [0f32; B], [0f32; B], [0f32; B]);
+            for (k, px) in d.chunks_exact(3).enumerate().take(B) {
+                r[k] = px[0];
+                g[k] = px[1];
+                b[k] = px[2];
+                u[k] = (x0 + k) as f32;
+            }
+            for k in 0..B {
+                let x = u[k];
+                let s = (x - shading.cx()) * shading.inv();
+                r[k] -= sh[0][0] + sh[0][1] * s + sh[0][2] * s * s;
+                g[k] -= sh[1][0] + sh[1][1] * s + sh[1][2] * s * s;
+                b[k] -= sh[2][0] + sh[2][1] * s + sh[2][2] * s * s;
+                u[k] = x * iw - 0.5;
+            }
+            let (mut pa, mut qa) = ([0f32; B], [0f32; B]);
+            for k in 0..B {
+                pa[k] = kx.eval(u[k], r[k], g[k], b[k]);
+                qa[k] = ky.eval(u[k], r[k], g[k], b[k]);
+            }
+            p.copy_from_slice(&pa[..n]);
+            q.copy_from_slice(&qa[..n]);
+            x0 += n;
+        }
     }
 }
 
@@ -183,56 +244,15 @@ impl DepthEstimator {
         let shading = self
             .prep
             .run_unsubtracted(frame.data(), self.background.data(), w, h);
-        // Depth change per pixel step [mm]: the model's slopes times mm per pixel (folded into
-        // its coefficients at construction), with the colour scale and this row's v folded in
-        // here and the shading subtracted per pixel: one pass, no feature vector.
-        let iw = 1.0 / w as f32;
-        let cs = COLOUR_SCALE;
-        for y in 0..h {
-            let v = y as f32 / h as f32 - 0.5;
-            let sh = shading.row(y);
-            let kx = RowModel::new(&self.step_model.gx, v, cs);
-            let ky = RowModel::new(&self.step_model.gy, v, cs);
-            let row = &self.prep.diff[y * w * 3..(y + 1) * w * 3];
-            let (ox, oy) = (
-                &mut self.gx[y * w..(y + 1) * w],
-                &mut self.gy[y * w..(y + 1) * w],
-            );
-            // Blocks of 32 pixels, de-interleaved into arrays, so that the arithmetic
-            // vectorises (the per-pixel loop over RGB triples did not).
-            const B: usize = 32;
-            let mut x0 = 0;
-            for ((d, p), q) in row
-                .chunks(3 * B)
-                .zip(ox.chunks_mut(B))
-                .zip(oy.chunks_mut(B))
-            {
-                let n = p.len();
-                let (mut r, mut g, mut b, mut u) = ([0f32; B], [0f32; B], [0f32; B], [0f32; B]);
-                for (k, px) in d.chunks_exact(3).enumerate().take(B) {
-                    r[k] = px[0];
-                    g[k] = px[1];
-                    b[k] = px[2];
-                    u[k] = (x0 + k) as f32;
-                }
-                for k in 0..B {
-                    let x = u[k];
-                    let s = (x - shading.cx()) * shading.inv();
-                    r[k] -= sh[0][0] + sh[0][1] * s + sh[0][2] * s * s;
-                    g[k] -= sh[1][0] + sh[1][1] * s + sh[1][2] * s * s;
-                    b[k] -= sh[2][0] + sh[2][1] * s + sh[2][2] * s * s;
-                    u[k] = x * iw - 0.5;
-                }
-                let (mut pa, mut qa) = ([0f32; B], [0f32; B]);
-                for k in 0..B {
-                    pa[k] = kx.eval(u[k], r[k], g[k], b[k]);
-                    qa[k] = ky.eval(u[k], r[k], g[k], b[k]);
-                }
-                p.copy_from_slice(&pa[..n]);
-                q.copy_from_slice(&qa[..n]);
-                x0 += n;
-            }
-        }
+        model_pass(
+            &self.prep.diff,
+            w,
+            h,
+            &shading,
+            &self.step_model,
+            &mut self.gx,
+            &mut self.gy,
+        );
         self.solver.solve(&self.gx, &self.gy, &mut self.depth);
         let mut px = std::mem::take(&mut self.border);
         // Zero level: median of the two outermost rings.

@@ -107,7 +107,8 @@ impl Shading {
 }
 
 /// `box3` of `frame - background` (u8), the difference taken row by row into `row` (one row
-/// of scratch) instead of a whole difference image.
+/// of scratch) instead of a whole difference image. Built for baseline x86-64 and for AVX2.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
 fn box3_diff(
     frame: &[u8],
     background: &[u8],
