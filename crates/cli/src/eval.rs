@@ -4,7 +4,9 @@
 //! (1 DN) and illumination drift (LED warm-up + wander), at 25 fps. A frame is a positive when the
 //! penetration exceeds `POSITIVE_MM`, a negative when nothing touches; frames in between (the
 //! first and last instants of a touch) are reported per depth but not scored. Then ten simulated
-//! minutes with drift and noise and no contact, counting false episodes.
+//! minutes with drift and noise and no contact, counting false episodes. Last, the contact
+//! region's area against the physical contact disc on ball presses of a Hertz gel
+//! (`unitac_sim::ballpress`), where the scenario renderer's own truth mask is not physical.
 
 use serde::Serialize;
 use unitac_contact::{ContactDetector, ContactParams};
@@ -45,6 +47,76 @@ pub struct SensorReport {
 pub struct EvalReport {
     pub positive_mm: f64,
     pub sensors: Vec<SensorReport>,
+    /// The contact region's area against the physical disc on mock ball presses.
+    pub ball_presses: Vec<BallAreaRow>,
+}
+
+/// Area of the contact region on ball presses (`unitac_sim::ballpress`: a Hertz gel with its
+/// skirt), one background image as `unitac contact` runs, against the Hertz disc pi R d and the
+/// geometric one pi (2 R d - d^2).
+#[derive(Debug, Serialize)]
+pub struct BallAreaRow {
+    pub sensor: String,
+    pub ball_radius_mm: f64,
+    pub approach_mm: f64,
+    pub presses: usize,
+    pub found: usize,
+    pub area_over_hertz: f64,
+    pub area_over_geometric: f64,
+}
+
+/// Approaches of the ball presses \[mm].
+pub const BALL_APPROACHES: [f64; 5] = [0.2, 0.4, 0.6, 0.8, 1.0];
+
+fn ball_areas(kind: SensorKind) -> anyhow::Result<Vec<BallAreaRow>> {
+    use unitac_sim::ballpress::{BallPress, PressNoise, render_presses};
+    let spec = kind.spec();
+    let mut cfg = MockConfig::new(kind, 11);
+    cfg.markers = false;
+    let radius_mm = 2.0;
+    let mut rows = Vec::new();
+    for approach in BALL_APPROACHES {
+        let presses: Vec<BallPress> = [[110.0, 95.0], [210.0, 140.0], [160.0, 120.0]]
+            .iter()
+            .map(|c| BallPress {
+                center_px: *c,
+                radius_mm,
+                approach_mm: approach,
+            })
+            .collect();
+        let noise = PressNoise {
+            noise_dn: 1.0,
+            shading_dn: 0.0,
+            seed: 5,
+        };
+        let (bg, rendered) = render_presses(&cfg, spec, &presses, noise)
+            .ok_or_else(|| anyhow::anyhow!("rendering ball presses"))?;
+        let mut det =
+            ContactDetector::new(ContactParams::default(), spec).map_err(anyhow::Error::msg)?;
+        det.set_background_frame(&bg);
+        let (mut found, mut h, mut g) = (0usize, 0f64, 0f64);
+        for p in &rendered {
+            let m = det.measure(&p.frame).map_err(anyhow::Error::msg)?;
+            if m.area_px <= 0.0 {
+                continue;
+            }
+            found += 1;
+            let area = f64::from(m.area_px) * spec.mm2_per_px();
+            h += area / (std::f64::consts::PI * p.press.contact_radius_mm().powi(2));
+            g += area / (std::f64::consts::PI * p.press.geometric_radius_mm().powi(2));
+        }
+        let n = found.max(1) as f64;
+        rows.push(BallAreaRow {
+            sensor: kind.to_string(),
+            ball_radius_mm: radius_mm,
+            approach_mm: approach,
+            presses: rendered.len(),
+            found,
+            area_over_hertz: h / n,
+            area_over_geometric: g / n,
+        });
+    }
+    Ok(rows)
 }
 
 fn iou(a: &[bool], b: &[bool]) -> f64 {
@@ -159,9 +231,12 @@ pub fn eval_contact(idle_s: f64) -> anyhow::Result<EvalReport> {
         .into_iter()
         .map(|k| eval_sensor(k, idle_s))
         .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut ball_presses = ball_areas(SensorKind::GelsightMini)?;
+    ball_presses.extend(ball_areas(SensorKind::Digit)?);
     Ok(EvalReport {
         positive_mm: POSITIVE_MM,
         sensors,
+        ball_presses,
     })
 }
 
@@ -198,6 +273,22 @@ impl EvalReport {
                 r.idle_minutes, r.idle_false_episodes, r.idle_false_frames
             );
         }
+        let _ = writeln!(
+            s,
+            "\ncontact area on ball presses (R 2 mm, Hertz gel with its skirt, noise 1 DN, one background image)\n  sensor         approach [mm]  found  area / Hertz disc  area / geometric disc"
+        );
+        for b in &self.ball_presses {
+            let _ = writeln!(
+                s,
+                "  {:<13}  {:>13.2}  {:>2}/{:<2}  {:>17.3}  {:>21.3}",
+                b.sensor,
+                b.approach_mm,
+                b.found,
+                b.presses,
+                b.area_over_hertz,
+                b.area_over_geometric
+            );
+        }
         s
     }
 }
@@ -229,6 +320,15 @@ mod tests {
                 lightest
             );
             assert_eq!((s.idle_false_episodes, s.idle_false_frames), (0, 0));
+        }
+        // Every ball press is found on both sensors.
+        assert_eq!(r.ball_presses.len(), 2 * BALL_APPROACHES.len());
+        for b in &r.ball_presses {
+            assert_eq!(b.found, b.presses, "{b:?}");
+            assert!(
+                b.area_over_hertz.is_finite() && b.area_over_hertz > 0.0,
+                "{b:?}"
+            );
         }
     }
 }

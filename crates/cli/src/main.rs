@@ -9,6 +9,7 @@ mod bench;
 mod dataset;
 mod decode_bench;
 mod demos;
+mod depth;
 mod devices;
 mod eval;
 mod gripper;
@@ -93,6 +94,14 @@ enum Cmd {
         frames: Vec<PathBuf>,
         #[arg(long)]
         json: bool,
+        /// A depth calibration (`unitac calibrate depth`) of this sensor: each line also gets
+        /// the gel's depth: penetration, and the contact region's area and centroid from depth.
+        #[arg(long)]
+        depth_calibration: Option<PathBuf>,
+        /// Write `<frame>.overlay.png` per frame into this directory: the frame with the contact
+        /// outline and centroid, and beside it the depth colour map (with --depth-calibration).
+        #[arg(long)]
+        overlay: Option<PathBuf>,
     },
     /// Replay a rosbag2 bag (directory with metadata.yaml + .mcap/.db3, or a bare .mcap) through
     /// the contact stage. With --json: one line per image message {stamp, contact (null while the
@@ -138,11 +147,21 @@ enum Cmd {
         #[command(subcommand)]
         cmd: BagCmd,
     },
-    /// Measure quality against ground truth (mock sensor): `eval contact`, `eval slip`.
+    /// Calibrations: `calibrate depth` (a sensor's photometric depth calibration from ball
+    /// presses), `calibrate mock-presses` (mock ball presses to try it on).
+    Calibrate {
+        #[command(subcommand)]
+        cmd: depth::CalibrateCmd,
+    },
+    /// Measure quality against ground truth (mock sensor): `eval contact`, `eval slip`,
+    /// `eval depth`.
     Eval {
         what: EvalTarget,
         #[arg(long)]
         json: bool,
+        /// `eval depth`: directory for PNGs of frame, estimated and true depth.
+        #[arg(long)]
+        out: Option<PathBuf>,
         /// Minutes of simulated idle time for the false-episode count.
         #[arg(long, default_value_t = 10.0)]
         idle_minutes: f64,
@@ -256,6 +275,10 @@ enum EvalTarget {
     Contact,
     /// The slip stage's shear, rotation and slip flag against the renderer's tangential truth.
     Slip,
+    /// Depth from one image on mock ball presses against their exact depth: RMSE, penetration
+    /// error, contact area against the Hertz and geometric discs, at several depths, noise and
+    /// shading levels.
+    Depth,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -292,6 +315,9 @@ enum BenchTarget {
     /// The policy tick per scene and mode (--repeat episodes each), with an ONNX policy's act,
     /// and a loop paced at the control rate (--ticks), vs Python onnxruntime.
     Policy,
+    /// Depth from one image per frame (320x240, 640x480) vs the numpy path a GelSight user
+    /// runs, the read-pass floor, and the share of one core at 25 fps.
+    Depth,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -423,11 +449,18 @@ fn cmd_run(
     Ok(true)
 }
 
+/// `unitac contact`'s optional depth and overlay.
+struct ContactExtras<'a> {
+    depth_calibration: Option<&'a std::path::Path>,
+    overlay: Option<&'a std::path::Path>,
+}
+
 fn cmd_contact(
     sensor: unitac_core::SensorKind,
     background: &std::path::Path,
     frames: &[PathBuf],
     json: bool,
+    extra: &ContactExtras<'_>,
 ) -> anyhow::Result<bool> {
     use unitac_contact::{ContactDetector, ContactParams};
     let bg = images::read_frame(background, sensor.as_str(), 0, None)
@@ -442,25 +475,61 @@ fn cmd_contact(
             .map(|s| (s * stride / std::f32::consts::SQRT_2 * 100.0).round() / 100.0)
     };
     let size = (bg.width, bg.height);
+    let mut depth =
+        match extra.depth_calibration {
+            Some(p) => Some(depth::contact_depth(p, sensor, &bg).map_err(|e| {
+                anyhow::Error::new(ConfigError(format!("--depth-calibration {e:#}")))
+            })?),
+            None => None,
+        };
+    if let Some(d) = extra.overlay {
+        std::fs::create_dir_all(d).map_err(|e| {
+            anyhow::Error::new(ConfigError(format!("--overlay {}: {e}", d.display())))
+        })?;
+    }
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let mut all_ok = true;
     for (i, path) in frames.iter().enumerate() {
         let file = path.display().to_string();
-        let result = images::read_frame(path, sensor.as_str(), i as u64 + 1, Some(size))
-            .and_then(|f| det.measure(&f).map_err(|e| anyhow::anyhow!("{file}: {e}")));
+        let result =
+            images::read_frame(path, sensor.as_str(), i as u64 + 1, Some(size)).and_then(|f| {
+                let m = det
+                    .measure(&f)
+                    .map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+                let d = match depth.as_mut() {
+                    Some(est) => Some(
+                        est.estimate(&f)
+                            .map_err(|e| anyhow::anyhow!("{file}: {e}"))?,
+                    ),
+                    None => None,
+                };
+                if let Some(dir) = extra.overlay {
+                    depth::overlay_png(&f, &det.mask_px(), m.centroid, depth.as_ref(), dir, path)?;
+                }
+                Ok((m, d))
+            });
         let line = match result {
-            Ok(m) => {
+            Ok((m, d)) => {
                 let contact = m.contact;
-                if json {
+                let dj = d.map(|d| {
                     serde_json::json!({
+                        "contact": d.contact, "penetration_mm": d.penetration_mm,
+                        "area_px": d.area_px, "area_mm2": d.area_mm2, "centroid": d.centroid_px,
+                    })
+                });
+                if json {
+                    let mut v = serde_json::json!({
                         "file": file, "contact": contact, "area_px": m.area_px,
                         "centroid": m.centroid, "bbox": m.bbox, "score": m.strength,
                         "noise_dn": noise_dn(&m),
-                    })
-                    .to_string()
+                    });
+                    if let Some(dj) = dj {
+                        v["depth"] = dj;
+                    }
+                    v.to_string()
                 } else {
-                    format!(
+                    let mut t = format!(
                         "{file}: contact {} area {:.0} px centroid ({:.1}, {:.1}) bbox {:?} score {:.2} noise {:?} DN",
                         if contact { "yes" } else { "no" },
                         m.area_px,
@@ -469,7 +538,14 @@ fn cmd_contact(
                         m.bbox,
                         m.strength,
                         noise_dn(&m)
-                    )
+                    );
+                    if let Some(d) = d {
+                        t += &format!(
+                            "; depth: penetration {:.3} mm area {:.2} mm^2 centroid ({:.1}, {:.1})",
+                            d.penetration_mm, d.area_mm2, d.centroid_px[0], d.centroid_px[1]
+                        );
+                    }
+                    t
                 }
             }
             Err(e) => {
@@ -552,8 +628,14 @@ fn main() -> ExitCode {
             background,
             frames,
             json,
+            depth_calibration,
+            overlay,
         } => {
-            match cmd_contact(sensor, &background, &frames, json) {
+            let extra = ContactExtras {
+                depth_calibration: depth_calibration.as_deref(),
+                overlay: overlay.as_deref(),
+            };
+            match cmd_contact(sensor, &background, &frames, json, &extra) {
                 // Any failed file: exit 2, after every other file was processed.
                 Ok(false) => return ExitCode::from(2),
                 other => other,
@@ -591,7 +673,27 @@ fn main() -> ExitCode {
             what: EvalTarget::Contact,
             json,
             idle_minutes,
+            ..
         } => eval::eval_contact(idle_minutes.clamp(0.0, 600.0) * 60.0).and_then(|r| {
+            if json {
+                emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
+            } else {
+                emit(r.text())?;
+            }
+            Ok(true)
+        }),
+        Cmd::Calibrate {
+            cmd: depth::CalibrateCmd::Depth(a),
+        } => depth::calibrate_depth(&a),
+        Cmd::Calibrate {
+            cmd: depth::CalibrateCmd::MockPresses(a),
+        } => depth::mock_presses(&a),
+        Cmd::Eval {
+            what: EvalTarget::Depth,
+            json,
+            out,
+            ..
+        } => depth::eval_depth(out.as_deref()).and_then(|r| {
             if json {
                 emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
             } else {
@@ -648,6 +750,8 @@ fn main() -> ExitCode {
             let spinner = progress::spinner(&format!("bench {what:?}").to_lowercase());
             let text = match what {
                 BenchTarget::Contact => bench::bench_contact(frames, repeat, !no_python)
+                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
+                BenchTarget::Depth => depth::bench_depth(frames, repeat, !no_python)
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
                 BenchTarget::Replay => bench::bench_replay(frames, repeat, !no_python)
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),

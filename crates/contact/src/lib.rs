@@ -28,6 +28,7 @@
 //! The [`slip`] stage runs after it on marker gels: shear and slip from the tracked marker field.
 
 pub mod background;
+pub mod depth;
 mod detector;
 mod episodes;
 pub mod grid;

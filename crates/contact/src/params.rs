@@ -60,6 +60,10 @@ pub struct ContactParams {
     pub background_dir: Option<std::path::PathBuf>,
     /// Labels given to episodes in order (e.g. [fabric_a, fabric_b]); later episodes get "".
     pub episode_labels: Vec<String>,
+    /// A depth calibration file (`unitac calibrate depth`): when set, the contact's area,
+    /// centroid and box come from the gel's depth (its half-depth contour) instead of the
+    /// colour residual. Loaded and checked against the sensor when the scene is loaded.
+    pub depth_calibration: Option<std::path::PathBuf>,
 }
 
 impl Default for ContactParams {
@@ -86,6 +90,7 @@ impl Default for ContactParams {
             clip_frames: 0,
             background_dir: None,
             episode_labels: Vec::new(),
+            depth_calibration: None,
         }
     }
 }

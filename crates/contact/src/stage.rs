@@ -2,6 +2,7 @@
 //! ContactClip) on release, and the background announced downstream when it is learned.
 //! Saved backgrounds come from an injected [`BackgroundStore`]: the stage does no file I/O.
 
+use crate::depth::{DepthCalibration, DepthEstimator, DepthParams};
 use crate::detector::ContactDetector;
 use crate::params::{ContactParams, ParamsError};
 use crate::store::{BackgroundStore, DirStore};
@@ -20,6 +21,16 @@ pub struct ContactStage {
     store_asked: bool,
     /// Why the saved background was not used (asked once, on the first frame).
     store_error: Option<String>,
+    /// Depth from the gel's shading (`with_depth`): the contact's area, centroid and box come
+    /// from the depth's contact region.
+    depth: Option<DepthUse>,
+}
+
+/// The depth calibration and its estimator on the current background.
+#[derive(Debug)]
+struct DepthUse {
+    cal: DepthCalibration,
+    est: Option<DepthEstimator>,
 }
 
 impl ContactStage {
@@ -46,7 +57,18 @@ impl ContactStage {
             store,
             store_asked: false,
             store_error: None,
+            depth: None,
         })
+    }
+
+    /// Take the contact's area (px, mm^2), centroid and bounding box from the gel's depth
+    /// (crate::depth): the half-depth contour of the press, not the colour residual's, which on
+    /// a real gel takes in the skirt around a press. Entering and leaving contact (hysteresis,
+    /// episodes) stay the detector's. The calibration must be for this sensor's aspect ratio
+    /// (checked when the scene is loaded); the estimator follows each new background.
+    pub fn with_depth(mut self, cal: DepthCalibration) -> Self {
+        self.depth = Some(DepthUse { cal, est: None });
+        self
     }
     pub fn detector(&self) -> &ContactDetector {
         &self.det
@@ -75,6 +97,62 @@ impl ContactStage {
     }
 }
 
+impl ContactStage {
+    /// Replace the area, centroid and box of an in-contact ContactState by the depth's.
+    fn apply_depth(
+        &mut self,
+        f: &Frame,
+        out: &mut [Msg],
+        new_background: bool,
+    ) -> Result<(), StageError> {
+        let Some(d) = self.depth.as_mut() else {
+            return Ok(());
+        };
+        let stale = d
+            .est
+            .as_ref()
+            .is_none_or(|e| new_background || e.size() != (f.width as usize, f.height as usize));
+        if stale {
+            d.est = match self.det.background_frame(&f.sensor_id) {
+                Some(bg) => Some(
+                    DepthEstimator::new(d.cal.clone(), bg, DepthParams::default())
+                        .map_err(|e| StageError::BadInput(e.to_string()))?,
+                ),
+                None => None,
+            };
+        }
+        let Some(est) = d.est.as_mut() else {
+            return Ok(());
+        };
+        for m in out.iter_mut() {
+            let Msg::ContactState(cs) = m else { continue };
+            if !cs.in_contact {
+                continue;
+            }
+            let s = est
+                .estimate(f)
+                .map_err(|e| StageError::BadInput(e.to_string()))?;
+            if !s.contact {
+                continue;
+            }
+            let (w, mask) = (est.size().0, est.mask());
+            let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0u32, 0u32);
+            for (i, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+                let (x, y) = ((i % w) as u32, (i / w) as u32);
+                x0 = x0.min(x);
+                y0 = y0.min(y);
+                x1 = x1.max(x + 1);
+                y1 = y1.max(y + 1);
+            }
+            cs.area_px = s.area_px as f32;
+            cs.area_mm2 = s.area_mm2 as f32;
+            cs.centroid_px = s.centroid_px;
+            cs.bbox_px = [x0, y0, x1, y1];
+        }
+        Ok(())
+    }
+}
+
 impl Stage for ContactStage {
     fn name(&self) -> &str {
         "contact"
@@ -88,11 +166,16 @@ impl Stage for ContactStage {
                     self.load_saved_background(f);
                 }
                 let mut out = self.det.step(f)?;
+                let mut new_background = false;
                 if self.det.is_learned() != self.announced {
                     self.announced = self.det.is_learned();
                     if let Some(bg) = self.det.background_frame(&f.sensor_id) {
                         out.insert(0, Msg::Background(bg));
+                        new_background = true;
                     }
+                }
+                if self.depth.is_some() {
+                    self.apply_depth(f, &mut out, new_background)?;
                 }
                 Ok(out)
             }

@@ -249,7 +249,29 @@ pub fn build_stage(scene: &Scene, cfg: StageConfig) -> Result<Box<dyn Stage>, Sc
     };
     Ok(match cfg {
         StageConfig::Contact { params, sensor } => {
-            Box::new(ContactStage::new(params, sensor).map_err(|e| bad(e.to_string()))?)
+            let cal = match &params.depth_calibration {
+                Some(path) => {
+                    let cal = unitac_contact::depth::DepthCalibration::load(path)
+                        .map_err(|e| bad(e.to_string()))?;
+                    if cal.sensor != sensor.kind {
+                        return Err(bad(format!(
+                            "depth calibration {} is for a {}, the scene's sensor is a {}",
+                            path.display(),
+                            cal.sensor,
+                            sensor.kind
+                        )));
+                    }
+                    cal.mm_per_px_at(sensor.width, sensor.height)
+                        .map_err(|e| bad(format!("depth calibration {}: {e}", path.display())))?;
+                    Some(cal)
+                }
+                None => None,
+            };
+            let stage = ContactStage::new(params, sensor).map_err(|e| bad(e.to_string()))?;
+            Box::new(match cal {
+                Some(c) => stage.with_depth(c),
+                None => stage,
+            })
         }
         StageConfig::Slip { params, sensor } => {
             Box::new(SlipStage::new(params, sensor).map_err(|e| bad(e.to_string()))?)
@@ -409,5 +431,73 @@ mod tests {
         .unwrap();
         let e = stage_configs(&s).unwrap_err().to_string();
         assert!(e.contains("slip_off"), "{e}");
+    }
+
+    #[test]
+    fn a_depth_calibration_is_loaded_and_checked_against_the_scene_sensor() {
+        use unitac_contact::depth::{DepthCalibration, GradientModel, model::FEATURES};
+        use unitac_core::SensorKind;
+        let dir = std::env::temp_dir().join(format!("unitac-registry-cal-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let cal = |name: &str, sensor: SensorKind, w: u32, h: u32| {
+            let c = DepthCalibration {
+                format: unitac_contact::depth::model::FORMAT,
+                sensor,
+                serial: String::new(),
+                width: w,
+                height: h,
+                mm_per_px: 0.0634,
+                ball_radius_mm: 2.0,
+                presses_used: 30,
+                fit_rms_slope: 0.01,
+                model: GradientModel {
+                    gx: vec![0.0; FEATURES],
+                    gy: vec![0.0; FEATURES],
+                },
+            };
+            let p = dir.join(name);
+            c.save(&p).unwrap();
+            p
+        };
+        let with = |name: &str, path: &std::path::Path| {
+            scene(
+                name,
+                "gelsight-mini",
+                &format!(
+                    "[{{kind: contact, params: {{depth_calibration: {}}}}}]",
+                    path.display()
+                ),
+            )
+            .unwrap()
+        };
+        let good = cal("good.json", SensorKind::GelsightMini, 640, 480);
+        assert_eq!(
+            build_stages(&with("depth_ok", &good)).unwrap()[0].name(),
+            "contact"
+        );
+        let digit = cal("digit.json", SensorKind::Digit, 320, 240);
+        let e = build_stages(&with("depth_digit", &digit))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("digit") && e.contains("gelsight-mini"), "{e}");
+        let square = cal("square.json", SensorKind::GelsightMini, 320, 320);
+        let e = build_stages(&with("depth_square", &square))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("aspect ratio"), "{e}");
+        let e = build_stages(&with("depth_missing", &dir.join("none.json")))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("none.json"), "{e}");
+        std::fs::write(dir.join("junk.json"), "{\"format\": 1}").unwrap();
+        let e = build_stages(&with("depth_junk", &dir.join("junk.json")))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("junk.json"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -59,10 +59,29 @@ fn non_default(default: Value, special: Value) -> serde_json::Map<String, Value>
 fn full_params() -> [serde_json::Map<String, Value>; 6] {
     let bg = tmp("backgrounds");
     std::fs::create_dir_all(&bg).unwrap();
+    // A depth calibration of the scene's sensor (the stage loads and checks it).
+    let cal = tmp("depth-cal.json");
+    unitac_contact::depth::DepthCalibration {
+        format: unitac_contact::depth::model::FORMAT,
+        sensor: unitac_core::SensorKind::GelsightMini,
+        serial: String::new(),
+        width: 320,
+        height: 240,
+        mm_per_px: 0.0634,
+        ball_radius_mm: 2.0,
+        presses_used: 30,
+        fit_rms_slope: 0.01,
+        model: unitac_contact::depth::GradientModel {
+            gx: vec![0.0; unitac_contact::depth::model::FEATURES],
+            gy: vec![0.0; unitac_contact::depth::model::FEATURES],
+        },
+    }
+    .save(&cal)
+    .unwrap();
     let contact = non_default(
         serde_json::to_value(ContactParams::default()).unwrap(),
         json!({"mask_markers": true, "background_dir": bg, "episode_labels": ["x", "y"],
-               "clip_frames": 6}),
+               "clip_frames": 6, "depth_calibration": cal}),
     );
     let slip = non_default(
         serde_json::to_value(SlipParams::default()).unwrap(),

@@ -95,7 +95,7 @@ pub fn shading_field(width: u32, height: u32, amplitude_dn: f64, seed: u64) -> V
 }
 
 /// `clean + field + noise`, quantised, as a frame like `like`.
-fn noisy(
+pub(crate) fn noisy(
     like: &Frame,
     clean: &[f32],
     field: Option<&[f32]>,

@@ -11,6 +11,7 @@
 //! - [`numerics`], [`bench`](mod@bench): the integrator study (its charts drawn with unitac-plot),
 //!   the renderer benchmark.
 
+pub mod ballpress;
 pub mod bench;
 pub mod degrade;
 pub mod mock;

@@ -246,6 +246,26 @@ impl MockSensor {
         (frame, truth)
     }
 
+    /// Frame `index` (its stamp, gain and noise) of the gel depressed by the height map `height`
+    /// \[mm, row-major, the output size, positive into the gel]: the map is the frame's depth
+    /// truth (ball presses for depth calibration, `crate::ballpress`). None when the map's
+    /// length is not width x height.
+    pub fn render_height(&self, index: u64, height: &[f32]) -> Option<Frame> {
+        let t = index as f64 / self.cfg.fps;
+        let gain = self.cfg.drift.gain(t);
+        let mut frame = self.blank.clone();
+        frame.seq = index;
+        frame.stamp =
+            EPOCH.saturating_add_nanos((index as f64 * 1e9 / self.cfg.fps).round() as i64);
+        self.renderer.render_height_into(
+            frame.data_mut(),
+            height,
+            gain,
+            self.cfg.seed ^ index.wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        )?;
+        Some(frame)
+    }
+
     /// Next frame with its ground truth, or None at the end of the scenario.
     pub fn next_with_truth(&mut self) -> Option<(Frame, GroundTruth)> {
         if self.index >= self.total {

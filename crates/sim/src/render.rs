@@ -135,6 +135,54 @@ impl Renderer {
         Contact { mask, contact_px }
     }
 
+    /// Render into `data` (RGB8, the spec's size) the gel depressed by `height` \[mm, row-major,
+    /// one value per pixel, positive into the gel]: the same lights, shading gain and darkening
+    /// with depth as a press, from the height map's own gradients (central differences, one-sided
+    /// at the border), marker dots at rest, times `gain`, plus noise drawn from `seed`. The shading
+    /// is the exact gradient of the map, so the map is the depth truth of the frame.
+    /// `height` must hold width x height values (`None` is returned otherwise).
+    pub fn render_height_into(
+        &self,
+        data: &mut [u8],
+        height: &[f32],
+        gain: f64,
+        seed: u64,
+    ) -> Option<()> {
+        let (w, h) = (self.spec.width as usize, self.spec.height as usize);
+        if height.len() != w * h || data.len() != w * h * 3 || w < 2 || h < 2 {
+            return None;
+        }
+        let mut rng = self.noise.stream(SplitMix64::new(seed));
+        let mut noise = vec![0f32; w * 3];
+        let inv = 1.0 / self.spec.mm_per_px;
+        let g = gain as f32;
+        for y in 0..h {
+            rng.fill(&mut noise);
+            let (ya, yb) = (y.saturating_sub(1), (y + 1).min(h - 1));
+            let row = &height[y * w..(y + 1) * w];
+            for x in 0..w {
+                let (xa, xb) = (x.saturating_sub(1), (x + 1).min(w - 1));
+                let gx = f64::from(row[xb] - row[xa]) * inv / (xb - xa) as f64;
+                let gy =
+                    f64::from(height[yb * w + x] - height[ya * w + x]) * inv / (yb - ya) as f64;
+                let hh = f64::from(row[x]);
+                let i = (y * w + x) * 3;
+                let dark = if self.markers {
+                    marker_dark(x as f64, y as f64) as f32
+                } else {
+                    1.0
+                };
+                for (c, l) in LIGHTS.iter().enumerate() {
+                    let shade = SHADE_GAIN * (gx * l[0] + gy * l[1]) - DEPTH_DARK * hh;
+                    data[i + c] = quantise_f32(
+                        (self.background[i + c] + shade as f32) * dark * g + noise[x * 3 + c],
+                    );
+                }
+            }
+        }
+        Some(())
+    }
+
     /// The marker dots whose rest centre is in the frame, at rest and moved by `tangential` on
     /// `press` (empty without markers).
     pub fn marker_truth(

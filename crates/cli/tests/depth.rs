@@ -1,0 +1,238 @@
+//! `unitac calibrate depth` on mock ball presses, review and corrected circles, bad inputs; and
+//! `unitac eval depth` against the mock's exact depth.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("unitac-depth-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn unitac(args: &[&str]) -> (Option<i32>, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn presses(d: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with("press_")
+        })
+        .map(|p| p.display().to_string())
+        .collect();
+    v.sort();
+    v
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn calibrate_review_correct_and_refuse() {
+    let d = dir("cal");
+    let out = d.join("mock");
+    let (code, _, err) = unitac(&[
+        "calibrate",
+        "mock-presses",
+        "--count",
+        "12",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let files = presses(&out);
+    assert_eq!(files.len(), 12);
+    let bg = out.join("background.png");
+    let cal = d.join("cal.json");
+    let review = d.join("review");
+    let mut args = vec![
+        "calibrate",
+        "depth",
+        "--sensor",
+        "gelsight-mini",
+        "--ball-radius-mm",
+        "2",
+        "--serial",
+        "MOCK-0001",
+        "--background",
+        bg.to_str().unwrap(),
+        "--out",
+        cal.to_str().unwrap(),
+        "--review",
+        review.to_str().unwrap(),
+    ];
+    args.extend(files.iter().map(String::as_str));
+    let (code, _, err) = unitac(&args);
+    assert_eq!(code, Some(0), "{err}");
+    let c = json(&cal);
+    assert_eq!(c["width"], 320);
+    assert_eq!(c["height"], 240);
+    assert_eq!(c["serial"], "MOCK-0001");
+    assert_eq!(c["presses_used"], 12);
+    assert!(c["fit_rms_slope"].as_f64().unwrap() < 0.02, "{c}");
+    // Review: a PNG per press with the circle drawn, and the circles found, near the truth.
+    let circles = json(&review.join("circles.json"));
+    let truth = json(&out.join("truth.json"));
+    assert_eq!(circles.as_array().unwrap().len(), 12);
+    for (c, t) in circles
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(truth.as_array().unwrap())
+    {
+        assert_eq!(c["file"], t["file"]);
+        assert_eq!(c["found"], true);
+        let off = (c["x"].as_f64().unwrap() - t["x"].as_f64().unwrap())
+            .hypot(c["y"].as_f64().unwrap() - t["y"].as_f64().unwrap());
+        assert!(off < 1.5, "{c} vs {t}");
+        let name = c["file"].as_str().unwrap().replace(".png", ".review.png");
+        let img = image::open(review.join(name)).unwrap().to_rgb8();
+        let (x, y) = (c["x"].as_f64().unwrap(), c["y"].as_f64().unwrap());
+        let r = c["r"].as_f64().unwrap();
+        assert_eq!(
+            img.get_pixel((x + r).round() as u32, y.round() as u32).0,
+            [255, 0, 0],
+            "the circle is drawn"
+        );
+    }
+    // Corrected circles: skip one press, give another by hand.
+    let mut edited = circles.clone();
+    edited[0]["skip"] = Value::Bool(true);
+    edited[1]["x"] = truth[1]["x"].clone();
+    edited[1]["y"] = truth[1]["y"].clone();
+    let edited_path = d.join("circles.json");
+    std::fs::write(&edited_path, edited.to_string()).unwrap();
+    let cal2 = d.join("cal2.json");
+    let mut args2: Vec<&str> = args.clone();
+    let i = args2
+        .iter()
+        .position(|a| *a == cal.to_str().unwrap())
+        .unwrap();
+    args2[i] = cal2.to_str().unwrap();
+    args2.extend(["--circles", edited_path.to_str().unwrap()]);
+    let (code, _, err) = unitac(&args2);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(json(&cal2)["presses_used"], 11);
+    // A press of another size: named on stderr, the rest still fitted, exit 1.
+    let small = d.join("small.png");
+    image::RgbImage::new(100, 80).save(&small).unwrap();
+    let cal3 = d.join("cal3.json");
+    let mut args3: Vec<&str> = args.clone();
+    let i = args3
+        .iter()
+        .position(|a| *a == cal.to_str().unwrap())
+        .unwrap();
+    args3[i] = cal3.to_str().unwrap();
+    args3.push(small.to_str().unwrap());
+    let (code, _, err) = unitac(&args3);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("small.png") && err.contains("100x80"), "{err}");
+    assert_eq!(json(&cal3)["presses_used"], 12);
+    // `unitac contact` with the calibration: depth's area near the physical disc, overlays.
+    let ov = d.join("overlay");
+    let (code, out, err) = unitac(&[
+        "contact",
+        "--sensor",
+        "gelsight-mini",
+        "--background",
+        bg.to_str().unwrap(),
+        "--depth-calibration",
+        cal.to_str().unwrap(),
+        "--overlay",
+        ov.to_str().unwrap(),
+        "--json",
+        &files[2],
+        &files[3],
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    for (line, t) in out.lines().zip(&truth.as_array().unwrap()[2..4]) {
+        let v: Value = serde_json::from_str(line).unwrap();
+        let disc = std::f64::consts::PI * t["contact_radius_px"].as_f64().unwrap().powi(2);
+        let ratio = v["depth"]["area_px"].as_f64().unwrap() / disc;
+        assert!((0.75..1.25).contains(&ratio), "{v} vs disc {disc}");
+        let pen = v["depth"]["penetration_mm"].as_f64().unwrap();
+        assert!(
+            (pen - t["approach_mm"].as_f64().unwrap()).abs() < 0.05,
+            "{v} {t}"
+        );
+        let name = t["file"].as_str().unwrap().replace(".png", ".overlay.png");
+        let img = image::open(ov.join(name)).unwrap().to_rgb8();
+        assert_eq!((img.width(), img.height()), (640, 240));
+        assert!(
+            img.pixels().any(|p| p.0 == [255, 0, 0]),
+            "the outline is drawn"
+        );
+    }
+    let (code, _, err) = unitac(&[
+        "contact",
+        "--sensor",
+        "digit",
+        "--background",
+        bg.to_str().unwrap(),
+        "--depth-calibration",
+        cal.to_str().unwrap(),
+        &files[2],
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("gelsight-mini") && err.contains("digit"),
+        "{err}"
+    );
+    // Not a ball; too few presses.
+    let mut bad = args.clone();
+    bad[5] = "-1";
+    let (code, _, err) = unitac(&bad);
+    assert_ne!(code, Some(0));
+    assert!(err.contains("ball"), "{err}");
+    let few = [
+        &args[..14],
+        &files[..2].iter().map(String::as_str).collect::<Vec<_>>()[..],
+    ]
+    .concat();
+    let (code, _, err) = unitac(&few);
+    assert_ne!(code, Some(0));
+    assert!(err.contains("at least 3"), "{err}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn eval_depth_meets_the_readme() {
+    let d = dir("eval");
+    let (code, out, err) = unitac(&["eval", "depth", "--json", "--out", d.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    let v: Value = serde_json::from_str(out.trim()).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 20);
+    for r in rows {
+        let a = r["approach_mm"].as_f64().unwrap();
+        assert!(r["rmse_mm"].as_f64().unwrap() < 0.03, "{r}");
+        assert!(
+            r["penetration_err_max_mm"].as_f64().unwrap() < 0.05 * a + 0.01,
+            "{r}"
+        );
+        let area = r["area_over_hertz"].as_f64().unwrap();
+        assert!((0.8..1.15).contains(&area), "{r}");
+    }
+    let pngs = v["pngs"].as_array().unwrap();
+    assert_eq!(pngs.len(), 5);
+    let img = image::open(pngs[0].as_str().unwrap()).unwrap();
+    assert_eq!((img.width(), img.height()), (960, 240));
+    std::fs::remove_dir_all(&d).ok();
+}

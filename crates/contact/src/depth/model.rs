@@ -1,0 +1,227 @@
+//! The photometric model: colour change and position -> surface gradient, and its calibration
+//! file.
+//!
+//! Per pixel, 18 features of the prepared difference d = (dR, dG, dB) / 32 (`prep`) and the
+//! position (u, v) = (x / w - 1/2, y / h - 1/2): 1, d, the six products d_i d_j, u, v, u d, v d.
+//! Two coefficient vectors give the slopes (dh/dx, dh/dy) of the gel's depth h (positive into the
+//! gel, mm per mm). Why this and not a lookup table or a network: a table of colour -> gradient
+//! (gs_sdk's first method) needs its bins filled by presses, and 30-50 ball presses leave most of
+//! a 3-D colour table empty; an MLP (gs_sdk's current method) needs a training loop and an
+//! inference runtime per pixel. The quadratic in colour follows the gentle nonlinearity of a real
+//! gel's shading, the position terms its uneven lighting, it is fitted in closed form by least
+//! squares from a few thousand pixels per press, and it costs 36 multiply-adds a pixel.
+
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use unitac_core::SensorKind;
+use unitac_core::frame::MAX_SIDE;
+
+pub const FEATURES: usize = 18;
+/// Scale of the colour difference in the features \[1/DN].
+pub const COLOUR_SCALE: f32 = 1.0 / 32.0;
+/// Version of the calibration file format.
+pub const FORMAT: u32 = 1;
+/// Largest calibration file read \[bytes].
+pub const MAX_FILE_BYTES: u64 = 1 << 20;
+
+/// The features of one pixel.
+#[inline]
+pub fn features(d: &[f32], u: f32, v: f32) -> [f32; FEATURES] {
+    let (r, g, b) = (
+        d[0] * COLOUR_SCALE,
+        d[1] * COLOUR_SCALE,
+        d[2] * COLOUR_SCALE,
+    );
+    [
+        1.0,
+        r,
+        g,
+        b,
+        r * r,
+        g * g,
+        b * b,
+        r * g,
+        r * b,
+        g * b,
+        u,
+        v,
+        u * r,
+        u * g,
+        u * b,
+        v * r,
+        v * g,
+        v * b,
+    ]
+}
+
+/// What went wrong with a calibration or its use.
+#[derive(Debug, thiserror::Error)]
+pub enum DepthError {
+    #[error("calibration file {path}: {source}")]
+    Io {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("calibration file {path}: {why}")]
+    BadFile { path: String, why: String },
+    #[error(
+        "the calibration is for a {cal_w}x{cal_h} image; a {w}x{h} frame has another aspect ratio (another sensor or crop?)"
+    )]
+    SizeMismatch {
+        cal_w: u32,
+        cal_h: u32,
+        w: u32,
+        h: u32,
+    },
+    #[error("the calibration is for sensor {cal} but the frames come from {frame}")]
+    SensorMismatch { cal: String, frame: String },
+    #[error("frame is {w}x{h}, the background is {bw}x{bh}")]
+    BackgroundSize { w: u32, h: u32, bw: u32, bh: u32 },
+    #[error("calibration needs at least {need} usable presses, got {got}")]
+    TooFewPresses { need: usize, got: usize },
+    #[error("the least-squares fit is singular (presses too alike?)")]
+    Singular,
+}
+
+/// Colour and position -> gradient.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GradientModel {
+    /// Coefficients of dh/dx and dh/dy over [`features`].
+    pub gx: Vec<f32>,
+    pub gy: Vec<f32>,
+}
+
+impl GradientModel {
+    #[inline]
+    pub fn eval(&self, f: &[f32; FEATURES]) -> (f32, f32) {
+        let mut a = 0.0;
+        let mut b = 0.0;
+        for ((x, p), q) in f.iter().zip(&self.gx).zip(&self.gy) {
+            a += x * p;
+            b += x * q;
+        }
+        (a, b)
+    }
+}
+
+/// A sensor's depth calibration (`unitac calibrate depth`), stored as JSON.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DepthCalibration {
+    pub format: u32,
+    pub sensor: SensorKind,
+    /// The sensor's serial ("" when unknown: then any sensor of the kind is accepted).
+    pub serial: String,
+    /// Image size the calibration was made at.
+    pub width: u32,
+    pub height: u32,
+    /// Gel millimetres per pixel at that size.
+    pub mm_per_px: f64,
+    pub ball_radius_mm: f64,
+    pub presses_used: u32,
+    /// RMS slope error of the fit on the pixels inside the contacts (mm per mm).
+    pub fit_rms_slope: f64,
+    pub model: GradientModel,
+}
+
+impl DepthCalibration {
+    /// Read and check a calibration file (size bounded, every number finite, lengths right).
+    pub fn load(path: &Path) -> Result<Self, DepthError> {
+        let p = path.display().to_string();
+        let io = |source| DepthError::Io {
+            path: p.clone(),
+            source,
+        };
+        let meta = std::fs::metadata(path).map_err(io)?;
+        if meta.len() > MAX_FILE_BYTES {
+            return Err(DepthError::BadFile {
+                path: p,
+                why: format!("{} bytes, more than {MAX_FILE_BYTES}", meta.len()),
+            });
+        }
+        let text = std::fs::read_to_string(path).map_err(io)?;
+        let cal: Self = serde_json::from_str(&text).map_err(|e| DepthError::BadFile {
+            path: p.clone(),
+            why: e.to_string(),
+        })?;
+        cal.check()
+            .map_err(|why| DepthError::BadFile { path: p, why })?;
+        Ok(cal)
+    }
+
+    /// Write as pretty JSON.
+    pub fn save(&self, path: &Path) -> Result<(), DepthError> {
+        let text = serde_json::to_string_pretty(self).map_err(|e| DepthError::BadFile {
+            path: path.display().to_string(),
+            why: e.to_string(),
+        })?;
+        std::fs::write(path, text + "\n").map_err(|source| DepthError::Io {
+            path: path.display().to_string(),
+            source,
+        })
+    }
+
+    /// The checks [`load`](Self::load) runs, as a message.
+    pub fn check(&self) -> Result<(), String> {
+        if self.format != FORMAT {
+            return Err(format!(
+                "format {} (this build reads {FORMAT})",
+                self.format
+            ));
+        }
+        if self.width < 8 || self.height < 8 || self.width > MAX_SIDE || self.height > MAX_SIDE {
+            return Err(format!("image size {}x{}", self.width, self.height));
+        }
+        if !(self.mm_per_px.is_finite() && self.mm_per_px > 0.0 && self.mm_per_px < 10.0) {
+            return Err(format!("mm_per_px {}", self.mm_per_px));
+        }
+        if self.model.gx.len() != FEATURES || self.model.gy.len() != FEATURES {
+            return Err(format!(
+                "the model has {} / {} coefficients, not {FEATURES}",
+                self.model.gx.len(),
+                self.model.gy.len()
+            ));
+        }
+        if !self
+            .model
+            .gx
+            .iter()
+            .chain(&self.model.gy)
+            .all(|v| v.is_finite())
+        {
+            return Err("a model coefficient is not finite".into());
+        }
+        if self.serial.len() > 128 {
+            return Err("serial longer than 128 bytes".into());
+        }
+        Ok(())
+    }
+
+    /// Mm per pixel of a `w` x `h` frame of this sensor: the calibrated size scaled, when the
+    /// frame covers the same field of view (same aspect ratio); another aspect ratio is an error.
+    pub fn mm_per_px_at(&self, w: u32, h: u32) -> Result<f64, DepthError> {
+        if w == 0
+            || h == 0
+            || u64::from(w) * u64::from(self.height) != u64::from(h) * u64::from(self.width)
+        {
+            return Err(DepthError::SizeMismatch {
+                cal_w: self.width,
+                cal_h: self.height,
+                w,
+                h,
+            });
+        }
+        Ok(self.mm_per_px * f64::from(self.width) / f64::from(w))
+    }
+
+    /// Refuse frames from another sensor (when both serials are known).
+    pub fn check_serial(&self, serial: &str) -> Result<(), DepthError> {
+        if !self.serial.is_empty() && !serial.is_empty() && self.serial != serial {
+            return Err(DepthError::SensorMismatch {
+                cal: self.serial.clone(),
+                frame: serial.to_string(),
+            });
+        }
+        Ok(())
+    }
+}

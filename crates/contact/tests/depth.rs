@@ -1,0 +1,241 @@
+//! Depth from one image on mock ball presses with exact depth (unitac_sim::ballpress):
+//! calibrate from presses, then measure depth, penetration and contact area on other presses.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use unitac_contact::depth::{
+    Circle, DepthCalibration, DepthError, DepthEstimator, DepthParams, Fit, Prep, find_circle,
+    prepare,
+};
+use unitac_core::{SensorKind, SensorSpec};
+use unitac_sim::MockConfig;
+use unitac_sim::ballpress::{BallPress, PressNoise, random_presses, render_presses};
+
+const BALL_MM: f64 = 2.0;
+
+fn cfg() -> MockConfig {
+    let mut c = MockConfig::new(SensorKind::GelsightMini, 11);
+    c.markers = false;
+    c
+}
+
+fn calibrate(spec: SensorSpec, noise_dn: f64) -> (DepthCalibration, Vec<(Circle, BallPress)>) {
+    let presses = random_presses(spec, 40, BALL_MM, (0.3, 1.0), 5);
+    let (bg, rendered) = render_presses(
+        &cfg(),
+        spec,
+        &presses,
+        PressNoise {
+            noise_dn,
+            shading_dn: 0.0,
+            seed: 9,
+        },
+    )
+    .unwrap();
+    let (w, h) = (spec.width as usize, spec.height as usize);
+    let mut prep = Prep::default();
+    let mut fit = Fit::default();
+    let mut found = Vec::new();
+    for p in &rendered {
+        prepare(&mut prep, &p.frame, &bg).unwrap();
+        let Some(c) = find_circle(&prep.diff, w, h) else {
+            continue;
+        };
+        fit.add_press(&prep.diff, w, h, c, BALL_MM, spec.mm_per_px);
+        found.push((c, p.press));
+    }
+    let cal = fit
+        .finish(
+            spec.kind,
+            "MOCK-0001",
+            (spec.width, spec.height),
+            spec.mm_per_px,
+            BALL_MM,
+        )
+        .unwrap();
+    (cal, found)
+}
+
+struct Score {
+    rmse_mm: f64,
+    pen_err_mm: f64,
+    area_ratio: f64,
+}
+
+fn evaluate(cal: &DepthCalibration, spec: SensorSpec, approach: f64, noise: PressNoise) -> Score {
+    let presses: Vec<BallPress> = [[120.0, 100.0], [200.0, 140.0], [160.0, 120.0]]
+        .iter()
+        .map(|c| BallPress {
+            center_px: [
+                c[0] * f64::from(spec.width) / 320.0,
+                c[1] * f64::from(spec.height) / 240.0,
+            ],
+            radius_mm: BALL_MM,
+            approach_mm: approach,
+        })
+        .collect();
+    let (bg, rendered) = render_presses(&cfg(), spec, &presses, noise).unwrap();
+    let mut est = DepthEstimator::new(cal.clone(), bg, DepthParams::default()).unwrap();
+    let (mut se, mut n, mut pen, mut area) = (0f64, 0usize, 0f64, 0f64);
+    for p in &rendered {
+        let s = est.estimate(&p.frame).unwrap();
+        for (a, b) in est.depth_mm().iter().zip(&p.depth_mm) {
+            se += f64::from(a - b).powi(2);
+            n += 1;
+        }
+        pen = f64::max(pen, (f64::from(s.penetration_mm) - approach).abs());
+        let disc = std::f64::consts::PI * p.press.contact_radius_mm().powi(2);
+        area += s.area_mm2 / disc / rendered.len() as f64;
+    }
+    Score {
+        rmse_mm: (se / n as f64).sqrt(),
+        pen_err_mm: pen,
+        area_ratio: area,
+    }
+}
+
+#[test]
+fn circles_are_found_where_the_presses_are() {
+    let spec = SensorKind::GelsightMini.spec();
+    let (_, found) = calibrate(spec, 1.0);
+    assert!(found.len() >= 38, "{} of 40 presses found", found.len());
+    for (c, p) in &found {
+        let a = p.contact_radius_mm() / spec.mm_per_px;
+        let off = (c.x - p.center_px[0]).hypot(c.y - p.center_px[1]);
+        assert!(off < 1.5, "centre off by {off} px");
+        // The ring of largest slope sits a pixel or two inside the contact edge (the 3 x 3 mean
+        // and the skirt's slope falling off just outside it); the fit uses 0.9 of it.
+        assert!(
+            c.r < a + 1.0 && c.r > 0.85 * a - 1.0,
+            "radius {} vs {a}",
+            c.r
+        );
+    }
+}
+
+#[test]
+fn depth_from_a_calibration_matches_the_truth_under_noise_and_shading() {
+    let spec = SensorKind::GelsightMini.spec();
+    let (cal, _) = calibrate(spec, 1.0);
+    eprintln!("fit rms slope {:.4}", cal.fit_rms_slope);
+    let mut bad = false;
+    for approach in [0.3, 0.6, 0.9] {
+        for (noise_dn, shading_dn) in [(1.0, 0.0), (4.0, 0.0), (1.0, 20.0), (4.0, 20.0)] {
+            let s = evaluate(
+                &cal,
+                spec,
+                approach,
+                PressNoise {
+                    noise_dn,
+                    shading_dn,
+                    seed: 77,
+                },
+            );
+            eprintln!(
+                "d {approach} noise {noise_dn} shading {shading_dn}: rmse {:.4} mm, penetration error {:.4} mm, area / disc {:.3}",
+                s.rmse_mm, s.pen_err_mm, s.area_ratio
+            );
+            bad |= s.rmse_mm >= 0.03
+                || s.pen_err_mm >= 0.05 * approach + 0.01
+                || !(0.8..1.15).contains(&s.area_ratio);
+        }
+    }
+    assert!(!bad);
+}
+
+#[test]
+fn a_calibration_applies_at_twice_the_size_and_refuses_another_aspect() {
+    let spec = SensorKind::GelsightMini.spec();
+    let (cal, _) = calibrate(spec, 1.0);
+    let big = spec.scaled(2);
+    let s = evaluate(
+        &cal,
+        big,
+        0.6,
+        PressNoise {
+            noise_dn: 1.0,
+            shading_dn: 0.0,
+            seed: 3,
+        },
+    );
+    eprintln!(
+        "640x480: rmse {:.4}, penetration error {:.4}, area / disc {:.3}",
+        s.rmse_mm, s.pen_err_mm, s.area_ratio
+    );
+    assert!(
+        s.rmse_mm < 0.03 && s.pen_err_mm < 0.04,
+        "{} {}",
+        s.rmse_mm,
+        s.pen_err_mm
+    );
+    assert!((0.8..1.15).contains(&s.area_ratio), "{}", s.area_ratio);
+    let odd = unitac_core::Frame::new(
+        "x",
+        0,
+        unitac_core::Stamp::ZERO,
+        320,
+        320,
+        vec![0; 320 * 320 * 3],
+    )
+    .unwrap();
+    let err = DepthEstimator::new(cal.clone(), odd, DepthParams::default()).unwrap_err();
+    assert!(matches!(err, DepthError::SizeMismatch { .. }), "{err}");
+    assert!(cal.check_serial("OTHER-0002").is_err());
+    assert!(cal.check_serial("MOCK-0001").is_ok());
+}
+
+/// The contact stage with a depth calibration reports the press's physical contact area (the
+/// half-depth contour); without it, the colour residual's region takes in the skirt.
+#[test]
+fn the_contact_stage_takes_its_area_from_depth_when_a_scene_gives_a_calibration() {
+    use unitac_contact::{ContactParams, ContactStage};
+    use unitac_core::{Msg, Stage, Stamp};
+    let spec = SensorKind::GelsightMini.spec();
+    let (cal, _) = calibrate(spec, 1.0);
+    let press = BallPress {
+        center_px: [150.0, 110.0],
+        radius_mm: BALL_MM,
+        approach_mm: 0.6,
+    };
+    let noise = PressNoise {
+        noise_dn: 1.0,
+        shading_dn: 0.0,
+        seed: 13,
+    };
+    let (bg, rendered) = render_presses(&cfg(), spec, &[press, press, press], noise).unwrap();
+    let disc = std::f64::consts::PI * press.contact_radius_mm().powi(2);
+    let clock = unitac_core::ManualClock::new(Stamp::ZERO);
+    let mut last = Vec::new();
+    for with_depth in [false, true] {
+        let stage = ContactStage::new(ContactParams::default(), spec).unwrap();
+        let mut stage = if with_depth {
+            stage.with_depth(cal.clone())
+        } else {
+            stage
+        };
+        let mut area = None;
+        let frames = std::iter::repeat_n(&bg, 12).chain(rendered.iter().map(|p| &p.frame));
+        for (seq, f) in frames.enumerate() {
+            let mut f = f.clone();
+            f.seq = seq as u64;
+            f.stamp = Stamp(seq as i64 * 40_000_000);
+            for m in stage.process(&Msg::Frame(f), &clock).unwrap() {
+                if let Msg::ContactState(cs) = m {
+                    if cs.in_contact {
+                        area = Some((f64::from(cs.area_mm2), cs.centroid_px));
+                    }
+                }
+            }
+        }
+        let (a, c) = area.expect("in contact");
+        last.push(a / disc);
+        if with_depth {
+            assert!(
+                (0.8..1.15).contains(&(a / disc)),
+                "area {a} mm^2, disc {disc}"
+            );
+            let off = f64::from(c[0] - 150.0).hypot(f64::from(c[1] - 110.0));
+            assert!(off < 1.5, "{c:?}");
+        }
+    }
+    assert!(last[0] > 1.5, "without depth the skirt is in: {last:?}");
+}

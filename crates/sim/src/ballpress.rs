@@ -1,0 +1,245 @@
+//! Ball presses with exact depth: what a depth calibration is made from, and its ground truth.
+//!
+//! A rigid ball of radius R pressed with approach d into the gel. The surface follows Hertz's
+//! solution for a sphere on an elastic half-space (K. L. Johnson, *Contact Mechanics*, 1985,
+//! eqs. 3.41a and 3.42a): the contact radius is `a = sqrt(R d)`, inside the contact the gel takes
+//! the ball's shape (the exact sphere, `d - (R - sqrt(R^2 - r^2))`, which Hertz approximates by
+//! the paraboloid `d - r^2 / 2R`), and outside it slopes back to rest as
+//! `(d / pi) [(2 - r^2/a^2) asin(a/r) + sqrt(r^2/a^2 - 1)]`: half the approach at the contact
+//! edge, the same slope as the ball there, and a tail that falls off as `1/r`, here faded by
+//! `exp(-((r - a) / t)^2)` over the gel's thickness t ([`GEL_THICKNESS_MM`]: a bonded thin
+//! layer comes back to rest much sooner than a half-space; the factor is 1 with zero slope at
+//! the edge, so the edge and the slopes there stay Hertz's). So the contact
+//! radius lies at the Hertz value `sqrt(R d)`, below the geometric intersection
+//! `sqrt(2 R d - d^2)` of the undeformed gel with the ball: the gel around a press is pulled down
+//! with it (the "skirt"), and the ball meets it sooner. The scenario renderer
+//! (`render.rs`, the goldens' frames) follows the geometric paraboloid `sqrt(2 R d)` instead,
+//! with a drawn skirt that is not this shape: it is left as it is so that existing scenes keep
+//! their bytes.
+//!
+//! The frame is drawn by the mock's photometric model from the height map's own gradients
+//! ([`MockSensor::render_height`]), so the map is the exact depth of the frame. The truth stays
+//! with the caller: what the stack sees is the frame and the background only.
+
+use crate::degrade::{noisy, shading_field};
+use crate::{MockConfig, MockSensor, Scenario, SplitMix64};
+use unitac_core::{Frame, SensorSpec};
+
+/// Length over which the skirt fades beyond Hertz's half-space \[mm]: the gel is a thin layer
+/// bonded to a rigid window, not a half-space, so the surface comes back to rest within about
+/// its thickness. 2 mm is an assumed thickness, not a measured one.
+pub const GEL_THICKNESS_MM: f64 = 2.0;
+
+/// One press: where, which ball, how deep.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BallPress {
+    /// Ball centre over the gel \[px] (x, y), in the frame's pixels.
+    pub center_px: [f64; 2],
+    /// Ball radius \[mm].
+    pub radius_mm: f64,
+    /// Approach (penetration at the centre) \[mm].
+    pub approach_mm: f64,
+}
+
+impl BallPress {
+    /// Hertz contact radius `sqrt(R d)` \[mm].
+    pub fn contact_radius_mm(&self) -> f64 {
+        (self.radius_mm * self.approach_mm.max(0.0)).sqrt()
+    }
+
+    /// Geometric intersection radius of the undeformed gel with the ball, `sqrt(2 R d - d^2)` \[mm].
+    pub fn geometric_radius_mm(&self) -> f64 {
+        let (r, d) = (self.radius_mm, self.approach_mm.max(0.0));
+        (2.0 * r * d - d * d).max(0.0).sqrt()
+    }
+
+    /// Depth of the gel surface at distance `r` \[mm] from the press centre \[mm, positive into
+    /// the gel].
+    pub fn depth_at(&self, r: f64) -> f64 {
+        let (big_r, d) = (self.radius_mm, self.approach_mm);
+        if d <= 0.0 || big_r <= 0.0 {
+            return 0.0;
+        }
+        let a = self.contact_radius_mm();
+        let ball = |r: f64| d - (big_r - (big_r * big_r - r * r).max(0.0).sqrt());
+        if r < a {
+            ball(r)
+        } else {
+            // Hertz's skirt starts at d / 2, the paraboloid's depth at the edge; it is scaled to
+            // start where the exact sphere is (a few % less), so the surface is continuous.
+            let rho = r / a;
+            let t = (r - a) / GEL_THICKNESS_MM;
+            2.0 * ball(a) / std::f64::consts::PI
+                * ((2.0 - rho * rho) * (1.0 / rho).asin() + (rho * rho - 1.0).max(0.0).sqrt())
+                * (-t * t).exp()
+        }
+    }
+
+    /// The depth map \[mm] of a `width` x `height` frame at `mm_per_px`, row-major.
+    pub fn depth_map(&self, width: u32, height: u32, mm_per_px: f64) -> Vec<f32> {
+        let (w, h) = (width as usize, height as usize);
+        let mut out = vec![0f32; w * h];
+        for (y, row) in out.chunks_exact_mut(w.max(1)).enumerate() {
+            let dy = (y as f64 - self.center_px[1]) * mm_per_px;
+            for (x, v) in row.iter_mut().enumerate() {
+                let dx = (x as f64 - self.center_px[0]) * mm_per_px;
+                *v = self.depth_at(dx.hypot(dy)) as f32;
+            }
+        }
+        out
+    }
+
+    /// The true contact mask (r < a), row-major.
+    pub fn contact_mask(&self, width: u32, height: u32, mm_per_px: f64) -> Vec<bool> {
+        let (w, h) = (width as usize, height as usize);
+        let a = self.contact_radius_mm() / mm_per_px;
+        let mut out = vec![false; w * h];
+        for (i, m) in out.iter_mut().enumerate() {
+            let (x, y) = ((i % w.max(1)) as f64, (i / w.max(1)) as f64);
+            *m = (x - self.center_px[0]).hypot(y - self.center_px[1]) < a;
+        }
+        out
+    }
+}
+
+/// How press frames are degraded beyond the mock's own noise (`crate::degrade`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PressNoise {
+    /// Camera noise sigma per channel \[DN] (the background gets its own draw).
+    pub noise_dn: f64,
+    /// Largest sum over channels of a smooth shading field on the press frame \[DN].
+    pub shading_dn: f64,
+    pub seed: u64,
+}
+
+/// A rendered press: frame, the press, and its exact depth map \[mm].
+#[derive(Debug, Clone)]
+pub struct RenderedPress {
+    pub frame: Frame,
+    pub press: BallPress,
+    pub depth_mm: Vec<f32>,
+}
+
+/// Background and presses of a mock sensor of `spec`, degraded by `noise` (each press its own
+/// noise and shading draw). None when the spec is not a valid frame size.
+pub fn render_presses(
+    cfg: &MockConfig,
+    spec: SensorSpec,
+    presses: &[BallPress],
+    noise: PressNoise,
+) -> Option<(Frame, Vec<RenderedPress>)> {
+    let mut clean = cfg.clone();
+    clean.noise_dn = 0.0;
+    clean.drift = crate::Drift::default();
+    let s = MockSensor::with_spec(clean, spec, Scenario::idle(1.0)).ok()?;
+    let (w, h) = (spec.width, spec.height);
+    let flat = vec![0f32; (w as usize) * (h as usize)];
+    let bg_clean = s.render_height(0, &flat)?;
+    let base: Vec<f32> = bg_clean.data().iter().map(|&v| f32::from(v)).collect();
+    let background = noisy(&bg_clean, &base, None, noise.noise_dn, noise.seed ^ 0xBEEF).ok()?;
+    let mut out = Vec::with_capacity(presses.len());
+    for (k, p) in presses.iter().enumerate() {
+        let depth = p.depth_map(w, h, spec.mm_per_px);
+        let f = s.render_height(k as u64 + 1, &depth)?;
+        let clean: Vec<f32> = f.data().iter().map(|&v| f32::from(v)).collect();
+        let seed = noise.seed ^ (k as u64 + 1).wrapping_mul(0x2545_F491_4F6C_DD1D);
+        let field = shading_field(w, h, noise.shading_dn, seed);
+        let frame = noisy(&f, &clean, Some(&field), noise.noise_dn, seed ^ 0xF00D).ok()?;
+        out.push(RenderedPress {
+            frame,
+            press: *p,
+            depth_mm: depth,
+        });
+    }
+    Some((background, out))
+}
+
+/// `n` calibration presses of a ball of `radius_mm` at random places (the contact disc and a
+/// margin of half its radius inside the frame) and approaches in `approach_mm` (min, max), drawn
+/// from `seed`.
+pub fn random_presses(
+    spec: SensorSpec,
+    n: usize,
+    radius_mm: f64,
+    approach_mm: (f64, f64),
+    seed: u64,
+) -> Vec<BallPress> {
+    let mut rng = SplitMix64::new(seed ^ 0xBA11);
+    let (w, h) = (f64::from(spec.width), f64::from(spec.height));
+    (0..n)
+        .map(|_| {
+            let d = approach_mm.0 + (approach_mm.1 - approach_mm.0) * rng.uniform();
+            let p = BallPress {
+                center_px: [0.0, 0.0],
+                radius_mm,
+                approach_mm: d,
+            };
+            let a = p.contact_radius_mm() / spec.mm_per_px * 1.5 + 2.0;
+            let (sx, sy) = ((w - 2.0 * a).max(0.0), (h - 2.0 * a).max(0.0));
+            BallPress {
+                center_px: [a + sx * rng.uniform(), a + sy * rng.uniform()],
+                ..p
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use unitac_core::SensorKind;
+
+    #[test]
+    fn hertz_profile_is_continuous_with_the_ball_and_half_deep_at_the_edge() {
+        let p = BallPress {
+            center_px: [0.0, 0.0],
+            radius_mm: 4.0,
+            approach_mm: 0.5,
+        };
+        let a = p.contact_radius_mm();
+        assert!((a - 2f64.sqrt()).abs() < 1e-12);
+        assert!(p.geometric_radius_mm() > a);
+        let inside = p.depth_at(a - 1e-9);
+        let outside = p.depth_at(a + 1e-9);
+        // Half the approach at the edge (Hertz's paraboloid), less the sphere's few %.
+        assert!((outside - 0.25).abs() < 0.02 * 0.5, "{outside}");
+        assert!((inside - outside).abs() < 1e-6, "{inside} {outside}");
+        assert_eq!(p.depth_at(0.0), 0.5);
+        // Slopes meet at the edge (a/R for the paraboloid Hertz assumes).
+        let e = 1e-4;
+        let s_out = (p.depth_at(a + 2.0 * e) - p.depth_at(a + e)) / e;
+        assert!((s_out + a / 4.0).abs() < 0.04, "{s_out}");
+        // The tail decays, never below zero, and is gone a few gel thicknesses out.
+        assert!(p.depth_at(2.0 * a) > 0.0 && p.depth_at(2.0 * a) < 0.25);
+        assert!(p.depth_at(a + 3.0 * GEL_THICKNESS_MM) < 1e-4);
+    }
+
+    #[test]
+    fn a_rendered_press_differs_from_the_background_only_around_it() {
+        let spec = SensorKind::GelsightMini.spec();
+        let mut cfg = MockConfig::new(SensorKind::GelsightMini, 3);
+        cfg.markers = false;
+        let p = BallPress {
+            center_px: [100.0, 120.0],
+            radius_mm: 3.0,
+            approach_mm: 0.6,
+        };
+        let noise = PressNoise {
+            noise_dn: 0.0,
+            shading_dn: 0.0,
+            seed: 1,
+        };
+        let (bg, presses) = render_presses(&cfg, spec, &[p], noise).unwrap();
+        let f = &presses[0].frame;
+        let diff = |x: u32, y: u32| -> i32 {
+            let (a, b) = (bg.pixel(x, y).unwrap(), f.pixel(x, y).unwrap());
+            (0..3)
+                .map(|c| (i32::from(a[c]) - i32::from(b[c])).abs())
+                .sum()
+        };
+        let a_px = p.contact_radius_mm() / spec.mm_per_px;
+        assert!(diff(100 + (a_px * 0.8) as u32, 120) > 40);
+        assert!(diff(310, 10) <= 3);
+        assert_eq!(presses[0].depth_mm.len(), 320 * 240);
+    }
+}
