@@ -174,10 +174,12 @@ impl<'a> CdrReader<'a> {
     pub fn remaining(&self) -> usize {
         self.body.len().saturating_sub(self.pos)
     }
-    /// Up to three bytes of padding at the end are allowed (writers pad to 4).
+    /// Up to seven bytes of padding at the end are allowed: writers pad to 4, and Fast-CDR
+    /// (rmw_fastrtps) also aligns an empty `float64[]` at the end of a message to 8 (a real
+    /// TactileLatent's empty condition ages: 4 bytes after their length).
     pub fn finish(&self) -> Result<(), CdrError> {
         let rest = self.remaining();
-        if rest > 3 {
+        if rest > 7 {
             return Err(CdrError::Trailing(rest));
         }
         Ok(())

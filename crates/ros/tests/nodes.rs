@@ -672,7 +672,7 @@ fn a_late_inference_node_gets_the_latched_background_and_predicts_a_latent() {
         (
             &serde_json::json!("heun"),
             &serde_json::json!(16),
-            &serde_json::json!(1.5)
+            &serde_json::json!(1.0)
         ),
         "{l0}"
     );

@@ -15,8 +15,9 @@
 //! expert:   the expert's own commands (squeeze to its setpoint, settle, lift) for expert_s
 //! ```
 //!
-//! The frames are rendered at the sensor's own frame times by [`crate::bridge::SensorRig`] and pushed through
-//! the scene's tactile stages with [`Chain`] (contact + encoder for vtla_real, contact + sampler
+//! Each tick the camera's estimate goes into the stages first (as in a trial: the sampler's
+//! object-level condition), then the frames are rendered at the sensor's own frame times by
+//! [`crate::bridge::SensorRig`] and pushed through the scene's tactile stages with [`Chain`] (contact + encoder for vtla_real, contact + sampler
 //! for vtla_pred): the stages are built by the caller from the scene, so this module sees only
 //! `Stage`s. Every latent the stages send is kept with the number of contacts begun before it
 //! (0: a prediction before any touch; 1: the probe touch). Same inputs, same bytes.
@@ -32,6 +33,7 @@ use unitac_sim::task::{
 };
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
+use crate::bridge::visual_message;
 use crate::gripper::TrialGripper;
 use crate::stepper::{StepError, WorldStepper};
 
@@ -268,6 +270,17 @@ pub fn record(
     };
     loop {
         let t = world.time();
+        // The camera's estimate first, as in a trial (the sampler's object-level condition).
+        let seen = if t == 0.0 {
+            visual.clone()
+        } else {
+            world.visual()
+        };
+        let out = chain.run(Msg::VisualObservation(visual_message(&seen)));
+        if let Some(r) = out.errors.first() {
+            return Err(stage_err(r));
+        }
+        keep(out.produced, t, &mut contact, &mut touches, &mut latents);
         for (frame, _truth) in world.frames() {
             let out = chain.run(Msg::Frame(frame));
             if let Some(r) = out.errors.first() {

@@ -73,5 +73,5 @@ fn the_predicted_latent_comes_before_any_touch_and_unseen_is_an_unseen_size() {
     );
     let l = &d.latents[0];
     assert_eq!((l.source.as_str(), l.touch), ("predicted", 0));
-    assert_eq!(l.shape, [8, 8]);
+    assert_eq!(l.shape, [2, 48]);
 }
