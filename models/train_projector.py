@@ -48,7 +48,6 @@ The trained model's outputs on probe inputs are written to DIR/check.json; a Rus
 ONNX file on them through ONNX Runtime and compares.
 """
 import argparse
-import hashlib
 import json
 import os
 import shutil
@@ -57,6 +56,9 @@ import sys
 import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
+
+# The bundle helpers (file hash, declared inputs/outputs, manifest entries, initialisers).
+from generate_reference import entry, init, sha256
 
 OPSET = 20
 FIELDS = ["category:cup", "category:fabric", "width_m", "height_m", "edge_height_m", "roughness"]
@@ -317,10 +319,6 @@ def sample_mean(p, base, norm, o, s, idx, seed0, guidance, steps=STEPS, k=SAMPLE
 
 # ---------------------------------------------------------------------------------------------
 # ONNX export
-def init(name, arr):
-    return numpy_helper.from_array(np.asarray(arr, dtype=np.float32), name)
-
-
 def export(p, base, norm, path):
     d = len(norm.mu_z)
     nodes = [
@@ -396,24 +394,6 @@ def export(p, base, norm, path):
     m.ir_version = 9
     onnx.checker.check_model(m)
     onnx.save(m, path)
-
-
-def sha256(path):
-    return hashlib.sha256(open(path, "rb").read()).hexdigest()
-
-
-def io_spec(path):
-    m = onnx.load(path)
-
-    def one(vi):
-        dims = [d.dim_param if d.dim_param else d.dim_value for d in vi.type.tensor_type.shape.dim]
-        return {"name": vi.name, "dtype": "float32", "shape": dims}
-    return [one(i) for i in m.graph.input], [one(o) for o in m.graph.output]
-
-
-def entry(out, file, **extra):
-    ins, outs = io_spec(os.path.join(out, file))
-    return {"file": file, "sha256": sha256(os.path.join(out, file)), "inputs": ins, "outputs": outs, **extra}
 
 
 # ---------------------------------------------------------------------------------------------

@@ -81,12 +81,14 @@ fn frames_at(n: usize, scale: u32) -> anyhow::Result<Vec<Frame>> {
         .collect())
 }
 
-fn python_baseline(
+/// A fresh temporary directory `unitac-<tag>-<pid>` holding `frames` (rgb8, one after the
+/// other) as `frames.raw` and `bg` as `bg.raw`, for a Python baseline to read.
+pub(crate) fn raw_frames_dir(
+    tag: &str,
     frames: &[Frame],
     bg: &Frame,
-    repeat: usize,
-) -> anyhow::Result<(Timing, String)> {
-    let dir = std::env::temp_dir().join(format!("unitac-bench-{}", std::process::id()));
+) -> anyhow::Result<std::path::PathBuf> {
+    let dir = std::env::temp_dir().join(format!("unitac-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let raw: Vec<u8> = frames
         .iter()
@@ -94,6 +96,26 @@ fn python_baseline(
         .collect();
     std::fs::write(dir.join("frames.raw"), raw)?;
     std::fs::write(dir.join("bg.raw"), bg.data())?;
+    Ok(dir)
+}
+
+/// The timing a Python baseline printed (`min_us`, `median_us`, `mean_us`, `p90_us`).
+pub(crate) fn python_timing(j: &serde_json::Value) -> Timing {
+    let f = |k: &str| j[k].as_f64().unwrap_or(f64::NAN);
+    Timing {
+        min_us: f("min_us"),
+        median_us: f("median_us"),
+        mean_us: f("mean_us"),
+        p90_us: f("p90_us"),
+    }
+}
+
+fn python_baseline(
+    frames: &[Frame],
+    bg: &Frame,
+    repeat: usize,
+) -> anyhow::Result<(Timing, String)> {
+    let dir = raw_frames_dir("bench", frames, bg)?;
     let args = [
         dir.join("frames.raw").into_os_string(),
         dir.join("bg.raw").into_os_string(),
@@ -104,14 +126,10 @@ fn python_baseline(
     let j = run_python_baseline("contact_baseline.py", &args);
     std::fs::remove_dir_all(&dir).ok();
     let j = j?;
-    let f = |k: &str| j[k].as_f64().unwrap_or(f64::NAN);
-    let t = Timing {
-        min_us: f("min_us"),
-        median_us: f("median_us"),
-        mean_us: f("mean_us"),
-        p90_us: f("p90_us"),
-    };
-    Ok((t, format!("numpy {} opencv {}", j["numpy"], j["opencv"])))
+    Ok((
+        python_timing(&j),
+        format!("numpy {} opencv {}", j["numpy"], j["opencv"]),
+    ))
 }
 
 fn bench_contact_at(

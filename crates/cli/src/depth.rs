@@ -591,14 +591,7 @@ fn python_depth(
     cal: &DepthCalibration,
     repeat: usize,
 ) -> anyhow::Result<(Timing, String)> {
-    let dir = std::env::temp_dir().join(format!("unitac-bench-depth-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
-    let raw: Vec<u8> = frames
-        .iter()
-        .flat_map(|f| f.data().iter().copied())
-        .collect();
-    std::fs::write(dir.join("frames.raw"), raw)?;
-    std::fs::write(dir.join("bg.raw"), bg.data())?;
+    let dir = crate::bench::raw_frames_dir("bench-depth", frames, bg)?;
     cal.save(&dir.join("cal.json"))?;
     let mm = cal.mm_per_px_at(bg.width, bg.height)?;
     let args = [
@@ -613,15 +606,8 @@ fn python_depth(
     let j = crate::bench::run_python_baseline("depth_baseline.py", &args);
     std::fs::remove_dir_all(&dir).ok();
     let j = j?;
-    let f = |k: &str| j[k].as_f64().unwrap_or(f64::NAN);
-    let t = Timing {
-        min_us: f("min_us"),
-        median_us: f("median_us"),
-        mean_us: f("mean_us"),
-        p90_us: f("p90_us"),
-    };
     Ok((
-        t,
+        crate::bench::python_timing(&j),
         format!("numpy {}, Poisson by {}", j["numpy"], j["poisson"]),
     ))
 }

@@ -217,12 +217,8 @@ enum Cmd {
         test: usize,
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        #[arg(long, value_enum, default_value = "train")]
-        split: DemoSplit,
-        #[arg(long, value_delimiter = ',', default_value = "1")]
-        seeds: Vec<u64>,
-        #[arg(long, default_value_t = 10)]
-        trials: u32,
+        #[command(flatten)]
+        set: TrialSet,
         #[arg(long, default_value = "gelsight-mini")]
         sensor: String,
     },
@@ -231,12 +227,8 @@ enum Cmd {
     Demos {
         #[arg(long)]
         scene: String,
-        #[arg(long, value_enum, default_value = "train")]
-        split: DemoSplit,
-        #[arg(long, value_delimiter = ',', default_value = "1")]
-        seeds: Vec<u64>,
-        #[arg(long, default_value_t = 10)]
-        trials: u32,
+        #[command(flatten)]
+        set: TrialSet,
         #[arg(long)]
         out: PathBuf,
     },
@@ -279,6 +271,17 @@ enum EvalTarget {
     /// error, contact area against the Hertz and geometric discs, at several depths, noise and
     /// shading levels.
     Depth,
+}
+
+/// Which trials of the task worlds: the split's objects, seeds and trials per seed.
+#[derive(clap::Args, Debug)]
+struct TrialSet {
+    #[arg(long, value_enum, default_value = "train")]
+    split: DemoSplit,
+    #[arg(long, value_delimiter = ',', default_value = "1")]
+    seeds: Vec<u64>,
+    #[arg(long, default_value_t = 10)]
+    trials: u32,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -792,26 +795,22 @@ fn main() -> ExitCode {
         Cmd::Dataset {
             what: DatasetTarget::Touch,
             out,
-            split,
-            seeds,
-            trials,
+            set,
             sensor,
             ..
         } => sensor
             .parse::<unitac_core::SensorKind>()
             .map_err(|e| anyhow::Error::new(ConfigError(e.to_string())))
-            .and_then(|kind| touch_dataset::touch(split.into(), &seeds, trials, kind, &out))
+            .and_then(|kind| {
+                touch_dataset::touch(set.split.into(), &set.seeds, set.trials, kind, &out)
+            })
             .and_then(emit)
             .map(|()| true),
-        Cmd::Demos {
-            scene,
-            split,
-            seeds,
-            trials,
-            out,
-        } => demos::demos(&scene, split.into(), &seeds, trials, &out)
-            .and_then(emit)
-            .map(|()| true),
+        Cmd::Demos { scene, set, out } => {
+            demos::demos(&scene, set.split.into(), &set.seeds, set.trials, &out)
+                .and_then(emit)
+                .map(|()| true)
+        }
         Cmd::Devices { json } => {
             let root = std::env::var_os("UNITAC_SYSFS_ROOT")
                 .map(PathBuf::from)

@@ -6,6 +6,20 @@ use unitac_core::Frame;
 /// converts to f32 as an i32 (a vector instruction; u32 has none before AVX-512).
 const MAX_STRIDE: u32 = 1024;
 
+/// The 4-neighbours of cell `i` of a `w` x `h` grid that lie inside it, in the order left,
+/// right, up, down (the flood fills of the depth calibration and the depth contact region).
+pub(crate) fn neighbours4(i: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
+    let (x, y) = (i % w, i / w);
+    [
+        (x > 0).then(|| i - 1),
+        (x + 1 < w).then(|| i + 1),
+        (y > 0).then(|| i - w),
+        (y + 1 < h).then(|| i + w),
+    ]
+    .into_iter()
+    .flatten()
+}
+
 /// Grid geometry for a frame size and stride (stride shrinks for tiny images).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Geometry {

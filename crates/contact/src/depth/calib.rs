@@ -68,24 +68,11 @@ pub fn find_circle(diff: &[f32], w: usize, h: usize) -> Option<Circle> {
         let mut n = 0usize;
         while let Some(i) = stack.pop() {
             n += 1;
-            let (x, y) = (i % w, i / w);
-            let mut visit = |j: usize| {
+            for j in crate::grid::neighbours4(i, w, h) {
                 if m[j] > thr && label[j] == 0 {
                     label[j] = next;
                     stack.push(j);
                 }
-            };
-            if x > 0 {
-                visit(i - 1);
-            }
-            if x + 1 < w {
-                visit(i + 1);
-            }
-            if y > 0 {
-                visit(i - w);
-            }
-            if y + 1 < h {
-                visit(i + w);
             }
         }
         if n > best.0 {

@@ -324,23 +324,11 @@ impl DepthEstimator {
             let (x, y) = (i % w, i / w);
             sx += x as f64;
             sy += y as f64;
-            let mut visit = |j: usize| {
+            for j in crate::grid::neighbours4(i, w, h) {
                 if !self.mask[j] && d[j] >= level {
                     self.mask[j] = true;
                     self.stack.push(j);
                 }
-            };
-            if x > 0 {
-                visit(i - 1);
-            }
-            if x + 1 < w {
-                visit(i + 1);
-            }
-            if y > 0 {
-                visit(i - w);
-            }
-            if y + 1 < h {
-                visit(i + w);
             }
         }
         let nf = n.max(1) as f64;
