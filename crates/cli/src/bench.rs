@@ -34,19 +34,26 @@ pub struct ContactBenches {
     pub note: String,
 }
 
-/// Run `bench/<script>` with the project's Python on one thread (as a user would run the
-/// baseline, at its best: OpenBLAS core-type overrides removed) and parse its JSON line.
-pub fn run_python_baseline(
-    script: &str,
-    args: &[std::ffi::OsString],
-) -> anyhow::Result<serde_json::Value> {
+/// The project's Python (`$UNITAC_VENV/bin/python`) and the source tree (`$UNITAC_ROOT`), as
+/// scripts/unitac sets them.
+pub fn project_python() -> anyhow::Result<(PathBuf, PathBuf)> {
     let venv = std::env::var_os("UNITAC_VENV")
         .map(PathBuf::from)
         .context("UNITAC_VENV is not set (use scripts/unitac)")?;
     let root = std::env::var_os("UNITAC_ROOT")
         .map(PathBuf::from)
         .context("UNITAC_ROOT is not set")?;
-    let out = Command::new(venv.join("bin/python"))
+    Ok((venv.join("bin/python"), root))
+}
+
+/// Run `bench/<script>` with the project's Python on one thread (as a user would run the
+/// baseline, at its best: OpenBLAS core-type overrides removed) and parse its JSON line.
+pub fn run_python_baseline(
+    script: &str,
+    args: &[std::ffi::OsString],
+) -> anyhow::Result<serde_json::Value> {
+    let (python, root) = project_python()?;
+    let out = Command::new(python)
         .arg(root.join("bench").join(script))
         .args(args)
         .env("OMP_NUM_THREADS", "1")

@@ -45,7 +45,10 @@ fn providers() -> Vec<String> {
             .map(|p| match p.available() {
                 Ok(true) => format!("{p}: yes"),
                 Ok(false) => format!("{p}: no"),
-                Err(e) => format!("{p}: unknown ({})", e.lines().next().unwrap_or("")),
+                Err(e) => format!(
+                    "{p}: unknown ({})",
+                    e.to_string().lines().next().unwrap_or("")
+                ),
             })
             .collect(),
     }

@@ -485,16 +485,11 @@ fn load_onnx(dir: Option<&Path>) -> anyhow::Result<(OnnxPolicy, String, Option<P
     let (dir, generated) = match dir {
         Some(d) => (d.to_path_buf(), None),
         None => {
-            let venv = std::env::var_os("UNITAC_VENV")
-                .map(PathBuf::from)
-                .context("UNITAC_VENV is not set (use scripts/unitac)")?;
-            let root = std::env::var_os("UNITAC_ROOT")
-                .map(PathBuf::from)
-                .context("UNITAC_ROOT is not set")?;
+            let (python, root) = crate::bench::project_python()?;
             let d =
                 std::env::temp_dir().join(format!("unitac-bench-policy-{}", std::process::id()));
             std::fs::create_dir_all(&d)?;
-            let st = std::process::Command::new(venv.join("bin/python"))
+            let st = std::process::Command::new(python)
                 .arg(root.join("tests/policy/make_policy.py"))
                 .arg(&d)
                 .status()

@@ -62,12 +62,12 @@ impl ExecutionProvider {
     }
     /// Whether the process's ONNX Runtime library has this provider (the environment must be
     /// loaded: [`environment`]).
-    pub fn available(self) -> Result<bool, String> {
+    pub fn available(self) -> Result<bool, ort::Error> {
         use ort::ep::ExecutionProvider as _;
         match self {
             Self::Cpu => Ok(true),
-            Self::Cuda => ort::ep::CUDA::is_available().map_err(|e| e.to_string()),
-            Self::Tensorrt => ort::ep::TensorRT::is_available().map_err(|e| e.to_string()),
+            Self::Cuda => ort::ep::CUDA::is_available(),
+            Self::Tensorrt => ort::ep::TensorRT::is_available(),
         }
     }
 }
@@ -136,7 +136,7 @@ pub fn choose_provider(
         let why = match p.available() {
             Ok(true) => return Ok((p, notice)),
             Ok(false) => "not in this ONNX Runtime library".to_string(),
-            Err(e) => e.lines().next().unwrap_or("").to_string(),
+            Err(e) => e.to_string().lines().next().unwrap_or("").to_string(),
         };
         let Some(next) = providers.get(i + 1) else {
             return Err(err(format!("provider {p} is not available: {why}")));

@@ -17,6 +17,6 @@ mod prep;
 
 pub use calib::{Circle, Fit, find_circle, prepare};
 pub use estimate::{DepthEstimator, DepthParams, DepthSummary};
-pub use model::{DepthCalibration, DepthError, GradientModel};
+pub use model::{CalibrationInvalid, DepthCalibration, DepthError, GradientModel};
 pub use poisson::PoissonSolver;
 pub use prep::{Prep, Shading};

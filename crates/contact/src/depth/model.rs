@@ -84,6 +84,26 @@ pub enum DepthError {
     Singular,
 }
 
+/// What [`DepthCalibration::check`] refuses in a calibration file.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum CalibrationInvalid {
+    #[error("format {0} (this build reads {FORMAT})")]
+    Format(u32),
+    #[error("image size {w}x{h}")]
+    ImageSize { w: u32, h: u32 },
+    #[error("mm_per_px {0}")]
+    MmPerPx(f64),
+    #[error("the model has {gx} / {gy} coefficients, not {FEATURES}")]
+    Coefficients { gx: usize, gy: usize },
+    #[error("a model coefficient is not finite")]
+    NotFinite,
+    #[error("serial of {0} bytes, more than {MAX_SERIAL_BYTES}")]
+    Serial(usize),
+}
+
+/// Longest sensor serial a calibration file may carry.
+pub const MAX_SERIAL_BYTES: usize = 128;
+
 /// Colour and position -> gradient.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GradientModel {
@@ -144,8 +164,10 @@ impl DepthCalibration {
             path: p.clone(),
             why: e.to_string(),
         })?;
-        cal.check()
-            .map_err(|why| DepthError::BadFile { path: p, why })?;
+        cal.check().map_err(|e| DepthError::BadFile {
+            path: p,
+            why: e.to_string(),
+        })?;
         Ok(cal)
     }
 
@@ -161,26 +183,25 @@ impl DepthCalibration {
         })
     }
 
-    /// The checks [`load`](Self::load) runs, as a message.
-    pub fn check(&self) -> Result<(), String> {
+    /// The checks [`load`](Self::load) runs.
+    pub fn check(&self) -> Result<(), CalibrationInvalid> {
         if self.format != FORMAT {
-            return Err(format!(
-                "format {} (this build reads {FORMAT})",
-                self.format
-            ));
+            return Err(CalibrationInvalid::Format(self.format));
         }
         if self.width < 8 || self.height < 8 || self.width > MAX_SIDE || self.height > MAX_SIDE {
-            return Err(format!("image size {}x{}", self.width, self.height));
+            return Err(CalibrationInvalid::ImageSize {
+                w: self.width,
+                h: self.height,
+            });
         }
         if !(self.mm_per_px.is_finite() && self.mm_per_px > 0.0 && self.mm_per_px < 10.0) {
-            return Err(format!("mm_per_px {}", self.mm_per_px));
+            return Err(CalibrationInvalid::MmPerPx(self.mm_per_px));
         }
         if self.model.gx.len() != FEATURES || self.model.gy.len() != FEATURES {
-            return Err(format!(
-                "the model has {} / {} coefficients, not {FEATURES}",
-                self.model.gx.len(),
-                self.model.gy.len()
-            ));
+            return Err(CalibrationInvalid::Coefficients {
+                gx: self.model.gx.len(),
+                gy: self.model.gy.len(),
+            });
         }
         if !self
             .model
@@ -189,10 +210,10 @@ impl DepthCalibration {
             .chain(&self.model.gy)
             .all(|v| v.is_finite())
         {
-            return Err("a model coefficient is not finite".into());
+            return Err(CalibrationInvalid::NotFinite);
         }
-        if self.serial.len() > 128 {
-            return Err("serial longer than 128 bytes".into());
+        if self.serial.len() > MAX_SERIAL_BYTES {
+            return Err(CalibrationInvalid::Serial(self.serial.len()));
         }
         Ok(())
     }
