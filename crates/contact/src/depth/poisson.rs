@@ -1,14 +1,17 @@
-//! Height from a gradient field: least-squares integration by a DCT Poisson solve.
+//! Height from a gradient field: least-squares integration by a direct Poisson solve.
 //!
 //! The gradients (p, q) at the pixel centres are averaged onto the edges between neighbouring
 //! pixels, with zero flux through the frame's border (Neumann), and the height h that minimises
 //! the squared difference between its edge differences and those edge gradients solves the
 //! discrete Poisson equation `L h = div g` with the 5-point Laplacian L reflected at the border.
-//! The DCT-II diagonalises that L (eigenvalues `2 cos(pi k / N) - 2` per axis), so the solve is
-//! a 2-D DCT-II of the divergence, a division, and a 2-D DCT-III back: O(N log N), no iteration.
-//! The constant is free (the (0, 0) coefficient is set to zero: a mean-free height); the caller
-//! chooses the zero level. Transforms are rustdct's (planned once per size, f32); the division
-//! and the transposes between the row passes are the only loops here.
+//! L is `Lx (x) I + I (x) Ly`, and the DCT-II diagonalises the 1-D Neumann Laplacian Lx
+//! (eigenvalues `lambda_k = 2 cos(pi k / w) - 2`). So a DCT-II of every row leaves, for each
+//! row frequency k, one tridiagonal system along the column, `(Ly + lambda_k) H_k = F_k`, solved
+//! by elimination (the pivots' reciprocals tabled once per size), all k of a row at once, in
+//! the row layout: no column transforms and no transposes. k = 0 (Ly alone, singular: the
+//! constant is free) is integrated by running sums. A DCT-III of every row goes back. O(N log
+//! N), no iteration; the result is mean-free (the caller chooses the zero level). Transforms are
+//! rustdct's (planned once per size, f32).
 
 use rustdct::{DctPlanner, TransformType2And3};
 use std::sync::Arc;
@@ -18,12 +21,11 @@ pub struct PoissonSolver {
     w: usize,
     h: usize,
     rows: Arc<dyn TransformType2And3<f32>>,
-    cols: Arc<dyn TransformType2And3<f32>>,
-    /// 1 / (lambda_x + lambda_y) in the transposed layout (w rows of h), 0 at (0, 0); times the
-    /// inverse transforms' scale 4 / (w h).
-    inv: Vec<f32>,
-    buf: Vec<f32>,
-    tbuf: Vec<f32>,
+    /// Reciprocal pivots of the elimination, row-major h x w: `rec[y * w + k]` for the system of
+    /// row frequency k (k = 0 unused).
+    rec: Vec<f32>,
+    /// Column k = 0 of the transformed divergence, kept for its running-sum solve.
+    col0: Vec<f32>,
     scratch: Vec<f32>,
 }
 
@@ -42,30 +44,28 @@ impl PoissonSolver {
         let (w, h) = (w.max(2), h.max(2));
         let mut planner = DctPlanner::new();
         let rows = planner.plan_dct2(w);
-        let cols = planner.plan_dct2(h);
-        let scale = 4.0 / (w as f64 * h as f64);
-        let lam =
-            |k: usize, n: usize| 2.0 * (std::f64::consts::PI * k as f64 / n as f64).cos() - 2.0;
-        let mut inv = vec![0f32; w * h];
-        for kx in 0..w {
-            for ky in 0..h {
-                let l = lam(kx, w) + lam(ky, h);
-                inv[kx * h + ky] = if kx == 0 && ky == 0 {
-                    0.0
-                } else {
-                    (scale / l) as f32
-                };
+        // Tridiagonal Ly + lambda_k: off-diagonals 1, diagonal -2 + lambda_k (-1 + lambda_k in
+        // the first and last row). Pivots m_0 = d_0, m_y = d_y - 1 / m_(y-1); every d is
+        // below -2 + 1 for k > 0, so |m| > 1 and the elimination is stable.
+        let mut rec = vec![0f32; w * h];
+        for k in 1..w {
+            let lam = 2.0 * (std::f64::consts::PI * k as f64 / w as f64).cos() - 2.0;
+            let mut m = 0f64;
+            for y in 0..h {
+                let d = if y == 0 || y + 1 == h { -1.0 } else { -2.0 } + lam;
+                m = if y == 0 { d } else { d - 1.0 / m };
+                if let Some(r) = rec.get_mut(y * w + k) {
+                    *r = (1.0 / m) as f32;
+                }
             }
         }
-        let scratch_len = rows.get_scratch_len().max(cols.get_scratch_len());
+        let scratch_len = rows.get_scratch_len();
         Self {
             w,
             h,
             rows,
-            cols,
-            inv,
-            buf: vec![0.0; w * h],
-            tbuf: vec![0.0; w * h],
+            rec,
+            col0: vec![0.0; h],
             scratch: vec![0.0; scratch_len],
         }
     }
@@ -84,70 +84,77 @@ impl PoissonSolver {
         }
         // Divergence of the edge gradients (edge value = mean of its two pixels, 0 at the
         // border): half the central difference inside, one-sided at the border; row by row
-        // over whole slices so that it vectorises.
-        for ((f, p), y) in self
-            .buf
-            .chunks_exact_mut(w)
-            .zip(gx.chunks_exact(w))
-            .zip(0..h)
-        {
-            f[0] = 0.5 * (p[0] + p[1]);
-            f[w - 1] = -0.5 * (p[w - 2] + p[w - 1]);
+        // over whole slices so that it vectorises. The inverse row transform's scale 2 / w is
+        // folded in here (half = 0.5 * 2 / w).
+        let half = 1.0 / w as f32;
+        for ((f, p), y) in out.chunks_exact_mut(w).zip(gx.chunks_exact(w)).zip(0..h) {
+            f[0] = half * (p[0] + p[1]);
+            f[w - 1] = -half * (p[w - 2] + p[w - 1]);
             for ((o, a), b) in f[1..w - 1].iter_mut().zip(&p[..w - 2]).zip(&p[2..]) {
-                *o = 0.5 * (b - a);
+                *o = half * (b - a);
             }
             let q = &gy[y * w..(y + 1) * w];
             if y == 0 {
                 let below = &gy[w..2 * w];
                 for ((o, a), b) in f.iter_mut().zip(q).zip(below) {
-                    *o += 0.5 * (a + b);
+                    *o += half * (a + b);
                 }
             } else if y + 1 == h {
                 let above = &gy[(y - 1) * w..y * w];
                 for ((o, a), b) in f.iter_mut().zip(q).zip(above) {
-                    *o -= 0.5 * (a + b);
+                    *o -= half * (a + b);
                 }
             } else {
                 let above = &gy[(y - 1) * w..y * w];
                 let below = &gy[(y + 1) * w..(y + 2) * w];
                 for ((o, a), b) in f.iter_mut().zip(above).zip(below) {
-                    *o += 0.5 * (b - a);
+                    *o += half * (b - a);
                 }
             }
+            self.rows.process_dct2_with_scratch(f, &mut self.scratch);
         }
-        for row in self.buf.chunks_exact_mut(w) {
-            self.rows.process_dct2_with_scratch(row, &mut self.scratch);
+        for (c, row) in self.col0.iter_mut().zip(out.chunks_exact(w)) {
+            *c = row[0];
         }
-        transpose(&self.buf, &mut self.tbuf, w, h);
-        for (col, inv) in self.tbuf.chunks_exact_mut(h).zip(self.inv.chunks_exact(h)) {
-            self.cols.process_dct2_with_scratch(col, &mut self.scratch);
-            for (v, k) in col.iter_mut().zip(inv) {
-                *v *= k;
+        // Forward elimination, a row at a time over every k: g_y = (f_y - g_(y-1)) / m_y.
+        for (y, rec) in self.rec.chunks_exact(w).enumerate() {
+            let (above, rest) = out.split_at_mut(y * w);
+            let row = &mut rest[..w];
+            match above.get(above.len().saturating_sub(w)..).filter(|_| y > 0) {
+                Some(g) => row
+                    .iter_mut()
+                    .zip(rec)
+                    .zip(g)
+                    .for_each(|((v, r), g)| *v = (*v - g) * r),
+                None => row.iter_mut().zip(rec).for_each(|(v, r)| *v *= r),
             }
-            self.cols.process_dct3_with_scratch(col, &mut self.scratch);
         }
-        transpose(&self.tbuf, out, h, w);
-        for row in out.chunks_exact_mut(w) {
+        // Back substitution: x_y = g_y - x_(y+1) / m_y.
+        for (y, rec) in self.rec.chunks_exact(w).enumerate().rev().skip(1) {
+            let (head, tail) = out.split_at_mut((y + 1) * w);
+            let row = &mut head[y * w..];
+            for ((v, r), x) in row.iter_mut().zip(rec).zip(&tail[..w]) {
+                *v -= x * r;
+            }
+        }
+        // k = 0: Ly x = f with zero flux at both ends, so the difference x_(y+1) - x_y is the
+        // running sum of f up to y; mean-free (the free constant).
+        let (mut edge, mut x, mut sum) = (0f64, 0f64, 0f64);
+        for c in self.col0.iter_mut() {
+            let f = f64::from(*c);
+            *c = x as f32;
+            sum += x;
+            edge += f;
+            x += edge;
+        }
+        let mean = (sum / h as f64) as f32;
+        for (row, c) in out.chunks_exact_mut(w).zip(&self.col0) {
+            row[0] = c - mean;
             self.rows.process_dct3_with_scratch(row, &mut self.scratch);
         }
         true
     }
 }
-
-/// `dst` (w rows of h) = transpose of `src` (h rows of w), in 32 x 32 tiles.
-fn transpose(src: &[f32], dst: &mut [f32], w: usize, h: usize) {
-    const T: usize = 32;
-    for y0 in (0..h).step_by(T) {
-        for x0 in (0..w).step_by(T) {
-            for y in y0..(y0 + T).min(h) {
-                for x in x0..(x0 + T).min(w) {
-                    dst[x * h + y] = src[y * w + x];
-                }
-            }
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -181,6 +188,54 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(mean_o.abs() < 1e-4, "mean-free: {mean_o}");
         assert!(worst < 0.05, "worst error {worst} of a 3.0 bump");
+    }
+
+    /// At a frame's size, on rough gradients, the result satisfies the discrete equation: its
+    /// reflected 5-point Laplacian equals the edge gradients' divergence at every pixel.
+    #[test]
+    fn solves_the_discrete_poisson_equation_at_frame_size() {
+        let (w, h) = (320usize, 240usize);
+        let mut seed = 12345u32;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32 - 0.5
+        };
+        let gx: Vec<f32> = (0..w * h).map(|_| 0.01 * rnd()).collect();
+        let gy: Vec<f32> = (0..w * h).map(|_| 0.01 * rnd()).collect();
+        let mut s = PoissonSolver::new(w, h);
+        let mut z = vec![0f32; w * h];
+        assert!(s.solve(&gx, &gy, &mut z));
+        let at = |v: &[f32], x: usize, y: usize| f64::from(v[y * w + x]);
+        let mut worst = 0f64;
+        for y in 0..h {
+            for x in 0..w {
+                let mut lap = 0.0;
+                let mut div = 0.0;
+                if x > 0 {
+                    lap += at(&z, x - 1, y) - at(&z, x, y);
+                    div -= 0.5 * (at(&gx, x - 1, y) + at(&gx, x, y));
+                }
+                if x + 1 < w {
+                    lap += at(&z, x + 1, y) - at(&z, x, y);
+                    div += 0.5 * (at(&gx, x, y) + at(&gx, x + 1, y));
+                }
+                if y > 0 {
+                    lap += at(&z, x, y - 1) - at(&z, x, y);
+                    div -= 0.5 * (at(&gy, x, y - 1) + at(&gy, x, y));
+                }
+                if y + 1 < h {
+                    lap += at(&z, x, y + 1) - at(&z, x, y);
+                    div += 0.5 * (at(&gy, x, y) + at(&gy, x, y + 1));
+                }
+                worst = worst.max((lap - div).abs());
+            }
+        }
+        let mean = z.iter().map(|&v| f64::from(v)).sum::<f64>() / (w * h) as f64;
+        assert!(
+            worst < 1e-4,
+            "largest residual {worst} (gradients up to 0.005)"
+        );
+        assert!(mean.abs() < 1e-4, "mean-free: {mean}");
     }
 
     /// A height map's own edge differences (on a grid where they are exact) come back exactly:
