@@ -571,7 +571,7 @@ impl DepthBenches {
             );
             if let (Some(p), Some(r)) = (&b.python, b.ratio_median) {
                 s += &format!(
-                    "  Python (numpy)     median {:>9.1} us  min {:>9.1} us  p90 {:>9.1} us  Rust is {r:.1}x faster\n",
+                    "  Python (gs_sdk)    median {:>9.1} us  min {:>9.1} us  p90 {:>9.1} us  Rust is {r:.1}x faster\n",
                     p.median_us, p.min_us, p.p90_us
                 );
             }
@@ -671,9 +671,9 @@ pub fn bench_depth(n: usize, repeat: usize, with_python: bool) -> anyhow::Result
         sizes,
         python,
         note: "both sides: difference to the background, 3x3 box mean, the same 18-feature \
-               gradient model per pixel, Poisson integration with the same discretisation, zero \
-               level from the border, penetration; Rust also removes the smooth shading and \
-               finds the contact region"
+               gradient model per pixel, a DCT Poisson solve (Python: gs_sdk's, scipy fftpack \
+               in float64), zero level from the border, penetration; Rust also removes the \
+               smooth shading and finds the contact region"
             .into(),
     })
 }

@@ -318,8 +318,8 @@ enum BenchTarget {
     /// The policy tick per scene and mode (--repeat episodes each), with an ONNX policy's act,
     /// and a loop paced at the control rate (--ticks), vs Python onnxruntime.
     Policy,
-    /// Depth from one image per frame (320x240, 640x480) vs the numpy path a GelSight user
-    /// runs, the read-pass floor, and the share of one core at 25 fps.
+    /// Depth from one image per frame (320x240, 640x480) vs gs_sdk's path a GelSight user
+    /// runs (numpy + scipy), the read-pass floor, and the share of one core at 25 fps.
     Depth,
 }
 

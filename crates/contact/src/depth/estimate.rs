@@ -175,6 +175,8 @@ pub struct DepthEstimator {
     solver: PoissonSolver,
     stack: Vec<usize>,
     border: Vec<f32>,
+    /// Column sums of three rows (the peak search), kept between frames.
+    col: Vec<f32>,
     step_model: GradientModel,
 }
 
@@ -207,6 +209,7 @@ impl DepthEstimator {
             solver: PoissonSolver::new(w, h),
             stack: Vec::new(),
             border: Vec::new(),
+            col: Vec::new(),
             step_model,
         })
     }
@@ -257,11 +260,12 @@ impl DepthEstimator {
         let mut px = std::mem::take(&mut self.border);
         // Zero level: median of the two outermost rings.
         px.clear();
-        for y in 0..h {
-            for x in 0..w {
-                if x < 2 || y < 2 || x + 2 >= w || y + 2 >= h {
-                    px.push(self.depth[y * w + x]);
-                }
+        for (y, row) in self.depth.chunks_exact(w).enumerate() {
+            if y < 2 || y + 2 >= h || w <= 4 {
+                px.extend_from_slice(row);
+            } else {
+                px.extend_from_slice(&row[..2]);
+                px.extend_from_slice(&row[w - 2..]);
             }
         }
         let mid = px.len() / 2;
@@ -283,7 +287,8 @@ impl DepthEstimator {
         let d = &self.depth;
         // The largest 3 x 3 sum: column sums of three rows, then three of those per pixel.
         let (mut best, mut at) = (f32::MIN, 0usize);
-        let mut col = vec![0f32; w];
+        let col = &mut self.col;
+        col.resize(w, 0.0);
         for y in 1..h.saturating_sub(1) {
             let (a, b, c) = (
                 &d[(y - 1) * w..y * w],

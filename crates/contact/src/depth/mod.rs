@@ -6,7 +6,7 @@
 //! - [`model`]: colour and position -> gradient, the calibration file ([`DepthCalibration`]);
 //! - [`calib`]: the contact circle of a ball press ([`find_circle`]) and the least-squares fit
 //!   ([`Fit`]);
-//! - [`poisson`]: gradients -> height ([`PoissonSolver`], rustdct);
+//! - [`poisson`]: gradients -> height ([`PoissonSolver`]: DCT rows through rustfft, tridiagonal columns);
 //! - [`estimate`]: one frame -> depth map, penetration, contact region ([`DepthEstimator`]).
 
 pub mod calib;

@@ -22,6 +22,50 @@ const LATTICE: usize = 8;
 pub struct Prep {
     pub diff: Vec<f32>,
     tmp: Vec<f32>,
+    lattice: Lattice,
+}
+
+/// The shading fit's lattice for one frame size, built once per size: each cell's offset into
+/// the interleaved difference and its terms, and the normal matrix of the whole lattice (a fit
+/// takes out the rows of the cells it leaves out).
+#[derive(Debug, Default, Clone)]
+struct Lattice {
+    size: (usize, usize),
+    cells: Vec<(usize, [f32; TERMS])>,
+    ata: SMatrix<f64, TERMS, TERMS>,
+    /// Per-iteration scratch: which cells the fit keeps, their residuals and the |residual|s.
+    keep: Vec<bool>,
+    res: Vec<f32>,
+    abs: Vec<f32>,
+}
+
+fn outer(t: &[f32; TERMS]) -> SMatrix<f64, TERMS, TERMS> {
+    let tv = SVector::<f64, TERMS>::from_iterator(t.iter().map(|&v| f64::from(v)));
+    tv * tv.transpose()
+}
+
+impl Lattice {
+    fn for_size(&mut self, w: usize, h: usize) {
+        if self.size == (w, h) && !self.cells.is_empty() {
+            return;
+        }
+        let inv = 1.0 / w.max(h) as f32;
+        let (cx, cy) = (w as f32 * 0.5, h as f32 * 0.5);
+        self.cells.clear();
+        for y in (LATTICE / 2..h).step_by(LATTICE) {
+            for x in (LATTICE / 2..w).step_by(LATTICE) {
+                self.cells.push((
+                    (y * w + x) * 3,
+                    terms((x as f32 - cx) * inv, (y as f32 - cy) * inv),
+                ));
+            }
+        }
+        self.ata = self
+            .cells
+            .iter()
+            .fold(SMatrix::zeros(), |a, (_, t)| a + outer(t));
+        self.size = (w, h);
+    }
 }
 
 fn terms(u: f32, v: f32) -> [f32; TERMS] {
@@ -48,9 +92,10 @@ impl Prep {
     ) -> Shading {
         let n = w * h * 3;
         self.diff.resize(n, 0.0);
-        self.tmp.resize(w * 3, 0.0);
+        self.tmp.resize(4 * w * 3, 0.0);
         box3_diff(frame, background, &mut self.tmp, &mut self.diff, w, h);
-        fit_shading(&self.diff, w, h)
+        self.lattice.for_size(w, h);
+        fit_shading(&self.diff, w, h, &mut self.lattice)
     }
 }
 
@@ -106,39 +151,73 @@ impl Shading {
     }
 }
 
-/// `box3` of `frame - background` (u8), the difference taken row by row into `row` (one row
-/// of scratch) instead of a whole difference image. Built for baseline x86-64 and for AVX2.
+/// `box3` of `frame - background` (u8) in one pass over the rows: the difference of a row
+/// taken into the first row of `rows` (four rows of scratch), its horizontal mean into a ring
+/// of the last three (the other three rows), and each output row written once from the ring,
+/// one row behind (no difference image, no second pass over `dst`; the same sums in the same
+/// order as `box3`, so the same bytes). Built for baseline x86-64 and for AVX2.
 #[multiversion::multiversion(targets("x86_64+avx2"))]
 fn box3_diff(
     frame: &[u8],
     background: &[u8],
-    row: &mut [f32],
+    rows: &mut [f32],
     dst: &mut [f32],
     w: usize,
     h: usize,
 ) {
     let stride = w * 3;
-    if w < 2 || h < 2 {
+    if w < 2 || h < 2 || rows.len() < 4 * stride {
         for ((d, &f), &b) in dst.iter_mut().zip(frame).zip(background) {
             *d = f32::from(f) - f32::from(b);
         }
         return;
     }
     const THIRD: f32 = 1.0 / 3.0;
-    for ((fr, bg), out) in frame
+    let (row, ring) = rows.split_at_mut(stride);
+    for (y, (fr, bg)) in frame
         .chunks_exact(stride)
         .zip(background.chunks_exact(stride))
-        .zip(dst.chunks_exact_mut(stride))
+        .enumerate()
+        .take(h)
     {
         for ((t, &f), &b) in row.iter_mut().zip(fr).zip(bg) {
             *t = f32::from(f) - f32::from(b);
         }
-        horizontal3(row, out, stride, THIRD);
+        let slot = y % 3;
+        horizontal3(
+            row,
+            &mut ring[slot * stride..(slot + 1) * stride],
+            stride,
+            THIRD,
+        );
+        if y == 0 {
+            continue;
+        }
+        let at = |k: usize| &ring[(k % 3) * stride..(k % 3 + 1) * stride];
+        let out = &mut dst[(y - 1) * stride..y * stride];
+        let (cur, next) = (at(y - 1), at(y));
+        if y == 1 {
+            for ((o, c), n) in out.iter_mut().zip(cur).zip(next) {
+                *o = (c + n) * 0.5;
+            }
+        } else {
+            let prev = at(y - 2);
+            for (((o, c), p), n) in out.iter_mut().zip(cur).zip(prev).zip(next) {
+                *o = (c + p + n) * THIRD;
+            }
+        }
     }
-    vertical3(dst, w, h, THIRD);
+    let (cur, prev) = (
+        &ring[((h - 1) % 3) * stride..((h - 1) % 3 + 1) * stride],
+        &ring[((h - 2) % 3) * stride..((h - 2) % 3 + 1) * stride],
+    );
+    for ((o, c), p) in dst[(h - 1) * stride..].iter_mut().zip(cur).zip(prev) {
+        *o = (c + p) * 0.5;
+    }
 }
 
 /// One row's horizontal three-tap mean (two taps at the ends).
+#[inline(always)]
 fn horizontal3(row: &[f32], out: &mut [f32], stride: usize, third: f32) {
     for c in 0..3 {
         out[c] = (row[c] + row[3 + c]) * 0.5;
@@ -152,6 +231,7 @@ fn horizontal3(row: &[f32], out: &mut [f32], stride: usize, third: f32) {
 }
 
 /// The vertical three-tap mean of `dst` in place (two taps at the first and last rows).
+#[cfg(test)]
 fn vertical3(dst: &mut [f32], w: usize, h: usize, third: f32) {
     let stride = w * 3;
     let mut prev = dst[..stride].to_vec();
@@ -195,8 +275,9 @@ fn box3(src: &[f32], dst: &mut [f32], w: usize, h: usize) {
     vertical3(dst, w, h, THIRD);
 }
 
-/// Fit and subtract the smooth shading per channel (module docs).
-fn fit_shading(diff: &[f32], w: usize, h: usize) -> Shading {
+/// Fit the smooth shading per channel (module docs). The normal equations of each pass are the
+/// whole lattice's less the rows of the cells left out (few: a press and the cells around it).
+fn fit_shading(diff: &[f32], w: usize, h: usize, lat: &mut Lattice) -> Shading {
     let inv = 1.0 / w.max(h) as f32;
     let (cx, cy) = (w as f32 * 0.5, h as f32 * 0.5);
     let mut out = Shading {
@@ -205,48 +286,52 @@ fn fit_shading(diff: &[f32], w: usize, h: usize) -> Shading {
         cx,
         cy,
     };
-    let mut cells: Vec<(usize, [f32; TERMS])> = Vec::new();
-    for y in (LATTICE / 2..h).step_by(LATTICE) {
-        for x in (LATTICE / 2..w).step_by(LATTICE) {
-            cells.push((
-                (y * w + x) * 3,
-                terms((x as f32 - cx) * inv, (y as f32 - cy) * inv),
-            ));
-        }
-    }
-    if cells.len() < 3 * TERMS {
+    let Lattice {
+        cells,
+        ata: ata_all,
+        keep,
+        res,
+        abs,
+        ..
+    } = lat;
+    if cells.len() < 3 * TERMS || cells.last().is_some_and(|(i, _)| i + 2 >= diff.len()) {
         return out;
     }
     let mut fields = [[0f32; TERMS]; 3];
     let mut any = false;
     for (c, field) in fields.iter_mut().enumerate() {
-        let mut keep = vec![true; cells.len()];
+        let atb_all = cells
+            .iter()
+            .fold(SVector::<f64, TERMS>::zeros(), |a, (i, t)| {
+                a + SVector::<f64, TERMS>::from_iterator(t.iter().map(|&v| f64::from(v)))
+                    * f64::from(diff[i + c])
+            });
+        keep.clear();
+        keep.resize(cells.len(), true);
         let mut coef: Option<SVector<f64, TERMS>> = None;
         for _ in 0..3 {
-            let mut ata = SMatrix::<f64, TERMS, TERMS>::zeros();
-            let mut atb = SVector::<f64, TERMS>::zeros();
-            let mut used = 0usize;
-            for ((i, t), _) in cells.iter().zip(&keep).filter(|(_, k)| **k) {
+            let (mut ata, mut atb) = (*ata_all, atb_all);
+            let mut used = cells.len();
+            for ((i, t), _) in cells.iter().zip(keep.iter()).filter(|(_, k)| !**k) {
                 let tv = SVector::<f64, TERMS>::from_iterator(t.iter().map(|&v| f64::from(v)));
-                ata += tv * tv.transpose();
-                atb += tv * f64::from(diff[i + c]);
-                used += 1;
+                ata -= tv * tv.transpose();
+                atb -= tv * f64::from(diff[i + c]);
+                used -= 1;
             }
             if used < 2 * TERMS {
                 break;
             }
             let Some(ch) = ata.cholesky() else { break };
             let k = ch.solve(&atb);
-            let res: Vec<f32> = cells
-                .iter()
-                .map(|(i, t)| diff[i + c] - dot(t, &k))
-                .collect();
-            let mut abs: Vec<f32> = res
-                .iter()
-                .zip(&keep)
-                .filter(|(_, k)| **k)
-                .map(|(r, _)| r.abs())
-                .collect();
+            res.clear();
+            res.extend(cells.iter().map(|(i, t)| diff[i + c] - dot(t, &k)));
+            abs.clear();
+            abs.extend(
+                res.iter()
+                    .zip(keep.iter())
+                    .filter(|(_, k)| **k)
+                    .map(|(r, _)| r.abs()),
+            );
             let mid = abs.len() / 2;
             let med = if abs.is_empty() {
                 0.0
@@ -254,10 +339,10 @@ fn fit_shading(diff: &[f32], w: usize, h: usize) -> Shading {
                 *abs.select_nth_unstable_by(mid, f32::total_cmp).1
             };
             let limit = (3.0 * 1.4826 * med).max(3.0);
-            for (k, r) in keep.iter_mut().zip(&res) {
+            for (k, r) in keep.iter_mut().zip(res.iter()) {
                 *k = r.abs() <= limit;
             }
-            dilate_rejected(&mut keep, w);
+            dilate_rejected(keep, w);
             coef = Some(k);
         }
         if let Some(k) = coef {
@@ -356,8 +441,9 @@ mod tests {
         let frame: Vec<u8> = src.iter().map(|&v| v as u8 + 20).collect();
         let background = vec![20u8; src.len()];
         let mut fused = vec![0f32; src.len()];
-        let mut row = vec![0f32; w * 3];
-        box3_diff(&frame, &background, &mut row, &mut fused, w, h);
+        let mut rows = vec![0f32; 4 * w * 3];
+        box3_diff(&frame, &background, &mut rows, &mut fused, w, h);
+        assert_eq!(fused, dst, "the one-pass box mean gives box3's bytes");
         for y in 0..h {
             for x in 0..w {
                 for c in 0..3 {
