@@ -1,7 +1,9 @@
-//! `unitac demos --scene S --split train|unseen --seeds 1,2 --trials N --out DIR`: the scripted
-//! expert's cup demonstrations with what a policy could observe (unitac_trials::demos), the
-//! frames going through the scene's own tactile stages (every stage before its policy stage),
-//! written as `DIR/demos.json` for scripts/fit_reference_policy.py.
+//! `unitac demos --scene S[,S2] --split train|unseen --seeds 1,2 --trials N --out DIR`: the
+//! scripted expert's demonstrations of the scenes' task with what a policy of every mode could
+//! observe (unitac_trials::demos), the frames going through each scene's own tactile stages
+//! (every stage before its policy stage; one chain per scene, the first one's contact state
+//! drives the cup's probe), written as `DIR/demos.json` for scripts/fit_reference_policy.py and
+//! scripts/lerobot_dataset.py.
 
 use crate::ConfigError;
 use anyhow::Context;
@@ -9,25 +11,32 @@ use serde::Serialize;
 use std::path::Path;
 use unitac_pipeline::{StageConfig, build_stage, load_scene_without_policy_models, stage_configs};
 use unitac_sim::MockConfig;
-use unitac_sim::task::Split;
-use unitac_trials::demos::{Demo, DemoConfig, record};
+use unitac_sim::task::{Split, TaskKind};
+use unitac_trials::demos::{Demo, DemoConfig, MAX_CHAINS, action_names, record_chains};
+use unitac_trials::scene::scene_task;
 
 /// Most demonstrations one run records.
 pub const MAX_DEMOS: usize = 10_000;
 
 #[derive(Serialize)]
 struct DemoFile<'a> {
+    /// The scenes' names joined by '+'.
     scene: &'a str,
+    scenes: &'a [String],
+    /// The task as the first scene's policy states it (the dataset's task text).
+    instruction: &'a str,
     split: Split,
     seeds: &'a [u64],
     trials: u32,
     config: &'a DemoConfig,
+    /// The names of each tick's action values.
+    action_names: Vec<&'static str>,
     demos: Vec<Demo>,
 }
 
 /// Record and write the demonstrations; a one-line summary comes back.
 pub fn demos(
-    scene_name: &str,
+    scene_names: &[String],
     split: Split,
     seeds: &[u64],
     trials: u32,
@@ -40,36 +49,54 @@ pub fn demos(
             "{n} demonstrations asked for (seeds x trials: 1 to {MAX_DEMOS})"
         )));
     }
-    let scene =
-        load_scene_without_policy_models(scene_name, None).map_err(|e| config(e.to_string()))?;
-    let configs = stage_configs(&scene).map_err(|e| config(e.to_string()))?;
-    let mut cfg = DemoConfig::default();
-    if let Some(p) = configs.iter().find_map(|c| match c {
-        StageConfig::Policy { params, .. } => Some(params),
-        _ => None,
-    }) {
-        if !p.task.starts_with("squeeze") {
-            return Err(config(format!(
-                "scene {}: demonstrations are recorded for the cup task, its task is '{}'",
-                scene.name, p.task
-            )));
-        }
-        cfg.touch_speed_m_s = p.touch_speed_m_s;
-        cfg.touch_force_n = p.touch_force_n;
-        cfg.probe_release_m = p.probe_release_m;
-        cfg.timeout_s = p.contact_timeout_s;
-    }
-    let tactile: Vec<StageConfig> = configs
-        .into_iter()
-        .filter(|c| !matches!(c, StageConfig::Policy { .. }))
-        .collect();
-    if tactile.is_empty() {
+    if scene_names.is_empty() || scene_names.len() > MAX_CHAINS {
         return Err(config(format!(
-            "scene {} has no tactile stage: nothing a demonstration could observe",
-            scene.name
+            "{} scenes named (1 to {MAX_CHAINS})",
+            scene_names.len()
         )));
     }
-    let src = &scene.source;
+    let mut cfg = DemoConfig::default();
+    let mut scenes = Vec::new();
+    let mut task: Option<TaskKind> = None;
+    let mut instruction = String::new();
+    for (k, name) in scene_names.iter().enumerate() {
+        let scene =
+            load_scene_without_policy_models(name, None).map_err(|e| config(e.to_string()))?;
+        let (p, kind) = scene_task(&scene).map_err(|e| config(e.to_string()))?;
+        if task.is_some_and(|t| t != kind) {
+            return Err(config(format!(
+                "scene {}: its task is '{}', another scene's is the {} task",
+                scene.name,
+                p.task,
+                task.map_or("", |t| t.as_str())
+            )));
+        }
+        task = Some(kind);
+        if k == 0 {
+            instruction.clone_from(&p.task);
+            cfg.task = kind;
+            cfg.touch_speed_m_s = p.touch_speed_m_s;
+            cfg.touch_force_n = p.touch_force_n;
+            cfg.probe_release_m = p.probe_release_m;
+            cfg.timeout_s = p.contact_timeout_s;
+        }
+        let tactile: Vec<StageConfig> = stage_configs(&scene)
+            .map_err(|e| config(e.to_string()))?
+            .into_iter()
+            .filter(|c| !matches!(c, StageConfig::Policy { .. }))
+            .collect();
+        if tactile.is_empty() {
+            return Err(config(format!(
+                "scene {} has no tactile stage: nothing a demonstration could observe",
+                scene.name
+            )));
+        }
+        scenes.push((scene, tactile));
+    }
+    let Some((first, _)) = scenes.first() else {
+        return Err(config("no scene".into()));
+    };
+    let src = &first.source;
     let mut sensor = MockConfig::new(src.sensor, src.seed);
     if let Some(fps) = src.fps {
         sensor.fps = fps;
@@ -81,31 +108,49 @@ pub fn demos(
     let mut demos = Vec::with_capacity(n);
     for &seed in seeds {
         for trial in 0..trials {
-            let stages = tactile
-                .iter()
-                .map(|c| build_stage(&scene, c.clone()))
-                .collect::<Result<Vec<_>, _>>()?;
-            demos.push(record(split, seed, trial, &sensor, stages, &cfg)?);
+            let mut chains = Vec::with_capacity(scenes.len());
+            for (scene, tactile) in &scenes {
+                chains.push(
+                    tactile
+                        .iter()
+                        .map(|c| build_stage(scene, c.clone()))
+                        .collect::<Result<Vec<_>, _>>()?,
+                );
+            }
+            demos.push(record_chains(split, seed, trial, &sensor, chains, &cfg)?);
             bar.inc(1);
         }
     }
     bar.finish_and_clear();
     let ok = demos.iter().filter(|d| d.success).count();
     let with_latent = demos.iter().filter(|d| !d.latents.is_empty()).count();
+    let joined = scenes
+        .iter()
+        .map(|(s, _)| s.name.as_str())
+        .collect::<Vec<_>>()
+        .join("+");
+    let names: Vec<String> = scenes.iter().map(|(s, _)| s.name.clone()).collect();
     let file = DemoFile {
-        scene: &scene.name,
+        scene: &joined,
+        scenes: &names,
+        instruction: &instruction,
         split,
         seeds,
         trials,
         config: &cfg,
+        action_names: action_names(),
         demos,
     };
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let path = out.join("demos.json");
     let text = serde_json::to_string(&file)?;
     std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+    let objects = match cfg.task {
+        TaskKind::Cup => "cups",
+        TaskKind::Fabric => "fabrics",
+    };
     Ok(format!(
-        "{} demonstrations of {} ({:?} cups) in {}: {with_latent} with a latent, expert succeeded in {ok}\n",
+        "{} demonstrations of {} ({:?} {objects}) in {}: {with_latent} with a latent, expert succeeded in {ok}\n",
         file.demos.len(),
         file.scene,
         split,

@@ -222,11 +222,12 @@ enum Cmd {
         #[arg(long, default_value = "gelsight-mini")]
         sensor: String,
     },
-    /// Cup demonstrations of the scripted expert with what a policy could observe, through the
-    /// scene's tactile stages: `demos --scene S --split train --seeds 1,2,3 --trials 10 --out DIR`.
+    /// Demonstrations of the scripted expert with what a policy of every mode could observe,
+    /// through each scene's tactile stages (scenes of one task, comma-separated):
+    /// `demos --scene S[,S2] --split train --seeds 1,2,3 --trials 10 --out DIR`.
     Demos {
-        #[arg(long)]
-        scene: String,
+        #[arg(long, value_delimiter = ',', required = true)]
+        scene: Vec<String>,
         #[command(flatten)]
         set: TrialSet,
         #[arg(long)]

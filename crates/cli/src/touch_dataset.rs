@@ -35,7 +35,7 @@ use unitac_pipeline::{StageConfig, build_stage, load_scene_without_policy_models
 use unitac_sim::task::{self, ObjectSpec, Split, TaskConfig, TaskWorld, trial_rng};
 use unitac_sim::{MockConfig, MockSensor};
 use unitac_trials::bridge::visual_message;
-use unitac_trials::demos::{DemoConfig, demo_sensor, record};
+use unitac_trials::demos::{DemoConfig, demo_sensor, pooled, record};
 
 /// Most (seed, trial) pairs one run records.
 pub const MAX_TRIALS: usize = 5_000;
@@ -66,20 +66,6 @@ struct TouchFile<'a> {
     trials: u32,
     latent_shape: [u32; 2],
     samples: Vec<Sample>,
-}
-
-/// Token mean and token mean of squares of `tokens` ([n, w] row-major).
-pub fn pooled(tokens: &[f32], w: usize) -> Vec<f32> {
-    let n = tokens.len() / w.max(1);
-    let mut out = vec![0.0f32; 2 * w];
-    for r in 0..n {
-        for j in 0..w {
-            let v = tokens[r * w + j];
-            out[j] += v / n as f32;
-            out[w + j] += v * v / n as f32;
-        }
-    }
-    out
 }
 
 /// The camera's values of `object` as the VisualObservation message names them

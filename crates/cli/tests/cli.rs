@@ -275,8 +275,11 @@ fn demos_writes_the_demonstrations_and_refuses_scenes_without_touch() {
     assert_eq!(demos.len(), 2);
     assert_eq!(demos[0]["latents"][0]["source"], "real");
     assert_eq!(demos[0]["latents"][0]["touch"], 1);
-    // No tactile stage, or not the cup task: a configuration error, one line, exit 2.
-    for scene in ["cup_deformation_vla", "fabric_selection_vtla_real"] {
+    // No tactile stage, or scenes of two tasks: a configuration error, one line, exit 2.
+    for scene in [
+        "cup_deformation_vla",
+        "cup_deformation_vtla_real,fabric_selection_vtla_real",
+    ] {
         let o = unitac(&["demos", "--scene", scene, "--out", out.to_str().unwrap()]);
         assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
         assert_eq!(stderr(&o).trim_end().lines().count(), 1, "{}", stderr(&o));

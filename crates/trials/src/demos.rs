@@ -1,10 +1,12 @@
-//! Demonstrations with observations: the scripted expert on the cup task, recorded with what a
-//! policy could observe (the tactile latents the scene's stages make of the mock sensor's
-//! frames, the camera's estimate, the gripper's state) next to the expert's labels (the cup's
-//! true stiffness, the expert's grasp setpoint). The reference policies are fitted on these
-//! (scripts/fit_reference_policy.py), on training cups only.
+//! Demonstrations with observations: the scripted expert on either task, recorded with what a
+//! policy of every mode could observe (the tactile latents the scenes' stages make of the mock
+//! sensor's frames, the camera's estimate, the gripper's status) next to the expert's labels (the
+//! cup's true stiffness, the expert's setpoints). The reference policies are fitted on the cup's
+//! (scripts/fit_reference_policy.py), the learned policies on the per-tick record of both tasks
+//! ([`DemoTick`], written in LeRobot's layout by scripts/lerobot_dataset.py), on training objects
+//! only.
 //!
-//! One demonstration, per tick of `dt_s`:
+//! One cup demonstration, per tick of `dt_s`:
 //!
 //! ```text
 //! approach: the expert's command (arm to the cup, fingers wide) until the arm has arrived
@@ -15,21 +17,36 @@
 //! expert:   the expert's own commands (squeeze to its setpoint, settle, lift) for expert_s
 //! ```
 //!
+//! A fabric demonstration is the expert alone for `fabric_s` (it touches both fabrics itself,
+//! then grasps the smoother one and lifts it).
+//!
+//! Several chains of stages may watch one demonstration (one per mode's scene: contact + encoder
+//! for vtla_real, contact + sampler for vtla_pred), each fed the same camera estimates and
+//! frames; the first chain's contact state drives the probe and the contact observation.
+//!
 //! Each tick the camera's estimate goes into the stages first (as in a trial: the sampler's
 //! object-level condition), then the frames are rendered at the sensor's own frame times by
 //! [`crate::bridge::SensorRig`] and pushed through the scene's tactile stages with [`Chain`] (contact + encoder for vtla_real, contact + sampler
 //! for vtla_pred): the stages are built by the caller from the scene, so this module sees only
 //! `Stage`s. Every latent the stages send is kept with the number of contacts begun before it
 //! (0: a prediction before any touch; 1: the probe touch). Same inputs, same bytes.
+//!
+//! Each tick also goes into [`Demo::ticks`]: the observation slices every mode may read (the
+//! gripper status as the policy's `gripper` input reads it, the camera's estimate, the contact
+//! state, the opening latched at the first object-detect, the pooled latents per object, the
+//! comparison) and the command the expert gave, as the policy's action values. Nothing in a
+//! tick's observation is ground truth.
 
 use serde::Serialize;
 use thiserror::Error;
 use unitac_core::Stage;
 use unitac_core::chain::Chain;
-use unitac_core::msg::{ContactState, LatentSource, Msg};
+use unitac_core::msg::{ContactState, LatentSource, Msg, PropertyComparison};
+use unitac_policy::Action;
+use unitac_policy::observation::{Layout, input};
 use unitac_sim::task::{
-    self, ArmSetpoint, GripperSetpoint, Split, TaskCommand, TaskConfig, TaskWorld, expert_command,
-    trial_rng,
+    self, ArmSetpoint, GripperSetpoint, Split, TaskCommand, TaskConfig, TaskKind, TaskWorld,
+    expert_command, trial_rng,
 };
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
@@ -41,10 +58,22 @@ use crate::stepper::{StepError, WorldStepper};
 const VISION_SALT: u64 = 0x4445_4D4F_5649_5301;
 /// Most latents one demonstration keeps.
 const MAX_LATENTS: usize = 64;
+/// Most chains of stages one demonstration feeds.
+pub const MAX_CHAINS: usize = 4;
+/// Most ticks one demonstration records (10 min at 30 Hz).
+pub const MAX_TICKS: usize = 18_000;
+/// Values of the comparison slice (the policy's `comparison` input).
+pub const COMPARISON_LEN: usize = 5;
+/// Values of the contact slice (the policy's `contact` input).
+pub const CONTACT_LEN: usize = 3;
+/// Values of the gripper slice (the policy's `gripper` input).
+pub const STATE_LEN: usize = 8;
 
 /// How a demonstration touches and how long it runs.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DemoConfig {
+    /// Which task.
+    pub task: TaskKind,
     /// Control period \[s].
     pub dt_s: f64,
     /// The probe touch: closing speed \[m/s], force bound \[N], opening added back to end it \[m]
@@ -54,19 +83,27 @@ pub struct DemoConfig {
     pub probe_release_m: f64,
     /// Longest approach, touch or release \[s].
     pub timeout_s: f64,
-    /// How long the expert runs after the probe \[s].
+    /// How long the expert runs after the probe \[s] (cup).
     pub expert_s: f64,
+    /// How long the expert runs on the fabrics \[s].
+    pub fabric_s: f64,
+    /// Values of one pooled latent ([`pooled`] of the encoder's tokens; the sampler's latent is
+    /// pooled already): a latent of another size is an error.
+    pub pooled_len: usize,
 }
 
 impl Default for DemoConfig {
     fn default() -> Self {
         Self {
+            task: TaskKind::Cup,
             dt_s: 1.0 / 30.0,
             touch_speed_m_s: 0.01,
             touch_force_n: 3.0,
             probe_release_m: 0.002,
             timeout_s: 8.0,
             expert_s: 4.0,
+            fabric_s: task::expert::default_run(TaskKind::Fabric).1,
+            pooled_len: 96,
         }
     }
 }
@@ -89,6 +126,8 @@ pub enum DemoError {
     },
     #[error("seed {seed} trial {trial}: world: {msg}")]
     World { seed: u64, trial: u32, msg: String },
+    #[error("seed {seed} trial {trial}: observation: {msg}")]
+    Observation { seed: u64, trial: u32, msg: String },
     #[error("bad demo config: {0}")]
     Config(String),
 }
@@ -106,31 +145,66 @@ pub struct LatentRecord {
     pub data: Vec<f32>,
 }
 
+/// One control tick of a demonstration: what the policies could observe before the command,
+/// and the command. Unknown values are 0 with their `known` flag 0.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DemoTick {
+    /// World time \[s].
+    pub t_s: f64,
+    /// The gripper's status as the policy's `gripper` input reads it ([`STATE_LEN`] values).
+    pub state: Vec<f32>,
+    /// The camera's estimate this tick, in [`Demo::visual_names`]' order.
+    pub visual: Vec<f32>,
+    /// The first chain's latest contact state: in contact, area \[mm^2], strength.
+    pub contact: Vec<f32>,
+    /// The opening the gripper reported at its first object-detect \[m], and known.
+    pub latched: Vec<f32>,
+    /// Per object of [`Demo::objects`]: the pooled live latent of its touch (the first latent
+    /// of touch k + 1 for object k: the expert touches them in order), then known.
+    pub latent_real: Vec<f32>,
+    /// Per object: the latest predicted latent for it, then known.
+    pub latent_pred: Vec<f32>,
+    /// The latest property comparison as the policy's `comparison` input reads it.
+    pub comparison: Vec<f32>,
+    /// The command, as the policy's action values ([`Action::values`] order).
+    pub action: Vec<f32>,
+    /// Where the arm went: 0 home, k + 1 object k.
+    pub arm_target: u32,
+}
+
 /// One demonstration: observations and labels.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Demo {
+    pub task: TaskKind,
     pub seed: u64,
     pub trial: u32,
     pub split: Split,
-    /// Observations. The camera's estimate at the first tick (names, values).
+    /// The task's objects, in the order of the per-object slices.
+    pub objects: Vec<String>,
+    /// Observations. The camera's estimate at the first tick (names as the VisualObservation
+    /// message has them, values).
     pub visual_names: Vec<String>,
     pub visual_values: Vec<f64>,
     /// The gripper at the probe's first contact: opening \[m] and force \[N], and the contact
-    /// stage's area \[mm^2] there.
+    /// stage's area \[mm^2] there (cup; NaN for the fabrics).
     pub contact_opening_m: f64,
     pub contact_force_n: f64,
     pub contact_area_mm2: f32,
     pub latents: Vec<LatentRecord>,
     /// Labels (ground truth and the expert). The cup's diameter \[m], its stiffness as the
     /// controllers use it (grip force at the target deformation / the target deformation,
-    /// \[N/m]), the expert's squeeze setpoint (opening) \[m], its grip force at the end \[N].
+    /// \[N/m]), the expert's squeeze setpoint (opening) \[m], its grip force at the end \[N]
+    /// (NaN where the task has no cup).
     pub diameter_m: f64,
     pub stiffness_n_per_m: f64,
     pub expert_opening_m: f64,
     pub expert_force_n: f64,
-    /// The expert's outcome at the end: loss of diameter \[m] and overall success.
+    /// The expert's outcome at the end: the cup's loss of diameter \[m] (NaN for the fabrics)
+    /// and overall success.
     pub deformation_m: f64,
     pub success: bool,
+    /// Every control tick, first first.
+    pub ticks: Vec<DemoTick>,
 }
 
 /// The stiffness the cup controllers read from a latent: the grip force that holds the cup's
@@ -139,6 +213,21 @@ pub fn cup_stiffness(cup: &task::CupSpec, d_m: f64) -> f64 {
     let x_mm = d_m * 1e3 / 2.0;
     let (force_n, _) = cup.wall.spring(x_mm);
     force_n / d_m
+}
+
+/// Token mean, then token mean of squares, of `tokens` (\[n, w] row-major): the pooled latent
+/// the touch projector predicts and the policies read.
+pub fn pooled(tokens: &[f32], w: usize) -> Vec<f32> {
+    let w = w.max(1);
+    let n = tokens.len() / w;
+    let mut out = vec![0.0f32; 2 * w];
+    for row in tokens.chunks_exact(w) {
+        for (j, &v) in row.iter().enumerate() {
+            out[j] += v / n as f32;
+            out[w + j] += v * v / n as f32;
+        }
+    }
+    out
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -160,6 +249,100 @@ pub fn demo_sensor(base: &MockConfig, seed: u64, trial: u32) -> MockSensor {
     MockSensor::new(cfg, Scenario::idle(1.0))
 }
 
+/// What the chains have said so far.
+#[derive(Debug, Default)]
+struct Seen {
+    contact: Option<ContactState>,
+    touches: u32,
+    latents: Vec<LatentRecord>,
+    /// Per object: the pooled real latent, the pooled predicted one.
+    real: Vec<Option<Vec<f32>>>,
+    pred: Vec<Option<Vec<f32>>>,
+    comparison: Option<PropertyComparison>,
+    /// A latent of the wrong size (the first one).
+    bad: Option<String>,
+}
+
+impl Seen {
+    fn keep(&mut self, out: Vec<Msg>, chain: usize, t_s: f64, objects: &[String], width: usize) {
+        for m in out {
+            match m {
+                // The first chain's contact state drives the probe and the contact slice.
+                Msg::ContactState(s) if chain == 0 => {
+                    if s.in_contact && !self.contact.as_ref().is_some_and(|c| c.in_contact) {
+                        self.touches += 1;
+                    }
+                    self.contact = Some(s);
+                }
+                Msg::TactileLatent(l) => {
+                    let real = l.source == LatentSource::Real;
+                    let w = l.shape.last().copied().unwrap_or(1) as usize;
+                    let p = if real {
+                        pooled(&l.data, w)
+                    } else {
+                        l.data.clone()
+                    };
+                    if p.len() != width && self.bad.is_none() {
+                        self.bad = Some(format!(
+                            "a latent of shape {:?} pools to {} values, not {width}",
+                            l.shape,
+                            p.len()
+                        ));
+                    }
+                    let slot = if real {
+                        (self.touches as usize).checked_sub(1)
+                    } else {
+                        objects.iter().position(|o| *o == l.object)
+                    };
+                    if let Some(k) = slot.filter(|_| p.len() == width) {
+                        if real {
+                            if let Some(s @ None) = self.real.get_mut(k) {
+                                *s = Some(p);
+                            }
+                        } else if let Some(s) = self.pred.get_mut(k) {
+                            *s = Some(p);
+                        }
+                    }
+                    if self.latents.len() < MAX_LATENTS {
+                        self.latents.push(LatentRecord {
+                            t_s,
+                            touch: self.touches,
+                            source: if real { "real" } else { "predicted" }.into(),
+                            shape: l.shape,
+                            data: l.data,
+                        });
+                    }
+                }
+                Msg::PropertyComparison(c) => self.comparison = Some(c),
+                _ => {}
+            }
+        }
+    }
+}
+
+/// Per object: its values or zeros, then known.
+fn slots(v: &[Option<Vec<f32>>], width: usize) -> Vec<f32> {
+    let mut out = Vec::with_capacity(v.len() * (width + 1));
+    for s in v {
+        match s {
+            Some(p) => out.extend(p.iter().copied().chain([1.0])),
+            None => out.extend(std::iter::repeat_n(0.0, width + 1)),
+        }
+    }
+    out
+}
+
+/// The features of `msg` as the policy's input `name` reads them (`len` zeros when none yet).
+fn features(name: &str, msg: Option<Msg>, layout: &Layout, len: usize) -> Result<Vec<f32>, String> {
+    let Some(m) = msg else {
+        return Ok(vec![0.0; len]);
+    };
+    let spec = input(name).ok_or_else(|| format!("no policy input '{name}'"))?;
+    let mut out = Vec::with_capacity(len);
+    (spec.features)(&m, layout, &mut out).map_err(|e| format!("{name}: {e}"))?;
+    Ok(out)
+}
+
 /// Record trial `trial` of `seed` on a cup of `split`, the frames going through `stages` (fresh
 /// ones: they keep state per trial).
 pub fn record(
@@ -168,6 +351,19 @@ pub fn record(
     trial: u32,
     sensor: &MockConfig,
     stages: Vec<Box<dyn Stage>>,
+    c: &DemoConfig,
+) -> Result<Demo, DemoError> {
+    record_chains(split, seed, trial, sensor, vec![stages], c)
+}
+
+/// Record trial `trial` of `seed` of `c.task` on objects of `split`, the camera's estimates and
+/// the frames going through each of `chains` (fresh stages: they keep state per trial).
+pub fn record_chains(
+    split: Split,
+    seed: u64,
+    trial: u32,
+    sensor: &MockConfig,
+    chains: Vec<Vec<Box<dyn Stage>>>,
     c: &DemoConfig,
 ) -> Result<Demo, DemoError> {
     if !(c.dt_s.is_finite() && c.dt_s > 0.0 && c.dt_s <= task::MAX_STEP_S) {
@@ -185,27 +381,43 @@ pub fn record(
     let ok = c.probe_release_m.is_finite()
         && c.probe_release_m >= 0.0
         && (0.0..=600.0).contains(&c.expert_s)
+        && (0.0..=600.0).contains(&c.fabric_s)
         && c.timeout_s <= 600.0;
     if !ok {
         return Err(DemoError::Config(
-            "probe_release_m must be >= 0, expert_s and timeout_s at most 600 s".into(),
+            "probe_release_m must be >= 0; expert_s, fabric_s and timeout_s at most 600 s".into(),
         ));
     }
-    let cfg = TaskConfig::cup(split);
+    if !(1..=4096).contains(&c.pooled_len) {
+        return Err(DemoError::Config(format!(
+            "pooled_len = {} (1 to 4096)",
+            c.pooled_len
+        )));
+    }
+    if chains.len() > MAX_CHAINS {
+        return Err(DemoError::Config(format!(
+            "{} chains of stages (at most {MAX_CHAINS})",
+            chains.len()
+        )));
+    }
+    let cfg = TaskConfig::new(c.task, split);
     let world = TaskWorld::reset(&cfg, seed, trial);
     let spec = world.spec().clone();
-    let Some(cup) = spec.cup().cloned() else {
+    let objects: Vec<String> = spec.objects.iter().map(|o| o.name.clone()).collect();
+    let cup = spec.cup().cloned();
+    if c.task == TaskKind::Cup && cup.is_none() {
         return Err(DemoError::World {
             seed,
             trial,
             msg: "the trial has no cup".into(),
         });
-    };
+    }
     let world_err = |e: StepError| DemoError::World {
         seed,
         trial,
         msg: e.to_string(),
     };
+    let obs_err = |msg: String| DemoError::Observation { seed, trial, msg };
     let mut world = WorldStepper::new(
         world,
         demo_sensor(sensor, seed, trial),
@@ -215,47 +427,35 @@ pub fn record(
         c.dt_s,
     )
     .map_err(world_err)?;
-    let mut chain = Chain::new(stages);
+    let mut chains: Vec<Chain> = chains.into_iter().map(Chain::new).collect();
     let visual = world.visual();
+    let visual_msg = visual_message(&visual);
+    let layout = Layout {
+        latent_len: 0,
+        visual_names: visual_msg.names.clone(),
+        stroke_m: Some(cfg.gripper.max_opening_m),
+    };
+    let width = c.pooled_len;
 
-    let mut phase = Phase::Approach;
+    let mut phase = match c.task {
+        TaskKind::Cup => Phase::Approach,
+        TaskKind::Fabric => Phase::Expert,
+    };
+    let run_s = match c.task {
+        TaskKind::Cup => c.expert_s,
+        TaskKind::Fabric => c.fabric_s,
+    };
     let mut since = 0.0;
-    let mut contact: Option<ContactState> = None;
-    let mut touches = 0u32;
-    let mut latents = Vec::new();
+    let mut seen = Seen {
+        real: vec![None; objects.len()],
+        pred: vec![None; objects.len()],
+        ..Seen::default()
+    };
     let mut at_contact = (f64::NAN, f64::NAN, f32::NAN);
+    let mut latched: Option<f32> = None;
     let mut d0 = cfg.gripper.max_opening_m;
     let mut last_cmd: Option<TaskCommand> = None;
-    let keep = |out: Vec<Msg>,
-                t_s: f64,
-                contact: &mut Option<ContactState>,
-                touches: &mut u32,
-                latents: &mut Vec<LatentRecord>| {
-        for m in out {
-            match m {
-                Msg::ContactState(s) => {
-                    if s.in_contact && !contact.as_ref().is_some_and(|c| c.in_contact) {
-                        *touches += 1;
-                    }
-                    *contact = Some(s);
-                }
-                Msg::TactileLatent(l) if latents.len() < MAX_LATENTS => {
-                    latents.push(LatentRecord {
-                        t_s,
-                        touch: *touches,
-                        source: match l.source {
-                            LatentSource::Real => "real",
-                            _ => "predicted",
-                        }
-                        .into(),
-                        shape: l.shape,
-                        data: l.data,
-                    })
-                }
-                _ => {}
-            }
-        }
-    };
+    let mut ticks = Vec::new();
     let stage_err = |r: &unitac_core::chain::Rejection| DemoError::Stage {
         seed,
         trial,
@@ -271,26 +471,38 @@ pub fn record(
     loop {
         let t = world.time();
         // The camera's estimate first, as in a trial (the sampler's object-level condition).
-        let seen = if t == 0.0 {
+        let seen_visual = if t == 0.0 {
             visual.clone()
         } else {
             world.visual()
         };
-        let out = chain.run(Msg::VisualObservation(visual_message(&seen)));
-        if let Some(r) = out.errors.first() {
-            return Err(stage_err(r));
-        }
-        keep(out.produced, t, &mut contact, &mut touches, &mut latents);
-        for (frame, _truth) in world.frames() {
-            let out = chain.run(Msg::Frame(frame));
+        let camera = visual_message(&seen_visual);
+        for (k, chain) in chains.iter_mut().enumerate() {
+            let out = chain.run(Msg::VisualObservation(camera.clone()));
             if let Some(r) = out.errors.first() {
                 return Err(stage_err(r));
             }
-            keep(out.produced, t, &mut contact, &mut touches, &mut latents);
+            seen.keep(out.produced, k, t, &objects, width);
+        }
+        for (frame, _truth) in world.frames() {
+            for (k, chain) in chains.iter_mut().enumerate() {
+                let out = chain.run(Msg::Frame(frame.clone()));
+                if let Some(r) = out.errors.first() {
+                    return Err(stage_err(r));
+                }
+                seen.keep(out.produced, k, t, &objects, width);
+            }
+        }
+        if let Some(msg) = seen.bad.take() {
+            return Err(obs_err(msg));
+        }
+        let status = world.status().map_err(world_err)?;
+        if latched.is_none() && status.object_detected {
+            latched = Some(status.opening_m as f32);
         }
         let truth = world.world().truth();
         let expert = expert_command(&truth, &spec, &cfg);
-        let in_contact = contact.as_ref().is_some_and(|s| s.in_contact);
+        let in_contact = seen.contact.as_ref().is_some_and(|s| s.in_contact);
         let elapsed = t - since;
         let next = match phase {
             Phase::Approach if truth.arm.arrived && elapsed > c.dt_s => Some(Phase::Touch),
@@ -299,12 +511,12 @@ pub fn record(
                 at_contact = (
                     d0,
                     truth.gripper.force_n,
-                    contact.as_ref().map_or(f32::NAN, |s| s.area_mm2),
+                    seen.contact.as_ref().map_or(f32::NAN, |s| s.area_mm2),
                 );
                 Some(Phase::Release)
             }
             Phase::Release if !in_contact => Some(Phase::Expert),
-            Phase::Expert if elapsed >= c.expert_s => break,
+            Phase::Expert if elapsed >= run_s => break,
             Phase::Approach | Phase::Touch | Phase::Release if elapsed > c.timeout_s => {
                 return Err(timeout(match phase {
                     Phase::Approach => "the arm did not reach the cup",
@@ -340,41 +552,119 @@ pub fn record(
                 },
             },
         };
+        if ticks.len() >= MAX_TICKS {
+            return Err(DemoError::Config(format!(
+                "more than {MAX_TICKS} ticks in one demonstration"
+            )));
+        }
+        ticks.push(DemoTick {
+            t_s: t,
+            state: features("gripper", Some(Msg::GripperStatus(status)), &layout, 0)
+                .map_err(obs_err)?,
+            visual: features("visual", Some(Msg::VisualObservation(camera)), &layout, 0)
+                .map_err(obs_err)?,
+            contact: features(
+                "contact",
+                seen.contact.clone().map(Msg::ContactState),
+                &layout,
+                CONTACT_LEN,
+            )
+            .map_err(obs_err)?,
+            latched: latched.map_or(vec![0.0, 0.0], |o| vec![o, 1.0]),
+            latent_real: slots(&seen.real, width),
+            latent_pred: slots(&seen.pred, width),
+            comparison: features(
+                "comparison",
+                seen.comparison.clone().map(Msg::PropertyComparison),
+                &layout,
+                COMPARISON_LEN,
+            )
+            .map_err(obs_err)?,
+            action: action_values(&cmd),
+            arm_target: match cmd.arm.target.name() {
+                "home" => 0,
+                name => objects
+                    .iter()
+                    .position(|o| o == name)
+                    .map_or(0, |k| k as u32 + 1),
+            },
+        });
         world.step(Some(cmd.clone())).map_err(world_err)?;
         if phase == Phase::Expert {
             last_cmd = Some(cmd);
         }
     }
-    let out = chain.finish();
-    if let Some(r) = out.errors.first() {
-        return Err(stage_err(r));
+    for (k, chain) in chains.iter_mut().enumerate() {
+        let out = chain.finish();
+        if let Some(r) = out.errors.first() {
+            return Err(stage_err(r));
+        }
+        let t = world.time();
+        seen.keep(out.produced, k, t, &objects, width);
     }
-    let t = world.time();
-    keep(out.produced, t, &mut contact, &mut touches, &mut latents);
     let truth = world.world().truth();
-    let task::TaskOutcome::Cup(outcome) = world.outcome() else {
-        return Err(DemoError::World {
-            seed,
-            trial,
-            msg: "not a cup outcome".into(),
-        });
+    let (deformation_m, success) = match world.outcome() {
+        task::TaskOutcome::Cup(o) => (o.deformation_m, o.overall),
+        task::TaskOutcome::Fabric(o) => (f64::NAN, o.overall),
     };
     let d = cfg.cup_criteria.target_deformation_m;
     Ok(Demo {
+        task: c.task,
         seed,
         trial,
         split,
-        visual_names: visual.names,
+        objects,
+        visual_names: visual_msg.names,
         visual_values: visual.values,
         contact_opening_m: at_contact.0,
         contact_force_n: at_contact.1,
         contact_area_mm2: at_contact.2,
-        latents,
-        diameter_m: cup.diameter_m,
-        stiffness_n_per_m: cup_stiffness(&cup, d),
+        latents: seen.latents,
+        diameter_m: cup.as_ref().map_or(f64::NAN, |c| c.diameter_m),
+        stiffness_n_per_m: cup.as_ref().map_or(f64::NAN, |c| cup_stiffness(c, d)),
         expert_opening_m: last_cmd.map_or(f64::NAN, |c| c.gripper.opening_m),
         expert_force_n: truth.gripper.force_n,
-        deformation_m: outcome.deformation_m,
-        success: outcome.overall,
+        deformation_m,
+        success,
+        ticks,
     })
+}
+
+/// A world command as the policy's action values ([`Action::values`]' order and names).
+pub fn action_values(cmd: &TaskCommand) -> Vec<f32> {
+    let g = &cmd.gripper;
+    let a = &cmd.arm;
+    [
+        g.opening_m,
+        g.speed_m_s,
+        g.force_n,
+        a.xy_m[0],
+        a.xy_m[1],
+        a.z_m,
+        a.lift_m,
+    ]
+    .iter()
+    .map(|&v| v as f32)
+    .collect()
+}
+
+/// The names of [`action_values`], as [`Action::values`] has them.
+pub fn action_names() -> Vec<&'static str> {
+    let a = Action {
+        gripper: unitac_policy::GripperAction {
+            mode: unitac_core::msg::GripperMode::Position,
+            position_m: 0.0,
+            speed_m_s: 0.0,
+            force_n: 0.0,
+        },
+        arm: unitac_policy::ArmAction {
+            target: String::new(),
+            x_m: 0.0,
+            y_m: 0.0,
+            z_m: 0.0,
+            lift_m: 0.0,
+        },
+        note: String::new(),
+    };
+    a.values().iter().map(|(n, _)| *n).collect()
 }

@@ -6,8 +6,8 @@
 use unitac_core::Stage;
 use unitac_pipeline::{StageConfig, build_stage, load_scene_without_policy_models, stage_configs};
 use unitac_sim::MockConfig;
-use unitac_sim::task::Split;
-use unitac_trials::demos::{Demo, DemoConfig, record};
+use unitac_sim::task::{Split, TaskKind};
+use unitac_trials::demos::{Demo, DemoConfig, record, record_chains};
 
 fn demo(scene: &str, split: Split, seed: u64, trial: u32) -> Demo {
     let s = load_scene_without_policy_models(scene, None).unwrap();
@@ -74,4 +74,99 @@ fn the_predicted_latent_comes_before_any_touch_and_unseen_is_an_unseen_size() {
     let l = &d.latents[0];
     assert_eq!((l.source.as_str(), l.touch), ("predicted", 0));
     assert_eq!(l.shape, [2, 48]);
+}
+
+fn chain(scene: &str) -> Vec<Box<dyn Stage>> {
+    let s = load_scene_without_policy_models(scene, None).unwrap();
+    stage_configs(&s)
+        .unwrap()
+        .into_iter()
+        .filter(|c| !matches!(c, StageConfig::Policy { .. }))
+        .map(|c| build_stage(&s, c).unwrap())
+        .collect()
+}
+
+#[test]
+fn a_fabric_demonstration_records_every_modes_observations_tick_by_tick() {
+    let record = || {
+        let s = load_scene_without_policy_models("fabric_selection_vtla_real", None).unwrap();
+        let sensor = MockConfig::new(s.source.sensor, s.source.seed);
+        let cfg = DemoConfig {
+            task: TaskKind::Fabric,
+            ..DemoConfig::default()
+        };
+        let chains = vec![
+            chain("fabric_selection_vtla_real"),
+            chain("fabric_selection_vtla_pred"),
+        ];
+        record_chains(Split::Train, 4, 0, &sensor, chains, &cfg).unwrap()
+    };
+    let d = record();
+    assert_eq!(
+        serde_json::to_string(&d).unwrap(),
+        serde_json::to_string(&record()).unwrap()
+    );
+    assert_eq!(d.objects, ["fabric_a", "fabric_b"]);
+    assert!(d.success, "the expert picks the smoother fabric");
+    let first = &d.ticks[0];
+    let last = d.ticks.last().unwrap();
+    // Fixed widths: 8 gripper values, the 10 camera values, per fabric 96 pooled values + known.
+    for t in &d.ticks {
+        assert_eq!(t.state.len(), 8);
+        assert_eq!(t.visual.len(), d.visual_names.len());
+        assert_eq!(t.contact.len(), 3);
+        assert_eq!((t.latent_real.len(), t.latent_pred.len()), (194, 194));
+        assert_eq!((t.comparison.len(), t.action.len()), (5, 7));
+        assert!(t.action.iter().chain(&t.latent_real).all(|v| v.is_finite()));
+    }
+    // Nothing is known at the start; at the end both touches' live latents, both predictions
+    // and the comparison are.
+    let known = |v: &[f32]| [v[96], v[193]];
+    assert_eq!(known(&first.latent_real), [0.0, 0.0]);
+    assert_eq!(known(&first.latent_pred), [0.0, 0.0]);
+    assert_eq!(first.comparison, [0.0; 5]);
+    assert_eq!(known(&last.latent_real), [1.0, 1.0]);
+    assert_eq!(known(&last.latent_pred), [1.0, 1.0]);
+    assert_eq!(last.comparison[..3].iter().sum::<f32>(), 1.0);
+    // The two live latents are of two fabrics: they differ.
+    assert_ne!(last.latent_real[..96], last.latent_real[97..193]);
+    // The arm visits both fabrics; the action is the command (force within the gripper's bound).
+    let targets: std::collections::BTreeSet<u32> = d.ticks.iter().map(|t| t.arm_target).collect();
+    assert!(targets.contains(&1) && targets.contains(&2), "{targets:?}");
+    assert!(d.ticks.iter().all(|t| (0.0..=200.0).contains(&t.action[2])));
+}
+
+#[test]
+fn the_cup_ticks_hold_the_probe_latent_after_the_probe_and_the_prediction_before_it() {
+    let s = load_scene_without_policy_models("cup_deformation_vtla_real", None).unwrap();
+    let sensor = MockConfig::new(s.source.sensor, s.source.seed);
+    let chains = vec![
+        chain("cup_deformation_vtla_real"),
+        chain("cup_deformation_vtla_pred"),
+    ];
+    let d = record_chains(Split::Train, 5, 1, &sensor, chains, &DemoConfig::default()).unwrap();
+    // The same labels and probe as with the vtla_real chain alone.
+    let alone = demo("cup_deformation_vtla_real", Split::Train, 5, 1);
+    assert_eq!(d.contact_opening_m, alone.contact_opening_m);
+    assert_eq!(d.stiffness_n_per_m, alone.stiffness_n_per_m);
+    let real_at = d
+        .ticks
+        .iter()
+        .position(|t| t.latent_real[96] == 1.0)
+        .unwrap();
+    let pred_at = d
+        .ticks
+        .iter()
+        .position(|t| t.latent_pred[96] == 1.0)
+        .unwrap();
+    assert!(pred_at < real_at, "{pred_at} {real_at}");
+    // The probe's latent, pooled, is what the ticks carry after it arrived.
+    let probe = alone
+        .latents
+        .iter()
+        .find(|l| l.source == "real" && l.touch == 1)
+        .unwrap();
+    let p = unitac_trials::demos::pooled(&probe.data, 48);
+    assert_eq!(d.ticks[real_at].latent_real[..96], p[..]);
+    assert!(d.success);
 }

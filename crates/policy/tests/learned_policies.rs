@@ -1,0 +1,150 @@
+//! The learned policies setup trains (scripts/learned_policies.sh: models/train_policy.py on the
+//! LeRobot datasets of the expert's demonstrations): the trainer's gradient against finite
+//! differences, every policy of the 3 modes x 2 tasks loads through the manifest checks, ONNX
+//! Runtime agrees with the trainer's numpy forward on the dataset's frames, and the Rust runtime
+//! agrees with the Python onnxruntime oracle (tests/policy/policy_oracle.py).
+//! The policies are looked up in `$UNITAC_LEARNED`, else `$UNITAC_MODELS/learned`, else
+//! `.build/models/learned`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod common;
+use std::path::PathBuf;
+use std::process::Command;
+use unitac_policy::onnx::NamedInputs;
+
+const TASKS: [&str; 2] = ["cup_deformation", "fabric_selection"];
+const MODES: [&str; 3] = ["vla", "vtla_real", "vtla_pred"];
+/// Largest difference between the Rust runtime and the oracle, as a fraction of each action's
+/// bound range: the same float32 graph and normalisation on both sides.
+const TOLERANCE: f64 = 1e-6;
+
+fn learned() -> PathBuf {
+    if let Some(d) = std::env::var_os("UNITAC_LEARNED") {
+        return PathBuf::from(d);
+    }
+    std::env::var_os("UNITAC_MODELS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| common::root().join(".build/models"))
+        .join("learned")
+}
+
+fn trainer(args: &[&str]) -> (bool, String) {
+    let o = Command::new(common::python())
+        .arg(common::root().join("models/train_policy.py"))
+        .args(args)
+        .output()
+        .expect("run the project's Python (scripts/setup.sh makes .venv)");
+    (
+        o.status.success(),
+        format!(
+            "{}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        ),
+    )
+}
+
+#[test]
+fn the_trainers_gradient_is_the_finite_differences_one() {
+    let (ok, out) = trainer(&["--check-gradients"]);
+    assert!(ok, "{out}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert!(
+        v["gradient_check_max_rel_error"].as_f64().unwrap() < 1e-6,
+        "{out}"
+    );
+}
+
+#[test]
+fn onnx_runtime_agrees_with_the_trainer_on_the_training_frames() {
+    let d = learned();
+    let seed0 = d.join("seed0");
+    let mut args = vec!["--check-onnx".to_string(), seed0.display().to_string()];
+    for t in TASKS {
+        args.push("--dataset".into());
+        args.push(d.join("datasets").join(t).display().to_string());
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let (ok, out) = trainer(&args);
+    assert!(ok, "{out}");
+    assert!(out.contains("onnx_vs_numpy_max_abs_diff"), "{out}");
+}
+
+#[test]
+fn every_learned_policy_loads_and_the_rust_runtime_matches_the_oracle() {
+    let work = common::tmpdir("learned");
+    for seed in ["seed0", "seed1", "seed2"] {
+        for task in TASKS {
+            for mode in MODES {
+                let dir = learned().join(seed).join(format!("{task}_{mode}"));
+                let mut p = common::load(&dir);
+                let m = p.manifest().clone();
+                // The gripper's interface and the arm first, then one score per arm target.
+                let names = p.action_names().to_vec();
+                assert_eq!(
+                    names[..3],
+                    ["gripper.position_m", "gripper.speed_m_s", "gripper.force_n"]
+                );
+                assert_eq!(names[7], "arm.target.home", "{names:?}");
+                // One architecture: the modes differ only in their inputs.
+                let inputs: Vec<String> = m.inputs.iter().map(|i| i.name.clone()).collect();
+                assert_eq!(
+                    inputs.contains(&"observation.tactile_latent_real".to_string()),
+                    mode == "vtla_real"
+                );
+                assert_eq!(
+                    inputs.contains(&"observation.tactile_latent_pred".to_string()),
+                    mode == "vtla_pred"
+                );
+                assert_eq!(
+                    inputs.contains(&"observation.contact".to_string()),
+                    mode == "vtla_real"
+                );
+                if seed != "seed0" {
+                    continue;
+                }
+                // Inputs of the right widths, around the training statistics.
+                let values: Vec<Vec<f32>> = m
+                    .inputs
+                    .iter()
+                    .enumerate()
+                    .map(|(k, i)| {
+                        let n = i.normalization.as_ref().unwrap();
+                        let (mean, std) = (n.mean.clone().unwrap(), n.std.clone().unwrap());
+                        unitac_infer::flow::noise(k as u64 + 1, mean.len())
+                            .iter()
+                            .zip(mean.iter().zip(&std))
+                            .map(|(z, (mu, sd))| (*mu + f64::from(*z) * sd) as f32)
+                            .collect()
+                    })
+                    .collect();
+                let stamps = common::stamps(4);
+                let mut ours = Vec::new();
+                let mut ticks = Vec::new();
+                for t in &stamps {
+                    let mut named = NamedInputs::new();
+                    let mut json = serde_json::Map::new();
+                    for (i, v) in m.inputs.iter().zip(&values) {
+                        named = named.with(&i.name, v);
+                        json.insert(i.name.clone(), serde_json::json!(v));
+                    }
+                    let c = p.act(&named, *t).unwrap();
+                    ours.push(c.row(0).unwrap().to_vec());
+                    ticks.push(serde_json::json!({"t": t.0, "inputs": json}));
+                }
+                let v = common::run_oracle(&dir, ticks, &work);
+                let plans: Vec<Vec<Vec<f64>>> = serde_json::from_value(v["plans"].clone()).unwrap();
+                let mut worst = 0f64;
+                for (a, plan) in ours.iter().zip(&plans) {
+                    for (j, (x, y)) in a.iter().zip(&plan[0]).enumerate() {
+                        let range = m.output.actions[j].max - m.output.actions[j].min;
+                        worst = worst.max((f64::from(*x) - f64::from(*y as f32)).abs() / range);
+                    }
+                }
+                println!("{task}_{mode}: Rust vs oracle {worst:.3e} of the bound range");
+                assert!(worst <= TOLERANCE, "{task}_{mode}: {worst}");
+            }
+        }
+    }
+    std::fs::remove_dir_all(&work).ok();
+}

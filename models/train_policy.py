@@ -1,0 +1,351 @@
+"""Train the learned VLA / VTLA-real / VTLA-pred policies on a LeRobot v3.0 dataset of the
+scripted expert's demonstrations (scripts/lerobot_dataset.py), numpy only, and export each to ONNX
+in the policy bundle format of crates/policy/src/onnx (manifest.json with LeRobot names).
+
+usage: train_policy.py --dataset DS [--dataset DS2 ...] --out DIR [--seed S]
+       train_policy.py --select --dataset DS [...]     (the hyperparameter table, printed)
+       train_policy.py --check-gradients
+       train_policy.py --check-onnx DIR --dataset DS    (ONNX Runtime against the numpy forward)
+
+One architecture for the three modes: the observation features a mode reads ([MODES]) are
+concatenated, standardised per element (mean_std over the training frames; a constant element
+gets std 1), and go through two tanh layers of HIDDEN units to the action, standardised the same
+way: the gripper's position, speed and force limit, the arm's x, y, z and lift, and one score per
+arm target (home, then each object: the runtime takes the largest). The modes differ only in
+their observation slices; nothing names an object, an index or a hash. Loss: mean squared error
+of the standardised action, Adam with a cosine learning rate, weight decay, minibatches.
+
+Hyperparameters were chosen ONCE for all modes and both tasks with --select: episodes of the
+largest seed of each training dataset held out, every grid point trained on the rest, the mean
+held-out loss over the 3 modes x tasks compared (the table goes to stdout); the chosen values are
+the constants below. The final fit uses every training episode.
+
+Export (onnx.helper, opset 20): one input per feature ("observation.state", ...), [batch, n],
+normalisation mean_std in the manifest; Concat -> Gemm -> Tanh -> Gemm -> Tanh -> Gemm ->
+Reshape [batch, 1, A] -> output "action", its mean_std normalisation and per action the bounds
+of the gripper's interface and the arm's workspace. chunk_size 1, n_action_steps 1: one setpoint
+per control tick.
+"""
+import argparse
+import glob
+import json
+import os
+import sys
+import time
+
+import numpy as np
+import pyarrow.parquet as pq
+from onnx import TensorProto, helper
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from generate_reference import init, i64, model, save, sha256  # noqa: E402
+
+COMMON = ["observation.state", "observation.latched", "observation.visual"]
+MODES = {
+    "vla": COMMON,
+    "vtla_real": COMMON + ["observation.contact", "observation.tactile_latent_real",
+                           "observation.comparison"],
+    "vtla_pred": COMMON + ["observation.tactile_latent_pred"],
+}
+# Chosen with --select (see the module doc; README "Learned policies" has the table).
+HIDDEN = 128
+LR = 3e-3
+WEIGHT_DECAY = 1e-4
+EPOCHS = 30
+BATCH = 256
+GRID = [{"hidden": h, "lr": lr, "weight_decay": WEIGHT_DECAY} for h in [64, 128] for lr in [1e-3, 3e-3]]
+# Bounds of each action (SI): the sim gripper's interface (crates/sim GripperLimits: 140 mm
+# stroke, 0.1 m/s, 40 N) and the arm's workspace (crates/sim command bounds).
+BOUNDS = {
+    "gripper.position_m": ("m", 0.0, 0.14),
+    "gripper.speed_m_s": ("m/s", 0.0, 0.1),
+    "gripper.force_n": ("N", 0.0, 40.0),
+    "arm.x_m": ("m", -2.0, 2.0),
+    "arm.y_m": ("m", -2.0, 2.0),
+    "arm.z_m": ("m", 0.0, 1.0),
+    "arm.lift_m": ("m", 0.0, 0.5),
+}
+MAX_FRAMES = 2_000_000
+
+
+def load(root):
+    """(info, columns {feature: [frames, n] float64}, episode index per frame, seeds per episode)."""
+    info = json.load(open(os.path.join(root, "meta", "info.json")))
+    if info.get("codebase_version") != "v3.0":
+        raise SystemExit(f"{root}: not a v3.0 dataset")
+    paths = sorted(glob.glob(os.path.join(root, "data", "*", "*.parquet")))
+    tables = [pq.read_table(p) for p in paths]
+    cols = {}
+    for key, ft in info["features"].items():
+        if key in ("timestamp", "frame_index", "index", "task_index"):
+            continue
+        parts = []
+        for t in tables:
+            c = t.column(key).combine_chunks()
+            n = ft["shape"][0]
+            v = c.flatten().to_numpy(zero_copy_only=False) if n > 1 else c.to_numpy(zero_copy_only=False)
+            parts.append(np.asarray(v, np.float64).reshape(-1, n))
+        cols[key] = np.concatenate(parts)
+    if len(cols["action"]) > MAX_FRAMES:
+        raise SystemExit(f"{root}: more than {MAX_FRAMES} frames")
+    ep = pq.read_table(os.path.join(root, "meta", "episodes", "chunk-000", "file-000.parquet"),
+                       columns=["episode_index", "seed"]).to_pydict()
+    seeds = dict(zip(ep["episode_index"], ep["seed"]))
+    return info, cols, cols.pop("episode_index")[:, 0].astype(int), seeds
+
+
+def targets(info, cols):
+    """The action matrix [frames, 7 + targets] and its names."""
+    cats = info["features"]["action.arm_target"]["categories"]
+    onehot = np.eye(len(cats))[cols["action.arm_target"][:, 0].astype(int)]
+    names = list(info["features"]["action"]["names"]) + [f"arm.target.{c}" for c in cats]
+    return np.concatenate([cols["action"], onehot], axis=1), names
+
+
+def observations(cols, mode):
+    return np.concatenate([cols[k] for k in MODES[mode]], axis=1)
+
+
+def standardise(x):
+    mu, sd = x.mean(0), x.std(0)
+    return mu, np.where(sd > 1e-6, sd, 1.0)
+
+
+def init_params(d_in, d_out, hidden, rng):
+    def lin(i, o):
+        return rng.normal(0.0, 1.0 / np.sqrt(i), (i, o)), np.zeros(o)
+    p = {}
+    p["W1"], p["b1"] = lin(d_in, hidden)
+    p["W2"], p["b2"] = lin(hidden, hidden)
+    p["W3"], p["b3"] = lin(hidden, d_out)
+    p["W3"] *= 0.1
+    return p
+
+
+def forward(p, x):
+    a1 = np.tanh(x @ p["W1"] + p["b1"])
+    a2 = np.tanh(a1 @ p["W2"] + p["b2"])
+    return a2 @ p["W3"] + p["b3"], (a1, a2)
+
+
+def loss_grad(p, x, y):
+    """Mean squared error over frames and actions, and its gradient."""
+    out, (a1, a2) = forward(p, x)
+    n = x.shape[0] * y.shape[1]
+    d = out - y
+    loss = float((d ** 2).sum() / n)
+    g = {}
+    do = 2.0 * d / n
+    g["W3"], g["b3"] = a2.T @ do, do.sum(0)
+    dh2 = (do @ p["W3"].T) * (1.0 - a2 ** 2)
+    g["W2"], g["b2"] = a1.T @ dh2, dh2.sum(0)
+    dh1 = (dh2 @ p["W2"].T) * (1.0 - a1 ** 2)
+    g["W1"], g["b1"] = x.T @ dh1, dh1.sum(0)
+    return loss, g
+
+
+def check_gradients():
+    """Finite differences against the backward pass on a small random problem."""
+    rng = np.random.default_rng(0)
+    p = init_params(5, 3, 7, rng)
+    p = {k: v + rng.normal(0, 0.3, v.shape) for k, v in p.items()}
+    x, y = rng.normal(size=(4, 5)), rng.normal(size=(4, 3))
+    _, g = loss_grad(p, x, y)
+    worst = 0.0
+    for k, v in p.items():
+        for idx in np.ndindex(v.shape):
+            old = v[idx]
+            v[idx] = old + 1e-6
+            lp, _ = loss_grad(p, x, y)
+            v[idx] = old - 1e-6
+            lm, _ = loss_grad(p, x, y)
+            v[idx] = old
+            fd = (lp - lm) / 2e-6
+            worst = max(worst, abs(fd - g[k][idx]) / max(1.0, abs(fd)))
+    print(json.dumps({"gradient_check_max_rel_error": worst}))
+    return 0 if worst < 1e-6 else 1
+
+
+def fit(x, y, hp, seed, epochs=EPOCHS):
+    """Train on standardised x, y; the parameters come back."""
+    rng = np.random.default_rng(seed)
+    p = init_params(x.shape[1], y.shape[1], hp["hidden"], rng)
+    m = {k: np.zeros_like(v) for k, v in p.items()}
+    v2 = {k: np.zeros_like(v) for k, v in p.items()}
+    b1, b2, eps = 0.9, 0.999, 1e-8
+    n = len(x)
+    steps = epochs * max(1, n // BATCH)
+    for it in range(1, steps + 1):
+        i = rng.integers(0, n, BATCH)
+        _, g = loss_grad(p, x[i], y[i])
+        lr_t = hp["lr"] * 0.5 * (1 + np.cos(np.pi * it / steps))
+        for k in p:
+            m[k] = b1 * m[k] + (1 - b1) * g[k]
+            v2[k] = b2 * v2[k] + (1 - b2) * g[k] ** 2
+            mh, vh = m[k] / (1 - b1 ** it), v2[k] / (1 - b2 ** it)
+            decay = hp["weight_decay"] * p[k] if k.startswith("W") else 0.0
+            p[k] -= lr_t * (mh / (np.sqrt(vh) + eps) + decay)
+    return p
+
+
+def prepared(root, mode, keep=None):
+    """Standardised (x, y) of the episodes `keep` selects, with the statistics of those frames."""
+    info, cols, ep, seeds = load(root)
+    x = observations(cols, mode)
+    y, names = targets(info, cols)
+    rows = np.ones(len(x), bool) if keep is None else np.array([keep(seeds[e]) for e in ep])
+    xm, xs = standardise(x[rows])
+    ym, ys = standardise(y[rows])
+    return info, names, (x - xm) / xs, (y - ym) / ys, rows, (xm, xs, ym, ys)
+
+
+def select(datasets):
+    """Every grid point on every mode x task, trained without the largest seed, scored on it."""
+    table = []
+    for hp in GRID:
+        losses = {}
+        for root in datasets:
+            _, _, _, seeds = load(root)
+            held = max(seeds.values())
+            for mode in MODES:
+                _, _, x, y, rows, _ = prepared(root, mode, keep=lambda s: s != held)
+                p = fit(x[rows], y[rows], hp, seed=0)
+                out, _ = forward(p, x[~rows])
+                losses[f"{os.path.basename(root.rstrip('/'))}/{mode}"] = float(((out - y[~rows]) ** 2).mean())
+        table.append({**hp, "mean_held_out_loss": float(np.mean(list(losses.values()))), "losses": losses})
+        print(json.dumps(table[-1]), flush=True)
+    best = min(table, key=lambda r: r["mean_held_out_loss"])
+    print(json.dumps({"chosen": {k: best[k] for k in ("hidden", "lr", "weight_decay")}}))
+    return 0
+
+
+def export(p, stats, info, names, mode, out_dir, name, task):
+    xm, xs, ym, ys = stats
+    feats = MODES[mode]
+    widths = [info["features"][k]["shape"][0] for k in feats]
+    a = len(names)
+    nodes = [helper.make_node("Concat", feats, ["x"], axis=1),
+             helper.make_node("Gemm", ["x", "W1", "b1"], ["h1"]),
+             helper.make_node("Tanh", ["h1"], ["a1"]),
+             helper.make_node("Gemm", ["a1", "W2", "b2"], ["h2"]),
+             helper.make_node("Tanh", ["h2"], ["a2"]),
+             helper.make_node("Gemm", ["a2", "W3", "b3"], ["flat"]),
+             helper.make_node("Reshape", ["flat", "chunk_shape"], ["action"])]
+    inits = [init(k, p[k]) for k in ("W1", "b1", "W2", "b2", "W3", "b3")]
+    inits.append(i64("chunk_shape", [-1, 1, a]))
+    g = helper.make_graph(
+        nodes, f"{name}_policy",
+        [helper.make_tensor_value_info(k, TensorProto.FLOAT, ["batch", w]) for k, w in zip(feats, widths)],
+        [helper.make_tensor_value_info("action", TensorProto.FLOAT, ["batch", 1, a])], inits)
+    os.makedirs(out_dir, exist_ok=True)
+    path = os.path.join(out_dir, "policy.onnx")
+    save(model(g), path)
+    lst = lambda v: [float(t) for t in v]
+    inputs, at = [], 0
+    for k, w in zip(feats, widths):
+        inputs.append({"name": k, "dtype": "float32", "shape": ["batch", w],
+                       "normalization": {"mode": "mean_std", "mean": lst(xm[at:at + w]),
+                                         "std": lst(xs[at:at + w])}})
+        at += w
+    actions = []
+    for n in names:
+        unit, lo, hi = BOUNDS.get(n, ("score", 0.0, 1.0))
+        actions.append({"name": n, "unit": unit, "min": lo, "max": hi})
+    manifest = {
+        "policy": name,
+        "version": "1",
+        "description": f"learned {mode} policy for '{task}' (models/train_policy.py): one MLP "
+                       f"architecture for all modes, {mode}'s observation slices",
+        "file": "policy.onnx",
+        "sha256": sha256(path),
+        "control_rate_hz": float(info["fps"]),
+        "chunk_size": 1,
+        "n_action_steps": 1,
+        "temporal_ensemble_coeff": None,
+        "inputs": inputs,
+        "output": {"name": "action", "dtype": "float32", "shape": ["batch", 1, a],
+                   "normalization": {"mode": "mean_std", "mean": lst(ym), "std": lst(ys)},
+                   "actions": actions},
+    }
+    with open(os.path.join(out_dir, "manifest.json"), "w") as f:
+        json.dump(manifest, f, indent=1)
+    np.savez(os.path.join(out_dir, "weights.npz"), **p)
+
+
+def train_all(datasets, out, seed):
+    report = []
+    for root in datasets:
+        task = os.path.basename(root.rstrip("/"))
+        for mode in MODES:
+            t0 = time.time()
+            info, names, x, y, _, stats = prepared(root, mode)
+            p = fit(x, y, {"hidden": HIDDEN, "lr": LR, "weight_decay": WEIGHT_DECAY}, seed)
+            out_, _ = forward(p, x)
+            name = f"{task}_{mode}"
+            instruction = pq.read_table(os.path.join(root, "meta", "tasks.parquet")).column(
+                "__index_level_0__")[0].as_py()
+            export(p, stats, info, names, mode, os.path.join(out, name), name, instruction)
+            report.append({"policy": name, "frames": len(x), "inputs": x.shape[1],
+                           "train_loss": float(((out_ - y) ** 2).mean()),
+                           "seconds": round(time.time() - t0, 1)})
+            print(json.dumps(report[-1]), flush=True)
+    with open(os.path.join(out, "train.json"), "w") as f:
+        json.dump({"seed": seed, "hidden": HIDDEN, "lr": LR, "weight_decay": WEIGHT_DECAY,
+                   "epochs": EPOCHS, "policies": report}, f, indent=1)
+    return 0
+
+
+def check_onnx(bundles, datasets):
+    """ONNX Runtime on the manifest's normalised inputs against the numpy forward."""
+    import onnxruntime as ort
+    worst = 0.0
+    for root in datasets:
+        task = os.path.basename(root.rstrip("/"))
+        for mode in MODES:
+            d = os.path.join(bundles, f"{task}_{mode}")
+            man = json.load(open(os.path.join(d, "manifest.json")))
+            w = np.load(os.path.join(d, "weights.npz"))
+            p = {k: w[k] for k in w.files}
+            _, cols, _, _ = load(root)
+            feed, xs = {}, []
+            for spec in man["inputs"]:
+                v = cols[spec["name"]][:512]
+                nm = spec["normalization"]
+                v = ((v - np.array(nm["mean"])) / np.array(nm["std"])).astype(np.float32)
+                feed[spec["name"]] = v
+                xs.append(v.astype(np.float64))
+            s = ort.InferenceSession(os.path.join(d, "policy.onnx"), providers=["CPUExecutionProvider"])
+            got = s.run(["action"], feed)[0][:, 0, :]
+            want, _ = forward({k: v.astype(np.float32).astype(np.float64) for k, v in p.items()},
+                              np.concatenate(xs, axis=1))
+            diff = float(np.abs(got - want).max())
+            worst = max(worst, diff)
+            print(json.dumps({"policy": man["policy"], "frames": len(got), "max_abs_diff": diff}))
+    print(json.dumps({"onnx_vs_numpy_max_abs_diff": worst}))
+    return 0 if worst < 1e-4 else 1
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--dataset", action="append", default=[])
+    ap.add_argument("--out")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--select", action="store_true")
+    ap.add_argument("--check-gradients", action="store_true")
+    ap.add_argument("--check-onnx")
+    a = ap.parse_args()
+    if a.check_gradients:
+        return check_gradients()
+    if not a.dataset:
+        ap.error("--dataset is required")
+    if a.select:
+        return select(a.dataset)
+    if a.check_onnx:
+        return check_onnx(a.check_onnx, a.dataset)
+    if not a.out:
+        ap.error("--out is required")
+    return train_all(a.dataset, a.out, a.seed)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
