@@ -26,6 +26,9 @@
 #      on training cups (and on unseen cups, scored only) through the vtla_real scene's tactile
 #      stages, scripts/fit_reference_policy.py fits the latent -> stiffness readout and exports
 #      it to ONNX (~1 min on 2 cores; only when its inputs changed)
+#   8. the learned policies and their LeRobot datasets in .build/models/learned
+#      (scripts/learned_policies.sh: expert demonstrations of both tasks on training objects,
+#      LeRobot v3.0 datasets, models/train_policy.py for 3 modes x 2 tasks x 3 training seeds)
 # Each step keeps a stamp of its inputs and is skipped when they did not change, so a re-run with
 # nothing changed takes a couple of seconds.
 set -euo pipefail
@@ -208,4 +211,6 @@ if [ "$(cat "$POLICIES/.stamp" 2>/dev/null)" != "$policy_key" ] || [ ! -f "$POLI
   mv "$POLICIES.tmp" "$POLICIES"
   echo "$policy_key" >"$POLICIES/.stamp"
 fi
+# --- 8. learned policies ----------------------------------------------------------------------
+bash scripts/learned_policies.sh
 log "ready"
