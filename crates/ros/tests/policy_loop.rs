@@ -255,9 +255,12 @@ fn a_killed_inference_node_holds_the_policy_and_the_trial_resumes_when_it_return
         &["-p", &format!("scene:={SCENE}"), "-p", "use_sim_time:=true"],
     ));
     obs.ask("publishers tactile_latent 1", "publishers ", 30);
-    // The probe's clip must reach the new node: it listens before the sim goes on.
+    // The probe's clip must reach the new node: it listens before the sim goes on. The observer
+    // sees the new subscriber before the contact node's publisher has matched it (discovery is
+    // per participant; on a loaded machine 0.5 s was not enough once): the sim stays frozen a
+    // while longer, which costs wall time only.
     obs.ask("subscribers contact_clip 1", "subscribers ", 30);
-    std::thread::sleep(Duration::from_millis(500));
+    std::thread::sleep(Duration::from_secs(3));
     l.freeze_sim(false);
     obs.wait_for(|s| s == "outcome", 120);
     let got = obs.finish();
