@@ -286,6 +286,24 @@ def build_velocity_dit(path):
 
 
 # ---------------------------------------------------------------------------------------------
+
+def gradient_check_error(loss_grad, p, x, y, eps=1e-6):
+    """Largest relative difference between `loss_grad`'s gradient of params `p` (a dict of
+    arrays, perturbed in place and restored) and central finite differences of its loss."""
+    _, g = loss_grad(p, x, y)
+    worst = 0.0
+    for k, v in p.items():
+        for idx in np.ndindex(v.shape):
+            old = v[idx]
+            v[idx] = old + eps
+            lp, _ = loss_grad(p, x, y)
+            v[idx] = old - eps
+            lm, _ = loss_grad(p, x, y)
+            v[idx] = old
+            fd = (lp - lm) / (2 * eps)
+            worst = max(worst, abs(fd - g[k][idx]) / max(1.0, abs(fd)))
+    return worst
+
 def sha256(path):
     return hashlib.sha256(open(path, "rb").read()).hexdigest()
 
