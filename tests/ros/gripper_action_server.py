@@ -27,8 +27,8 @@ stdin, one line each (answers on stdout); both wait for a goal to be executing:
   "abort"    abort the active goal (a controller fault, stalled false): "aborted T_NS"
   "preempt"  a second client sends a goal (hold where the fingers are), preempting the active
              one: "preempted T_NS"
-  own mode: the clock stops at an executing goal (T_NS: the last published sim time) until the
-  goal's end has had 0.5 s of wall time to reach the client, then goes on.
+  own mode: the clock stops at an executing goal (T_NS: the last published sim time) until
+  "resume" (the caller has seen the client hear of the goal's end; at most 30 s), then goes on.
   "end"      print a JSON summary and exit
 out: "ready" once the server is up; "goal P E" for each accepted goal.
 """
@@ -196,6 +196,7 @@ def main():
     other = ActionClient(node, GripperAction, action if action.startswith("/") else f"{ns}/{action}")
 
     paused = threading.Event()
+    resumed = threading.Event()
 
     def simulate():
         """Own mode: the gripper, its joint states, the camera and /clock, every 10 ms."""
@@ -250,8 +251,11 @@ def main():
             t = state["t_ns"]
         say(f"{what} {t}")
         if mode == "own":
-            time.sleep(0.5)
-            paused.clear()
+            def resume():
+                resumed.wait(30)
+                resumed.clear()
+                paused.clear()
+            threading.Thread(target=resume, daemon=True).start()
 
     def pause_at_active_goal():
         """Own mode: stop the clock while a goal is executing (at most 20 s of waiting)."""
@@ -290,6 +294,8 @@ def main():
                 other.send_goal_async(goal)
                 time.sleep(0.05)
                 after_fault("preempted")
+            elif cmd == "resume":
+                resumed.set()
             elif cmd == "end":
                 break
         done.set()

@@ -10,7 +10,8 @@
 
 mod common;
 use common::closed_loop::{
-    ACTION_POLICY, GripperPath, Launcher, Loop, Observer, PERIOD_NS, SCENE, here, phases, statuses,
+    ACTION_POLICY, GripperPath, Launcher, Loop, Observer, PERIOD_NS, SCENE, heard, here, phases,
+    statuses,
 };
 use common::stop;
 use serde_json::Value;
@@ -67,7 +68,7 @@ fn abort_and_preemption_get_the_safe_action_on_the_next_tick_and_arm_targets_are
         &[&n, "gripper_cmd", "120", "own"],
     );
     ctl.wait_for(|l| l == "ready", 30);
-    let policy = common::closed_loop::node(
+    let (policy, log) = common::closed_loop::node_heard(
         HERE,
         "robot",
         env!("CARGO_BIN_EXE_unitac_policy_node"),
@@ -85,14 +86,22 @@ fn abort_and_preemption_get_the_safe_action_on_the_next_tick_and_arm_targets_are
         ]
         .concat(),
     );
-    // The policy's first goal (the approach's opening), then a second of control.
+    // The policy's first goal (the approach's opening), then a second of control. At each
+    // fault the controller's clock waits until the policy has heard of it: the claim is about
+    // the policy's next tick, not about how fast the end reaches it.
+    const ABORTED: &str = "gripper action: goal aborted by the server";
+    const PREEMPTED: &str = "gripper action: goal preempted or canceled by another client";
     ctl.wait_for(|l| l.starts_with("goal "), 60);
     std::thread::sleep(Duration::from_secs(1));
     let aborted = ctl.ask("abort", "aborted ", 30);
     let aborted: i64 = aborted["aborted ".len()..].parse().unwrap();
+    heard(&log, ABORTED, 30);
+    ctl.send("resume");
     std::thread::sleep(Duration::from_millis(500));
     let preempted = ctl.ask("preempt", "preempted ", 30);
     let preempted: i64 = preempted["preempted ".len()..].parse().unwrap();
+    heard(&log, PREEMPTED, 30);
+    ctl.send("resume");
     std::thread::sleep(Duration::from_secs(2));
     ctl.send("end");
     let got: Value = serde_json::from_str(&ctl.wait_for(|l| l.starts_with('{'), 30)).unwrap();
@@ -104,12 +113,8 @@ fn abort_and_preemption_get_the_safe_action_on_the_next_tick_and_arm_targets_are
         got["ends"],
         st.len()
     );
-    check_fault(st, aborted, "gripper action: goal aborted by the server");
-    check_fault(
-        st,
-        preempted,
-        "gripper action: goal preempted or canceled by another client",
-    );
+    check_fault(st, aborted, ABORTED);
+    check_fault(st, preempted, PREEMPTED);
     // Arm targets: in the arm frame, at the camera's cup (x 0.45 m, y 0), the tool turned over.
     let poses = got["poses"].as_array().unwrap();
     assert!(!poses.is_empty());

@@ -395,14 +395,19 @@ impl Publishers {
         }
     }
 
-    /// What the action server said.
+    /// What the action server said. A new fault goes to the log when it is heard (the policy
+    /// acts on it at its next tick).
     fn action_event(&mut self, e: ActionEvent) {
         if let GripperOut::Action { link, .. } = &mut self.gripper {
+            let before = link.fault().map(str::to_owned);
             match e {
                 ActionEvent::Answered(id, ok) => link.answered(id, ok),
                 ActionEvent::Feedback(id, r) => link.feedback(id, &r),
                 ActionEvent::Finished(id, end, r) => link.finished(id, end, &r),
                 ActionEvent::Failed(id, why) => link.send_failed(id, &why),
+            }
+            if let Some(f) = link.fault().filter(|f| before.as_deref() != Some(*f)) {
+                eprintln!("unitac_policy: {f}");
             }
         }
     }

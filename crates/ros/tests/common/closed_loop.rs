@@ -44,6 +44,46 @@ pub fn node(at: Launcher, host: &str, bin: &str, ns: &str, args: &[&str]) -> Chi
         .unwrap()
 }
 
+/// [`node`] with its stderr lines also sent to the returned receiver (and still to the test's).
+pub fn node_heard(
+    at: Launcher,
+    host: &str,
+    bin: &str,
+    ns: &str,
+    args: &[&str],
+) -> (Child, Receiver<String>) {
+    let mut child = at(host, bin)
+        .args(["--ros-args", "-r", &format!("__ns:={ns}")])
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let err = BufReader::new(child.stderr.take().unwrap());
+    let (tx, lines) = channel();
+    std::thread::spawn(move || {
+        for l in err.lines().map_while(Result::ok) {
+            eprintln!("{l}");
+            // The receiver may be gone; the lines still reach the test's stderr.
+            let _ = tx.send(l);
+        }
+    });
+    (child, lines)
+}
+
+/// Wait up to `seconds` for a line containing `want`.
+pub fn heard(lines: &Receiver<String>, want: &str, seconds: u64) {
+    let deadline = std::time::Instant::now() + Duration::from_secs(seconds);
+    loop {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        match lines.recv_timeout(left) {
+            Ok(l) if l.contains(want) => return,
+            Ok(_) => {}
+            Err(e) => panic!("no line with {want:?} within {seconds} s ({e})"),
+        }
+    }
+}
+
 pub struct Observer {
     child: Child,
     stdin: ChildStdin,
