@@ -233,6 +233,7 @@ def export(p, stats, info, names, mode, out_dir, name, task):
     inputs, at = [], 0
     for k, w in zip(feats, widths):
         inputs.append({"name": k, "dtype": "float32", "shape": ["batch", w],
+                       "names": list(info["features"][k]["names"]),
                        "normalization": {"mode": "mean_std", "mean": lst(xm[at:at + w]),
                                          "std": lst(xs[at:at + w])}})
         at += w

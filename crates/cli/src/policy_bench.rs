@@ -285,17 +285,13 @@ impl Script {
 struct ScenePolicy {
     params: PolicyParams,
     scene: String,
-    stiffness_model: Option<std::path::PathBuf>,
+    model: Option<std::path::PathBuf>,
 }
 
 impl ScenePolicy {
     fn stage(&self) -> anyhow::Result<PolicyStage> {
-        PolicyStage::load(
-            &self.scene,
-            self.params.clone(),
-            self.stiffness_model.as_deref(),
-        )
-        .map_err(|e| anyhow::anyhow!("{e}"))
+        PolicyStage::load(&self.scene, self.params.clone(), self.model.as_deref())
+            .map_err(|e| anyhow::anyhow!("{e}"))
     }
 }
 
@@ -308,11 +304,11 @@ fn scene_policy(name: &str) -> anyhow::Result<ScenePolicy> {
             StageConfig::Policy {
                 params,
                 scene,
-                stiffness_model,
+                model,
             } => Some(ScenePolicy {
                 params: *params,
                 scene,
-                stiffness_model,
+                model,
             }),
             _ => None,
         })

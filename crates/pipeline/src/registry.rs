@@ -105,13 +105,13 @@ pub enum StageConfig {
         params: SamplerParams,
         bundle: PathBuf,
     },
-    /// The scene's name goes into PolicyStatus.scene; `stiffness_model`: the bundle directory
-    /// of the fitted latent -> stiffness model the stage names in `models:` (none: the params'
-    /// linear readout).
+    /// The scene's name goes into PolicyStatus.scene; `model`: the bundle directory the stage
+    /// names in `models:`: the learned policy itself (`policy: learned`), or the scene
+    /// controller's fitted latent -> stiffness model (none: the params' linear readout).
     Policy {
         params: Box<PolicyParams>,
         scene: String,
-        stiffness_model: Option<PathBuf>,
+        model: Option<PathBuf>,
     },
 }
 
@@ -195,7 +195,7 @@ pub fn stage_configs(scene: &Scene) -> Result<Vec<StageConfig>, SceneError> {
             "policy" => {
                 let params: PolicyParams = params(scene, index, st)?;
                 params.check().map_err(|e| bad(e.to_string()))?;
-                let stiffness_model = if st.models.is_empty() {
+                let model = if st.models.is_empty() {
                     None
                 } else {
                     Some(bundle_of(scene, st, &bad)?)
@@ -203,7 +203,7 @@ pub fn stage_configs(scene: &Scene) -> Result<Vec<StageConfig>, SceneError> {
                 StageConfig::Policy {
                     params: Box::new(params),
                     scene: scene.name.clone(),
-                    stiffness_model,
+                    model,
                 }
             }
             other => {
@@ -288,10 +288,9 @@ pub fn build_stage(scene: &Scene, cfg: StageConfig) -> Result<Box<dyn Stage>, Sc
         StageConfig::Policy {
             params,
             scene,
-            stiffness_model,
+            model,
         } => Box::new(
-            PolicyStage::load(&scene, *params, stiffness_model.as_deref())
-                .map_err(|e| bad(e.to_string()))?,
+            PolicyStage::load(&scene, *params, model.as_deref()).map_err(|e| bad(e.to_string()))?,
         ),
     })
 }

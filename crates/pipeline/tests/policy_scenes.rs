@@ -13,8 +13,8 @@ fn policy_of(cfgs: &[StageConfig]) -> (unitac_policy::PolicyParams, String, Opti
         StageConfig::Policy {
             params,
             scene,
-            stiffness_model,
-        } => ((**params).clone(), scene.clone(), stiffness_model.clone()),
+            model,
+        } => ((**params).clone(), scene.clone(), model.clone()),
         other => panic!("the policy stage is last: {other:?}"),
     }
 }
@@ -195,7 +195,7 @@ fn build_policy(path: &std::path::Path) -> Result<(), Box<dyn std::error::Error>
 }
 
 #[test]
-fn a_missing_or_wrong_stiffness_model_is_a_load_error() {
+fn a_missing_or_wrong_model_is_a_load_error() {
     let models = PathBuf::from(std::env::var_os("UNITAC_MODELS").unwrap());
     // The fitted model loads for the latent it was fitted on.
     let real = models.join("policy/cup_stiffness_real/manifest.json");

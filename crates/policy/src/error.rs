@@ -63,6 +63,11 @@ pub enum PolicyLoadError {
     /// The fitted stiffness model in `dir`: every problem.
     #[error("stiffness model {}: {}", .dir.display(), .problems.join("; "))]
     StiffnessModel { dir: PathBuf, problems: Vec<String> },
+    /// The learned policy bundle in `dir` for this scene: every problem.
+    #[error("learned policy {}: {}", .dir.display(), .problems.join("; "))]
+    LearnedPolicy { dir: PathBuf, problems: Vec<String> },
+    #[error("a learned policy needs its bundle in the stage's models:")]
+    LearnedPolicyMissing,
 }
 
 /// Why a message cannot fill its input's slice of the observation (the input is then invalid,

@@ -8,6 +8,7 @@
 pub mod bench;
 pub mod controller;
 pub mod error;
+pub mod learned;
 pub mod mode;
 pub mod observation;
 pub mod onnx;
@@ -20,8 +21,9 @@ pub mod stage;
 pub mod task;
 
 pub use error::{FeatureError, InputError, PolicyLoadError, Problems, SceneStagesError};
+pub use learned::LearnedPolicy;
 pub use mode::{Mode, UnknownMode};
-pub use params::PolicyParams;
+pub use params::{PolicyKind, PolicyParams};
 pub use policy::{Action, ArmAction, GripperAction, Policy, PolicyError};
 pub use reflex::ReflexCounters;
 pub use stage::{PolicyStage, check_scene};

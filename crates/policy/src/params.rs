@@ -18,6 +18,12 @@ pub const MAX_NAMES: usize = 64;
 pub struct PolicyParams {
     /// vla | vtla_real | vtla_pred.
     pub mode: Mode,
+    /// scripted (the task's scene controller) | learned (the ONNX policy bundle the stage's
+    /// `models:` names, trained on demonstrations: src/learned.rs).
+    pub policy: PolicyKind,
+    /// A learned policy reports done this long after its first tick (a timeout, which every
+    /// mode observes) \[s].
+    pub run_s: f64,
     /// The task string (grammar in task.rs); it also picks the scene controller.
     pub task: String,
     /// Control ticks per second: a GripperStatus closer than 0.9 / rate to the last tick is
@@ -119,10 +125,22 @@ pub struct PolicyParams {
     pub pregrasp_margin_m: f64,
 }
 
+/// Which policy the stage runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PolicyKind {
+    /// The task's scene controller (src/controller).
+    Scripted,
+    /// An ONNX policy learned from demonstrations (src/learned.rs).
+    Learned,
+}
+
 impl Default for PolicyParams {
     fn default() -> Self {
         Self {
             mode: Mode::VtlaReal,
+            policy: PolicyKind::Scripted,
+            run_s: 30.0,
             task: "pick the smoother fabric".into(),
             control_rate_hz: 30.0,
             budget_gripper_s: 0.2,
@@ -214,6 +232,7 @@ impl PolicyParams {
             ("min_stiffness_n_per_m", self.min_stiffness_n_per_m),
             ("stroke_m", self.stroke_m),
             ("force_margin", self.force_margin),
+            ("run_s", self.run_s),
         ];
         for (k, v) in positive {
             if !(v.is_finite() && v > 0.0) {

@@ -5,8 +5,9 @@
 
 use crate::controller::{CupController, FabricController};
 use crate::error::{InputError, PolicyLoadError};
+use crate::learned::LearnedPolicy;
 use crate::observation::Assembler;
-use crate::params::PolicyParams;
+use crate::params::{PolicyKind, PolicyParams};
 use crate::policy::{Action, Policy};
 use crate::readout::Readout;
 use crate::reflex::{Reflex, ReflexCounters, Touch};
@@ -83,16 +84,22 @@ impl PolicyStage {
         Self::load(scene, params, None)
     }
 
-    /// The scene controller the task names; its stiffness readout is the fitted model in
-    /// `stiffness_model` (a policy bundle directory, checked here: every problem in one error)
-    /// when the scene names one.
+    /// The policy the params name with the stage's model bundle `model` (a directory, checked
+    /// here: every problem in one error): a learned policy is that bundle; the scene controller
+    /// the task names reads its stiffness from it when the scene names one.
     pub fn load(
         scene: &str,
         params: PolicyParams,
-        stiffness_model: Option<&Path>,
+        model: Option<&Path>,
     ) -> Result<Self, PolicyLoadError> {
         let task = params.check()?;
-        let readout = match stiffness_model {
+        if params.policy == PolicyKind::Learned {
+            let dir = model.ok_or(PolicyLoadError::LearnedPolicyMissing)?;
+            let policy = LearnedPolicy::load(dir, &params)?;
+            let reads = policy.reads();
+            return Self::build(scene, params, Box::new(policy), &reads);
+        }
+        let readout = match model {
             Some(dir) => Readout::load(dir, params.latent_len)?,
             None => Readout::Linear,
         };
@@ -113,8 +120,24 @@ impl PolicyStage {
         params: PolicyParams,
         policy: Box<dyn Policy>,
     ) -> Result<Self, PolicyLoadError> {
+        Self::build(scene, params, policy, &[])
+    }
+
+    /// [`Self::with_policy`], the observation keeping `extra` inputs besides the mode's (those
+    /// a learned policy's features come from).
+    fn build(
+        scene: &str,
+        params: PolicyParams,
+        policy: Box<dyn Policy>,
+        extra: &[&'static str],
+    ) -> Result<Self, PolicyLoadError> {
         let task = params.check()?;
-        let inputs = params.mode.inputs(task.is_pick());
+        let mut inputs = params.mode.inputs(task.is_pick());
+        for e in extra {
+            if !inputs.contains(e) {
+                inputs.push(e);
+            }
+        }
         let assembler = Assembler::new(&inputs, |n| params.budget(n), params.layout())?;
         Ok(Self {
             scene: scene.to_string(),

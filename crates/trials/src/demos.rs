@@ -41,8 +41,9 @@ use serde::Serialize;
 use thiserror::Error;
 use unitac_core::Stage;
 use unitac_core::chain::Chain;
-use unitac_core::msg::{ContactState, LatentSource, Msg, PropertyComparison};
+use unitac_core::msg::{ContactState, LatentSource, Msg};
 use unitac_policy::Action;
+use unitac_policy::learned::Memory;
 use unitac_policy::observation::{Layout, input};
 use unitac_sim::task::{
     self, ArmSetpoint, GripperSetpoint, Split, TaskCommand, TaskConfig, TaskKind, TaskWorld,
@@ -215,20 +216,7 @@ pub fn cup_stiffness(cup: &task::CupSpec, d_m: f64) -> f64 {
     force_n / d_m
 }
 
-/// Token mean, then token mean of squares, of `tokens` (\[n, w] row-major): the pooled latent
-/// the touch projector predicts and the policies read.
-pub fn pooled(tokens: &[f32], w: usize) -> Vec<f32> {
-    let w = w.max(1);
-    let n = tokens.len() / w;
-    let mut out = vec![0.0f32; 2 * w];
-    for row in tokens.chunks_exact(w) {
-        for (j, &v) in row.iter().enumerate() {
-            out[j] += v / n as f32;
-            out[w + j] += v * v / n as f32;
-        }
-    }
-    out
-}
+pub use unitac_policy::learned::pooled;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Phase {
@@ -249,87 +237,60 @@ pub fn demo_sensor(base: &MockConfig, seed: u64, trial: u32) -> MockSensor {
     MockSensor::new(cfg, Scenario::idle(1.0))
 }
 
-/// What the chains have said so far.
-#[derive(Debug, Default)]
+/// What the chains have said so far: the first chain's latest contact state (it drives the
+/// probe), the latents, and what a learned policy remembers of it all ([`Memory`]).
+#[derive(Debug)]
 struct Seen {
     contact: Option<ContactState>,
-    touches: u32,
     latents: Vec<LatentRecord>,
-    /// Per object: the pooled real latent, the pooled predicted one.
-    real: Vec<Option<Vec<f32>>>,
-    pred: Vec<Option<Vec<f32>>>,
-    comparison: Option<PropertyComparison>,
-    /// A latent of the wrong size (the first one).
+    memory: Memory,
+    /// A message the policy's inputs cannot read (the first one).
     bad: Option<String>,
 }
 
 impl Seen {
-    fn keep(&mut self, out: Vec<Msg>, chain: usize, t_s: f64, objects: &[String], width: usize) {
+    fn keep(&mut self, out: Vec<Msg>, chain: usize, t_s: f64, layout: &Layout) {
         for m in out {
             match m {
                 // The first chain's contact state drives the probe and the contact slice.
                 Msg::ContactState(s) if chain == 0 => {
-                    if s.in_contact && !self.contact.as_ref().is_some_and(|c| c.in_contact) {
-                        self.touches += 1;
+                    let m = Msg::ContactState(s.clone());
+                    match features("contact", Some(m), layout, CONTACT_LEN) {
+                        Ok(v) => self.memory.contact(v),
+                        Err(e) => {
+                            self.bad.get_or_insert(e);
+                        }
                     }
                     self.contact = Some(s);
                 }
                 Msg::TactileLatent(l) => {
-                    let real = l.source == LatentSource::Real;
-                    let w = l.shape.last().copied().unwrap_or(1) as usize;
-                    let p = if real {
-                        pooled(&l.data, w)
-                    } else {
-                        l.data.clone()
-                    };
-                    if p.len() != width && self.bad.is_none() {
-                        self.bad = Some(format!(
-                            "a latent of shape {:?} pools to {} values, not {width}",
-                            l.shape,
-                            p.len()
-                        ));
-                    }
-                    let slot = if real {
-                        (self.touches as usize).checked_sub(1)
-                    } else {
-                        objects.iter().position(|o| *o == l.object)
-                    };
-                    if let Some(k) = slot.filter(|_| p.len() == width) {
-                        if real {
-                            if let Some(s @ None) = self.real.get_mut(k) {
-                                *s = Some(p);
-                            }
-                        } else if let Some(s) = self.pred.get_mut(k) {
-                            *s = Some(p);
-                        }
+                    if let Err(e) = self.memory.latent(&l) {
+                        self.bad.get_or_insert(e);
                     }
                     if self.latents.len() < MAX_LATENTS {
+                        let real = l.source == LatentSource::Real;
                         self.latents.push(LatentRecord {
                             t_s,
-                            touch: self.touches,
+                            touch: self.memory.touches,
                             source: if real { "real" } else { "predicted" }.into(),
                             shape: l.shape,
                             data: l.data,
                         });
                     }
                 }
-                Msg::PropertyComparison(c) => self.comparison = Some(c),
+                Msg::PropertyComparison(c) => {
+                    let m = Some(Msg::PropertyComparison(c));
+                    match features("comparison", m, layout, COMPARISON_LEN) {
+                        Ok(v) => self.memory.comparison(v),
+                        Err(e) => {
+                            self.bad.get_or_insert(e);
+                        }
+                    }
+                }
                 _ => {}
             }
         }
     }
-}
-
-/// Per object: its values or zeros, then known.
-fn slots(v: &[Option<Vec<f32>>], width: usize) -> Vec<f32> {
-    let mut out = Vec::with_capacity(v.len() * (width + 1));
-    for s in v {
-        match s {
-            Some(p) => out.extend(p.iter().copied().chain([1.0])),
-            None => out.extend(std::iter::repeat_n(0.0, width + 1)),
-        }
-    }
-    out
 }
 
 /// The features of `msg` as the policy's input `name` reads them (`len` zeros when none yet).
@@ -447,12 +408,12 @@ pub fn record_chains(
     };
     let mut since = 0.0;
     let mut seen = Seen {
-        real: vec![None; objects.len()],
-        pred: vec![None; objects.len()],
-        ..Seen::default()
+        contact: None,
+        latents: Vec::new(),
+        memory: Memory::new(&objects, width),
+        bad: None,
     };
     let mut at_contact = (f64::NAN, f64::NAN, f32::NAN);
-    let mut latched: Option<f32> = None;
     let mut d0 = cfg.gripper.max_opening_m;
     let mut last_cmd: Option<TaskCommand> = None;
     let mut ticks = Vec::new();
@@ -482,7 +443,7 @@ pub fn record_chains(
             if let Some(r) = out.errors.first() {
                 return Err(stage_err(r));
             }
-            seen.keep(out.produced, k, t, &objects, width);
+            seen.keep(out.produced, k, t, &layout);
         }
         for (frame, _truth) in world.frames() {
             for (k, chain) in chains.iter_mut().enumerate() {
@@ -490,16 +451,15 @@ pub fn record_chains(
                 if let Some(r) = out.errors.first() {
                     return Err(stage_err(r));
                 }
-                seen.keep(out.produced, k, t, &objects, width);
+                seen.keep(out.produced, k, t, &layout);
             }
         }
         if let Some(msg) = seen.bad.take() {
             return Err(obs_err(msg));
         }
         let status = world.status().map_err(world_err)?;
-        if latched.is_none() && status.object_detected {
-            latched = Some(status.opening_m as f32);
-        }
+        seen.memory
+            .gripper(status.object_detected, status.opening_m);
         let truth = world.world().truth();
         let expert = expert_command(&truth, &spec, &cfg);
         let in_contact = seen.contact.as_ref().is_some_and(|s| s.in_contact);
@@ -557,29 +517,24 @@ pub fn record_chains(
                 "more than {MAX_TICKS} ticks in one demonstration"
             )));
         }
+        let [
+            (_, latched),
+            (_, contact),
+            (_, latent_real),
+            (_, latent_pred),
+            (_, comparison),
+        ] = seen.memory.features();
         ticks.push(DemoTick {
             t_s: t,
             state: features("gripper", Some(Msg::GripperStatus(status)), &layout, 0)
                 .map_err(obs_err)?,
             visual: features("visual", Some(Msg::VisualObservation(camera)), &layout, 0)
                 .map_err(obs_err)?,
-            contact: features(
-                "contact",
-                seen.contact.clone().map(Msg::ContactState),
-                &layout,
-                CONTACT_LEN,
-            )
-            .map_err(obs_err)?,
-            latched: latched.map_or(vec![0.0, 0.0], |o| vec![o, 1.0]),
-            latent_real: slots(&seen.real, width),
-            latent_pred: slots(&seen.pred, width),
-            comparison: features(
-                "comparison",
-                seen.comparison.clone().map(Msg::PropertyComparison),
-                &layout,
-                COMPARISON_LEN,
-            )
-            .map_err(obs_err)?,
+            contact,
+            latched,
+            latent_real,
+            latent_pred,
+            comparison,
             action: action_values(&cmd),
             arm_target: match cmd.arm.target.name() {
                 "home" => 0,
@@ -600,7 +555,7 @@ pub fn record_chains(
             return Err(stage_err(r));
         }
         let t = world.time();
-        seen.keep(out.produced, k, t, &objects, width);
+        seen.keep(out.produced, k, t, &layout);
     }
     let truth = world.world().truth();
     let (deformation_m, success) = match world.outcome() {

@@ -52,11 +52,7 @@ fn readout() -> (Readout, PolicyParams) {
         .unwrap()
         .into_iter()
         .find_map(|c| match c {
-            StageConfig::Policy {
-                params,
-                stiffness_model,
-                ..
-            } => Some((*params, stiffness_model.unwrap())),
+            StageConfig::Policy { params, model, .. } => Some((*params, model.unwrap())),
             _ => None,
         })
         .unwrap();

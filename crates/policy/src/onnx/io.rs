@@ -67,6 +67,9 @@ pub struct ActionChunk {
     /// Values the model predicted outside their bounds and that were clamped to them, in the
     /// inference this call ran (0 when it ran none).
     pub clamped: usize,
+    /// Actions (indices into `names`) the inference this call ran predicted beyond a bound by
+    /// more than [`super::policy::FAR_FRACTION`] of the range, in any row; sorted.
+    pub beyond: Vec<usize>,
 }
 
 impl ActionChunk {

@@ -58,6 +58,10 @@ pub struct InputSpec {
     /// other one is fixed. The runtime feeds batch 1.
     pub shape: Vec<Dim>,
     pub normalization: Option<NormSpec>,
+    /// What each value is (LeRobot's `names` of the feature), when the exporter states it: a
+    /// policy that reads a feature's values by name (the camera's estimate) checks them.
+    #[serde(default)]
+    pub names: Option<Vec<String>>,
 }
 
 /// The action chunk output.

@@ -21,6 +21,6 @@ pub mod validate;
 pub use chunk::TimeWentBack;
 pub use io::{ActionChunk, NamedInputs};
 pub use manifest::PolicyManifest;
-pub use policy::{LoadError, Mismatches, OnnxPolicy, RunError};
+pub use policy::{FAR_FRACTION, LoadError, Mismatches, OnnxPolicy, RunError};
 pub use unitac_infer::RuntimeConfig;
 pub use validate::Mismatch;

@@ -16,6 +16,10 @@ use unitac_core::Stamp;
 use unitac_infer::bundle::sha256_file;
 use unitac_infer::runtime::{InferError, RuntimeConfig, Session};
 
+/// A predicted value further than this share of its action's range beyond a bound counts as
+/// beyond it ([`ActionChunk::beyond`]); closer, it is only clamped.
+pub const FAR_FRACTION: f32 = 0.02;
+
 /// Every problem found loading one policy.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mismatches {
@@ -240,8 +244,9 @@ impl OnnxPolicy {
     }
 
     /// One inference: normalise, run, check, unnormalise, check, clamp. Returns the H x A chunk
-    /// in SI units and how many values were clamped.
-    fn infer(&mut self, features: &[&[f32]]) -> Result<(Vec<f32>, usize), RunError> {
+    /// in SI units, how many values were clamped, and the actions (indices) of those that were
+    /// beyond their bound by more than [`FAR_FRACTION`] of its range.
+    fn infer(&mut self, features: &[&[f32]]) -> Result<(Vec<f32>, usize, Vec<usize>), RunError> {
         for ((spec, buf), x) in self.io.inputs.iter().zip(&mut self.buffers).zip(features) {
             spec.norm.forward(x, buf);
         }
@@ -274,14 +279,20 @@ impl OnnxPolicy {
         out.norm.inverse_rows(&mut chunk, a);
         self.finite(&chunk)?;
         let mut clamped = 0;
+        let mut far = Vec::new();
         for (i, v) in chunk.iter_mut().enumerate() {
             let (lo, hi) = (out.lo[i % a], out.hi[i % a]);
             if *v < lo || *v > hi {
+                let margin = FAR_FRACTION * (hi - lo);
+                if (*v < lo - margin || *v > hi + margin) && !far.contains(&(i % a)) {
+                    far.push(i % a);
+                }
                 *v = v.clamp(lo, hi);
                 clamped += 1;
             }
         }
-        Ok((chunk, clamped))
+        far.sort_unstable();
+        Ok((chunk, clamped, far))
     }
 
     /// The plan for control tick `t`: runs the model when the schedule says an inference is due
@@ -291,11 +302,11 @@ impl OnnxPolicy {
         let features = self.check_inputs(obs)?;
         let tick = self.schedule.tick_of(t)?;
         let inferred = self.schedule.due(tick);
-        let (chunk, clamped) = if inferred {
-            let (c, n) = self.infer(&features)?;
-            (Some(c), n)
+        let (chunk, clamped, beyond) = if inferred {
+            let (c, n, far) = self.infer(&features)?;
+            (Some(c), n, far)
         } else {
-            (None, 0)
+            (None, 0, Vec::new())
         };
         self.schedule.advance(t, tick, chunk);
         let data = self.schedule.plan(tick);
@@ -310,6 +321,7 @@ impl OnnxPolicy {
             period_ns: self.schedule.period_ns(),
             inferred,
             clamped,
+            beyond,
         })
     }
 }

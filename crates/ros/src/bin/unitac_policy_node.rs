@@ -222,12 +222,12 @@ fn build(
     let Some(StageConfig::Policy {
         params,
         scene: name,
-        stiffness_model,
+        model,
     }) = configs.into_iter().next()
     else {
         anyhow::bail!("scene '{}' has no policy stage", scene.name);
     };
-    let stage = PolicyStage::load(&name, *params, stiffness_model.as_deref())?;
+    let stage = PolicyStage::load(&name, *params, model.as_deref())?;
     Ok((name.clone(), stage))
 }
 
