@@ -78,6 +78,45 @@ pub struct TrialsArgs {
     /// Extra directory to look for scenes in (searched first).
     #[arg(long)]
     pub scene_dir: Option<PathBuf>,
+    /// The policy: scripted (each mode's scene controller, `<task>_<mode>.yaml`) or learned
+    /// (the ONNX policy trained on demonstrations, `<task>_learned_<mode>.yaml`).
+    #[arg(long, value_parser = ["scripted", "learned"], default_value = "scripted")]
+    pub policy: String,
+    /// Learned policies: the training seed whose policies run (scripts/learned_policies.sh
+    /// trains seeds 0, 1, 2 into `<learned>/seed<K>/<task>_<mode>`).
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..1000))]
+    pub training_seed: u32,
+}
+
+/// The scene's `policy` model moved to training seed `seed`: the bundle of the same name under
+/// `seed<K>` beside the one the scene names.
+fn with_training_seed(scene: &mut unitac_core::Scene, seed: u32) -> Result<()> {
+    let Some(path) = scene.models.get_mut("policy") else {
+        return Err(config(format!("{}: names no policy model", scene.name)));
+    };
+    let bundle = path
+        .parent()
+        .and_then(|b| Some((b.file_name()?, b.parent()?.parent()?)));
+    let Some((name, root)) = bundle else {
+        return Err(config(format!(
+            "{}: policy model {}",
+            scene.name,
+            path.display()
+        )));
+    };
+    let moved = root
+        .join(format!("seed{seed}"))
+        .join(name)
+        .join("manifest.json");
+    if !moved.is_file() {
+        return Err(config(format!(
+            "{}: no policy of training seed {seed} ({})",
+            scene.name,
+            moved.display()
+        )));
+    }
+    *path = moved;
+    Ok(())
 }
 
 /// One trial in the JSON output (the trace is left out: `--plot` draws it).
@@ -112,6 +151,10 @@ struct ModeReport<'a> {
 #[derive(Debug, Serialize)]
 struct Report<'a> {
     task: &'a str,
+    /// scripted | learned, and the learned policies' training seed.
+    policy: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    training_seed: Option<u32>,
     split: Split,
     seed: u64,
     trials: u32,
@@ -293,8 +336,12 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             a.trials
         )));
     }
+    let task_name = match a.policy.as_str() {
+        "learned" => format!("{}_learned", a.scene),
+        _ => a.scene.clone(),
+    };
     let tasks = unitac_pipeline::tasks(a.scene_dir.clone());
-    let Some(task_modes) = tasks.get(&a.scene) else {
+    let Some(task_modes) = tasks.get(&task_name) else {
         let known: Vec<&str> = tasks.keys().map(String::as_str).collect();
         return Err(config(format!(
             "--scene {}: no scene <task>_<mode> (mode: {}) has that task in the scene \
@@ -322,9 +369,12 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     let mut scenes = Vec::new();
     let mut kinds = Vec::new();
     for m in &modes {
-        let name = unitac_pipeline::mode_scene(&a.scene, *m);
-        let scene = unitac_pipeline::load_scene(&name, a.scene_dir.clone())
+        let name = unitac_pipeline::mode_scene(&task_name, *m);
+        let mut scene = unitac_pipeline::load_scene(&name, a.scene_dir.clone())
             .map_err(|e| config(e.to_string()))?;
+        if a.policy == "learned" {
+            with_training_seed(&mut scene, a.training_seed)?;
+        }
         unitac_pipeline::build_stages(&scene).map_err(|e| config(e.to_string()))?;
         let (_, kind) =
             unitac_trials::scene::scene_task(&scene).map_err(|e| config(e.to_string()))?;
@@ -390,6 +440,8 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     if a.json {
         let report = Report {
             task: &a.scene,
+            policy: &a.policy,
+            training_seed: (a.policy == "learned").then_some(a.training_seed),
             split: task.split,
             seed: a.seed,
             trials: a.trials,
@@ -455,8 +507,12 @@ fn text_report(
         (TaskKind::Fabric, Split::Unseen) => "fabric selection, unseen fabric types".into(),
         (TaskKind::Fabric, Split::Train) => "fabric selection, training fabric types".into(),
     };
+    let policy = match a.policy.as_str() {
+        "learned" => format!("learned policies (training seed {})", a.training_seed),
+        p => format!("{p} policies"),
+    };
     let mut text = format!(
-        "{what}, seed {}, {} trial(s) per mode, gripper {gripper}: ours (paper, real robot)\n",
+        "{what}, seed {}, {} trial(s) per mode, gripper {gripper}, {policy}: ours (paper, real robot)\n",
         a.seed, a.trials
     );
     text.push_str(&table::render(rows));
