@@ -40,7 +40,7 @@ from onnx import TensorProto, helper
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from generate_reference import gradient_check_error, init, i64, model, save, sha256  # noqa: E402
 
-COMMON = ["observation.state", "observation.latched", "observation.visual"]
+COMMON = ["observation.state", "observation.latched", "observation.arm", "observation.visual"]
 MODES = {
     "vla": COMMON,
     "vtla_real": COMMON + ["observation.contact", "observation.tactile_latent_real",

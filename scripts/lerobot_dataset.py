@@ -25,7 +25,8 @@ layout (LeRobot's v3.0, read by LeRobotDataset in lerobot 0.4.x):
 
 Features (float32 unless said): observation.state [8] (the gripper status as the policy reads
 it), observation.visual [V] (the camera's estimate), observation.contact [3],
-observation.latched [2] (the opening at the first object-detect, known),
+observation.latched [2] (the opening at the first object-detect, known), observation.arm [2] (time
+since the commanded arm target last changed, at most 10 s, and whether the arm had its travel time),
 observation.tactile_latent_real and observation.tactile_latent_pred [objects x (P + 1)] (per
 object the pooled latent, then known), observation.comparison [5], action [7] (the gripper's
 position, speed, force limit and the arm's x, y, z, lift: the policy's action values),
@@ -57,6 +58,7 @@ STATE_NAMES = ["opening_m", "target_m", "target_known", "force_n", "force_known"
                "current_a", "current_known", "object_detected"]
 CONTACT_NAMES = ["in_contact", "area_mm2", "strength"]
 LATCHED_NAMES = ["opening_at_object_detect_m", "known"]
+ARM_NAMES = ["since_target_s", "travelled"]
 COMPARISON_NAMES = ["winner_a", "winner_b", "tie", "margin", "confidence"]
 INDEX_FEATURES = {
     "timestamp": {"dtype": "float32", "shape": [1], "names": None},
@@ -93,6 +95,7 @@ def features_of(d):
         ("visual", "observation.visual", "float32", list(first["visual_names"])),
         ("contact", "observation.contact", "float32", CONTACT_NAMES),
         ("latched", "observation.latched", "float32", LATCHED_NAMES),
+        ("arm", "observation.arm", "float32", ARM_NAMES),
         ("latent_real", "observation.tactile_latent_real", "float32", latent_names(objects, width)),
         ("latent_pred", "observation.tactile_latent_pred", "float32", latent_names(objects, width)),
         ("comparison", "observation.comparison", "float32", COMPARISON_NAMES),

@@ -78,6 +78,7 @@ pub fn demos(
             cfg.touch_speed_m_s = p.touch_speed_m_s;
             cfg.touch_force_n = p.touch_force_n;
             cfg.probe_release_m = p.probe_release_m;
+            cfg.approach_s = p.approach_s;
             cfg.timeout_s = p.contact_timeout_s;
         }
         let tactile: Vec<StageConfig> = stage_configs(&scene)

@@ -18,7 +18,7 @@ use unitac_policy::Mode;
 use unitac_sim::task::{Split, TaskConfig, TaskKind, TaskOutcome};
 use unitac_trials::serial::SerialReport;
 use unitac_trials::table::{self, Row};
-use unitac_trials::{TrialGripper, TrialOptions, TrialRecord, run_trial_on};
+use unitac_trials::{TouchSwap, TrialGripper, TrialOptions, TrialRecord, run_trial_swapped};
 
 /// Most trials per mode.
 pub const MAX_TRIALS: u32 = 1000;
@@ -82,6 +82,11 @@ pub struct TrialsArgs {
     /// (the ONNX policy trained on demonstrations, `<task>_learned_<mode>.yaml`).
     #[arg(long, value_parser = ["scripted", "learned"], default_value = "scripted")]
     pub policy: String,
+    /// The touch ablation: run every touch mode again with each trial's latents and
+    /// comparisons replaced by the next trial's (trial i gets trial i + 1's, the last the
+    /// first's), each message keeping its own stamp; a second table.
+    #[arg(long)]
+    pub permute_touch: bool,
     /// Learned policies: the training seed whose policies run (scripts/learned_policies.sh
     /// trains seeds 0, 1, 2 into `<learned>/seed<K>/<task>_<mode>`).
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..1000))]
@@ -160,6 +165,9 @@ struct Report<'a> {
     trials: u32,
     gripper: &'a str,
     table: &'a [Row],
+    /// The touch modes with each trial's touch values from the next trial (`--permute-touch`).
+    #[serde(skip_serializing_if = "<[Row]>::is_empty")]
+    touch_permuted: &'a [Row],
     sweep: &'a [SweepRow],
     /// Every noise and measurement figure of the world with its source.
     noise_figures: Vec<unitac_sim::task::NoiseFigure>,
@@ -176,11 +184,11 @@ fn config(msg: String) -> anyhow::Error {
 fn run_trials(
     scene: &unitac_core::Scene,
     task: &TaskConfig,
-    seed: u64,
-    trials: u32,
+    (seed, trials): (u64, u32),
     opts: &TrialOptions,
     gripper: TrialGripper,
     bar: &indicatif::ProgressBar,
+    donors: Option<&[Vec<unitac_core::msg::Msg>]>,
 ) -> Result<Vec<TrialRecord>> {
     let workers = match gripper {
         TrialGripper::InProcess => std::thread::available_parallelism().map_or(1, |n| n.get()),
@@ -199,7 +207,10 @@ fn run_trials(
                     if trial >= trials {
                         break;
                     }
-                    let r = run_trial_on(scene, task, seed, trial, opts, gripper)
+                    let swap = donors
+                        .and_then(|d| d.get(trial as usize))
+                        .map_or_else(TouchSwap::default, |d| TouchSwap::new(d.clone()));
+                    let r = run_trial_swapped(scene, task, seed, trial, opts, gripper, swap)
                         .with_context(|| format!("{} trial {trial}", scene.name));
                     bar.inc(1);
                     let failed = r.is_err();
@@ -405,12 +416,15 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     } else {
         Vec::new()
     };
-    let total = u64::from(a.trials) * (modes.len() * (1 + variants.len())) as u64;
+    let touch_modes = modes.iter().filter(|m| **m != Mode::Vla).count();
+    let total = u64::from(a.trials)
+        * (modes.len() * (1 + variants.len()) + if a.permute_touch { touch_modes } else { 0 })
+            as u64;
     let bar = progress::bar(total, &format!("trials {}", a.scene));
     let mut records: Records = Vec::new();
     for (m, scene) in &scenes {
         bar.set_message(format!("trials {} {}", a.scene, m.as_str()));
-        let rs = run_trials(scene, &task, a.seed, a.trials, &opts, gripper, &bar)?;
+        let rs = run_trials(scene, &task, (a.seed, a.trials), &opts, gripper, &bar, None)?;
         records.push((*m, rs));
     }
     let rows = table::table(kind, &outcomes(&records));
@@ -422,7 +436,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             bar.set_message(format!("sweep {} {}", v.name, m.as_str()));
             rs_all.push((
                 *m,
-                run_trials(scene, &t, a.seed, a.trials, &opts, gripper, &bar)?,
+                run_trials(scene, &t, (a.seed, a.trials), &opts, gripper, &bar, None)?,
             ));
         }
         sweep.push(SweepRow {
@@ -430,6 +444,36 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             table: table::table(kind, &outcomes(&rs_all)),
         });
     }
+    // The touch ablation: each touch mode again, trial i with trial i + 1's touch values.
+    let mut permuted_records: Records = Vec::new();
+    if a.permute_touch {
+        for ((m, scene), (_, own)) in scenes.iter().zip(&records) {
+            if *m == Mode::Vla {
+                continue;
+            }
+            let n = own.len();
+            let donors: Vec<Vec<unitac_core::msg::Msg>> =
+                (0..n).map(|i| own[(i + 1) % n].touch.clone()).collect();
+            bar.set_message(format!("touch permuted {}", m.as_str()));
+            permuted_records.push((
+                *m,
+                run_trials(
+                    scene,
+                    &task,
+                    (a.seed, a.trials),
+                    &opts,
+                    gripper,
+                    &bar,
+                    Some(&donors),
+                )?,
+            ));
+        }
+    }
+    let permuted = if a.permute_touch {
+        table::table(kind, &outcomes(&permuted_records))
+    } else {
+        Vec::new()
+    };
     bar.finish_and_clear();
     if a.calibrate_vla {
         return calibrate_vla(&a, &task, &records);
@@ -447,6 +491,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             trials: a.trials,
             gripper: gripper.name(),
             table: &rows,
+            touch_permuted: &permuted,
             sweep: &sweep,
             noise_figures: task.noise_figures(),
             modes: records
@@ -478,7 +523,13 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         crate::emit(format_args!("{}\n", serde_json::to_string(&report)?))?;
     } else {
         crate::emit(text_report(
-            &a, kind, split, gripper, &rows, &records, &sweep,
+            &a,
+            kind,
+            split,
+            gripper,
+            (&rows, &permuted),
+            &records,
+            &sweep,
         ))?;
     }
     Ok(true)
@@ -490,7 +541,7 @@ fn text_report(
     kind: TaskKind,
     split: Split,
     gripper: TrialGripper,
-    rows: &[Row],
+    (rows, permuted): (&[Row], &[Row]),
     records: &Records,
     sweep: &[SweepRow],
 ) -> String {
@@ -544,6 +595,10 @@ fn text_report(
                 ));
             }
         }
+    }
+    if !permuted.is_empty() {
+        text.push_str("\ntouch permuted across trials (trial i reads trial i + 1's latents and comparisons)\n");
+        text.push_str(&table::render(permuted));
     }
     for row in sweep {
         text.push_str(&format!("\nsweep: {}\n", row.variant.name));

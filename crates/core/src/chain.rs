@@ -232,6 +232,26 @@ impl Chain {
         out
     }
 
+    /// [`Chain::run`], every message between the first `at` stages and the rest passed through
+    /// `map` (`at` beyond the stages: after the last one).
+    pub fn run_mapped(
+        &mut self,
+        input: Msg,
+        at: usize,
+        map: &mut dyn FnMut(Msg) -> Msg,
+    ) -> ChainOutput {
+        let mut out = ChainOutput::default();
+        let mut queue = vec![input];
+        let at = at.min(self.runners.len());
+        let (first, rest) = self.runners.split_at_mut(at);
+        Self::pass(first, &mut queue, &mut out.errors);
+        let mut queue: Vec<Msg> = queue.into_iter().map(&mut *map).collect();
+        Self::pass(rest, &mut queue, &mut out.errors);
+        queue.pop();
+        out.produced = queue;
+        out
+    }
+
     /// `queue` through `runners`, in place.
     fn pass(runners: &mut [StageRunner], queue: &mut Vec<Msg>, errors: &mut Vec<Rejection>) {
         for r in runners.iter_mut() {
@@ -362,6 +382,30 @@ mod tests {
         assert!(out.errors.is_empty());
         assert_eq!(ch.runners()[1].stats().input, 2);
         assert_eq!(ch.runners()[1].stats().output, 2);
+    }
+
+    #[test]
+    fn a_map_between_stages_changes_what_the_later_ones_see_and_only_that() {
+        let mut ch = Chain::new(vec![Box::new(Tag("a")), Box::new(Tag("b"))]);
+        let mut upper = |m: Msg| match m {
+            Msg::PolicyStatus(mut s) => {
+                s.message = s.message.to_uppercase();
+                Msg::PolicyStatus(s)
+            }
+            m => m,
+        };
+        let out = ch.run_mapped(status("x", 5), 1, &mut upper);
+        let got: Vec<&str> = out.produced.iter().map(text).collect();
+        assert_eq!(got, ["b(A(X)@5)@5", "A(X)@5", "b(X)@5"]);
+        // The identity at any split is the plain run.
+        for at in 0..4 {
+            let mut a = Chain::new(vec![Box::new(Tag("a")), Box::new(Tag("b"))]);
+            let mut b = Chain::new(vec![Box::new(Tag("a")), Box::new(Tag("b"))]);
+            assert_eq!(
+                a.run_mapped(status("y", 7), at, &mut |m| m).produced,
+                b.run(status("y", 7)).produced
+            );
+        }
     }
 
     #[test]

@@ -15,6 +15,9 @@
 //! observation.state               the gripper status (the stage's slice)
 //! observation.visual              the camera's estimate (the stage's slice; names checked)
 //! observation.latched             the opening at the first object-detect, known
+//! observation.arm                 time since the commanded arm target last changed (at most
+//!                                 10 s), and whether that is `approach_s` or more (the arm has
+//!                                 had its travel time: the policy's own record, no arm sensor)
 //! observation.contact             the latest contact state: in contact, area, strength
 //! observation.tactile_latent_real per object: the pooled live latent of its touch, known
 //!                                 (the first latent after touch k goes to object k)
@@ -38,6 +41,7 @@ use unitac_core::msg::{GripperMode, LatentSource, TactileLatent};
 pub const STATE: &str = "observation.state";
 pub const VISUAL: &str = "observation.visual";
 pub const LATCHED: &str = "observation.latched";
+pub const ARM: &str = "observation.arm";
 pub const CONTACT: &str = "observation.contact";
 pub const LATENT_REAL: &str = "observation.tactile_latent_real";
 pub const LATENT_PRED: &str = "observation.tactile_latent_pred";
@@ -63,8 +67,10 @@ const BEYOND: [&str; 7] = [
     "learned.arm.z_m",
     "learned.arm.lift_m",
 ];
-/// Values of the contact and comparison slices, and of `observation.latched`.
+/// Values of the contact and comparison slices.
 const CONTACT_LEN: usize = 3;
+/// The longest time `observation.arm` counts \[s].
+pub const MAX_SINCE_TARGET_S: f64 = 10.0;
 const COMPARISON_LEN: usize = 5;
 
 /// Token mean, then token mean of squares, of `tokens` (\[n, w] row-major): the pooled latent
@@ -119,13 +125,18 @@ pub struct Memory {
     pub pred: Vec<Option<Vec<f32>>>,
     /// The latest comparison's slice.
     pub comparison: Option<Vec<f32>>,
+    /// The commanded arm target and when it was first commanded \[s] ("home" at 0 before any).
+    target: (String, f64),
+    /// The arm's travel time to a target \[s].
+    approach_s: f64,
     /// Values of a pooled latent.
     width: usize,
     objects: Vec<String>,
 }
 
 impl Memory {
-    pub fn new(objects: &[String], width: usize) -> Self {
+    /// `approach_s`: the arm's travel time to a target (the scene's).
+    pub fn new(objects: &[String], width: usize, approach_s: f64) -> Self {
         Self {
             latched: None,
             touches: 0,
@@ -134,9 +145,28 @@ impl Memory {
             real: vec![None; objects.len()],
             pred: vec![None; objects.len()],
             comparison: None,
+            target: ("home".into(), 0.0),
+            approach_s,
             width,
             objects: objects.to_vec(),
         }
+    }
+
+    /// The arm was commanded to `target` at `t_s` (world or stamp time \[s]).
+    pub fn commanded(&mut self, target: &str, t_s: f64) {
+        if self.target.0 != target {
+            self.target = (target.to_string(), t_s);
+        }
+    }
+
+    /// `observation.arm` at `t_s`: time since the target last changed (at most
+    /// [`MAX_SINCE_TARGET_S`]), and whether the arm has had its travel time (1 or 0).
+    pub fn arm(&self, t_s: f64) -> Vec<f32> {
+        let since = (t_s - self.target.1).clamp(0.0, MAX_SINCE_TARGET_S);
+        vec![
+            since as f32,
+            if since >= self.approach_s { 1.0 } else { 0.0 },
+        ]
     }
 
     /// The gripper reported object-detect at `opening_m` (the first one is latched).
@@ -289,7 +319,9 @@ impl LearnedPolicy {
                     )),
                     None => problems.push(format!("{VISUAL} states no names")),
                 },
-                LATCHED if numel != 2 => problems.push(format!("{LATCHED}: {numel} values, not 2")),
+                LATCHED | ARM if numel != 2 => {
+                    problems.push(format!("{}: {numel} values, not 2", i.name));
+                }
                 CONTACT if numel != CONTACT_LEN => {
                     problems.push(format!("{CONTACT}: {numel} values, not {CONTACT_LEN}"));
                 }
@@ -308,7 +340,7 @@ impl LearnedPolicy {
                         width = numel / n_obj - 1;
                     }
                 }
-                LATCHED | CONTACT | COMPARISON => {}
+                LATCHED | ARM | CONTACT | COMPARISON => {}
                 other => problems.push(format!("input '{other}' is not one a learned policy has")),
             }
         }
@@ -318,7 +350,7 @@ impl LearnedPolicy {
         Ok(Self {
             onnx,
             mode: params.mode,
-            memory: Memory::new(&params.objects, width),
+            memory: Memory::new(&params.objects, width, params.approach_s),
             targets,
             commands,
             seen_latents: Vec::new(),
@@ -415,10 +447,15 @@ impl Policy for LearnedPolicy {
         if obs.stamp.secs_since(start) >= self.run_s {
             self.phase = "done";
         }
+        let t_s = obs.stamp.secs_since(start);
         let memory = self.memory.features();
+        let arm = self.memory.arm(t_s);
         let state = obs.slice(STATE).unwrap_or(&[]);
         let visual = obs.slice(VISUAL).unwrap_or(&[]);
-        let mut named = NamedInputs::new().with(STATE, state).with(VISUAL, visual);
+        let mut named = NamedInputs::new()
+            .with(STATE, state)
+            .with(VISUAL, visual)
+            .with(ARM, &arm);
         for (name, values) in &memory {
             named.insert(name, values);
         }
@@ -442,6 +479,7 @@ impl Policy for LearnedPolicy {
                 _ => Some((n, s)),
             })
             .map_or_else(|| "home".to_string(), |(n, _)| n.clone());
+        self.memory.commanded(&target, t_s);
         Ok(vec![Action {
             gripper: GripperAction {
                 mode: GripperMode::Position,
@@ -491,7 +529,7 @@ mod tests {
 
     #[test]
     fn the_first_object_detect_is_latched() {
-        let mut m = Memory::new(&objects(), 4);
+        let mut m = Memory::new(&objects(), 4, 1.5);
         m.gripper(false, 0.08);
         assert_eq!(m.features()[0].1, vec![0.0, 0.0]);
         m.gripper(true, 0.07);
@@ -501,7 +539,7 @@ mod tests {
 
     #[test]
     fn a_live_latent_fills_the_slot_of_the_touch_it_came_after_once() {
-        let mut m = Memory::new(&objects(), 4);
+        let mut m = Memory::new(&objects(), 4, 1.5);
         // Before any touch: no slot.
         m.latent(&real(vec![1.0; 4])).unwrap();
         assert_eq!(m.features()[2].1, vec![0.0; 10]);
@@ -523,7 +561,7 @@ mod tests {
 
     #[test]
     fn a_predicted_latent_goes_to_its_object_and_a_wrong_width_is_an_error() {
-        let mut m = Memory::new(&objects(), 4);
+        let mut m = Memory::new(&objects(), 4, 1.5);
         let p = TactileLatent {
             object: "b".into(),
             shape: vec![2, 2],
@@ -537,5 +575,23 @@ mod tests {
         );
         let e = m.latent(&samples::tactile_latent()).unwrap_err();
         assert!(e.contains("pools to 6 values, not 4"), "{e}");
+    }
+}
+
+#[cfg(test)]
+mod arm_tests {
+    use super::*;
+
+    #[test]
+    fn the_arm_feature_counts_from_the_last_change_of_target() {
+        let mut m = Memory::new(&["cup".to_string()], 4, 1.5);
+        assert_eq!(m.arm(1.0), vec![1.0, 0.0]);
+        m.commanded("home", 1.0);
+        assert_eq!(m.arm(2.0), vec![2.0, 1.0]);
+        m.commanded("cup", 2.0);
+        m.commanded("cup", 2.5);
+        assert_eq!(m.arm(3.0), vec![1.0, 0.0]);
+        assert_eq!(m.arm(3.5), vec![1.5, 1.0]);
+        assert_eq!(m.arm(100.0), vec![MAX_SINCE_TARGET_S as f32, 1.0]);
     }
 }

@@ -77,6 +77,87 @@ fn a_vtla_real_cup_trial_over_ros_reaches_the_target_deformation() {
     );
 }
 
+/// A learned VTLA-real trial of `task` (cup | fabric) over ROS: the scene's learned policy
+/// (trained by setup on demonstrations) drives the sim through the same nodes as the scripted
+/// scene's, to its timeout. Returns the observer's record.
+fn learned_trial(scene: &str, task: &str, seconds: f64) -> Value {
+    let n = ns(&format!("learned_{task}"));
+    let obs = Observer::start(HERE, &n, 90);
+    let l = Loop::start_scene(
+        HERE,
+        &n,
+        seconds,
+        &obs,
+        common::closed_loop::GripperPath::Commands,
+        scene,
+        task,
+    );
+    obs.wait_for(|s| s == "outcome", 80);
+    let got = obs.finish();
+    l.stop();
+    let phases = phases(&got);
+    eprintln!(
+        "{scene}: phases {phases:?}; outcome {}",
+        got["outcome"]["outcome"]
+    );
+    for s in statuses(&got) {
+        assert_eq!(s["scene"], scene);
+        assert_eq!(s["mode"], "vtla_real");
+    }
+    // Phases only on events every mode observes: object-detect, the timeout.
+    assert_eq!(phases.first(), Some(&"act"), "{phases:?}");
+    assert_eq!(phases.last(), Some(&"done"), "{phases:?}");
+    assert!(
+        phases
+            .iter()
+            .all(|p| ["act", "holding", "done"].contains(p)),
+        "{phases:?}"
+    );
+    // The commands are the learned policy's, through the safety layer (a tick whose inputs
+    // were not fresh yet gets the safe action), inside the scene's bounds.
+    let cmds = got["commands"].as_array().unwrap();
+    assert_eq!(cmds.len(), statuses(&got).len());
+    let model = format!("learned {}", scene.replace("learned_", ""));
+    let learned = cmds
+        .iter()
+        .filter(|c| c["reason"].as_str().unwrap().contains(&model))
+        .count();
+    assert!(
+        learned * 10 >= cmds.len() * 9,
+        "{learned} of {} commands: {:?}",
+        cmds.len(),
+        &cmds[..3.min(cmds.len())]
+    );
+    assert!(
+        cmds.iter()
+            .all(|c| (0.0..=0.11).contains(&c["position_m"].as_f64().unwrap()))
+    );
+    // The fingers moved: the policy closed on the object.
+    let first = cmds[0]["position_m"].as_f64().unwrap();
+    assert!(
+        cmds.iter()
+            .any(|c| c["position_m"].as_f64().unwrap() < first - 0.005)
+    );
+    got
+}
+
+#[test]
+fn learned_vtla_real_trials_of_both_tasks_run_over_ros_to_their_end() {
+    let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let cup = learned_trial("cup_deformation_learned_vtla_real", "cup", 12.0);
+    assert!(
+        cup["outcome"]["outcome"]["cup"].is_object(),
+        "{}",
+        cup["outcome"]
+    );
+    let fabric = learned_trial("fabric_selection_learned_vtla_real", "fabric", 16.0);
+    assert!(
+        fabric["outcome"]["outcome"]["fabric"].is_object(),
+        "{}",
+        fabric["outcome"]
+    );
+}
+
 #[test]
 fn killing_the_inference_node_makes_the_policy_hold_within_one_control_period() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());

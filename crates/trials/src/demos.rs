@@ -91,6 +91,9 @@ pub struct DemoConfig {
     /// Values of one pooled latent ([`pooled`] of the encoder's tokens; the sampler's latent is
     /// pooled already): a latent of another size is an error.
     pub pooled_len: usize,
+    /// The arm's travel time to a target \[s] (the scenes' `approach_s`): the probe touch starts
+    /// once the arm has had it since its target was commanded (and has arrived).
+    pub approach_s: f64,
 }
 
 impl Default for DemoConfig {
@@ -105,6 +108,7 @@ impl Default for DemoConfig {
             expert_s: 4.0,
             fabric_s: task::expert::default_run(TaskKind::Fabric).1,
             pooled_len: 96,
+            approach_s: 1.5,
         }
     }
 }
@@ -160,6 +164,9 @@ pub struct DemoTick {
     pub contact: Vec<f32>,
     /// The opening the gripper reported at its first object-detect \[m], and known.
     pub latched: Vec<f32>,
+    /// Time since the commanded arm target last changed \[s] (at most 10) and whether the arm
+    /// has had its travel time ([`DemoConfig::approach_s`]): `observation.arm`.
+    pub arm: Vec<f32>,
     /// Per object of [`Demo::objects`]: the pooled live latent of its touch (the first latent
     /// of touch k + 1 for object k: the expert touches them in order), then known.
     pub latent_real: Vec<f32>,
@@ -343,10 +350,11 @@ pub fn record_chains(
         && c.probe_release_m >= 0.0
         && (0.0..=600.0).contains(&c.expert_s)
         && (0.0..=600.0).contains(&c.fabric_s)
-        && c.timeout_s <= 600.0;
+        && c.timeout_s <= 600.0
+        && (0.0..=60.0).contains(&c.approach_s);
     if !ok {
         return Err(DemoError::Config(
-            "probe_release_m must be >= 0; expert_s, fabric_s and timeout_s at most 600 s".into(),
+            "probe_release_m must be >= 0; expert_s, fabric_s and timeout_s at most 600 s; approach_s in [0, 60] s".into(),
         ));
     }
     if !(1..=4096).contains(&c.pooled_len) {
@@ -410,7 +418,7 @@ pub fn record_chains(
     let mut seen = Seen {
         contact: None,
         latents: Vec::new(),
-        memory: Memory::new(&objects, width),
+        memory: Memory::new(&objects, width, c.approach_s),
         bad: None,
     };
     let mut at_contact = (f64::NAN, f64::NAN, f32::NAN);
@@ -462,10 +470,13 @@ pub fn record_chains(
             .gripper(status.object_detected, status.opening_m);
         let truth = world.world().truth();
         let expert = expert_command(&truth, &spec, &cfg);
+        let arm = seen.memory.arm(t);
         let in_contact = seen.contact.as_ref().is_some_and(|s| s.in_contact);
         let elapsed = t - since;
         let next = match phase {
-            Phase::Approach if truth.arm.arrived && elapsed > c.dt_s => Some(Phase::Touch),
+            Phase::Approach if truth.arm.arrived && elapsed > c.dt_s && arm[1] > 0.5 => {
+                Some(Phase::Touch)
+            }
             Phase::Touch if in_contact => {
                 d0 = truth.gripper.opening_m;
                 at_contact = (
@@ -532,6 +543,7 @@ pub fn record_chains(
                 .map_err(obs_err)?,
             contact,
             latched,
+            arm,
             latent_real,
             latent_pred,
             comparison,
@@ -544,6 +556,7 @@ pub fn record_chains(
                     .map_or(0, |k| k as u32 + 1),
             },
         });
+        seen.memory.commanded(cmd.arm.target.name(), t);
         world.step(Some(cmd.clone())).map_err(world_err)?;
         if phase == Phase::Expert {
             last_cmd = Some(cmd);

@@ -27,5 +27,6 @@ pub mod table;
 
 pub use gripper::{TrialGripper, UnknownTrialGripper};
 pub use run::{
-    ChainMessage, TraceRow, TrialError, TrialOptions, TrialRecord, run_trial, run_trial_on,
+    ChainMessage, TouchSwap, TraceRow, TrialError, TrialOptions, TrialRecord, run_trial,
+    run_trial_on, run_trial_swapped,
 };

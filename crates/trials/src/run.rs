@@ -206,6 +206,79 @@ pub struct TrialRecord {
     /// the order they went in and came out.
     #[serde(skip)]
     pub messages: Vec<ChainMessage>,
+    /// What the tactile stages told the policy stage: every latent and comparison, in order
+    /// (a [`TouchSwap`]'s donor for another trial).
+    #[serde(skip)]
+    pub touch: Vec<Msg>,
+}
+
+/// The touch ablation: the latents and comparisons the tactile stages send the policy stage
+/// carry another trial's values (the k-th latent of each source and the k-th comparison the
+/// donor trial's stages made), each keeping its own stamp and object; the policy's other
+/// inputs, the world and the frames are this trial's.
+#[derive(Debug, Default)]
+pub struct TouchSwap {
+    donor: Vec<Msg>,
+    /// This trial's latents per source and comparisons so far.
+    real: usize,
+    predicted: usize,
+    comparisons: usize,
+    /// This trial's own, in order.
+    own: Vec<Msg>,
+}
+
+impl TouchSwap {
+    /// Values from `donor` (a trial's [`TrialRecord::touch`]); an empty donor swaps nothing.
+    pub fn new(donor: Vec<Msg>) -> Self {
+        Self {
+            donor,
+            ..Self::default()
+        }
+    }
+
+    /// The k-th message of the donor that `pick` accepts.
+    fn nth(&self, k: usize, pick: impl Fn(&Msg) -> bool) -> Option<&Msg> {
+        self.donor.iter().filter(|m| pick(m)).nth(k)
+    }
+
+    /// A message between the tactile stages and the policy stage.
+    fn apply(&mut self, m: Msg) -> Msg {
+        match m {
+            Msg::TactileLatent(mut l) => {
+                self.own.push(Msg::TactileLatent(l.clone()));
+                let real = l.source == unitac_core::msg::LatentSource::Real;
+                let counter = if real {
+                    &mut self.real
+                } else {
+                    &mut self.predicted
+                };
+                let k = *counter;
+                *counter += 1;
+                let source = l.source;
+                let same = |m: &Msg| matches!(m, Msg::TactileLatent(d) if d.source == source);
+                if let Some(Msg::TactileLatent(d)) = self.nth(k, same) {
+                    l.shape.clone_from(&d.shape);
+                    l.data.clone_from(&d.data);
+                }
+                Msg::TactileLatent(l)
+            }
+            Msg::PropertyComparison(mut c) => {
+                self.own.push(Msg::PropertyComparison(c.clone()));
+                let k = self.comparisons;
+                self.comparisons += 1;
+                if let Some(Msg::PropertyComparison(d)) =
+                    self.nth(k, |m| matches!(m, Msg::PropertyComparison(_)))
+                {
+                    c.winner = d.winner;
+                    c.margin = d.margin;
+                    c.confidence = d.confidence;
+                    c.sentence.clone_from(&d.sentence);
+                }
+                Msg::PropertyComparison(c)
+            }
+            m => m,
+        }
+    }
 }
 
 /// A message that went into the chain (`input`) or came out of it.
@@ -341,7 +414,35 @@ pub fn run_trial_on(
     opts: &TrialOptions,
     gripper: TrialGripper,
 ) -> Result<TrialRecord, TrialError> {
+    run_trial_swapped(
+        scene,
+        task,
+        seed,
+        trial,
+        opts,
+        gripper,
+        TouchSwap::default(),
+    )
+}
+
+/// [`run_trial_on`] with the touch values of another trial ([`TouchSwap`]; the default swaps
+/// nothing).
+pub fn run_trial_swapped(
+    scene: &Scene,
+    task: &TaskConfig,
+    seed: u64,
+    trial: u32,
+    opts: &TrialOptions,
+    gripper: TrialGripper,
+    mut swap: TouchSwap,
+) -> Result<TrialRecord, TrialError> {
     opts.check()?;
+    // The policy stage's place: what the stages before it send it passes through `swap`.
+    let policy_at = scene
+        .stages
+        .iter()
+        .position(|s| s.kind == "policy")
+        .unwrap_or(scene.stages.len());
     let params = policy_params(scene)?;
     let stages = unitac_pipeline::build_stages(scene).map_err(|e| TrialError::Scene {
         scene: scene.name.clone(),
@@ -414,6 +515,7 @@ pub fn run_trial_on(
         reflex: Default::default(),
         io: Vec::new(),
         messages: Vec::new(),
+        touch: Vec::new(),
     };
     let mut slip_detected = None;
     let mut ended_at: Option<f64> = None;
@@ -428,7 +530,7 @@ pub fn run_trial_on(
     };
     // One input through the chain, with what the options keep of it: its digest (`record_io`),
     // it and what the chain made of it (`keep_messages`; frames are not kept).
-    let feed = |chain: &mut Chain, record: &mut TrialRecord, digest: &mut Fnv, m: Msg| {
+    let mut feed = |chain: &mut Chain, record: &mut TrialRecord, digest: &mut Fnv, m: Msg| {
         if opts.record_io {
             digest.msg(&m);
         }
@@ -439,7 +541,7 @@ pub fn run_trial_on(
                 msg: m.clone(),
             });
         }
-        let out = chain.run(m);
+        let out = chain.run_mapped(m, policy_at, &mut |x| swap.apply(x));
         if opts.keep_messages {
             record
                 .messages
@@ -552,6 +654,7 @@ pub fn run_trial_on(
     }
     record.serial = world.report();
     record.duration_s = world.time();
+    record.touch = std::mem::take(&mut swap.own);
     record.outcome = world.outcome();
     Ok(record)
 }

@@ -230,7 +230,21 @@ impl Loop {
         obs: &Observer,
         path: GripperPath,
     ) -> Self {
-        let scene = format!("scene:={SCENE}");
+        Self::start_scene(at, ns, duration_s, obs, path, SCENE, "cup")
+    }
+
+    /// [`Self::start_with`] on `scene`, the sim running `task` (cup | fabric).
+    pub fn start_scene(
+        at: Launcher,
+        ns: &str,
+        duration_s: f64,
+        obs: &Observer,
+        path: GripperPath,
+        scene: &str,
+        task: &str,
+    ) -> Self {
+        let scene = format!("scene:={scene}");
+        let task = format!("task:={task}");
         let sim_time = ["-p", "use_sim_time:=true"];
         let contact = node(
             at,
@@ -280,7 +294,7 @@ impl Loop {
         let duration = format!("duration_s:={duration_s:.1}");
         let mut sim_args = vec![
             "-p",
-            "task:=cup",
+            &task,
             "-p",
             "split:=train",
             "-p",
