@@ -24,7 +24,7 @@ layout (LeRobot's v3.0, read by LeRobotDataset in lerobot 0.4.x):
                                           index, task_index
 
 Features (float32 unless said): observation.state [8] (the gripper status as the policy reads
-it), observation.visual [V] (the camera's estimate), observation.contact [3],
+it), observation.visual [V] (the mean of the camera's estimates so far), observation.contact [3],
 observation.latched [2] (the opening at the first object-detect, known), observation.arm [2] (time
 since the commanded arm target last changed, at most 10 s, and whether the arm had its travel time),
 observation.tactile_latent_real and observation.tactile_latent_pred [objects x (P + 1)] (per

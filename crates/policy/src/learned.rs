@@ -13,7 +13,9 @@
 //!
 //! ```text
 //! observation.state               the gripper status (the stage's slice)
-//! observation.visual              the camera's estimate (the stage's slice; names checked)
+//! observation.visual              the mean of the camera's estimates so far (the stage's
+//!                                 slice averaged: the arm does not chase the camera's noise,
+//!                                 as the scene controllers average it; names checked)
 //! observation.latched             the opening at the first object-detect, known
 //! observation.arm                 time since the commanded arm target last changed (at most
 //!                                 10 s), and whether that is `approach_s` or more (the arm has
@@ -29,7 +31,6 @@
 //! order, the order the task touches them.
 
 use crate::error::PolicyLoadError;
-use crate::mode::Mode;
 use crate::observation::{Observation, input};
 use crate::onnx::{NamedInputs, OnnxPolicy, RuntimeConfig};
 use crate::params::PolicyParams;
@@ -125,6 +126,9 @@ pub struct Memory {
     pub pred: Vec<Option<Vec<f32>>>,
     /// The latest comparison's slice.
     pub comparison: Option<Vec<f32>>,
+    /// Sum of the camera's estimates so far, and how many.
+    visual_sum: Vec<f64>,
+    visual_n: u32,
     /// The commanded arm target and when it was first commanded \[s] ("home" at 0 before any).
     target: (String, f64),
     /// The arm's travel time to a target \[s].
@@ -145,11 +149,28 @@ impl Memory {
             real: vec![None; objects.len()],
             pred: vec![None; objects.len()],
             comparison: None,
+            visual_sum: Vec::new(),
+            visual_n: 0,
             target: ("home".into(), 0.0),
             approach_s,
             width,
             objects: objects.to_vec(),
         }
+    }
+
+    /// The camera's estimate this tick: the mean of every one so far, this one included (an
+    /// estimate of another length starts the mean again).
+    pub fn visual(&mut self, v: &[f32]) -> Vec<f32> {
+        if self.visual_sum.len() != v.len() {
+            self.visual_sum = vec![0.0; v.len()];
+            self.visual_n = 0;
+        }
+        for (s, x) in self.visual_sum.iter_mut().zip(v) {
+            *s += f64::from(*x);
+        }
+        self.visual_n = self.visual_n.saturating_add(1);
+        let n = f64::from(self.visual_n);
+        self.visual_sum.iter().map(|s| (s / n) as f32).collect()
     }
 
     /// The arm was commanded to `target` at `t_s` (world or stamp time \[s]).
@@ -245,7 +266,6 @@ impl Memory {
 #[derive(Debug)]
 pub struct LearnedPolicy {
     onnx: OnnxPolicy,
-    mode: Mode,
     memory: Memory,
     /// "home", then the scene's objects; the score action of each.
     targets: Vec<(String, usize)>,
@@ -349,7 +369,6 @@ impl LearnedPolicy {
         }
         Ok(Self {
             onnx,
-            mode: params.mode,
             memory: Memory::new(&params.objects, width, params.approach_s),
             targets,
             commands,
@@ -426,9 +445,11 @@ impl Policy for LearnedPolicy {
         self.phase
     }
 
+    /// The gripper and the camera; the contact state too once one came (the demonstrations
+    /// start before the contact stage's first state: its slice is zeros until then).
     fn required(&self) -> Vec<&'static str> {
         let mut r = vec!["gripper", "visual"];
-        if self.mode == Mode::VtlaReal && self.reads().contains(&"contact") {
+        if self.memory.contact.is_some() && self.reads().contains(&"contact") {
             r.push("contact");
         }
         r
@@ -451,10 +472,10 @@ impl Policy for LearnedPolicy {
         let memory = self.memory.features();
         let arm = self.memory.arm(t_s);
         let state = obs.slice(STATE).unwrap_or(&[]);
-        let visual = obs.slice(VISUAL).unwrap_or(&[]);
+        let visual = self.memory.visual(obs.slice(VISUAL).unwrap_or(&[]));
         let mut named = NamedInputs::new()
             .with(STATE, state)
-            .with(VISUAL, visual)
+            .with(VISUAL, &visual)
             .with(ARM, &arm);
         for (name, values) in &memory {
             named.insert(name, values);
@@ -581,6 +602,14 @@ mod tests {
 #[cfg(test)]
 mod arm_tests {
     use super::*;
+
+    #[test]
+    fn the_visual_feature_is_the_mean_so_far() {
+        let mut m = Memory::new(&["cup".to_string()], 4, 1.5);
+        assert_eq!(m.visual(&[1.0, 2.0]), vec![1.0, 2.0]);
+        assert_eq!(m.visual(&[3.0, 4.0]), vec![2.0, 3.0]);
+        assert_eq!(m.visual(&[5.0]), vec![5.0]);
+    }
 
     #[test]
     fn the_arm_feature_counts_from_the_last_change_of_target() {

@@ -9,7 +9,8 @@
 //! One cup demonstration, per tick of `dt_s`:
 //!
 //! ```text
-//! approach: the expert's command (arm to the cup, fingers wide) until the arm has arrived
+//! approach: the expert's arm command to the cup, the fingers at its first opening (wide), until
+//!           the arm has arrived and has had `approach_s` since its target was commanded
 //! touch:    close at touch_speed_m_s with touch_force_n until the contact stage says contact
 //!           (the opening there is D0): the probe touch the vtla_real controller makes
 //! release:  open to D0 + probe_release_m until the contact stage says the contact ended (the
@@ -158,7 +159,8 @@ pub struct DemoTick {
     pub t_s: f64,
     /// The gripper's status as the policy's `gripper` input reads it ([`STATE_LEN`] values).
     pub state: Vec<f32>,
-    /// The camera's estimate this tick, in [`Demo::visual_names`]' order.
+    /// The mean of the camera's estimates up to this tick, in [`Demo::visual_names`]' order
+    /// (`observation.visual`).
     pub visual: Vec<f32>,
     /// The first chain's latest contact state: in contact, area \[mm^2], strength.
     pub contact: Vec<f32>,
@@ -424,6 +426,7 @@ pub fn record_chains(
     let mut at_contact = (f64::NAN, f64::NAN, f32::NAN);
     let mut d0 = cfg.gripper.max_opening_m;
     let mut last_cmd: Option<TaskCommand> = None;
+    let mut approach_grip: Option<GripperSetpoint> = None;
     let mut ticks = Vec::new();
     let stage_err = |r: &unitac_core::chain::Rejection| DemoError::Stage {
         seed,
@@ -502,7 +505,13 @@ pub fn record_chains(
             since = t;
         }
         let cmd = match phase {
-            Phase::Approach | Phase::Expert => expert,
+            // Fingers at the expert's first opening until the probe: the expert's own closing
+            // starts on the arm's true arrival, which no policy observes.
+            Phase::Approach => TaskCommand {
+                gripper: approach_grip.get_or_insert(expert.gripper.clone()).clone(),
+                arm: expert.arm,
+            },
+            Phase::Expert => expert,
             Phase::Touch => TaskCommand {
                 gripper: GripperSetpoint {
                     opening_m: 0.0,
@@ -528,6 +537,9 @@ pub fn record_chains(
                 "more than {MAX_TICKS} ticks in one demonstration"
             )));
         }
+        let visual = features("visual", Some(Msg::VisualObservation(camera)), &layout, 0)
+            .map_err(obs_err)?;
+        let visual = seen.memory.visual(&visual);
         let [
             (_, latched),
             (_, contact),
@@ -539,8 +551,7 @@ pub fn record_chains(
             t_s: t,
             state: features("gripper", Some(Msg::GripperStatus(status)), &layout, 0)
                 .map_err(obs_err)?,
-            visual: features("visual", Some(Msg::VisualObservation(camera)), &layout, 0)
-                .map_err(obs_err)?,
+            visual,
             contact,
             latched,
             arm,
