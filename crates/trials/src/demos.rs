@@ -508,7 +508,7 @@ pub fn record_chains(
             // Fingers at the expert's first opening until the probe: the expert's own closing
             // starts on the arm's true arrival, which no policy observes.
             Phase::Approach => TaskCommand {
-                gripper: approach_grip.get_or_insert(expert.gripper.clone()).clone(),
+                gripper: *approach_grip.get_or_insert(expert.gripper),
                 arm: expert.arm,
             },
             Phase::Expert => expert,
