@@ -200,19 +200,28 @@ impl ContactStage {
             Msg::ContactState(c) if c.in_contact => Some(c.centroid_px),
             _ => None,
         });
-        let depth_mm: Option<Vec<f32>> = out.iter().find_map(|m| match m {
-            Msg::Depth(d) => Some(d.depth_m.iter().map(|v| v * 1e3).collect()),
-            _ => None,
+        // With a calibration the depth panel is always there (the picture keeps its size), all
+        // unknown until the first depth map.
+        let n = f.width as usize * f.height as usize;
+        let depth_mm: Option<Vec<f32>> = self.depth.as_ref().map(|_| {
+            out.iter()
+                .find_map(|m| match m {
+                    Msg::Depth(d) => Some(d.depth_m.iter().map(|v| v * 1e3).collect()),
+                    _ => None,
+                })
+                .unwrap_or_else(|| vec![f32::NAN; n])
         });
+        let has_depth = out.iter().any(|m| matches!(m, Msg::Depth(_)));
         let mask = self
             .depth
             .as_ref()
             .and_then(|d| d.est.as_ref())
-            .map(DepthEstimator::mask);
-        let depth = match (&depth_mm, mask) {
-            (Some(depth_mm), Some(mask)) => Some(DepthPanel { depth_mm, mask }),
-            _ => None,
-        };
+            .filter(|_| has_depth)
+            .map(DepthEstimator::mask)
+            .unwrap_or(&[]);
+        let depth = depth_mm
+            .as_deref()
+            .map(|depth_mm| DepthPanel { depth_mm, mask });
         let o = Overlay {
             contact: &contact,
             centroid,

@@ -327,6 +327,12 @@ fn the_contact_stage_emits_a_depth_map_per_frame_and_an_overlay_only_when_asked(
         assert_eq!(zmin, -max);
         if overlay {
             assert_eq!(overlays.len(), 12 + rendered.len(), "one per frame");
+            assert!(
+                overlays
+                    .iter()
+                    .all(|o| (o.width, o.height) == (2 * spec.width, spec.height)),
+                "the depth panel is there from the first frame on (one picture size)"
+            );
             let o = overlays.last().unwrap();
             assert_eq!((o.width, o.height), (2 * spec.width, spec.height));
             let px: Vec<[u8; 3]> = o
