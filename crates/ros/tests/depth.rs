@@ -2,13 +2,14 @@
 //! on a scene whose contact stage has a depth calibration, against an rclpy peer
 //! (tests/ros/depth_peer.py), and the same bytes from every transport: the embedded runtime
 //! (`unitac run --out`), bag replay (`unitac replay --out`) and the ROS nodes replaying the
-//! runtime's bag (sensor node -> contact node, under use_sim_time). And `contact_overlay`: no
+//! runtime's bag (sensor node -> contact node, under use_sim_time); the runtime's depth maps
+//! also match their committed summary, tests/golden/depth/fabric_selection_depth.jsonl. And `contact_overlay`: no
 //! publisher by default, the picture with the outline and centroid with `contact.overlay:=true`
 //! (a second contact node on the same images).
 //!
-//! No file is committed for it: the calibration comes from `unitac calibrate mock-presses` and
-//! `unitac calibrate depth` (seconds), the scene is fabric_selection's contact stage with that
-//! calibration, written to a temporary directory. The comparison is on the decoded messages
+//! No calibration or scene is committed for it: the calibration comes from `unitac calibrate
+//! mock-presses` and `unitac calibrate depth` (seconds, seeded), the scene is fabric_selection's
+//! contact stage with that calibration, written to a temporary directory. The comparison is on the decoded messages
 //! (every field, the pixel and point bytes included), as in golden.rs, so the transports'
 //! serializers' trailing padding does not count.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
@@ -19,6 +20,7 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use unitac_bag::{BagReader, Image, PointCloud2, RosMessage};
+use unitac_core::golden::{diff, parse_lines};
 
 /// Frames of the mock fabric scenario recorded: the background, then the first press (contact
 /// from about frame 28, the peak at 40).
@@ -36,7 +38,8 @@ fn unitac() -> PathBuf {
     p
 }
 
-fn unitac_ok(args: &[&str]) {
+/// Runs `unitac`; its stdout.
+fn unitac_ok(args: &[&str]) -> String {
     let o = Command::new(unitac())
         .args(args)
         .env("RUST_LOG", "warn")
@@ -47,6 +50,7 @@ fn unitac_ok(args: &[&str]) {
         "unitac {args:?}: {}",
         String::from_utf8_lossy(&o.stderr)
     );
+    String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
 fn node(bin: &str, ns: &str, params: &[String]) -> Child {
@@ -163,16 +167,34 @@ fn depth_and_points_reach_rclpy_and_every_transport_gives_the_same_bytes() {
     // The embedded runtime, then bag replay of what it recorded.
     let run = dir.join("run.mcap");
     let frames = FRAMES.to_string();
-    unitac_ok(&[
+    let events = unitac_ok(&[
         "run",
         "--scene",
         scene_s,
         "--fast",
+        "--events",
         "--max-frames",
         &frames,
         "--out",
         run.to_str().unwrap(),
     ]);
+    // The committed summary of these depth maps (crates/cli/tests/golden.rs checks it too and
+    // says how it is made).
+    let lines: Vec<&str> = events.lines().filter(|l| l.starts_with('{')).collect();
+    let got: Vec<Value> = parse_lines(&lines.join("\n"))
+        .unwrap()
+        .into_iter()
+        .filter(|e| e["type"] == "depth")
+        .map(|mut e| {
+            e.as_object_mut().unwrap().remove("digest");
+            e
+        })
+        .collect();
+    let golden = root().join("tests/golden/depth/fabric_selection_depth.jsonl");
+    let want = parse_lines(&std::fs::read_to_string(&golden).unwrap()).unwrap();
+    if let Some(d) = diff(&want, &got) {
+        panic!("depth maps differ from {}: {d}", golden.display());
+    }
     let replayed = dir.join("replay.mcap");
     unitac_ok(&[
         "replay",
