@@ -26,7 +26,7 @@ pub use metadata::MetadataError;
 pub use read::{BagReader, McapError, RawMessage, ReadOptions, SqliteError, TopicInfo};
 pub use repair::{RepairReport, repair};
 pub use replay::{BagSource, ReplayOptions};
-pub use ros::{CompressedImage, Image, RosMessage};
+pub use ros::{CompressedImage, Image, PointCloud2, PointField, RosMessage};
 pub use write::{BagWriter, Compression, UnknownCompression, WriteOptions};
 
 use std::path::PathBuf;

@@ -15,7 +15,7 @@
 use crate::BagError;
 use crate::image::{compressed_to_frame, image_to_frame};
 use crate::read::{BagReader, ReadOptions, TopicInfo};
-use crate::ros::{CompressedImageView, Image, ImageView, RosMessage, is_known_type};
+use crate::ros::{CompressedImageView, Image, ImageView, PointCloud2, RosMessage, is_known_type};
 use crate::write::{BagWriter, TopicId};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -31,6 +31,8 @@ const IMAGE: &str = "sensor_msgs/msg/Image";
 const COMPRESSED: &str = "sensor_msgs/msg/CompressedImage";
 /// Topic of the frames `unitac run --out` records.
 pub const FRAME_TOPIC: &str = "/unitac/image_raw";
+/// Where an output bag's point clouds go (with each depth map on `/unitac/depth`).
+pub const POINTS_TOPIC: &str = "/unitac/points";
 
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ReplayOptions {
@@ -355,6 +357,9 @@ pub fn output_topic(m: &Msg) -> Option<(&'static str, &'static str)> {
         Msg::ArmCommand(_) => ("/unitac/arm_command", ArmCommand::TYPE),
         Msg::VisualObservation(_) => ("/unitac/visual_observation", VisualObservation::TYPE),
         Msg::SlipState(_) => ("/unitac/slip_state", SlipState::TYPE),
+        // Also `/unitac/points` (PointCloud2), written with it.
+        Msg::Depth(_) => ("/unitac/depth", IMAGE),
+        Msg::ContactOverlay(_) => ("/unitac/contact_overlay", IMAGE),
         Msg::Frame(_) | Msg::ContactClip(_) | Msg::Background(_) => return None,
     })
 }
@@ -418,6 +423,15 @@ impl OutputBag {
             Msg::ArmCommand(x) => x.to_cdr(),
             Msg::VisualObservation(x) => x.to_cdr(),
             Msg::SlipState(x) => x.to_cdr(),
+            Msg::Depth(d) => {
+                self.writer
+                    .write_raw(id, t, &Image::depth32fc1(d).to_cdr())?;
+                let points = self.topic(POINTS_TOPIC, PointCloud2::TYPE)?;
+                self.writer
+                    .write_raw(points, t, &PointCloud2::xyz(d).to_cdr())?;
+                return Ok(());
+            }
+            Msg::ContactOverlay(f) => Image::rgb8(f).to_cdr(),
             Msg::Frame(_) | Msg::ContactClip(_) | Msg::Background(_) => return Ok(()),
         };
         self.writer.write_raw(id, t, &data)

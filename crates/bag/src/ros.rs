@@ -1,6 +1,8 @@
 //! ROS 2 messages this crate reads and writes, their CDR form and their `ros2msg` schema text.
 //!
-//! sensor_msgs/Image and sensor_msgs/CompressedImage are written by hand here. The project's
+//! sensor_msgs/Image, CompressedImage and PointCloud2 (with PointField) are written by hand here;
+//! the contact stage's depth ([`DepthMap`]) becomes an Image (32FC1) and a PointCloud2 (x y z)
+//! by [`Image::depth32fc1`] and [`PointCloud2::xyz`], the one conversion of every transport. The project's
 //! messages are the Rust mirrors in `unitac_core::msg`, generated from the `.msg` files in
 //! msg/unitac_msgs; their codecs below are generated from the same definition
 //! (`unitac_core::for_each_message!`), one [`CdrField`] call per field, with the `.msg` text as
@@ -9,8 +11,8 @@
 use crate::cdr::{CdrError, CdrReader, CdrWriter, MAX_IMAGE_BYTES, MAX_SEQUENCE};
 use unitac_core::Stamp;
 use unitac_core::msg::{
-    ArmCommand, ContactEpisode, ContactState, GripperCommand, GripperStatus, Header, Message,
-    PolicyStatus, PropertyComparison, SlipState, TactileLatent, TactileProperties,
+    ArmCommand, ContactEpisode, ContactState, DepthMap, GripperCommand, GripperStatus, Header,
+    Message, PolicyStatus, PropertyComparison, SlipState, TactileLatent, TactileProperties,
     VisualObservation,
 };
 
@@ -41,6 +43,136 @@ impl Image {
             step: f.width * 3,
             data: f.data().to_vec(),
         }
+    }
+}
+
+impl Image {
+    /// The `depth` Image of a depth map: 32FC1, metres, little-endian, NaN where unknown
+    /// (REP 117), the map's stamp and frame_id.
+    pub fn depth32fc1(d: &DepthMap) -> Self {
+        Self {
+            header: d.header.clone(),
+            height: d.height,
+            width: d.width,
+            encoding: "32FC1".into(),
+            is_bigendian: 0,
+            step: d.width.saturating_mul(4),
+            data: d.depth_m.iter().flat_map(|v| v.to_le_bytes()).collect(),
+        }
+    }
+}
+
+/// sensor_msgs/msg/PointField.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointField {
+    pub name: String,
+    pub offset: u32,
+    pub datatype: u8,
+    pub count: u32,
+}
+
+impl PointField {
+    /// PointField's FLOAT32 constant.
+    pub const FLOAT32: u8 = 7;
+    fn read(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
+        Ok(Self {
+            name: r.string("fields.name")?,
+            offset: r.u32("fields.offset")?,
+            datatype: r.u8("fields.datatype")?,
+            count: r.u32("fields.count")?,
+        })
+    }
+}
+
+/// Most fields a PointCloud2 read here may have.
+pub const MAX_POINT_FIELDS: usize = 64;
+
+/// sensor_msgs/msg/PointCloud2.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointCloud2 {
+    pub header: Header,
+    pub height: u32,
+    pub width: u32,
+    pub fields: Vec<PointField>,
+    pub is_bigendian: bool,
+    pub point_step: u32,
+    pub row_step: u32,
+    pub data: Vec<u8>,
+    pub is_dense: bool,
+}
+
+impl PointCloud2 {
+    /// The `points` of a depth map: one point per known pixel, row by row
+    /// ([`DepthMap::points`]: REP 103 optical frame, metres), fields x y z float32, unorganized
+    /// (height 1), dense (no NaN points).
+    pub fn xyz(d: &DepthMap) -> Self {
+        let pts = d.points();
+        let field = |name: &str, offset: u32| PointField {
+            name: name.into(),
+            offset,
+            datatype: PointField::FLOAT32,
+            count: 1,
+        };
+        let n = u32::try_from(pts.len()).unwrap_or(u32::MAX);
+        Self {
+            header: d.header.clone(),
+            height: 1,
+            width: n,
+            fields: vec![field("x", 0), field("y", 4), field("z", 8)],
+            is_bigendian: false,
+            point_step: 12,
+            row_step: n.saturating_mul(12),
+            data: pts.iter().flatten().flat_map(|v| v.to_le_bytes()).collect(),
+            is_dense: true,
+        }
+    }
+}
+
+impl RosMessage for PointCloud2 {
+    const TYPE: &'static str = "sensor_msgs/msg/PointCloud2";
+    fn write_cdr(&self, w: &mut CdrWriter) {
+        self.header.write_cdr(w);
+        w.u32(self.height);
+        w.u32(self.width);
+        w.u32(u32::try_from(self.fields.len()).unwrap_or(u32::MAX));
+        for f in &self.fields {
+            w.string(&f.name);
+            w.u32(f.offset);
+            w.u8(f.datatype);
+            w.u32(f.count);
+        }
+        w.bool(self.is_bigendian);
+        w.u32(self.point_step);
+        w.u32(self.row_step);
+        w.bytes(&self.data);
+        w.bool(self.is_dense);
+    }
+    fn read_cdr(r: &mut CdrReader<'_>) -> Result<Self, CdrError> {
+        let header = Header::read_cdr(r)?;
+        let height = r.u32("height")?;
+        let width = r.u32("width")?;
+        let n = r.u32("fields")? as usize;
+        if n > MAX_POINT_FIELDS {
+            return Err(CdrError::TooLong {
+                what: "fields",
+                len: n,
+                max: MAX_POINT_FIELDS,
+            });
+        }
+        let fields = (0..n)
+            .map(|_| PointField::read(r))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            header,
+            height,
+            width,
+            fields,
+            is_bigendian: r.bool("is_bigendian")?,
+            point_step: r.u32("point_step")?,
+            row_step: r.u32("row_step")?,
+            data: r.bytes("data", MAX_IMAGE_BYTES)?.to_vec(),
+            is_dense: r.bool("is_dense")?,
+        })
     }
 }
 
@@ -375,6 +507,8 @@ macro_rules! unitac_codecs {
             ("std_msgs/msg/Header", HEADER_MSG),
             ("sensor_msgs/msg/Image", IMAGE_MSG),
             ("sensor_msgs/msg/CompressedImage", COMPRESSED_IMAGE_MSG),
+            ("sensor_msgs/msg/PointField", POINT_FIELD_MSG),
+            ("sensor_msgs/msg/PointCloud2", POINT_CLOUD2_MSG),
             $( (<$msg as Message>::ROS_TYPE, <$msg as Message>::MSG_TEXT), )*
         ];
     };
@@ -390,6 +524,12 @@ const HEADER_MSG: &str = "builtin_interfaces/Time stamp\nstring frame_id\n";
 const IMAGE_MSG: &str = "std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\n\
 uint8 is_bigendian\nuint32 step\nuint8[] data\n";
 const COMPRESSED_IMAGE_MSG: &str = "std_msgs/Header header\nstring format\nuint8[] data\n";
+const POINT_FIELD_MSG: &str = "uint8 INT8    = 1\nuint8 UINT8   = 2\nuint8 INT16   = 3\n\
+uint8 UINT16  = 4\nuint8 INT32   = 5\nuint8 UINT32  = 6\nuint8 FLOAT32 = 7\nuint8 FLOAT64 = 8\n\n\
+string name\nuint32 offset\nuint8  datatype\nuint32 count\n";
+const POINT_CLOUD2_MSG: &str = "std_msgs/Header header\nuint32 height\nuint32 width\n\
+PointField[] fields\nbool    is_bigendian\nuint32  point_step\nuint32  row_step\nuint8[] data\n\
+bool is_dense\n";
 
 /// True if this crate can decode messages of this type.
 pub fn is_known_type(type_name: &str) -> bool {
@@ -526,7 +666,7 @@ mod tests {
             };
         }
         unitac_core::for_each_message!(round_trip_each);
-        assert_eq!(KNOWN_TYPES.len(), 4 + 11);
+        assert_eq!(KNOWN_TYPES.len(), 6 + 11);
         // The decoder runs the message's checks: names and values pair up.
         let mut v = samples::visual_observation();
         v.values.pop();
@@ -634,6 +774,49 @@ mod tests {
         );
         let ok = latent(vec![1; MAX_LATENT_DIMS], 1);
         assert_eq!(TactileLatent::from_cdr(&ok.to_cdr()).unwrap(), ok);
+    }
+
+    #[test]
+    fn depth_becomes_a_32fc1_image_and_an_xyz_cloud() {
+        let d = DepthMap {
+            header: header(),
+            width: 2,
+            height: 2,
+            pixel_m: 0.5e-4,
+            depth_m: vec![0.0, f32::NAN, 0.002, 0.0],
+        };
+        let img = Image::depth32fc1(&d);
+        assert_eq!(
+            (img.encoding.as_str(), img.step, img.data.len()),
+            ("32FC1", 8, 16)
+        );
+        assert!(f32::from_le_bytes(img.data[4..8].try_into().unwrap()).is_nan());
+        assert_eq!(Image::from_cdr(&img.to_cdr()).unwrap(), img);
+        let pc = PointCloud2::xyz(&d);
+        assert_eq!(
+            (pc.height, pc.width, pc.point_step, pc.row_step),
+            (1, 3, 12, 36)
+        );
+        assert_eq!(pc.data.len(), 36);
+        let names: Vec<&str> = pc.fields.iter().map(|f| f.name.as_str()).collect();
+        assert_eq!(names, ["x", "y", "z"]);
+        // The second point is pixel (0, 1): left of and below the centre, pressed in (negative
+        // z); the NaN pixel (1, 0) has none.
+        let f = |i: usize| f32::from_le_bytes(pc.data[i * 4..i * 4 + 4].try_into().unwrap());
+        assert_eq!([f(3), f(4), f(5)], [-0.25e-4, 0.25e-4, -0.002]);
+        round_trip(&pc);
+        let s = schema_text(PointCloud2::TYPE).unwrap();
+        assert!(s.contains("MSG: sensor_msgs/PointField\n") && s.contains("MSG: std_msgs/Header"));
+        // A field count beyond the bound is refused before reading them.
+        let mut w = CdrWriter::new();
+        header().write_cdr(&mut w);
+        w.u32(1);
+        w.u32(1);
+        w.u32(1_000_000);
+        assert!(matches!(
+            PointCloud2::from_cdr(&w.finish()),
+            Err(CdrError::TooLong { what: "fields", .. })
+        ));
     }
 
     #[test]

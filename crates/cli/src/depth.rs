@@ -400,25 +400,6 @@ impl DepthEval {
     }
 }
 
-/// A blue-to-yellow colour ramp for t in [0, 1].
-fn ramp(t: f32) -> [u8; 3] {
-    let t = t.clamp(0.0, 1.0);
-    let stops = [
-        [48.0, 18.0, 59.0],
-        [33.0, 145.0, 140.0],
-        [122.0, 209.0, 81.0],
-        [253.0, 231.0, 37.0],
-    ];
-    let x = t * 3.0;
-    let i = (x.floor() as usize).min(2);
-    let f = x - i as f32;
-    let mut o = [0u8; 3];
-    for (c, v) in o.iter_mut().enumerate() {
-        *v = (stops[i][c] * (1.0 - f) + stops[i + 1][c] * f) as u8;
-    }
-    o
-}
-
 /// Frame | estimated depth | true depth, one colour scale (0 to the true approach).
 fn depth_png(
     frame: &Frame,
@@ -437,12 +418,12 @@ fn depth_png(
             img.put_pixel(
                 (w + x) as u32,
                 y as u32,
-                image::Rgb(ramp(est[i] / scale_mm)),
+                image::Rgb(unitac_contact::overlay::ramp(est[i] / scale_mm)),
             );
             img.put_pixel(
                 (2 * w + x) as u32,
                 y as u32,
-                image::Rgb(ramp(truth[i] / scale_mm)),
+                image::Rgb(unitac_contact::overlay::ramp(truth[i] / scale_mm)),
             );
         }
     }
@@ -700,62 +681,47 @@ pub fn contact_depth(
     )?)
 }
 
-/// `<frame stem>.overlay.png` in `dir`: the frame with the contact region's outline (red) and
-/// centroid (a cross), and with a depth estimator, beside it the depth colour map (0 to 1 mm)
-/// with the depth's contact outline (white).
+/// `<frame stem>.overlay.png` in `dir`: the picture of `unitac_contact::overlay` (the contact
+/// stage's `contact_overlay` is the same one): the frame with the contact region's outline and
+/// centroid, and with a depth estimator, beside it the depth colour map with the depth's
+/// contact outline (the depth unknown under the `unknown` pixels, the marker dots).
 pub fn overlay_png(
     frame: &Frame,
     mask: &[bool],
     centroid: [f32; 2],
-    depth: Option<&DepthEstimator>,
+    depth: Option<(&DepthEstimator, &[bool])>,
     dir: &Path,
     source: &Path,
 ) -> anyhow::Result<()> {
-    let (w, h) = (frame.width as usize, frame.height as usize);
-    let panels = if depth.is_some() { 2 } else { 1 };
-    let mut img = image::RgbImage::new((w * panels) as u32, h as u32);
-    let edge = |m: &[bool], x: usize, y: usize| {
-        let at = |x: usize, y: usize| m.get(y * w + x).copied().unwrap_or(false);
-        at(x, y)
-            && (x == 0
-                || y == 0
-                || x + 1 == w
-                || y + 1 == h
-                || !at(x - 1, y)
-                || !at(x + 1, y)
-                || !at(x, y - 1)
-                || !at(x, y + 1))
-    };
-    for y in 0..h {
-        for x in 0..w {
-            let i = y * w + x;
-            let p = frame.data().get(i * 3..i * 3 + 3).unwrap_or(&[0, 0, 0]);
-            let c = if edge(mask, x, y) {
-                [255, 0, 0]
-            } else {
-                [p[0], p[1], p[2]]
-            };
-            img.put_pixel(x as u32, y as u32, image::Rgb(c));
-            if let Some(d) = depth {
-                let c = if edge(d.mask(), x, y) {
-                    [255, 255, 255]
+    use unitac_contact::overlay::{DepthPanel, Overlay, draw};
+    let depth_mm: Option<Vec<f32>> = depth.map(|(d, unknown)| {
+        d.depth_mm()
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                if unknown.get(i).copied().unwrap_or(false) {
+                    f32::NAN
                 } else {
-                    ramp(d.depth_mm().get(i).copied().unwrap_or(0.0))
-                };
-                img.put_pixel((w + x) as u32, y as u32, image::Rgb(c));
-            }
-        }
-    }
-    let (cx, cy) = (centroid[0].round() as i64, centroid[1].round() as i64);
-    if centroid != [0.0, 0.0] {
-        for k in -4..=4i64 {
-            for (x, y) in [(cx + k, cy), (cx, cy + k)] {
-                if x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h {
-                    img.put_pixel(x as u32, y as u32, image::Rgb([255, 255, 0]));
+                    *v
                 }
-            }
-        }
-    }
+            })
+            .collect()
+    });
+    let o = Overlay {
+        contact: mask,
+        centroid: (centroid != [0.0, 0.0]).then_some(centroid),
+        arrows: &[],
+        depth: match (&depth_mm, depth) {
+            (Some(depth_mm), Some((d, _))) => Some(DepthPanel {
+                depth_mm,
+                mask: d.mask(),
+            }),
+            _ => None,
+        },
+    };
+    let img = draw(frame, &o)?;
+    let img = image::RgbImage::from_raw(img.width, img.height, img.data().to_vec())
+        .context("overlay buffer")?;
     let stem = source
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())

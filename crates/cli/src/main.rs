@@ -509,7 +509,9 @@ fn cmd_contact(
                     None => None,
                 };
                 if let Some(dir) = extra.overlay {
-                    depth::overlay_png(&f, &det.mask_px(), m.centroid, depth.as_ref(), dir, path)?;
+                    let unknown = det.marker_mask_px();
+                    let d = depth.as_ref().map(|e| (e, unknown.as_slice()));
+                    depth::overlay_png(&f, &det.mask_px(), m.centroid, d, dir, path)?;
                 }
                 Ok((m, d))
             });

@@ -3,7 +3,10 @@
 //! checked, so a scene added with its golden is checked with no other edit. The embedded runtime (`unitac run --fast --events`)
 //! and `unitac replay --scene` of the bag that run recorded (`--out`) must both reproduce them
 //! (crates/ros/tests/golden.rs checks the ROS nodes on the same bag). `bash scripts/bless-goldens`
-//! regenerates them on purpose after an intended change of a stage's output.
+//! regenerates them on purpose after an intended change of a stage's output. The depth maps of a
+//! contact stage with a depth calibration (no committed scene has one) have their own summary,
+//! tests/golden/depth/fabric_selection_depth.jsonl, checked here for the runtime and replay and
+//! in crates/ros/tests/depth.rs for the nodes.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::{Path, PathBuf};
@@ -123,4 +126,134 @@ fn a_changed_stage_output_fails_the_golden_comparison() {
     ]);
     let d = diff(&golden("fabric_selection"), &got).expect("a changed stage output must differ");
     assert!(d.starts_with("event "), "{d}");
+}
+
+/// The committed summary of the depth maps of fabric_selection's contact stage with a depth
+/// calibration (stamp, size, pixel size, known pixels, deepest value per map; the values' digest
+/// is left out, as float sums may round differently on another CPU).
+fn depth_golden_path() -> PathBuf {
+    root().join("tests/golden/depth/fabric_selection_depth.jsonl")
+}
+
+/// A depth calibration from mock ball presses (`unitac calibrate mock-presses`, `calibrate
+/// depth`: seeded, the same file every time) and fabric_selection's contact stage with it, in
+/// `dir` (crates/ros/tests/depth.rs makes the same).
+fn depth_scene(dir: &Path) -> PathBuf {
+    let mock = dir.join("mock");
+    events(&[
+        "calibrate",
+        "mock-presses",
+        "--count",
+        "30",
+        "--out",
+        mock.to_str().unwrap(),
+    ]);
+    let mut presses: Vec<String> = std::fs::read_dir(&mock)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with("press_")
+        })
+        .map(|p| p.display().to_string())
+        .collect();
+    presses.sort();
+    let cal = dir.join("cal.json");
+    let bg = mock.join("background.png");
+    let mut args = vec![
+        "calibrate",
+        "depth",
+        "--sensor",
+        "gelsight-mini",
+        "--ball-radius-mm",
+        "2",
+        "--background",
+        bg.to_str().unwrap(),
+        "--out",
+        cal.to_str().unwrap(),
+    ];
+    args.extend(presses.iter().map(String::as_str));
+    events(&args);
+    let text = std::fs::read_to_string(root().join("launch/scenes/fabric_selection.yaml")).unwrap();
+    let contact = text
+        .split("  - kind: encoder")
+        .next()
+        .unwrap()
+        .replace("scene: fabric_selection", "scene: fabric_selection_depth")
+        .replace(
+            "clip_frames: 8",
+            &format!("clip_frames: 8\n      depth_calibration: {}", cal.display()),
+        );
+    assert!(contact.contains("depth_calibration"));
+    let scene = dir.join("fabric_selection_depth.yaml");
+    std::fs::write(&scene, contact).unwrap();
+    scene
+}
+
+/// The depth events of a stream.
+fn depth_events(all: &[serde_json::Value]) -> Vec<serde_json::Value> {
+    all.iter()
+        .filter(|e| e["type"] == "depth")
+        .cloned()
+        .collect()
+}
+
+/// The embedded runtime's and bag replay's depth maps: the same values (digests), and the
+/// committed summary. `UNITAC_BLESS=1` rewrites the summary (scripts/bless-goldens does) after
+/// an intended change of the depth.
+#[test]
+fn depth_maps_of_the_embedded_runtime_and_bag_replay_match_their_golden() {
+    let dir = tmp("depth");
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = depth_scene(&dir);
+    let scene = scene.to_str().unwrap();
+    let bag = dir.join("run.mcap");
+    let run = depth_events(&events(&[
+        "run",
+        "--scene",
+        scene,
+        "--fast",
+        "--events",
+        "--max-frames",
+        "50",
+        "--out",
+        bag.to_str().unwrap(),
+    ]));
+    let replayed = depth_events(&events(&[
+        "replay",
+        bag.to_str().unwrap(),
+        "--topic",
+        "/unitac/image_raw",
+        "--scene",
+        scene,
+        "--fast",
+        "--events",
+    ]));
+    assert!(run.len() >= 30, "{} depth maps", run.len());
+    assert!(
+        run == replayed,
+        "bag replay's depth maps differ from the embedded runtime's"
+    );
+    let got: Vec<serde_json::Value> = run
+        .into_iter()
+        .map(|mut e| {
+            e.as_object_mut().unwrap().remove("digest");
+            e
+        })
+        .collect();
+    let path = depth_golden_path();
+    if std::env::var_os("UNITAC_BLESS").is_some() {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        let text: String = got.iter().map(|v| format!("{v}\n")).collect();
+        std::fs::write(&path, text).unwrap();
+    }
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (scripts/bless-goldens makes it)", path.display()));
+    let want = parse_lines(&text).unwrap();
+    if let Some(d) = diff(&want, &got) {
+        panic!("depth maps differ from {}: {d}", path.display());
+    }
+    std::fs::remove_dir_all(&dir).ok();
 }

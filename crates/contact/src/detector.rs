@@ -155,6 +155,27 @@ impl ContactDetector {
         out
     }
 
+    /// The masked marker dots (`mask_markers`) of the current background in input pixels of
+    /// its size (row-major); empty before the background is known. Pixels in the right/bottom
+    /// remainder of a stride are never set.
+    pub fn marker_mask_px(&self) -> Vec<bool> {
+        let Some(Model::Ready { bg, markers }) = &self.model else {
+            return Vec::new();
+        };
+        let g = bg.geo;
+        let (w, st) = (g.width as usize, g.stride as usize);
+        let mut out = vec![false; w * g.height as usize];
+        for (i, _) in markers.iter().enumerate().filter(|(_, m)| **m != 0) {
+            let (gx, gy) = (i % g.gw, i / g.gw);
+            for y in gy * st..(gy + 1) * st {
+                if let Some(row) = out.get_mut(y * w + gx * st..y * w + (gx + 1) * st) {
+                    row.fill(true);
+                }
+            }
+        }
+        out
+    }
+
     /// The residual of every grid cell of the last measured frame (|R| + |G| + |B| of the
     /// difference less the shading field \[DN], row-major on the grid) with the grid's geometry;
     /// None before the first measurement. For diagnostics (the fixtures print radial profiles).

@@ -32,6 +32,7 @@ pub mod depth;
 mod detector;
 mod episodes;
 pub mod grid;
+pub mod overlay;
 mod params;
 mod region;
 mod residual;

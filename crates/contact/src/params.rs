@@ -64,6 +64,10 @@ pub struct ContactParams {
     /// centroid and box come from the gel's depth (its half-depth contour) instead of the
     /// colour residual. Loaded and checked against the sensor when the scene is loaded.
     pub depth_calibration: Option<std::path::PathBuf>,
+    /// Emit a picture per frame for a person (`crate::overlay`: the frame with the contact
+    /// outline and centroid, beside it the depth colour map with a depth calibration): the
+    /// contact node's `contact_overlay` topic. Off by default (it costs a frame's copy).
+    pub overlay: bool,
 }
 
 impl Default for ContactParams {
@@ -91,6 +95,7 @@ impl Default for ContactParams {
             background_dir: None,
             episode_labels: Vec::new(),
             depth_calibration: None,
+            overlay: false,
         }
     }
 }

@@ -4,8 +4,10 @@
 
 use crate::depth::{DepthCalibration, DepthEstimator, DepthParams};
 use crate::detector::ContactDetector;
+use crate::overlay::{DepthPanel, Overlay, draw};
 use crate::params::{ContactParams, ParamsError};
 use crate::store::{BackgroundStore, DirStore};
+use unitac_core::msg::{DepthMap, Header};
 use unitac_core::{Clock, Frame, Msg, SensorSpec, Stage, StageError};
 
 /// The detector as a runtime stage: consumes frames, emits ContactState per frame and
@@ -31,6 +33,10 @@ pub struct ContactStage {
 struct DepthUse {
     cal: DepthCalibration,
     est: Option<DepthEstimator>,
+    /// Pixels of unknown depth (the background's marker dots), at the estimator's size.
+    unknown: Vec<bool>,
+    /// A background announced since the estimator was made.
+    new_background: bool,
 }
 
 impl ContactStage {
@@ -65,9 +71,15 @@ impl ContactStage {
     /// (crate::depth): the half-depth contour of the press, not the colour residual's, which on
     /// a real gel takes in the skirt around a press. Entering and leaving contact (hysteresis,
     /// episodes) stay the detector's. The calibration must be for this sensor's aspect ratio
-    /// (checked when the scene is loaded); the estimator follows each new background.
+    /// (checked when the scene is loaded); the estimator follows each new background. Every
+    /// frame after the background is known also gets its depth map ([`Msg::Depth`]).
     pub fn with_depth(mut self, cal: DepthCalibration) -> Self {
-        self.depth = Some(DepthUse { cal, est: None });
+        self.depth = Some(DepthUse {
+            cal,
+            est: None,
+            unknown: Vec::new(),
+            new_background: false,
+        });
         self
     }
     pub fn detector(&self) -> &ContactDetector {
@@ -98,21 +110,31 @@ impl ContactStage {
 }
 
 impl ContactStage {
-    /// Replace the area, centroid and box of an in-contact ContactState by the depth's.
+    /// With a depth calibration: the depth of every frame with a ContactState (once the
+    /// background is known), as a [`Msg::Depth`] after that ContactState, whose area, centroid and box it replaces
+    /// while in contact. The depth is unknown (NaN) under the masked marker dots, where the
+    /// gel's colour is the dots' and not its shading.
     fn apply_depth(
         &mut self,
         f: &Frame,
-        out: &mut [Msg],
+        out: &mut Vec<Msg>,
         new_background: bool,
     ) -> Result<(), StageError> {
         let Some(d) = self.depth.as_mut() else {
             return Ok(());
         };
+        // A new background is taken at the next frame with a state (frames that learn the
+        // background have no state, and no depth either).
+        d.new_background |= new_background;
+        if !out.iter().any(|m| matches!(m, Msg::ContactState(_))) {
+            return Ok(());
+        }
         let stale = d
             .est
             .as_ref()
-            .is_none_or(|e| new_background || e.size() != (f.width as usize, f.height as usize));
+            .is_none_or(|e| d.new_background || e.size() != (f.width as usize, f.height as usize));
         if stale {
+            d.new_background = false;
             d.est = match self.det.background_frame(&f.sensor_id) {
                 Some(bg) => Some(
                     DepthEstimator::new(d.cal.clone(), bg, DepthParams::default())
@@ -120,19 +142,17 @@ impl ContactStage {
                 ),
                 None => None,
             };
+            d.unknown = self.det.marker_mask_px();
         }
         let Some(est) = d.est.as_mut() else {
             return Ok(());
         };
+        let s = est
+            .estimate(f)
+            .map_err(|e| StageError::BadInput(e.to_string()))?;
         for m in out.iter_mut() {
             let Msg::ContactState(cs) = m else { continue };
-            if !cs.in_contact {
-                continue;
-            }
-            let s = est
-                .estimate(f)
-                .map_err(|e| StageError::BadInput(e.to_string()))?;
-            if !s.contact {
+            if !cs.in_contact || !s.contact {
                 continue;
             }
             let (w, mask) = (est.size().0, est.mask());
@@ -149,7 +169,66 @@ impl ContactStage {
             cs.centroid_px = s.centroid_px;
             cs.bbox_px = [x0, y0, x1, y1];
         }
+        let depth_m = est
+            .depth_mm()
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                if d.unknown.get(i).copied().unwrap_or(false) {
+                    f32::NAN
+                } else {
+                    v * 1e-3
+                }
+            })
+            .collect();
+        out.push(Msg::Depth(DepthMap {
+            header: Header::optical(f.stamp, &f.sensor_id),
+            width: f.width,
+            height: f.height,
+            pixel_m: s.mm_per_px * 1e-3,
+            depth_m,
+        }));
         Ok(())
+    }
+
+    /// The overlay of this frame (`overlay` param) from what the stage saw: the detector's
+    /// contact region, the ContactState's centroid while in contact, the depth panel with a
+    /// depth calibration.
+    fn overlay(&self, f: &Frame, out: &[Msg]) -> Result<Frame, StageError> {
+        let contact = self.det.mask_px();
+        let centroid = out.iter().find_map(|m| match m {
+            Msg::ContactState(c) if c.in_contact => Some(c.centroid_px),
+            _ => None,
+        });
+        // With a calibration the depth panel is always there (the picture keeps its size), all
+        // unknown until the first depth map.
+        let n = f.width as usize * f.height as usize;
+        let depth_mm: Option<Vec<f32>> = self.depth.as_ref().map(|_| {
+            out.iter()
+                .find_map(|m| match m {
+                    Msg::Depth(d) => Some(d.depth_m.iter().map(|v| v * 1e3).collect()),
+                    _ => None,
+                })
+                .unwrap_or_else(|| vec![f32::NAN; n])
+        });
+        let has_depth = out.iter().any(|m| matches!(m, Msg::Depth(_)));
+        let mask = self
+            .depth
+            .as_ref()
+            .and_then(|d| d.est.as_ref())
+            .filter(|_| has_depth)
+            .map(DepthEstimator::mask)
+            .unwrap_or(&[]);
+        let depth = depth_mm
+            .as_deref()
+            .map(|depth_mm| DepthPanel { depth_mm, mask });
+        let o = Overlay {
+            contact: &contact,
+            centroid,
+            arrows: &[],
+            depth,
+        };
+        draw(f, &o).map_err(|e| StageError::BadInput(e.to_string()))
     }
 }
 
@@ -176,6 +255,10 @@ impl Stage for ContactStage {
                 }
                 if self.depth.is_some() {
                     self.apply_depth(f, &mut out, new_background)?;
+                }
+                if self.det.params().overlay {
+                    let o = self.overlay(f, &out)?;
+                    out.push(Msg::ContactOverlay(o));
                 }
                 Ok(out)
             }

@@ -239,3 +239,111 @@ fn the_contact_stage_takes_its_area_from_depth_when_a_scene_gives_a_calibration(
     }
     assert!(last[0] > 1.5, "without depth the skirt is in: {last:?}");
 }
+
+/// With a calibration, every frame after the background gets its depth map (metres, NaN under
+/// the marker dots, the press's penetration at its peak, in the optical frame); the overlay
+/// picture comes only with the `overlay` param.
+#[test]
+fn the_contact_stage_emits_a_depth_map_per_frame_and_an_overlay_only_when_asked() {
+    use unitac_contact::overlay::{CENTROID, OUTLINE};
+    use unitac_contact::{ContactParams, ContactStage};
+    use unitac_core::{Msg, Stage, Stamp};
+    let spec = SensorKind::GelsightMini.spec();
+    let (cal, _) = calibrate(spec, 1.0);
+    let press = BallPress {
+        center_px: [150.0, 110.0],
+        radius_mm: BALL_MM,
+        approach_mm: 0.6,
+    };
+    let noise = PressNoise {
+        noise_dn: 1.0,
+        shading_dn: 0.0,
+        seed: 13,
+    };
+    // With the marker dots this time.
+    let mut marked = cfg();
+    marked.markers = true;
+    let (bg, rendered) = render_presses(&marked, spec, &[press, press, press], noise).unwrap();
+    let clock = unitac_core::ManualClock::new(Stamp::ZERO);
+    for overlay in [false, true] {
+        let p = ContactParams {
+            overlay,
+            ..Default::default()
+        };
+        let mut stage = ContactStage::new(p, spec).unwrap().with_depth(cal.clone());
+        let (mut depths, mut overlays, mut last) = (0, Vec::new(), None);
+        let frames = std::iter::repeat_n(&bg, 12).chain(rendered.iter().map(|p| &p.frame));
+        for (seq, f) in frames.enumerate() {
+            let mut f = f.clone();
+            f.seq = seq as u64;
+            f.stamp = Stamp(seq as i64 * 40_000_000);
+            let out = stage.process(&Msg::Frame(f.clone()), &clock).unwrap();
+            let kinds: Vec<&str> = out.iter().map(Msg::kind).collect();
+            if kinds.contains(&"contact_state") {
+                let at = kinds
+                    .iter()
+                    .position(|k| *k == "depth")
+                    .expect("a depth map");
+                assert!(kinds[..at].contains(&"contact_state"), "{kinds:?}");
+            }
+            for m in out {
+                match m {
+                    Msg::Depth(d) => {
+                        depths += 1;
+                        assert_eq!(d.header.stamp, f.stamp);
+                        assert_eq!(d.header.frame_id, format!("{}_optical_frame", f.sensor_id));
+                        assert_eq!((d.width, d.height), (spec.width, spec.height));
+                        assert_eq!(d.depth_m.len(), (spec.width * spec.height) as usize);
+                        assert!((d.pixel_m - spec.mm_per_px * 1e-3).abs() < 1e-9);
+                        last = Some(d);
+                    }
+                    Msg::ContactOverlay(o) => overlays.push(o),
+                    _ => {}
+                }
+            }
+        }
+        assert!(depths >= 3, "{depths}");
+        let d = last.unwrap();
+        let unknown = d.depth_m.iter().filter(|v| v.is_nan()).count();
+        let share = unknown as f64 / d.depth_m.len() as f64;
+        assert!(
+            (0.01..0.3).contains(&share),
+            "NaN under the markers only: {share}"
+        );
+        let max = d
+            .depth_m
+            .iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .fold(0.0, f32::max);
+        assert!(
+            (f64::from(max) * 1e3 - 0.6).abs() < 0.1,
+            "penetration {max} m"
+        );
+        // The deepest point is at the press, pushed toward the sensor (negative optical z).
+        let pts = d.points();
+        assert_eq!(pts.len(), d.depth_m.len() - unknown);
+        let zmin = pts.iter().map(|p| p[2]).fold(0.0, f32::min);
+        assert_eq!(zmin, -max);
+        if overlay {
+            assert_eq!(overlays.len(), 12 + rendered.len(), "one per frame");
+            assert!(
+                overlays
+                    .iter()
+                    .all(|o| (o.width, o.height) == (2 * spec.width, spec.height)),
+                "the depth panel is there from the first frame on (one picture size)"
+            );
+            let o = overlays.last().unwrap();
+            assert_eq!((o.width, o.height), (2 * spec.width, spec.height));
+            let px: Vec<[u8; 3]> = o
+                .data()
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect();
+            assert!(px.contains(&OUTLINE), "the contact outline is drawn");
+            assert!(px.contains(&CENTROID), "the centroid is drawn");
+        } else {
+            assert!(overlays.is_empty(), "off by default");
+        }
+    }
+}

@@ -182,6 +182,72 @@ pub struct ContactClip {
     pub background: Option<Frame>,
 }
 
+/// The gel's depth per pixel from the contact stage's depth estimate (a scene whose contact stage
+/// has a depth calibration), one per frame once the background is known. On ROS it is two
+/// messages: `depth` (sensor_msgs/Image 32FC1, metres) and `points` (sensor_msgs/PointCloud2,
+/// x y z float32 in `<sensor>_optical_frame`), both made from this by the bag crate's codecs.
+/// Not a ROS message of its own.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DepthMap {
+    /// Capture stamp of the frame, frame_id `<sensor>_optical_frame`.
+    pub header: Header,
+    pub width: u32,
+    pub height: u32,
+    /// The side of one pixel on the gel at this frame size \[m] (the calibration's mm per pixel).
+    pub pixel_m: f64,
+    /// Indentation of the gel surface \[m], positive where the surface is pushed in (away from
+    /// the touched object, toward the sensor's camera), row-major; NaN where unknown (REP 117:
+    /// no measurement, e.g. under the gel's marker dots).
+    pub depth_m: Vec<f32>,
+}
+
+impl DepthMap {
+    /// The point of pixel (x, y) in the optical frame (REP 103: x right, y down, z out of the
+    /// gel toward the object; origin at the image centre on the gel surface at rest) \[m]; None
+    /// where the depth is unknown. An indentation is a negative z.
+    pub fn point(&self, x: u32, y: u32) -> Option<[f32; 3]> {
+        if x >= self.width || y >= self.height {
+            return None;
+        }
+        let d = *self
+            .depth_m
+            .get(y as usize * self.width as usize + x as usize)?;
+        if !d.is_finite() {
+            return None;
+        }
+        let s = self.pixel_m;
+        let cx = (f64::from(self.width) - 1.0) / 2.0;
+        let cy = (f64::from(self.height) - 1.0) / 2.0;
+        Some([
+            ((f64::from(x) - cx) * s) as f32,
+            ((f64::from(y) - cy) * s) as f32,
+            -d,
+        ])
+    }
+    /// Every known pixel's point, row by row ([`DepthMap::point`]).
+    pub fn points(&self) -> Vec<[f32; 3]> {
+        let mut out = Vec::new();
+        for y in 0..self.height {
+            for x in 0..self.width {
+                if let Some(p) = self.point(x, y) {
+                    out.push(p);
+                }
+            }
+        }
+        out
+    }
+    /// FNV-1a (64 bit) of the depth values' little-endian bytes: what the JSON of a depth event
+    /// carries instead of the values, so event streams compare the bytes.
+    pub fn digest(&self) -> String {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for b in self.depth_m.iter().flat_map(|v| v.to_le_bytes()) {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+        format!("{h:016x}")
+    }
+}
+
 /// [`Msg`] and its per-variant methods, from the message list of the `.msg` files
 /// ([`for_each_message!`](crate::for_each_message)): one variant per message, named after it,
 /// plus the three that are not ROS messages of their own (a frame, the background frame, an
@@ -201,6 +267,11 @@ macro_rules! declare_msg {
             Background(Frame),
             /// unitac_msgs/ContactClip (an episode's frames, for the encoder).
             ContactClip(ContactClip),
+            /// The gel's depth of a frame (contact stage with a depth calibration).
+            Depth(DepthMap),
+            /// The contact stage's picture of a frame for a person (`overlay` param): the frame
+            /// with the contact outline and centroid, beside it the depth colour map.
+            ContactOverlay(Frame),
             $(
                 #[doc = concat!("unitac_msgs/", stringify!($name), ".")]
                 $name($name),
@@ -214,7 +285,8 @@ macro_rules! declare_msg {
             /// The time this message belongs to (capture time for frames, header stamp otherwise).
             pub fn stamp(&self) -> Stamp {
                 match self {
-                    Msg::Frame(f) | Msg::Background(f) => f.stamp,
+                    Msg::Frame(f) | Msg::Background(f) | Msg::ContactOverlay(f) => f.stamp,
+                    Msg::Depth(d) => d.header.stamp,
                     Msg::ContactClip(m) => m.frames.last().map_or(Stamp::ZERO, |f| f.stamp),
                     $( Msg::$name(m) => m.header.stamp, )*
                 }
@@ -226,13 +298,15 @@ macro_rules! declare_msg {
                     Msg::Frame(_) => "frame",
                     Msg::Background(_) => "background",
                     Msg::ContactClip(_) => "contact_clip",
+                    Msg::Depth(_) => "depth",
+                    Msg::ContactOverlay(_) => "contact_overlay",
                     $( Msg::$name(_) => stringify!($snake), )*
                 }
             }
             /// JSON of an event (`{"type": kind, ...fields}`); frames give only their metadata.
             pub fn to_json(&self) -> serde_json::Value {
                 let body = match self {
-                    Msg::Frame(f) | Msg::Background(f) => serde_json::json!({
+                    Msg::Frame(f) | Msg::Background(f) | Msg::ContactOverlay(f) => serde_json::json!({
                         "sensor_id": f.sensor_id, "seq": f.seq, "stamp": f.stamp,
                         "width": f.width, "height": f.height,
                     }),
@@ -240,6 +314,15 @@ macro_rules! declare_msg {
                         "sensor_id": m.sensor_id, "episode_id": m.episode_id, "label": m.label,
                         "peak_index": m.peak_index,
                         "frame_seqs": m.frames.iter().map(|f| f.seq).collect::<Vec<_>>(),
+                    }),
+                    // In mm, so that the goldens' tolerance (relative, at least 1e-5 absolute)
+                    // is tight on them.
+                    Msg::Depth(d) => serde_json::json!({
+                        "header": d.header, "width": d.width, "height": d.height,
+                        "pixel_mm": d.pixel_m * 1e3,
+                        "known": d.depth_m.iter().filter(|v| v.is_finite()).count(),
+                        "max_mm": f64::from(d.depth_m.iter().copied().filter(|v| v.is_finite()).fold(0.0f32, f32::max)) * 1e3,
+                        "digest": d.digest(),
                     }),
                     $( Msg::$name(m) => serde_json::to_value(m).unwrap_or_default(), )*
                 };
@@ -283,6 +366,32 @@ mod tests {
             data: vec![0.5; n],
             ..samples::tactile_latent()
         }
+    }
+
+    #[test]
+    fn depth_points_are_in_the_optical_frame_and_skip_unknown_pixels() {
+        let d = DepthMap {
+            header: Header::optical(Stamp(5), "gs"),
+            width: 3,
+            height: 2,
+            pixel_m: 1e-4,
+            depth_m: vec![0.0, f32::NAN, 0.001, 0.0, 0.0, 0.0],
+        };
+        let p = d.points();
+        assert_eq!(p.len(), 5, "the NaN pixel has no point");
+        // Pixel (0, 0): left of and above the centre (1, 0.5); a press is a negative z.
+        assert_eq!(p[0], [-1e-4, -0.5e-4, 0.0]);
+        assert_eq!(d.point(2, 0), Some([1e-4, -0.5e-4, -0.001]));
+        assert_eq!(d.point(1, 0), None);
+        assert_eq!(d.point(3, 0), None);
+        let j = Msg::Depth(d.clone()).to_json();
+        assert_eq!(
+            (j["type"].as_str(), j["known"].as_u64()),
+            (Some("depth"), Some(5))
+        );
+        let mut e = d.clone();
+        e.depth_m[0] = 1e-6;
+        assert_ne!(e.digest(), d.digest());
     }
 
     #[test]

@@ -1,12 +1,16 @@
 //! sensor_msgs/Image and CompressedImage <-> Frame for the nodes: a field copy into the borrowed
 //! views of `unitac_bag::ros`, then the one conversion `unitac replay` uses too
 //! (`unitac_bag::image`: rgb8, bgr8, rgba8, bgra8, mono8, yuv422 variants; jpeg, png), so a
-//! node accepts exactly what a bag replay accepts, with the same bounds and errors.
+//! node accepts exactly what a bag replay accepts, with the same bounds and errors. The contact
+//! stage's depth goes out as `depth` (Image 32FC1) and `points` (PointCloud2) through the bag
+//! crate's conversions too ([`depth`], [`points`]), so a node publishes the bytes an output bag
+//! holds.
 
-use r2r::sensor_msgs::msg::{CompressedImage, Image};
+use r2r::sensor_msgs::msg::{CompressedImage, Image, PointCloud2, PointField};
 use unitac_bag::ImageError;
 use unitac_bag::ros::{CompressedImageView, ImageView};
 use unitac_core::Frame;
+use unitac_core::msg::DepthMap;
 
 use crate::convert;
 
@@ -51,7 +55,11 @@ pub fn to_frame(m: &Image, sensor_id: &str, seq: u64) -> Result<Frame, ImageErro
 
 /// RGB8 frame -> Image (rgb8), header stamp = capture time, frame_id = `<sensor>_optical_frame`.
 pub fn from_frame(f: &Frame) -> Image {
-    let m = unitac_bag::Image::rgb8(f);
+    image_of(unitac_bag::Image::rgb8(f))
+}
+
+/// A bag-crate Image as r2r's.
+fn image_of(m: unitac_bag::Image) -> Image {
     Image {
         header: convert::header(&m.header),
         height: m.height,
@@ -60,6 +68,38 @@ pub fn from_frame(f: &Frame) -> Image {
         is_bigendian: m.is_bigendian,
         step: m.step,
         data: m.data,
+    }
+}
+
+/// The `depth` Image of a depth map (32FC1, metres, NaN where unknown: REP 117), as
+/// `unitac_bag::Image::depth32fc1` makes it.
+pub fn depth(d: &DepthMap) -> Image {
+    image_of(unitac_bag::Image::depth32fc1(d))
+}
+
+/// The `points` PointCloud2 of a depth map (x y z float32 in the optical frame, one per known
+/// pixel), as `unitac_bag::PointCloud2::xyz` makes it.
+pub fn points(d: &DepthMap) -> PointCloud2 {
+    let m = unitac_bag::PointCloud2::xyz(d);
+    PointCloud2 {
+        header: convert::header(&m.header),
+        height: m.height,
+        width: m.width,
+        fields: m
+            .fields
+            .into_iter()
+            .map(|f| PointField {
+                name: f.name,
+                offset: f.offset,
+                datatype: f.datatype,
+                count: f.count,
+            })
+            .collect(),
+        is_bigendian: m.is_bigendian,
+        point_step: m.point_step,
+        row_step: m.row_step,
+        data: m.data,
+        is_dense: m.is_dense,
     }
 }
 
@@ -115,6 +155,30 @@ mod tests {
         assert_eq!((m.encoding.as_str(), m.step), ("rgb8", 12));
         let back = to_frame(&m, "gs", 5).unwrap();
         assert_eq!(back, f);
+    }
+
+    #[test]
+    fn depth_and_points_are_the_bag_crates_messages_field_by_field() {
+        let d = DepthMap {
+            header: unitac_core::msg::Header::optical(Stamp(9), "gs"),
+            width: 2,
+            height: 1,
+            pixel_m: 1e-4,
+            depth_m: vec![f32::NAN, 0.001],
+        };
+        let (i, b) = (depth(&d), unitac_bag::Image::depth32fc1(&d));
+        assert_eq!(
+            (i.encoding.as_str(), i.step, &i.data),
+            ("32FC1", 8, &b.data)
+        );
+        assert_eq!(i.header.frame_id, "gs_optical_frame");
+        let (p, q) = (points(&d), unitac_bag::PointCloud2::xyz(&d));
+        assert_eq!(
+            (p.width, p.point_step, &p.data, p.is_dense),
+            (1, 12, &q.data, true)
+        );
+        assert_eq!(p.fields.len(), 3);
+        assert_eq!((p.fields[2].name.as_str(), p.fields[2].offset), ("z", 8));
     }
 
     #[test]

@@ -1,12 +1,16 @@
 //! Contact node: sensor_msgs/Image in (or CompressedImage: `image_transport`; best-effort, REP 2003); ContactState per frame,
 //! ContactEpisode on release, ContactClip (the episode's frames, for the inference node) and the
 //! learned background (latched, for the sampler's sensor prior) out, reliable; SlipState per frame
-//! in contact when the scene has a `slip` stage; /diagnostics once a second. A thin driver of the
+//! in contact when the scene has a `slip` stage; with a depth calibration in the scene's contact
+//! stage, `depth` (Image 32FC1, metres, NaN where unknown) and `points` (PointCloud2, x y z in
+//! the optical frame) per frame; with `contact.overlay:=true`, `contact_overlay` (Image rgb8, the
+//! picture `unitac contact --overlay` writes); /diagnostics once a second. A thin driver of the
 //! same `ContactStage` (and `SlipStage`) the embedded runtime runs; its clock is the images'
 //! capture stamps, so replays give the same answers as live runs.
 //!
 //! Topics (relative, so namespaces and remaps apply): `image` (or `image/compressed`) in; `contact_state`,
-//! `contact_episode`, `contact_clip`, `background`, `slip_state` out. Parameters
+//! `contact_episode`, `contact_clip`, `background`, `slip_state`, `depth`, `points`,
+//! `contact_overlay` out. Parameters
 //! (`--ros-args --params-file x.yaml`): see `Params`.
 
 use futures::{FutureExt, StreamExt};
@@ -84,13 +88,23 @@ fn drain<T>(
 fn run() -> anyhow::Result<()> {
     let mut base = NodeBase::<Params>::new("unitac_contact", STAGES)?;
     let p = base.params()?;
-    let (_, stages) = unitac_ros::scene_stages(
+    let (scene, stages) = unitac_ros::scene_stages(
         "unitac_contact_node",
         &p.scene,
         &p.sensor_kind,
         STAGES,
         base.stage_overrides(),
     )?;
+    // What the contact stage emits beyond the states: depth (a depth calibration), the overlay.
+    let (with_depth, with_overlay) = unitac_pipeline::stage_configs(&scene)?
+        .iter()
+        .find_map(|c| match c {
+            unitac_pipeline::StageConfig::Contact { params, .. } => {
+                Some((params.depth_calibration.is_some(), params.overlay))
+            }
+            _ => None,
+        })
+        .unwrap_or((false, false));
     let mut chain = Chain::new(stages);
     let sensor_id = p.sensor_id;
 
@@ -125,6 +139,19 @@ fn run() -> anyhow::Result<()> {
         "background",
         QosProfile::default().keep_last(1).transient_local(),
     )?;
+    // Only the topics the scene makes: a subscriber of `depth` on a scene without depth sees no
+    // publisher rather than a silent one.
+    let pub_depth = with_depth
+        .then(|| node.create_publisher::<r2r::sensor_msgs::msg::Image>("depth", reliable()))
+        .transpose()?;
+    let pub_points = with_depth
+        .then(|| node.create_publisher::<r2r::sensor_msgs::msg::PointCloud2>("points", reliable()))
+        .transpose()?;
+    let pub_overlay = with_overlay
+        .then(|| {
+            node.create_publisher::<r2r::sensor_msgs::msg::Image>("contact_overlay", reliable())
+        })
+        .transpose()?;
     let mut diag = diagnostics::Updater::new(
         &format!("unitac_contact: {}", node.fully_qualified_name()?),
         &sensor_id,
@@ -143,6 +170,17 @@ fn run() -> anyhow::Result<()> {
                 Msg::ContactClip(c) => pub_clip.publish(&convert::contact_clip(&c)),
                 Msg::Background(f) => pub_bg.publish(&image::from_frame(&f)),
                 Msg::SlipState(s) => pub_slip.publish(&convert::slip_state(&s)),
+                Msg::Depth(d) => {
+                    let (Some(pd), Some(pp)) = (&pub_depth, &pub_points) else {
+                        continue;
+                    };
+                    counters.published(pd.publish(&image::depth(&d)));
+                    pp.publish(&image::points(&d))
+                }
+                Msg::ContactOverlay(f) => match &pub_overlay {
+                    Some(po) => po.publish(&image::from_frame(&f)),
+                    None => continue,
+                },
                 _ => continue,
             };
             counters.published(r);
