@@ -245,3 +245,61 @@ fn a_missing_or_wrong_model_is_a_load_error() {
     .to_string();
     assert!(e.contains("stiffness model"), "{e}");
 }
+
+/// A cup VLA scene whose policy stage is `policy: learned` with `models` (`""`: none) and the
+/// camera's `visual` names.
+fn learned(name: &str, model: &str, visual: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("unitac-policy-scenes-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("{name}.yaml"));
+    let (models, names) = if model.is_empty() {
+        (String::new(), String::new())
+    } else {
+        (
+            format!("models:\n  policy: {model}\n"),
+            "    models: [policy]\n".to_string(),
+        )
+    };
+    std::fs::write(
+        &path,
+        format!(
+            "scene: {name}\nsource: {{kind: mock, sensor: gelsight-mini, scenario: cup_deformation}}\n\
+             {models}stages:\n  - kind: policy\n{names}    params: {{policy: learned, mode: vla, \
+             task: squeeze the cup by 1 cm, objects: [cup], visual_names: [{visual}], max_opening_m: 0.11}}\n"
+        ),
+    )
+    .unwrap();
+    path
+}
+
+#[test]
+fn a_learned_policy_loads_only_a_bundle_that_fits_the_scene() {
+    let all = "cup_x_m, cup_y_m, cup_z_m, cup_width_m, cup_height_m";
+    let bundle = "${UNITAC_MODELS}/learned/seed0/cup_deformation_vla/manifest.json";
+    build_policy(&learned("learned_ok", bundle, all)).unwrap();
+    let e = build_policy(&learned("learned_none", "", all))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("a learned policy needs its bundle"), "{e}");
+    // The scripted scene's camera names: the network reads five, in the demonstrations' order.
+    let e = build_policy(&learned(
+        "learned_names",
+        bundle,
+        "cup_x_m, cup_y_m, cup_width_m",
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("observation.visual reads"), "{e}");
+    // A stiffness readout is no learned policy: every problem in one line.
+    let e = build_policy(&learned(
+        "learned_readout",
+        "${UNITAC_MODELS}/policy/cup_stiffness_real/manifest.json",
+        all,
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("no action 'gripper.position_m'") && !e.contains('\n'),
+        "{e}"
+    );
+}
