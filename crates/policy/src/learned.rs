@@ -266,6 +266,8 @@ impl Memory {
 #[derive(Debug)]
 pub struct LearnedPolicy {
     onnx: OnnxPolicy,
+    /// The stage inputs its features come from.
+    reads: Vec<&'static str>,
     memory: Memory,
     /// "home", then the scene's objects; the score action of each.
     targets: Vec<(String, usize)>,
@@ -368,6 +370,7 @@ impl LearnedPolicy {
             return Err(load_error(dir, problems));
         }
         Ok(Self {
+            reads: Self::inputs_of(&onnx),
             onnx,
             memory: Memory::new(&params.objects, width, params.approach_s),
             targets,
@@ -389,8 +392,13 @@ impl LearnedPolicy {
 
     /// The stage inputs the model's features come from.
     pub fn reads(&self) -> Vec<&'static str> {
+        self.reads.clone()
+    }
+
+    /// [`Self::reads`] of `onnx`, once at load.
+    fn inputs_of(onnx: &OnnxPolicy) -> Vec<&'static str> {
         let mut r = Vec::new();
-        for i in self.onnx.input_names() {
+        for i in onnx.input_names() {
             let n = match i {
                 CONTACT => "contact",
                 LATENT_REAL => "latent_real",
@@ -449,7 +457,7 @@ impl Policy for LearnedPolicy {
     /// start before the contact stage's first state: its slice is zeros until then).
     fn required(&self) -> Vec<&'static str> {
         let mut r = vec!["gripper", "visual"];
-        if self.memory.contact.is_some() && self.reads().contains(&"contact") {
+        if self.memory.contact.is_some() && self.reads.contains(&"contact") {
             r.push("contact");
         }
         r
@@ -465,10 +473,10 @@ impl Policy for LearnedPolicy {
         if self.phase == "act" && self.memory.latched.is_some() {
             self.phase = "holding";
         }
-        if obs.stamp.secs_since(start) >= self.run_s {
+        let t_s = obs.stamp.secs_since(start);
+        if t_s >= self.run_s {
             self.phase = "done";
         }
-        let t_s = obs.stamp.secs_since(start);
         let memory = self.memory.features();
         let arm = self.memory.arm(t_s);
         let state = obs.slice(STATE).unwrap_or(&[]);
