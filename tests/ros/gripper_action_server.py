@@ -23,11 +23,13 @@ MODE own: a gripper simulated here on its own sim time (10 ms steps, paced at re
   (geometry_msgs/PoseStamped) as a Cartesian controller would: it records each target's frame
   and position.
 
-stdin, one line each (answers on stdout); both wait for a goal to be executing:
-  "abort"    abort the active goal (a controller fault, stalled false): "aborted T_NS"
-  "preempt"  a second client sends a goal (hold where the fingers are), preempting the active
-             one: "preempted T_NS"
-  own mode: the clock stops at an executing goal (T_NS: the last published sim time) until
+stdin, one line each (answers on stdout). Both act on the client's next goal, which is kept
+executing until then (a goal within tolerance of the fingers would otherwise end at once, before
+the fault could reach it); "no goal" if the client sent none within 20 s:
+  "abort"    abort it (a controller fault, stalled false): "aborted T_NS"
+  "preempt"  a second client sends a goal (hold where the fingers are), preempting it:
+             "preempted T_NS"
+  own mode: the clock stops when that goal is accepted (T_NS: the last published sim time) until
   "resume" (the caller has seen the client hear of the goal's end; at most 30 s), then goes on.
   "end"      print a JSON summary and exit
 out: "ready" once the server is up; "goal P E" for each accepted goal.
@@ -82,8 +84,9 @@ def main():
     # The gripper as the controller sees it: sim time, position, effort, and when it last moved.
     state = {"t_ns": 0, "position": None, "effort": 0.0, "last_moved_ns": 0,
              "target": None, "max_effort": 0.0}
-    # The active goal: {"gh", "flag": None | "preempted" | "aborted"}.
-    active = {"goal": None}
+    # The active goal: {"gh", "flag": None | "held" | "preempted" | "aborted"}; "held": kept
+    # executing until another client's goal preempts it. "hold_next": the next goal is held.
+    active = {"goal": None, "hold_next": False}
     record = {"goals": [], "ends": [], "status": [], "poses": []}
     qos = QoSProfile(depth=100)
 
@@ -123,9 +126,13 @@ def main():
     def accepted_cb(gh):
         with lock:
             old = active["goal"]
-            if old is not None and old["flag"] is None:
+            if old is not None and old["flag"] in (None, "held"):
                 old["flag"] = "preempted"
-            active["goal"] = {"gh": gh, "flag": None}
+            flag = "held" if active["hold_next"] else None
+            active["hold_next"] = False
+            active["goal"] = {"gh": gh, "flag": flag}
+            if flag == "held" and mode == "own":
+                paused.set()
         c = gh.request.command
         record["goals"].append([c.position, c.max_effort])
         command(c.position, c.max_effort)
@@ -166,6 +173,8 @@ def main():
                 gh.abort()
                 record["ends"].append(["aborted", t])
                 return result(pos, eff, False, False)
+            if flag == "held":
+                continue
             target = gh.request.command.position
             if abs(target - pos) < GOAL_TOLERANCE:
                 gh.succeed()
@@ -257,36 +266,37 @@ def main():
                 paused.clear()
             threading.Thread(target=resume, daemon=True).start()
 
-    def pause_at_active_goal():
-        """Own mode: stop the clock while a goal is executing (at most 20 s of waiting)."""
+    def hold_next_goal():
+        """The client's next goal is held executing (own mode: the clock stops once it is);
+        False if none came within 20 s."""
+        with lock:
+            active["hold_next"] = True
         t0 = time.monotonic()
         while time.monotonic() - t0 < 20:
             with lock:
                 g = active["goal"]
-                busy = g is not None and g["flag"] is None
-            if busy:
-                if mode != "own":
-                    return
-                paused.set()
-                time.sleep(0.05)
-                with lock:
-                    if active["goal"] is g:
-                        return
-                paused.clear()
+                held = g is not None and g["flag"] == "held"
+            if held:
+                return True
             time.sleep(0.002)
+        with lock:
+            active["hold_next"] = False
+        return False
 
     def read_stdin():
         for line in sys.stdin:
             cmd = line.strip()
             if cmd == "abort":
-                pause_at_active_goal()
+                if not hold_next_goal():
+                    say("no goal")
+                    continue
                 with lock:
-                    g = active["goal"]
-                    if g is not None:
-                        g["flag"] = "aborted"
+                    active["goal"]["flag"] = "aborted"
                 after_fault("aborted")
             elif cmd == "preempt":
-                pause_at_active_goal()
+                if not hold_next_goal():
+                    say("no goal")
+                    continue
                 goal = GripperAction.Goal()
                 with lock:
                     goal.command.position = state["position"] or 0.0

@@ -58,6 +58,15 @@ fn check_fault(st: &[Value], t: i64, why: &str) {
     );
 }
 
+/// Ask the controller for a fault (`abort` or `preempt`) on the policy's next goal: the sim
+/// time it happened at.
+fn fault(ctl: &mut Observer, cmd: &str, answer: &str) -> i64 {
+    ctl.send(cmd);
+    let got = ctl.wait_for(|l| l.starts_with(answer) || l == "no goal", 30);
+    assert_ne!(got, "no goal", "{cmd}: the policy sent no goal within 20 s");
+    got[answer.len()..].parse().unwrap()
+}
+
 #[test]
 fn abort_and_preemption_get_the_safe_action_on_the_next_tick_and_arm_targets_are_poses() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
@@ -86,20 +95,19 @@ fn abort_and_preemption_get_the_safe_action_on_the_next_tick_and_arm_targets_are
         ]
         .concat(),
     );
-    // The policy's first goal (the approach's opening), then a second of control. At each
-    // fault the controller's clock waits until the policy has heard of it: the claim is about
-    // the policy's next tick, not about how fast the end reaches it.
+    // The policy's first goal (the approach's opening), then a second of control. Each fault
+    // ends the policy's next goal, and the controller's clock waits from that goal until the
+    // policy has heard of the fault: the claim is about the policy's next tick, not about how
+    // fast the end reaches it.
     const ABORTED: &str = "gripper action: goal aborted by the server";
     const PREEMPTED: &str = "gripper action: goal preempted or canceled by another client";
     ctl.wait_for(|l| l.starts_with("goal "), 60);
     std::thread::sleep(Duration::from_secs(1));
-    let aborted = ctl.ask("abort", "aborted ", 30);
-    let aborted: i64 = aborted["aborted ".len()..].parse().unwrap();
+    let aborted = fault(&mut ctl, "abort", "aborted ");
     heard(&log, ABORTED, 30);
     ctl.send("resume");
     std::thread::sleep(Duration::from_millis(500));
-    let preempted = ctl.ask("preempt", "preempted ", 30);
-    let preempted: i64 = preempted["preempted ".len()..].parse().unwrap();
+    let preempted = fault(&mut ctl, "preempt", "preempted ");
     heard(&log, PREEMPTED, 30);
     ctl.send("resume");
     std::thread::sleep(Duration::from_secs(2));
