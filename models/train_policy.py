@@ -2,7 +2,7 @@
 scripted expert's demonstrations (scripts/lerobot_dataset.py), numpy only, and export each to ONNX
 in the policy bundle format of crates/policy/src/onnx (manifest.json with LeRobot names).
 
-usage: train_policy.py --dataset DS [--dataset DS2 ...] --out DIR [--seed S]
+usage: train_policy.py --dataset DS [--dataset DS2 ...] --out DIR [--seed S] [--dagger DIR]
        train_policy.py --select --dataset DS [...]     (the hyperparameter table, printed)
        train_policy.py --check-gradients
        train_policy.py --check-onnx DIR --dataset DS    (ONNX Runtime against the numpy forward)
@@ -12,19 +12,34 @@ concatenated, standardised per element (mean_std over the training frames; a con
 gets std 1), and go through two tanh layers of HIDDEN units to the action, standardised the same
 way: the gripper's position, speed and force limit, the arm's x, y, z and lift, and one score per
 arm target (home, then each object: the runtime takes the largest). The modes differ only in
-their observation slices; nothing names an object, an index or a hash. Loss: mean squared error
-of the standardised action, Adam with a cosine learning rate, weight decay, minibatches.
+their observation slices; nothing names an object, an index or a hash.
+
+Bounds: each command's [lo, hi] is the dataset's (info.json action "bounds": the range the
+recording scene's safety layer held the expert to). Training keeps the last layer's output z
+inside them: the loss is the mean squared error of the standardised action plus BARRIER times
+the mean squared distance of z beyond its bounds (the expert commands the 40 N force limit in
+most cup frames and a closed gripper in most fabric frames, and a plain least-squares fit
+overshoots such bounds in a large share of ticks). The network then ends in a clip of z to the
+bounds, so no output leaves them; train.json reports per policy the share of frames whose z lay
+beyond a bound by more than 2 % of its range before that clip (training frames, and the DAgger
+frames: states the first-round policy reached in closed loop). Arm-target scores are neither
+penalised nor clipped (the runtime takes the largest). Adam with a cosine learning rate, weight
+decay, minibatches. BARRIER was set once, not searched.
 
 Hyperparameters were chosen ONCE for all modes and both tasks with --select: episodes of the
 largest seed of each training dataset held out, every grid point trained on the rest, the mean
 held-out loss over the 3 modes x tasks compared (the table goes to stdout); the chosen values are
 the constants below. The final fit uses every training episode.
 
+DAgger (--dagger DIR): the policy of mode M for task T is fitted on T's demonstrations plus the
+LeRobot dataset DIR/T_M, if there is one: the states that mode's first-round policy visited,
+each labelled with the expert's command there (`unitac demos --drive`, scripts/learned_policies.sh).
+
 Export (onnx.helper, opset 20): one input per feature ("observation.state", ...), [batch, n],
-normalisation mean_std in the manifest; Concat -> Gemm -> Tanh -> Gemm -> Tanh -> Gemm ->
-Reshape [batch, 1, A] -> output "action", its mean_std normalisation and per action the bounds
-of the gripper's interface and the arm's workspace. chunk_size 1, n_action_steps 1: one setpoint
-per control tick.
+normalisation mean_std in the manifest; Concat -> Gemm -> Tanh -> Gemm -> Tanh -> Gemm -> Max,
+Min (the clip, in standardised units) -> Reshape [batch, 1, A] -> output "action", its mean_std
+normalisation and per action those bounds. chunk_size 1, n_action_steps 1: one setpoint per
+control tick.
 """
 import argparse
 import glob
@@ -54,18 +69,15 @@ WEIGHT_DECAY = 1e-4
 EPOCHS = 30
 BATCH = 256
 GRID = [{"hidden": h, "lr": lr, "weight_decay": WEIGHT_DECAY} for h in [64, 128] for lr in [1e-3, 3e-3]]
-# Bounds of each action (SI): the sim gripper's interface (crates/sim GripperLimits: 140 mm
-# stroke, 0.1 m/s, 40 N) and the arm's workspace (crates/sim command bounds).
-BOUNDS = {
-    "gripper.position_m": ("m", 0.0, 0.14),
-    "gripper.speed_m_s": ("m/s", 0.0, 0.1),
-    "gripper.force_n": ("N", 0.0, 40.0),
-    "arm.x_m": ("m", -2.0, 2.0),
-    "arm.y_m": ("m", -2.0, 2.0),
-    "arm.z_m": ("m", 0.0, 1.0),
-    "arm.lift_m": ("m", 0.0, 0.5),
-}
+# The unit of each action value; its bounds are the dataset's (info.json action "bounds": the
+# range the recording scene's safety layer held it to); an arm target's score is in [0, 1].
+UNITS = {"gripper.position_m": "m", "gripper.speed_m_s": "m/s", "gripper.force_n": "N",
+         "arm.x_m": "m", "arm.y_m": "m", "arm.z_m": "m", "arm.lift_m": "m"}
 MAX_FRAMES = 2_000_000
+# Weight of the squared distance beyond a bound in the loss (set once, not searched).
+BARRIER = 10.0
+# A pre-clip value further beyond a bound than this share of its range counts as beyond.
+FAR_FRACTION = 0.02
 
 
 def load(root):
@@ -95,11 +107,19 @@ def load(root):
 
 
 def targets(info, cols):
-    """The action matrix [frames, 7 + targets] and its names."""
+    """The action matrix [frames, 7 + targets], its names and per name (unit, min, max)."""
     cats = info["features"]["action.arm_target"]["categories"]
     onehot = np.eye(len(cats))[cols["action.arm_target"][:, 0].astype(int)]
-    names = list(info["features"]["action"]["names"]) + [f"arm.target.{c}" for c in cats]
-    return np.concatenate([cols["action"], onehot], axis=1), names
+    action = info["features"]["action"]
+    b = action.get("bounds")
+    if not b or len(b["min"]) != len(action["names"]) or len(b["max"]) != len(action["names"]):
+        raise SystemExit("info.json: the action feature has no bounds for every value")
+    bounds = {n: (UNITS.get(n, "m"), float(lo), float(hi))
+              for n, lo, hi in zip(action["names"], b["min"], b["max"])}
+    for c in cats:
+        bounds[f"arm.target.{c}"] = ("score", 0.0, 1.0)
+    names = list(action["names"]) + [f"arm.target.{c}" for c in cats]
+    return np.concatenate([cols["action"], onehot], axis=1), names, bounds
 
 
 def observations(cols, mode):
@@ -109,6 +129,13 @@ def observations(cols, mode):
 def standardise(x):
     mu, sd = x.mean(0), x.std(0)
     return mu, np.where(sd > 1e-6, sd, 1.0)
+
+
+def head(names, bounds, ym, ys):
+    """Each action's bounds in standardised units (the clip and the barrier; a score has none)."""
+    lo = np.array([bounds[n][1] if bounds[n][0] != "score" else -np.inf for n in names])
+    hi = np.array([bounds[n][2] if bounds[n][0] != "score" else np.inf for n in names])
+    return {"lo": (lo - ym) / ys, "hi": (hi - ym) / ys}
 
 
 def init_params(d_in, d_out, hidden, rng):
@@ -122,20 +149,25 @@ def init_params(d_in, d_out, hidden, rng):
     return p
 
 
-def forward(p, x):
+def forward(p, h, x):
+    """The standardised action for standardised x, clipped to its bounds, and the activations
+    (z: before the clip)."""
     a1 = np.tanh(x @ p["W1"] + p["b1"])
     a2 = np.tanh(a1 @ p["W2"] + p["b2"])
-    return a2 @ p["W3"] + p["b3"], (a1, a2)
+    z = a2 @ p["W3"] + p["b3"]
+    return np.minimum(np.maximum(z, h["lo"]), h["hi"]), (a1, a2, z)
 
 
-def loss_grad(p, x, y):
-    """Mean squared error over frames and actions, and its gradient."""
-    out, (a1, a2) = forward(p, x)
+def loss_grad(p, h, x, y):
+    """Mean squared error of z over frames and actions plus BARRIER times the mean squared
+    distance of z beyond its bounds, and the gradient."""
+    _, (a1, a2, z) = forward(p, h, x)
     n = x.shape[0] * y.shape[1]
-    d = out - y
-    loss = float((d ** 2).sum() / n)
+    d = z - y
+    over = np.maximum(z - h["hi"], 0.0) - np.maximum(h["lo"] - z, 0.0)
+    loss = float(((d ** 2).sum() + BARRIER * (over ** 2).sum()) / n)
     g = {}
-    do = 2.0 * d / n
+    do = 2.0 * (d + BARRIER * over) / n
     g["W3"], g["b3"] = a2.T @ do, do.sum(0)
     dh2 = (do @ p["W3"].T) * (1.0 - a2 ** 2)
     g["W2"], g["b2"] = a1.T @ dh2, dh2.sum(0)
@@ -149,14 +181,17 @@ def check_gradients():
     rng = np.random.default_rng(0)
     p = init_params(5, 3, 7, rng)
     p = {k: v + rng.normal(0, 0.3, v.shape) for k, v in p.items()}
-    x, y = rng.normal(size=(4, 5)), rng.normal(size=(4, 3))
-    worst = gradient_check_error(loss_grad, p, x, y)
+    x, y = rng.normal(size=(6, 5)), rng.normal(size=(6, 3))
+    h = {"lo": np.array([-1.0, -2.0, -1.5]), "hi": np.array([1.0, 2.0, 0.5])}
+    # Targets at a bound, outputs on both sides of it.
+    y[0, 0], y[1, 0], y[2, 2], y[3, 2] = -1.0, 1.0, 0.5, -1.5
+    worst = gradient_check_error(lambda p_, x_, y_: loss_grad(p_, h, x_, y_), p, x, y)
     print(json.dumps({"gradient_check_max_rel_error": worst}))
     return 0 if worst < 1e-6 else 1
 
 
-def fit(x, y, hp, seed, epochs=EPOCHS):
-    """Train on standardised x, y; the parameters come back."""
+def fit(x, y, h, hp, seed, epochs=EPOCHS):
+    """Train on standardised x, y with the bounded head h; the parameters come back."""
     rng = np.random.default_rng(seed)
     p = init_params(x.shape[1], y.shape[1], hp["hidden"], rng)
     m = {k: np.zeros_like(v) for k, v in p.items()}
@@ -166,7 +201,7 @@ def fit(x, y, hp, seed, epochs=EPOCHS):
     steps = epochs * max(1, n // BATCH)
     for it in range(1, steps + 1):
         i = rng.integers(0, n, BATCH)
-        _, g = loss_grad(p, x[i], y[i])
+        _, g = loss_grad(p, h, x[i], y[i])
         lr_t = hp["lr"] * 0.5 * (1 + np.cos(np.pi * it / steps))
         for k in p:
             m[k] = b1 * m[k] + (1 - b1) * g[k]
@@ -177,15 +212,27 @@ def fit(x, y, hp, seed, epochs=EPOCHS):
     return p
 
 
-def prepared(root, mode, keep=None):
-    """Standardised (x, y) of the episodes `keep` selects, with the statistics of those frames."""
+def prepared(root, mode, keep=None, extra=()):
+    """Standardised (x, y) of the episodes `keep` selects and of every frame of the `extra`
+    datasets (same features), with the statistics of those frames and the bounded head they
+    give."""
     info, cols, ep, seeds = load(root)
     x = observations(cols, mode)
-    y, names = targets(info, cols)
+    y, names, bounds = targets(info, cols)
     rows = np.ones(len(x), bool) if keep is None else np.array([keep(seeds[e]) for e in ep])
+    n_base = len(x)
+    for more in extra:
+        info2, cols2, _, _ = load(more)
+        y2, names2, bounds2 = targets(info2, cols2)
+        x2 = observations(cols2, mode)
+        if names2 != names or bounds2 != bounds or x2.shape[1] != x.shape[1]:
+            raise SystemExit(f"{more}: its actions, their bounds or the {mode} observation differ from {root}'s")
+        x, y = np.concatenate([x, x2]), np.concatenate([y, y2])
+        rows = np.concatenate([rows, np.ones(len(x2), bool)])
     xm, xs = standardise(x[rows])
     ym, ys = standardise(y[rows])
-    return info, names, (x - xm) / xs, (y - ym) / ys, rows, (xm, xs, ym, ys)
+    return (info, names, bounds, (x - xm) / xs, (y - ym) / ys, rows, (xm, xs, ym, ys),
+            head(names, bounds, ym, ys), n_base)
 
 
 def select(datasets):
@@ -197,9 +244,9 @@ def select(datasets):
             _, _, _, seeds = load(root)
             held = max(seeds.values())
             for mode in MODES:
-                _, _, x, y, rows, _ = prepared(root, mode, keep=lambda s: s != held)
-                p = fit(x[rows], y[rows], hp, seed=0)
-                out, _ = forward(p, x[~rows])
+                _, _, _, x, y, rows, _, h, _ = prepared(root, mode, keep=lambda s: s != held)
+                p = fit(x[rows], y[rows], h, hp, seed=0)
+                out, _ = forward(p, h, x[~rows])
                 losses[f"{os.path.basename(root.rstrip('/'))}/{mode}"] = float(((out - y[~rows]) ** 2).mean())
         table.append({**hp, "mean_held_out_loss": float(np.mean(list(losses.values()))), "losses": losses})
         print(json.dumps(table[-1]), flush=True)
@@ -208,7 +255,7 @@ def select(datasets):
     return 0
 
 
-def export(p, stats, info, names, mode, out_dir, name, task):
+def export(p, h, stats, info, names, bounds, mode, out_dir, name, task):
     xm, xs, ym, ys = stats
     feats = MODES[mode]
     widths = [info["features"][k]["shape"][0] for k in feats]
@@ -218,9 +265,12 @@ def export(p, stats, info, names, mode, out_dir, name, task):
              helper.make_node("Tanh", ["h1"], ["a1"]),
              helper.make_node("Gemm", ["a1", "W2", "b2"], ["h2"]),
              helper.make_node("Tanh", ["h2"], ["a2"]),
-             helper.make_node("Gemm", ["a2", "W3", "b3"], ["flat"]),
+             helper.make_node("Gemm", ["a2", "W3", "b3"], ["z"]),
+             helper.make_node("Max", ["z", "lo"], ["z_lo"]),
+             helper.make_node("Min", ["z_lo", "hi"], ["flat"]),
              helper.make_node("Reshape", ["flat", "chunk_shape"], ["action"])]
     inits = [init(k, p[k]) for k in ("W1", "b1", "W2", "b2", "W3", "b3")]
+    inits += [init(k, h[k]) for k in ("lo", "hi")]
     inits.append(i64("chunk_shape", [-1, 1, a]))
     g = helper.make_graph(
         nodes, f"{name}_policy",
@@ -239,7 +289,7 @@ def export(p, stats, info, names, mode, out_dir, name, task):
         at += w
     actions = []
     for n in names:
-        unit, lo, hi = BOUNDS.get(n, ("score", 0.0, 1.0))
+        unit, lo, hi = bounds[n]
         actions.append({"name": n, "unit": unit, "min": lo, "max": hi})
     manifest = {
         "policy": name,
@@ -259,24 +309,45 @@ def export(p, stats, info, names, mode, out_dir, name, task):
     }
     with open(os.path.join(out_dir, "manifest.json"), "w") as f:
         json.dump(manifest, f, indent=1)
-    np.savez(os.path.join(out_dir, "weights.npz"), **p)
+    np.savez(os.path.join(out_dir, "weights.npz"), **p, **{f"head_{k}": v for k, v in h.items()})
 
 
-def train_all(datasets, out, seed):
+def beyond_share(p, h, x, stats, names, bounds):
+    """Per command, the share of the (standardised) frames x whose pre-clip output lay beyond a
+    bound by more than FAR_FRACTION of its range."""
+    _, (_, _, z) = forward(p, h, x)
+    _, _, ym, ys = stats
+    v = z * ys + ym
+    out = {}
+    for j, n in enumerate(names):
+        unit, lo, hi = bounds[n]
+        if unit == "score":
+            continue
+        m = FAR_FRACTION * (hi - lo)
+        out[n] = float(np.mean((v[:, j] < lo - m) | (v[:, j] > hi + m)))
+    return out
+
+
+def train_all(datasets, out, seed, dagger=None):
     report = []
     for root in datasets:
         task = os.path.basename(root.rstrip("/"))
         for mode in MODES:
             t0 = time.time()
-            info, names, x, y, _, stats = prepared(root, mode)
-            p = fit(x, y, {"hidden": HIDDEN, "lr": LR, "weight_decay": WEIGHT_DECAY}, seed)
-            out_, _ = forward(p, x)
+            more = os.path.join(dagger, f"{task}_{mode}") if dagger else None
+            extra = [more] if more and os.path.isdir(more) else []
+            info, names, bounds, x, y, _, stats, h, n_base = prepared(root, mode, extra=extra)
+            p = fit(x, y, h, {"hidden": HIDDEN, "lr": LR, "weight_decay": WEIGHT_DECAY}, seed)
+            out_, _ = forward(p, h, x)
             name = f"{task}_{mode}"
             instruction = pq.read_table(os.path.join(root, "meta", "tasks.parquet")).column(
                 "__index_level_0__")[0].as_py()
-            export(p, stats, info, names, mode, os.path.join(out, name), name, instruction)
-            report.append({"policy": name, "frames": len(x), "inputs": x.shape[1],
+            export(p, h, stats, info, names, bounds, mode, os.path.join(out, name), name, instruction)
+            report.append({"policy": name, "frames": len(x), "dagger": bool(extra), "inputs": x.shape[1],
                            "train_loss": float(((out_ - y) ** 2).mean()),
+                           "beyond_share_demos": beyond_share(p, h, x[:n_base], stats, names, bounds),
+                           "beyond_share_dagger": beyond_share(p, h, x[n_base:], stats, names, bounds)
+                           if len(x) > n_base else None,
                            "seconds": round(time.time() - t0, 1)})
             print(json.dumps(report[-1]), flush=True)
     with open(os.path.join(out, "train.json"), "w") as f:
@@ -295,7 +366,9 @@ def check_onnx(bundles, datasets):
             d = os.path.join(bundles, f"{task}_{mode}")
             man = json.load(open(os.path.join(d, "manifest.json")))
             w = np.load(os.path.join(d, "weights.npz"))
-            p = {k: w[k] for k in w.files}
+            f64 = lambda v: v.astype(np.float32).astype(np.float64)
+            p = {k: f64(w[k]) for k in w.files if not k.startswith("head_")}
+            h = {k[len("head_"):]: f64(w[k]) for k in w.files if k.startswith("head_")}
             _, cols, _, _ = load(root)
             feed, xs = {}, []
             for spec in man["inputs"]:
@@ -306,8 +379,7 @@ def check_onnx(bundles, datasets):
                 xs.append(v.astype(np.float64))
             s = ort.InferenceSession(os.path.join(d, "policy.onnx"), providers=["CPUExecutionProvider"])
             got = s.run(["action"], feed)[0][:, 0, :]
-            want, _ = forward({k: v.astype(np.float32).astype(np.float64) for k, v in p.items()},
-                              np.concatenate(xs, axis=1))
+            want, _ = forward(p, h, np.concatenate(xs, axis=1))
             diff = float(np.abs(got - want).max())
             worst = max(worst, diff)
             print(json.dumps({"policy": man["policy"], "frames": len(got), "max_abs_diff": diff}))
@@ -323,6 +395,7 @@ def main():
     ap.add_argument("--select", action="store_true")
     ap.add_argument("--check-gradients", action="store_true")
     ap.add_argument("--check-onnx")
+    ap.add_argument("--dagger")
     a = ap.parse_args()
     if a.check_gradients:
         return check_gradients()
@@ -334,7 +407,7 @@ def main():
         return check_onnx(a.check_onnx, a.dataset)
     if not a.out:
         ap.error("--out is required")
-    return train_all(a.dataset, a.out, a.seed)
+    return train_all(a.dataset, a.out, a.seed, a.dagger)
 
 
 if __name__ == "__main__":

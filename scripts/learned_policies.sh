@@ -6,9 +6,15 @@
 #      trials, so every tick carries every mode's observations;
 #   2. scripts/lerobot_dataset.py lays them out in .build/models/learned/datasets/<task> (LeRobot
 #      v3.0);
-#   3. models/train_policy.py trains the 3 modes x 2 tasks once per training seed (0, 1, 2) into
-#      .build/models/learned/seed<k>/<task>_<mode> (ONNX + manifest.json) and checks ONNX Runtime
-#      against its numpy forward.
+#   3. models/train_policy.py trains the 3 modes x 2 tasks once per training seed (0, 1, 2): the
+#      first round;
+#   4. one round of DAgger per training seed: each first-round policy drives the world on the
+#      training objects (`unitac demos --drive`, draw seed 4, DAGGER_TRIALS trials), every tick
+#      labelled with the expert's command there, laid out as LeRobot datasets
+#      (.build/models/learned/dagger/seed<k>/<task>_<mode>);
+#   5. models/train_policy.py --dagger trains each seed's policies again on the demonstrations
+#      plus its own DAgger states into .build/models/learned/seed<k>/<task>_<mode> (ONNX +
+#      manifest.json) and checks ONNX Runtime against its numpy forward.
 # Needs steps 5 and 6 of scripts/setup.sh (the reference and touch bundles the scenes load).
 # Skipped when its inputs did not change (a stamp of them in .build/models/learned/.stamp).
 # UNITAC_LEARNED puts it elsewhere (the policy tests read it too).
@@ -23,10 +29,14 @@ export UNITAC_MODELS="${UNITAC_MODELS:-$MODELS}"
 OUT="${UNITAC_LEARNED:-$MODELS/learned}"
 TASKS=(cup_deformation fabric_selection)
 SEEDS=(0 1 2)
+MODES=(vla vtla_real vtla_pred)
+DAGGER_SEED=4
+DAGGER_TRIALS=4
 log() { printf '[setup] %s\n' "$*" >&2; }
 
 inputs=(scripts/learned_policies.sh scripts/lerobot_dataset.py models/train_policy.py
-  models/generate_reference.py Cargo.lock crates/cli/src/demos.rs
+  models/generate_reference.py Cargo.lock crates/cli/src/demos.rs crates/cli/src/main.rs
+  launch/scenes/*_learned_*.yaml
   launch/scenes/cup_deformation_vtla_real.yaml launch/scenes/cup_deformation_vtla_pred.yaml
   launch/scenes/fabric_selection_vtla_real.yaml launch/scenes/fabric_selection_vtla_pred.yaml
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
@@ -50,8 +60,24 @@ for task in "${TASKS[@]}"; do
 done
 rm -rf "$OUT.tmp/demos"
 for seed in "${SEEDS[@]}"; do
-  "$VENV/bin/python" models/train_policy.py "${sets[@]}" --seed "$seed" --out "$OUT.tmp/seed$seed" >/dev/null
+  "$VENV/bin/python" models/train_policy.py "${sets[@]}" --seed "$seed" --out "$OUT.tmp/round0/seed$seed" >/dev/null
 done
+log "learned policies: first round $((SECONDS - start)) s; DAgger"
+for seed in "${SEEDS[@]}"; do
+  for task in "${TASKS[@]}"; do
+    for mode in "${MODES[@]}"; do
+      d="$OUT.tmp/dagger/seed$seed/${task}_$mode"
+      target/release/unitac demos --scene "${task}_vtla_real,${task}_vtla_pred" --split train \
+        --seeds "$DAGGER_SEED" --trials "$DAGGER_TRIALS" --drive "${task}_learned_$mode" \
+        --drive-model "$OUT.tmp/round0/seed$seed/${task}_$mode/manifest.json" --out "$d.demos" >&2
+      "$VENV/bin/python" scripts/lerobot_dataset.py --demos "$d.demos/demos.json" --out "$d" >&2
+      rm -rf "$d.demos"
+    done
+  done
+  "$VENV/bin/python" models/train_policy.py "${sets[@]}" --seed "$seed" \
+    --dagger "$OUT.tmp/dagger/seed$seed" --out "$OUT.tmp/seed$seed" >/dev/null
+done
+rm -rf "$OUT.tmp/round0"
 "$VENV/bin/python" models/train_policy.py --check-onnx "$OUT.tmp/seed0" "${sets[@]}" >/dev/null
 rm -rf "$OUT"
 mv "$OUT.tmp" "$OUT"

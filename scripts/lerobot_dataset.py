@@ -29,9 +29,10 @@ observation.latched [2] (the opening at the first object-detect, known), observa
 since the commanded arm target last changed, at most 10 s, and whether the arm had its travel time),
 observation.tactile_latent_real and observation.tactile_latent_pred [objects x (P + 1)] (per
 object the pooled latent, then known), observation.comparison [5], action [7] (the gripper's
-position, speed, force limit and the arm's x, y, z, lift: the policy's action values),
-action.arm_target [1] (int64: 0 home, k + 1 object k; its info.json entry lists them as
-`categories`).
+position, speed, force limit and the arm's x, y, z, lift: the policy's action values; its
+info.json entry has `bounds`, {min, max} per value: the range the recording scene's safety layer
+held it to), action.arm_target [1] (int64: 0 home, k + 1 object k; its info.json entry lists them
+as `categories`).
 """
 import argparse
 import json
@@ -114,6 +115,22 @@ def stats_of(x):
         "std": x.std(axis=0),
         "count": np.array([x.shape[0]], np.int64),
     }
+
+
+def action_bounds(d):
+    """{min, max}, per action value in action_names order, from the demos' action_bounds."""
+    b = d.get("action_bounds")
+    if not isinstance(b, dict):
+        fail("demos.json has no action_bounds")
+    lo, hi = [], []
+    for n in d["action_names"]:
+        r = b.get(n)
+        if not (isinstance(r, list) and len(r) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in r)
+                and r[0] < r[1]):
+            fail(f"action_bounds: {n}: {r!r} is not a finite [min, max]")
+        lo.append(float(r[0]))
+        hi.append(float(r[1]))
+    return {"min": lo, "max": hi}
 
 
 def tasks_table(task):
@@ -222,6 +239,7 @@ def write(d, out, robot_type):
                 for _, key, dtype, names in feats}
     # The arm target's values: 0 home, k + 1 object k.
     features["action.arm_target"]["categories"] = ["home"] + list(demos[0]["objects"])
+    features["action"]["bounds"] = action_bounds(d)
     features.update(INDEX_FEATURES)
     info = {
         "codebase_version": CODEBASE_VERSION,

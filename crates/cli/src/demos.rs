@@ -4,15 +4,22 @@
 //! (every stage before its policy stage; one chain per scene, the first one's contact state
 //! drives the cup's probe), written as `DIR/demos.json` for scripts/fit_reference_policy.py and
 //! scripts/lerobot_dataset.py.
+//!
+//! `--drive L [--drive-model M]` (DAgger): the learned scene L (its policy bundle M if given)
+//! drives the world through its own stages as in a trial, and every tick is labelled with the
+//! expert's command there (unitac_trials::demos::record_driven).
 
 use crate::ConfigError;
 use anyhow::Context;
 use serde::Serialize;
-use std::path::Path;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use unitac_pipeline::{StageConfig, build_stage, load_scene_without_policy_models, stage_configs};
 use unitac_sim::MockConfig;
 use unitac_sim::task::{Split, TaskKind};
-use unitac_trials::demos::{Demo, DemoConfig, MAX_CHAINS, action_names, record_chains};
+use unitac_trials::demos::{
+    Demo, DemoConfig, MAX_CHAINS, action_names, record_chains, record_driven,
+};
 use unitac_trials::scene::scene_task;
 
 /// Most demonstrations one run records.
@@ -29,9 +36,19 @@ struct DemoFile<'a> {
     seeds: &'a [u64],
     trials: u32,
     config: &'a DemoConfig,
+    /// The learned scene that drove the world (DAgger), if one did.
+    driver: Option<&'a str>,
     /// The names of each tick's action values.
     action_names: Vec<&'static str>,
+    /// Per action value, the range the first scene's safety layer holds it to: [min, max].
+    action_bounds: BTreeMap<&'static str, [f64; 2]>,
     demos: Vec<Demo>,
+}
+
+/// The scene that drives the world instead of the expert, and the policy bundle it runs.
+pub struct Driver {
+    pub scene: String,
+    pub model: Option<PathBuf>,
 }
 
 /// Record and write the demonstrations; a one-line summary comes back.
@@ -41,6 +58,7 @@ pub fn demos(
     seeds: &[u64],
     trials: u32,
     out: &Path,
+    driver: Option<Driver>,
 ) -> anyhow::Result<String> {
     let n = seeds.len().saturating_mul(trials as usize);
     let config = |msg: String| anyhow::Error::new(ConfigError(msg));
@@ -59,6 +77,7 @@ pub fn demos(
     let mut scenes = Vec::new();
     let mut task: Option<TaskKind> = None;
     let mut instruction = String::new();
+    let mut action_bounds = BTreeMap::new();
     for (k, name) in scene_names.iter().enumerate() {
         let scene =
             load_scene_without_policy_models(name, None).map_err(|e| config(e.to_string()))?;
@@ -80,6 +99,12 @@ pub fn demos(
             cfg.probe_release_m = p.probe_release_m;
             cfg.approach_s = p.approach_s;
             cfg.timeout_s = p.contact_timeout_s;
+            action_bounds = p
+                .bounds()
+                .ranges()
+                .into_iter()
+                .map(|(k, lo, hi)| (k, [lo, hi]))
+                .collect();
         }
         let tactile: Vec<StageConfig> = stage_configs(&scene)
             .map_err(|e| config(e.to_string()))?
@@ -96,6 +121,26 @@ pub fn demos(
     }
     let Some((first, _)) = scenes.first() else {
         return Err(config("no scene".into()));
+    };
+    let driver = match driver {
+        Some(d) => {
+            let mut scene =
+                unitac_pipeline::load_scene(&d.scene, None).map_err(|e| config(e.to_string()))?;
+            if let Some(m) = d.model {
+                scene.models.insert("policy".into(), m);
+            }
+            let (p, kind) = scene_task(&scene).map_err(|e| config(e.to_string()))?;
+            if Some(kind) != task {
+                return Err(config(format!(
+                    "driving scene {}: its task is '{}', the demonstrations' is another",
+                    scene.name, p.task
+                )));
+            }
+            // Built once here so a bad bundle fails before any demonstration runs.
+            unitac_pipeline::build_stages(&scene).map_err(|e| config(e.to_string()))?;
+            Some(scene)
+        }
+        None => None,
     };
     let src = &first.source;
     let mut sensor = MockConfig::new(src.sensor, src.seed);
@@ -118,7 +163,19 @@ pub fn demos(
                         .collect::<Result<Vec<_>, _>>()?,
                 );
             }
-            demos.push(record_chains(split, seed, trial, &sensor, chains, &cfg)?);
+            let demo = match &driver {
+                Some(scene) => record_driven(
+                    split,
+                    seed,
+                    trial,
+                    &sensor,
+                    chains,
+                    unitac_pipeline::build_stages(scene)?,
+                    &cfg,
+                )?,
+                None => record_chains(split, seed, trial, &sensor, chains, &cfg)?,
+            };
+            demos.push(demo);
             bar.inc(1);
         }
     }
@@ -139,7 +196,9 @@ pub fn demos(
         seeds,
         trials,
         config: &cfg,
+        driver: driver.as_ref().map(|s| s.name.as_str()),
         action_names: action_names(),
+        action_bounds,
         demos,
     };
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
@@ -150,8 +209,11 @@ pub fn demos(
         TaskKind::Cup => "cups",
         TaskKind::Fabric => "fabrics",
     };
+    let who = file
+        .driver
+        .map_or_else(|| "expert".to_string(), |d| format!("driver {d}"));
     Ok(format!(
-        "{} demonstrations of {} ({:?} {objects}) in {}: {with_latent} with a latent, expert succeeded in {ok}\n",
+        "{} demonstrations of {} ({:?} {objects}) in {}: {with_latent} with a latent, {who} succeeded in {ok}\n",
         file.demos.len(),
         file.scene,
         split,

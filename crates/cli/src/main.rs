@@ -232,6 +232,14 @@ enum Cmd {
         set: TrialSet,
         #[arg(long)]
         out: PathBuf,
+        /// DAgger: a learned scene of the same task drives the world (its stages, as in a
+        /// trial), each tick labelled with the expert's command there.
+        #[arg(long)]
+        drive: Option<String>,
+        /// The policy bundle (its manifest.json) the driving scene runs instead of the one it
+        /// names.
+        #[arg(long, requires = "drive")]
+        drive_model: Option<PathBuf>,
     },
     /// List the tactile sensors on the USB bus: model, serial, firmware, V4L2 node, modes.
     Devices {
@@ -809,10 +817,27 @@ fn main() -> ExitCode {
             })
             .and_then(emit)
             .map(|()| true),
-        Cmd::Demos { scene, set, out } => {
-            demos::demos(&scene, set.split.into(), &set.seeds, set.trials, &out)
-                .and_then(emit)
-                .map(|()| true)
+        Cmd::Demos {
+            scene,
+            set,
+            out,
+            drive,
+            drive_model,
+        } => {
+            let driver = drive.map(|scene| demos::Driver {
+                scene,
+                model: drive_model,
+            });
+            demos::demos(
+                &scene,
+                set.split.into(),
+                &set.seeds,
+                set.trials,
+                &out,
+                driver,
+            )
+            .and_then(emit)
+            .map(|()| true)
         }
         Cmd::Devices { json } => {
             let root = std::env::var_os("UNITAC_SYSFS_ROOT")

@@ -70,16 +70,18 @@ fn dataset(dir: &Path, scenes: &str, trials: &str) -> PathBuf {
 #[test]
 fn both_tasks_demonstrations_pass_the_v3_loader_checks() {
     let dir = tmpdir("both");
-    for (scenes, trials, task) in [
+    for (scenes, trials, task, max_opening_m) in [
         (
             "cup_deformation_vtla_real,cup_deformation_vtla_pred",
             "2",
             "squeeze the cup by 1 cm",
+            0.11,
         ),
         (
             "fabric_selection_vtla_real,fabric_selection_vtla_pred",
             "1",
             "pick the smoother fabric",
+            0.04,
         ),
     ] {
         let sub = dir.join(trials);
@@ -109,6 +111,12 @@ fn both_tasks_demonstrations_pass_the_v3_loader_checks() {
                 "arm.lift_m"
             ])
         );
+        // Their bounds: the recording scene's safety layer (its opening, the 40 N force limit,
+        // the workspace), in the same order.
+        let b = &f["action"]["bounds"];
+        assert_eq!(b["max"][0], max_opening_m, "{b}");
+        assert_eq!(b["max"][2], 40.0, "{b}");
+        assert_eq!(b["min"].as_array().unwrap().len(), 7, "{b}");
         // Pooled latents per object (96 + known), not the encoder's 64 x 48 token grid.
         let objects = if task.contains("cup") { 1 } else { 2 };
         for k in [

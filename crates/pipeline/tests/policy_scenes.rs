@@ -246,9 +246,9 @@ fn a_missing_or_wrong_model_is_a_load_error() {
     assert!(e.contains("stiffness model"), "{e}");
 }
 
-/// A cup VLA scene whose policy stage is `policy: learned` with `models` (`""`: none) and the
-/// camera's `visual` names.
-fn learned(name: &str, model: &str, visual: &str) -> PathBuf {
+/// A cup VLA scene whose policy stage is `policy: learned` with `models` (`""`: none), the
+/// camera's `visual` names and the `extra` params (`, key: value`).
+fn learned(name: &str, model: &str, visual: &str, extra: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("unitac-policy-scenes-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join(format!("{name}.yaml"));
@@ -265,7 +265,7 @@ fn learned(name: &str, model: &str, visual: &str) -> PathBuf {
         format!(
             "scene: {name}\nsource: {{kind: mock, sensor: gelsight-mini, scenario: cup_deformation}}\n\
              {models}stages:\n  - kind: policy\n{names}    params: {{policy: learned, mode: vla, \
-             task: squeeze the cup by 1 cm, objects: [cup], visual_names: [{visual}], max_opening_m: 0.11}}\n"
+             task: squeeze the cup by 1 cm, objects: [cup], visual_names: [{visual}], max_opening_m: 0.11{extra}}}\n"
         ),
     )
     .unwrap();
@@ -276,8 +276,8 @@ fn learned(name: &str, model: &str, visual: &str) -> PathBuf {
 fn a_learned_policy_loads_only_a_bundle_that_fits_the_scene() {
     let all = "cup_x_m, cup_y_m, cup_z_m, cup_width_m, cup_height_m";
     let bundle = "${UNITAC_MODELS}/learned/seed0/cup_deformation_vla/manifest.json";
-    build_policy(&learned("learned_ok", bundle, all)).unwrap();
-    let e = build_policy(&learned("learned_none", "", all))
+    build_policy(&learned("learned_ok", bundle, all, "")).unwrap();
+    let e = build_policy(&learned("learned_none", "", all, ""))
         .unwrap_err()
         .to_string();
     assert!(e.contains("a learned policy needs its bundle"), "{e}");
@@ -286,6 +286,7 @@ fn a_learned_policy_loads_only_a_bundle_that_fits_the_scene() {
         "learned_names",
         bundle,
         "cup_x_m, cup_y_m, cup_width_m",
+        "",
     ))
     .unwrap_err()
     .to_string();
@@ -295,11 +296,28 @@ fn a_learned_policy_loads_only_a_bundle_that_fits_the_scene() {
         "learned_readout",
         "${UNITAC_MODELS}/policy/cup_stiffness_real/manifest.json",
         all,
+        "",
     ))
     .unwrap_err()
     .to_string();
     assert!(
         e.contains("no action 'gripper.position_m'") && !e.contains('\n'),
+        "{e}"
+    );
+    // A scene holding the force lower than the demonstrations' scene: the network's range is
+    // beyond the safety layer's.
+    let e = build_policy(&learned(
+        "learned_force",
+        bundle,
+        all,
+        ", max_force_n: 30.0",
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains(
+            "action 'gripper.force_n' ranges [0, 40], beyond the scene's safety bounds [0, 30]"
+        ),
         "{e}"
     );
 }

@@ -292,8 +292,9 @@ fn load_error(dir: &Path, problems: Vec<String>) -> PolicyLoadError {
 
 impl LearnedPolicy {
     /// The bundle in `dir` for the scene's `params`: every problem in one error (the model's
-    /// own checks, then: the command actions and one score per target, the camera's names in
-    /// the scene's order, per-object latent slots of the scene's objects).
+    /// own checks, then: the command actions, each ranging inside the scene's safety bounds, and
+    /// one score per target, the camera's names in the scene's order, per-object latent slots of
+    /// the scene's objects).
     pub fn load(dir: &Path, params: &PolicyParams) -> Result<Self, PolicyLoadError> {
         let onnx = OnnxPolicy::load(dir, &RuntimeConfig::default())
             .map_err(|e| load_error(dir, vec![e.to_string()]))?;
@@ -301,9 +302,27 @@ impl LearnedPolicy {
         let names = onnx.action_names();
         let at = |n: &str| names.iter().position(|a| a == n);
         let mut commands = [0usize; 7];
-        for (c, name) in commands.iter_mut().zip(COMMANDS) {
+        let actions = &onnx.manifest().output.actions;
+        for ((c, name), (_, lo, hi)) in commands
+            .iter_mut()
+            .zip(COMMANDS)
+            .zip(params.bounds().ranges())
+        {
             match at(name) {
-                Some(i) => *c = i,
+                Some(i) => {
+                    *c = i;
+                    // The model's range inside the safety layer's, or it may propose what the
+                    // layer must clamp (a rounding's slack allowed).
+                    let slack = 1e-6 * (hi - lo).abs().max(1.0);
+                    if let Some(a) = actions.get(i)
+                        && (a.min < lo - slack || a.max > hi + slack)
+                    {
+                        problems.push(format!(
+                            "action '{name}' ranges [{}, {}], beyond the scene's safety bounds [{lo}, {hi}]",
+                            a.min, a.max
+                        ));
+                    }
+                }
                 None => problems.push(format!("no action '{name}'")),
             }
         }
@@ -549,6 +568,17 @@ mod tests {
             data: tokens,
             ..samples::tactile_latent()
         }
+    }
+
+    #[test]
+    fn commands_are_the_safety_layers_values_in_order() {
+        let ranged: Vec<_> = PolicyParams::default()
+            .bounds()
+            .ranges()
+            .iter()
+            .map(|(n, ..)| *n)
+            .collect();
+        assert_eq!(ranged, COMMANDS);
     }
 
     #[test]

@@ -81,6 +81,20 @@ pub struct Bounds {
 }
 
 impl Bounds {
+    /// Each action value's name and range, in the order of [`Action::values`].
+    pub fn ranges(&self) -> [(&'static str, f64, f64); 7] {
+        let reach = self.max_reach_m;
+        [
+            ("gripper.position_m", self.min_opening_m, self.max_opening_m),
+            ("gripper.speed_m_s", 0.0, self.max_speed_m_s),
+            ("gripper.force_n", 0.0, self.max_force_n),
+            ("arm.x_m", -reach, reach),
+            ("arm.y_m", -reach, reach),
+            ("arm.z_m", self.min_z_m, self.max_z_m),
+            ("arm.lift_m", 0.0, self.max_lift_m),
+        ]
+    }
+
     /// One line per broken rule, all at once.
     pub fn check(&self) -> Result<(), Problems> {
         let mut bad = Vec::new();
@@ -221,31 +235,13 @@ impl SafetyLayer {
 
     /// The values of `a` beyond their bounds by more than [`CLAMP_REPORT`] of the range.
     fn beyond_bounds(&self, a: &Action) -> Vec<&'static str> {
-        let b = &self.bounds;
-        let reach = b.max_reach_m;
-        [
-            (
-                "gripper.position_m",
-                a.gripper.position_m,
-                b.min_opening_m,
-                b.max_opening_m,
-            ),
-            (
-                "gripper.speed_m_s",
-                a.gripper.speed_m_s,
-                0.0,
-                b.max_speed_m_s,
-            ),
-            ("gripper.force_n", a.gripper.force_n, 0.0, b.max_force_n),
-            ("arm.x_m", a.arm.x_m, -reach, reach),
-            ("arm.y_m", a.arm.y_m, -reach, reach),
-            ("arm.z_m", a.arm.z_m, b.min_z_m, b.max_z_m),
-            ("arm.lift_m", a.arm.lift_m, 0.0, b.max_lift_m),
-        ]
-        .into_iter()
-        .filter(|&(_, v, lo, hi)| beyond(v, lo, hi))
-        .map(|(k, ..)| k)
-        .collect()
+        self.bounds
+            .ranges()
+            .into_iter()
+            .zip(a.values())
+            .filter(|&((_, lo, hi), (_, v))| beyond(v, lo, hi))
+            .map(|((k, ..), _)| k)
+            .collect()
     }
 
     fn limit_gripper(&self, g: &GripperAction, opening: Option<f64>) -> GripperAction {
@@ -369,6 +365,16 @@ mod tests {
             },
             note: "go".into(),
         }
+    }
+
+    #[test]
+    fn ranges_name_the_action_values_in_order() {
+        let b = bounds();
+        let a = act(0.05, 5.0, "home");
+        let names: Vec<_> = a.values().iter().map(|(n, _)| *n).collect();
+        let ranged: Vec<_> = b.ranges().iter().map(|(n, ..)| *n).collect();
+        assert_eq!(names, ranged);
+        assert!(b.ranges().iter().all(|(_, lo, hi)| lo < hi));
     }
 
     #[test]

@@ -148,3 +148,69 @@ fn every_learned_policy_loads_and_the_rust_runtime_matches_the_oracle() {
     }
     std::fs::remove_dir_all(&work).ok();
 }
+
+/// The commands of a learned policy never leave the bounds its dataset records, whatever the
+/// inputs: the network ends in a clip, so inputs 1000 standard deviations out put no command
+/// beyond a bound in the runtime; and training keeps the network inside them before that clip (train.json: at
+/// most 5 % of the demonstration frames and of the DAgger states per command, by more than 2 %
+/// of the range).
+#[test]
+fn learned_commands_stay_inside_their_bounds() {
+    for seed in ["seed0", "seed1", "seed2"] {
+        let report: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(learned().join(seed).join("train.json")).unwrap(),
+        )
+        .unwrap();
+        for p in report["policies"].as_array().unwrap() {
+            assert_eq!(p["dagger"], true, "{p}");
+            for key in ["beyond_share_demos", "beyond_share_dagger"] {
+                for (action, share) in p[key].as_object().unwrap() {
+                    let share = share.as_f64().unwrap();
+                    assert!(
+                        share <= 0.05,
+                        "{seed} {} {key} {action}: {share}",
+                        p["policy"]
+                    );
+                }
+            }
+        }
+    }
+    for task in TASKS {
+        for mode in MODES {
+            let dir = learned().join("seed0").join(format!("{task}_{mode}"));
+            let mut p = common::load(&dir);
+            let m = p.manifest().clone();
+            for (k, sign) in [1.0f64, -1.0].into_iter().enumerate() {
+                let values: Vec<Vec<f32>> = m
+                    .inputs
+                    .iter()
+                    .map(|i| {
+                        let n = i.normalization.as_ref().unwrap();
+                        let (mean, std) = (n.mean.clone().unwrap(), n.std.clone().unwrap());
+                        mean.iter()
+                            .zip(&std)
+                            .enumerate()
+                            .map(|(j, (mu, sd))| {
+                                let s = if j % 2 == 0 { sign } else { -sign };
+                                (mu + 1000.0 * s * sd) as f32
+                            })
+                            .collect()
+                    })
+                    .collect();
+                let mut named = NamedInputs::new();
+                for (i, v) in m.inputs.iter().zip(&values) {
+                    named = named.with(&i.name, v);
+                }
+                let c = p.act(&named, common::stamps(2)[k]).unwrap();
+                // The runtime clamps what lies beyond the manifest's bounds and names what lay
+                // beyond by more than 2 %: no command (the first 7 actions; scores are not
+                // clipped, the runtime takes the largest).
+                assert!(
+                    c.beyond.iter().all(|&j| j >= 7),
+                    "{task}_{mode}: {:?}",
+                    c.beyond
+                );
+            }
+        }
+    }
+}

@@ -42,7 +42,7 @@ use serde::Serialize;
 use thiserror::Error;
 use unitac_core::Stage;
 use unitac_core::chain::Chain;
-use unitac_core::msg::{ContactState, LatentSource, Msg};
+use unitac_core::msg::{ArmCommand, ContactState, GripperCommand, LatentSource, Msg};
 use unitac_policy::Action;
 use unitac_policy::learned::Memory;
 use unitac_policy::observation::{Layout, input};
@@ -227,6 +227,13 @@ pub fn cup_stiffness(cup: &task::CupSpec, d_m: f64) -> f64 {
 
 pub use unitac_policy::learned::pooled;
 
+/// The driver's answer to one input: its commands, when both came (a tick's answer), and
+/// whether its policy has ended.
+struct Driven {
+    command: Option<(GripperCommand, ArmCommand)>,
+    ended: bool,
+}
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Phase {
     Approach,
@@ -336,6 +343,39 @@ pub fn record_chains(
     chains: Vec<Vec<Box<dyn Stage>>>,
     c: &DemoConfig,
 ) -> Result<Demo, DemoError> {
+    record_inner(split, seed, trial, sensor, chains, None, c)
+}
+
+/// [`record_chains`] with the world driven by `driver` (a learned scene's stages, its policy
+/// stage last, fresh): the states a learned policy visits, each tick labelled with the command
+/// the expert would give there (DAgger's relabelling). The driver's chain takes each tick as a
+/// trial feeds it (the frames, the camera's estimate, the gripper's status: crate::run) and its
+/// GripperCommand and ArmCommand move the world; the recorded tick, its observation slices and
+/// its label are what [`record_chains`] records, the probe's phases following what the first
+/// chain observes. Where the expert's phases would time out (the policy never reached or touched
+/// the cup) the demonstration ends there, its ticks kept; it also ends when the driver's
+/// policy reports `done` or `failed`.
+pub fn record_driven(
+    split: Split,
+    seed: u64,
+    trial: u32,
+    sensor: &MockConfig,
+    chains: Vec<Vec<Box<dyn Stage>>>,
+    driver: Vec<Box<dyn Stage>>,
+    c: &DemoConfig,
+) -> Result<Demo, DemoError> {
+    record_inner(split, seed, trial, sensor, chains, Some(driver), c)
+}
+
+fn record_inner(
+    split: Split,
+    seed: u64,
+    trial: u32,
+    sensor: &MockConfig,
+    chains: Vec<Vec<Box<dyn Stage>>>,
+    driver: Option<Vec<Box<dyn Stage>>>,
+    c: &DemoConfig,
+) -> Result<Demo, DemoError> {
     if !(c.dt_s.is_finite() && c.dt_s > 0.0 && c.dt_s <= task::MAX_STEP_S) {
         return Err(DemoError::Config(format!("dt_s = {}", c.dt_s)));
     }
@@ -399,6 +439,7 @@ pub fn record_chains(
     )
     .map_err(world_err)?;
     let mut chains: Vec<Chain> = chains.into_iter().map(Chain::new).collect();
+    let mut driver = driver.map(Chain::new);
     let visual = world.visual();
     let visual_msg = visual_message(&visual);
     let layout = Layout {
@@ -427,12 +468,36 @@ pub fn record_chains(
     let mut d0 = cfg.gripper.max_opening_m;
     let mut last_cmd: Option<TaskCommand> = None;
     let mut approach_grip: Option<GripperSetpoint> = None;
+    // The arm target the world was last sent.
+    let mut applied_target = String::new();
     let mut ticks = Vec::new();
     let stage_err = |r: &unitac_core::chain::Rejection| DemoError::Stage {
         seed,
         trial,
         stage: r.stage.clone(),
         msg: r.error.clone(),
+    };
+    // What the driver's chain said: an error stops the demonstration; its commands, once both
+    // came (a tick's status), drive the world.
+    let driven = |out: unitac_core::chain::ChainOutput| -> Result<Driven, DemoError> {
+        if let Some(r) = out.errors.first() {
+            return Err(stage_err(r));
+        }
+        let mut gripper = None;
+        let mut arm = None;
+        let mut ended = false;
+        for m in out.produced {
+            match m {
+                Msg::GripperCommand(g) => gripper = Some(g),
+                Msg::ArmCommand(a) => arm = Some(a),
+                Msg::PolicyStatus(s) => ended = matches!(s.phase.as_str(), "done" | "failed"),
+                _ => {}
+            }
+        }
+        Ok(Driven {
+            command: gripper.zip(arm),
+            ended,
+        })
     };
     let timeout = |what| DemoError::Timeout {
         seed,
@@ -457,6 +522,9 @@ pub fn record_chains(
             seen.keep(out.produced, k, t, &layout);
         }
         for (frame, _truth) in world.frames() {
+            if let Some(d) = driver.as_mut() {
+                driven(d.run(Msg::Frame(frame.clone())))?;
+            }
             for (k, chain) in chains.iter_mut().enumerate() {
                 let out = chain.run(Msg::Frame(frame.clone()));
                 if let Some(r) = out.errors.first() {
@@ -469,6 +537,14 @@ pub fn record_chains(
             return Err(obs_err(msg));
         }
         let status = world.status().map_err(world_err)?;
+        // The driver's tick: the camera, then the gripper's status, as a trial feeds them.
+        let driven_cmd = match driver.as_mut() {
+            Some(d) => {
+                driven(d.run(Msg::VisualObservation(camera.clone())))?;
+                Some(driven(d.run(Msg::GripperStatus(status.clone())))?)
+            }
+            None => None,
+        };
         seen.memory
             .gripper(status.object_detected, status.opening_m);
         let truth = world.world().truth();
@@ -477,7 +553,13 @@ pub fn record_chains(
         let in_contact = seen.contact.as_ref().is_some_and(|s| s.in_contact);
         let elapsed = t - since;
         let next = match phase {
-            Phase::Approach if truth.arm.arrived && elapsed > c.dt_s && arm[1] > 0.5 => {
+            // Arrived where the expert sends the arm (a driver may have sent it elsewhere).
+            Phase::Approach
+                if truth.arm.arrived
+                    && applied_target == expert.arm.target.name()
+                    && elapsed > c.dt_s
+                    && arm[1] > 0.5 =>
+            {
                 Some(Phase::Touch)
             }
             Phase::Touch if in_contact => {
@@ -491,6 +573,11 @@ pub fn record_chains(
             }
             Phase::Release if !in_contact => Some(Phase::Expert),
             Phase::Expert if elapsed >= run_s => break,
+            Phase::Approach | Phase::Touch | Phase::Release
+                if elapsed > c.timeout_s && driver.is_some() =>
+            {
+                break;
+            }
             Phase::Approach | Phase::Touch | Phase::Release if elapsed > c.timeout_s => {
                 return Err(timeout(match phase {
                     Phase::Approach => "the arm did not reach the cup",
@@ -567,8 +654,25 @@ pub fn record_chains(
                     .map_or(0, |k| k as u32 + 1),
             },
         });
-        seen.memory.commanded(cmd.arm.target.name(), t);
-        world.step(Some(cmd.clone())).map_err(world_err)?;
+        let applied = match driven_cmd {
+            Some(Driven { ended: true, .. }) => break,
+            Some(Driven {
+                command: Some((g, a)),
+                ..
+            }) => world.command(&g, &a).map_err(world_err)?,
+            Some(Driven { command: None, .. }) => {
+                return Err(DemoError::Stage {
+                    seed,
+                    trial,
+                    stage: "policy".into(),
+                    msg: format!("t = {t:.3} s: the driver gave no command for the gripper status"),
+                });
+            }
+            None => cmd.clone(),
+        };
+        seen.memory.commanded(applied.arm.target.name(), t);
+        applied_target = applied.arm.target.name().to_string();
+        world.step(Some(applied)).map_err(world_err)?;
         if phase == Phase::Expert {
             last_cmd = Some(cmd);
         }

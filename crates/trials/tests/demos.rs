@@ -7,7 +7,7 @@ use unitac_core::Stage;
 use unitac_pipeline::{StageConfig, build_stage, load_scene_without_policy_models, stage_configs};
 use unitac_sim::MockConfig;
 use unitac_sim::task::{Split, TaskKind};
-use unitac_trials::demos::{Demo, DemoConfig, record, record_chains};
+use unitac_trials::demos::{Demo, DemoConfig, record, record_chains, record_driven};
 
 fn demo(scene: &str, split: Split, seed: u64, trial: u32) -> Demo {
     let s = load_scene_without_policy_models(scene, None).unwrap();
@@ -169,4 +169,115 @@ fn the_cup_ticks_hold_the_probe_latent_after_the_probe_and_the_prediction_before
     let p = unitac_trials::demos::pooled(&probe.data, 48);
     assert_eq!(d.ticks[real_at].latent_real[..96], p[..]);
     assert!(d.success);
+}
+
+/// A driver that keeps the arm home with the fingers at `opening_m`: it answers each gripper
+/// status with both commands, as a policy stage does.
+struct StayHome {
+    opening_m: f64,
+}
+
+impl Stage for StayHome {
+    fn name(&self) -> &str {
+        "policy"
+    }
+
+    fn process(
+        &mut self,
+        input: &unitac_core::Msg,
+        _clock: &dyn unitac_core::clock::Clock,
+    ) -> Result<Vec<unitac_core::Msg>, unitac_core::StageError> {
+        use unitac_core::msg::{ArmCommand, GripperCommand, GripperMode, samples};
+        let unitac_core::Msg::GripperStatus(s) = input else {
+            return Ok(Vec::new());
+        };
+        let header = s.header.clone();
+        Ok(vec![
+            unitac_core::Msg::GripperCommand(GripperCommand {
+                header: header.clone(),
+                mode: GripperMode::Position,
+                position_m: self.opening_m,
+                speed_m_s: 0.05,
+                force_n: 5.0,
+                reason: "stay".into(),
+            }),
+            unitac_core::Msg::ArmCommand(ArmCommand {
+                header,
+                target: "home".into(),
+                x_m: 0.0,
+                y_m: 0.0,
+                z_m: 0.2,
+                lift_m: 0.0,
+                reason: "stay".into(),
+            }),
+            unitac_core::Msg::PolicyStatus(samples::policy_status()),
+        ])
+    }
+}
+
+#[test]
+fn a_driven_demonstration_moves_the_world_by_the_driver_and_labels_it_with_the_expert() {
+    let s = load_scene_without_policy_models("fabric_selection_vtla_real", None).unwrap();
+    let sensor = MockConfig::new(s.source.sensor, s.source.seed);
+    let cfg = DemoConfig {
+        task: TaskKind::Fabric,
+        fabric_s: 3.0,
+        ..DemoConfig::default()
+    };
+    let driver: Vec<Box<dyn Stage>> = vec![Box::new(StayHome { opening_m: 0.03 })];
+    let chains = vec![chain("fabric_selection_vtla_real")];
+    let d = record_driven(Split::Train, 4, 0, &sensor, chains, driver, &cfg).unwrap();
+    let expert = record_chains(
+        Split::Train,
+        4,
+        0,
+        &sensor,
+        vec![chain("fabric_selection_vtla_real")],
+        &cfg,
+    )
+    .unwrap();
+    assert_eq!(d.ticks.len(), expert.ticks.len());
+    // The first state is the draw's, so the first label is the expert's first command.
+    assert_eq!(d.ticks[0].state, expert.ticks[0].state);
+    assert_eq!(d.ticks[0].action, expert.ticks[0].action);
+    // The world followed the driver: the fingers went to its 30 mm (state[0]: the opening) and
+    // no fabric was touched; the expert's own run closed on fabric A.
+    let last = d.ticks.last().unwrap();
+    assert!((last.state[0] - 0.03).abs() < 1e-3, "{:?}", last.state);
+    assert_eq!(last.contact[0], 0.0);
+    assert!(expert.ticks.iter().any(|t| t.contact[0] > 0.0));
+    // Every label is the expert's for the states the driver made: go to fabric A (target 1),
+    // never home, where the driver kept the arm.
+    assert!(
+        d.ticks.iter().all(|t| t.arm_target == 1),
+        "{:?}",
+        d.ticks.last()
+    );
+    assert!(!d.success);
+}
+
+#[test]
+fn a_driven_cup_demonstration_that_never_reaches_the_cup_ends_at_the_timeout_with_its_ticks() {
+    let s = load_scene_without_policy_models("cup_deformation_vtla_real", None).unwrap();
+    let sensor = MockConfig::new(s.source.sensor, s.source.seed);
+    let cfg = DemoConfig {
+        timeout_s: 2.0,
+        ..DemoConfig::default()
+    };
+    let driver: Vec<Box<dyn Stage>> = vec![Box::new(StayHome { opening_m: 0.1 })];
+    let d = record_driven(
+        Split::Train,
+        5,
+        1,
+        &sensor,
+        vec![chain("cup_deformation_vtla_real")],
+        driver,
+        &cfg,
+    )
+    .unwrap();
+    // The approach's timeout (2 s at 30 Hz), the arm never arriving at the cup it is told to go to.
+    let n = d.ticks.len();
+    assert!((59..=63).contains(&n), "{n} ticks");
+    assert!(d.ticks.iter().all(|t| t.arm_target == 1));
+    assert!(d.latents.iter().all(|l| l.touch == 0), "no probe touch");
 }
