@@ -6,15 +6,15 @@
 #      trials, so every tick carries every mode's observations;
 #   2. scripts/lerobot_dataset.py lays them out in .build/models/learned/datasets/<task> (LeRobot
 #      v3.0);
-#   3. models/train_policy.py trains the 3 modes x 2 tasks once per training seed (0, 1, 2): the
-#      first round;
-#   4. one round of DAgger per training seed: each first-round policy drives the world on the
-#      training objects (`unitac demos --drive`, draw seed 4, DAGGER_TRIALS trials), every tick
-#      labelled with the expert's command there, laid out as LeRobot datasets
-#      (.build/models/learned/dagger/seed<k>/<task>_<mode>);
-#   5. models/train_policy.py --dagger trains each seed's policies again on the demonstrations
-#      plus its own DAgger states into .build/models/learned/seed<k>/<task>_<mode> (ONNX +
-#      manifest.json) and checks ONNX Runtime against its numpy forward.
+#   3. models/train_policy.py trains the 3 modes x 2 tasks once per training seed (0, 1, 2) into
+#      .build/models/learned/seed<k>/<task>_<mode> (ONNX + manifest.json) and checks ONNX Runtime
+#      against its numpy forward.
+# UNITAC_DAGGER=1 (opt-in, not a setup step: its rollouts are under investigation, see
+# crates/policy/README.md "DAgger") adds one round of DAgger per training seed: each first-round
+# policy drives the world on the training objects (`unitac demos --drive`, draw seed 4,
+# DAGGER_TRIALS trials), every tick labelled with the expert's command there, laid out as LeRobot
+# datasets (.build/models/learned/dagger/seed<k>/<task>_<mode>), and models/train_policy.py
+# --dagger trains each seed's policies again on the demonstrations plus its own DAgger states.
 # Needs steps 5 and 6 of scripts/setup.sh (the reference and touch bundles the scenes load).
 # Skipped when its inputs did not change (a stamp of them in .build/models/learned/.stamp).
 # UNITAC_LEARNED puts it elsewhere (the policy tests read it too).
@@ -30,6 +30,7 @@ OUT="${UNITAC_LEARNED:-$MODELS/learned}"
 TASKS=(cup_deformation fabric_selection)
 SEEDS=(0 1 2)
 MODES=(vla vtla_real vtla_pred)
+DAGGER="${UNITAC_DAGGER:-0}"
 DAGGER_SEED=4
 DAGGER_TRIALS=4
 log() { printf '[setup] %s\n' "$*" >&2; }
@@ -40,7 +41,7 @@ inputs=(scripts/learned_policies.sh scripts/lerobot_dataset.py models/train_poli
   launch/scenes/cup_deformation_vtla_real.yaml launch/scenes/cup_deformation_vtla_pred.yaml
   launch/scenes/fabric_selection_vtla_real.yaml launch/scenes/fabric_selection_vtla_pred.yaml
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
-key="$(cat "${inputs[@]}" "$MODELS/.stamp" "$MODELS/touch/.stamp" 2>/dev/null | sha256sum | cut -d' ' -f1)"
+key="$( (cat "${inputs[@]}" "$MODELS/.stamp" "$MODELS/touch/.stamp" 2>/dev/null; echo "dagger $DAGGER") | sha256sum | cut -d' ' -f1)"
 if [ "$(cat "$OUT/.stamp" 2>/dev/null)" = "$key" ] \
   && [ -f "$OUT/seed${SEEDS[-1]}/${TASKS[-1]}_vtla_pred/manifest.json" ]; then
   exit 0
@@ -59,11 +60,14 @@ for task in "${TASKS[@]}"; do
   sets+=(--dataset "$OUT.tmp/datasets/$task")
 done
 rm -rf "$OUT.tmp/demos"
+first="$OUT.tmp"
+[ "$DAGGER" = 1 ] && first="$OUT.tmp/round0"
 for seed in "${SEEDS[@]}"; do
-  "$VENV/bin/python" models/train_policy.py "${sets[@]}" --seed "$seed" --out "$OUT.tmp/round0/seed$seed" >/dev/null
+  "$VENV/bin/python" models/train_policy.py "${sets[@]}" --seed "$seed" --out "$first/seed$seed" >/dev/null
 done
-log "learned policies: first round $((SECONDS - start)) s; DAgger"
 for seed in "${SEEDS[@]}"; do
+  [ "$DAGGER" = 1 ] || break
+  [ "$seed" = "${SEEDS[0]}" ] && log "learned policies: first round $((SECONDS - start)) s; DAgger"
   for task in "${TASKS[@]}"; do
     for mode in "${MODES[@]}"; do
       d="$OUT.tmp/dagger/seed$seed/${task}_$mode"

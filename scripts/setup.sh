@@ -28,8 +28,7 @@
 #      it to ONNX (~1 min on 2 cores; only when its inputs changed)
 #   8. the learned policies and their LeRobot datasets in .build/models/learned
 #      (scripts/learned_policies.sh: expert demonstrations of both tasks on training objects,
-#      LeRobot v3.0 datasets, models/train_policy.py for 3 modes x 2 tasks x 3 training seeds,
-#      then one round of DAgger per seed: each policy drives, the expert labels the states)
+#      LeRobot v3.0 datasets, models/train_policy.py for 3 modes x 2 tasks x 3 training seeds)
 # Each step keeps a stamp of its inputs and is skipped when they did not change, so a re-run with
 # nothing changed takes a couple of seconds.
 set -euo pipefail

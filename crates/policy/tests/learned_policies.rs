@@ -152,8 +152,8 @@ fn every_learned_policy_loads_and_the_rust_runtime_matches_the_oracle() {
 /// The commands of a learned policy never leave the bounds its dataset records, whatever the
 /// inputs: the network ends in a clip, so inputs 1000 standard deviations out put no command
 /// beyond a bound in the runtime; and training keeps the network inside them before that clip (train.json: at
-/// most 5 % of the demonstration frames and of the DAgger states per command, by more than 2 %
-/// of the range).
+/// most 5 % of the demonstration frames, and of the DAgger states where there are some, per
+/// command, by more than 2 % of the range).
 #[test]
 fn learned_commands_stay_inside_their_bounds() {
     for seed in ["seed0", "seed1", "seed2"] {
@@ -162,9 +162,13 @@ fn learned_commands_stay_inside_their_bounds() {
         )
         .unwrap();
         for p in report["policies"].as_array().unwrap() {
-            assert_eq!(p["dagger"], true, "{p}");
             for key in ["beyond_share_demos", "beyond_share_dagger"] {
-                for (action, share) in p[key].as_object().unwrap() {
+                // The DAgger states: only where the policies were trained on them.
+                let Some(shares) = p[key].as_object() else {
+                    assert!(key == "beyond_share_dagger" && p["dagger"] == false, "{p}");
+                    continue;
+                };
+                for (action, share) in shares {
                     let share = share.as_f64().unwrap();
                     assert!(
                         share <= 0.05,
