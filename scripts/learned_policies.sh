@@ -9,7 +9,7 @@
 #   3. models/train_policy.py trains the 3 modes x 2 tasks once per training seed (0, 1, 2) into
 #      .build/models/learned/seed<k>/<task>_<mode> (ONNX + manifest.json) and checks ONNX Runtime
 #      against its numpy forward.
-# UNITAC_DAGGER=1 (opt-in, not a setup step: its rollouts are under investigation, see
+# UNITAC_DAGGER=1 (opt-in, not a setup step: its retrained policies did worse in closed loop,
 # crates/policy/README.md "DAgger") adds one round of DAgger per training seed: each first-round
 # policy drives the world on the training objects (`unitac demos --drive`, draw seed 4,
 # DAGGER_TRIALS trials), every tick labelled with the expert's command there, laid out as LeRobot
