@@ -23,12 +23,14 @@ MODE own: a gripper simulated here on its own sim time (10 ms steps, paced at re
   (geometry_msgs/PoseStamped) as a Cartesian controller would: it records each target's frame
   and position.
 
-stdin, one line each (answers on stdout). Both act on the client's next goal, which is kept
-executing until then (a goal within tolerance of the fingers would otherwise end at once, before
-the fault could reach it); "no goal" if the client sent none within 20 s:
+stdin, one line each (answers on stdout). Both act on the client's latest goal: from the command
+on, every goal the client sends is kept executing (a goal within tolerance of the fingers would
+otherwise end at once, before the fault could reach it), and the fault goes to the latest once
+one has come and the goals already on their way have landed; "no goal" if the client sent none
+within 20 s:
   "abort"    abort it (a controller fault, stalled false): "aborted T_NS"
-  "preempt"  a second client sends a goal (hold where the fingers are), preempting it:
-             "preempted T_NS"
+  "preempt"  a second client sends a goal (hold where the fingers are; its max_effort
+             OTHER_EFFORT tells it apart), preempting it: "preempted T_NS"
   own mode: the clock stops when that goal is accepted (T_NS: the last published sim time) until
   "resume" (the caller has seen the client hear of the goal's end; at most 30 s), then goes on.
   "end"      print a JSON summary and exit
@@ -56,6 +58,10 @@ MONITOR_PERIOD_S = 0.05
 STEP_NS = 10_000_000
 CUP_M = 0.07
 MAX_OPENING_M = 0.11
+# The second client's goal effort [N]: no policy sends it, so the server knows that goal.
+OTHER_EFFORT = 10.0123
+# How long the goals already on their way get to land once the clock stopped [s].
+LAND_S = 0.1
 
 
 def stamp_ns(t):
@@ -85,8 +91,8 @@ def main():
     state = {"t_ns": 0, "position": None, "effort": 0.0, "last_moved_ns": 0,
              "target": None, "max_effort": 0.0}
     # The active goal: {"gh", "flag": None | "held" | "preempted" | "aborted"}; "held": kept
-    # executing until another client's goal preempts it. "hold_next": the next goal is held.
-    active = {"goal": None, "hold_next": False}
+    # executing until a fault ends it. "hold": the client's goals are held.
+    active = {"goal": None, "hold": False}
     record = {"goals": [], "ends": [], "status": [], "poses": []}
     qos = QoSProfile(depth=100)
 
@@ -128,8 +134,10 @@ def main():
             old = active["goal"]
             if old is not None and old["flag"] in (None, "held"):
                 old["flag"] = "preempted"
-            flag = "held" if active["hold_next"] else None
-            active["hold_next"] = False
+            other = gh.request.command.max_effort == OTHER_EFFORT
+            flag = "held" if active["hold"] and not other else None
+            if other:
+                active["hold"] = False
             active["goal"] = {"gh": gh, "flag": flag}
             if flag == "held" and mode == "own":
                 paused.set()
@@ -266,41 +274,43 @@ def main():
                 paused.clear()
             threading.Thread(target=resume, daemon=True).start()
 
-    def hold_next_goal():
-        """The client's next goal is held executing (own mode: the clock stops once it is);
-        False if none came within 20 s."""
+    def hold_goals():
+        """Hold the client's goals from now on (own mode: the clock stops at the first) and wait
+        for one, then for those already on their way; False if none came within 20 s."""
         with lock:
-            active["hold_next"] = True
+            active["hold"] = True
         t0 = time.monotonic()
         while time.monotonic() - t0 < 20:
             with lock:
                 g = active["goal"]
                 held = g is not None and g["flag"] == "held"
             if held:
+                time.sleep(LAND_S)
                 return True
             time.sleep(0.002)
         with lock:
-            active["hold_next"] = False
+            active["hold"] = False
         return False
 
     def read_stdin():
         for line in sys.stdin:
             cmd = line.strip()
             if cmd == "abort":
-                if not hold_next_goal():
+                if not hold_goals():
                     say("no goal")
                     continue
                 with lock:
                     active["goal"]["flag"] = "aborted"
+                    active["hold"] = False
                 after_fault("aborted")
             elif cmd == "preempt":
-                if not hold_next_goal():
+                if not hold_goals():
                     say("no goal")
                     continue
                 goal = GripperAction.Goal()
                 with lock:
                     goal.command.position = state["position"] or 0.0
-                goal.command.max_effort = 10.0
+                goal.command.max_effort = OTHER_EFFORT
                 other.send_goal_async(goal)
                 time.sleep(0.05)
                 after_fault("preempted")

@@ -96,7 +96,7 @@ fn abort_and_preemption_get_the_safe_action_on_the_next_tick_and_arm_targets_are
         .concat(),
     );
     // The policy's first goal (the approach's opening), then a second of control. Each fault
-    // ends the policy's next goal, and the controller's clock waits from that goal until the
+    // ends the policy's latest goal once it sent one, and the controller's clock waits from that goal until the
     // policy has heard of the fault: the claim is about the policy's next tick, not about how
     // fast the end reaches it.
     const ABORTED: &str = "gripper action: goal aborted by the server";

@@ -535,19 +535,27 @@ fn a_stalled_subscriber_loses_frames_counted_and_blocks_nothing() {
     // whole run it held its 25 fps. (On a loaded machine the mock's pacer catches up after a late
     // second, which a window of two or three seconds shows as a dip and a burst, so the rate is
     // bounded over the run and only its lower side over the stall.)
+    // Rates over the diagnostics' own stamps: their delivery may come in a burst after a late
+    // second, which would crowd the receive times.
     let sd = diag_of(&got, &n, "unitac_sensor");
-    let counts: Vec<(f64, f64)> = sd
+    let counts: Vec<(f64, f64, f64)> = sd
         .iter()
-        .map(|d| (d["t"].as_f64().unwrap(), num(&d["values"]["messages_out"])))
+        .map(|d| {
+            (
+                d["t"].as_f64().unwrap(),
+                d["stamp"].as_i64().unwrap() as f64 * 1e-9,
+                num(&d["values"]["messages_out"]),
+            )
+        })
         .collect();
-    let during: Vec<(f64, f64)> = counts
+    let during: Vec<(f64, f64, f64)> = counts
         .iter()
         .copied()
-        .filter(|(t, _)| (t_stop..t_cont + 1.5).contains(t))
+        .filter(|(t, ..)| (t_stop..t_cont + 1.5).contains(t))
         .collect();
     assert!(during.len() >= 2, "{sd:?} {}", got["stop_window"]);
-    let rate = |s: &[(f64, f64)]| {
-        let ((t0, m0), (t1, m1)) = (s[0], s[s.len() - 1]);
+    let rate = |s: &[(f64, f64, f64)]| {
+        let ((_, t0, m0), (_, t1, m1)) = (s[0], s[s.len() - 1]);
         (m1 - m0) / (t1 - t0)
     };
     let stall_rate = rate(&during);
