@@ -4,7 +4,7 @@
 #![allow(clippy::unwrap_used, clippy::panic)]
 
 use serde_yaml::Value;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use unitac_pipeline::{StageConfig, load_scene, overrides, stage_configs};
 use unitac_policy::Mode;
 
@@ -187,7 +187,12 @@ fn with_model(name: &str, mode: &str, latent_len: usize, model: &str) -> PathBuf
     path
 }
 
-fn build_policy(path: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
+/// The load error of the scene's policy stage, as its message.
+fn refused(scene: &Path) -> String {
+    build_policy(scene).unwrap_err().to_string()
+}
+
+fn build_policy(path: &Path) -> Result<(), Box<dyn std::error::Error>> {
     let s = load_scene(path.to_str().unwrap(), None)?;
     let cfgs = stage_configs(&s)?;
     unitac_pipeline::build_stage(&s, cfgs.last().unwrap().clone())?;
@@ -207,24 +212,20 @@ fn a_missing_or_wrong_model_is_a_load_error() {
     ))
     .unwrap();
     // Missing: the scene does not load.
-    let e = build_policy(&with_model(
+    let e = refused(&with_model(
         "stiff_missing",
         "vtla_real",
         3072,
         "${UNITAC_MODELS}/policy/no_such_model/manifest.json",
-    ))
-    .unwrap_err()
-    .to_string();
+    ));
     assert!(e.contains("no_such_model"), "{e}");
     // Wrong: the real-latent model for the sampler's 64 values.
-    let e = build_policy(&with_model(
+    let e = refused(&with_model(
         "stiff_wrong_len",
         "vtla_pred",
         64,
         real.to_str().unwrap(),
-    ))
-    .unwrap_err()
-    .to_string();
+    ));
     assert!(
         e.contains("stiffness model")
             && e.contains(
@@ -235,14 +236,12 @@ fn a_missing_or_wrong_model_is_a_load_error() {
     assert!(!e.contains('\n'), "{e}");
     // Wrong: a bundle that is no stiffness model (the reference encoder's manifest is no
     // policy manifest at all).
-    let e = build_policy(&with_model(
+    let e = refused(&with_model(
         "stiff_not_policy",
         "vtla_real",
         3072,
         "${UNITAC_MODELS}/reference/manifest.json",
-    ))
-    .unwrap_err()
-    .to_string();
+    ));
     assert!(e.contains("stiffness model"), "{e}");
 }
 
@@ -277,43 +276,35 @@ fn a_learned_policy_loads_only_a_bundle_that_fits_the_scene() {
     let all = "cup_x_m, cup_y_m, cup_z_m, cup_width_m, cup_height_m";
     let bundle = "${UNITAC_MODELS}/learned/seed0/cup_deformation_vla/manifest.json";
     build_policy(&learned("learned_ok", bundle, all, "")).unwrap();
-    let e = build_policy(&learned("learned_none", "", all, ""))
-        .unwrap_err()
-        .to_string();
+    let e = refused(&learned("learned_none", "", all, ""));
     assert!(e.contains("a learned policy needs its bundle"), "{e}");
     // The scripted scene's camera names: the network reads five, in the demonstrations' order.
-    let e = build_policy(&learned(
+    let e = refused(&learned(
         "learned_names",
         bundle,
         "cup_x_m, cup_y_m, cup_width_m",
         "",
-    ))
-    .unwrap_err()
-    .to_string();
+    ));
     assert!(e.contains("observation.visual reads"), "{e}");
     // A stiffness readout is no learned policy: every problem in one line.
-    let e = build_policy(&learned(
+    let e = refused(&learned(
         "learned_readout",
         "${UNITAC_MODELS}/policy/cup_stiffness_real/manifest.json",
         all,
         "",
-    ))
-    .unwrap_err()
-    .to_string();
+    ));
     assert!(
         e.contains("no action 'gripper.position_m'") && !e.contains('\n'),
         "{e}"
     );
     // A scene holding the force lower than the demonstrations' scene: the network's range is
     // beyond the safety layer's.
-    let e = build_policy(&learned(
+    let e = refused(&learned(
         "learned_force",
         bundle,
         all,
         ", max_force_n: 30.0",
-    ))
-    .unwrap_err()
-    .to_string();
+    ));
     assert!(
         e.contains(
             "action 'gripper.force_n' ranges [0, 40], beyond the scene's safety bounds [0, 30]"
