@@ -683,12 +683,13 @@ pub fn contact_depth(
 
 /// `<frame stem>.overlay.png` in `dir`: the picture of `unitac_contact::overlay` (the contact
 /// stage's `contact_overlay` is the same one): the frame with the contact region's outline and
-/// centroid, and with a depth estimator, beside it the depth colour map with the depth's
+/// centroid, the markers' displacements (rest, now) as arrows, and with a depth estimator, beside it the depth colour map with the depth's
 /// contact outline (the depth unknown under the `unknown` pixels, the marker dots).
 pub fn overlay_png(
     frame: &Frame,
     mask: &[bool],
     centroid: [f32; 2],
+    arrows: &[([f32; 2], [f32; 2])],
     depth: Option<(&DepthEstimator, &[bool])>,
     dir: &Path,
     source: &Path,
@@ -710,7 +711,7 @@ pub fn overlay_png(
     let o = Overlay {
         contact: mask,
         centroid: (centroid != [0.0, 0.0]).then_some(centroid),
-        arrows: &[],
+        arrows,
         depth: match (&depth_mm, depth) {
             (Some(depth_mm), Some((d, _))) => Some(DepthPanel {
                 depth_mm,

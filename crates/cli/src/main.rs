@@ -499,6 +499,17 @@ fn cmd_contact(
             anyhow::Error::new(ConfigError(format!("--overlay {}: {e}", d.display())))
         })?;
     }
+    // The overlay's marker arrows (a marker gel): each image's markers from rest, image files
+    // being independent presses.
+    let slip = unitac_contact::SlipParams::default();
+    let mut markers = None;
+    if extra.overlay.is_some() && slip.check_for(sensor).is_ok() {
+        let mut field = unitac_contact::MarkerField::default();
+        match field.learn(&bg, &slip) {
+            Ok(()) => markers = Some(field),
+            Err(e) => eprintln!("unitac: --overlay: no marker arrows: {e}"),
+        }
+    }
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let mut all_ok = true;
@@ -519,7 +530,17 @@ fn cmd_contact(
                 if let Some(dir) = extra.overlay {
                     let unknown = det.marker_mask_px();
                     let d = depth.as_ref().map(|e| (e, unknown.as_slice()));
-                    depth::overlay_png(&f, &det.mask_px(), m.centroid, d, dir, path)?;
+                    let arrows = match markers.as_mut() {
+                        Some(field) if m.contact => {
+                            field.reset();
+                            match field.follow(&f, &slip) {
+                                Ok(_) => field.displacements(),
+                                Err(_) => Vec::new(),
+                            }
+                        }
+                        _ => Vec::new(),
+                    };
+                    depth::overlay_png(&f, &det.mask_px(), m.centroid, &arrows, d, dir, path)?;
                 }
                 Ok((m, d))
             });

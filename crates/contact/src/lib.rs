@@ -44,6 +44,6 @@ mod store;
 pub use background::{Background, BackgroundFileError, Learner};
 pub use detector::{ContactDetector, Measurement};
 pub use params::{ContactParams, MAX_CLIP_FRAMES, ParamsError};
-pub use slip::{SlipParams, SlipStage};
+pub use slip::{MarkerField, SlipParams, SlipStage};
 pub use stage::ContactStage;
 pub use store::{BackgroundStore, DirStore};

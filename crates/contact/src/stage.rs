@@ -6,6 +6,7 @@ use crate::depth::{DepthCalibration, DepthEstimator, DepthParams};
 use crate::detector::ContactDetector;
 use crate::overlay::{DepthPanel, Overlay, draw};
 use crate::params::{ContactParams, ParamsError};
+use crate::slip::{MarkerField, SlipParams};
 use crate::store::{BackgroundStore, DirStore};
 use unitac_core::msg::{DepthMap, Header};
 use unitac_core::{Clock, Frame, Msg, SensorSpec, Stage, StageError};
@@ -26,6 +27,9 @@ pub struct ContactStage {
     /// Depth from the gel's shading (`with_depth`): the contact's area, centroid and box come
     /// from the depth's contact region.
     depth: Option<DepthUse>,
+    /// With the overlay on a marker gel: the markers followed while in contact, drawn as arrows
+    /// from rest (found and tracked as the slip stage does, with its default parameters).
+    markers: Option<(MarkerField, SlipParams)>,
 }
 
 /// The depth calibration and its estimator on the current background.
@@ -56,6 +60,9 @@ impl ContactStage {
         spec: SensorSpec,
         store: Option<Box<dyn BackgroundStore>>,
     ) -> Result<Self, ParamsError> {
+        let slip = SlipParams::default();
+        let markers = (p.overlay && slip.check_for(spec.kind).is_ok())
+            .then(|| (MarkerField::default(), slip));
         Ok(Self {
             det: ContactDetector::new(p, spec)?,
             sensor_id: String::new(),
@@ -64,6 +71,7 @@ impl ContactStage {
             store_asked: false,
             store_error: None,
             depth: None,
+            markers,
         })
     }
 
@@ -191,9 +199,34 @@ impl ContactStage {
         Ok(())
     }
 
+    /// The overlay's marker field: learned from each background announced, followed on frames
+    /// in contact, forgotten out of contact. A background with too few markers, or a frame the
+    /// markers cannot be found in, draws no arrows (the overlay is for a person; the slip stage
+    /// reports such frames).
+    fn follow_markers(&mut self, f: &Frame, out: &[Msg], new_background: bool) {
+        let Some((field, p)) = self.markers.as_mut() else {
+            return;
+        };
+        if new_background {
+            let learned = self
+                .det
+                .background_frame(&f.sensor_id)
+                .map(|bg| field.learn(&bg, p));
+            if let Some(Err(e)) = learned {
+                tracing::warn!("contact overlay: no marker arrows: {e}");
+            }
+        }
+        let in_contact = out
+            .iter()
+            .any(|m| matches!(m, Msg::ContactState(c) if c.in_contact));
+        if !in_contact || field.follow(f, p).is_err() {
+            field.reset();
+        }
+    }
+
     /// The overlay of this frame (`overlay` param) from what the stage saw: the detector's
-    /// contact region, the ContactState's centroid while in contact, the depth panel with a
-    /// depth calibration.
+    /// contact region, the ContactState's centroid and the markers' displacements from rest
+    /// while in contact, the depth panel with a depth calibration.
     fn overlay(&self, f: &Frame, out: &[Msg]) -> Result<Frame, StageError> {
         let contact = self.det.mask_px();
         let centroid = out.iter().find_map(|m| match m {
@@ -222,10 +255,15 @@ impl ContactStage {
         let depth = depth_mm
             .as_deref()
             .map(|depth_mm| DepthPanel { depth_mm, mask });
+        let arrows = self
+            .markers
+            .as_ref()
+            .map(|(field, _)| field.displacements())
+            .unwrap_or_default();
         let o = Overlay {
             contact: &contact,
             centroid,
-            arrows: &[],
+            arrows: &arrows,
             depth,
         };
         draw(f, &o).map_err(|e| StageError::BadInput(e.to_string()))
@@ -257,6 +295,7 @@ impl Stage for ContactStage {
                     self.apply_depth(f, &mut out, new_background)?;
                 }
                 if self.det.params().overlay {
+                    self.follow_markers(f, &out, new_background);
                     let o = self.overlay(f, &out)?;
                     out.push(Msg::ContactOverlay(o));
                 }

@@ -171,3 +171,88 @@ fn a_frame_of_another_size_is_rejected_and_tracking_goes_on() {
     };
     assert!(s.valid && s.shear_x_m.abs() < 0.02e-3, "{s:?}");
 }
+
+/// The contact stage's overlay draws each marker's displacement from rest while in contact (a
+/// stuck pull: the arrows point along the pull, as long as it), none at rest, and none on a gel
+/// without dots.
+#[test]
+fn the_overlay_draws_the_markers_displacements_from_rest_while_in_contact() {
+    use unitac_contact::MarkerField;
+    use unitac_contact::overlay::ARROW;
+    let spec = SensorKind::GelsightMini.spec();
+    let shift_m = [0.3e-3, -0.1e-3];
+    for markers in [true, false] {
+        let mut cfg = MockConfig::new(SensorKind::GelsightMini, 11);
+        cfg.markers = markers;
+        let sensor = MockSensor::new(cfg, Scenario::idle(1.0));
+        let fabric = Scenario::fabric("fabric", 0.02, 0.8);
+        let p = ContactParams {
+            overlay: true,
+            ..Default::default()
+        };
+        let mut c = Chain::new(vec![Box::new(ContactStage::new(p, spec).unwrap())]);
+        let mut field = MarkerField::default();
+        let (mut at_rest, mut pulled) = (Vec::new(), 0usize);
+        for k in 0..24u64 {
+            let share = (k.saturating_sub(16) as f64 / 4.0).min(1.0);
+            let t = Tangential {
+                shift_m: [shift_m[0] * share, shift_m[1] * share],
+                ..Tangential::default()
+            };
+            let pressed = k >= 12;
+            let (f, _) = sensor.render_contact(k, pressed.then_some((&fabric, 0.8)), Some(&t));
+            if k == 0 {
+                // The field a user would follow by hand, from the same rest frame.
+                let learned = field.learn(&f, &SlipParams::default());
+                assert_eq!(learned.is_ok(), markers, "{learned:?}");
+            }
+            let followed = field.follow(&f, &SlipParams::default()).unwrap().is_some();
+            assert_eq!(followed, markers);
+            let out = c.run(Msg::Frame(f));
+            assert!(out.errors.is_empty(), "{:?}", out.errors);
+            let arrows = out
+                .produced
+                .iter()
+                .filter_map(|m| match m {
+                    Msg::ContactOverlay(o) => Some(
+                        o.data()
+                            .chunks_exact(3)
+                            .filter(|px| *px == ARROW.as_slice())
+                            .count(),
+                    ),
+                    _ => None,
+                })
+                .sum::<usize>();
+            if !pressed {
+                at_rest.push(arrows);
+            } else if k == 23 {
+                pulled = arrows;
+            }
+        }
+        assert!(at_rest.iter().all(|&n| n == 0), "{at_rest:?}");
+        if !markers {
+            assert_eq!(pulled, 0, "no dots, no arrows");
+            continue;
+        }
+        assert!(pulled > 50, "arrows under the pull: {pulled} px");
+        // The displacements the arrows are drawn from: around the contact their mean (the
+        // press's radial spread cancels) is the pull.
+        let d = field.displacements();
+        let px = |m: f64| m * 1e3 / spec.mm_per_px;
+        let near: Vec<[f32; 2]> = d
+            .iter()
+            .filter(|(a, _)| (a[0] - 160.0).hypot(a[1] - 120.0) < 40.0)
+            .map(|(a, b)| [b[0] - a[0], b[1] - a[1]])
+            .collect();
+        assert!(near.len() >= 3, "{d:?}");
+        let mean = |i: usize| near.iter().map(|v| f64::from(v[i])).sum::<f64>() / near.len() as f64;
+        assert!(
+            (mean(0) - px(shift_m[0])).abs() < 0.3 * px(shift_m[0]),
+            "{near:?}"
+        );
+        assert!(
+            (mean(1) - px(shift_m[1])).abs() < 0.3 * px(shift_m[0]),
+            "{near:?}"
+        );
+    }
+}

@@ -5,14 +5,17 @@
 //!
 //! - [`markers`]: dark dots and their sub-pixel centroids;
 //! - [`track`]: identities across frames, bounded search, ambiguous matches rejected;
+//! - [`field`]: the reference markers and where each was last seen, followed frame by frame;
 //! - [`fit`]: rigid and affine least-squares fits (nalgebra), typed errors for degenerate input;
 //! - [`SlipStage`]: the stage (after `contact`), one `SlipState` per frame in contact.
 
+pub mod field;
 pub mod fit;
 pub mod markers;
 mod params;
 mod stage;
 pub mod track;
 
+pub use field::{FieldError, MarkerField};
 pub use params::SlipParams;
 pub use stage::SlipStage;

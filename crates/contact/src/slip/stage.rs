@@ -21,10 +21,10 @@
 //! rejected (an error; the state is as before). A sensor kind without markers (DIGIT) cannot be
 //! built: the error names it.
 
+use super::field::MarkerField;
 use super::fit::{fit_affine, fit_rigid};
-use super::markers::find_dots;
 use super::params::SlipParams;
-use super::track::{Reference, track};
+use super::track::Reference;
 use crate::params::ParamsError;
 use unitac_core::msg::{ContactState, Header, SlipState};
 use unitac_core::{Clock, Frame, Msg, SensorSpec, Stage, StageError};
@@ -34,13 +34,12 @@ use unitac_core::{Clock, Frame, Msg, SensorSpec, Stage, StageError};
 pub struct SlipStage {
     p: SlipParams,
     spec: SensorSpec,
-    reference: Option<Reference>,
+    /// The reference markers and where each was last seen in contact.
+    field: MarkerField,
     /// Why there is no usable reference (logged once).
     reference_error: Option<String>,
     /// The contact stage's state for the latest frame.
     contact: Option<ContactState>,
-    /// Each reference marker's position in the previous frame in contact.
-    last: Vec<Option<[f64; 2]>>,
     /// The field at contact onset.
     onset: Option<Vec<Option<[f64; 2]>>>,
     frames_in_contact: u32,
@@ -64,10 +63,9 @@ impl SlipStage {
         Ok(Self {
             p,
             spec,
-            reference: None,
+            field: MarkerField::default(),
             reference_error: None,
             contact: None,
-            last: Vec::new(),
             onset: None,
             frames_in_contact: 0,
             slip: false,
@@ -76,7 +74,7 @@ impl SlipStage {
 
     /// The marker reference learned from the background, if any.
     pub fn reference(&self) -> Option<&Reference> {
-        self.reference.as_ref()
+        self.field.reference()
     }
     /// Why the background gave no usable marker reference.
     pub fn reference_error(&self) -> Option<&str> {
@@ -85,28 +83,18 @@ impl SlipStage {
 
     fn learn_reference(&mut self, bg: &Frame) {
         self.reset_contact();
-        match find_dots(bg, &self.p.dots()) {
-            Ok(dots) if dots.len() >= self.p.min_reference_markers as usize => {
-                self.reference = Some(Reference::new(&dots, bg.width, bg.height));
-                self.reference_error = None;
+        match self.field.learn(bg, &self.p) {
+            Ok(()) => self.reference_error = None,
+            Err(e) => {
+                let why = format!("background: {e}");
+                tracing::warn!("slip: {why}; every SlipState is invalid");
+                self.reference_error = Some(why);
             }
-            Ok(dots) => self.no_reference(format!(
-                "the background shows {} marker dots, the slip stage needs {}",
-                dots.len(),
-                self.p.min_reference_markers
-            )),
-            Err(e) => self.no_reference(format!("background: {e}")),
         }
     }
 
-    fn no_reference(&mut self, why: String) {
-        tracing::warn!("slip: {why}; every SlipState is invalid");
-        self.reference = None;
-        self.reference_error = Some(why);
-    }
-
     fn reset_contact(&mut self) {
-        self.last.clear();
+        self.field.reset();
         self.onset = None;
         self.frames_in_contact = 0;
         self.slip = false;
@@ -114,25 +102,12 @@ impl SlipStage {
 
     /// The state for a frame in contact (`c` is its ContactState).
     fn step(&mut self, f: &Frame, c: &ContactState) -> Result<SlipState, StageError> {
-        let Some(reference) = &self.reference else {
-            return Ok(self.state(f, None, 0));
+        let now = match self.field.follow(f, &self.p) {
+            Ok(Some(now)) => now.to_vec(),
+            Ok(None) => return Ok(self.state(f, None, 0)),
+            Err(e) => return Err(StageError::BadInput(e.to_string())),
         };
-        if (f.width, f.height) != (reference.width, reference.height) {
-            return Err(StageError::BadInput(format!(
-                "frame {}x{}, the marker reference is {}x{}",
-                f.width, f.height, reference.width, reference.height
-            )));
-        }
-        let dots = find_dots(f, &self.p.dots()).map_err(|e| StageError::BadInput(e.to_string()))?;
-        let predicted: Vec<[f64; 2]> = reference
-            .points
-            .iter()
-            .enumerate()
-            .map(|(i, &r)| self.last.get(i).copied().flatten().unwrap_or(r))
-            .collect();
-        let now = track(reference, &predicted, &dots, &self.p.tracking());
         let tracked = now.iter().flatten().count() as u32;
-        self.last.clone_from(&now);
         self.frames_in_contact = self.frames_in_contact.saturating_add(1);
         if self.frames_in_contact == self.p.onset_frames {
             self.onset = Some(now.clone());
