@@ -1,8 +1,9 @@
 //! Interop peer for the ROS tests (and a quick check on a robot that unitac_msgs work end to end).
 //!
 //! `unitac_ros_interop publish [--topic-prefix P]`: waits for a subscriber, then publishes the
-//!   fixture ContactState, PropertyComparison and ArmCommand a few times (the first message can
-//!   be lost before discovery completes).
+//!   fixture ContactState, PropertyComparison and ArmCommand every 200 ms until the subscriber
+//!   leaves (at most 30 s): the subscriber can match this writer well after this writer matched
+//!   it, and messages sent before that are lost with the process once it exits.
 //! `unitac_ros_interop echo [--topic-prefix P]`: prints the first TactileLatent, GripperCommand,
 //!   GripperStatus and VisualObservation it receives as JSON lines on stdout, then exits.
 //! Exit code 1 on timeout, 2 on bad usage.
@@ -93,13 +94,23 @@ fn publish(prefix: &str) -> anyhow::Result<()> {
         convert::property_comparison(&fixture_comparison()),
         convert::arm_command(&fixture_arm()),
     );
-    for _ in 0..5 {
+    let t0 = std::time::Instant::now();
+    loop {
         p1.publish(&c)?;
         p2.publish(&k)?;
         p3.publish(&a)?;
         spin_until(&mut node, Duration::from_millis(200), || false);
+        let gone = [
+            p1.get_inter_process_subscription_count(),
+            p2.get_inter_process_subscription_count(),
+            p3.get_inter_process_subscription_count(),
+        ]
+        .into_iter()
+        .all(|n| n.unwrap_or(0) == 0);
+        if gone || t0.elapsed() > TIMEOUT {
+            return Ok(());
+        }
     }
-    Ok(())
 }
 
 /// Drains `stream`; the first message, converted, goes into `slot` (later ones are dropped).
