@@ -22,7 +22,8 @@ linear in the condition (ridge of the latent on c, fitted in closed form before 
 and without the object so the unconditional branch has its own, intercepts not shrunk; sigma the
 residual spread per element, at least SIGMA_MIN); the network learns what that leaves, on inputs
 it saw. So a camera value outside the training range (the unseen cups are all larger) moves the
-latent along the base's line, and the network holds its value at the range's edge. Loss: rectified flow, |v(x_t, t, c) - (y - e)|^2 with
+latent along the base's line, and the network holds its value at the range's edge. Loss:
+rectified flow, |v(x_t, t, c) - (y - e)|^2 with
 x_t = (1 - t) e + t y, e ~ N(0, I), y the standardised latent, t ~ U(0, 1). Classifier-free
 dropout: the object input is zeroed for 20 % of the samples, so the sensor-only branch of
 sensor-prior sampling (SPSS) is a trained unconditional branch. Adam with a cosine schedule;
@@ -614,14 +615,12 @@ def main():
     # Roughness readouts: the reference property head, and a ridge fitted on the encoder's
     # pooled latents of the TRAINING fabrics (lambda by leave-one-seed-out).
     ftr = [r for r in tr if r["category"] == "fabric"]
-    f_rough = ridge_cv(np.array([r["latent"] for r in ftr]),
-                       np.array([r["truth"]["roughness_ra_mm"] for r in ftr]),
-                       np.array([r["seed"] for r in ftr]))[0]
+    ra_tr = np.array([r["truth"]["roughness_ra_mm"] for r in ftr])
+    seed_tr = np.array([r["seed"] for r in ftr])
+    f_rough = ridge_cv(np.array([r["latent"] for r in ftr]), ra_tr, seed_tr)[0]
     readouts = {"property_head": lambda zz: head(zz)[:, 1], "ridge_on_encoder_latents": f_rough}
     # The learned camera-only baseline: a ridge from the same condition straight to roughness.
-    ftr_m = cats(tr, "fabric")
-    f_rough_cond = ridge_cv(cond(o, s)[ftr_m], np.array([r["truth"]["roughness_ra_mm"] for r in ftr]),
-                            np.array([r["seed"] for r in ftr]))[0]
+    f_rough_cond = ridge_cv(cond(o, s)[cats(tr, "fabric")], ra_tr, seed_tr)[0]
 
     def ranked_both_orders(o_rows, g):
         """Pair accuracy of predicted latents with the two fabrics' sampler seeds in both

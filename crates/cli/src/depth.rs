@@ -683,8 +683,9 @@ pub fn contact_depth(
 
 /// `<frame stem>.overlay.png` in `dir`: the picture of `unitac_contact::overlay` (the contact
 /// stage's `contact_overlay` is the same one): the frame with the contact region's outline and
-/// centroid, the markers' displacements (rest, now) as arrows, and with a depth estimator, beside it the depth colour map with the depth's
-/// contact outline (the depth unknown under the `unknown` pixels, the marker dots).
+/// centroid, the markers' displacements (rest, now) as arrows, and with a depth estimator,
+/// beside it the depth colour map with the depth's contact outline (the depth unknown under the
+/// `unknown` pixels, the marker dots).
 pub fn overlay_png(
     frame: &Frame,
     mask: &[bool],

@@ -203,16 +203,15 @@ impl ContactStage {
     /// in contact, forgotten out of contact. A background with too few markers, or a frame the
     /// markers cannot be found in, draws no arrows (the overlay is for a person; the slip stage
     /// reports such frames).
-    fn follow_markers(&mut self, f: &Frame, out: &[Msg], new_background: bool) {
+    fn follow_markers(&mut self, f: &Frame, out: &[Msg]) {
         let Some((field, p)) = self.markers.as_mut() else {
             return;
         };
-        if new_background {
-            let learned = self
-                .det
-                .background_frame(&f.sensor_id)
-                .map(|bg| field.learn(&bg, p));
-            if let Some(Err(e)) = learned {
+        // The background this frame announced, if it announced one.
+        for m in out {
+            if let Msg::Background(bg) = m
+                && let Err(e) = field.learn(bg, p)
+            {
                 tracing::warn!("contact overlay: no marker arrows: {e}");
             }
         }
@@ -295,7 +294,7 @@ impl Stage for ContactStage {
                     self.apply_depth(f, &mut out, new_background)?;
                 }
                 if self.det.params().overlay {
-                    self.follow_markers(f, &out, new_background);
+                    self.follow_markers(f, &out);
                     let o = self.overlay(f, &out)?;
                     out.push(Msg::ContactOverlay(o));
                 }
