@@ -11,6 +11,7 @@
 use serde::Serialize;
 use unitac_contact::{ContactDetector, ContactParams};
 use unitac_core::{Msg, SensorKind};
+use unitac_sim::ballpress::Skirt;
 use unitac_sim::{Drift, MockConfig, MockSensor, Scenario};
 
 /// Penetration above which a frame must be detected \[mm].
@@ -57,6 +58,8 @@ pub struct EvalReport {
 #[derive(Debug, Serialize)]
 pub struct BallAreaRow {
     pub sensor: String,
+    /// The gel's skirt around the press (`unitac_sim::ballpress::Skirt`).
+    pub skirt: String,
     pub ball_radius_mm: f64,
     pub approach_mm: f64,
     pub presses: usize,
@@ -68,55 +71,77 @@ pub struct BallAreaRow {
 /// Approaches of the ball presses \[mm].
 pub const BALL_APPROACHES: [f64; 5] = [0.2, 0.4, 0.6, 0.8, 1.0];
 
+/// The skirts of the sweep beside the default one (a 2 mm layer), at [`SWEEP_APPROACHES`]: a
+/// real gel's skirt is not known here, so the area is measured from a thin layer to the
+/// half-space.
+pub const SWEEP_SKIRTS: [Skirt; 4] = [
+    Skirt::Layer { thickness_mm: 0.5 },
+    Skirt::Layer { thickness_mm: 1.0 },
+    Skirt::Layer { thickness_mm: 4.0 },
+    Skirt::HalfSpace,
+];
+pub const SWEEP_APPROACHES: [f64; 3] = [0.2, 0.6, 1.0];
+
+/// The ball presses' rows of one sensor: the default skirt at every approach, then the sweep.
 fn ball_areas(kind: SensorKind) -> anyhow::Result<Vec<BallAreaRow>> {
-    use unitac_sim::ballpress::{BallPress, PressNoise, render_presses};
+    let mut rows = Vec::new();
+    for approach in BALL_APPROACHES {
+        rows.push(ball_area(kind, Skirt::default(), approach)?);
+    }
+    for skirt in SWEEP_SKIRTS {
+        for approach in SWEEP_APPROACHES {
+            rows.push(ball_area(kind, skirt, approach)?);
+        }
+    }
+    Ok(rows)
+}
+
+fn ball_area(kind: SensorKind, skirt: Skirt, approach: f64) -> anyhow::Result<BallAreaRow> {
+    use unitac_sim::ballpress::{BallPress, PressNoise, render_presses_with};
     let spec = kind.spec();
     let mut cfg = MockConfig::new(kind, 11);
     cfg.markers = false;
     let radius_mm = 2.0;
-    let mut rows = Vec::new();
-    for approach in BALL_APPROACHES {
-        let presses: Vec<BallPress> = [[110.0, 95.0], [210.0, 140.0], [160.0, 120.0]]
-            .iter()
-            .map(|c| BallPress {
-                center_px: *c,
-                radius_mm,
-                approach_mm: approach,
-            })
-            .collect();
-        let noise = PressNoise {
-            noise_dn: 1.0,
-            shading_dn: 0.0,
-            seed: 5,
-        };
-        let (bg, rendered) = render_presses(&cfg, spec, &presses, noise)
-            .ok_or_else(|| anyhow::anyhow!("rendering ball presses"))?;
-        let mut det =
-            ContactDetector::new(ContactParams::default(), spec).map_err(anyhow::Error::msg)?;
-        det.set_background_frame(&bg);
-        let (mut found, mut h, mut g) = (0usize, 0f64, 0f64);
-        for p in &rendered {
-            let m = det.measure(&p.frame).map_err(anyhow::Error::msg)?;
-            if m.area_px <= 0.0 {
-                continue;
-            }
-            found += 1;
-            let area = f64::from(m.area_px) * spec.mm2_per_px();
-            h += area / (std::f64::consts::PI * p.press.contact_radius_mm().powi(2));
-            g += area / (std::f64::consts::PI * p.press.geometric_radius_mm().powi(2));
-        }
-        let n = found.max(1) as f64;
-        rows.push(BallAreaRow {
-            sensor: kind.to_string(),
-            ball_radius_mm: radius_mm,
+    let presses: Vec<BallPress> = [[110.0, 95.0], [210.0, 140.0], [160.0, 120.0]]
+        .iter()
+        .map(|c| BallPress {
+            center_px: *c,
+            radius_mm,
             approach_mm: approach,
-            presses: rendered.len(),
-            found,
-            area_over_hertz: h / n,
-            area_over_geometric: g / n,
-        });
+        })
+        .collect();
+    let noise = PressNoise {
+        noise_dn: 1.0,
+        shading_dn: 0.0,
+        seed: 5,
+    };
+    let (bg, rendered) = render_presses_with(&cfg, spec, &presses, noise, skirt)
+        .ok_or_else(|| anyhow::anyhow!("rendering ball presses"))?;
+    let mut det =
+        ContactDetector::new(ContactParams::default(), spec).map_err(anyhow::Error::msg)?;
+    det.set_background_frame(&bg);
+    let (mut found, mut h, mut g) = (0usize, 0f64, 0f64);
+    for p in &rendered {
+        let m = det.measure(&p.frame).map_err(anyhow::Error::msg)?;
+        if m.area_px <= 0.0 {
+            continue;
+        }
+        found += 1;
+        let area = f64::from(m.area_px) * spec.mm2_per_px();
+        h += area / (std::f64::consts::PI * p.press.contact_radius_mm().powi(2));
+        g += area / (std::f64::consts::PI * p.press.geometric_radius_mm().powi(2));
     }
-    Ok(rows)
+    let n = found.max(1) as f64;
+    Ok(BallAreaRow {
+        sensor: kind.to_string(),
+        skirt: skirt.to_string(),
+        ball_radius_mm: radius_mm,
+        approach_mm: approach,
+        presses: rendered.len(),
+        found,
+        area_over_hertz: h / n,
+        area_over_geometric: g / n,
+    })
 }
 
 fn iou(a: &[bool], b: &[bool]) -> f64 {
@@ -275,9 +300,14 @@ impl EvalReport {
         }
         let _ = writeln!(
             s,
-            "\ncontact area on ball presses (R 2 mm, Hertz gel with its skirt, noise 1 DN, one background image)\n  sensor         approach [mm]  found  area / Hertz disc  area / geometric disc"
+            "\ncontact area on ball presses (R 2 mm, Hertz gel with its skirt faded over a 2 mm layer, noise 1 DN, one background image)\n  sensor         approach [mm]  found  area / Hertz disc  area / geometric disc"
         );
-        for b in &self.ball_presses {
+        let default_skirt = Skirt::default().to_string();
+        for b in self
+            .ball_presses
+            .iter()
+            .filter(|b| b.skirt == default_skirt)
+        {
             let _ = writeln!(
                 s,
                 "  {:<13}  {:>13.2}  {:>2}/{:<2}  {:>17.3}  {:>21.3}",
@@ -288,6 +318,31 @@ impl EvalReport {
                 b.area_over_hertz,
                 b.area_over_geometric
             );
+        }
+        let _ = writeln!(
+            s,
+            "\nthe same by skirt: area over the Hertz disc, over the geometric disc\n  sensor         skirt        {}",
+            SWEEP_APPROACHES.map(|a| format!("{a:>9.1} mm")).join("")
+        );
+        for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
+            for skirt in std::iter::once(Skirt::default()).chain(SWEEP_SKIRTS) {
+                let name = skirt.to_string();
+                let cells: String = SWEEP_APPROACHES
+                    .iter()
+                    .filter_map(|&a| {
+                        self.ball_presses.iter().find(|b| {
+                            b.sensor == kind.to_string() && b.skirt == name && b.approach_mm == a
+                        })
+                    })
+                    .map(|b| {
+                        format!(
+                            "  {:>5.2} {:>5.2}",
+                            b.area_over_hertz, b.area_over_geometric
+                        )
+                    })
+                    .collect();
+                let _ = writeln!(s, "  {:<13}  {name:<13}{cells}", kind.to_string());
+            }
         }
         s
     }
@@ -321,14 +376,27 @@ mod tests {
             );
             assert_eq!((s.idle_false_episodes, s.idle_false_frames), (0, 0));
         }
-        // Every ball press is found on both sensors.
-        assert_eq!(r.ball_presses.len(), 2 * BALL_APPROACHES.len());
+        // Every ball press is found on both sensors, at every skirt.
+        assert_eq!(
+            r.ball_presses.len(),
+            2 * (BALL_APPROACHES.len() + SWEEP_SKIRTS.len() * SWEEP_APPROACHES.len())
+        );
+        // The region is the contact, not its skirt: at every skirt within x1.5 of the geometric
+        // disc, and on the 2 mm layer, thicker ones and the half-space within 1-1.7x the Hertz
+        // disc (where the ball leaves the surface there; the residual's half-level contour lies
+        // a little outside the edge, where the slope it follows peaks).
+        let wide = [
+            Skirt::default(),
+            Skirt::Layer { thickness_mm: 4.0 },
+            Skirt::HalfSpace,
+        ]
+        .map(|s| s.to_string());
         for b in &r.ball_presses {
             assert_eq!(b.found, b.presses, "{b:?}");
-            assert!(
-                b.area_over_hertz.is_finite() && b.area_over_hertz > 0.0,
-                "{b:?}"
-            );
+            assert!((1.0 / 1.5..=1.5).contains(&b.area_over_geometric), "{b:?}");
+            if wide.contains(&b.skirt) {
+                assert!((1.0..=1.7).contains(&b.area_over_hertz), "{b:?}");
+            }
         }
     }
 }

@@ -30,6 +30,37 @@ use unitac_core::{Frame, SensorSpec};
 /// its thickness. 2 mm is an assumed thickness, not a measured one.
 pub const GEL_THICKNESS_MM: f64 = 2.0;
 
+/// The gel's surface outside the contact (its skirt): how far a press pulls the gel around it
+/// down with it. Hertz's half-space solution is the widest; a thin layer bonded to a rigid window
+/// comes back to rest within about its thickness. Real gels lie between, at a thickness this
+/// stack does not know (GelSight Mini, DIGIT and older GelSights differ), so `unitac eval contact`
+/// measures the contact region across them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Skirt {
+    /// Hertz's elastic half-space outside the contact, with its `1/r` tail.
+    HalfSpace,
+    /// Hertz's profile faded by `exp(-((r - a) / t)^2)` over a gel thickness t \[mm].
+    Layer { thickness_mm: f64 },
+}
+
+impl Default for Skirt {
+    /// A layer of [`GEL_THICKNESS_MM`].
+    fn default() -> Self {
+        Skirt::Layer {
+            thickness_mm: GEL_THICKNESS_MM,
+        }
+    }
+}
+
+impl std::fmt::Display for Skirt {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Skirt::HalfSpace => write!(f, "half-space"),
+            Skirt::Layer { thickness_mm } => write!(f, "layer {thickness_mm} mm"),
+        }
+    }
+}
+
 /// One press: where, which ball, how deep.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BallPress {
@@ -53,9 +84,32 @@ impl BallPress {
         (2.0 * r * d - d * d).max(0.0).sqrt()
     }
 
+    /// Radius \[mm] out to which the ball touches the gel surface of `skirt`: the outermost `r`
+    /// where the ball reaches at least as deep as the surface: the contact disc of the rendered
+    /// surface. It is the Hertz radius on the half-space and on layers of 0.5 mm and more (the
+    /// tests); a much thinner fade would lift the surface through the ball.
+    pub fn touch_radius_mm(&self, skirt: Skirt) -> f64 {
+        let (big_r, d) = (self.radius_mm, self.approach_mm);
+        let (a, g) = (self.contact_radius_mm(), self.geometric_radius_mm());
+        if d <= 0.0 || big_r <= 0.0 || g <= a {
+            return a;
+        }
+        let ball = |r: f64| d - (big_r - (big_r * big_r - r * r).max(0.0).sqrt());
+        const STEPS: usize = 20_000;
+        (0..=STEPS)
+            .map(|k| a + (g - a) * k as f64 / STEPS as f64)
+            .filter(|&r| ball(r) >= self.depth_at_with(r, skirt) - 1e-12)
+            .fold(a, f64::max)
+    }
+
     /// Depth of the gel surface at distance `r` \[mm] from the press centre \[mm, positive into
-    /// the gel].
+    /// the gel], with the default skirt.
     pub fn depth_at(&self, r: f64) -> f64 {
+        self.depth_at_with(r, Skirt::default())
+    }
+
+    /// [`Self::depth_at`] with the given skirt outside the contact.
+    pub fn depth_at_with(&self, r: f64, skirt: Skirt) -> f64 {
         let (big_r, d) = (self.radius_mm, self.approach_mm);
         if d <= 0.0 || big_r <= 0.0 {
             return 0.0;
@@ -68,22 +122,39 @@ impl BallPress {
             // Hertz's skirt starts at d / 2, the paraboloid's depth at the edge; it is scaled to
             // start where the exact sphere is (a few % less), so the surface is continuous.
             let rho = r / a;
-            let t = (r - a) / GEL_THICKNESS_MM;
+            let fade = match skirt {
+                Skirt::HalfSpace => 1.0,
+                Skirt::Layer { thickness_mm } => {
+                    let t = (r - a) / thickness_mm.max(1e-6);
+                    (-t * t).exp()
+                }
+            };
             2.0 * ball(a) / std::f64::consts::PI
                 * ((2.0 - rho * rho) * (1.0 / rho).asin() + (rho * rho - 1.0).max(0.0).sqrt())
-                * (-t * t).exp()
+                * fade
         }
     }
 
     /// The depth map \[mm] of a `width` x `height` frame at `mm_per_px`, row-major.
     pub fn depth_map(&self, width: u32, height: u32, mm_per_px: f64) -> Vec<f32> {
+        self.depth_map_with(width, height, mm_per_px, Skirt::default())
+    }
+
+    /// [`Self::depth_map`] with the given skirt.
+    pub fn depth_map_with(
+        &self,
+        width: u32,
+        height: u32,
+        mm_per_px: f64,
+        skirt: Skirt,
+    ) -> Vec<f32> {
         let (w, h) = (width as usize, height as usize);
         let mut out = vec![0f32; w * h];
         for (y, row) in out.chunks_exact_mut(w.max(1)).enumerate() {
             let dy = (y as f64 - self.center_px[1]) * mm_per_px;
             for (x, v) in row.iter_mut().enumerate() {
                 let dx = (x as f64 - self.center_px[0]) * mm_per_px;
-                *v = self.depth_at(dx.hypot(dy)) as f32;
+                *v = self.depth_at_with(dx.hypot(dy), skirt) as f32;
             }
         }
         out
@@ -128,6 +199,17 @@ pub fn render_presses(
     presses: &[BallPress],
     noise: PressNoise,
 ) -> Option<(Frame, Vec<RenderedPress>)> {
+    render_presses_with(cfg, spec, presses, noise, Skirt::default())
+}
+
+/// [`render_presses`] on a gel with the given skirt.
+pub fn render_presses_with(
+    cfg: &MockConfig,
+    spec: SensorSpec,
+    presses: &[BallPress],
+    noise: PressNoise,
+    skirt: Skirt,
+) -> Option<(Frame, Vec<RenderedPress>)> {
     let mut clean = cfg.clone();
     clean.noise_dn = 0.0;
     clean.drift = crate::Drift::default();
@@ -139,7 +221,7 @@ pub fn render_presses(
     let background = noisy(&bg_clean, &base, None, noise.noise_dn, noise.seed ^ 0xBEEF).ok()?;
     let mut out = Vec::with_capacity(presses.len());
     for (k, p) in presses.iter().enumerate() {
-        let depth = p.depth_map(w, h, spec.mm_per_px);
+        let depth = p.depth_map_with(w, h, spec.mm_per_px, skirt);
         let f = s.render_height(k as u64 + 1, &depth)?;
         let clean: Vec<f32> = f.data().iter().map(|&v| f32::from(v)).collect();
         let seed = noise.seed ^ (k as u64 + 1).wrapping_mul(0x2545_F491_4F6C_DD1D);
@@ -188,6 +270,75 @@ pub fn random_presses(
 mod tests {
     use super::*;
     use unitac_core::SensorKind;
+
+    #[test]
+    fn a_layer_skirt_fades_from_the_edge_and_the_half_space_keeps_its_one_over_r_tail() {
+        let p = BallPress {
+            center_px: [0.0, 0.0],
+            radius_mm: 2.0,
+            approach_mm: 0.5,
+        };
+        let a = p.contact_radius_mm();
+        let edge = p.depth_at_with(a, Skirt::HalfSpace);
+        for t in [0.5, 1.0, 2.0, 4.0] {
+            let layer = Skirt::Layer { thickness_mm: t };
+            // The same at the edge (the fade is 1 there), below the half-space outside, and at
+            // rest within a few thicknesses.
+            assert!((p.depth_at_with(a, layer) - edge).abs() < 1e-12);
+            let (half, lay) = (
+                p.depth_at_with(a + t, Skirt::HalfSpace),
+                p.depth_at_with(a + t, layer),
+            );
+            assert!(
+                (lay / half - (-1f64).exp()).abs() < 1e-9,
+                "{t}: {lay} {half}"
+            );
+            assert!(p.depth_at_with(a + 3.0 * t, layer) < 1e-3 * edge);
+        }
+        // The half-space's tail: (2 d_e / pi) (4/3) a / r far out (d_e: the depth at the edge).
+        let r = 200.0 * a;
+        let tail = 2.0 * edge / std::f64::consts::PI * 4.0 / 3.0 * a / r;
+        let far = p.depth_at_with(r, Skirt::HalfSpace);
+        assert!((far / tail - 1.0).abs() < 1e-3, "{far} vs {tail}");
+        // The ball leaves every skirt of the sweep (a layer of 0.5 mm or more, the half-space) at
+        // the Hertz radius: outside it the surface lies below the ball, so the Hertz disc is the
+        // rendered surface's contact whatever the skirt.
+        for approach in [0.05, 0.2, 0.6, 1.0] {
+            let p = BallPress {
+                approach_mm: approach,
+                ..p
+            };
+            let a = p.contact_radius_mm();
+            for skirt in [0.5, 1.0, 2.0, 4.0]
+                .map(|t| Skirt::Layer { thickness_mm: t })
+                .into_iter()
+                .chain([Skirt::HalfSpace])
+            {
+                let t = p.touch_radius_mm(skirt);
+                assert!((t - a).abs() < 1e-3 * a, "{approach} {skirt}: {t} vs {a}");
+            }
+        }
+        // A fade much thinner than the contact would lift the surface through the ball: there
+        // the ball touches further out (such a skirt is not one the sweep renders).
+        let deep = BallPress {
+            approach_mm: 0.6,
+            ..p
+        };
+        let thin = deep.touch_radius_mm(Skirt::Layer { thickness_mm: 0.25 });
+        assert!(thin > 1.1 * deep.contact_radius_mm(), "{thin}");
+        assert!(thin <= deep.geometric_radius_mm());
+        // The default is the 2 mm layer.
+        assert_eq!(
+            p.depth_at(1.7 * a),
+            p.depth_at_with(1.7 * a, Skirt::default())
+        );
+        assert_eq!(
+            Skirt::default(),
+            Skirt::Layer {
+                thickness_mm: GEL_THICKNESS_MM
+            }
+        );
+    }
 
     #[test]
     fn hertz_profile_is_continuous_with_the_ball_and_half_deep_at_the_edge() {
