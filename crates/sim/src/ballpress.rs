@@ -84,22 +84,11 @@ impl BallPress {
         (2.0 * r * d - d * d).max(0.0).sqrt()
     }
 
-    /// Radius \[mm] out to which the ball touches the gel surface of `skirt`: the outermost `r`
-    /// where the ball reaches at least as deep as the surface: the contact disc of the rendered
-    /// surface. It is the Hertz radius on the half-space and on layers of 0.5 mm and more (the
-    /// tests); a much thinner fade would lift the surface through the ball.
-    pub fn touch_radius_mm(&self, skirt: Skirt) -> f64 {
-        let (big_r, d) = (self.radius_mm, self.approach_mm);
-        let (a, g) = (self.contact_radius_mm(), self.geometric_radius_mm());
-        if d <= 0.0 || big_r <= 0.0 || g <= a {
-            return a;
-        }
-        let ball = |r: f64| d - (big_r - (big_r * big_r - r * r).max(0.0).sqrt());
-        const STEPS: usize = 20_000;
-        (0..=STEPS)
-            .map(|k| a + (g - a) * k as f64 / STEPS as f64)
-            .filter(|&r| ball(r) >= self.depth_at_with(r, skirt) - 1e-12)
-            .fold(a, f64::max)
+    /// Depth of the ball's surface at distance `r` \[mm] from the press centre (the exact
+    /// sphere; negative outside the geometric radius).
+    fn sphere_depth(&self, r: f64) -> f64 {
+        let big_r = self.radius_mm;
+        self.approach_mm - (big_r - (big_r * big_r - r * r).max(0.0).sqrt())
     }
 
     /// Depth of the gel surface at distance `r` \[mm] from the press centre \[mm, positive into
@@ -115,9 +104,8 @@ impl BallPress {
             return 0.0;
         }
         let a = self.contact_radius_mm();
-        let ball = |r: f64| d - (big_r - (big_r * big_r - r * r).max(0.0).sqrt());
         if r < a {
-            ball(r)
+            self.sphere_depth(r)
         } else {
             // Hertz's skirt starts at d / 2, the paraboloid's depth at the edge; it is scaled to
             // start where the exact sphere is (a few % less), so the surface is continuous.
@@ -129,7 +117,7 @@ impl BallPress {
                     (-t * t).exp()
                 }
             };
-            2.0 * ball(a) / std::f64::consts::PI
+            2.0 * self.sphere_depth(a) / std::f64::consts::PI
                 * ((2.0 - rho * rho) * (1.0 / rho).asin() + (rho * rho - 1.0).max(0.0).sqrt())
                 * fade
         }
@@ -271,6 +259,17 @@ mod tests {
     use super::*;
     use unitac_core::SensorKind;
 
+    /// Radius \[mm] out to which the ball touches the gel surface of `skirt`: the outermost `r`
+    /// where the ball reaches at least as deep as the surface (the rendered surface's contact).
+    fn touch_radius_mm(p: &BallPress, skirt: Skirt) -> f64 {
+        let (a, g) = (p.contact_radius_mm(), p.geometric_radius_mm());
+        const STEPS: usize = 20_000;
+        (0..=STEPS)
+            .map(|k| a + (g - a) * k as f64 / STEPS as f64)
+            .filter(|&r| p.sphere_depth(r) >= p.depth_at_with(r, skirt) - 1e-12)
+            .fold(a, f64::max)
+    }
+
     #[test]
     fn a_layer_skirt_fades_from_the_edge_and_the_half_space_keeps_its_one_over_r_tail() {
         let p = BallPress {
@@ -314,7 +313,7 @@ mod tests {
                 .into_iter()
                 .chain([Skirt::HalfSpace])
             {
-                let t = p.touch_radius_mm(skirt);
+                let t = touch_radius_mm(&p, skirt);
                 assert!((t - a).abs() < 1e-3 * a, "{approach} {skirt}: {t} vs {a}");
             }
         }
@@ -324,7 +323,7 @@ mod tests {
             approach_mm: 0.6,
             ..p
         };
-        let thin = deep.touch_radius_mm(Skirt::Layer { thickness_mm: 0.25 });
+        let thin = touch_radius_mm(&deep, Skirt::Layer { thickness_mm: 0.25 });
         assert!(thin > 1.1 * deep.contact_radius_mm(), "{thin}");
         assert!(thin <= deep.geometric_radius_mm());
         // The default is the 2 mm layer.
