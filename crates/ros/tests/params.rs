@@ -213,6 +213,9 @@ fn node_lines(
     for _ in 0..40 {
         if let Some(s) = c.try_wait().unwrap() {
             status = s.code();
+            if let Some(sig) = std::os::unix::process::ExitStatusExt::signal(&s) {
+                all.push_str(&format!("(the node died of signal {sig})\n"));
+            }
             break;
         }
         if lines.len() == want {
