@@ -12,7 +12,7 @@
 
 use super::model::{COLOUR_SCALE, DepthCalibration, DepthError, GradientModel};
 use super::poisson::PoissonSolver;
-use super::prep::{Prep, Shading};
+use super::prep::{Prep, RowSink, Shading, box3_rows};
 use unitac_core::Frame;
 
 /// One output of the gradient model for one row (`model::features` with v fixed and the colour
@@ -67,64 +67,110 @@ impl RowModel {
     }
 }
 
-/// Slopes per pixel step from the prepared difference (estimate's second pass), built for
-/// baseline x86-64 and for AVX2, taken at run time (no FMA, no reordered sums: the same bytes).
+/// Slopes per pixel step of a frame (estimate's pass over the pixels): the box mean of the
+/// difference row by row (`box3_rows`), the shading taken off and the model applied to each row
+/// as it comes, built for baseline x86-64 and for AVX2, taken at run time (no FMA, no reordered
+/// sums: the same bytes).
 #[multiversion::multiversion(targets("x86_64+avx2"))]
+#[allow(clippy::too_many_arguments)]
 fn model_pass(
-    diff: &[f32],
-    w: usize,
-    h: usize,
+    frame: &[u8],
+    background: &[u8],
+    rows: &mut Vec<f32>,
+    cols: &mut Vec<f32>,
+    (w, h): (usize, usize),
     shading: &Shading,
     model: &GradientModel,
-    gx: &mut [f32],
-    gy: &mut [f32],
+    (gx, gy): (&mut [f32], &mut [f32]),
 ) {
-    // Depth change per pixel step [mm]: the model's slopes times mm per pixel (folded into
-    // its coefficients at construction), with the colour scale and this row's v folded in
-    // here and the shading subtracted per pixel: one pass, no feature vector.
+    // Per column: the model's u and the shading's s.
     let iw = 1.0 / w as f32;
-    let cs = COLOUR_SCALE;
-    for y in 0..h {
-        let v = y as f32 / h as f32 - 0.5;
-        let sh = shading.row(y);
-        let kx = RowModel::new(&model.gx, v, cs);
-        let ky = RowModel::new(&model.gy, v, cs);
-        let row = &diff[y * w * 3..(y + 1) * w * 3];
-        let (ox, oy) = (&mut gx[y * w..(y + 1) * w], &mut gy[y * w..(y + 1) * w]);
-        // Blocks of 32 pixels, de-interleaved into arrays, so that the arithmetic
-        // vectorises (the per-pixel loop over RGB triples did not).
-        const B: usize = 32;
-        let mut x0 = 0;
-        for ((d, p), q) in row
-            .chunks(3 * B)
-            .zip(ox.chunks_mut(B))
-            .zip(oy.chunks_mut(B))
-        {
-            let n = p.len();
-            let (mut r, mut g, mut b, mut u) = ([0f32; B], [0f32; B], [0f32; B], [0f32; B]);
-            for (k, px) in d.chunks_exact(3).enumerate().take(B) {
-                r[k] = px[0];
-                g[k] = px[1];
-                b[k] = px[2];
-                u[k] = (x0 + k) as f32;
-            }
-            for k in 0..B {
-                let x = u[k];
-                let s = (x - shading.cx()) * shading.inv();
-                r[k] -= sh[0][0] + sh[0][1] * s + sh[0][2] * s * s;
-                g[k] -= sh[1][0] + sh[1][1] * s + sh[1][2] * s * s;
-                b[k] -= sh[2][0] + sh[2][1] * s + sh[2][2] * s * s;
-                u[k] = x * iw - 0.5;
-            }
-            let (mut pa, mut qa) = ([0f32; B], [0f32; B]);
-            for k in 0..B {
-                pa[k] = kx.eval(u[k], r[k], g[k], b[k]);
-                qa[k] = ky.eval(u[k], r[k], g[k], b[k]);
-            }
-            p.copy_from_slice(&pa[..n]);
-            q.copy_from_slice(&qa[..n]);
-            x0 += n;
-        }
+    cols.clear();
+    cols.extend((0..w).map(|x| x as f32 * iw - 0.5));
+    cols.extend((0..w).map(|x| shading.s(x)));
+    let (us, ss) = cols.split_at(w);
+    let mut sink = ModelRows {
+        h,
+        us,
+        ss,
+        shading,
+        model,
+        gx,
+        gy,
+    };
+    box3_rows(frame, background, rows, w, h, &mut sink);
+}
+
+/// The model pass's rows: each prepared row to slopes.
+struct ModelRows<'a> {
+    h: usize,
+    us: &'a [f32],
+    ss: &'a [f32],
+    shading: &'a Shading,
+    model: &'a GradientModel,
+    gx: &'a mut [f32],
+    gy: &'a mut [f32],
+}
+
+impl RowSink for ModelRows<'_> {
+    #[inline(always)]
+    fn row(&mut self, y: usize, planes: &[f32]) {
+        let w = self.us.len();
+        let (Some(ox), Some(oy)) = (
+            self.gx.get_mut(y * w..(y + 1) * w),
+            self.gy.get_mut(y * w..(y + 1) * w),
+        ) else {
+            return;
+        };
+        model_row(
+            y,
+            self.h,
+            planes,
+            self.us,
+            self.ss,
+            self.shading,
+            self.model,
+            ox,
+            oy,
+        );
+    }
+}
+
+/// One row of [`model_pass`]: depth change per pixel step [mm] from the row's planes
+/// `[R | G | B]`: the model's slopes times mm per pixel (folded into its coefficients at
+/// construction), with the colour scale and this row's v folded in here and the shading
+/// subtracted per pixel: no feature vector.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn model_row(
+    y: usize,
+    h: usize,
+    planes: &[f32],
+    us: &[f32],
+    ss: &[f32],
+    shading: &Shading,
+    model: &GradientModel,
+    ox: &mut [f32],
+    oy: &mut [f32],
+) {
+    let w = ox.len();
+    if planes.len() < 3 * w || us.len() < w || ss.len() < w || oy.len() < w {
+        return;
+    }
+    let v = y as f32 / h as f32 - 0.5;
+    let sh = shading.row(y);
+    let kx = RowModel::new(&model.gx, v, COLOUR_SCALE);
+    let ky = RowModel::new(&model.gy, v, COLOUR_SCALE);
+    let (rs, rest) = planes.split_at(w);
+    let (gs, bs) = rest.split_at(w);
+    let (gs, bs, us, ss, oy) = (&gs[..w], &bs[..w], &us[..w], &ss[..w], &mut oy[..w]);
+    for x in 0..w {
+        let s = ss[x];
+        let r = rs[x] - (sh[0][0] + sh[0][1] * s + sh[0][2] * s * s);
+        let g = gs[x] - (sh[1][0] + sh[1][1] * s + sh[1][2] * s * s);
+        let b = bs[x] - (sh[2][0] + sh[2][1] * s + sh[2][2] * s * s);
+        ox[x] = kx.eval(us[x], r, g, b);
+        oy[x] = ky.eval(us[x], r, g, b);
     }
 }
 
@@ -177,6 +223,10 @@ pub struct DepthEstimator {
     border: Vec<f32>,
     /// Column sums of three rows (the peak search), kept between frames.
     col: Vec<f32>,
+    /// One row's 3 x 3 sums (the peak search).
+    sums: Vec<f32>,
+    /// The model pass's per-column values.
+    cols: Vec<f32>,
     step_model: GradientModel,
 }
 
@@ -210,6 +260,8 @@ impl DepthEstimator {
             stack: Vec::new(),
             border: Vec::new(),
             col: Vec::new(),
+            sums: Vec::new(),
+            cols: Vec::new(),
             step_model,
         })
     }
@@ -244,17 +296,17 @@ impl DepthEstimator {
                 bh: self.background.height,
             });
         }
-        let shading = self
-            .prep
-            .run_unsubtracted(frame.data(), self.background.data(), w, h);
+        let (fr, bg) = (frame.data(), self.background.data());
+        let shading = self.prep.shading(fr, bg, w, h);
         model_pass(
-            &self.prep.diff,
-            w,
-            h,
+            fr,
+            bg,
+            self.prep.rows(),
+            &mut self.cols,
+            (w, h),
             &shading,
             &self.step_model,
-            &mut self.gx,
-            &mut self.gy,
+            (&mut self.gx, &mut self.gy),
         );
         self.solver.solve(&self.gx, &self.gy, &mut self.depth);
         let mut px = std::mem::take(&mut self.border);
@@ -287,7 +339,7 @@ impl DepthEstimator {
         let d = &self.depth;
         // The largest 3 x 3 sum: column sums of three rows, then three of those per pixel.
         let (mut best, mut at) = (f32::MIN, 0usize);
-        let col = &mut self.col;
+        let (col, sums) = (&mut self.col, &mut self.sums);
         col.resize(w, 0.0);
         for y in 1..h.saturating_sub(1) {
             let (a, b, c) = (
@@ -298,12 +350,22 @@ impl DepthEstimator {
             for (((o, p), q), r) in col.iter_mut().zip(a).zip(b).zip(c) {
                 *o = p + q + r;
             }
-            for x in 1..w.saturating_sub(1) {
-                let s = col[x - 1] + col[x] + col[x + 1];
-                if s > best {
-                    best = s;
-                    at = y * w + x;
-                }
+            // The row's sums, then its largest (branch-free: it vectorises), and only where
+            // that beats the best so far, the first pixel that holds it: the first largest in
+            // scan order, as a scan pixel by pixel would find.
+            let n = w.saturating_sub(2);
+            sums.resize(n, 0.0);
+            if n == 0 {
+                continue;
+            }
+            for (((o, l), m), r) in sums.iter_mut().zip(&col[..n]).zip(&col[1..]).zip(&col[2..]) {
+                *o = l + m + r;
+            }
+            let top = row_max(sums);
+            if top > best {
+                best = top;
+                let x = sums.iter().position(|&s| s == top).unwrap_or(0);
+                at = y * w + x + 1;
             }
         }
         let pen = (best / 9.0).max(0.0);
@@ -343,6 +405,25 @@ impl DepthEstimator {
         summary.centroid_px = [(sx / nf) as f32, (sy / nf) as f32];
         summary
     }
+}
+
+/// The largest value of `v` (`f32::MIN` if empty; NaN never counts), in eight lanes so that it
+/// vectorises.
+fn row_max(v: &[f32]) -> f32 {
+    let mut lanes = [f32::MIN; 8];
+    let chunks = v.chunks_exact(8);
+    let tail = chunks.remainder();
+    for c in chunks {
+        for (m, &s) in lanes.iter_mut().zip(c) {
+            if s > *m {
+                *m = s;
+            }
+        }
+    }
+    lanes
+        .iter()
+        .chain(tail)
+        .fold(f32::MIN, |a, &s| if s > a { s } else { a })
 }
 
 #[cfg(test)]
