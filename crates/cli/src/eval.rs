@@ -71,14 +71,15 @@ pub struct BallAreaRow {
 /// Approaches of the ball presses \[mm].
 pub const BALL_APPROACHES: [f64; 5] = [0.2, 0.4, 0.6, 0.8, 1.0];
 
-/// The skirts of the sweep beside the default one (a 2 mm layer), at [`SWEEP_APPROACHES`]: a
-/// real gel's skirt is not known here, so the area is measured from a thin layer to the
-/// half-space.
-pub const SWEEP_SKIRTS: [Skirt; 4] = [
+/// The skirts of the sweep beside the default one (a 2 mm layer), at [`SWEEP_APPROACHES`]: from
+/// a thin layer to the half-space, and the surface a GelSight gel's published finite-element
+/// response gives (`Skirt::Fem`).
+pub const SWEEP_SKIRTS: [Skirt; 5] = [
     Skirt::Layer { thickness_mm: 0.5 },
     Skirt::Layer { thickness_mm: 1.0 },
     Skirt::Layer { thickness_mm: 4.0 },
     Skirt::HalfSpace,
+    Skirt::Fem,
 ];
 pub const SWEEP_APPROACHES: [f64; 3] = [0.2, 0.6, 1.0];
 
@@ -382,13 +383,14 @@ mod tests {
             2 * (BALL_APPROACHES.len() + SWEEP_SKIRTS.len() * SWEEP_APPROACHES.len())
         );
         // The region is the contact, not its skirt: at every skirt within x1.5 of the geometric
-        // disc, and on the 2 mm layer, thicker ones and the half-space within 1-1.7x the Hertz
-        // disc (where the ball leaves the surface there; the residual's half-level contour lies
+        // disc, and on the 2 mm layer, thicker ones, the half-space and the gel's finite-element
+        // skirt within 1-1.7x the Hertz disc (where the ball leaves the surface there; the residual's half-level contour lies
         // a little outside the edge, where the slope it follows peaks).
         let wide = [
             Skirt::default(),
             Skirt::Layer { thickness_mm: 4.0 },
             Skirt::HalfSpace,
+            Skirt::Fem,
         ]
         .map(|s| s.to_string());
         for b in &r.ball_presses {
