@@ -71,15 +71,15 @@ pub struct BallAreaRow {
 /// Approaches of the ball presses \[mm].
 pub const BALL_APPROACHES: [f64; 5] = [0.2, 0.4, 0.6, 0.8, 1.0];
 
-/// The skirts of the sweep beside the default one (a 2 mm layer), at [`SWEEP_APPROACHES`]: from
-/// a thin layer to the half-space, and the surface a GelSight gel's published finite-element
-/// response gives (`Skirt::Fem`).
+/// The skirts of the sweep beside the default one (the surface a GelSight gel's published
+/// finite-element response gives, `Skirt::Fem`), at [`SWEEP_APPROACHES`]: Hertz's profile faded
+/// over a thin layer to a thick one, and the whole half-space.
 pub const SWEEP_SKIRTS: [Skirt; 5] = [
     Skirt::Layer { thickness_mm: 0.5 },
     Skirt::Layer { thickness_mm: 1.0 },
+    Skirt::Layer { thickness_mm: 2.0 },
     Skirt::Layer { thickness_mm: 4.0 },
     Skirt::HalfSpace,
-    Skirt::Fem,
 ];
 pub const SWEEP_APPROACHES: [f64; 3] = [0.2, 0.6, 1.0];
 
@@ -301,7 +301,7 @@ impl EvalReport {
         }
         let _ = writeln!(
             s,
-            "\ncontact area on ball presses (R 2 mm, Hertz gel with its skirt faded over a 2 mm layer, noise 1 DN, one background image)\n  sensor         approach [mm]  found  area / Hertz disc  area / geometric disc"
+            "\ncontact area on ball presses (R 2 mm, Hertz pressure on a GelSight gel's finite-element response, noise 1 DN, one background image)\n  sensor         approach [mm]  found  area / Hertz disc  area / geometric disc"
         );
         let default_skirt = Skirt::default().to_string();
         for b in self
@@ -383,14 +383,15 @@ mod tests {
             2 * (BALL_APPROACHES.len() + SWEEP_SKIRTS.len() * SWEEP_APPROACHES.len())
         );
         // The region is the contact, not its skirt: at every skirt within x1.5 of the geometric
-        // disc, and on the 2 mm layer, thicker ones, the half-space and the gel's finite-element
-        // skirt within 1-1.7x the Hertz disc (where the ball leaves the surface there; the residual's half-level contour lies
-        // a little outside the edge, where the slope it follows peaks).
+        // disc, and on the gel's finite-element skirt, layers of 2 mm and more and the
+        // half-space within 1-1.7x the Hertz disc (where the ball leaves the surface there; the
+        // residual's half-level contour lies a little outside the edge, where the slope it
+        // follows peaks).
         let wide = [
-            Skirt::default(),
+            Skirt::Fem,
+            Skirt::Layer { thickness_mm: 2.0 },
             Skirt::Layer { thickness_mm: 4.0 },
             Skirt::HalfSpace,
-            Skirt::Fem,
         ]
         .map(|s| s.to_string());
         for b in &r.ball_presses {

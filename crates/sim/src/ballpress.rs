@@ -5,11 +5,13 @@
 //! eqs. 3.41a and 3.42a): the contact radius is `a = sqrt(R d)`, inside the contact the gel takes
 //! the ball's shape (the exact sphere, `d - (R - sqrt(R^2 - r^2))`, which Hertz approximates by
 //! the paraboloid `d - r^2 / 2R`), and outside it slopes back to rest as
-//! `(d / pi) [(2 - r^2/a^2) asin(a/r) + sqrt(r^2/a^2 - 1)]`: half the approach at the contact
-//! edge, the same slope as the ball there, and a tail that falls off as `1/r`, here faded by
-//! `exp(-((r - a) / t)^2)` over the gel's thickness t ([`GEL_THICKNESS_MM`]: a bonded thin
-//! layer comes back to rest much sooner than a half-space; the factor is 1 with zero slope at
-//! the edge, so the edge and the slopes there stay Hertz's). So the contact
+//! `(d / pi) [(2 - r^2/a^2) asin(a/r) + sqrt(r^2/a^2 - 1)]` on a half-space: half the approach
+//! at the contact edge, the same slope as the ball there, and a tail that falls off as `1/r`.
+//! A real gel is a layer a few mm thick bonded to a rigid window, and comes back to rest much
+//! sooner: by default ([`Skirt::Fem`]) the surface outside the contact is Hertz's pressure seen
+//! through the point response of a GelSight gel that Taxim published from finite elements
+//! (`FEM_POINT_RESPONSE`) instead of the half-space's `1/r`, scaled to the ball's depth at the
+//! edge. [`Skirt`] also renders Hertz's profile faded over a layer, or the whole half-space. So the contact
 //! radius lies at the Hertz value `sqrt(R d)`, below the geometric intersection
 //! `sqrt(2 R d - d^2)` of the undeformed gel with the ball: the gel around a press is pulled down
 //! with it (the "skirt"), and the ball meets it sooner. The scenario renderer
@@ -24,16 +26,6 @@
 use crate::degrade::{noisy, shading_field};
 use crate::{MockConfig, MockSensor, Scenario, SplitMix64};
 use unitac_core::{Frame, SensorSpec};
-
-/// Length over which the skirt fades beyond Hertz's half-space \[mm]: the gel is a thin layer
-/// bonded to a rigid window, not a half-space, so the surface comes back to rest within about
-/// its thickness. A fade length, not the gel's thickness (a GelSight Mini's gel is about 4 mm:
-/// the FEATS project's finite-element mesh of it, github.com/feats-ai/feats,
-/// src/calculix/obj/gelsight_mini). Against the published finite-element response of a
-/// GelSight gel ([`Skirt::Fem`]), with a 2 mm ball at 0.2-1.0 mm, the default skirt falls to 10 %
-/// of the approach 9-11 % further out and to 3 % within 3 % of the same radius (the test
-/// `the_default_skirt_follows_the_gel_s_finite_element_response`).
-pub const GEL_THICKNESS_MM: f64 = 2.0;
 
 /// Vertical displacement of a GelSight gel's surface around a point load, as a share of the
 /// displacement under the load, against the distance from it \[mm]: the radial means (0.1 mm
@@ -61,28 +53,29 @@ const FEM_TABLE_STEP_MM: f64 = 0.01;
 
 /// The gel's surface outside the contact (its skirt): how far a press pulls the gel around it
 /// down with it. Hertz's half-space solution is the widest; a thin layer bonded to a rigid window
-/// comes back to rest within about its thickness. Real gels lie between, at a thickness this
-/// stack does not know (GelSight Mini, DIGIT and older GelSights differ), so `unitac eval contact`
-/// measures the contact region across them.
+/// comes back to rest within about its thickness (a GelSight Mini's gel is about 4 mm thick: the
+/// FEATS project's finite-element mesh of it, github.com/feats-ai/feats,
+/// src/calculix/obj/gelsight_mini). The default is the finite-element response of a GelSight
+/// gel; gels differ (GelSight Mini, DIGIT and older GelSights), so `unitac eval contact`
+/// measures the contact region across these skirts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Skirt {
     /// Hertz's elastic half-space outside the contact, with its `1/r` tail.
     HalfSpace,
     /// Hertz's profile faded by `exp(-((r - a) / t)^2)` over a gel thickness t \[mm].
     Layer { thickness_mm: f64 },
-    /// Hertz's pressure on a GelSight gel as finite elements see it: the surface is the
-    /// pressure seen through the gel's published point response (`FEM_POINT_RESPONSE`,
+    /// Hertz's pressure on a GelSight gel as finite elements see it (the default): the surface
+    /// is the pressure seen through the gel's published point response (`FEM_POINT_RESPONSE`,
     /// Taxim's superposition) instead of the half-space's `1/r`, scaled to the ball's depth at
-    /// the edge. No contact solve: the pressure stays Hertz's.
+    /// the edge. No contact solve: the pressure stays Hertz's, and just outside the edge the
+    /// surface lies a hair above the ball, which touches it up to 2 % beyond the Hertz radius.
     Fem,
 }
 
 impl Default for Skirt {
-    /// A layer of [`GEL_THICKNESS_MM`].
+    /// The finite-element skirt, [`Skirt::Fem`].
     fn default() -> Self {
-        Skirt::Layer {
-            thickness_mm: GEL_THICKNESS_MM,
-        }
+        Skirt::Fem
     }
 }
 
@@ -446,17 +439,9 @@ mod tests {
         let thin = touch_radius_mm(&deep, Skirt::Layer { thickness_mm: 0.25 });
         assert!(thin > 1.1 * deep.contact_radius_mm(), "{thin}");
         assert!(thin <= deep.geometric_radius_mm());
-        // The default is the 2 mm layer.
-        assert_eq!(
-            p.depth_at(1.7 * a),
-            p.depth_at_with(1.7 * a, Skirt::default())
-        );
-        assert_eq!(
-            Skirt::default(),
-            Skirt::Layer {
-                thickness_mm: GEL_THICKNESS_MM
-            }
-        );
+        // The default is the finite-element skirt.
+        assert_eq!(p.depth_at(1.7 * a), p.depth_at_with(1.7 * a, Skirt::Fem));
+        assert_eq!(Skirt::default(), Skirt::Fem);
     }
 
     /// Where the surface of `skirt` (falling outside the contact) comes up to `share` of the
@@ -475,7 +460,7 @@ mod tests {
     }
 
     #[test]
-    fn the_default_skirt_follows_the_gel_s_finite_element_response() {
+    fn the_finite_element_skirt_falls_faster_than_the_half_space_and_near_a_2_mm_layer() {
         for approach in [0.2, 0.5, 1.0] {
             let p = BallPress {
                 center_px: [0.0, 0.0],
@@ -496,14 +481,15 @@ mod tests {
                 assert!(0.0 < fem && fem < half, "{approach} {dr}: {fem} {half}");
             }
             assert!(p.depth_at_with(a + 5.5, Skirt::Fem) < 1e-3 * edge);
-            // The default's 10 % radius within 12 % of the finite elements' (it reads 9-11 %
+            // A 2 mm fade's 10 % radius within 12 % of the finite elements' (it reads 9-11 %
             // further out: the fade keeps Hertz's shape near the edge, where the finite elements
             // fall faster) and its 3 % radius within 5 %; the half-space's 1.5 and 3 times
             // further out.
+            let layer = Skirt::Layer { thickness_mm: 2.0 };
             let fem10 = radius_at_share(&p, Skirt::Fem, 0.1);
             let fem3 = radius_at_share(&p, Skirt::Fem, 0.03);
-            let ours10 = radius_at_share(&p, Skirt::default(), 0.1);
-            let ours3 = radius_at_share(&p, Skirt::default(), 0.03);
+            let ours10 = radius_at_share(&p, layer, 0.1);
+            let ours3 = radius_at_share(&p, layer, 0.03);
             let half10 = radius_at_share(&p, Skirt::HalfSpace, 0.1);
             let half3 = radius_at_share(&p, Skirt::HalfSpace, 0.03);
             assert!((ours10 / fem10 - 1.0).abs() < 0.12, "{ours10} {fem10}");
@@ -534,22 +520,24 @@ mod tests {
             radius_mm: 4.0,
             approach_mm: 0.5,
         };
+        // Hertz's profile outside the contact, faded over a 2 mm layer.
+        let depth = |r: f64| p.depth_at_with(r, Skirt::Layer { thickness_mm: 2.0 });
         let a = p.contact_radius_mm();
         assert!((a - 2f64.sqrt()).abs() < 1e-12);
         assert!(p.geometric_radius_mm() > a);
-        let inside = p.depth_at(a - 1e-9);
-        let outside = p.depth_at(a + 1e-9);
+        let inside = depth(a - 1e-9);
+        let outside = depth(a + 1e-9);
         // Half the approach at the edge (Hertz's paraboloid), less the sphere's few %.
         assert!((outside - 0.25).abs() < 0.02 * 0.5, "{outside}");
         assert!((inside - outside).abs() < 1e-6, "{inside} {outside}");
-        assert_eq!(p.depth_at(0.0), 0.5);
+        assert_eq!(depth(0.0), 0.5);
         // Slopes meet at the edge (a/R for the paraboloid Hertz assumes).
         let e = 1e-4;
-        let s_out = (p.depth_at(a + 2.0 * e) - p.depth_at(a + e)) / e;
+        let s_out = (depth(a + 2.0 * e) - depth(a + e)) / e;
         assert!((s_out + a / 4.0).abs() < 0.04, "{s_out}");
         // The tail decays, never below zero, and is gone a few gel thicknesses out.
-        assert!(p.depth_at(2.0 * a) > 0.0 && p.depth_at(2.0 * a) < 0.25);
-        assert!(p.depth_at(a + 3.0 * GEL_THICKNESS_MM) < 1e-4);
+        assert!(depth(2.0 * a) > 0.0 && depth(2.0 * a) < 0.25);
+        assert!(depth(a + 6.0) < 1e-4);
     }
 
     #[test]
