@@ -58,19 +58,21 @@ fn mock_bag(path: &Path, n: usize, opts: WriteOptions) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 7: stdout closed or full
+// Stdout closed or full
 
 #[test]
 fn closed_or_full_stdout_is_exit_1_one_line() {
-    // `unitac scenes | head -0`: the reader is gone before the first write.
-    let mut child = Command::new(env!("CARGO_BIN_EXE_unitac"))
+    // `unitac scenes | head -0`: the reader is gone before the first write. Its end of the pipe
+    // is closed before the child starts (closing it after the spawn races the child's first
+    // write, which a loaded machine lets the child win: the write fits the pipe's buffer).
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
         .arg("scenes")
-        .stdout(Stdio::piped())
+        .stdout(writer)
         .stderr(Stdio::piped())
-        .spawn()
+        .output()
         .unwrap();
-    drop(child.stdout.take());
-    let o = child.wait_with_output().unwrap();
     assert_one_line(&o, 1, "writing to stdout");
     for args in [&["devices"][..], &["devices", "--json"], &["scenes"]] {
         let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
@@ -84,7 +86,7 @@ fn closed_or_full_stdout_is_exit_1_one_line() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 4: image dimensions before decoding
+// Image dimensions before decoding
 
 /// A valid 1-bit grayscale PNG of `w` x `h` zeros, stored (uncompressed) deflate: small to
 /// build, and a decoder that trusts it allocates w*h*3 bytes for the RGB copy.
@@ -176,7 +178,7 @@ fn image_dimensions_are_checked_before_decoding() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 11: configuration that must be refused at load
+// Configuration that must be refused at load
 
 fn scene_error(name: &str, text: &str, needle: &str) {
     let d = tmpdir(&format!("cfg-{name}"));
@@ -256,7 +258,7 @@ fn deep_yaml_is_refused_quickly() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 8: one rule for bag errors
+// One rule for bag errors
 
 #[test]
 fn bag_errors_follow_one_rule() {
@@ -328,7 +330,7 @@ fn bag_errors_follow_one_rule() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Items 5, 11: failed images make a non-zero exit; oversized sqlite rows are skipped
+// Failed images make a non-zero exit; oversized sqlite rows are skipped
 
 #[test]
 fn replay_with_failed_images_exits_1_and_says_how_many() {
@@ -364,7 +366,7 @@ fn replay_with_failed_images_exits_1_and_says_how_many() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 10: an endless replay keeps bounded state
+// An endless replay keeps bounded state
 
 /// Messages on `topic` counted in a bag's metadata.yaml (rewritten after every flushed chunk).
 fn metadata_count(bag: &Path, topic: &str) -> u64 {
@@ -472,7 +474,7 @@ fn looped_replay_lists_a_bounded_number_of_episodes() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 11: a full disk under --out
+// A full disk under --out
 
 #[test]
 fn full_disk_under_out_names_the_cause() {
@@ -495,7 +497,7 @@ fn full_disk_under_out_names_the_cause() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Item 3: a recording killed with SIGKILL, repaired, read by rosbags
+// A recording killed with SIGKILL, repaired, read by rosbags
 
 fn python() -> PathBuf {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
