@@ -140,14 +140,6 @@ impl Shading {
         out
     }
 
-    /// w/2 and 1 / max(w, h): s = (x - cx) * inv.
-    pub fn cx(&self) -> f32 {
-        self.cx
-    }
-    pub fn inv(&self) -> f32 {
-        self.inv
-    }
-
     /// (x - w/2) / max(w, h) of column x.
     pub fn s(&self, x: usize) -> f32 {
         (x as f32 - self.cx) * self.inv
