@@ -133,24 +133,30 @@ impl BallPress {
         }
         let a = self.contact_radius_mm();
         if r < a {
-            self.sphere_depth(r)
-        } else if skirt == Skirt::Fem {
-            self.sphere_depth(a) * fem_surface(a, r) / fem_surface(a, a)
-        } else {
-            // Hertz's skirt starts at d / 2, the paraboloid's depth at the edge; it is scaled to
-            // start where the exact sphere is (a few % less), so the surface is continuous.
-            let rho = r / a;
-            let fade = match skirt {
-                Skirt::HalfSpace | Skirt::Fem => 1.0,
-                Skirt::Layer { thickness_mm } => {
-                    let t = (r - a) / thickness_mm.max(1e-6);
-                    (-t * t).exp()
-                }
-            };
+            return self.sphere_depth(r);
+        }
+        // Hertz's skirt starts at d / 2, the paraboloid's depth at the edge; it is scaled to
+        // start where the exact sphere is (a few % less), so the surface is continuous.
+        let rho = r / a;
+        let hertz = || {
             2.0 * self.sphere_depth(a) / std::f64::consts::PI
                 * ((2.0 - rho * rho) * (1.0 / rho).asin() + (rho * rho - 1.0).max(0.0).sqrt())
-                * fade
+        };
+        match skirt {
+            Skirt::HalfSpace => hertz(),
+            Skirt::Layer { thickness_mm } => {
+                let t = (r - a) / thickness_mm.max(1e-6);
+                hertz() * (-t * t).exp()
+            }
+            Skirt::Fem => self.fem_depth(r, fem_surface(a, a)),
         }
+    }
+
+    /// [`Skirt::Fem`]'s depth at `r` at or beyond the contact edge, given `fem_surface(a, a)`
+    /// (the same for every radius of a press).
+    fn fem_depth(&self, r: f64, at_edge: f64) -> f64 {
+        let a = self.contact_radius_mm();
+        self.sphere_depth(a) * fem_surface(a, r) / at_edge
     }
 
     /// The depth map \[mm] of a `width` x `height` frame at `mm_per_px`, row-major.
@@ -187,15 +193,15 @@ impl BallPress {
 
     /// [`Skirt::Fem`]'s depth from the contact edge out to rest, every [`FEM_TABLE_STEP_MM`].
     fn fem_table(&self) -> Vec<f64> {
-        let a = self.contact_radius_mm();
-        let reach = FEM_POINT_RESPONSE[FEM_POINT_RESPONSE.len() - 1].0;
-        let n = (reach / FEM_TABLE_STEP_MM).ceil() as usize;
         if self.approach_mm <= 0.0 || self.radius_mm <= 0.0 {
             return vec![0.0; 2];
         }
-        let (edge, scale) = (self.sphere_depth(a), fem_surface(a, a));
+        let a = self.contact_radius_mm();
+        let reach = FEM_POINT_RESPONSE[FEM_POINT_RESPONSE.len() - 1].0;
+        let n = (reach / FEM_TABLE_STEP_MM).ceil() as usize;
+        let at_edge = fem_surface(a, a);
         (0..=n)
-            .map(|k| edge * fem_surface(a, a + k as f64 * FEM_TABLE_STEP_MM) / scale)
+            .map(|k| self.fem_depth(a + k as f64 * FEM_TABLE_STEP_MM, at_edge))
             .collect()
     }
 

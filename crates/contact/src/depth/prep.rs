@@ -194,18 +194,8 @@ pub(super) fn box3_rows(
     rows.resize(5 * stride, 0.0);
     let (diff, rest) = rows.split_at_mut(stride);
     let (ring, out) = rest.split_at_mut(3 * stride);
-    if w < 2 || h < 2 {
-        for (y, (fr, bg)) in frame
-            .chunks_exact(stride)
-            .zip(background.chunks_exact(stride))
-            .enumerate()
-            .take(h)
-        {
-            planar_diff(fr, bg, out, w);
-            sink.row(y, out);
-        }
-        return;
-    }
+    // A frame of one row or column has no neighbours to average: its difference as it is.
+    let single = w < 2 || h < 2;
     const THIRD: f32 = 1.0 / 3.0;
     for (y, (fr, bg)) in frame
         .chunks_exact(stride)
@@ -213,6 +203,11 @@ pub(super) fn box3_rows(
         .enumerate()
         .take(h)
     {
+        if single {
+            planar_diff(fr, bg, out, w);
+            sink.row(y, out);
+            continue;
+        }
         planar_diff(fr, bg, diff, w);
         let slot = y % 3;
         let hrow = &mut ring[slot * stride..(slot + 1) * stride];
@@ -235,6 +230,9 @@ pub(super) fn box3_rows(
             }
         }
         sink.row(y - 1, out);
+    }
+    if single {
+        return;
     }
     let (cur, prev) = (
         &ring[((h - 1) % 3) * stride..((h - 1) % 3 + 1) * stride],
@@ -532,18 +530,43 @@ fn fit_shading(w: usize, h: usize, lat: &mut Lattice) -> Shading {
 /// lattice (steps 1 and sqrt 2: within 8 % of Euclidean), linear in the lattice's size.
 fn dilate_rejected(keep: &mut [bool], w: usize, dist: &mut Vec<f32>) {
     let nx = (w.saturating_sub(LATTICE / 2)).div_ceil(LATTICE).max(1);
-    let ny = keep.len() / nx;
-    let rejected = keep.iter().filter(|k| !**k).count();
-    if rejected == 0 || rejected * 2 > keep.len() || nx * ny != keep.len() {
+    if nx * (keep.len() / nx) != keep.len() {
         return;
     }
-    let reach = (2.0 * (rejected as f32 / std::f32::consts::PI).sqrt()).max(2.0);
+    let Some(reach) = dilation_reach(keep) else {
+        return;
+    };
+    chamfer_distances(keep, nx, dist);
+    keep_beyond(keep, dist, reach);
+}
+
+/// How far around the rejected cells the dilation reaches \[lattice steps]: twice their
+/// equivalent radius, at least 2; none when nothing or more than half the lattice is rejected.
+fn dilation_reach(keep: &[bool]) -> Option<f32> {
+    let rejected = keep.iter().filter(|k| !**k).count();
+    (rejected > 0 && rejected * 2 <= keep.len())
+        .then(|| (2.0 * (rejected as f32 / std::f32::consts::PI).sqrt()).max(2.0))
+}
+
+/// Keep only the cells further than `reach` from every rejected cell, unless that would keep
+/// less than half the lattice for the fit.
+fn keep_beyond(keep: &mut [bool], dist: &[f32], reach: f32) {
+    if dist.iter().filter(|d| **d > reach).count() * 2 >= keep.len() {
+        for (k, d) in keep.iter_mut().zip(dist) {
+            *k = *d > reach;
+        }
+    }
+}
+
+/// Chamfer distance (steps 1 and sqrt 2) of every cell of an `nx`-wide lattice to the nearest
+/// cell `keep` leaves out, into `dist`. Forward (top-left to bottom-right), then backward: each
+/// pass takes a row's candidates from the row before it in one loop over the row (no dependence
+/// between cells: it vectorises), then runs along the row for the one candidate that depends on
+/// the cell just done. The same candidates as cell by cell, so the same distances.
+fn chamfer_distances(keep: &[bool], nx: usize, dist: &mut Vec<f32>) {
+    let ny = keep.len() / nx.max(1);
     dist.clear();
     dist.extend(keep.iter().map(|k| if *k { f32::MAX } else { 0.0 }));
-    // Forward (top-left to bottom-right), then backward: each pass takes a row's candidates
-    // from the row before it in one loop over the row (no dependence between cells: it
-    // vectorises), then runs along the row for the one candidate that depends on the cell just
-    // done. The same candidates as cell by cell, so the same distances.
     for j in 0..ny {
         let (done, rest) = dist.split_at_mut(j * nx);
         let row = &mut rest[..nx];
@@ -562,12 +585,6 @@ fn dilate_rejected(keep: &mut [bool], w: usize, dist: &mut Vec<f32>) {
         }
         for i in (0..nx - 1).rev() {
             row[i] = lo(row[i], row[i + 1] + 1.0);
-        }
-    }
-    // Keep at least half the lattice for the fit.
-    if dist.iter().filter(|d| **d > reach).count() * 2 >= keep.len() {
-        for (k, d) in keep.iter_mut().zip(dist.iter()) {
-            *k = *d > reach;
         }
     }
 }
@@ -658,15 +675,10 @@ mod tests {
     /// A chamfer pass's neighbours: (dx, dy, step).
     type Steps = [(isize, isize, f32); 4];
 
-    /// The chamfer transform cell by cell, as the textbook writes it: each cell takes the
+    /// The chamfer distances cell by cell, as the textbook writes them: each cell takes the
     /// smallest of its own distance and its four neighbours' done before it, plus their steps.
-    fn dilate_cell_by_cell(keep: &mut [bool], nx: usize) {
+    fn distances_cell_by_cell(keep: &[bool], nx: usize) -> Vec<f32> {
         let ny = keep.len() / nx;
-        let rejected = keep.iter().filter(|k| !**k).count();
-        if rejected == 0 || rejected * 2 > keep.len() {
-            return;
-        }
-        let reach = (2.0 * (rejected as f32 / std::f32::consts::PI).sqrt()).max(2.0);
         const D: f32 = std::f32::consts::SQRT_2;
         let mut dist: Vec<f32> = keep
             .iter()
@@ -698,11 +710,7 @@ mod tests {
                 }
             }
         }
-        if dist.iter().filter(|d| **d > reach).count() * 2 >= keep.len() {
-            for (k, d) in keep.iter_mut().zip(&dist) {
-                *k = *d > reach;
-            }
-        }
+        dist
     }
 
     #[test]
@@ -732,8 +740,11 @@ mod tests {
             for _ in 0..case % 4 {
                 keep[rand() % (nx * ny)] = false;
             }
+            let reference = distances_cell_by_cell(&keep, nx);
             let mut expect = keep.clone();
-            dilate_cell_by_cell(&mut expect, nx);
+            if let Some(reach) = dilation_reach(&expect) {
+                keep_beyond(&mut expect, &reference, reach);
+            }
             dilate_rejected(&mut keep, w, &mut dist);
             assert_eq!(keep, expect, "case {case}");
             assert!(
