@@ -102,6 +102,10 @@ enum Cmd {
         /// outline and centroid, and beside it the depth colour map (with --depth-calibration).
         #[arg(long)]
         overlay: Option<PathBuf>,
+        /// Keep the skirt's flank: the contact region at the residual's half-level contour alone
+        /// (the contact stage's `peel_skirt: false`), not ended at the press's ridge.
+        #[arg(long)]
+        no_peel_skirt: bool,
     },
     /// Replay a rosbag2 bag (directory with metadata.yaml + .mcap/.db3, or a bare .mcap) through
     /// the contact stage. With --json: one line per image message {stamp, contact (null while the
@@ -465,6 +469,7 @@ fn cmd_run(
 struct ContactExtras<'a> {
     depth_calibration: Option<&'a std::path::Path>,
     overlay: Option<&'a std::path::Path>,
+    peel_skirt: bool,
 }
 
 fn cmd_contact(
@@ -477,7 +482,11 @@ fn cmd_contact(
     use unitac_contact::{ContactDetector, ContactParams};
     let bg = images::read_frame(background, sensor.as_str(), 0, None)
         .map_err(|e| anyhow::Error::new(ConfigError(format!("background {e:#}"))))?;
-    let mut det = ContactDetector::new(ContactParams::default(), sensor.spec())
+    let params = ContactParams {
+        peel_skirt: extra.peel_skirt,
+        ..ContactParams::default()
+    };
+    let mut det = ContactDetector::new(params, sensor.spec())
         .map_err(|e| anyhow::Error::new(ConfigError(e.to_string())))?;
     det.set_background_frame(&bg);
     // Camera noise per channel [DN] from the difference of two single frames, per pixel.
@@ -665,10 +674,12 @@ fn main() -> ExitCode {
             json,
             depth_calibration,
             overlay,
+            no_peel_skirt,
         } => {
             let extra = ContactExtras {
                 depth_calibration: depth_calibration.as_deref(),
                 overlay: overlay.as_deref(),
+                peel_skirt: !no_peel_skirt,
             };
             match cmd_contact(sensor, &background, &frames, json, &extra) {
                 // Any failed file: exit 2, after every other file was processed.

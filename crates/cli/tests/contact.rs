@@ -348,3 +348,60 @@ fn degraded_presses_read_as_the_detector_reads_them() {
         }
     }
 }
+
+/// Ball presses on the finite-element skirt (`unitac calibrate mock-presses`): the contact
+/// region ends at each press's ridge, near the Hertz disc the renderer draws; with
+/// `--no-peel-skirt` the residual's half-level contour takes the skirt's flank in, larger.
+#[test]
+fn ball_presses_read_near_the_hertz_disc_and_larger_without_the_peel() {
+    let d = dir().join("ball");
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args(["calibrate", "mock-presses", "--count", "8", "--seed", "3"])
+        .arg("--out")
+        .arg(&d)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let truth: Vec<Value> =
+        serde_json::from_str(&std::fs::read_to_string(d.join("truth.json")).unwrap()).unwrap();
+    let bg = d.join("background.png");
+    let files: Vec<String> = truth
+        .iter()
+        .map(|t| d.join(t["file"].as_str().unwrap()).display().to_string())
+        .collect();
+    let read = |extra: &[&str]| {
+        let mut args = vec![
+            "contact",
+            "--sensor",
+            "gelsight-mini",
+            "--json",
+            "--background",
+            bg.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        args.extend(files.iter().map(String::as_str));
+        let (code, lines, err) = run(&args);
+        assert_eq!(code, Some(0), "{err}");
+        assert_eq!(lines.len(), truth.len());
+        lines
+    };
+    let (peeled, half) = (read(&[]), read(&["--no-peel-skirt"]));
+    for ((t, p), h) in truth.iter().zip(&peeled).zip(&half) {
+        let r = t["contact_radius_px"].as_f64().unwrap();
+        let disc = std::f64::consts::PI * r * r;
+        let (ap, ah) = (
+            p["area_px"].as_f64().unwrap(),
+            h["area_px"].as_f64().unwrap(),
+        );
+        assert!(
+            (0.85..=1.35).contains(&(ap / disc)),
+            "{t} {p}: {}",
+            ap / disc
+        );
+        assert!(ah > 1.25 * ap, "{t}: half-level {ah} px, peeled {ap} px");
+        let c = &p["centroid"];
+        let off = (c[0].as_f64().unwrap() - t["x"].as_f64().unwrap())
+            .hypot(c[1].as_f64().unwrap() - t["y"].as_f64().unwrap());
+        assert!(off < 0.2 * r, "{t} {p}");
+    }
+}

@@ -5,7 +5,7 @@ use crate::background::{Background, Learner};
 use crate::episodes::Episodes;
 use crate::grid::{BitMask, BlockScratch, Geometry, block_means, keep_components};
 use crate::params::{ContactParams, ParamsError};
-use crate::region::{RegionInputs, RegionScratch, contact_region};
+use crate::region::{Peel, RegionInputs, RegionScratch, contact_region};
 use crate::residual::{self, Inputs, ResidualScratch, residual_mask};
 use crate::shading::{self, ShadingScratch};
 use unitac_core::msg::{ContactState, Header};
@@ -456,6 +456,11 @@ impl ContactDetector {
                 &inp,
                 thr,
                 self.p.area_level,
+                if self.p.peel_skirt {
+                    Peel::On { give_back: r }
+                } else {
+                    Peel::Off
+                },
                 close,
                 &mut s.region,
                 &mut s.region_s,

@@ -14,8 +14,9 @@
 //!    components over `min_component_px` and not much smaller than the largest;
 //! 5. area (px and mm^2), centroid and bounding box in the INPUT image's pixels, strength score,
 //!    from the contact region inside that deformation mask: per component the cells at or above
-//!    `area_level` (half) of its own robust peak residual, grown, closed, holes filled (so the
-//!    gel's skirt around a deep press is not contact);
+//!    `area_level` (half) of its own robust peak residual, grown, closed, holes filled, and the
+//!    skirt's flank outside the press's ridge peeled off (`peel_skirt`), so the gel's skirt
+//!    around a press is not contact;
 //! 6. hysteresis (enter / exit area) and debounce (k frames) into contact episodes
 //!    ([`episodes`](crate::ContactStage)), with a bounded clip of the episode's frames;
 //! 7. the background follows slow changes by an EMA only while there is no contact, and only in
@@ -31,6 +32,7 @@ pub mod background;
 pub mod depth;
 mod detector;
 mod episodes;
+mod flank;
 pub mod grid;
 pub mod overlay;
 mod params;

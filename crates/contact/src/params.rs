@@ -32,9 +32,17 @@ pub struct ContactParams {
     /// The contact region, from which area, centroid, bounding box and strength are measured:
     /// per connected region over the noise threshold, the cells whose residual reaches this share
     /// of the region's own peak (its 90th percentile), never below the threshold; closed, holes
-    /// filled. 0.5 is a half-maximum contour: it leaves out the gel's skirt around a deep press.
-    /// 0 = every cell over the noise threshold.
+    /// filled. 0.5 is a half-maximum contour: it leaves out most of the gel's skirt around a
+    /// deep press (`peel_skirt` the rest). 0 = every cell over the noise threshold.
     pub area_level: f32,
+    /// Peel the skirt's flank off the contact region: from its edge inward, the cells whose
+    /// residual keeps rising, below the component's robust peak, are the gel sloping back to
+    /// rest outside the contact, not contact (`flank.rs`). The region then ends at the press's
+    /// ridge, where the gel's slope peaks and a ball leaves it, whatever the skirt's width:
+    /// ball presses read 0.96-1.46x their Hertz disc on every skirt of `unitac eval contact`,
+    /// where the half-level contour alone reads 1.1-2.5x. On a noisy frame the region is grown
+    /// back by the box mean's radius after the peel. False: the half-level contour.
+    pub peel_skirt: bool,
     /// Consecutive frames needed to enter contact ...
     pub debounce_frames: u32,
     /// ... and to leave it (the exit area is already a hysteresis band below the enter area).
@@ -84,6 +92,7 @@ impl Default for ContactParams {
             open_radius_px: 2,
             close_radius_px: 4,
             area_level: 0.5,
+            peel_skirt: true,
             debounce_frames: 2,
             exit_debounce_frames: 1,
             ema_alpha: 0.02,

@@ -11,17 +11,21 @@
 //! masked marker dots inside count), with the holes filled (a light press changes the gel most at
 //! its rim, where the surface slopes most, and little at its centre; a rim cut by the frame's
 //! edge is closed by it). One rule for every sensor and size: a level relative to the press's own
-//! signal, like a half-maximum contour.
+//! signal, like a half-maximum contour. Then (`peel_skirt`, on by default) the skirt's flank
+//! outside the press's ridge is peeled off and the region closed again ([`peel_flank`]): how far
+//! out the half-level contour lies depends on how fast the skirt's residual falls, which differs
+//! between gels and optics; the ridge, where the slope peaks and a ball leaves the gel, does not.
 //!
 //! Why the peak is a high quantile: the residual follows the surface slope, which under a ball
 //! grows to the contact edge and falls off outside it (on an elastic half-space to half its edge
 //! value at 1.13 contact radii). The skirt holds many cells of low residual, so a lower quantile
 //! (the 75th) is pulled down by it and the half-level contour moves out onto the skirt: on the
 //! mock's Hertz ball presses that read 2-3.7x the contact disc, as real gels read 1.8-3.0x. At
-//! the 90th percentile the same presses read 1.2-1.6x the Hertz disc and 0.7-1.0x the geometric
-//! one (`unitac eval contact`); higher (the 95th) lets the moved marker dots of a gel whose dots
-//! are not masked set the level (the generic profile on GelSight frames: 0.2x).
+//! the 90th percentile the same presses read 1.1-2.5x the Hertz disc, by skirt (`unitac eval
+//! contact`, the half-level rows); higher (the 95th) lets the moved marker dots of a gel whose
+//! dots are not masked set the level (the generic profile on GelSight frames: 0.2x).
 
+use crate::flank::{FlankScratch, peel_flank};
 use crate::grid::BitMask;
 use crate::shading::nth_non_negative;
 
@@ -57,7 +61,8 @@ pub(crate) struct RegionScratch {
     cursor: Vec<usize>,
     /// Residuals as f32 bits (non-negative), grouped by label.
     vals: Vec<u32>,
-    /// The level of every label.
+    /// The robust peak and the level of every label.
+    peak: Vec<f32>,
     level: Vec<f32>,
     /// The mask's cells that are not masked markers.
     cells: Vec<u32>,
@@ -70,13 +75,28 @@ pub(crate) struct RegionScratch {
     stack: Vec<usize>,
     /// The bounding box's border, walked around (`edge_seeds`).
     ring: Vec<(usize, usize)>,
+    flank: FlankScratch,
+    /// The region before its flank was peeled, over the closing's rows.
+    before: Vec<u8>,
 }
 
-/// The contact region (0/1 per cell) into `out`: empty when `mask` is.
+/// How the skirt's flank is peeled off the region ([`peel_flank`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Peel {
+    /// Not at all: the half-level contour.
+    Off,
+    /// Up to the press's ridge, then this many cells given back: the box mean's radius on a
+    /// noisy frame, which moves a small press's ridge inward by up to as much.
+    On { give_back: u32 },
+}
+
+/// The contact region (0/1 per cell) into `out`: empty when `mask` is. With `peel`, the
+/// skirt's flank outside the press's ridge is peeled off it ([`peel_flank`]).
 pub(crate) fn contact_region(
     inp: &RegionInputs,
     thr: f32,
     level: f32,
+    peel: Peel,
     close_cells: u32,
     out: &mut Vec<u8>,
     s: &mut RegionScratch,
@@ -124,11 +144,13 @@ pub(crate) fn contact_region(
         s.vals[*c] = inp.resid[i as usize].max(0.0).to_bits();
         *c += 1;
     }
+    s.peak.clear();
     s.level.clear();
     for l in 0..n {
         let v = &mut s.vals[s.start[l]..s.start[l + 1]];
         let k = (v.len().saturating_sub(1) as f32 * PEAK_QUANTILE) as usize;
         let peak = nth_non_negative(v, k).unwrap_or(0.0);
+        s.peak.push(peak);
         s.level.push((level * peak).max(FLOOR * thr));
     }
     // The core: the component's cells at or above its level, grown into the neighbouring cells
@@ -174,6 +196,46 @@ pub(crate) fn contact_region(
     s.bits.open_close(0, close_cells);
     s.bits.set_ones(&mut out[window]);
     fill_holes(out, gw, (y0, y1), s);
+    if let Peel::On { give_back } = peel {
+        let window = y0 * gw..y1 * gw;
+        s.before.clear();
+        s.before.extend_from_slice(&out[window.clone()]);
+        peel_flank(inp, &s.peak, (y0, y1), out, &mut s.flank);
+        // Closed again (rays peel a little more or less each: a jagged edge), then grown back
+        // by `give_back` cells within the region as it was.
+        s.bits.reset(gw, y1 - y0);
+        for (y, row) in out[window.clone()].chunks_exact(gw).enumerate() {
+            s.bits.set_row(y, row);
+        }
+        s.bits.open_close(0, close_cells);
+        s.bits.set_ones(&mut out[window.clone()]);
+        for _ in 0..give_back {
+            grow_within(&mut out[window.clone()], &s.before, gw, &mut s.stack);
+        }
+    }
+}
+
+/// Set every unset cell of `m` that is set in `within` and 4-adjacent to a set cell of `m`
+/// (one step of a dilation inside `within`; `m` and `within` `gw` cells a row).
+fn grow_within(m: &mut [u8], within: &[u8], gw: usize, add: &mut Vec<usize>) {
+    add.clear();
+    let n = m.len();
+    for i in 0..n {
+        if m[i] != 0 || within[i] == 0 {
+            continue;
+        }
+        let x = i % gw;
+        let near = (x > 0 && m[i - 1] != 0)
+            || (x + 1 < gw && m[i + 1] != 0)
+            || (i >= gw && m[i - gw] != 0)
+            || (i + gw < n && m[i + gw] != 0);
+        if near {
+            add.push(i);
+        }
+    }
+    for &i in add.iter() {
+        m[i] = 1;
+    }
 }
 
 /// Add the 4-neighbours of cell `i` at or above `l` (not masked markers) to the core and to the
@@ -398,7 +460,7 @@ mod tests {
             gh,
         };
         let (mut out, mut s) = (Vec::new(), RegionScratch::default());
-        contact_region(&inp, 5.0, 0.5, 0, &mut out, &mut s);
+        contact_region(&inp, 5.0, 0.5, Peel::Off, 0, &mut out, &mut s);
         let disc = (0..gw * gh)
             .filter(|&i| ((i % gw) as f32 - 12.0).hypot((i / gw) as f32 - 10.0) <= 6.0)
             .count();
@@ -407,7 +469,7 @@ mod tests {
         assert_eq!(out[10 * gw + 12], 1, "centre filled");
         assert_eq!(out[10 * gw + 12 + 8], 0, "skirt left out");
         // Level 0: everything over the threshold (the skirt too).
-        contact_region(&inp, 5.0, 0.0, 0, &mut out, &mut s);
+        contact_region(&inp, 5.0, 0.0, Peel::Off, 0, &mut out, &mut s);
         assert_eq!(area(&out), area(&mask));
     }
 
@@ -445,11 +507,11 @@ mod tests {
             gh,
         };
         let (mut out, mut s) = (Vec::new(), RegionScratch::default());
-        contact_region(&inp, 12.0, 0.5, 0, &mut out, &mut s);
+        contact_region(&inp, 12.0, 0.5, Peel::Off, 0, &mut out, &mut s);
         assert_eq!(area(&out), area(&mask) + rim);
         assert_eq!((out[gw + 1], out[10 * gw + 14]), (0, 1));
         // At a level of 0.6 of the peak (12) the rim stays out.
-        contact_region(&inp, 12.0, 0.6, 0, &mut out, &mut s);
+        contact_region(&inp, 12.0, 0.6, Peel::Off, 0, &mut out, &mut s);
         assert_eq!(area(&out), area(&mask));
     }
 
@@ -493,7 +555,7 @@ mod tests {
                 gh,
             };
             let (mut out, mut s) = (Vec::new(), RegionScratch::default());
-            contact_region(&inp, 5.0, 0.5, close, &mut out, &mut s);
+            contact_region(&inp, 5.0, 0.5, Peel::Off, close, &mut out, &mut s);
             let mut want = mask.clone();
             crate::grid::open_close(&mut want, &mut BitMask::default(), gw, gh, 0, close);
             fill_holes(&mut want, gw, (0, gh), &mut RegionScratch::default());
@@ -538,7 +600,7 @@ mod tests {
             gh,
         };
         let (mut out, mut s) = (Vec::new(), RegionScratch::default());
-        contact_region(&inp, 5.0, 0.5, 0, &mut out, &mut s);
+        contact_region(&inp, 5.0, 0.5, Peel::Off, 0, &mut out, &mut s);
         assert_eq!(area(&out), 36 + 36);
         assert_eq!(
             out[gw + 1],

@@ -184,7 +184,8 @@ fn a_calibration_applies_at_twice_the_size_and_refuses_another_aspect() {
 }
 
 /// The contact stage with a depth calibration reports the press's physical contact area (the
-/// half-depth contour); without it, the colour residual's region, a larger one.
+/// half-depth contour); without it, the colour residual's region, here at its half-level contour
+/// alone (`peel_skirt: false`), a larger one.
 #[test]
 fn the_contact_stage_takes_its_area_from_depth_when_a_scene_gives_a_calibration() {
     use unitac_contact::{ContactParams, ContactStage};
@@ -206,7 +207,11 @@ fn the_contact_stage_takes_its_area_from_depth_when_a_scene_gives_a_calibration(
     let clock = unitac_core::ManualClock::new(Stamp::ZERO);
     let mut last = Vec::new();
     for with_depth in [false, true] {
-        let stage = ContactStage::new(ContactParams::default(), spec).unwrap();
+        let params = ContactParams {
+            peel_skirt: false,
+            ..ContactParams::default()
+        };
+        let stage = ContactStage::new(params, spec).unwrap();
         let mut stage = if with_depth {
             stage.with_depth(cal.clone())
         } else {
@@ -237,8 +242,9 @@ fn the_contact_stage_takes_its_area_from_depth_when_a_scene_gives_a_calibration(
             assert!(off < 1.5, "{c:?}");
         }
     }
-    // Without a calibration the colour residual's region lies between the Hertz disc and the
-    // geometric one (2x at this depth), off depth's reading: the depth path is the one taken.
+    // Without a calibration the colour residual's half-level region lies between the Hertz disc
+    // and the geometric one (2x at this depth), off depth's reading: the depth path is the one
+    // taken.
     assert!((1.0..2.0).contains(&last[0]), "{last:?}");
     assert!(last[0] - last[1] > 0.2, "{last:?}");
 }
