@@ -189,11 +189,7 @@ pub(crate) fn contact_region(
         rows.1.saturating_add(margin).min(gh),
     );
     let window = y0 * gw..y1 * gw;
-    s.bits.reset(gw, y1 - y0);
-    for (y, row) in s.core[window.clone()].chunks_exact(gw).enumerate() {
-        s.bits.set_row(y, row);
-    }
-    s.bits.open_close(0, close_cells);
+    close_rows(&s.core[window.clone()], gw, close_cells, &mut s.bits);
     s.bits.set_ones(&mut out[window]);
     fill_holes(out, gw, (y0, y1), s);
     if let Peel::On { give_back } = peel {
@@ -203,16 +199,21 @@ pub(crate) fn contact_region(
         peel_flank(inp, &s.peak, (y0, y1), out, &mut s.flank);
         // Closed again (rays peel a little more or less each: a jagged edge), then grown back
         // by `give_back` cells within the region as it was.
-        s.bits.reset(gw, y1 - y0);
-        for (y, row) in out[window.clone()].chunks_exact(gw).enumerate() {
-            s.bits.set_row(y, row);
-        }
-        s.bits.open_close(0, close_cells);
+        close_rows(&out[window.clone()], gw, close_cells, &mut s.bits);
         s.bits.set_ones(&mut out[window.clone()]);
         for _ in 0..give_back {
             grow_within(&mut out[window.clone()], &s.before, gw, &mut s.stack);
         }
     }
+}
+
+/// The closing of `rows` (0/1, `gw` cells a row) into `bits`.
+fn close_rows(rows: &[u8], gw: usize, close_cells: u32, bits: &mut BitMask) {
+    bits.reset(gw, rows.len() / gw);
+    for (y, row) in rows.chunks_exact(gw).enumerate() {
+        bits.set_row(y, row);
+    }
+    bits.open_close(0, close_cells);
 }
 
 /// Set every unset cell of `m` that is set in `within` and 4-adjacent to a set cell of `m`
