@@ -11,7 +11,8 @@
 
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
+use std::sync::{Arc, Condvar, Mutex, OnceLock};
+use std::time::{Duration, Instant};
 use thiserror::Error;
 
 /// Why the ONNX Runtime library could not be used (kept for the life of the process: the first
@@ -38,6 +39,13 @@ pub enum InferError {
     Output { model: String, msg: String },
     #[error("bad input: {0}")]
     Input(String),
+    /// A run stopped at its time budget ([`Session::run_f32_within`]).
+    #[error("model '{model}' ran past its budget of {:.1} ms and was stopped after {:.1} ms", .budget.as_secs_f64() * 1e3, .elapsed.as_secs_f64() * 1e3)]
+    OverBudget {
+        model: String,
+        budget: std::time::Duration,
+        elapsed: std::time::Duration,
+    },
 }
 
 /// Where models run. Only CPU can be tested on this project's machines (no GPU in CI); CUDA and
@@ -275,6 +283,134 @@ fn describe(outlets: &[ort::value::Outlet]) -> Vec<TensorInfo> {
         .collect()
 }
 
+/// What the deadline thread of a session watches: the armed run (its deadline and number),
+/// the number of the last run it stopped, and whether to end.
+#[derive(Debug, Default)]
+struct Watch {
+    armed: Option<(Instant, u64)>,
+    fired: Option<u64>,
+    stop: bool,
+}
+
+type Shared = Arc<(Mutex<Watch>, Condvar)>;
+
+/// A thread that sets a session's terminate flag when an armed run passes its deadline (ONNX
+/// Runtime checks the flag between nodes, also inside a Loop's body, and the run returns an
+/// error). Started at the first run with a budget; ended and joined when the session drops.
+struct Deadline {
+    shared: Shared,
+    options: Arc<ort::session::RunOptions>,
+    thread: Option<std::thread::JoinHandle<()>>,
+    /// Runs armed so far.
+    runs: u64,
+}
+
+impl std::fmt::Debug for Deadline {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Deadline")
+            .field("runs", &self.runs)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Deadline {
+    fn new() -> Result<Self, String> {
+        let mut options = ort::session::RunOptions::new().map_err(|e| e.to_string())?;
+        // A stopped run's error comes back as a value; ONNX Runtime's own log line for it
+        // (once per stopped run, on stderr) would only repeat it.
+        options
+            .set_log_level(ort::logging::LogLevel::Fatal)
+            .map_err(|e| e.to_string())?;
+        Ok(Self {
+            shared: Arc::new((Mutex::new(Watch::default()), Condvar::new())),
+            options: Arc::new(options),
+            thread: None,
+            runs: 0,
+        })
+    }
+
+    /// The watching loop: sleeps until the armed deadline (or a change), then terminates.
+    fn watch(shared: &Shared, options: &ort::session::RunOptions) {
+        let (lock, cv) = &**shared;
+        let Ok(mut w) = lock.lock() else { return };
+        while !w.stop {
+            match w.armed {
+                None => match cv.wait(w) {
+                    Ok(g) => w = g,
+                    Err(_) => return,
+                },
+                Some((deadline, run)) => {
+                    let now = Instant::now();
+                    if now >= deadline {
+                        // Returns at once; the run stops at its next node.
+                        let _ = options.terminate();
+                        w.fired = Some(run);
+                        w.armed = None;
+                    } else {
+                        match cv.wait_timeout(w, deadline - now) {
+                            Ok((g, _)) => w = g,
+                            Err(_) => return,
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Arm a run with `budget` from now; the thread is started on first use.
+    fn arm(&mut self, budget: Duration) -> Result<u64, String> {
+        if self.thread.is_none() {
+            let (shared, options) = (self.shared.clone(), self.options.clone());
+            let t = std::thread::Builder::new()
+                .name("unitac-ort-deadline".into())
+                .spawn(move || Self::watch(&shared, &options))
+                .map_err(|e| format!("starting the deadline thread: {e}"))?;
+            self.thread = Some(t);
+        }
+        self.runs = self.runs.wrapping_add(1);
+        let (lock, cv) = &*self.shared;
+        let mut w = lock
+            .lock()
+            .map_err(|_| "deadline lock poisoned".to_string())?;
+        // A budget too large for the clock is no deadline.
+        w.armed = Instant::now()
+            .checked_add(budget)
+            .map(|deadline| (deadline, self.runs));
+        cv.notify_one();
+        Ok(self.runs)
+    }
+
+    /// Disarm run `run`: whether the thread stopped it. The terminate flag is cleared for the
+    /// next run either way.
+    fn disarm(&self, run: u64) -> bool {
+        let (lock, _) = &*self.shared;
+        let fired = match lock.lock() {
+            Ok(mut w) => {
+                w.armed = None;
+                w.fired == Some(run)
+            }
+            Err(_) => true,
+        };
+        if fired {
+            let _ = self.options.unterminate();
+        }
+        fired
+    }
+}
+
+impl Drop for Deadline {
+    fn drop(&mut self) {
+        let (lock, cv) = &*self.shared;
+        if let Ok(mut w) = lock.lock() {
+            w.stop = true;
+            cv.notify_one();
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
 /// A model file opened in the process's environment ([`session`]'s threads and provider), with
 /// its inputs and outputs as the file declares them.
 #[derive(Debug)]
@@ -284,6 +420,8 @@ pub struct Session {
     inputs: Vec<TensorInfo>,
     outputs: Vec<TensorInfo>,
     inner: ort::session::Session,
+    /// The time limit's watcher, made at the first run with a budget.
+    deadline: Option<Deadline>,
 }
 
 impl Session {
@@ -296,6 +434,7 @@ impl Session {
             inputs: describe(inner.inputs()),
             outputs: describe(inner.outputs()),
             inner,
+            deadline: None,
         })
     }
 
@@ -318,6 +457,19 @@ impl Session {
         inputs: &[(&str, &[i64], &[f32])],
         outputs: &[&str],
     ) -> Result<Vec<TensorF32>, InferError> {
+        self.run_f32_within(inputs, outputs, None)
+    }
+
+    /// [`Session::run_f32`] with a time limit: a run still going `budget` after it started is
+    /// stopped from another thread (ONNX Runtime's terminate flag, checked between nodes) and
+    /// is [`InferError::OverBudget`]. A run that finishes is returned as it came, whatever the
+    /// clock said, so a model within its budget gives the same bytes with or without one.
+    pub fn run_f32_within(
+        &mut self,
+        inputs: &[(&str, &[i64], &[f32])],
+        outputs: &[&str],
+        budget: Option<Duration>,
+    ) -> Result<Vec<TensorF32>, InferError> {
         let model = self.model.clone();
         let err = |msg: String| InferError::Model {
             model: model.clone(),
@@ -339,7 +491,32 @@ impl Session {
                 .map_err(|e| err(e.to_string()))?;
             values.push(((*name).into(), t.into()));
         }
-        let results = self.inner.run(values).map_err(|e| err(e.to_string()))?;
+        let results = match budget {
+            None => self.inner.run(values).map_err(|e| err(e.to_string()))?,
+            Some(budget) => {
+                if self.deadline.is_none() {
+                    self.deadline = Some(Deadline::new().map_err(err)?);
+                }
+                let Some(deadline) = self.deadline.as_mut() else {
+                    return Err(err("no deadline thread".into()));
+                };
+                let run = deadline.arm(budget).map_err(err)?;
+                let start = Instant::now();
+                let r = self.inner.run_with_options(values, &*deadline.options);
+                let stopped = deadline.disarm(run);
+                match r {
+                    Ok(results) => results,
+                    Err(_) if stopped => {
+                        return Err(InferError::OverBudget {
+                            model: model.clone(),
+                            budget,
+                            elapsed: start.elapsed(),
+                        });
+                    }
+                    Err(e) => return Err(err(e.to_string())),
+                }
+            }
+        };
         let out_err = |msg: String| InferError::Output {
             model: model.clone(),
             msg,
