@@ -577,3 +577,176 @@ fn the_gripper_reports_force_from_its_current_not_the_worlds_force() {
     assert!((mean - t.gripper.force_n / gain).abs() < 0.2, "{mean}");
     assert!(readings.iter().all(|&f| f != t.gripper.force_n));
 }
+
+/// Fingers open around the cup at mid-height, aimed `aim` off its place (as a camera's error
+/// does), then a closing grasp whose arm height jitters by up to `jitter_m` per tick (uniform,
+/// seeded) around that height, as a learned policy's z does; returns the truth after closing and
+/// lifting 5 cm.
+fn jittered_grip_and_lift(
+    world: &mut TaskWorld,
+    aim: [f64; 2],
+    jitter_m: f64,
+    seed: u64,
+) -> TaskTruth {
+    let cup = world.spec().cup().unwrap().clone();
+    let z = 0.5 * cup.height_m;
+    let placed = world.spec().object("cup").unwrap().placed_m;
+    let at = ("cup", [placed[0] + aim[0], placed[1] + aim[1]]);
+    let wide = cup.diameter_m + 0.02 + 2.0 * world.config().gripper.pad_m;
+    let mut rng = SplitMix64::new(seed);
+    let mut t = world.truth();
+    let (mut closing, mut lifting) = (false, false);
+    for _ in 0..(6.0 / DT) as usize {
+        let around = t.contact.object == "cup";
+        closing |= around && t.arm.arrived;
+        lifting |= closing && around && t.gripper.stalled && t.gripper.force_n > 5.0;
+        let dz = if closing {
+            jitter_m * (2.0 * rng.uniform() - 1.0)
+        } else {
+            0.0
+        };
+        let c = if lifting {
+            cmd(0.0, 0.02, 20.0, at, z + dz, 0.05)
+        } else if closing {
+            cmd(0.0, 0.02, 20.0, at, z + dz, 0.0)
+        } else {
+            cmd(wide, 0.1, 20.0, at, z, 0.0)
+        };
+        t = world.step(&c, DT).unwrap();
+    }
+    t
+}
+
+#[test]
+fn a_closing_grasp_with_a_millimetre_of_height_jitter_holds_and_is_no_collision() {
+    let cfg = TaskConfig::cup(Split::Train);
+    // On the cup's place, and 3 mm across / 4 mm along the closing axis off it.
+    for (trial, aim) in (0..3).flat_map(|t| [(t, [0.0, 0.0]), (t, [0.003, 0.004])]) {
+        let w = TaskWorld::reset(&cfg, 5, trial);
+        // Still: the reference.
+        let mut sw = w.clone();
+        let still = jittered_grip_and_lift(&mut sw, aim, 0.0, 1);
+        let so = cup_outcome(&sw.outcome()).clone();
+        assert!(!still.collision && so.lift, "trial {trial} {aim:?}: {so:?}");
+        let mut jw = w.clone();
+        let t = jittered_grip_and_lift(&mut jw, aim, 1e-3, 100 + u64::from(trial));
+        assert!(
+            !t.collision,
+            "trial {trial} {aim:?}: a jittered close collided"
+        );
+        let o = cup_outcome(&jw.outcome()).clone();
+        assert!(
+            o.lift && o.lift_height_m > 0.045,
+            "trial {trial} {aim:?}: {o:?}"
+        );
+        assert!(
+            (o.deformation_m - so.deformation_m).abs() < 1e-3,
+            "trial {trial} {aim:?}: {o:?} vs still {so:?}"
+        );
+    }
+}
+
+/// Fingers opened to `opening_m` held `above_m` over the cup's rim, then lowered to mid-height:
+/// the truth after each phase.
+fn lower_onto_cup(world: &mut TaskWorld, opening_m: f64, above_m: f64) -> (TaskTruth, TaskTruth) {
+    let cup = world.spec().cup().unwrap().clone();
+    let at = on(world, "cup");
+    let high = cup.height_m + above_m;
+    let mut t = world.truth();
+    for _ in 0..(4.0 / DT) as usize {
+        t = world
+            .step(&cmd(opening_m, 0.1, 10.0, at, high, 0.0), DT)
+            .unwrap();
+    }
+    let over = t.clone();
+    for _ in 0..(3.0 / DT) as usize {
+        t = world
+            .step(&cmd(opening_m, 0.1, 10.0, at, 0.5 * cup.height_m, 0.0), DT)
+            .unwrap();
+    }
+    (over, t)
+}
+
+#[test]
+fn a_finger_lowered_onto_the_rim_is_a_collision_and_a_wide_one_passes_around() {
+    let cfg = TaskConfig::cup(Split::Train);
+    let w = TaskWorld::reset(&cfg, 5, 0);
+    let cup = w.spec().cup().unwrap().clone();
+    let pad2 = 2.0 * cfg.gripper.pad_m;
+    // Narrower than the cup: the fingers come down on its rim.
+    let (over, down) = lower_onto_cup(&mut w.clone(), cup.diameter_m + pad2 - 0.01, 0.02);
+    assert!(
+        !over.collision && over.contact.object.is_empty(),
+        "{over:?}"
+    );
+    assert!(down.collision);
+    // The arm stops where it met the rim: never down to mid-height.
+    assert!(
+        down.arm.position_m[2] > 0.5 * cup.height_m + 1e-3,
+        "{:?}",
+        down.arm
+    );
+    // Wider than the cup: around it, no collision.
+    let (_, around) = lower_onto_cup(&mut w.clone(), cup.diameter_m + pad2 + 0.01, 0.02);
+    assert!(!around.collision && around.contact.object == "cup");
+}
+
+#[test]
+fn lifting_the_fingers_above_the_rim_frees_them() {
+    let cfg = TaskConfig::cup(Split::Train);
+    let w = TaskWorld::reset(&cfg, 5, 1);
+    let cup = w.spec().cup().unwrap().clone();
+    let pad2 = 2.0 * cfg.gripper.pad_m;
+    let at = on(&w, "cup");
+    let mut w = w;
+    let (_, around) = lower_onto_cup(&mut w, cup.diameter_m + pad2 + 0.01, 0.02);
+    assert_eq!(around.contact.object, "cup");
+    // Close to just wider than the cup (not touching), then raise the fingers in steps: they stay
+    // around while their tips are below the rim, and leave above it.
+    let narrow = cup.diameter_m + pad2 + 0.002;
+    let mut t = around;
+    for _ in 0..(2.0 / DT) as usize {
+        t = w
+            .step(&cmd(narrow, 0.1, 10.0, at, 0.5 * cup.height_m, 0.0), DT)
+            .unwrap();
+    }
+    assert!(
+        t.gripper.force_n == 0.0 && t.contact.object == "cup",
+        "{t:?}"
+    );
+    let mut left_at = None;
+    for k in 1..=40 {
+        let z = 0.5 * cup.height_m + f64::from(k) * 0.0025;
+        for _ in 0..15 {
+            t = w.step(&cmd(narrow, 0.1, 10.0, at, z, 0.0), DT).unwrap();
+        }
+        if t.contact.object.is_empty() && left_at.is_none() {
+            left_at = Some(t.arm.position_m[2]);
+        }
+    }
+    let left_at = left_at.expect("the fingers never left the cup");
+    assert!(!t.collision);
+    // They leave at the rim (less the pads' hold margin), not at the first millimetre.
+    assert!(
+        left_at > cup.height_m - 0.006 && left_at < cup.height_m + 0.003,
+        "left at {left_at} for a rim at {}",
+        cup.height_m
+    );
+    // Brought down again as narrow as they are: onto the rim, a collision.
+    for _ in 0..(3.0 / DT) as usize {
+        t = w
+            .step(
+                &cmd(
+                    cup.diameter_m + pad2 - 0.004,
+                    0.1,
+                    10.0,
+                    at,
+                    0.5 * cup.height_m,
+                    0.0,
+                ),
+                DT,
+            )
+            .unwrap();
+    }
+    assert!(t.collision);
+}

@@ -528,35 +528,7 @@ impl TaskWorld {
                 if z < CUP_MARGIN_M || z > c.height_m - CUP_MARGIN_M {
                     return Reach::Outside;
                 }
-                let r = c.diameter_m / 2.0;
-                let w = self.cfg.gripper.pad_half_width_m;
-                let e = dx.abs() - w;
-                if e >= r {
-                    return Reach::Outside;
-                }
-                let (width_m, x) = if e <= 0.0 {
-                    (c.diameter_m, dx)
-                } else {
-                    let tilt = (e / r).asin().tan();
-                    if tilt > c.friction_static {
-                        (c.diameter_m, w.copysign(dx))
-                    } else {
-                        (2.0 * (r * r - e * e).sqrt(), dx)
-                    }
-                };
-                let half_mm = (r * r - e.max(0.0).powi(2)).sqrt() * 1e3;
-                let gap_mm = inner_mm / 2.0;
-                if dy.abs() * 1e3 + half_mm <= gap_mm {
-                    Reach::Inside(Grip {
-                        width_mm: width_m * 1e3,
-                        layers: 1,
-                        offset_m: [x, dy],
-                    })
-                } else if dy.abs() * 1e3 - half_mm >= gap_mm {
-                    Reach::Outside
-                } else {
-                    Reach::Collision
-                }
+                self.cup_reach(c, dx, dy, inner_mm)
             }
             ObjectSpec::Fabric(f) => {
                 if dy.abs() > FOLD_REACH_M || dx.abs() > EDGE_LENGTH_M / 2.0 {
@@ -577,6 +549,68 @@ impl TaskWorld {
                     Reach::Collision
                 }
             }
+        }
+    }
+
+    /// [`TaskWorld::between`] for a cup at the fingertips' height band: `(dx, dy)` its centre
+    /// from the fingertip centre \[m].
+    fn cup_reach(&self, c: &CupSpec, dx: f64, dy: f64, inner_mm: f64) -> Reach {
+        let r = c.diameter_m / 2.0;
+        let w = self.cfg.gripper.pad_half_width_m;
+        let e = dx.abs() - w;
+        if e >= r {
+            return Reach::Outside;
+        }
+        let (width_m, x) = if e <= 0.0 {
+            (c.diameter_m, dx)
+        } else {
+            let tilt = (e / r).asin().tan();
+            if tilt > c.friction_static {
+                (c.diameter_m, w.copysign(dx))
+            } else {
+                (2.0 * (r * r - e * e).sqrt(), dx)
+            }
+        };
+        let half_mm = (r * r - e.max(0.0).powi(2)).sqrt() * 1e3;
+        let gap_mm = inner_mm / 2.0;
+        if dy.abs() * 1e3 + half_mm <= gap_mm {
+            Reach::Inside(Grip {
+                width_mm: width_m * 1e3,
+                layers: 1,
+                offset_m: [x, dy],
+            })
+        } else if dy.abs() * 1e3 - half_mm >= gap_mm {
+            Reach::Outside
+        } else {
+            Reach::Collision
+        }
+    }
+
+    /// Where fingertips at `pos` that are around object `i` and do not touch it are: still around
+    /// it, and how they would grip it there (`Some`), or gone from it (`None`), whatever their
+    /// opening. The geometry of leaving: only rising or moving out frees the fingers.
+    ///
+    /// Cup: around while the fingertip centre is below the rim less [`CUP_MARGIN_M`] (the height
+    /// at which fingers coming down start to hold it, so that entering and leaving meet at one
+    /// height) and the cup's wall is still between the pads across the closing axis (its centre
+    /// less than its radius beyond the pad's edge). Going lower never frees them: the cup stands
+    /// on the table between them. Along the closing axis the cup stays between the fingers (the
+    /// nearer one pushes it, as in [`TaskWorld::between`]).
+    /// Fabric: while the fingertips straddle the fold; the layers they catch follow their height.
+    fn around_at(&self, i: usize, pos: [f64; 3]) -> Option<Grip> {
+        let (o, s) = (self.spec.objects.get(i)?, self.objects.get(i)?);
+        let reach = match &o.spec {
+            ObjectSpec::Cup(c) => {
+                if pos[2] - s.hold.z_m > c.height_m - CUP_MARGIN_M {
+                    return None;
+                }
+                self.cup_reach(c, s.xy[0] - pos[0], s.xy[1] - pos[1], f64::INFINITY)
+            }
+            ObjectSpec::Fabric(_) => self.between(i, pos, f64::INFINITY),
+        };
+        match reach {
+            Reach::Inside(g) => Some(g),
+            Reach::Outside | Reach::Collision => None,
         }
     }
 
@@ -699,39 +733,49 @@ impl TaskWorld {
             }
         }
 
-        // 4. Drops and leaving: an object slips out of the pinch or past the rim; fingers that no
-        //    longer touch it leave it when the arm moves away (or to another height: a fabric's
-        //    layers depend on it).
+        // 4. Drops and leaving: an object slips out of the pinch or past the rim. Fingers that do
+        //    not touch it slide freely along it: they leave it only where geometry says
+        //    ([`TaskWorld::around_at`]), and while around it the grip they will close on (the
+        //    cup's chord, the fabric's layers, the height) follows where they are.
+        let pos = self.arm.position_m;
         if let Fingers::Around {
             obj,
             width_mm,
             z_rel_m,
+            layers,
             last,
             ..
         } = &self.fingers
         {
-            let (i, width_mm, z_rel, last) = (*obj, *width_mm, *z_rel_m, *last);
+            let (i, width_mm, z_rel, layers, last) = (*obj, *width_mm, *z_rel_m, *layers, *last);
             let s = self.objects.get(i).map_or(Hold::default(), |s| s.hold);
             let margin = match self.spec.objects.get(i).map(|o| &o.spec) {
                 Some(ObjectSpec::Cup(c)) => c.height_m - CUP_MARGIN_M - z_rel,
                 _ => PINCH_DEPTH_M,
             };
             let touching = last.force_n > 0.0 || last.penetration_mm > 0.0;
-            let moved = (self.arm.position_m[2] - s.z_m - z_rel).abs() > 2e-4
-                || matches!(
-                    self.between(i, self.arm.position_m, f64::INFINITY),
-                    Reach::Outside
-                );
             let pad2 = self.pad2_mm();
             if s.slip_net_m > margin {
                 self.dropped = true;
                 self.fingers = Fingers::Free {
                     opening_mm: last.width_mm.min(width_mm) + pad2,
                 };
-            } else if !touching && moved {
-                self.fingers = Fingers::Free {
-                    opening_mm: last.width_mm + pad2,
-                };
+            } else if !touching {
+                match self.around_at(i, pos) {
+                    None => {
+                        self.fingers = Fingers::Free {
+                            opening_mm: last.width_mm + pad2,
+                        };
+                    }
+                    Some(g) if g.width_mm != width_mm || g.layers != layers => {
+                        self.engage(i, g, last.width_mm + pad2, pos[2])?;
+                    }
+                    Some(_) => {
+                        if let Fingers::Around { z_rel_m, .. } = &mut self.fingers {
+                            *z_rel_m = pos[2] - s.z_m;
+                        }
+                    }
+                }
             }
             if let Some(ObjectSpec::Cup(_)) = self.spec.objects.get(i).map(|o| &o.spec) {
                 self.peak_deformation_mm = self.peak_deformation_mm.max(last.deformation_mm);
