@@ -2,6 +2,7 @@
 //!
 //! `--port sim` runs the action against a simulated device on a pseudo-terminal instead.
 
+use crate::ConfigError;
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -49,19 +50,24 @@ pub struct GripperArgs {
     /// robotiq_2f85 | robotiq_2f140 | dh_ag95 | dh_pge50
     #[arg(long)]
     pub model: Model,
-    /// Modbus slave id (default: the model's factory id, Robotiq 9, DH 1).
-    #[arg(long)]
+    /// Modbus slave id, 1 to 247 (default: the model's factory id, Robotiq 9, DH 1); 0 is the
+    /// broadcast address, which no device answers.
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=247))]
     pub slave: Option<u8>,
-    #[arg(long)]
+    /// Line rate, 1200 to 4000000 baud (default: the model's, 115200).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1200..=4_000_000))]
     pub baud: Option<u32>,
-    /// Grip force limit for open/close (N) (default: the model's minimum).
-    #[arg(long)]
+    /// Grip force limit for open/close, 0 to 10000 N, clamped to the model's range (default: the
+    /// model's minimum).
+    #[arg(long, value_parser = f64_in(0.0, 10_000.0, true))]
     pub force: Option<f64>,
-    /// Finger speed for open/close [m/s] (default: half the model's maximum).
-    #[arg(long)]
+    /// Finger speed for open/close, 0 to 10 m/s, clamped to the model's range (default: half the
+    /// model's maximum).
+    #[arg(long, value_parser = f64_in(0.0, 10.0, true))]
     pub speed: Option<f64>,
-    /// How long to wait for the action (activate/open/close) or to run the bench (s).
-    #[arg(long, default_value_t = 5.0)]
+    /// How long to wait for the action (activate/open/close), to run the bench or to serve the
+    /// simulated gripper: more than 0, at most 3600 s.
+    #[arg(long, default_value_t = 5.0, value_parser = f64_in(0.0, 3600.0, false))]
     pub seconds: f64,
     #[arg(long)]
     pub json: bool,
@@ -77,10 +83,28 @@ pub struct GripperArgs {
     pub action: Action,
 }
 
-pub fn run(a: GripperArgs) -> anyhow::Result<bool> {
-    if !(a.seconds.is_finite() && a.seconds > 0.0 && a.seconds <= 3600.0) {
-        bail!("--seconds must be in (0, 3600]");
+/// A clap value parser: a finite number from `lo` (included when `with_lo`) to `hi` (included).
+fn f64_in(lo: f64, hi: f64, with_lo: bool) -> impl Fn(&str) -> Result<f64, String> + Clone {
+    move |s: &str| {
+        let range = if with_lo {
+            format!("from {lo} to {hi} (inclusive)")
+        } else {
+            format!("above {lo}, at most {hi}")
+        };
+        let v: f64 = s
+            .trim()
+            .parse()
+            .map_err(|_| format!("not a number; a number {range}"))?;
+        let above_lo = if with_lo { v >= lo } else { v > lo };
+        if v.is_finite() && above_lo && v <= hi {
+            Ok(v)
+        } else {
+            Err(format!("{v} is outside the range: a number {range}"))
+        }
     }
+}
+
+pub fn run(a: GripperArgs) -> anyhow::Result<bool> {
     if a.action == Action::Bench {
         return run_bench(&a);
     }
@@ -209,8 +233,23 @@ fn simulate(a: &GripperArgs) -> anyhow::Result<bool> {
         a.inject,
         Some(Inject::Overcurrent | Inject::OvercurrentPersistent)
     );
-    let dev = SimDevice::spawn(cfg.clone())
-        .with_context(|| format!("starting the simulated gripper at {}", link.display()))?;
+    // The link goes only where nothing is, or over a stale simulator link
+    // (unitac_gripper_sim::device::link): anything else at --port is refused before any work.
+    let dev = match SimDevice::spawn(cfg.clone()) {
+        Ok(d) => d,
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+            return Err(anyhow::Error::new(ConfigError(format!(
+                "--port {}: {e}",
+                link.display()
+            ))));
+        }
+        Err(e) => {
+            return Err(anyhow::Error::new(e).context(format!(
+                "starting the simulated gripper at {}",
+                link.display()
+            )));
+        }
+    };
     match a.inject {
         Some(Inject::Overcurrent) => dev.overcurrent(),
         Some(Inject::OvercurrentPersistent) => dev.overcurrent_persists(true),
@@ -225,8 +264,8 @@ fn simulate(a: &GripperArgs) -> anyhow::Result<bool> {
         unitac_gripper_sim::device::describe(&dev.path())
     );
     std::thread::sleep(Duration::from_secs_f64(a.seconds));
+    // Stops the device and removes its link, if the link is still its own.
     drop(dev);
-    let _ = std::fs::remove_file(&link);
     Ok(true)
 }
 

@@ -250,7 +250,8 @@ enum Cmd {
         #[arg(long)]
         json: bool,
     },
-    /// Bring-up of a serial gripper: `gripper --port P --model M activate|open|close|status|bench`.
+    /// Bring-up of a serial gripper: `gripper --port P --model M
+    /// activate|open|close|status|bench|simulate` (simulate: serve a simulated one at P).
     Gripper(gripper::GripperArgs),
     /// Closed-loop grasp trials in the sim world: each mode's scene
     /// (`<scene>_<mode>.yaml`) N times, the success table beside the paper's (`--json`, `--plot DIR`).
@@ -636,6 +637,7 @@ fn main() -> ExitCode {
             tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
     let cli = match Cli::try_parse() {
         Ok(c) => c,

@@ -8,6 +8,7 @@
 //! is released in two pieces, each when its last byte would have been on the wire. Faults are
 //! injected per reply.
 
+pub mod link;
 pub mod physics;
 pub mod registers;
 pub mod relay;
@@ -38,7 +39,8 @@ pub struct DeviceConfig {
     /// Start activated (a gripper that was running before the driver started).
     pub start_active: bool,
     pub object: Option<SimObject>,
-    /// A symlink to (re)point at the pty (a stand-in for a /dev/serial/by-id name).
+    /// A symlink to (re)point at the pty (a stand-in for a /dev/serial/by-id name). Placed only
+    /// where nothing is, or over a stale simulator link ([`link`]); removed when the device stops.
     pub link: Option<PathBuf>,
 }
 
@@ -116,9 +118,20 @@ impl SimDevice {
         *lock(&shared.path) = pty.path.clone();
         let link = cfg.link.clone();
         let s = shared.clone();
-        let thread = std::thread::Builder::new()
+        let pty_path = pty.path.clone();
+        let thread = match std::thread::Builder::new()
             .name("sim-gripper".into())
-            .spawn(move || serve(cfg, regs, pty, s))?;
+            .spawn(move || serve(cfg, regs, pty, s))
+        {
+            Ok(t) => t,
+            Err(e) => {
+                // A failed start leaves nothing behind.
+                if let Some(l) = &link {
+                    link::remove(l, &pty_path);
+                }
+                return Err(e);
+            }
+        };
         Ok(Self {
             shared,
             link,
@@ -166,10 +179,14 @@ impl SimDevice {
         self.shared.unplugged.store(false, Ordering::Relaxed);
     }
 
+    /// Stop serving and remove the link (if it is still the one this device placed).
     pub fn stop(&mut self) {
         self.shared.stop.store(true, Ordering::Relaxed);
         if let Some(t) = self.thread.take() {
             let _ = t.join();
+            if let Some(l) = &self.link {
+                link::remove(l, &lock(&self.shared.path));
+            }
         }
     }
 }
@@ -189,7 +206,7 @@ struct Pty {
 }
 
 impl Pty {
-    fn open(link: &Option<PathBuf>) -> io::Result<Pty> {
+    fn open(at: &Option<PathBuf>) -> io::Result<Pty> {
         let (mut master, slave) = TTYPort::pair().map_err(io::Error::other)?;
         master
             .set_timeout(Duration::from_millis(1))
@@ -198,11 +215,8 @@ impl Pty {
             .name()
             .map(PathBuf::from)
             .ok_or_else(|| io::Error::other("pty without a name"))?;
-        if let Some(l) = link {
-            let tmp = l.with_extension("tmp");
-            let _ = std::fs::remove_file(&tmp);
-            std::os::unix::fs::symlink(&path, &tmp)?;
-            std::fs::rename(&tmp, l)?;
+        if let Some(l) = at {
+            link::place(l, &path)?;
         }
         Ok(Pty {
             master,
@@ -265,22 +279,26 @@ fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<
     let mut last_tick = t0;
     let mut last_rx = t0;
     let mut last_tx_end = t0;
+    let mut replug_at = t0;
     while !shared.stop.load(Ordering::Relaxed) {
         // Plug state.
         let unplugged = shared.unplugged.load(Ordering::Relaxed);
         if unplugged && pty.is_some() {
             pty = None;
             if let Some(l) = &cfg.link {
-                let _ = std::fs::remove_file(l);
+                link::remove(l, &lock(&shared.path));
             }
-        } else if !unplugged && pty.is_none() {
+        } else if !unplugged && pty.is_none() && Instant::now() >= replug_at {
             match Pty::open(&cfg.link) {
                 Ok(p) => {
                     *lock(&shared.path) = p.path.clone();
                     pty = Some(p);
                     dec.clear();
                 }
-                Err(e) => tracing::warn!("sim gripper: cannot re-create the pty: {e}"),
+                Err(e) => {
+                    tracing::warn!("sim gripper: cannot re-create the pty: {e}");
+                    replug_at = Instant::now() + Duration::from_millis(500);
+                }
             }
         }
         let n = match pty.as_mut().map(|p| p.master.read(&mut buf)) {
