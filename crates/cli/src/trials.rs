@@ -387,8 +387,20 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             with_training_seed(&mut scene, a.training_seed)?;
         }
         unitac_pipeline::build_stages(&scene).map_err(|e| config(e.to_string()))?;
-        let (_, kind) =
+        let (params, kind) =
             unitac_trials::scene::scene_task(&scene).map_err(|e| config(e.to_string()))?;
+        // A serial gripper whose weakest grip is above the scene's force cap would break it.
+        if let TrialGripper::Serial(model) = a.gripper {
+            let limits = model.calibration().limits;
+            limits.check_force_bound(params.max_force_n).map_err(|e| {
+                config(format!(
+                    "--gripper {model} with scene {} (policy max_force_n = {} N): {e}; choose \
+                     a gripper whose force range reaches below the cap, or a scene whose \
+                     max_force_n is at least {} N",
+                    scene.name, params.max_force_n, limits.min_force_n
+                ))
+            })?;
+        }
         kinds.push(format!("{} ({})", scene.name, kind.as_str()));
         scenes.push((*m, kind, scene));
     }

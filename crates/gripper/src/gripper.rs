@@ -101,6 +101,12 @@ pub enum GripperError {
     BadCommand(String),
     #[error("the gripper driver has stopped: {0}")]
     Stopped(String),
+    /// The weakest grip the gripper can make is above a force bound its user promised to keep.
+    #[error(
+        "its weakest grip, {min_force_n} N, is above the force bound of {bound_n} N: every \
+         grip would be raised to at least {min_force_n} N, past the bound"
+    )]
+    ForceFloorAboveBound { min_force_n: f64, bound_n: f64 },
 }
 
 /// Any gripper, driven the same way by a policy.
@@ -141,6 +147,19 @@ impl Limits {
             speed: asked.speed_m_s != done.speed_m_s,
             force: asked.force_n != done.force_n,
         }
+    }
+
+    /// Whether a caller bounded to `max_force_n` (a policy's force cap) can drive this gripper
+    /// within that bound: refused when even the weakest grip is stronger (a DH AG-95's 45 N
+    /// under a 40 N bound), since [`Limits::clamp`] would raise every force past it.
+    pub fn check_force_bound(&self, max_force_n: f64) -> Result<(), GripperError> {
+        if max_force_n.is_nan() || self.min_force_n > max_force_n {
+            return Err(GripperError::ForceFloorAboveBound {
+                min_force_n: self.min_force_n,
+                bound_n: max_force_n,
+            });
+        }
+        Ok(())
     }
 
     /// Check `cmd` is finite and clamp it to the limits.
@@ -245,5 +264,24 @@ mod tests {
             })
             .is_err()
         );
+    }
+
+    #[test]
+    fn a_force_bound_below_the_weakest_grip_is_refused() {
+        let ag95 = crate::Model::DhAg95.calibration().limits;
+        let e = ag95.check_force_bound(40.0).unwrap_err();
+        assert_eq!(
+            e,
+            GripperError::ForceFloorAboveBound {
+                min_force_n: 45.0,
+                bound_n: 40.0
+            }
+        );
+        assert!(e.to_string().contains("45 N"), "{e}");
+        assert!(e.to_string().contains("40 N"), "{e}");
+        assert!(ag95.check_force_bound(45.0).is_ok());
+        assert!(ag95.check_force_bound(f64::NAN).is_err());
+        let f140 = crate::Model::Robotiq2F140.calibration().limits;
+        assert!(f140.check_force_bound(40.0).is_ok());
     }
 }
