@@ -32,7 +32,7 @@
 
 use crate::error::PolicyLoadError;
 use crate::observation::{Observation, input};
-use crate::onnx::{NamedInputs, OnnxPolicy, RuntimeConfig};
+use crate::onnx::{NamedInputs, OnnxPolicy, RunError, RuntimeConfig};
 use crate::params::PolicyParams;
 use crate::policy::{Action, ArmAction, GripperAction, Policy, PolicyError};
 use std::path::Path;
@@ -68,6 +68,8 @@ const BEYOND: [&str; 7] = [
     "learned.arm.z_m",
     "learned.arm.lift_m",
 ];
+/// How far a policy's control rate may be from the scene's, relative.
+pub const RATE_TOLERANCE: f64 = 1e-6;
 /// Values of the contact and comparison slices.
 const CONTACT_LEN: usize = 3;
 /// The longest time `observation.arm` counts \[s].
@@ -296,9 +298,20 @@ impl LearnedPolicy {
     /// one score per target, the camera's names in the scene's order, per-object latent slots of
     /// the scene's objects).
     pub fn load(dir: &Path, params: &PolicyParams) -> Result<Self, PolicyLoadError> {
-        let onnx = OnnxPolicy::load(dir, &RuntimeConfig::default())
+        let mut onnx = OnnxPolicy::load(dir, &RuntimeConfig::default())
             .map_err(|e| load_error(dir, vec![e.to_string()]))?;
+        onnx.set_budget(Some(params.inference_budget()));
         let mut problems = Vec::new();
+        // The model's chunk rows are control ticks at its rate, and its features (the arm's
+        // time, the memory) were recorded at the demonstrations' rate: the scene must tick at
+        // that rate, or each row would be held for several ticks (or skipped).
+        let rate = onnx.manifest().control_rate_hz;
+        if (rate - params.control_rate_hz).abs() > RATE_TOLERANCE * params.control_rate_hz {
+            problems.push(format!(
+                "the policy runs at control_rate_hz {rate}, the scene at {}",
+                params.control_rate_hz
+            ));
+        }
         let names = onnx.action_names();
         let at = |n: &str| names.iter().position(|a| a == n);
         let mut commands = [0usize; 7];
@@ -507,10 +520,12 @@ impl Policy for LearnedPolicy {
         for (name, values) in &memory {
             named.insert(name, values);
         }
-        let chunk = self
-            .onnx
-            .act(&named, obs.stamp)
-            .map_err(|e| PolicyError::Failed(format!("learned policy: {e}")))?;
+        let chunk = self.onnx.act(&named, obs.stamp).map_err(|e| match e {
+            RunError::OverBudget { .. } => {
+                PolicyError::OverBudget(format!("learned policy {}: {e}", self.onnx.id()))
+            }
+            e => PolicyError::Failed(format!("learned policy: {e}")),
+        })?;
         for j in &chunk.beyond {
             if let Some(k) = self.commands.iter().position(|c| c == j) {
                 self.clamped.push(BEYOND[k]);

@@ -19,6 +19,7 @@ pub mod reflex;
 pub mod safety;
 pub mod stage;
 pub mod task;
+pub mod ticks;
 
 pub use error::{FeatureError, InputError, PolicyLoadError, Problems, SceneStagesError};
 pub use learned::LearnedPolicy;
@@ -27,3 +28,4 @@ pub use params::{PolicyKind, PolicyParams};
 pub use policy::{Action, ArmAction, GripperAction, Policy, PolicyError};
 pub use reflex::ReflexCounters;
 pub use stage::{PolicyStage, check_scene};
+pub use ticks::{TickCounts, TickKind};

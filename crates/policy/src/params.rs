@@ -12,6 +12,16 @@ use serde::{Deserialize, Serialize};
 pub const MAX_LATENT_LEN: usize = 1 << 16;
 /// Most objects or visual names a scene lists.
 pub const MAX_NAMES: usize = 64;
+/// The control rate's range \[Hz] (the scene's `control_rate_hz`, and an ONNX policy's).
+pub const MIN_CONTROL_RATE_HZ: f64 = 0.1;
+pub const MAX_CONTROL_RATE_HZ: f64 = 1000.0;
+/// An inference's default time limit, in control periods: a model that needs longer has
+/// missed ticks already; a model of tens of microseconds stays within it on a loaded machine,
+/// so results do not depend on the load.
+pub const DEFAULT_BUDGET_PERIODS: f64 = 3.0;
+/// The range of `inference_budget_s` \[s].
+pub const MIN_INFERENCE_BUDGET_S: f64 = 0.001;
+pub const MAX_INFERENCE_BUDGET_S: f64 = 10.0;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -27,8 +37,13 @@ pub struct PolicyParams {
     /// The task string (grammar in task.rs); it also picks the scene controller.
     pub task: String,
     /// Control ticks per second: a GripperStatus closer than 0.9 / rate to the last tick is
-    /// not a tick.
+    /// not a tick. [`MIN_CONTROL_RATE_HZ`]..=[`MAX_CONTROL_RATE_HZ`].
     pub control_rate_hz: f64,
+    /// Wall-clock time one inference of an ONNX policy may take \[s]; a call still running then
+    /// is stopped and its tick gets the safe action (`policy: inference over budget: ...`).
+    /// None: [`DEFAULT_BUDGET_PERIODS`] control periods. [`MIN_INFERENCE_BUDGET_S`]..=
+    /// [`MAX_INFERENCE_BUDGET_S`].
+    pub inference_budget_s: Option<f64>,
     /// Freshness budgets per input \[s].
     pub budget_gripper_s: f64,
     pub budget_contact_s: f64,
@@ -143,6 +158,7 @@ impl Default for PolicyParams {
             run_s: 30.0,
             task: "pick the smoother fabric".into(),
             control_rate_hz: 30.0,
+            inference_budget_s: None,
             budget_gripper_s: 0.2,
             budget_contact_s: 0.25,
             budget_latent_s: 60.0,
@@ -210,10 +226,19 @@ impl PolicyParams {
         if let Err(e) = self.bounds().check() {
             bad.extend(e.0);
         }
-        if !(self.control_rate_hz.is_finite() && (0.1..=1000.0).contains(&self.control_rate_hz)) {
+        if !(self.control_rate_hz.is_finite()
+            && (MIN_CONTROL_RATE_HZ..=MAX_CONTROL_RATE_HZ).contains(&self.control_rate_hz))
+        {
             bad.push(format!(
-                "control_rate_hz = {} is outside [0.1, 1000]",
+                "control_rate_hz = {} is outside [{MIN_CONTROL_RATE_HZ}, {MAX_CONTROL_RATE_HZ}]",
                 self.control_rate_hz
+            ));
+        }
+        if let Some(b) = self.inference_budget_s
+            && !(b.is_finite() && (MIN_INFERENCE_BUDGET_S..=MAX_INFERENCE_BUDGET_S).contains(&b))
+        {
+            bad.push(format!(
+                "inference_budget_s = {b} is outside [{MIN_INFERENCE_BUDGET_S}, {MAX_INFERENCE_BUDGET_S}]"
             ));
         }
         let positive = [
@@ -344,6 +369,20 @@ impl PolicyParams {
             Ok(t) if bad.is_empty() => Ok(t),
             _ => Err(Problems(bad)),
         }
+    }
+
+    /// The time limit of one inference: `inference_budget_s`, or [`DEFAULT_BUDGET_PERIODS`]
+    /// control periods (within the budget's range).
+    pub fn inference_budget(&self) -> std::time::Duration {
+        let s = self
+            .inference_budget_s
+            .unwrap_or(DEFAULT_BUDGET_PERIODS / self.control_rate_hz);
+        let s = if s.is_finite() {
+            s
+        } else {
+            MAX_INFERENCE_BUDGET_S
+        };
+        std::time::Duration::from_secs_f64(s.clamp(MIN_INFERENCE_BUDGET_S, MAX_INFERENCE_BUDGET_S))
     }
 
     pub fn bounds(&self) -> Bounds {

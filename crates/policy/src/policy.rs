@@ -60,6 +60,9 @@ impl Action {
 pub enum PolicyError {
     #[error("timed out: {0}")]
     Timeout(String),
+    /// An inference ran past its time limit and was stopped (the model's id and the figures).
+    #[error("inference over budget: {0}")]
+    OverBudget(String),
     #[error("{0}")]
     Failed(String),
 }

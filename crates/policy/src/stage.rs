@@ -13,6 +13,7 @@ use crate::readout::Readout;
 use crate::reflex::{Reflex, ReflexCounters, Touch};
 use crate::safety::{Refusal, SafetyLayer};
 use crate::task::Task;
+use crate::ticks::TickCounts;
 use std::collections::VecDeque;
 use std::path::Path;
 use unitac_core::msg::{
@@ -61,6 +62,8 @@ pub struct PolicyStage {
     reflex: Reflex,
     slip: Option<SlipState>,
     contact: Option<ContactState>,
+    /// What each tick sent, by kind (src/ticks.rs).
+    counts: TickCounts,
 }
 
 /// GripperStatus messages in a row, a control period apart, that move the present to their time
@@ -153,6 +156,7 @@ impl PolicyStage {
             reflex: Reflex::new(params.reflex()),
             slip: None,
             contact: None,
+            counts: TickCounts::default(),
             params,
         })
     }
@@ -166,6 +170,12 @@ impl PolicyStage {
     /// [`Policy::awaited`]): a transport watches these producers.
     pub fn awaited_inputs(&self) -> Vec<&'static str> {
         self.policy.awaited()
+    }
+
+    /// Every tick since the stage was built by what it sent: the policy's action, or the safe
+    /// action and why (src/ticks.rs; the same counts a transport makes from PolicyStatus).
+    pub fn tick_counts(&self) -> &TickCounts {
+        &self.counts
     }
 
     /// What the tactile reflex did since the stage was built (src/reflex.rs).
@@ -366,8 +376,18 @@ impl PolicyStage {
     }
 
     /// The tick's three messages for decision `d`.
-    fn messages(&self, now: Stamp, frame_id: &str, d: crate::safety::Decision) -> Vec<Msg> {
+    fn messages(&mut self, now: Stamp, frame_id: &str, d: crate::safety::Decision) -> Vec<Msg> {
         let header = Header::new(now, frame_id);
+        let status = PolicyStatus {
+            header: header.clone(),
+            scene: self.scene.clone(),
+            mode: self.params.mode.as_str().into(),
+            phase: self.policy.phase().into(),
+            safety_ok: d.ok,
+            message: d.reason.clone(),
+            clamped: d.clamped.iter().map(|c| c.to_string()).collect(),
+        };
+        self.counts.count(&status);
         vec![
             Msg::GripperCommand(GripperCommand {
                 header: header.clone(),
@@ -386,15 +406,7 @@ impl PolicyStage {
                 lift_m: d.arm.lift_m,
                 reason: d.reason.clone(),
             }),
-            Msg::PolicyStatus(PolicyStatus {
-                header,
-                scene: self.scene.clone(),
-                mode: self.params.mode.as_str().into(),
-                phase: self.policy.phase().into(),
-                safety_ok: d.ok,
-                message: d.reason,
-                clamped: d.clamped.iter().map(|c| c.to_string()).collect(),
-            }),
+            Msg::PolicyStatus(status),
         ]
     }
 }

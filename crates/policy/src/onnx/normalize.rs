@@ -131,7 +131,7 @@ impl Norm {
                 let mean = stat(tensor, "mean", m, spec.mean.as_ref(), lens, problems);
                 let std = stat(tensor, "std", m, spec.std.as_ref(), lens, problems);
                 for (index, &s) in std.iter().flatten().enumerate() {
-                    if s <= 0.0 {
+                    if !(s >= super::validate::MIN_SCALE) {
                         problems.push(Mismatch::StdNotPositive {
                             tensor: tensor.to_string(),
                             index,
@@ -158,7 +158,7 @@ impl Norm {
                 same_len(&min, &max, "max", "min", problems);
                 let range: Vec<f32> = min.iter().zip(&max).map(|(lo, hi)| hi - lo).collect();
                 for (index, ((&lo, &hi), &r)) in min.iter().zip(&max).zip(&range).enumerate() {
-                    if !(r > 0.0 && r.is_finite()) {
+                    if !(r >= super::validate::MIN_SCALE && r.is_finite()) {
                         problems.push(Mismatch::EmptyRange {
                             tensor: tensor.to_string(),
                             index,

@@ -71,6 +71,24 @@ pub enum RunError {
         index: usize,
         value: f32,
     },
+    /// A finite input that normalisation took out of float32's range (a tiny std).
+    #[error("input '{name}'[{index}] = {value} normalises to {normalised}, not finite")]
+    NonFiniteFeature {
+        name: String,
+        index: usize,
+        value: f32,
+        normalised: f32,
+    },
+    /// The inference ran past its time limit ([`OnnxPolicy::set_budget`]) and was stopped.
+    #[error(
+        "the model ran past its budget of {:.1} ms and was stopped after {:.1} ms",
+        .budget.as_secs_f64() * 1e3,
+        .elapsed.as_secs_f64() * 1e3
+    )]
+    OverBudget {
+        budget: std::time::Duration,
+        elapsed: std::time::Duration,
+    },
     #[error("the model predicted {value} for action '{action}' at chunk row {row}")]
     NonFiniteAction {
         row: usize,
@@ -97,6 +115,8 @@ pub struct OnnxPolicy {
     schedule: Schedule,
     /// Normalised inputs, reused across ticks.
     buffers: Vec<Vec<f32>>,
+    /// The time limit of one inference (None: none).
+    budget: Option<std::time::Duration>,
 }
 
 impl OnnxPolicy {
@@ -170,7 +190,15 @@ impl OnnxPolicy {
             io,
             session,
             schedule,
+            budget: None,
         })
+    }
+
+    /// Limit each inference to `budget` of wall-clock time (None: no limit): a run still going
+    /// then is stopped and the tick is [`RunError::OverBudget`] (nothing committed). A run
+    /// that finishes within it gives the bytes it gives without a limit.
+    pub fn set_budget(&mut self, budget: Option<std::time::Duration>) {
+        self.budget = budget;
     }
 
     /// `policy@sha256-prefix`, for status messages.
@@ -249,6 +277,15 @@ impl OnnxPolicy {
     fn infer(&mut self, features: &[&[f32]]) -> Result<(Vec<f32>, usize, Vec<usize>), RunError> {
         for ((spec, buf), x) in self.io.inputs.iter().zip(&mut self.buffers).zip(features) {
             spec.norm.forward(x, buf);
+            if let Some((index, &normalised)) = buf.iter().enumerate().find(|(_, v)| !v.is_finite())
+            {
+                return Err(RunError::NonFiniteFeature {
+                    name: spec.name.clone(),
+                    index,
+                    value: x.get(index).copied().unwrap_or(f32::NAN),
+                    normalised,
+                });
+            }
         }
         let feeds: Vec<(&str, &[i64], &[f32])> = self
             .io
@@ -259,10 +296,18 @@ impl OnnxPolicy {
             .collect();
         let out = &self.io.output;
         let a = out.names.len();
-        let (shape, mut chunk) = self
+        let ran = self
             .session
-            .run_f32(&feeds, &[out.name.as_str()])?
-            .pop()
+            .run_f32_within(&feeds, &[out.name.as_str()], self.budget)
+            .map_err(|e| match e {
+                InferError::OverBudget {
+                    budget, elapsed, ..
+                } => RunError::OverBudget { budget, elapsed },
+                e => RunError::Inference(e),
+            })?;
+        let (shape, mut chunk) = ran
+            .into_iter()
+            .next_back()
             .ok_or_else(|| InferError::Output {
                 model: self.manifest.policy.clone(),
                 msg: format!("no '{}'", out.name),

@@ -19,8 +19,11 @@ pub const MAX_INPUTS: usize = 64;
 pub const MAX_CHUNK_SIZE: usize = 1024;
 /// Most actions per row.
 pub const MAX_ACTIONS: usize = 256;
-/// Fastest control rate \[Hz].
-pub const MAX_CONTROL_RATE_HZ: f64 = 10_000.0;
+/// The control rate's range \[Hz], the scene's.
+pub use crate::params::{MAX_CONTROL_RATE_HZ, MIN_CONTROL_RATE_HZ};
+/// The smallest std and min-max range a normalisation may divide by: float32's smallest
+/// normal number (a subnormal one, e.g. 1e-45, passes "> 0" and overflows every input).
+pub const MIN_SCALE: f32 = f32::MIN_POSITIVE;
 
 /// One problem found at load.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -99,7 +102,10 @@ pub enum Mismatch {
         index: usize,
         value: f64,
     },
-    #[error("{tensor}: std[{index}] = {value} must be > 0")]
+    #[error(
+        "{tensor}: std[{index}] = {value:e} must be >= {:e} (float32's smallest normal)",
+        MIN_SCALE
+    )]
     StdNotPositive {
         tensor: String,
         index: usize,
@@ -134,7 +140,9 @@ pub enum Mismatch {
     ChunkSize(usize),
     #[error("n_action_steps {steps} must be 1..=chunk_size ({chunk_size})")]
     ActionSteps { steps: usize, chunk_size: usize },
-    #[error("control_rate_hz {0} must be finite, > 0 and <= {MAX_CONTROL_RATE_HZ}")]
+    #[error(
+        "control_rate_hz {0} must be finite and within [{MIN_CONTROL_RATE_HZ}, {MAX_CONTROL_RATE_HZ}]"
+    )]
     ControlRate(f64),
     #[error("temporal_ensemble_coeff {0} must be finite and >= 0")]
     EnsembleCoeff(f64),
@@ -300,7 +308,7 @@ fn check_config(m: &PolicyManifest, problems: &mut Vec<Mismatch>) {
         });
     }
     let r = m.control_rate_hz;
-    if !(r.is_finite() && r > 0.0 && r <= MAX_CONTROL_RATE_HZ) {
+    if !(r.is_finite() && (MIN_CONTROL_RATE_HZ..=MAX_CONTROL_RATE_HZ).contains(&r)) {
         problems.push(Mismatch::ControlRate(r));
     }
     if let Some(c) = m.temporal_ensemble_coeff {
