@@ -5,10 +5,15 @@
 //! tactile sensors deliver; both are converted with BT.601 limited-range integer arithmetic.
 //! Rows may be padded (`step` > width x bytes per pixel); `data` must hold exactly
 //! `step x height` bytes. Compressed: JPEG and PNG (format string or, if it names neither, the
-//! magic bytes), decoded with size and allocation limits.
+//! magic bytes), decoded with size and allocation limits: the header's size is checked
+//! against the image size limit ([`unitac_core::frame::check_image_size`]: 8192 pixels a side,
+//! 4096 x 4096 in all) before a pixel is decoded. A JPEG must be whole: its scan ends with an EOI
+//! marker and it is decoded with zune-jpeg's strict mode, where data that ends before the last
+//! MCU is an error (the lenient decoder behind `image` fills the rest with grey and reports
+//! success, which replay would read as a large false contact). Bytes after the EOI are accepted.
 
 use crate::ros::{CompressedImageView, ImageView};
-use unitac_core::frame::MAX_SIDE;
+use unitac_core::frame::{MAX_SIDE, check_image_size};
 use unitac_core::pixel::{Yuv422, yuv422_to_rgb_into};
 use unitac_core::{Frame, FrameError, Stamp};
 
@@ -42,6 +47,8 @@ pub enum ImageError {
     Format(String),
     #[error("compressed image: {0}")]
     Decode(String),
+    #[error("compressed image: {0}")]
+    TooLarge(#[from] unitac_core::frame::ImageTooLarge),
     #[error(transparent)]
     Frame(#[from] FrameError),
 }
@@ -200,19 +207,90 @@ fn decode_bytes(
     seq: u64,
     stamp: Stamp,
 ) -> Result<Frame, ImageError> {
+    let derr = |e: &dyn std::fmt::Display| ImageError::Decode(e.to_string());
+    if format == image::ImageFormat::Jpeg {
+        let (w, h, rgb) = decode_jpeg_strict(data)?;
+        return Ok(Frame::new(sensor_id, seq, stamp, w, h, rgb)?);
+    }
+    let (w, h) = image::ImageReader::with_format(std::io::Cursor::new(data), format)
+        .into_dimensions()
+        .map_err(|e| derr(&e))?;
+    check_image_size(w, h)?;
     let mut reader = image::ImageReader::with_format(std::io::Cursor::new(data), format);
     let mut limits = image::Limits::default();
-    limits.max_image_width = Some(MAX_SIDE);
-    limits.max_image_height = Some(MAX_SIDE);
-    // An RGBA 16-bit image of the largest side is the worst case the decoder may need.
-    limits.max_alloc = Some(8192 * 8192 * 8);
+    limits.max_image_width = Some(w);
+    limits.max_image_height = Some(h);
+    // The decoded image (up to 16-bit RGBA) plus the RGB8 copy.
+    limits.max_alloc = Some(u64::from(w) * u64::from(h) * 11);
     reader.limits(limits);
-    let img = reader
-        .decode()
-        .map_err(|e| ImageError::Decode(e.to_string()))?;
+    let img = reader.decode().map_err(|e| derr(&e))?;
     let rgb = img.into_rgb8();
     let (w, h) = rgb.dimensions();
     Ok(Frame::new(sensor_id, seq, stamp, w, h, rgb.into_raw())?)
+}
+
+/// A whole JPEG to RGB8: EOI after the scan, size within the limit, strict decode.
+fn decode_jpeg_strict(data: &[u8]) -> Result<(u32, u32, Vec<u8>), ImageError> {
+    use zune_jpeg::zune_core::{bytestream::ZCursor, colorspace::ColorSpace};
+    let derr = |e: &dyn std::fmt::Display| ImageError::Decode(e.to_string());
+    if !jpeg_has_eoi(data) {
+        return Err(ImageError::Decode(
+            "truncated JPEG: no EOI marker after the scan".into(),
+        ));
+    }
+    let opts = zune_jpeg::zune_core::options::DecoderOptions::default()
+        .set_strict_mode(true)
+        .set_max_width(MAX_SIDE as usize)
+        .set_max_height(MAX_SIDE as usize)
+        .jpeg_set_out_colorspace(ColorSpace::RGB);
+    let mut d = zune_jpeg::JpegDecoder::new_with_options(ZCursor::new(data), opts);
+    d.decode_headers().map_err(|e| derr(&e))?;
+    let info = d
+        .info()
+        .ok_or_else(|| ImageError::Decode("JPEG: no frame header".into()))?;
+    let (w, h) = (u32::from(info.width), u32::from(info.height));
+    check_image_size(w, h)?;
+    let px = d.decode().map_err(|e| derr(&e))?;
+    if px.len() != w as usize * h as usize * 3 {
+        return Err(ImageError::Decode(format!(
+            "JPEG: {} bytes decoded for {w}x{h} RGB",
+            px.len()
+        )));
+    }
+    Ok((w, h, px))
+}
+
+/// True if an EOI marker follows the first scan's start (segments are walked by their lengths
+/// up to SOS, so an EOI inside an EXIF thumbnail does not count; entropy-coded data holds no
+/// 0xFF 0xD9).
+fn jpeg_has_eoi(data: &[u8]) -> bool {
+    if data.get(..2) != Some(&[0xFF, 0xD8][..]) {
+        return false;
+    }
+    let mut pos = 2;
+    loop {
+        while data.get(pos) == Some(&0xFF) && data.get(pos + 1) == Some(&0xFF) {
+            pos += 1;
+        }
+        let (Some(&0xFF), Some(&m), Some(&a), Some(&b)) = (
+            data.get(pos),
+            data.get(pos + 1),
+            data.get(pos + 2),
+            data.get(pos + 3),
+        ) else {
+            return false;
+        };
+        let len = usize::from(a) << 8 | usize::from(b);
+        if m == 0xD9 || len < 2 {
+            return false;
+        }
+        pos += 2 + len;
+        if m == 0xDA {
+            return data
+                .get(pos..)
+                .is_some_and(|d| d.windows(2).any(|w| w == [0xFF, 0xD9]));
+        }
+    }
 }
 
 #[cfg(test)]
@@ -313,6 +391,45 @@ mod tests {
             image_to_frame(&raw(8, 8192, "rgb8", u32::MAX, vec![0; 10]).view(), "s", 0),
             Err(ImageError::Length { .. })
         ));
+    }
+
+    /// A cut JPEG message (no EOI, data ending before the last MCU) is a decode error, not a
+    /// frame half filled with grey; bytes after the EOI are accepted.
+    #[test]
+    fn cut_jpeg_is_a_decode_error() {
+        let (w, h) = (64u32, 48u32);
+        let rgb: Vec<u8> = (0..w * h * 3).map(|i| (i * 7 % 251) as u8).collect();
+        let img = image::RgbImage::from_raw(w, h, rgb).unwrap();
+        let mut jpg = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpg, 90)
+            .encode_image(&img)
+            .unwrap();
+        let msg = |data: Vec<u8>| CompressedImage {
+            header: Header::new(Stamp(1), "x"),
+            format: "jpeg".into(),
+            data,
+        };
+        let good = compressed_to_frame(&msg(jpg.clone()).view(), "s", 0).unwrap();
+        assert_eq!((good.width, good.height), (w, h));
+        for cut in [
+            jpg.len() / 2,
+            jpg.len() * 9 / 10,
+            jpg.len() - 3,
+            jpg.len() - 2,
+        ] {
+            let r = compressed_to_frame(&msg(jpg[..cut].to_vec()).view(), "s", 0);
+            assert!(
+                matches!(r, Err(ImageError::Decode(_))),
+                "cut at {cut} of {}: {r:?}",
+                jpg.len()
+            );
+        }
+        let mut trailing = jpg.clone();
+        trailing.extend_from_slice(b"xyz");
+        assert_eq!(
+            compressed_to_frame(&msg(trailing).view(), "s", 0).unwrap(),
+            good
+        );
     }
 
     #[test]

@@ -209,6 +209,209 @@ fn all_good_files_exit_0_and_bad_background_exits_2() {
     );
 }
 
+/// A cut JPEG (the file ends part-way through the scan) is an error for that frame, not a
+/// frame whose missing half is filled with grey (a false contact of thousands of pixels); as
+/// the background it is exit 2. The same picture whole still reads as it should.
+#[test]
+fn truncated_jpeg_is_a_frame_error_and_a_bad_background() {
+    let d = dir().join("cutjpeg");
+    std::fs::create_dir_all(&d).unwrap();
+    let s = MockSensor::new(
+        MockConfig::new(SensorKind::GelsightMini, 5),
+        Scenario::fabric_selection(),
+    );
+    let jpeg = |f: &unitac_core::Frame| {
+        let img = image::RgbImage::from_raw(f.width, f.height, f.data().to_vec()).unwrap();
+        let mut out = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 95)
+            .encode_image(&img)
+            .unwrap();
+        out
+    };
+    let bg_bytes = jpeg(&s.render(0).0);
+    let idle_bytes = jpeg(&s.render(2).0);
+    let (bg, idle, cut, cut_bg) = (
+        d.join("bg.jpg"),
+        d.join("idle.jpg"),
+        d.join("cut.jpg"),
+        d.join("cut_bg.jpg"),
+    );
+    std::fs::write(&bg, &bg_bytes).unwrap();
+    std::fs::write(&idle, &idle_bytes).unwrap();
+    std::fs::write(&cut, &idle_bytes[..idle_bytes.len() / 2]).unwrap();
+    std::fs::write(&cut_bg, &bg_bytes[..bg_bytes.len() / 2]).unwrap();
+    let (code, lines, stderr) = run(&[
+        "contact",
+        "--sensor",
+        "gelsight-mini",
+        "--background",
+        bg.to_str().unwrap(),
+        "--json",
+        idle.to_str().unwrap(),
+        cut.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(2), "a bad frame: exit 2 ({stderr})");
+    assert_eq!(lines.len(), 2);
+    assert_eq!(lines[0]["contact"], false, "{}", lines[0]);
+    assert_eq!(lines[1]["file"], cut.to_str().unwrap());
+    let e = lines[1]["error"]
+        .as_str()
+        .unwrap_or_else(|| panic!("a cut JPEG read as a frame: {}", lines[1]));
+    assert!(e.contains("cut.jpg") && e.contains("truncated"), "{e}");
+    assert!(lines[1].get("contact").is_none(), "{}", lines[1]);
+
+    let (code, lines, stderr) = run(&[
+        "contact",
+        "--sensor",
+        "gelsight-mini",
+        "--background",
+        cut_bg.to_str().unwrap(),
+        "--json",
+        idle.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(2), "{lines:?}");
+    assert!(
+        lines.is_empty()
+            && stderr.starts_with("unitac:")
+            && stderr.contains("background")
+            && stderr.contains("truncated")
+            && stderr.trim().lines().count() == 1,
+        "{stderr}"
+    );
+}
+
+/// A header over the image size limit names the limit it broke: per side and in all.
+#[test]
+fn oversized_image_header_states_the_limit() {
+    let d = dir().join("huge");
+    std::fs::create_dir_all(&d).unwrap();
+    let bg = d.join("bg.png");
+    image::RgbImage::from_pixel(8, 8, image::Rgb([90, 90, 90]))
+        .save(&bg)
+        .unwrap();
+    let mut args = vec![
+        "contact".to_string(),
+        "--sensor".into(),
+        "generic".into(),
+        "--background".into(),
+        bg.to_str().unwrap().into(),
+        "--json".into(),
+    ];
+    let sizes = [(16_777_216u32, 1u32), (8193, 2), (4097, 4097)];
+    for (w, h) in sizes {
+        // A PNG header alone (no pixel data) claiming w x h.
+        let mut png = b"\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR".to_vec();
+        png.extend_from_slice(&w.to_be_bytes());
+        png.extend_from_slice(&h.to_be_bytes());
+        png.extend_from_slice(&[8, 2, 0, 0, 0]);
+        let c = crc32(&png[12..]);
+        png.extend_from_slice(&c.to_be_bytes());
+        for chunk in [&b"IDAT"[..], b"IEND"] {
+            png.extend_from_slice(&[0, 0, 0, 0]);
+            png.extend_from_slice(chunk);
+            png.extend_from_slice(&crc32(chunk).to_be_bytes());
+        }
+        let p = d.join(format!("{w}x{h}.png"));
+        std::fs::write(&p, png).unwrap();
+        args.push(p.to_str().unwrap().into());
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let (code, lines, _) = run(&args);
+    assert_eq!(code, Some(2));
+    for ((w, h), l) in sizes.iter().zip(&lines) {
+        let e = l["error"].as_str().unwrap();
+        assert!(
+            e.ends_with(&format!(
+                "image is {w}x{h}: the limit is 1..=8192 pixels a side and 16777216 pixels in all"
+            )),
+            "{e}"
+        );
+    }
+}
+
+fn crc32(data: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &b in data {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+/// A bag whose CompressedImage messages include a cut JPEG: replay reports that message as a
+/// failed image message (an error line), not a contact state.
+#[test]
+fn replay_counts_a_cut_jpeg_message_as_a_failed_image() {
+    use unitac_bag::{BagWriter, CompressedImage, WriteOptions};
+    let d = dir().join("cutbag");
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    let s = MockSensor::new(MockConfig::new(SensorKind::Digit, 6), Scenario::idle(2.0));
+    let mut w = BagWriter::create(&d.join("bag"), WriteOptions::default()).unwrap();
+    let t = w
+        .add_topic(
+            "/digit/image_raw/compressed",
+            "sensor_msgs/msg/CompressedImage",
+        )
+        .unwrap();
+    let n = 30;
+    let cut_at = 20;
+    for k in 0..n {
+        let f = s.render(k).0;
+        let img = image::RgbImage::from_raw(f.width, f.height, f.data().to_vec()).unwrap();
+        let mut data = Vec::new();
+        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut data, 95)
+            .encode_image(&img)
+            .unwrap();
+        if k == cut_at {
+            data.truncate(data.len() / 2);
+        }
+        let msg = CompressedImage {
+            header: unitac_core::msg::Header::new(f.stamp, "digit_optical_frame"),
+            format: "jpeg".into(),
+            data,
+        };
+        w.write(t, f.stamp.0, &msg).unwrap();
+    }
+    let path = w.finish().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args([
+            "replay",
+            path.to_str().unwrap(),
+            "--fast",
+            "--json",
+            "--sensor",
+            "digit",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let lines: Vec<Value> = String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), n as usize);
+    let errors: Vec<usize> = (0..lines.len())
+        .filter(|&i| lines[i].get("error").is_some())
+        .collect();
+    assert_eq!(errors, vec![cut_at as usize], "{lines:?}");
+    assert!(
+        !lines[cut_at as usize]["contact"].is_boolean(),
+        "{}",
+        lines[cut_at as usize]
+    );
+    assert!(lines.iter().all(|l| l["contact"] != true), "{lines:?}");
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("1 of 30"), "{stderr}");
+}
+
 /// A sensor that changes resolution: a bag whose first image is 32x24 and the next 60
 /// are 64x48. The odd first frame does not lock the stage: the new size is learned after a few
 /// frames, and contact states come out for the rest.

@@ -8,6 +8,37 @@ use thiserror::Error;
 /// coming from a device, a bag or a file is rejected before allocation.
 pub const MAX_SIDE: u32 = 8192;
 
+/// Most pixels of one image decoded from a file or a compressed bag message (4096 x 4096; the
+/// largest tactile sensor frame we know, GelSight Mini's full 3280 x 2464, is half of it). Checked
+/// with [`check_image_size`] against the header before anything is decoded.
+pub const MAX_PIXELS: u64 = 4096 * 4096;
+
+/// An image header whose size is over [`MAX_SIDE`] a side or [`MAX_PIXELS`] in all.
+#[derive(Debug, Error, PartialEq, Eq)]
+#[error(
+    "image is {width}x{height}: the limit is 1..={max_side} pixels a side and {max_pixels} pixels \
+     in all",
+    max_side = MAX_SIDE,
+    max_pixels = MAX_PIXELS
+)]
+pub struct ImageTooLarge {
+    pub width: u32,
+    pub height: u32,
+}
+
+/// The size limit of a decoded image: 1..=[`MAX_SIDE`] a side and at most [`MAX_PIXELS`].
+pub fn check_image_size(width: u32, height: u32) -> Result<(), ImageTooLarge> {
+    let side = 1..=MAX_SIDE;
+    if side.contains(&width)
+        && side.contains(&height)
+        && u64::from(width) * u64::from(height) <= MAX_PIXELS
+    {
+        Ok(())
+    } else {
+        Err(ImageTooLarge { width, height })
+    }
+}
+
 #[derive(Debug, Error, PartialEq, Eq)]
 pub enum FrameError {
     #[error("frame size {width}x{height} is outside 1..={max} per side", max = MAX_SIDE)]
@@ -142,6 +173,36 @@ mod tests {
             );
             assert_eq!(rebuilt, Ok(f), "{kind}");
         }
+    }
+
+    #[test]
+    fn image_size_limit_is_per_side_and_in_all() {
+        assert_eq!(check_image_size(4096, 4096), Ok(()));
+        assert_eq!(check_image_size(8192, 2048), Ok(()));
+        assert_eq!(check_image_size(4097, 10), Ok(()));
+        for (w, h) in [
+            (0, 1),
+            (8193, 1),
+            (16_777_216, 1),
+            (8192, 2049),
+            (4097, 4097),
+        ] {
+            assert_eq!(
+                check_image_size(w, h),
+                Err(ImageTooLarge {
+                    width: w,
+                    height: h
+                })
+            );
+        }
+        assert_eq!(
+            ImageTooLarge {
+                width: 16_777_216,
+                height: 1
+            }
+            .to_string(),
+            "image is 16777216x1: the limit is 1..=8192 pixels a side and 16777216 pixels in all"
+        );
     }
 
     #[test]

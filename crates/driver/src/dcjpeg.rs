@@ -24,6 +24,18 @@ fn corrupt<T>(m: &str) -> Result<T, DcError> {
     Err(DcError::Corrupt(m.to_string()))
 }
 
+/// The entropy-coded data ended before the last MCU (of the scan or of a restart interval).
+fn truncated<T>() -> Result<T, DcError> {
+    corrupt("truncated: the data ends before the last MCU")
+}
+
+/// True if an EOI marker follows `from` (entropy-coded data holds no 0xFF but stuffed 0xFF 0x00
+/// and RSTn markers, so the first 0xFF 0xD9 after the scan's start is its end).
+fn eoi_after(data: &[u8], from: usize) -> bool {
+    data.get(from..)
+        .is_some_and(|d| d.windows(2).any(|w| w == [0xFF, 0xD9]))
+}
+
 /// Annex K.3 standard tables (BITS, HUFFVAL), used when an MJPEG frame has no DHT.
 const STD_DC_BITS: [u8; 16] = [0, 1, 5, 1, 1, 1, 1, 1, 1, 0, 0, 0, 0, 0, 0, 0];
 const STD_DC_VALS: [u8; 12] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11];
@@ -213,6 +225,9 @@ struct Bits<'a> {
     acc: u64,
     n: u32,
     marker: bool,
+    /// Zero bits put in after the data ended or a marker came; those still in `acc` are its
+    /// lowest bits, so the walk read past the scan's real data once `fill > n`.
+    fill: u32,
 }
 
 impl<'a> Bits<'a> {
@@ -223,7 +238,14 @@ impl<'a> Bits<'a> {
             acc: 0,
             n: 0,
             marker: false,
+            fill: 0,
         }
+    }
+    /// True once a code was read from the zero bits past the end of the entropy-coded data: the
+    /// scan (or restart interval) ended before the MCU being decoded (a truncated frame).
+    #[inline(always)]
+    fn overran(&self) -> bool {
+        self.fill > self.n
     }
     /// Fill the accumulator to at least 57 bits: eight bytes at once when none of them is 0xFF
     /// (no stuffing, no marker), byte by byte otherwise; zeros after a marker or the end.
@@ -264,6 +286,9 @@ impl<'a> Bits<'a> {
                     }
                     None => self.marker = true,
                 }
+            }
+            if self.marker {
+                self.fill = self.fill.saturating_add(8);
             }
             // Clear what a previous 8-byte read left below the valid bits, then put the byte.
             let shift = 56 - self.n;
@@ -386,9 +411,13 @@ impl<'a> Bits<'a> {
     }
     /// At a restart interval: drop the buffered bits and step over the RSTn marker.
     fn restart(&mut self) -> Result<(), DcError> {
+        if self.overran() {
+            return truncated();
+        }
         self.acc = 0;
         self.n = 0;
         self.marker = false;
+        self.fill = 0;
         while self.pos + 1 < self.data.len() {
             if self.data[self.pos] == 0xFF && (0xD0..=0xD7).contains(&self.data[self.pos + 1]) {
                 self.pos += 2;
@@ -588,12 +617,30 @@ impl DcDecoder {
                 })?
             };
             self.stats.mcus_decoded = n0 + n1;
+            // The last interval, if stepped over: as in the walk without restarts, decoded when
+            // no EOI marker follows its start.
+            let last = self.marks.len().saturating_sub(1);
+            if let Some(&at) = self.marks.get(last)
+                && !needed.contains(&last)
+                && !eoi_after(data, at)
+            {
+                let mut bits = Bits::new(data, at);
+                decode_mcus(&hd, &mut bits, last * ri, total, &mut self.planes[0])?;
+                self.stats.mcus_decoded += (total - last * ri) as u32;
+            }
         } else {
             // No restart markers: every MCU before the region's last row must be parsed.
             let end = (mr1 * hd.mcux).min(total);
             let mut bits = Bits::new(data, hd.scan_start);
             decode_mcus(&hd, &mut bits, 0, end, &mut self.planes[0])?;
             self.stats.mcus_decoded = end as u32;
+            // The rows after the region are not decoded when an EOI marker shows the scan goes
+            // on to its end; without one (a cut frame, or a camera that leaves EOI out) they are
+            // walked too, so a frame that ends before its last MCU is an error on every path.
+            if end < total && !eoi_after(data, bits.pos) {
+                decode_mcus(&hd, &mut bits, end, total, &mut self.planes[0])?;
+                self.stats.mcus_decoded = total as u32;
+            }
         }
         self.rgb.resize(ow * oh * 3, 0);
         to_rgb(&hd, &self.planes, split, roi, &mut self.rgb);
@@ -846,6 +893,9 @@ fn decode_mcus(
                 }
             }
         }
+        if bits.overran() {
+            return truncated();
+        }
     }
     Ok(())
 }
@@ -883,6 +933,40 @@ fn to_rgb(
             d[0] = px(l + 91_881 * r);
             d[1] = px(l - 22_554 * b - 46_802 * r);
             d[2] = px(l + 116_130 * b);
+        }
+    }
+}
+
+/// True if an EOI marker follows the first scan's start (markers are walked segment by segment
+/// up to SOS, so an EOI inside an EXIF thumbnail does not count).
+pub fn has_eoi(data: &[u8]) -> bool {
+    scan_start(data).is_some_and(|at| eoi_after(data, at))
+}
+
+/// Offset of the first byte after the first SOS segment.
+fn scan_start(data: &[u8]) -> Option<usize> {
+    if data.get(..2) != Some(&[0xFF, 0xD8][..]) {
+        return None;
+    }
+    let mut pos = 2;
+    loop {
+        while data.get(pos) == Some(&0xFF) && data.get(pos + 1) == Some(&0xFF) {
+            pos += 1;
+        }
+        if *data.get(pos)? != 0xFF {
+            return None;
+        }
+        let m = *data.get(pos + 1)?;
+        if m == 0xD9 {
+            return None;
+        }
+        let len = u16_at(data, pos + 2).ok()?;
+        if len < 2 {
+            return None;
+        }
+        pos += 2 + len;
+        if m == 0xDA {
+            return Some(pos);
         }
     }
 }

@@ -456,6 +456,19 @@ pub fn decode_jpeg_scaled(
             Err(crate::dcjpeg::DcError::Unsupported(_)) => {}
         }
     }
+    // `jpeg-decoder` fills a scan that ends early (at a marker) with zeros and reports success,
+    // and fails on a frame with no EOI marker even when its data is complete. The DC walk reads
+    // every MCU of a baseline frame and fails if the data ends before the last one; a complete
+    // frame without EOI then gets one. Other JPEG kinds (progressive, 12-bit) must end in EOI.
+    let with_eoi;
+    let buf = match crate::dcjpeg::decode_dc(buf, MAX_SIDE) {
+        Err(crate::dcjpeg::DcError::Corrupt(m)) => return Err(DecodeError::Jpeg(m)),
+        Ok(_) if !buf.ends_with(&[0xFF, 0xD9]) && !crate::dcjpeg::has_eoi(buf) => {
+            with_eoi = [buf, &[0xFF, 0xD9][..]].concat();
+            &with_eoi[..]
+        }
+        _ => buf,
+    };
     let jerr = |e: jpeg_decoder::Error| DecodeError::Jpeg(e.to_string());
     let mut dec = jpeg_decoder::Decoder::new(buf);
     // Output at full size, 3 bytes per pixel, is the most we ever allow.

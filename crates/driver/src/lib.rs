@@ -2,6 +2,9 @@
 //!
 //! - [`decode`]: YUYV / MJPEG buffers to published RGB8 frames (DCT-domain downscale for the
 //!   3280x2464 GelSight Mini stream), crop, resize, rotation.
+//! - [`still`]: PNG / JPEG images (files) to RGB8, size-checked before decoding; a truncated
+//!   JPEG is an error.
+//! - [`fuzzing`]: the entry functions of the fuzz targets (crates/driver/fuzz) and their CI smoke.
 //! - [`calib`]: per-serial calibration files (ROI, rotation, mm per pixel, camera settings).
 //! - [`discover`]: USB devices and their V4L2 capture nodes from sysfs, sensor matching.
 //! - [`capture`]: the device trait and the pure capture logic (mode choice, timestamp mapping,
@@ -19,6 +22,8 @@ pub mod controls;
 pub mod dcjpeg;
 pub mod decode;
 pub mod discover;
+pub mod fuzzing;
+pub mod still;
 pub mod stream;
 pub mod usb;
 pub mod v4l_backend;
