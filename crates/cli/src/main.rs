@@ -813,7 +813,7 @@ fn main() -> ExitCode {
                     .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
                 BenchTarget::Policy => policy_bench::bench_policy(&policy_bench::Options {
                     episodes: repeat,
-                    paced_ticks: ticks.min(100_000),
+                    paced_ticks: ticks,
                     python: !no_python,
                     policy,
                 })

@@ -496,8 +496,21 @@ fn load_onnx(dir: Option<&Path>) -> anyhow::Result<(OnnxPolicy, String, Option<P
             (d.clone(), Some(d))
         }
     };
-    let p = OnnxPolicy::load(&dir, &RuntimeConfig::default())
-        .map_err(|e| anyhow::anyhow!("--policy {}: {e}", dir.display()))?;
+    // A bundle given that does not load is bad configuration (exit 2), found before any work;
+    // the generated test MLP failing to load is the work failing.
+    let p = OnnxPolicy::load(&dir, &RuntimeConfig::default()).map_err(|e| {
+        // One line: the numbered problems joined.
+        let text: Vec<String> = e
+            .to_string()
+            .lines()
+            .map(|l| l.trim().to_string())
+            .collect();
+        let msg = format!("--policy {}: {}", dir.display(), text.join(" "));
+        match generated {
+            None => anyhow::Error::new(crate::ConfigError(msg)),
+            Some(_) => anyhow::anyhow!(msg),
+        }
+    })?;
     let what = match &generated {
         Some(_) => format!(
             "{} (tests/policy/make_policy.py: MLP {} inputs -> chunk {} x {}, every {} ticks)",
@@ -567,7 +580,16 @@ fn python_rows(
     Ok((act, paced_row, versions))
 }
 
+/// Most ticks of a paced loop (`--ticks`): 55 min per scene at 30 Hz.
+pub const MAX_PACED_TICKS: usize = 100_000;
+
 pub fn bench_policy(opts: &Options) -> anyhow::Result<PolicyBench> {
+    if opts.paced_ticks > MAX_PACED_TICKS {
+        return Err(anyhow::Error::new(crate::ConfigError(format!(
+            "--ticks {} is outside 0..={MAX_PACED_TICKS}",
+            opts.paced_ticks
+        ))));
+    }
     let (mut onnx, onnx_what, generated) = load_onnx(opts.policy.as_deref())?;
     let result = (|| {
         let inputs = onnx_inputs(&onnx);

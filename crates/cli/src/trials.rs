@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU32, Ordering};
 use unitac_plot::{Axis, Band, Chart, Figure, PALETTE, Series, Stroke};
-use unitac_policy::Mode;
+use unitac_policy::{Mode, TickCounts};
 use unitac_sim::task::{Split, TaskConfig, TaskKind, TaskOutcome};
 use unitac_trials::serial::SerialReport;
 use unitac_trials::table::{self, Row};
@@ -88,23 +88,45 @@ pub struct TrialsArgs {
     #[arg(long)]
     pub permute_touch: bool,
     /// Learned policies: the training seed whose policies run (scripts/learned_policies.sh
-    /// trains seeds 0, 1, 2 into `<learned>/seed<K>/<task>_<mode>`).
-    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..1000))]
-    pub training_seed: u32,
+    /// trains seeds 0, 1, 2 into `<learned>/seed<K>/<task>_<mode>`); the scene's bundle path
+    /// must follow that layout. Without it, each scene's own bundle runs.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..1000))]
+    pub training_seed: Option<u32>,
+}
+
+/// The training seed of a bundle path `<root>/seed<K>/<name>/manifest.json`, and its root and
+/// name; None when the path does not follow that layout.
+fn seed_layout(path: &Path) -> Option<(u32, &Path, &std::ffi::OsStr)> {
+    let bundle = path.parent()?;
+    let seed_dir = bundle.parent()?;
+    let k = seed_dir.file_name()?.to_str()?.strip_prefix("seed")?;
+    if k.is_empty() || !k.bytes().all(|b| b.is_ascii_digit()) || k.len() > 3 {
+        return None;
+    }
+    Some((k.parse().ok()?, seed_dir.parent()?, bundle.file_name()?))
+}
+
+/// The training seed the scene's policy bundle path names (`.../seed<K>/<name>/...`).
+fn scene_training_seed(scene: &unitac_core::Scene) -> Option<u32> {
+    scene
+        .models
+        .get("policy")
+        .and_then(|p| seed_layout(p))
+        .map(|(k, ..)| k)
 }
 
 /// The scene's `policy` model moved to training seed `seed`: the bundle of the same name under
-/// `seed<K>` beside the one the scene names.
+/// `seed<K>` beside the one the scene names (`<root>/seed<J>/<name>/manifest.json`). A bundle
+/// path of another layout is refused (exit 2), never rewritten.
 fn with_training_seed(scene: &mut unitac_core::Scene, seed: u32) -> Result<()> {
     let Some(path) = scene.models.get_mut("policy") else {
         return Err(config(format!("{}: names no policy model", scene.name)));
     };
-    let bundle = path
-        .parent()
-        .and_then(|b| Some((b.file_name()?, b.parent()?.parent()?)));
-    let Some((name, root)) = bundle else {
+    let Some((_, root, name)) = seed_layout(path) else {
         return Err(config(format!(
-            "{}: policy model {}",
+            "{}: --training-seed {seed}: the policy bundle {} is not at \
+             <root>/seed<K>/<name>/manifest.json, so it has no training seed to change; \
+             leave --training-seed out to run it as the scene names it",
             scene.name,
             path.display()
         )));
@@ -140,6 +162,8 @@ struct TrialLine<'a> {
     clamped: &'a BTreeMap<String, u64>,
     /// Ticks per kind the tactile reflex acted on.
     reflex: &'a BTreeMap<String, u64>,
+    /// Every tick by what it sent: the policy's action, or the safe action and why.
+    policy_ticks: &'a TickCounts,
     /// What went over the wire (serial grippers).
     #[serde(skip_serializing_if = "Option::is_none")]
     serial: Option<&'a SerialReport>,
@@ -150,6 +174,10 @@ struct ModeReport<'a> {
     mode: &'a str,
     scene: &'a str,
     clamps: Clamps,
+    /// Every tick of the mode's trials by what it sent (summed), and the trials whose policy
+    /// never acted (every tick sent the safe action).
+    policy_ticks: TickCounts,
+    never_acted: Vec<u32>,
     trials: Vec<TrialLine<'a>>,
 }
 
@@ -312,6 +340,47 @@ fn clamps(rs: &[TrialRecord]) -> Clamps {
     c
 }
 
+/// Every tick of `rs` by what it sent, summed.
+fn policy_ticks(rs: &[TrialRecord]) -> TickCounts {
+    let mut c = TickCounts::default();
+    for r in rs {
+        c.add(&r.policy_ticks);
+    }
+    c
+}
+
+/// The trials of `rs` whose policy never acted.
+fn never_acted(rs: &[TrialRecord]) -> Vec<u32> {
+    rs.iter()
+        .filter(|r| r.policy_ticks.never_acted())
+        .map(|r| r.trial)
+        .collect()
+}
+
+/// What the policy's failures say about one run of a mode (`what`: the mode, and the sweep
+/// variant or the touch ablation): a warning when it failed on any tick, and an error line when
+/// a trial's policy never acted.
+fn failure_lines(what: &str, rs: &[TrialRecord]) -> (Option<String>, Option<String>) {
+    let c = policy_ticks(rs);
+    let warning = (c.failed() > 0).then(|| {
+        format!(
+            "warning: {what}: the policy gave no usable action on {} in {} trial(s); first: {}",
+            c.failures_text(),
+            rs.len(),
+            c.first_failure.as_deref().unwrap_or("-")
+        )
+    });
+    let never = never_acted(rs);
+    let error = (!never.is_empty()).then(|| {
+        let list: Vec<String> = never.iter().map(u32::to_string).collect();
+        format!(
+            "{what}: the policy never acted in trial(s) {} (every tick sent the safe action)",
+            list.join(", ")
+        )
+    });
+    (warning, error)
+}
+
 /// One variant's table (sweep output).
 #[derive(Debug, Serialize)]
 struct SweepRow {
@@ -339,7 +408,8 @@ fn calibrate_usage() -> String {
         .into()
 }
 
-/// Run every mode's trials; Ok(true) when every trial ran to its end (successful or not).
+/// Run every mode's trials; Ok(true) when every trial ran to its end (successful or not),
+/// Ok(false) when in some trial the policy never acted (every tick sent the safe action).
 pub fn run(a: TrialsArgs) -> Result<bool> {
     if !(1..=MAX_TRIALS).contains(&a.trials) {
         return Err(config(format!(
@@ -383,8 +453,10 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         let name = unitac_pipeline::mode_scene(&task_name, *m);
         let mut scene = unitac_pipeline::load_scene(&name, a.scene_dir.clone())
             .map_err(|e| config(e.to_string()))?;
-        if a.policy == "learned" {
-            with_training_seed(&mut scene, a.training_seed)?;
+        if a.policy == "learned"
+            && let Some(k) = a.training_seed
+        {
+            with_training_seed(&mut scene, k)?;
         }
         unitac_pipeline::build_stages(&scene).map_err(|e| config(e.to_string()))?;
         let (params, kind) =
@@ -440,6 +512,16 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         records.push((*m, rs));
     }
     let rows = table::table(kind, &outcomes(&records));
+    // The policy's failures of every run: warnings, and runs where it never acted.
+    let mut failures: (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
+    let mut note = |what: String, rs: &[TrialRecord]| {
+        let (w, e) = failure_lines(&what, rs);
+        failures.0.extend(w);
+        failures.1.extend(e);
+    };
+    for (m, rs) in &records {
+        note(m.as_str().to_string(), rs);
+    }
     let mut sweep = Vec::new();
     for v in &variants {
         let t = v.apply(&task);
@@ -450,6 +532,9 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
                 *m,
                 run_trials(scene, &t, (a.seed, a.trials), &opts, gripper, &bar, None)?,
             ));
+        }
+        for (m, rs) in &rs_all {
+            note(format!("{} ({})", m.as_str(), v.name), rs);
         }
         sweep.push(SweepRow {
             variant: *v,
@@ -481,6 +566,9 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             ));
         }
     }
+    for (m, rs) in &permuted_records {
+        note(format!("{} (touch permuted)", m.as_str()), rs);
+    }
     let permuted = if a.permute_touch {
         table::table(kind, &outcomes(&permuted_records))
     } else {
@@ -497,7 +585,12 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         let report = Report {
             task: &a.scene,
             policy: &a.policy,
-            training_seed: (a.policy == "learned").then_some(a.training_seed),
+            training_seed: (a.policy == "learned")
+                .then(|| {
+                    a.training_seed
+                        .or_else(|| scenes.first().and_then(|(_, s)| scene_training_seed(s)))
+                })
+                .flatten(),
             split: task.split,
             seed: a.seed,
             trials: a.trials,
@@ -512,6 +605,8 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
                     mode: m.as_str(),
                     scene: rs.first().map_or("", |r| r.scene.as_str()),
                     clamps: clamps(rs),
+                    policy_ticks: policy_ticks(rs),
+                    never_acted: never_acted(rs),
                     trials: rs
                         .iter()
                         .map(|r| TrialLine {
@@ -526,6 +621,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
                             outcome: &r.outcome,
                             clamped: &r.clamped,
                             reflex: &r.reflex,
+                            policy_ticks: &r.policy_ticks,
                             serial: r.serial.as_ref(),
                         })
                         .collect(),
@@ -534,8 +630,12 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         };
         crate::emit(format_args!("{}\n", serde_json::to_string(&report)?))?;
     } else {
+        let training_seed = a
+            .training_seed
+            .or_else(|| scenes.first().and_then(|(_, s)| scene_training_seed(s)));
         crate::emit(text_report(
             &a,
+            training_seed,
             kind,
             split,
             gripper,
@@ -544,12 +644,17 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             &sweep,
         ))?;
     }
-    Ok(true)
+    for line in failures.0.iter().chain(&failures.1) {
+        eprintln!("unitac: {line}");
+    }
+    // A policy that never acted ran no trial: the table above counts nothing it did.
+    Ok(failures.1.is_empty())
 }
 
 /// The tables as text: the main one, which trials failed, the clamps, the sweep's.
 fn text_report(
     a: &TrialsArgs,
+    training_seed: Option<u32>,
     kind: TaskKind,
     split: Split,
     gripper: TrialGripper,
@@ -570,9 +675,10 @@ fn text_report(
         (TaskKind::Fabric, Split::Unseen) => "fabric selection, unseen fabric types".into(),
         (TaskKind::Fabric, Split::Train) => "fabric selection, training fabric types".into(),
     };
-    let policy = match a.policy.as_str() {
-        "learned" => format!("learned policies (training seed {})", a.training_seed),
-        p => format!("{p} policies"),
+    let policy = match (a.policy.as_str(), training_seed) {
+        ("learned", Some(k)) => format!("learned policies (training seed {k})"),
+        ("learned", None) => "learned policies (the scenes' bundles)".to_string(),
+        (p, _) => format!("{p} policies"),
     };
     let mut text = format!(
         "{what}, seed {}, {} trial(s) per mode, gripper {gripper}, {policy}: ours (paper, real robot)\n",
@@ -590,6 +696,14 @@ fn text_report(
                 "{}: not overall: trials {}\n",
                 m.as_str(),
                 failed.join(", ")
+            ));
+        }
+        let t = policy_ticks(rs);
+        if t.failed() > 0 {
+            text.push_str(&format!(
+                "{}: the policy gave no usable action on {}\n",
+                m.as_str(),
+                t.failures_text()
             ));
         }
         let c = clamps(rs);

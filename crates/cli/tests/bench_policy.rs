@@ -118,3 +118,69 @@ fn the_all_stages_scene_loads_every_stage_kind() {
         );
     }
 }
+
+/// `unitac args`, killed after `limit` (a hang is a failure, not a stuck test).
+fn unitac_within(args: &[&str], limit: std::time::Duration) -> std::process::Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > limit {
+            child.kill().unwrap();
+            panic!("unitac {args:?} still ran after {limit:?}");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn a_bad_bundle_and_a_tick_count_out_of_range_are_exit_2_before_any_work() {
+    let dir = std::env::temp_dir().join(format!("unitac-bench-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("manifest.json"), "{\"policy\": 1}").unwrap();
+    let o = unitac_within(
+        &[
+            "bench",
+            "policy",
+            "--repeat",
+            "1",
+            "--ticks",
+            "0",
+            "--no-python",
+            "--policy",
+            dir.to_str().unwrap(),
+        ],
+        std::time::Duration::from_secs(120),
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.starts_with("unitac: --policy "), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(o.stdout.is_empty());
+    let _ = std::fs::remove_dir_all(&dir);
+
+    let o = unitac_within(
+        &[
+            "bench",
+            "policy",
+            "--repeat",
+            "1",
+            "--ticks",
+            "4294967295",
+            "--no-python",
+        ],
+        std::time::Duration::from_secs(60),
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(
+        err.trim(),
+        "unitac: --ticks 4294967295 is outside 0..=100000",
+        "{err}"
+    );
+}

@@ -266,3 +266,232 @@ fn the_vla_rule_is_calibrated_on_training_cups_only() {
         assert_eq!(unitac(args).status.code(), Some(2), "{args:?}");
     }
 }
+
+/// The project's Python (the venv scripts/setup.sh makes).
+fn python() -> std::path::PathBuf {
+    std::env::var_os("UNITAC_VENV")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| root().join(".venv"))
+        .join("bin/python")
+}
+
+fn root() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// A stub policy bundle (crates/policy/tests/make_stub_policy.py: the learned cup VLA policy's
+/// inputs and actions) in `dir`.
+fn stub(dir: &std::path::Path, args: &[&str]) {
+    let st = Command::new(python())
+        .arg(root().join("crates/policy/tests/make_stub_policy.py"))
+        .arg(dir)
+        .args(args)
+        .status()
+        .unwrap();
+    assert!(st.success(), "make_stub_policy.py failed");
+}
+
+/// A copy of the learned cup VLA scene in `dir` as `<task>_learned_vla.yaml`, naming `bundle`
+/// (a manifest.json) and with `extra` params lines.
+fn learned_scene(dir: &std::path::Path, task: &str, bundle: &std::path::Path, extra: &str) {
+    let text =
+        std::fs::read_to_string(root().join("launch/scenes/cup_deformation_learned_vla.yaml"))
+            .unwrap();
+    let mut out = String::new();
+    for line in text.lines() {
+        if line.starts_with("scene:") {
+            out.push_str(&format!("scene: {task}_learned_vla\n"));
+        } else if line.trim_start().starts_with("policy: ${UNITAC_MODELS}") {
+            out.push_str(&format!("  policy: {}\n", bundle.display()));
+        } else if line.trim_start().starts_with("policy: learned") {
+            out.push_str(line);
+            out.push('\n');
+            for e in extra.lines() {
+                out.push_str(&format!("      {e}\n"));
+            }
+        } else {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    std::fs::write(dir.join(format!("{task}_learned_vla.yaml")), out).unwrap();
+}
+
+/// `unitac args`, killed after `limit` (a hang is a failure, not a stuck test).
+fn unitac_within(args: &[&str], limit: std::time::Duration) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > limit {
+            child.kill().unwrap();
+            let o = child.wait_with_output().unwrap();
+            panic!(
+                "unitac {args:?} still ran after {limit:?}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child.wait_with_output().unwrap()
+}
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("unitac-cli-trials-{}-{name}", std::process::id()));
+    std::fs::remove_dir_all(&d).ok();
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn a_learned_policy_that_fails_on_every_tick_is_counted_warned_and_exit_1() {
+    let d = tmp("nan");
+    stub(&d.join("nan"), &["--kind", "nan"]);
+    learned_scene(&d, "stubnan", &d.join("nan/manifest.json"), "");
+    let args = [
+        "trials",
+        "--scene",
+        "stubnan",
+        "--policy",
+        "learned",
+        "--trials",
+        "1",
+        "--train",
+        "--scene-dir",
+        d.to_str().unwrap(),
+    ];
+    let mut json_args = args.to_vec();
+    json_args.push("--json");
+    let o = unitac_within(&json_args, std::time::Duration::from_secs(300));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let m = &j["modes"][0];
+    let t = &m["policy_ticks"];
+    let ticks = t["ticks"].as_u64().unwrap();
+    assert!(ticks > 100, "{t}");
+    assert_eq!(t["acted"], 0, "{t}");
+    assert_eq!(t["policy_error"].as_u64(), Some(ticks), "{t}");
+    assert!(t["first_failure"].as_str().unwrap().contains("NaN"), "{t}");
+    assert_eq!(m["never_acted"], serde_json::json!([0]), "{m}");
+    assert_eq!(m["trials"][0]["policy_ticks"], *t);
+    assert!(
+        err.contains(&format!(
+            "unitac: warning: vla: the policy gave no usable action on {ticks} of {ticks} ticks \
+             (policy error {ticks}, inference over budget 0, action refused 0) in 1 trial(s); first: \
+             policy: learned policy: "
+        )),
+        "{err}"
+    );
+    assert!(
+        err.contains("unitac: vla: the policy never acted in trial(s) 0"),
+        "{err}"
+    );
+    // The text table says it too.
+    let o = unitac_within(&args, std::time::Duration::from_secs(300));
+    assert_eq!(o.status.code(), Some(1));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains(&format!(
+            "vla: the policy gave no usable action on {ticks} of {ticks} ticks"
+        )),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn a_learned_policy_over_its_inference_budget_does_not_hang_the_trial() {
+    let d = tmp("loop");
+    // About 2 us per iteration: minutes per inference without a limit.
+    stub(
+        &d.join("loop"),
+        &["--kind", "loop", "--iterations", "100000000"],
+    );
+    learned_scene(
+        &d,
+        "stubloop",
+        &d.join("loop/manifest.json"),
+        "inference_budget_s: 0.002",
+    );
+    let o = unitac_within(
+        &[
+            "trials",
+            "--scene",
+            "stubloop",
+            "--policy",
+            "learned",
+            "--trials",
+            "1",
+            "--train",
+            "--json",
+            "--scene-dir",
+            d.to_str().unwrap(),
+        ],
+        std::time::Duration::from_secs(240),
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let t = &j["modes"][0]["policy_ticks"];
+    let ticks = t["ticks"].as_u64().unwrap();
+    assert!(ticks > 100, "{t}");
+    assert_eq!(t["over_budget"].as_u64(), Some(ticks), "{t}");
+    assert!(
+        t["first_failure"]
+            .as_str()
+            .unwrap()
+            .starts_with("policy: inference over budget: learned policy stub_loop@"),
+        "{t}"
+    );
+    assert!(err.contains("inference over budget "), "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn training_seed_moves_only_a_bundle_in_the_seed_layout() {
+    // The copied scene names its own bundle; a seed0 bundle of the same name sits beside its
+    // directory, as <grandparent>/seed0/<name>: the scene's bundle acts, the other would not.
+    let d = tmp("seed");
+    stub(&d.join("custom/stub"), &["--kind", "ok"]);
+    stub(&d.join("seed0/stub"), &["--kind", "nan"]);
+    learned_scene(&d, "stubseed", &d.join("custom/stub/manifest.json"), "");
+    let base = [
+        "trials",
+        "--scene",
+        "stubseed",
+        "--policy",
+        "learned",
+        "--trials",
+        "1",
+        "--train",
+        "--json",
+        "--scene-dir",
+        d.to_str().unwrap(),
+    ];
+    let o = unitac_within(&base, std::time::Duration::from_secs(300));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let t = &j["modes"][0]["policy_ticks"];
+    assert_eq!(t["acted"], t["ticks"], "the scene's own bundle ran: {t}");
+    assert!(j["training_seed"].is_null(), "{}", j["training_seed"]);
+    // Asked for a training seed, a bundle outside the layout is refused, not rewritten.
+    let mut args = base.to_vec();
+    args.extend(["--training-seed", "0"]);
+    let o = unitac_within(&args, std::time::Duration::from_secs(300));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.starts_with("unitac: stubseed_learned_vla: --training-seed 0: the policy bundle ")
+            && err.contains("is not at <root>/seed<K>/<name>/manifest.json"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -199,6 +199,10 @@ pub struct TrialRecord {
     /// Ticks on which the safety layer's tactile reflex acted, per kind (`slip`, `grasp not
     /// confirmed`; PolicyStatus.message names every reflex action, `reflex: ...`).
     pub reflex: std::collections::BTreeMap<String, u64>,
+    /// Every tick by what it sent (PolicyStatus through `unitac_policy::TickKind`): the
+    /// policy's action, or the safe action and why (a policy error, an inference over its time
+    /// limit, a refused action, the watchdog, the controller's `failed` phase).
+    pub policy_ticks: unitac_policy::TickCounts,
     /// Per tick, when [`TrialOptions::record_io`].
     #[serde(skip)]
     pub io: Vec<TickIo>,
@@ -513,6 +517,7 @@ pub fn run_trial_swapped(
         ticks: 0,
         clamped: Default::default(),
         reflex: Default::default(),
+        policy_ticks: Default::default(),
         io: Vec::new(),
         messages: Vec::new(),
         touch: Vec::new(),
@@ -597,6 +602,7 @@ pub fn run_trial_swapped(
         let a = tick.arm.ok_or_else(|| missing("ArmCommand"))?;
         let status = tick.status.ok_or_else(|| missing("PolicyStatus"))?;
         record.ticks += 1;
+        record.policy_ticks.count(&status);
         for c in &status.clamped {
             *record.clamped.entry(c.clone()).or_default() += 1;
         }
