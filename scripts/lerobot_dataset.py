@@ -2,6 +2,15 @@
 
 usage: lerobot_dataset.py --demos DEMOS.json --out DIR [--robot-type NAME]
 
+Every value is checked before anything is written: each feature's values are numbers (the arm
+target an integer), finite and at most MAX_ABS in magnitude, each action value inside its
+`action_bounds` (compared as the float32 the dataset stores), the arm target one of its categories
+(0 home, k + 1 object k of the demonstration's `objects`). The first bad value, key or type ends
+the run with exit 1 and one line on stderr naming the episode, tick and feature; nothing is
+written then. The dataset is written into a hidden directory beside DIR and renamed to DIR at the
+end; an existing DIR must be empty or a dataset (meta/info.json and nothing but meta/, data/,
+videos/ at its top), which is then replaced.
+
 Why Python: pyarrow writes Parquet with the exact Arrow types LeRobot's loader expects
 (fixed-size lists for vector features, plain scalars for shape-[1] ones, a pandas-indexed
 tasks table) in one small dependency; doing it in Rust would pull the arrow/parquet crates into
@@ -38,7 +47,9 @@ import argparse
 import json
 import math
 import os
+import shutil
 import sys
+import tempfile
 
 import numpy as np
 import pyarrow as pa
@@ -51,9 +62,19 @@ VIDEO_FILE_SIZE_IN_MB = 200
 DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
 EPISODES_PATH = "meta/episodes/chunk-000/file-000.parquet"
 # Bounds on what one demos.json may ask for.
+MAX_BYTES = 8 << 30
 MAX_EPISODES = 10_000
 MAX_FRAMES = 2_000_000
 MAX_WIDTH = 4096
+MAX_OBJECTS = 16
+MAX_NAMES = 256
+MAX_TEXT = 1000
+MAX_SEED = (1 << 63) - 1
+# The largest magnitude of any float value: far beyond every observation and action the stack
+# produces (metres, newtons, amperes, mm^2, latents of order 1), far inside float32.
+MAX_ABS = 1e6
+# The top-level entries of a dataset directory that --out may replace.
+DATASET_ENTRIES = {"meta", "data", "videos"}
 
 STATE_NAMES = ["opening_m", "target_m", "target_known", "force_n", "force_known",
                "current_a", "current_known", "object_detected"]
@@ -70,8 +91,67 @@ INDEX_FEATURES = {
 }
 
 
+class Refused(Exception):
+    """A demos.json or an output path this script will not write a dataset from or to."""
+
+
 def fail(msg):
-    raise SystemExit(f"lerobot_dataset: {msg}")
+    raise Refused(msg)
+
+
+def show(v, limit=60):
+    """A value from the input as a short piece of one line."""
+    if isinstance(v, float):
+        s = repr(v)
+    else:
+        try:
+            s = json.dumps(v, ensure_ascii=True, allow_nan=True)
+        except (TypeError, ValueError, RecursionError):
+            s = type(v).__name__
+    return s if len(s) <= limit else s[:limit - 3] + "..."
+
+
+def kind_of(v):
+    """The JSON kind of a value json.load gave."""
+    if isinstance(v, bool):
+        return "boolean"
+    if isinstance(v, int):
+        return "integer"
+    if isinstance(v, float):
+        return "number"
+    if v is None:
+        return "null"
+    return {dict: "object", list: "array", str: "string"}.get(type(v), type(v).__name__)
+
+
+def article(kind):
+    """A JSON kind with its article: 'an array', 'a number'."""
+    return ("an " if kind[0] in "aeiou" else "a ") + kind
+
+
+def need(obj, key, kind, where):
+    """obj[key], which must be of the JSON kind ('object', 'array', 'string', 'boolean',
+    'integer', 'number')."""
+    if key not in obj:
+        fail(f"{where}: no {key!r}")
+    v = obj[key]
+    k = kind_of(v)
+    if not (k == kind or (kind == "number" and k == "integer")):
+        fail(f"{where}: {key} is {article(k)} ({show(v)}), not {article(kind)}")
+    return v
+
+
+def need_strings(obj, key, where, lo, hi):
+    """obj[key]: an array of lo..hi distinct non-empty strings of at most MAX_TEXT characters."""
+    v = need(obj, key, "array", where)
+    if not lo <= len(v) <= hi:
+        fail(f"{where}: {key} has {len(v)} entries ({lo} to {hi})")
+    for i, s in enumerate(v):
+        if not (isinstance(s, str) and 1 <= len(s) <= MAX_TEXT):
+            fail(f"{where}: {key}[{i}] is {show(s)}, not a non-empty string")
+    if len(set(v)) != len(v):
+        fail(f"{where}: {key} names one entry twice")
+    return v
 
 
 def latent_names(objects, width):
@@ -84,16 +164,17 @@ def latent_names(objects, width):
     return names
 
 
-def features_of(d):
+def features_of(d, first):
     """The dataset's features (tick field, LeRobot key, dtype, names) from a demos.json."""
-    first = d["demos"][0]
-    objects = first["objects"]
-    width = int(d["config"]["pooled_len"])
-    if not (1 <= width <= MAX_WIDTH) or not (1 <= len(objects) <= 16):
-        fail(f"pooled_len {width} or {len(objects)} objects out of bounds")
+    objects = need_strings(first, "objects", "episode 0", 1, MAX_OBJECTS)
+    visual = need_strings(first, "visual_names", "episode 0", 1, MAX_NAMES)
+    config = need(d, "config", "object", "demos.json")
+    width = need(config, "pooled_len", "integer", "demos.json: config")
+    if not 1 <= width <= MAX_WIDTH:
+        fail(f"demos.json: config: pooled_len {width} (1 to {MAX_WIDTH})")
     return [
         ("state", "observation.state", "float32", STATE_NAMES),
-        ("visual", "observation.visual", "float32", list(first["visual_names"])),
+        ("visual", "observation.visual", "float32", list(visual)),
         ("contact", "observation.contact", "float32", CONTACT_NAMES),
         ("latched", "observation.latched", "float32", LATCHED_NAMES),
         ("arm", "observation.arm", "float32", ARM_NAMES),
@@ -117,20 +198,121 @@ def stats_of(x):
     }
 
 
-def action_bounds(d):
+def action_bounds(d, names):
     """{min, max}, per action value in action_names order, from the demos' action_bounds."""
-    b = d.get("action_bounds")
-    if not isinstance(b, dict):
-        fail("demos.json has no action_bounds")
+    b = need(d, "action_bounds", "object", "demos.json")
     lo, hi = [], []
-    for n in d["action_names"]:
+    for n in names:
         r = b.get(n)
-        if not (isinstance(r, list) and len(r) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) for v in r)
-                and r[0] < r[1]):
-            fail(f"action_bounds: {n}: {r!r} is not a finite [min, max]")
+        if not (isinstance(r, list) and len(r) == 2 and all(kind_of(v) in ("integer", "number") for v in r)
+                and all(math.isfinite(v) and abs(v) <= MAX_ABS for v in r) and r[0] < r[1]):
+            fail(f"demos.json: action_bounds: {n}: {show(r)} is not a finite [min, max] "
+                 f"within +-{MAX_ABS:g}")
         lo.append(float(r[0]))
         hi.append(float(r[1]))
     return {"min": lo, "max": hi}
+
+
+def float_rows(ticks, field, key, names, e, limits):
+    """The episode's values of one float feature as [ticks, width] float64, each a number, finite
+    and inside limits ([lo, hi] per value, float32 as stored) or refused, naming where."""
+    w = len(names)
+    for t, tick in enumerate(ticks):
+        r = need(tick, field, "array", f"episode {e}, tick {t}")
+        if len(r) != w:
+            fail(f"episode {e}, tick {t}: {key} has {len(r)} values, not {w}")
+        for i, v in enumerate(r):
+            if type(v) is not float and type(v) is not int:
+                fail(f"episode {e}, tick {t}: {key}[{i}] ({names[i]}) is {show(v)}, not a number")
+    x = np.array([tick[field] for tick in ticks], np.float64).reshape(len(ticks), w)
+    lo, hi = limits
+    with np.errstate(invalid="ignore", over="ignore"):
+        x32 = x.astype(np.float32)
+        bad = ~np.isfinite(x) | (np.abs(x) > MAX_ABS) | (x32 < lo) | (x32 > hi)
+    if bad.any():
+        t, i = (int(j) for j in np.argwhere(bad)[0])
+        v = float(x[t, i])
+        if not math.isfinite(v):
+            why = "is not finite"
+        elif abs(v) > MAX_ABS:
+            why = f"is beyond +-{MAX_ABS:g}"
+        else:
+            why = f"is outside its bounds [{float(lo[i]):g}, {float(hi[i]):g}]"
+        fail(f"episode {e}, tick {t}: {key}[{i}] ({names[i]}) = {show(v)} {why}")
+    return x
+
+
+def arm_target_rows(ticks, objects, e):
+    """The episode's arm targets as [ticks, 1]: integers 0 (home) .. len(objects)."""
+    rows = []
+    for t, tick in enumerate(ticks):
+        if "arm_target" not in tick:
+            fail(f"episode {e}, tick {t}: no 'arm_target'")
+        v = tick["arm_target"]
+        if kind_of(v) != "integer":
+            fail(f"episode {e}, tick {t}: action.arm_target is {article(kind_of(v))} ({show(v)}), "
+                 f"not an integer category")
+        if not 0 <= v <= len(objects):
+            fail(f"episode {e}, tick {t}: action.arm_target = {show(v)} is not a category "
+                 f"(0 home, 1..{len(objects)} the objects)")
+        rows.append([v])
+    return rows
+
+
+def read_demos(d):
+    """Check every key, type and value of a demos.json; the features, the action bounds, fps and
+    per episode its columns, or the first problem refused."""
+    if not isinstance(d, dict):
+        fail(f"demos.json is {article(kind_of(d))}, not an object")
+    instruction = need(d, "instruction", "string", "demos.json")
+    if not 1 <= len(instruction) <= MAX_TEXT:
+        fail(f"demos.json: instruction has {len(instruction)} characters (1 to {MAX_TEXT})")
+    names = need_strings(d, "action_names", "demos.json", 1, MAX_NAMES)
+    bounds = action_bounds(d, names)
+    config = need(d, "config", "object", "demos.json")
+    dt = need(config, "dt_s", "number", "demos.json: config")
+    fps = 1.0 / dt if dt > 0 else math.inf
+    if not (math.isfinite(fps) and abs(fps - round(fps)) < 1e-6 and 1 <= round(fps) <= 1000):
+        fail(f"demos.json: config: dt_s {show(dt)} is not 1 / an integer rate (1 to 1000 Hz)")
+    demos = need(d, "demos", "array", "demos.json")
+    if not 1 <= len(demos) <= MAX_EPISODES:
+        fail(f"demos.json: {len(demos)} demonstrations (1 to {MAX_EPISODES})")
+    if not isinstance(demos[0], dict):
+        fail(f"episode 0 is {article(kind_of(demos[0]))}, not an object")
+    feats = features_of(d, demos[0])
+    objects = demos[0]["objects"]
+    inf = np.float32(np.inf)
+    limits = {"action": (np.asarray(bounds["min"], np.float32), np.asarray(bounds["max"], np.float32))}
+    episodes = []
+    frames = 0
+    for e, demo in enumerate(demos):
+        if not isinstance(demo, dict):
+            fail(f"episode {e} is {article(kind_of(demo))}, not an object")
+        where = f"episode {e}"
+        for k in ["objects", "visual_names"]:
+            if need(demo, k, "array", where) != demos[0][k]:
+                fail(f"{where}: other {k} than episode 0's")
+        seed = need(demo, "seed", "integer", where)
+        trial = need(demo, "trial", "integer", where)
+        if not (0 <= seed <= MAX_SEED and 0 <= trial <= MAX_SEED):
+            fail(f"{where}: seed {seed} or trial {trial} is not in 0..2^63-1")
+        success = need(demo, "success", "boolean", where)
+        ticks = need(demo, "ticks", "array", where)
+        frames += len(ticks)
+        if not ticks or frames > MAX_FRAMES:
+            fail(f"{where}: {len(ticks)} ticks (at least 1, at most {MAX_FRAMES} frames in all)")
+        for t, tick in enumerate(ticks):
+            if not isinstance(tick, dict):
+                fail(f"{where}, tick {t} is {article(kind_of(tick))}, not an object")
+        cols = {}
+        for field, key, dtype, fnames in feats:
+            if dtype == "int64":
+                cols[key] = arm_target_rows(ticks, objects, e)
+            else:
+                lim = limits.get(key, (np.full(len(fnames), -inf), np.full(len(fnames), inf)))
+                cols[key] = float_rows(ticks, field, key, fnames, e, lim)
+        episodes.append({"seed": seed, "trial": trial, "success": success, "cols": cols})
+    return feats, bounds, int(round(fps)), episodes, frames
 
 
 def tasks_table(task):
@@ -156,48 +338,27 @@ def tasks_table(task):
 
 def vector_column(rows, dim, dtype):
     flat = np.asarray(rows, dtype).reshape(-1)
-    if flat.size != len(rows) * dim:
-        fail(f"a column has rows of another width than {dim}")
     return pa.FixedSizeListArray.from_arrays(pa.array(flat), dim)
 
 
-def write(d, out, robot_type):
-    demos = d["demos"]
-    if not demos or len(demos) > MAX_EPISODES:
-        fail(f"{len(demos)} demonstrations (1 to {MAX_EPISODES})")
-    dt = float(d["config"]["dt_s"])
-    fps = 1.0 / dt
-    if not (math.isfinite(fps) and abs(fps - round(fps)) < 1e-6 and 1 <= round(fps) <= 1000):
-        fail(f"dt_s {dt} is not 1 / an integer rate")
-    fps = int(round(fps))
-    feats = features_of(d)
-    frames = sum(len(e["ticks"]) for e in demos)
-    if frames == 0 or frames > MAX_FRAMES:
-        fail(f"{frames} frames (1 to {MAX_FRAMES})")
+def tables(d, robot_type):
+    """The dataset's files as (relative path, pyarrow table or JSON value), all in memory."""
+    feats, bounds, fps, demos, frames = read_demos(d)
+    instruction = d["instruction"]
+    objects = d["demos"][0]["objects"]
     # Frame columns, all episodes in one file (the loader globs data/*/*.parquet).
-    cols = {key: [] for _, key, _, _ in feats}
     ts, frame_index, episode_index, index = [], [], [], []
     episodes = []
     start = 0
     for e, demo in enumerate(demos):
-        ticks = demo["ticks"]
-        if demo["objects"] != demos[0]["objects"] or demo["visual_names"] != demos[0]["visual_names"]:
-            fail(f"demonstration {e}: other objects or camera values than the first")
-        ep_cols = {}
-        for field, key, _, names in feats:
-            rows = [t[field] if isinstance(t[field], list) else [t[field]] for t in ticks]
-            if any(len(r) != len(names) for r in rows):
-                fail(f"demonstration {e}: {key} is not {len(names)} wide")
-            cols[key] += rows
-            ep_cols[key] = rows
-        n = len(ticks)
+        n = len(demo["cols"]["action"])
         ts += [k / fps for k in range(n)]
         frame_index += list(range(n))
         episode_index += [e] * n
         index += list(range(start, start + n))
         ep = {
             "episode_index": e,
-            "tasks": [d["instruction"]],
+            "tasks": [instruction],
             "length": n,
             "data/chunk_index": 0,
             "data/file_index": 0,
@@ -205,11 +366,11 @@ def write(d, out, robot_type):
             "dataset_to_index": start + n,
             "meta/episodes/chunk_index": 0,
             "meta/episodes/file_index": 0,
-            "seed": int(demo["seed"]),
-            "trial": int(demo["trial"]),
-            "success": bool(demo["success"]),
+            "seed": demo["seed"],
+            "trial": demo["trial"],
+            "success": demo["success"],
         }
-        per = {key: stats_of(rows) for key, rows in ep_cols.items()}
+        per = {key: stats_of(rows) for key, rows in demo["cols"].items()}
         per["timestamp"] = stats_of([[k / fps] for k in range(n)])
         per["frame_index"] = stats_of([[k] for k in range(n)])
         per["episode_index"] = stats_of([[e]] * n)
@@ -221,6 +382,8 @@ def write(d, out, robot_type):
         episodes.append(ep)
         start += n
 
+    cols = {key: np.concatenate([np.asarray(demo["cols"][key]) for demo in demos])
+            for _, key, _, _ in feats}
     arrays, fields = [], []
     for _, key, dtype, names in feats:
         if len(names) == 1:
@@ -238,8 +401,8 @@ def write(d, out, robot_type):
     features = {key: {"dtype": dtype, "shape": [len(names)], "names": names}
                 for _, key, dtype, names in feats}
     # The arm target's values: 0 home, k + 1 object k.
-    features["action.arm_target"]["categories"] = ["home"] + list(demos[0]["objects"])
-    features["action"]["bounds"] = action_bounds(d)
+    features["action.arm_target"]["categories"] = ["home"] + list(objects)
+    features["action"]["bounds"] = bounds
     features.update(INDEX_FEATURES)
     info = {
         "codebase_version": CODEBASE_VERSION,
@@ -278,30 +441,97 @@ def write(d, out, robot_type):
             ep_arrays[k] = pa.array(v, type=pa.bool_())
         else:
             ep_arrays[k] = pa.array(v, type=pa.int64())
-    ep_table = pa.table(ep_arrays)
+    files = [
+        (DATA_PATH.format(chunk_index=0, file_index=0), data),
+        (EPISODES_PATH, pa.table(ep_arrays)),
+        ("meta/tasks.parquet", tasks_table(instruction)),
+        ("meta/info.json", info),
+        ("meta/stats.json", {k: {s: v.tolist() for s, v in st.items()} for k, st in stats.items()}),
+    ]
+    return files, len(demos), frames
 
-    os.makedirs(os.path.join(out, "meta", "episodes", "chunk-000"), exist_ok=True)
-    os.makedirs(os.path.join(out, "data", "chunk-000"), exist_ok=True)
-    pq.write_table(data, os.path.join(out, DATA_PATH.format(chunk_index=0, file_index=0)))
-    pq.write_table(ep_table, os.path.join(out, EPISODES_PATH))
-    pq.write_table(tasks_table(d["instruction"]), os.path.join(out, "meta", "tasks.parquet"))
-    with open(os.path.join(out, "meta", "info.json"), "w") as f:
-        json.dump(info, f, indent=4)
-    with open(os.path.join(out, "meta", "stats.json"), "w") as f:
-        json.dump({k: {s: v.tolist() for s, v in st.items()} for k, st in stats.items()}, f, indent=4)
-    return len(demos), frames
+
+def replaceable(out):
+    """Whether --out may be written: missing, an empty directory or a dataset directory."""
+    if not os.path.lexists(out):
+        return True
+    if os.path.islink(out) or not os.path.isdir(out):
+        return False
+    entries = set(os.listdir(out))
+    return not entries or (entries <= DATASET_ENTRIES and os.path.isfile(os.path.join(out, "meta", "info.json")))
+
+
+def write(files, out):
+    """Write the files into a new directory beside out, then rename it to out (an existing
+    dataset there is replaced only once the new one is complete)."""
+    out = os.path.normpath(out)
+    if not replaceable(out):
+        fail(f"--out {out}: exists and is neither an empty directory nor a dataset (meta/info.json "
+             f"and only {', '.join(e + '/' for e in sorted(DATASET_ENTRIES))} at its top); not touched")
+    parent = os.path.dirname(os.path.abspath(out))
+    os.makedirs(parent, exist_ok=True)
+    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(out)}.", suffix=".tmp", dir=parent)
+    old = None
+    try:
+        for rel, content in files:
+            path = os.path.join(tmp, rel)
+            os.makedirs(os.path.dirname(path), exist_ok=True)
+            if isinstance(content, pa.Table):
+                pq.write_table(content, path)
+            else:
+                with open(path, "w") as f:
+                    json.dump(content, f, indent=4, allow_nan=False)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o777 & ~umask)
+        if os.path.lexists(out):
+            old = tempfile.mkdtemp(prefix=f".{os.path.basename(out)}.", suffix=".old", dir=parent)
+            os.rename(out, os.path.join(old, "dataset"))
+        os.rename(tmp, out)
+        tmp = None
+    finally:
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
+            if old is not None:
+                os.rename(os.path.join(old, "dataset"), out)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message):
+        fail(message)
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = Parser(description=__doc__.split("\n")[0])
     ap.add_argument("--demos", required=True, help="demos.json of `unitac demos`")
     ap.add_argument("--out", required=True, help="the dataset's root directory")
     ap.add_argument("--robot-type", default="unitac_sim_two_finger")
-    a = ap.parse_args(argv)
-    with open(a.demos) as f:
-        d = json.load(f)
-    n, frames = write(d, a.out, a.robot_type)
-    print(f"{n} episodes, {frames} frames of '{d['instruction']}' in {a.out}")
+    try:
+        a = ap.parse_args(argv)
+        try:
+            size = os.path.getsize(a.demos)
+            if size > MAX_BYTES:
+                fail(f"{a.demos}: {size} bytes (at most {MAX_BYTES})")
+            with open(a.demos, encoding="utf-8") as f:
+                d = json.load(f)
+        except (ValueError, RecursionError) as e:
+            fail(f"{a.demos}: not JSON: {str(e).splitlines()[0] if str(e) else type(e).__name__}")
+        files, n, frames = tables(d, a.robot_type)
+        write(files, a.out)
+    except Refused as e:
+        msg = " ".join(str(e).split("\n"))
+        print(f"lerobot_dataset: {msg}", file=sys.stderr)
+        return 1
+    except OSError as e:
+        print(f"lerobot_dataset: {e.filename or a.out}: {e.strerror or e}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        print("lerobot_dataset: out of memory", file=sys.stderr)
+        return 1
+    print(f"{n} episodes, {frames} frames of '{' '.join(d['instruction'].splitlines())}' in {a.out}")
+    return 0
 
 
 if __name__ == "__main__":

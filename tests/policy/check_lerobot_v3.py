@@ -19,7 +19,9 @@ What the loader does, and what is checked for it:
   other column. __getitem__ reads index, episode_index, task_index, timestamp per frame.
 - load_stats: meta/stats.json, per feature min/max/mean/std of the feature's shape, count [1].
 Beyond the loader: frames are ordered (index = row, frame_index 0..length-1, timestamp =
-frame_index / fps within LeRobot's tolerance_s 1e-4), every float finite.
+frame_index / fps within LeRobot's tolerance_s 1e-4), every float finite; a feature with `bounds`
+({min, max} per value) has every value inside them (compared as the float32 stored), one with
+`categories` every value an index into them.
 Exit 0 and one summary line, or exit 1 and one line per problem.
 """
 import glob
@@ -78,6 +80,19 @@ def check_info(root, p):
             if ft["names"] is not None:
                 p.check(len(ft["names"]) == ft["shape"][0],
                         f"info.json: feature {key}: {len(ft['names'])} names for shape {ft['shape']}")
+            if "bounds" in ft:
+                b = ft["bounds"]
+                n = ft["shape"][0] if isinstance(ft["shape"], list) and ft["shape"] else 0
+                ok = isinstance(b, dict) and all(
+                    isinstance(b.get(k), list) and len(b[k]) == n
+                    and all(type(v) in (int, float) and math.isfinite(v) for v in b[k]) for k in ["min", "max"])
+                p.check(ok and all(lo < hi for lo, hi in zip(b["min"], b["max"])),
+                        f"info.json: feature {key}: bounds are not finite min < max lists of {n}")
+            if "categories" in ft:
+                c = ft["categories"]
+                p.check(isinstance(c, list) and c and all(isinstance(v, str) for v in c)
+                        and ft["dtype"] == "int64",
+                        f"info.json: feature {key}: categories are not a list of names of an int64 feature")
     for key, dtype in INDEX_FEATURES.items():
         p.check(key in feats and feats[key].get("dtype") == dtype and feats[key].get("shape") == [1],
                 f"info.json: index feature {key} ({dtype}, [1]) not declared")
@@ -170,6 +185,23 @@ def check_data(root, info, tasks, rows, p):
             vals = col.combine_chunks().flatten() if n > 1 else col
             arr = np.asarray(vals.to_numpy(zero_copy_only=False), np.float64)
             p.check(np.isfinite(arr).all(), f"data: {key} has values that are not finite")
+            if "bounds" in ft and not p.items:
+                x = np.asarray(arr, np.float32).reshape(-1, n)
+                lo = np.asarray(ft["bounds"]["min"], np.float64).astype(np.float32)
+                hi = np.asarray(ft["bounds"]["max"], np.float64).astype(np.float32)
+                bad = np.argwhere((x < lo) | (x > hi))
+                if len(bad):
+                    row, i = (int(j) for j in bad[0])
+                    name = ft["names"][i] if ft["names"] else i
+                    p.check(False, f"data: frame {row}: {key}[{i}] ({name}) = {float(x[row, i]):g} is outside "
+                                   f"its bounds [{float(lo[i]):g}, {float(hi[i]):g}] "
+                                   f"({len(bad)} values out of bounds)")
+        if "categories" in ft and not p.items:
+            v = data.column(key).to_numpy()
+            bad = np.flatnonzero((v < 0) | (v >= len(ft["categories"])))
+            if len(bad):
+                p.check(False, f"data: frame {int(bad[0])}: {key} = {int(v[bad[0]])} is not one of its "
+                               f"{len(ft['categories'])} categories ({len(bad)} frames)")
     if p.items:
         return 0
     p.check(data.num_rows == info["total_frames"], "data: rows != total_frames")
