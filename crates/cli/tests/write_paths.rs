@@ -82,15 +82,21 @@ const ALLOWED: &[(&str, &str, usize, &str)] = &[
     ),
     (
         "crates/contact/src/background.rs",
-        "File::create(",
+        "File::create_new(",
         1,
-        "Background::save(path): <path>.unitac-bg.tmp beside the caller's path",
+        "Background::save(path): <path>.<pid>.unitac-bg.tmp beside the caller's path, new (never an existing file)",
     ),
     (
         "crates/contact/src/background.rs",
         "rename(",
         1,
         "that temporary -> the caller's path",
+    ),
+    (
+        "crates/contact/src/background.rs",
+        "remove_file(",
+        1,
+        "that temporary, which this call created, when the write failed",
     ),
     (
         "crates/plot/src/figure.rs",

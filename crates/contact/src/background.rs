@@ -164,12 +164,22 @@ impl Background {
         for v in self.grid.iter().chain(&self.full) {
             b.extend_from_slice(&v.to_le_bytes());
         }
-        // Write then rename, so a crash never leaves a half-written background behind.
-        let tmp = path.with_extension("unitac-bg.tmp");
-        let mut f = std::fs::File::create(&tmp).map_err(io)?;
-        f.write_all(&b).map_err(io)?;
-        f.sync_all().map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(io)
+        // Write then rename, so a crash never leaves a half-written background behind. The
+        // temporary is new (`create_new`: an existing file of that name, the user's or another
+        // writer's, is never overwritten) and removed again if the write fails.
+        let mut name = path.file_name().unwrap_or_default().to_os_string();
+        name.push(format!(".{}.unitac-bg.tmp", std::process::id()));
+        let tmp = path.with_file_name(name);
+        let mut f = std::fs::File::create_new(&tmp).map_err(io)?;
+        let written = f
+            .write_all(&b)
+            .and_then(|()| f.sync_all())
+            .and_then(|()| std::fs::rename(&tmp, path));
+        if let Err(e) = written {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(io(e));
+        }
+        Ok(())
     }
 
     /// Load a background saved for a sensor that gives `width` x `height` frames, detected at

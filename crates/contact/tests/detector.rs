@@ -274,8 +274,23 @@ fn background_saves_loads_and_rejects_bad_files() {
             .unwrap()
             .starts_with("GS_0A1B_2C3D")
     );
+    // A file of the user's beside it, named as a temporary would be, is never overwritten.
+    let theirs = path.with_extension("unitac-bg.tmp");
+    std::fs::write(&theirs, b"mine").unwrap();
     bg.save(&path).unwrap();
+    assert_eq!(std::fs::read(&theirs).unwrap(), b"mine");
     assert_eq!(Background::load(&path, 320, 240, 2).unwrap(), bg);
+    // No temporary is left behind: the directory holds the two files.
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
+    // One at the temporary's own name makes the save fail, and stays as it was.
+    let mut name = path.file_name().unwrap().to_os_string();
+    name.push(format!(".{}.unitac-bg.tmp", std::process::id()));
+    let clash = path.with_file_name(name);
+    std::fs::write(&clash, b"mine too").unwrap();
+    assert!(bg.save(&path).is_err());
+    assert_eq!(std::fs::read(&clash).unwrap(), b"mine too");
+    std::fs::remove_file(&clash).unwrap();
+    std::fs::remove_file(&theirs).unwrap();
     assert!(
         Background::load(&path, 640, 480, 2)
             .unwrap_err()
