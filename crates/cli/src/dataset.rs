@@ -114,11 +114,18 @@ fn f32_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
 
+/// Most samples (train + test) of one `dataset fabrics`.
+pub const MAX_SAMPLES: usize = 100_000;
+
 pub fn fabrics(out: &Path, train: usize, test: usize, seed: u64) -> anyhow::Result<()> {
-    if train + test == 0 || train + test > 100_000 {
-        bail!("train + test must be 1..=100000");
+    let n = train.saturating_add(test);
+    if n == 0 || n > MAX_SAMPLES {
+        return Err(crate::args::usage(format!(
+            "--train {train} + --test {test} is {n}; 1 to {MAX_SAMPLES} (inclusive)"
+        )));
     }
-    std::fs::create_dir_all(out).with_context(|| out.display().to_string())?;
+    std::fs::create_dir_all(out)
+        .map_err(|e| crate::args::usage(format!("--out {}: {e}", out.display())))?;
     let pre = Preprocess::reference();
     let mut clips = std::io::BufWriter::new(std::fs::File::create(out.join("clips.f32"))?);
     let mut bgs = std::io::BufWriter::new(std::fs::File::create(out.join("backgrounds.f32"))?);

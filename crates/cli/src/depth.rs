@@ -16,10 +16,18 @@ use unitac_core::{Frame, SensorKind, SensorSpec, Timing, timing};
 use unitac_sim::MockConfig;
 use unitac_sim::ballpress::{BallPress, PressNoise, random_presses, render_presses};
 
+use crate::args::{f64_in, int_in, usage};
 use crate::images::read_frame;
 
 /// Most press images one calibration reads.
 const MAX_PRESSES: usize = 500;
+/// Ball radii `calibrate depth` takes \[mm].
+const BALL_RADIUS_MM: (f64, f64) = (0.1, 100.0);
+/// Ball radii `calibrate mock-presses` renders \[mm]: the largest one's contact disc at a 1 mm
+/// approach still fits the mock sensor's frame.
+const MOCK_BALL_RADIUS_MM: (f64, f64) = (0.5, 10.0);
+/// Gel millimetres per pixel `calibrate depth --mm-per-px` takes.
+const MM_PER_PX: (f64, f64) = (0.001, 1.0);
 
 /// `unitac calibrate ...`
 #[derive(clap::Subcommand, Debug)]
@@ -39,8 +47,8 @@ pub struct CalibrateDepthArgs {
     /// Sensor kind: gelsight-mini | digit | generic.
     #[arg(long)]
     sensor: SensorKind,
-    /// Radius of the ball pressed into the gel \[mm].
-    #[arg(long)]
+    /// Radius of the ball pressed into the gel, in mm.
+    #[arg(long, value_parser = f64_in(BALL_RADIUS_MM.0, BALL_RADIUS_MM.1))]
     ball_radius_mm: f64,
     /// Image of the gel without contact (same size as the presses).
     #[arg(long)]
@@ -56,10 +64,11 @@ pub struct CalibrateDepthArgs {
     serial: String,
     /// Gel millimetres per pixel at the images' size (default: the sensor kind's, scaled to
     /// the images' width). Measure it with a ruler pressed on the gel for a real sensor.
-    #[arg(long)]
+    #[arg(long, value_parser = f64_in(MM_PER_PX.0, MM_PER_PX.1))]
     mm_per_px: Option<f64>,
     /// Circles to use instead of the ones found: the circles.json that --review wrote, edited
-    /// (x, y, r in pixels per file; "skip": true leaves a press out).
+    /// (x, y, r in pixels per file; "skip": true leaves a press out). Each circle's centre lies
+    /// in the image and its radius is at most half the image's shorter side.
     #[arg(long)]
     circles: Option<PathBuf>,
     /// Directory for one PNG per press with its circle drawn, and circles.json.
@@ -69,20 +78,26 @@ pub struct CalibrateDepthArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct MockPressesArgs {
+    /// Sensor kind: gelsight-mini | digit | generic (the frames' size and mm per pixel).
     #[arg(long, default_value = "gelsight-mini")]
     sensor: SensorKind,
-    #[arg(long, default_value_t = 2.0)]
+    /// Radius of the pressed ball, in mm.
+    #[arg(long, default_value_t = 2.0,
+          value_parser = f64_in(MOCK_BALL_RADIUS_MM.0, MOCK_BALL_RADIUS_MM.1))]
     ball_radius_mm: f64,
-    #[arg(long, default_value_t = 40)]
+    /// Presses to write.
+    #[arg(long, default_value_t = 40, value_parser = int_in(1usize, MAX_PRESSES))]
     count: usize,
-    /// Camera noise per channel \[DN].
-    #[arg(long, default_value_t = 1.0)]
+    /// Camera noise per channel, in DN (digital numbers, 0-255 per channel).
+    #[arg(long, default_value_t = 1.0, value_parser = f64_in(0.0, 64.0))]
     noise_dn: f64,
-    /// Smooth shading on each press \[DN, summed over the channels].
-    #[arg(long, default_value_t = 0.0)]
+    /// Smooth shading on each press, in DN summed over the channels.
+    #[arg(long, default_value_t = 0.0, value_parser = f64_in(0.0, 255.0))]
     shading_dn: f64,
+    /// Seed of the presses' places, depths and noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Directory for the presses, background.png and truth.json (created if missing).
     #[arg(long)]
     out: PathBuf,
 }
@@ -110,7 +125,10 @@ fn file_key(p: &Path) -> String {
         .unwrap_or_default()
 }
 
-fn read_circles(path: &Path) -> anyhow::Result<Vec<CircleEntry>> {
+/// The circles of `path` for presses of `width` x `height`: each one not skipped has its centre
+/// in the image and a radius above 0 and at most half the image's shorter side (a larger circle
+/// cannot lie in the image).
+fn read_circles(path: &Path, width: u32, height: u32) -> anyhow::Result<Vec<CircleEntry>> {
     let meta = std::fs::metadata(path).with_context(|| format!("{}", path.display()))?;
     if meta.len() > 4 << 20 {
         bail!("{}: {} bytes, more than 4 MiB", path.display(), meta.len());
@@ -118,10 +136,22 @@ fn read_circles(path: &Path) -> anyhow::Result<Vec<CircleEntry>> {
     let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
     let v: Vec<CircleEntry> =
         serde_json::from_str(&text).with_context(|| format!("{}", path.display()))?;
-    for c in &v {
-        let circle = c.x.is_finite() && c.y.is_finite() && c.r.is_finite() && c.r > 0.0;
-        if !c.skip && !circle {
-            bail!("{}: circle of {} is not a circle", path.display(), c.file);
+    let (w, h) = (f64::from(width), f64::from(height));
+    let r_max = w.min(h) / 2.0;
+    for c in v.iter().filter(|c| !c.skip) {
+        let inside = c.x.is_finite() && c.y.is_finite() && (0.0..w).contains(&c.x);
+        let inside = inside && (0.0..h).contains(&c.y);
+        let radius = c.r.is_finite() && c.r > 0.0 && c.r <= r_max;
+        if !inside || !radius {
+            bail!(
+                "{}: circle of {} (x {}, y {}, r {}) is not a circle in the {width}x{height} \
+                 image (centre inside it, radius above 0 and at most {r_max} px)",
+                path.display(),
+                c.file,
+                c.x,
+                c.y,
+                c.r
+            );
         }
     }
     Ok(v)
@@ -138,7 +168,8 @@ fn review_png(frame: &Frame, c: Option<Circle>, path: &Path) -> anyhow::Result<(
         }
     };
     if let Some(c) = c {
-        let n = (c.r * 8.0).ceil().max(16.0) as usize;
+        // Bounded whatever the circle: a circle's pixels in a frame are at most 4 (w + h).
+        let n = (c.r * 8.0).ceil().clamp(16.0, 4.0 * (w + h + 4) as f64) as usize;
         for k in 0..n {
             let t = std::f64::consts::TAU * k as f64 / n as f64;
             put(
@@ -160,29 +191,30 @@ fn review_png(frame: &Frame, c: Option<Circle>, path: &Path) -> anyhow::Result<(
 
 /// `unitac calibrate depth`.
 pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
-    if !(a.ball_radius_mm.is_finite() && a.ball_radius_mm > 0.1 && a.ball_radius_mm < 100.0) {
-        bail!(
-            "--ball-radius-mm {} is not a ball radius (0.1-100 mm)",
-            a.ball_radius_mm
-        );
-    }
+    // Everything given is checked before any press is read: exit 2.
     if a.presses.len() > MAX_PRESSES {
-        bail!("{} press images, at most {MAX_PRESSES}", a.presses.len());
+        return Err(usage(format!(
+            "{} press images, at most {MAX_PRESSES}",
+            a.presses.len()
+        )));
     }
-    let bg = read_frame(&a.background, "calibration", 0, None)?;
+    let bg = read_frame(&a.background, "calibration", 0, None)
+        .map_err(|e| usage(format!("--background {e:#}")))?;
     let (w, h) = (bg.width as usize, bg.height as usize);
     let spec = a.sensor.spec();
     let mm_per_px = match a.mm_per_px {
-        Some(v) if v.is_finite() && v > 0.0 && v < 10.0 => v,
-        Some(v) => bail!("--mm-per-px {v} is not a scale"),
+        Some(v) => v,
         None => spec.mm_per_px * f64::from(spec.width) / f64::from(bg.width),
     };
     let given = match &a.circles {
-        Some(p) => Some(read_circles(p)?),
+        Some(p) => Some(
+            read_circles(p, bg.width, bg.height).map_err(|e| usage(format!("--circles {e:#}")))?,
+        ),
         None => None,
     };
     if let Some(dir) = &a.review {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| usage(format!("--review {}: {e}", dir.display())))?;
     }
     let mut prep = Prep::default();
     let mut fit = Fit::default();
@@ -193,7 +225,7 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
         let frame = match read_frame(path, "calibration", k as u64, Some((bg.width, bg.height))) {
             Ok(f) => f,
             Err(e) => {
-                eprintln!("{e:#}");
+                eprintln!("unitac: {e:#}");
                 failed += 1;
                 continue;
             }
@@ -234,7 +266,9 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
         match chosen {
             Some(c) => fit.add_press(&prep.diff, w, h, c, a.ball_radius_mm, mm_per_px),
             None if skip => {}
-            None => eprintln!("{key}: no press found (give its circle in --circles, or skip it)"),
+            None => crate::args::warn(format_args!(
+                "{key}: no press found (give its circle in --circles, or skip it)"
+            )),
         }
     }
     if let Some(dir) = &a.review {
@@ -278,14 +312,12 @@ fn save_png(frame: &Frame, path: &Path) -> anyhow::Result<()> {
 
 /// `unitac calibrate mock-presses`.
 pub fn mock_presses(a: &MockPressesArgs) -> anyhow::Result<bool> {
-    if a.count == 0 || a.count > MAX_PRESSES {
-        bail!("--count {} (1-{MAX_PRESSES})", a.count);
-    }
+    // The numbers were checked by their value parsers.
     let spec = a.sensor.spec();
     let presses = random_presses(spec, a.count, a.ball_radius_mm, (0.3, 1.0), a.seed);
     let noise = PressNoise {
-        noise_dn: a.noise_dn.clamp(0.0, 64.0),
-        shading_dn: a.shading_dn.clamp(0.0, 255.0),
+        noise_dn: a.noise_dn,
+        shading_dn: a.shading_dn,
         seed: a.seed,
     };
     let (bg, rendered) =
@@ -435,10 +467,10 @@ fn depth_png(
 /// approaches, noise and shading levels (three presses each); PNGs of a few into `out`.
 pub fn eval_depth(out: Option<&Path>) -> anyhow::Result<DepthEval> {
     let spec = SensorKind::GelsightMini.spec();
-    let cal = mock_calibration(spec, 40)?;
     if let Some(d) = out {
-        std::fs::create_dir_all(d).with_context(|| format!("{}", d.display()))?;
+        std::fs::create_dir_all(d).map_err(|e| usage(format!("--out {}: {e}", d.display())))?;
     }
+    let cal = mock_calibration(spec, 40)?;
     let mut rows = Vec::new();
     let mut pngs = Vec::new();
     let places = [[110.0, 95.0], [210.0, 140.0], [160.0, 120.0]];
@@ -681,6 +713,15 @@ pub fn contact_depth(
     )?)
 }
 
+/// The overlay file of frame `source`: `<its file stem>.overlay.png`.
+pub fn overlay_name(source: &Path) -> String {
+    let stem = source
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "frame".into());
+    format!("{stem}.overlay.png")
+}
+
 /// `<frame stem>.overlay.png` in `dir`: the picture of `unitac_contact::overlay` (the contact
 /// stage's `contact_overlay` is the same one): the frame with the contact region's outline and
 /// centroid, the markers' displacements (rest, now) as arrows, and with a depth estimator,
@@ -724,11 +765,7 @@ pub fn overlay_png(
     let img = draw(frame, &o)?;
     let img = image::RgbImage::from_raw(img.width, img.height, img.data().to_vec())
         .context("overlay buffer")?;
-    let stem = source
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "frame".into());
-    let path = dir.join(format!("{stem}.overlay.png"));
+    let path = dir.join(overlay_name(source));
     img.save(&path)
         .with_context(|| format!("{}", path.display()))
 }

@@ -5,6 +5,7 @@
 //! full); 2 bad usage or configuration (unknown scene, unknown stage, missing model, bad value,
 //! a file or bag that cannot be opened). The reason is one line on stderr.
 
+mod args;
 mod bench;
 mod dataset;
 mod decode_bench;
@@ -64,7 +65,7 @@ enum Cmd {
         #[arg(long)]
         fast: bool,
         /// Stop after this many frames.
-        #[arg(long)]
+        #[arg(long, value_parser = args::int_in(1u64, u64::MAX))]
         max_frames: Option<u64>,
         /// Extra directory to look for scenes in (searched first).
         #[arg(long)]
@@ -92,6 +93,7 @@ enum Cmd {
         /// Frames to check (PNG or JPEG, same size as the background).
         #[arg(required = true)]
         frames: Vec<PathBuf>,
+        /// One JSON object per frame instead of a text line.
         #[arg(long)]
         json: bool,
         /// A depth calibration (`unitac calibrate depth`) of this sensor: each line also gets
@@ -100,6 +102,7 @@ enum Cmd {
         depth_calibration: Option<PathBuf>,
         /// Write `<frame>.overlay.png` per frame into this directory: the frame with the contact
         /// outline and centroid, and beside it the depth colour map (with --depth-calibration).
+        /// Two frames of the same file name (from different directories) are refused.
         #[arg(long)]
         overlay: Option<PathBuf>,
         /// Keep the skirt's flank: the contact region at the residual's half-level contour alone
@@ -111,12 +114,14 @@ enum Cmd {
     /// the contact stage. With --json: one line per image message {stamp, contact (null while the
     /// background is learned), area_px, centroid, episode_id}.
     Replay {
+        /// The bag: a rosbag2 directory (metadata.yaml + .mcap or .db3) or a bare .mcap file.
         bag: PathBuf,
         /// Image topic (sensor_msgs/Image or CompressedImage); default: the first one in the bag.
         #[arg(long)]
         topic: Option<String>,
         /// Replay speed against the bag's stamps (1 = real time, the default).
-        #[arg(long, conflicts_with = "fast")]
+        #[arg(long, conflicts_with = "fast",
+              value_parser = args::f64_in(unitac_core::pace::RATE_RANGE.0, unitac_core::pace::RATE_RANGE.1))]
         rate: Option<f64>,
         /// As fast as possible.
         #[arg(long)]
@@ -125,12 +130,14 @@ enum Cmd {
         #[arg(long = "loop")]
         looped: bool,
         /// Skip the first SECONDS of the image topic.
-        #[arg(long, default_value_t = 0.0, value_name = "SECONDS")]
+        #[arg(long, default_value_t = 0.0, value_name = "SECONDS",
+              value_parser = args::f64_in(0.0, 1e9))]
         start: f64,
         /// Write the replayed images and everything the pipeline produced to this MCAP bag
         /// (a directory, or a bare file if it ends in .mcap).
         #[arg(long, value_name = "OUT_BAG")]
         out: Option<PathBuf>,
+        /// One JSON line per image message instead of the text summary.
         #[arg(long)]
         json: bool,
         /// Sensor kind of the bag's images: gelsight-mini | digit | generic (without --scene).
@@ -160,28 +167,34 @@ enum Cmd {
     /// Measure quality against ground truth (mock sensor): `eval contact`, `eval slip`,
     /// `eval depth`.
     Eval {
+        /// What to evaluate.
         what: EvalTarget,
+        /// Print the report as one JSON object instead of tables.
         #[arg(long)]
         json: bool,
         /// `eval depth`: directory for PNGs of frame, estimated and true depth.
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Minutes of simulated idle time for the false-episode count.
-        #[arg(long, default_value_t = 10.0)]
+        /// `eval contact`: minutes of simulated idle time for the false-episode count.
+        #[arg(long, default_value_t = 10.0, value_parser = args::f64_in(0.0, 600.0))]
         idle_minutes: f64,
     },
     /// Benchmarks, side by side with the Python a user would otherwise run where there is one:
     /// `bench contact`, `bench replay`, `bench sampler`, `bench render` (mock sensor frames),
+    /// `bench decode` (camera JPEG and YUYV decoding), `bench depth` (depth from one image),
     /// `bench policy` (the policy's control tick and a paced loop's period, per scene and mode).
     Bench {
+        /// What to time.
         what: BenchTarget,
+        /// Print the timings as one JSON object instead of text.
         #[arg(long)]
         json: bool,
-        /// Distinct frames (`bench decode`: at most 8 generated JPEGs).
-        #[arg(long, default_value_t = 140)]
+        /// Distinct frames (`bench decode`: the first 8 of them, generated JPEGs; `bench depth`:
+        /// the first 200, ball presses).
+        #[arg(long, default_value_t = 140, value_parser = args::int_in(1usize, 10_000))]
         frames: usize,
-        /// Passes over the frames.
-        #[arg(long, default_value_t = 5)]
+        /// Passes over the frames (`bench policy`: episodes per scene and mode).
+        #[arg(long, default_value_t = 5, value_parser = args::int_in(1usize, 1000))]
         repeat: usize,
         /// Skip the Python baseline.
         #[arg(long)]
@@ -196,14 +209,16 @@ enum Cmd {
     /// Error against run time, with tables and PNG plots: `report sampler` (flow sampler),
     /// `report sim` (the simulator's integrators on soft, stiff and extreme cups, stability map).
     Report {
+        /// What to report on.
         what: ReportTarget,
+        /// Print the report as one JSON object instead of tables.
         #[arg(long)]
         json: bool,
         /// Directory for the PNG plots (default: $UNITAC_ROOT/.build/report or ./report).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Timed repetitions per configuration (median).
-        #[arg(long, default_value_t = 5)]
+        /// `report sampler`: timed repetitions per configuration (median).
+        #[arg(long, default_value_t = 5, value_parser = args::int_in(1usize, 1000))]
         repeat: usize,
     },
     /// Write a training set: `dataset fabrics --out DIR` (mock presses on fabrics with known
@@ -212,28 +227,37 @@ enum Cmd {
     /// cups and fabrics before contact, with the encoder's latent of their touch, for the touch
     /// projector).
     Dataset {
+        /// Which training set.
         what: DatasetTarget,
+        /// Directory to write the set into (created if missing).
         #[arg(long)]
         out: PathBuf,
-        #[arg(long, default_value_t = 240)]
+        /// `dataset fabrics`: training samples (train + test: 1 to 100000).
+        #[arg(long, default_value_t = 240, value_parser = args::int_in(0usize, dataset::MAX_SAMPLES))]
         train: usize,
-        #[arg(long, default_value_t = 120)]
+        /// `dataset fabrics`: test samples, drawn after the training ones.
+        #[arg(long, default_value_t = 120, value_parser = args::int_in(0usize, dataset::MAX_SAMPLES))]
         test: usize,
+        /// `dataset fabrics`: seed of the fabric draws and the mock sensor's noise.
         #[arg(long, default_value_t = 1)]
         seed: u64,
         #[command(flatten)]
         set: TrialSet,
+        /// `dataset touch`: sensor kind: gelsight-mini | digit | generic.
         #[arg(long, default_value = "gelsight-mini")]
-        sensor: String,
+        sensor: unitac_core::SensorKind,
     },
     /// Demonstrations of the scripted expert with what a policy of every mode could observe,
     /// through each scene's tactile stages (scenes of one task, comma-separated):
     /// `demos --scene S[,S2] --split train --seeds 1,2,3 --trials 10 --out DIR`.
     Demos {
+        /// Scenes of one task, comma separated (the first one's contact state drives the cup's
+        /// probe, its safety bounds are recorded).
         #[arg(long, value_delimiter = ',', required = true)]
         scene: Vec<String>,
         #[command(flatten)]
         set: TrialSet,
+        /// Directory for demos.json (created if missing).
         #[arg(long)]
         out: PathBuf,
         /// DAgger: a learned scene of the same task drives the world (its stages, as in a
@@ -247,6 +271,7 @@ enum Cmd {
     },
     /// List the tactile sensors on the USB bus: model, serial, firmware, V4L2 node, modes.
     Devices {
+        /// Print the devices as one JSON object instead of text.
         #[arg(long)]
         json: bool,
     },
@@ -260,6 +285,7 @@ enum Cmd {
     /// `$UNITAC_SCENES`, `$UNITAC_ROOT/launch/scenes`, `./launch/scenes`, the source tree's), one
     /// name a line, sorted. The one list the tests, the scripts and `trials` take scenes from.
     Scenes {
+        /// Extra directory to look for scenes in (searched first).
         #[arg(long)]
         scene_dir: Option<PathBuf>,
     },
@@ -270,6 +296,7 @@ enum BagCmd {
     /// Copy every readable message of IN into a new bag OUT (IN is not modified). Exit 1 if a
     /// corrupt record stopped the copy early (what came before it is in OUT).
     Repair {
+        /// The bag to read: a rosbag2 directory or a bare .mcap file (not modified).
         input: PathBuf,
         /// New bag: a directory, or a bare file if it ends in .mcap. Never overwritten.
         output: PathBuf,
@@ -278,6 +305,8 @@ enum BagCmd {
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum EvalTarget {
+    /// The contact detector against the mock sensor's truth: a press-depth sweep, false
+    /// episodes over idle minutes, the contact area on ball presses.
     Contact,
     /// The slip stage's shear, rotation and slip flag against the renderer's tangential truth.
     Slip,
@@ -290,11 +319,14 @@ enum EvalTarget {
 /// Which trials of the task worlds: the split's objects, seeds and trials per seed.
 #[derive(clap::Args, Debug)]
 struct TrialSet {
+    /// Which objects of objects/split.yaml the trials draw.
     #[arg(long, value_enum, default_value = "train")]
     split: DemoSplit,
+    /// Seeds of the trial draws, comma separated.
     #[arg(long, value_delimiter = ',', default_value = "1")]
     seeds: Vec<u64>,
-    #[arg(long, default_value_t = 10)]
+    /// Trials per seed.
+    #[arg(long, default_value_t = 10, value_parser = args::int_in(1u32, 100_000))]
     trials: u32,
 }
 
@@ -317,15 +349,22 @@ impl From<DemoSplit> for unitac_sim::task::Split {
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum DatasetTarget {
+    /// Mock presses on fabrics with known properties, for the property head.
     Fabrics,
+    /// The camera's values and the sensor prior before contact, with the encoder's latent of
+    /// the touch, for the touch projector.
     Touch,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum BenchTarget {
+    /// The contact detector per frame vs Python (numpy + OpenCV, as in the GelSight SDK).
     Contact,
+    /// A bag's images read and through the contact stage, vs Python.
     Replay,
+    /// The flow sampler's models per call and batched.
     Sampler,
+    /// The mock sensor's renderer per frame.
     Render,
     /// GelSight Mini MJPEG 3280x2464 -> 320x240 and YUYV 320x240 -> RGB, vs OpenCV.
     Decode,
@@ -339,7 +378,9 @@ enum BenchTarget {
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 enum ReportTarget {
+    /// The flow sampler: error against run time per step count.
     Sampler,
+    /// The simulator's integrators: error, stability map (tables and PNG plots).
     Sim,
 }
 
@@ -352,6 +393,69 @@ impl std::fmt::Display for ConfigError {
     }
 }
 impl std::error::Error for ConfigError {}
+
+/// The command line's grammar: [`Cli`], with a negative number taken as the value of a flag
+/// that takes one (`--ball-radius-mm -1` is refused by the flag's range, not read as a flag).
+fn command() -> clap::Command {
+    fn negatives(c: clap::Command) -> clap::Command {
+        c.mut_args(|a| {
+            if a.get_action().takes_values() {
+                a.allow_negative_numbers(true)
+            } else {
+                a
+            }
+        })
+        .mut_subcommands(negatives)
+    }
+    negatives(<Cli as clap::CommandFactory>::command())
+}
+
+/// A clap error as the one stderr line of exit 2: `unitac: ` and clap's message (its paragraphs
+/// joined), without the usage and the `--help` hint; a missing subcommand names the ones there
+/// are.
+fn clap_error_line(e: &clap::Error) -> String {
+    let text = e.render().to_string();
+    // The command's path: the leading arguments that name subcommands (`unitac calibrate depth`).
+    let mut cmd = String::from("unitac");
+    let mut at = command();
+    for a in std::env::args_os().skip(1) {
+        let Some(sub) = a.to_str().and_then(|a| at.find_subcommand(a)).cloned() else {
+            break;
+        };
+        cmd = format!("{cmd} {}", sub.get_name());
+        at = sub;
+    }
+    if e.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+        let commands: Vec<&str> = text
+            .split("\n\n")
+            .find_map(|p| p.strip_prefix("Commands:"))
+            .unwrap_or("")
+            .lines()
+            .filter_map(|l| l.split_whitespace().next())
+            .filter(|c| *c != "help")
+            .collect();
+        return format!(
+            "unitac: {cmd} needs a subcommand: {} (see {cmd} --help)",
+            commands.join(", ")
+        );
+    }
+    let parts: Vec<String> = text
+        .split("\n\n")
+        .map(str::trim)
+        .filter(|p| !p.is_empty() && !p.starts_with("Usage:") && !p.starts_with("For more"))
+        .map(|p| {
+            let p = p.strip_prefix("error: ").unwrap_or(p);
+            p.split_whitespace().collect::<Vec<_>>().join(" ")
+        })
+        .collect();
+    let what = parts.join("; ");
+    let what = if what.is_empty() {
+        "bad usage".into()
+    } else {
+        what
+    };
+    format!("unitac: {what} (see {cmd} --help)")
+}
 
 /// Write to stdout and flush: a closed pipe (`| head`) or a full disk is an error (exit 1, one
 /// line), never a panic as `print!` would give.
@@ -481,6 +585,27 @@ fn cmd_contact(
     extra: &ContactExtras<'_>,
 ) -> anyhow::Result<bool> {
     use unitac_contact::{ContactDetector, ContactParams};
+    if extra.overlay.is_some() {
+        // Each frame's overlay is named after its file: two files of one name would overwrite
+        // each other's.
+        let mut named: std::collections::HashMap<String, &PathBuf> = Default::default();
+        for f in frames {
+            let name = depth::overlay_name(f);
+            match named.get(&name) {
+                Some(other) if *other != f => {
+                    return Err(args::usage(format!(
+                        "--overlay: frames {} and {} would both write {name}; give frames of \
+                         distinct file names",
+                        other.display(),
+                        f.display()
+                    )));
+                }
+                _ => {
+                    named.insert(name, f);
+                }
+            }
+        }
+    }
     let bg = images::read_frame(background, sensor.as_str(), 0, None)
         .map_err(|e| anyhow::Error::new(ConfigError(format!("background {e:#}"))))?;
     let params = ContactParams {
@@ -517,7 +642,7 @@ fn cmd_contact(
         let mut field = unitac_contact::MarkerField::default();
         match field.learn(&bg, &slip) {
             Ok(()) => markers = Some(field),
-            Err(e) => eprintln!("unitac: --overlay: no marker arrows: {e}"),
+            Err(e) => args::warn(format_args!("--overlay: no marker arrows: {e}")),
         }
     }
     let stdout = std::io::stdout();
@@ -639,12 +764,19 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
-    let cli = match Cli::try_parse() {
+    let parsed = command()
+        .try_get_matches()
+        .and_then(|mut m| <Cli as clap::FromArgMatches>::from_arg_matches_mut(&mut m));
+    let cli = match parsed {
         Ok(c) => c,
-        Err(e) => {
-            let code = if e.use_stderr() { 2 } else { 0 };
+        // Help and version: on stdout, exit 0.
+        Err(e) if !e.use_stderr() => {
             let _ = e.print();
-            return ExitCode::from(code);
+            return ExitCode::SUCCESS;
+        }
+        Err(e) => {
+            eprintln!("{}", clap_error_line(&e));
+            return ExitCode::from(2);
         }
     };
     let result = match cli.cmd {
@@ -722,7 +854,7 @@ fn main() -> ExitCode {
             json,
             idle_minutes,
             ..
-        } => eval::eval_contact(idle_minutes.clamp(0.0, 600.0) * 60.0).and_then(|r| {
+        } => eval::eval_contact(idle_minutes * 60.0).and_then(|r| {
             if json {
                 emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
             } else {
@@ -772,16 +904,14 @@ fn main() -> ExitCode {
                 None => PathBuf::from("report"),
             });
             match what {
-                ReportTarget::Sampler => {
-                    sampler::report(&out, repeat.clamp(1, 1000)).and_then(|r| {
-                        if json {
-                            emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
-                        } else {
-                            emit(r.text())?;
-                        }
-                        Ok(true)
-                    })
-                }
+                ReportTarget::Sampler => sampler::report(&out, repeat).and_then(|r| {
+                    if json {
+                        emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
+                    } else {
+                        emit(r.text())?;
+                    }
+                    Ok(true)
+                }),
                 ReportTarget::Sim => report_sim(json, &out),
             }
         }
@@ -794,7 +924,6 @@ fn main() -> ExitCode {
             ticks,
             policy,
         } => {
-            let (frames, repeat) = (frames.clamp(1, 10_000), repeat.clamp(1, 1000));
             let spinner = progress::spinner(&format!("bench {what:?}").to_lowercase());
             let text = match what {
                 BenchTarget::Contact => bench::bench_contact(frames, repeat, !no_python)
@@ -843,12 +972,7 @@ fn main() -> ExitCode {
             set,
             sensor,
             ..
-        } => sensor
-            .parse::<unitac_core::SensorKind>()
-            .map_err(|e| anyhow::Error::new(ConfigError(e.to_string())))
-            .and_then(|kind| {
-                touch_dataset::touch(set.split.into(), &set.seeds, set.trials, kind, &out)
-            })
+        } => touch_dataset::touch(set.split.into(), &set.seeds, set.trials, sensor, &out)
             .and_then(emit)
             .map(|()| true),
         Cmd::Demos {
@@ -889,13 +1013,19 @@ fn main() -> ExitCode {
         }
         Cmd::Gripper(args) => gripper::run(args),
         Cmd::Trials(args) => trials::run(args),
-        Cmd::Scenes { scene_dir } => emit(
-            unitac_pipeline::scene_names(scene_dir)
-                .iter()
-                .map(|n| format!("{n}\n"))
-                .collect::<String>(),
-        )
-        .map(|()| true),
+        Cmd::Scenes { scene_dir } => match scene_dir {
+            Some(d) if !d.is_dir() => Err(args::usage(format!(
+                "--scene-dir {}: not a directory",
+                d.display()
+            ))),
+            scene_dir => emit(
+                unitac_pipeline::scene_names(scene_dir)
+                    .iter()
+                    .map(|n| format!("{n}\n"))
+                    .collect::<String>(),
+            )
+            .map(|()| true),
+        },
     };
     match result {
         Ok(true) => ExitCode::SUCCESS,
@@ -907,6 +1037,122 @@ fn main() -> ExitCode {
         Err(e) => {
             eprintln!("unitac: {e:#}");
             ExitCode::from(1)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `unitac a b` for `path` ["a", "b"].
+    fn name(path: &[&str]) -> String {
+        std::iter::once("unitac")
+            .chain(path.iter().copied())
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+
+    /// Every command below `cmd` (itself first), with its path.
+    fn commands<'a>(
+        cmd: &'a clap::Command,
+        path: Vec<&'a str>,
+        out: &mut Vec<(Vec<&'a str>, &'a clap::Command)>,
+    ) {
+        out.push((path.clone(), cmd));
+        for sub in cmd.get_subcommands() {
+            let mut p = path.clone();
+            p.push(sub.get_name());
+            commands(sub, p, out);
+        }
+    }
+
+    /// Arguments still without a description, with the file that defines them.
+    const PENDING_DESCRIPTIONS: &[(&str, &str)] = &[
+        ("unitac gripper --json", "crates/cli/src/gripper.rs"),
+        ("unitac gripper <ACTION>", "crates/cli/src/gripper.rs"),
+    ];
+
+    /// Every subcommand, option and positional of every `--help` page has a description, and so
+    /// has every value of a subcommand's target (`eval contact|slip|depth`, ...).
+    #[test]
+    fn every_command_and_argument_has_a_description() {
+        let cli = command();
+        let mut all = Vec::new();
+        commands(&cli, Vec::new(), &mut all);
+        let mut missing = Vec::new();
+        for (path, cmd) in &all {
+            if cmd.get_about().is_none() {
+                missing.push(name(path));
+            }
+            for a in cmd.get_arguments() {
+                let id = a.get_id().as_str();
+                if id == "help" || id == "version" {
+                    continue;
+                }
+                let shown = match a.get_long() {
+                    Some(l) => format!("--{l}"),
+                    None => format!("<{}>", id.to_uppercase()),
+                };
+                if a.get_help().is_none() && a.get_long_help().is_none() {
+                    missing.push(format!("{} {shown}", name(path)));
+                }
+                if a.is_positional() && id == "what" {
+                    for v in a.get_possible_values() {
+                        if v.get_help().is_none() {
+                            missing.push(format!("{} {}", name(path), v.get_name()));
+                        }
+                    }
+                }
+            }
+        }
+        assert!(all.len() > 15, "{} commands", all.len());
+        missing.retain(|m| !PENDING_DESCRIPTIONS.iter().any(|(p, _)| p == m));
+        assert!(missing.is_empty(), "no description: {missing:#?}");
+    }
+
+    /// A command whose target is a positional (`bench contact`, ...) names each target in its
+    /// summary, as `<command> <target>`.
+    #[test]
+    fn summaries_name_every_target() {
+        let cli = command();
+        let mut all = Vec::new();
+        commands(&cli, Vec::new(), &mut all);
+        let mut missing = Vec::new();
+        for (path, cmd) in &all {
+            let about = cmd.get_about().map(|s| s.to_string()).unwrap_or_default();
+            let Some(last) = path.last() else { continue };
+            for a in cmd
+                .get_arguments()
+                .filter(|a| a.is_positional() && a.get_id() == "what")
+            {
+                for v in a.get_possible_values() {
+                    let want = format!("{last} {}", v.get_name());
+                    if !about.contains(&want) {
+                        missing.push(want);
+                    }
+                }
+            }
+        }
+        assert!(missing.is_empty(), "not in the summary: {missing:?}");
+    }
+
+    /// Help texts are plain text: no markdown escapes (`\[mm]`) printed literally.
+    #[test]
+    fn help_texts_have_no_escapes() {
+        let cli = command();
+        let mut all = Vec::new();
+        commands(&cli, Vec::new(), &mut all);
+        for (path, cmd) in &all {
+            let mut texts: Vec<String> = cmd.get_about().iter().map(|s| s.to_string()).collect();
+            texts.extend(cmd.get_long_about().map(|s| s.to_string()));
+            for a in cmd.get_arguments() {
+                texts.extend(a.get_help().map(|s| s.to_string()));
+                texts.extend(a.get_long_help().map(|s| s.to_string()));
+            }
+            for t in texts {
+                assert!(!t.contains('\\'), "{}: {t}", name(path));
+            }
         }
     }
 }

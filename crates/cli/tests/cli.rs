@@ -286,3 +286,86 @@ fn demos_writes_the_demonstrations_and_refuses_scenes_without_touch() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A flat grey RGB PNG of `w` x `h` at `level`.
+fn flat_png(path: &std::path::Path, w: u32, h: u32, level: u8) {
+    image::RgbImage::from_pixel(w, h, image::Rgb([level; 3]))
+        .save(path)
+        .unwrap();
+}
+
+/// Two frames of one file name in different directories would write one overlay file: refused
+/// before any work, naming both (not one overlay silently overwriting the other).
+#[test]
+fn overlays_of_frames_with_one_name_are_refused() {
+    let d = tmpdir("overlay-names");
+    std::fs::create_dir_all(d.join("a")).unwrap();
+    std::fs::create_dir_all(d.join("b")).unwrap();
+    let (bg, a, b) = (d.join("bg.png"), d.join("a/f.png"), d.join("b/f.png"));
+    flat_png(&bg, 320, 240, 128);
+    flat_png(&a, 320, 240, 128);
+    flat_png(&b, 320, 240, 130);
+    let ov = d.join("overlay");
+    let args = |frames: &[&PathBuf]| {
+        let mut v = vec![
+            "contact".to_string(),
+            "--sensor".into(),
+            "gelsight-mini".into(),
+            "--background".into(),
+            bg.display().to_string(),
+            "--overlay".into(),
+            ov.display().to_string(),
+        ];
+        v.extend(frames.iter().map(|f| f.display().to_string()));
+        v
+    };
+    let run = |v: Vec<String>| {
+        Command::new(env!("CARGO_BIN_EXE_unitac"))
+            .args(v)
+            .output()
+            .unwrap()
+    };
+    let o = run(args(&[&a, &b]));
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    let last = e.trim_end().lines().last().unwrap_or("");
+    assert!(last.starts_with("unitac: --overlay"), "{e}");
+    assert!(
+        last.contains("a/f.png") && last.contains("b/f.png") && last.contains("f.overlay.png"),
+        "{e}"
+    );
+    assert!(!ov.join("f.overlay.png").exists(), "nothing written");
+    // One file given twice writes one overlay, the same picture: not refused.
+    let o = run(args(&[&a, &a]));
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(ov.join("f.overlay.png").is_file());
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// A warning on a run that succeeds reads as a warning (`unitac: warning: ...`), not as the
+/// error line `unitac: ...` that ends a run: the overlay's marker arrows on a gel without
+/// markers found.
+#[test]
+fn warnings_read_as_warnings() {
+    let d = tmpdir("warning-form");
+    let (bg, f) = (d.join("bg.png"), d.join("f.png"));
+    flat_png(&bg, 320, 240, 128);
+    flat_png(&f, 320, 240, 128);
+    let o = unitac(&[
+        "contact",
+        "--sensor",
+        "gelsight-mini",
+        "--background",
+        bg.to_str().unwrap(),
+        "--overlay",
+        d.join("ov").to_str().unwrap(),
+        f.to_str().unwrap(),
+    ]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{e}");
+    assert!(e.contains("no marker arrows"), "{e}");
+    for line in e.lines() {
+        assert!(line.starts_with("unitac: warning: "), "{line}");
+    }
+    std::fs::remove_dir_all(&d).ok();
+}

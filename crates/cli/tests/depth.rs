@@ -236,3 +236,167 @@ fn eval_depth_meets_the_readme() {
     assert_eq!((img.width(), img.height()), (960, 240));
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// `unitac` with `args`, killed after `limit`: (exit code, stderr); `None` code when it was
+/// still running.
+fn unitac_limited(args: &[&str], limit: std::time::Duration) -> (Option<i32>, String) {
+    let t0 = std::time::Instant::now();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            let mut err = String::new();
+            std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+            return (s.code(), err);
+        }
+        if t0.elapsed() > limit {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            return (None, "still running".into());
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
+/// Mock presses (`count`) in `d/mock`: the background and the press files.
+fn mock(d: &Path, count: &str) -> (PathBuf, Vec<String>) {
+    let out = d.join("mock");
+    let (code, _, err) = unitac(&[
+        "calibrate",
+        "mock-presses",
+        "--count",
+        count,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    (out.join("background.png"), presses(&out))
+}
+
+/// Circles in --circles larger than the image or centred outside it are refused before any
+/// work (exit 2, one line): with --review the drawing of a 1e300 px circle never ends, without
+/// it a garbage calibration was written with exit 0.
+#[test]
+fn circles_beyond_the_image_are_refused_at_once() {
+    let d = dir("circles");
+    let (bg, files) = mock(&d, "4");
+    let cal = d.join("cal.json");
+    let circles = d.join("circles.json");
+    let review = d.join("review");
+    for (x, y, r, with_review) in [
+        (160.0, 120.0, 1e300, true),
+        (160.0, 120.0, 1e9, true),
+        (160.0, 120.0, 121.0, false),
+        (-50.0, 120.0, 20.0, false),
+        (160.0, 1e6, 20.0, false),
+    ] {
+        let list: Vec<Value> = files
+            .iter()
+            .map(|f| {
+                let name = Path::new(f).file_name().unwrap().to_string_lossy();
+                serde_json::json!({"file": name, "x": x, "y": y, "r": r})
+            })
+            .collect();
+        std::fs::write(&circles, Value::Array(list).to_string()).unwrap();
+        std::fs::remove_file(&cal).ok();
+        let mut args = vec![
+            "calibrate",
+            "depth",
+            "--sensor",
+            "gelsight-mini",
+            "--ball-radius-mm",
+            "2",
+            "--background",
+            bg.to_str().unwrap(),
+            "--out",
+            cal.to_str().unwrap(),
+            "--circles",
+            circles.to_str().unwrap(),
+        ];
+        if with_review {
+            args.extend(["--review", review.to_str().unwrap()]);
+        }
+        args.extend(files.iter().map(String::as_str));
+        let (code, err) = unitac_limited(&args, std::time::Duration::from_secs(30));
+        assert_eq!(code, Some(2), "x {x} y {y} r {r}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(
+            err.starts_with("unitac: --circles") && err.contains("320x240"),
+            "{err}"
+        );
+        assert!(!cal.exists(), "no calibration written");
+    }
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// Degenerate values are refused with the inclusive range the check applies, and the ends of
+/// that range are taken.
+#[test]
+fn degenerate_calibration_values_are_refused() {
+    let d = dir("degenerate");
+    let (bg, files) = mock(&d, "3");
+    let cal = d.join("cal.json");
+    let depth = |radius: &str, extra: &[&str]| {
+        let mut args = vec![
+            "calibrate",
+            "depth",
+            "--sensor",
+            "gelsight-mini",
+            "--ball-radius-mm",
+            radius,
+            "--background",
+            bg.to_str().unwrap(),
+            "--out",
+            cal.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        args.extend(files.iter().map(String::as_str));
+        unitac(&args)
+    };
+    let refused = |(code, _, err): (Option<i32>, String, String), needle: &str| {
+        assert_eq!(code, Some(2), "{err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(err.starts_with("unitac: ") && err.contains(needle), "{err}");
+    };
+    refused(
+        depth("2", &["--mm-per-px", "1e-9"]),
+        "--mm-per-px <MM_PER_PX>': 0.000000001 is outside 0.001 to 1 (inclusive)",
+    );
+    refused(
+        depth("2", &["--mm-per-px", "1e9"]),
+        "0.001 to 1 (inclusive)",
+    );
+    for r in ["NaN", "0", "1e9", "0.0999", "100.5"] {
+        refused(depth(r, &[]), "0.1 to 100 (inclusive)");
+    }
+    // The range's ends are ball radii: the run goes past the check (the fit itself may still
+    // fail on presses of another ball, exit 1).
+    for r in ["0.1", "100"] {
+        let (code, _, err) = depth(r, &[]);
+        assert_ne!(code, Some(2), "{r}: {err}");
+        assert!(!err.contains("ball-radius"), "{r}: {err}");
+    }
+    let mock_out = d.join("mock2");
+    let mock = |flag: &str, v: &str| {
+        unitac(&[
+            "calibrate",
+            "mock-presses",
+            flag,
+            v,
+            "--out",
+            mock_out.to_str().unwrap(),
+        ])
+    };
+    refused(mock("--noise-dn", "NaN"), "0 to 64 (inclusive)");
+    refused(mock("--shading-dn", "inf"), "0 to 255 (inclusive)");
+    for r in ["NaN", "0", "1e9"] {
+        refused(mock("--ball-radius-mm", r), "0.5 to 10 (inclusive)");
+    }
+    refused(mock("--count", "0"), "1 to 500 (inclusive)");
+    assert!(!mock_out.exists(), "nothing written");
+    std::fs::remove_dir_all(&d).ok();
+}

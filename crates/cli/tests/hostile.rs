@@ -580,3 +580,72 @@ fn killed_recording_is_repaired_and_rosbags_reads_every_recovered_frame() {
     assert!(count >= recovered.len() as u64, "{meta}");
     std::fs::remove_dir_all(&d).ok();
 }
+
+// ---------------------------------------------------------------------------------------------
+
+/// Numbers out of range are refused (exit 2, one line naming the flag and its inclusive
+/// range), never clamped or replaced by a default; bad values of `calibrate depth` and
+/// `dataset fabrics` are exit 2 like everywhere else.
+#[test]
+fn numbers_out_of_range_are_refused_not_clamped() {
+    for (args, needle) in [
+        (
+            &["eval", "contact", "--idle-minutes", "NaN"][..],
+            "--idle-minutes <IDLE_MINUTES>': NaN is outside 0 to 600 (inclusive)",
+        ),
+        (
+            &["eval", "contact", "--idle-minutes", "1e12"],
+            "1000000000000 is outside 0 to 600 (inclusive)",
+        ),
+        (
+            &["bench", "contact", "--frames", "0"],
+            "--frames <FRAMES>': 0 is outside 1 to 10000 (inclusive)",
+        ),
+        (
+            &["bench", "contact", "--repeat", "0"],
+            "--repeat <REPEAT>': 0 is outside 1 to 1000 (inclusive)",
+        ),
+        (
+            &["report", "sampler", "--repeat", "0"],
+            "0 is outside 1 to 1000",
+        ),
+    ] {
+        assert_one_line(&unitac(args), 2, needle);
+    }
+    let d = tmpdir("bad-values");
+    let ds = d.join("ds");
+    assert_one_line(
+        &unitac(&[
+            "dataset",
+            "fabrics",
+            "--train",
+            "0",
+            "--test",
+            "0",
+            "--out",
+            ds.to_str().unwrap(),
+        ]),
+        2,
+        "--train 0 + --test 0 is 0; 1 to 100000 (inclusive)",
+    );
+    assert!(!ds.exists(), "nothing written");
+    let missing = d.join("missing.png");
+    assert_one_line(
+        &unitac(&[
+            "calibrate",
+            "depth",
+            "--sensor",
+            "gelsight-mini",
+            "--ball-radius-mm",
+            "2",
+            "--background",
+            missing.to_str().unwrap(),
+            "--out",
+            d.join("cal.json").to_str().unwrap(),
+            missing.to_str().unwrap(),
+        ]),
+        2,
+        "--background",
+    );
+    std::fs::remove_dir_all(&d).ok();
+}
