@@ -9,7 +9,7 @@ mod common;
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
-use unitac_infer::runtime::{InferError, RuntimeConfig, Session};
+use unitac_infer::runtime::{InferError, RuntimeConfig, Session, TensorF32};
 
 fn stub(name: &str, iterations: u64) -> PathBuf {
     let d = std::env::temp_dir().join(format!("unitac-infer-{}-{name}", std::process::id()));
@@ -24,7 +24,7 @@ fn stub(name: &str, iterations: u64) -> PathBuf {
     d.join("policy.onnx")
 }
 
-fn run(s: &mut Session, budget: Option<Duration>) -> Result<Vec<(Vec<i64>, Vec<f32>)>, InferError> {
+fn run(s: &mut Session, budget: Option<Duration>) -> Result<Vec<TensorF32>, InferError> {
     let state = [0.5f32; 8];
     let visual = [0.1f32; 5];
     let two = [0.0f32; 2];

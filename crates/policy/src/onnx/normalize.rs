@@ -131,7 +131,7 @@ impl Norm {
                 let mean = stat(tensor, "mean", m, spec.mean.as_ref(), lens, problems);
                 let std = stat(tensor, "std", m, spec.std.as_ref(), lens, problems);
                 for (index, &s) in std.iter().flatten().enumerate() {
-                    if !(s >= super::validate::MIN_SCALE) {
+                    if s.is_nan() || s < super::validate::MIN_SCALE {
                         problems.push(Mismatch::StdNotPositive {
                             tensor: tensor.to_string(),
                             index,
