@@ -15,6 +15,9 @@ pub struct Counters {
     pub errors: u64,
     /// Frames known lost before processing (subscriber queue overflow, source gaps).
     pub dropped: u64,
+    /// Events that are no error of the node's but a warning (the policy node: ticks on which
+    /// the policy failed: an error, an inference over its time limit, a refused action).
+    pub warnings: u64,
     pub busy_us: f64,
     pub last_error: String,
     /// Latencies that made no sense (a stamp more than a minute from the node's clock: a bag
@@ -57,6 +60,26 @@ impl Counters {
     }
 }
 
+/// The policy's control ticks by what they sent, as diagnostic values (the counts `unitac trials
+/// --json` reports as `policy_ticks`): every tick, the policy's action, and the safe action by
+/// why (the watchdog, a policy error, an inference over its time limit, a refused action, the
+/// controller's `failed` phase), and the first failure's reason.
+pub fn policy_ticks(c: &unitac_policy::TickCounts) -> Vec<(&'static str, String)> {
+    vec![
+        ("ticks", c.ticks.to_string()),
+        ("ticks_acted", c.acted.to_string()),
+        ("ticks_safe_watchdog", c.watchdog.to_string()),
+        ("ticks_policy_error", c.policy_error.to_string()),
+        ("ticks_over_budget", c.over_budget.to_string()),
+        ("ticks_refused", c.refused.to_string()),
+        ("ticks_ended", c.ended.to_string()),
+        (
+            "policy_first_failure",
+            c.first_failure.clone().unwrap_or_else(|| "none".into()),
+        ),
+    ]
+}
+
 #[derive(Debug)]
 pub struct Updater {
     name: String,
@@ -94,8 +117,8 @@ impl Updater {
         } else {
             0.0
         };
-        // OK = 0, WARN = 1: errors or drops since start are a warning, not a failure.
-        let level = u8::from(c.errors > 0 || c.dropped > 0);
+        // OK = 0, WARN = 1: errors, drops or warnings since start are a warning, not a failure.
+        let level = u8::from(c.errors > 0 || c.dropped > 0 || c.warnings > 0);
         let kv = |k: &str, v: String| KeyValue {
             key: k.into(),
             value: v,
@@ -131,5 +154,34 @@ impl Updater {
         a.header.stamp = stamp;
         a.status = vec![status];
         Some(a)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use unitac_core::msg::samples;
+
+    #[test]
+    fn policy_failures_are_in_the_values() {
+        let mut c = unitac_policy::TickCounts::default();
+        for msg in [
+            "policy: inference over budget: learned policy p@1: the model ran past its budget",
+            "policy: learned policy: the model predicted NaN",
+        ] {
+            c.count(&unitac_core::msg::PolicyStatus {
+                safety_ok: false,
+                phase: "act".into(),
+                message: msg.into(),
+                ..samples::policy_status()
+            });
+        }
+        let v = policy_ticks(&c);
+        let get = |k: &str| v.iter().find(|(n, _)| *n == k).map(|(_, x)| x.as_str());
+        assert_eq!(get("ticks"), Some("2"));
+        assert_eq!(get("ticks_acted"), Some("0"));
+        assert_eq!(get("ticks_over_budget"), Some("1"));
+        assert_eq!(get("ticks_policy_error"), Some("1"));
+        assert!(get("policy_first_failure").unwrap().contains("over budget"));
     }
 }

@@ -331,6 +331,15 @@ fn send_goal(
     .boxed_local()
 }
 
+/// Count the ticks among `out` (their PolicyStatus) by what they sent.
+fn count_ticks(out: &[Msg], ticks: &mut unitac_policy::TickCounts) {
+    for m in out {
+        if let Msg::PolicyStatus(s) = m {
+            ticks.count(s);
+        }
+    }
+}
+
 struct Publishers {
     gripper: GripperOut,
     arm: r2r::Publisher<r2r::unitac_msgs::msg::ArmCommand>,
@@ -549,6 +558,8 @@ async fn run_async() -> anyhow::Result<()> {
     diag_timer.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut counters = diagnostics::Counters::default();
     let (mut watchdog_ticks, mut last_status) = (0u64, String::new());
+    // Every tick by what it sent (the policy's action, or the safe action and why).
+    let mut ticks = unitac_policy::TickCounts::default();
     loop {
         tokio::select! {
             m = incoming.next() => {
@@ -581,6 +592,7 @@ async fn run_async() -> anyhow::Result<()> {
                 if !out.produced.is_empty() {
                     counters.latency(age_s(&clock, stamp));
                 }
+                count_ticks(&out.produced, &mut ticks);
                 pubs.publish(out.produced, &mut counters, &mut last_status);
                 counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
             }
@@ -598,6 +610,7 @@ async fn run_async() -> anyhow::Result<()> {
                 }
                 if !out.produced.is_empty() {
                     watchdog_ticks += 1;
+                    count_ticks(&out.produced, &mut ticks);
                     pubs.publish(out.produced, &mut counters, &mut last_status);
                 }
             }
@@ -606,6 +619,9 @@ async fn run_async() -> anyhow::Result<()> {
                     ("status", last_status.clone()),
                     ("watchdog_ticks", watchdog_ticks.to_string()),
                 ];
+                extra.extend(diagnostics::policy_ticks(&ticks));
+                // A policy that fails (an error, over its time limit, refused) is a warning.
+                counters.warnings = ticks.failed();
                 if let GripperOut::Action { link, name, .. } = &pubs.gripper {
                     extra.push(("gripper_action", name.clone()));
                     extra.push(("gripper_goals_sent", link.goals_sent().to_string()));
