@@ -634,8 +634,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             .training_seed
             .or_else(|| scenes.first().and_then(|(_, s)| scene_training_seed(s)));
         crate::emit(text_report(
-            &a,
-            training_seed,
+            (&a, training_seed),
             kind,
             split,
             gripper,
@@ -653,8 +652,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
 
 /// The tables as text: the main one, which trials failed, the clamps, the sweep's.
 fn text_report(
-    a: &TrialsArgs,
-    training_seed: Option<u32>,
+    (a, training_seed): (&TrialsArgs, Option<u32>),
     kind: TaskKind,
     split: Split,
     gripper: TrialGripper,
