@@ -37,6 +37,23 @@ pub fn f64_in(lo: f64, hi: f64) -> impl Fn(&str) -> Result<f64, String> + Clone 
     }
 }
 
+/// A clap value parser: a finite number above `lo` (excluded) and at most `hi` (a duration that
+/// must be positive, ...).
+pub fn f64_above(lo: f64, hi: f64) -> impl Fn(&str) -> Result<f64, String> + Clone + Send + Sync {
+    move |s: &str| {
+        let range = format!("above {lo}, at most {hi}");
+        let v: f64 = s
+            .trim()
+            .parse()
+            .map_err(|_| format!("not a number; a number {range}"))?;
+        if v.is_finite() && v > lo && v <= hi {
+            Ok(v)
+        } else {
+            Err(format!("{v} is outside the range: a number {range}"))
+        }
+    }
+}
+
 /// A clap value parser: an integer within `lo` to `hi`, both inclusive.
 pub fn int_in<T>(lo: T, hi: T) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync
 where
@@ -95,5 +112,14 @@ mod tests {
         assert_eq!(n("0").unwrap_err(), "0 is outside 1 to 500 (inclusive)");
         assert!(n("-1").unwrap_err().contains("1 to 500"));
         assert!(n("501").is_err());
+        let d = f64_above(0.0, 3600.0);
+        assert_eq!(d("3600"), Ok(3600.0));
+        assert_eq!(d("1e-3"), Ok(1e-3));
+        for bad in ["0", "-1", "NaN", "inf", "3600.5"] {
+            assert!(
+                d(bad).unwrap_err().contains("above 0, at most 3600"),
+                "{bad}"
+            );
+        }
     }
 }

@@ -3,6 +3,7 @@
 //! `--port sim` runs the action against a simulated device on a pseudo-terminal instead.
 
 use crate::ConfigError;
+use crate::args::{f64_above, f64_in};
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -59,16 +60,17 @@ pub struct GripperArgs {
     pub baud: Option<u32>,
     /// Grip force limit for open/close, 0 to 10000 N, clamped to the model's range (default: the
     /// model's minimum).
-    #[arg(long, value_parser = f64_in(0.0, 10_000.0, true))]
+    #[arg(long, value_parser = f64_in(0.0, 10_000.0))]
     pub force: Option<f64>,
     /// Finger speed for open/close, 0 to 10 m/s, clamped to the model's range (default: half the
     /// model's maximum).
-    #[arg(long, value_parser = f64_in(0.0, 10.0, true))]
+    #[arg(long, value_parser = f64_in(0.0, 10.0))]
     pub speed: Option<f64>,
     /// How long to wait for the action (activate/open/close), to run the bench or to serve the
     /// simulated gripper: more than 0, at most 3600 s.
-    #[arg(long, default_value_t = 5.0, value_parser = f64_in(0.0, 3600.0, false))]
+    #[arg(long, default_value_t = 5.0, value_parser = f64_above(0.0, 3600.0))]
     pub seconds: f64,
+    /// Print the result (state, or the bench's rates) as one JSON object.
     #[arg(long)]
     pub json: bool,
     /// bench: write commands every cycle (they move the gripper: a Robotiq is activated and
@@ -80,27 +82,20 @@ pub struct GripperArgs {
     /// bad-crc: every reply's CRC corrupted).
     #[arg(long, value_enum)]
     pub inject: Option<Inject>,
+    /// What to do with the gripper.
     pub action: Action,
 }
 
-/// A clap value parser: a finite number from `lo` (included when `with_lo`) to `hi` (included).
-fn f64_in(lo: f64, hi: f64, with_lo: bool) -> impl Fn(&str) -> Result<f64, String> + Clone {
-    move |s: &str| {
-        let range = if with_lo {
-            format!("from {lo} to {hi} (inclusive)")
-        } else {
-            format!("above {lo}, at most {hi}")
-        };
-        let v: f64 = s
-            .trim()
-            .parse()
-            .map_err(|_| format!("not a number; a number {range}"))?;
-        let above_lo = if with_lo { v >= lo } else { v > lo };
-        if v.is_finite() && above_lo && v <= hi {
-            Ok(v)
-        } else {
-            Err(format!("{v} is outside the range: a number {range}"))
+/// Why the serial port named could not be opened: a port that is not there or not ours is bad
+/// configuration (exit 2); one that fails otherwise (busy, not a serial port) is a failed run
+/// (exit 1).
+fn port_error(e: unitac_gripper::port::PortError) -> anyhow::Error {
+    use unitac_gripper::port::PortError;
+    match e {
+        PortError::NotFound { .. } | PortError::Permission { .. } => {
+            anyhow::Error::new(ConfigError(e.to_string()))
         }
+        e => e.into(),
     }
 }
 
@@ -126,7 +121,7 @@ pub fn run(a: GripperArgs) -> anyhow::Result<bool> {
     cfg.slave = a.slave.unwrap_or(cfg.slave);
     cfg.baud = a.baud.unwrap_or(cfg.baud);
     // Open once here so a wrong port or a permission problem is reported at once, as such.
-    drop(unitac_gripper::port::open(&port, cfg.baud)?);
+    drop(unitac_gripper::port::open(&port, cfg.baud).map_err(port_error)?);
     let mut g = SerialGripper::start(cfg.clone())?;
     let deadline = Instant::now() + Duration::from_secs_f64(a.seconds);
     wait(&g, deadline, &cfg, |s| s.activation != Activation::Unknown)?;
@@ -237,7 +232,16 @@ fn simulate(a: &GripperArgs) -> anyhow::Result<bool> {
     // (unitac_gripper_sim::device::link): anything else at --port is refused before any work.
     let dev = match SimDevice::spawn(cfg.clone()) {
         Ok(d) => d,
-        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+        // Something at --port, or no directory (or no right) to make the link in: the port
+        // named is the problem, before any work.
+        Err(e)
+            if matches!(
+                e.kind(),
+                std::io::ErrorKind::AlreadyExists
+                    | std::io::ErrorKind::NotFound
+                    | std::io::ErrorKind::PermissionDenied
+            ) =>
+        {
             return Err(anyhow::Error::new(ConfigError(format!(
                 "--port {}: {e}",
                 link.display()
@@ -385,7 +389,7 @@ fn run_bench(a: &GripperArgs) -> anyhow::Result<bool> {
     }
     let mut results: Vec<BenchResult> = Vec::new();
     if a.port != "sim" {
-        let p = unitac_gripper::port::open(&PathBuf::from(&a.port), baud)?;
+        let p = unitac_gripper::port::open(&PathBuf::from(&a.port), baud).map_err(port_error)?;
         let mut c = RtuClient::new(
             p,
             ClientConfig {

@@ -194,37 +194,6 @@ const CASES: &[(&str, &[&str])] = &[
     ("scenes", &["scenes", "--scene-dir", "{tmp}/missing_dir"]),
 ];
 
-/// Cases that do not yet end with exit 2 and one `unitac:` line: the command, an argument that
-/// picks its case, and the file that owns the fix. They still run (no panic, no hang); drop one
-/// from here once it holds.
-const PENDING_EXIT_2: &[(&str, &str, &str)] = &[
-    (
-        "gripper activate",
-        "{tmp}/missing_tty",
-        "crates/cli/src/gripper.rs: a missing --port device exits 1",
-    ),
-    (
-        "gripper status",
-        "{tmp}/missing_tty",
-        "crates/cli/src/gripper.rs: a missing --port device exits 1",
-    ),
-    (
-        "gripper simulate",
-        "{tmp}/missing_dir/tty",
-        "crates/cli/src/gripper.rs: a --port that cannot be made exits 1",
-    ),
-    (
-        "gripper open",
-        "--seconds",
-        "crates/cli/src/gripper.rs: --seconds NaN exits 1",
-    ),
-    (
-        "gripper bench",
-        "--seconds",
-        "crates/cli/src/gripper.rs: --seconds 1e12 exits 1",
-    ),
-];
-
 fn unitac(args: &[String]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_unitac"))
         .args(args)
@@ -327,14 +296,6 @@ fn tmp() -> PathBuf {
     d
 }
 
-/// Why case (`name`, `args`) is in [`PENDING_EXIT_2`], if it is.
-fn pending(name: &str, args: &[&str]) -> Option<&'static str> {
-    PENDING_EXIT_2
-        .iter()
-        .find(|(n, a, _)| *n == name && args.contains(a))
-        .map(|(_, _, why)| *why)
-}
-
 #[test]
 fn every_subcommand_refuses_a_bad_value_with_exit_2_and_one_line() {
     let mut found = BTreeSet::new();
@@ -367,13 +328,8 @@ fn every_subcommand_refuses_a_bad_value_with_exit_2_and_one_line() {
             && lines.len() == 1
             && lines[0].starts_with("unitac: ")
             && !lines[0].starts_with("unitac: warning:");
-        match (ok, pending(name, case)) {
-            (true, Some(why)) => {
-                eprintln!("{name}: holds now; remove it from PENDING_EXIT_2 ({why})")
-            }
-            (true, None) => {}
-            (false, Some(why)) => eprintln!("{name}: pending: {why}: exit {code:?}: {err}"),
-            (false, None) => failures.push(format!("{args:?}: exit {code:?} in {took:?}: {err}")),
+        if !ok {
+            failures.push(format!("{args:?}: exit {code:?} in {took:?}: {err}"));
         }
     }
     std::fs::remove_dir_all(&d).ok();

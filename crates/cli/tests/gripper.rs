@@ -46,7 +46,8 @@ fn bad_ports_get_messages_that_say_what_is_wrong() {
         "status",
     ]);
     let (_, err) = text(&o);
-    assert_eq!(o.status.code(), Some(1));
+    // A port that is not there is bad configuration, found before any work.
+    assert_eq!(o.status.code(), Some(2));
     assert!(
         err.contains("/dev/ttyUSB-unitac-none: no such serial device"),
         "{err}"
@@ -54,6 +55,7 @@ fn bad_ports_get_messages_that_say_what_is_wrong() {
     let o = unitac(&["--port", "/dev/null", "--model", "dh_ag95", "status"]);
     let (_, err) = text(&o);
     assert!(err.contains("/dev/null: not a serial port"), "{err}");
+    assert_eq!(o.status.code(), Some(1));
     let o = unitac(&["--port", "sim", "--model", "robotiq_3f", "status"]);
     let (_, err) = text(&o);
     assert_eq!(o.status.code(), Some(2));

@@ -173,12 +173,13 @@ fn a_stale_simulator_link_is_replaced_and_the_link_goes_at_the_end() {
 #[test]
 fn a_failed_start_leaves_nothing_behind() {
     let d = scratch("failed");
-    // The link's directory does not exist: the start fails, and writes nothing anywhere.
+    // The link's directory does not exist: the port named is the problem (exit 2, one line
+    // naming it), and nothing is written anywhere.
     let port = d.join("missing").join("ttyGRIPPER");
     let o = simulate(&port, "1");
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
-        stderr(&o).contains("starting the simulated gripper"),
+        stderr(&o).starts_with("unitac: --port ") && stderr(&o).trim_end().lines().count() == 1,
         "{}",
         stderr(&o)
     );
