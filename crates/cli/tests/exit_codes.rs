@@ -315,7 +315,7 @@ fn every_subcommand_refuses_a_bad_value_with_exit_2_and_one_line() {
 
     let d = tmp();
     let mut failures = Vec::new();
-    for (name, case) in CASES {
+    for (_, case) in CASES {
         let args: Vec<String> = case
             .iter()
             .map(|a| a.replace("{tmp}", d.to_str().unwrap()))
