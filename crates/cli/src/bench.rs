@@ -88,15 +88,14 @@ fn frames_at(n: usize, scale: u32) -> anyhow::Result<Vec<Frame>> {
         .collect())
 }
 
-/// A fresh temporary directory `unitac-<tag>-<pid>` holding `frames` (rgb8, one after the
+/// A new temporary directory ([`crate::scratch::new_dir`]) holding `frames` (rgb8, one after the
 /// other) as `frames.raw` and `bg` as `bg.raw`, for a Python baseline to read.
 pub(crate) fn raw_frames_dir(
     tag: &str,
     frames: &[Frame],
     bg: &Frame,
 ) -> anyhow::Result<std::path::PathBuf> {
-    let dir = std::env::temp_dir().join(format!("unitac-{tag}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
+    let dir = crate::scratch::new_dir(tag)?;
     let raw: Vec<u8> = frames
         .iter()
         .flat_map(|f| f.data().iter().copied())
@@ -315,9 +314,7 @@ pub fn bench_replay(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
         .first()
         .map(|f| (f.width, f.height))
         .context("no frames")?;
-    let dir = std::env::temp_dir().join(format!("unitac-bench-replay-{}", std::process::id()));
-    std::fs::remove_dir_all(&dir).ok();
-    std::fs::create_dir_all(&dir)?;
+    let dir = crate::scratch::new_dir("bench-replay")?;
     let result = (|| {
         let bag = bench_bag(&dir, &frames)?;
         rust_pass(&bag, true)?; // warm-up (page cache)

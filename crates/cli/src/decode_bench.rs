@@ -307,8 +307,7 @@ pub fn bench_decode(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
     let mut versions = String::new();
     let mut mad = None;
     if with_python {
-        let dir = std::env::temp_dir().join(format!("unitac-bench-decode-{}", std::process::id()));
-        std::fs::create_dir_all(&dir)?;
+        let dir = crate::scratch::new_dir("bench-decode")?;
         for (i, j) in jpegs.iter().enumerate() {
             std::fs::write(dir.join(format!("frame_{i}.jpg")), j)?;
         }

@@ -19,6 +19,7 @@ mod policy_bench;
 mod progress;
 mod replay;
 mod sampler;
+mod scratch;
 mod slip_eval;
 mod touch_dataset;
 mod trials;

@@ -482,9 +482,7 @@ fn load_onnx(dir: Option<&Path>) -> anyhow::Result<(OnnxPolicy, String, Option<P
         Some(d) => (d.to_path_buf(), None),
         None => {
             let (python, root) = crate::bench::project_python()?;
-            let d =
-                std::env::temp_dir().join(format!("unitac-bench-policy-{}", std::process::id()));
-            std::fs::create_dir_all(&d)?;
+            let d = crate::scratch::new_dir("bench-policy")?;
             let st = std::process::Command::new(python)
                 .arg(root.join("tests/policy/make_policy.py"))
                 .arg(&d)

@@ -190,36 +190,30 @@ const ALLOWED: &[(&str, &str, usize, &str)] = &[
         1,
         "a file inside --out",
     ),
-    // Benchmarks: scratch directories unitac-<tag>-<pid> under the temporary directory.
+    // Benchmarks: new scratch directories under the temporary directory (scratch.rs).
     (
-        "crates/cli/src/bench.rs",
-        "create_dir_all(",
-        2,
-        "scratch unitac-<tag>-<pid> in the temp dir for a Python baseline",
+        "crates/cli/src/scratch.rs",
+        "create_dir(",
+        1,
+        "a new directory unitac-<tag>-<pid>-<n> in the temp dir (never an existing one)",
     ),
     (
         "crates/cli/src/bench.rs",
         "fs::write(",
         2,
-        "frames.raw, bg.raw inside that scratch directory",
+        "frames.raw, bg.raw inside a scratch directory this run made",
     ),
     (
         "crates/cli/src/bench.rs",
         "remove_dir_all(",
-        3,
+        2,
         "that scratch directory when done",
-    ),
-    (
-        "crates/cli/src/decode_bench.rs",
-        "create_dir_all(",
-        1,
-        "scratch unitac-bench-decode-<pid> in the temp dir",
     ),
     (
         "crates/cli/src/decode_bench.rs",
         "fs::write(",
         2,
-        "frames inside it",
+        "frames inside a scratch directory this run made",
     ),
     (
         "crates/cli/src/decode_bench.rs",
@@ -235,15 +229,9 @@ const ALLOWED: &[(&str, &str, usize, &str)] = &[
     ),
     (
         "crates/cli/src/policy_bench.rs",
-        "create_dir_all(",
-        1,
-        "scratch unitac-bench-policy-<pid> for a generated policy",
-    ),
-    (
-        "crates/cli/src/policy_bench.rs",
         "remove_dir_all(",
         1,
-        "that scratch directory when done (only the generated one)",
+        "the scratch directory of a generated policy when done (only that one)",
     ),
     // Python helpers run by setup and the CLI.
     (
