@@ -91,6 +91,20 @@ pub struct TrialsArgs {
     /// trains seeds 0, 1, 2 into `<learned>/seed<K>/<task>_<mode>`).
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..1000))]
     pub training_seed: u32,
+    /// Add uniform noise of up to this many mm (0-10) to the arm height of every command the
+    /// policy sends, drawn per tick from the trial's own stream: a policy whose arm does not
+    /// hold its height still (the world's grasp geometry must not turn it into a collision).
+    #[arg(long, value_name = "MM", default_value_t = 0.0, value_parser = arm_z_noise_mm)]
+    pub arm_z_noise_mm: f64,
+}
+
+/// `--arm-z-noise-mm`: finite, within [0, MAX_ARM_Z_NOISE_M] in mm.
+fn arm_z_noise_mm(s: &str) -> std::result::Result<f64, String> {
+    let hi = unitac_trials::run::MAX_ARM_Z_NOISE_M * 1e3;
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && (0.0..=hi).contains(&v) => Ok(v),
+        _ => Err(format!("{s}: not a number of mm in [0, {hi}]")),
+    }
 }
 
 /// The scene's `policy` model moved to training seed `seed`: the bundle of the same name under
@@ -164,6 +178,8 @@ struct Report<'a> {
     seed: u64,
     trials: u32,
     gripper: &'a str,
+    /// Arm height noise added to every command (`--arm-z-noise-mm`) \[mm].
+    arm_z_noise_mm: f64,
     table: &'a [Row],
     /// The touch modes with each trial's touch values from the next trial (`--permute-touch`).
     #[serde(skip_serializing_if = "<[Row]>::is_empty")]
@@ -409,7 +425,10 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     }
     let split = if a.train { Split::Train } else { Split::Unseen };
     let task = TaskConfig::new(kind, split);
-    let opts = TrialOptions::for_task(kind);
+    let opts = TrialOptions {
+        arm_z_noise_m: a.arm_z_noise_mm * 1e-3,
+        ..TrialOptions::for_task(kind)
+    };
     let gripper = a.gripper;
     let variants = if a.sweep {
         Variant::sweep(kind)
@@ -490,6 +509,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             seed: a.seed,
             trials: a.trials,
             gripper: gripper.name(),
+            arm_z_noise_mm: a.arm_z_noise_mm,
             table: &rows,
             touch_permuted: &permuted,
             sweep: &sweep,
