@@ -43,6 +43,9 @@ use unitac_sim::{MockConfig, MockSensor, Scenario};
 /// Salts of the sensor's seed and the camera's noise stream (apart from the trial's own draw).
 const SENSOR_SALT: u64 = 0x5345_4E53_4F52_0001;
 const CAMERA_SALT: u64 = 0x4341_4D45_5241_0001;
+const ARM_Z_NOISE_SALT: u64 = 0x4152_4D5A_4E53_0001;
+/// Most arm height noise a trial adds to the policy's commands ([`TrialOptions::arm_z_noise_m`]) \[m].
+pub const MAX_ARM_Z_NOISE_M: f64 = 0.01;
 /// Longest trial anyone may ask for \[s] (bounds the trace).
 pub const MAX_TRIAL_S: f64 = 600.0;
 /// Rejections kept per trial (the count goes on).
@@ -102,6 +105,10 @@ pub struct TrialOptions {
     /// Keep every message the chain took but frames, and every message it produced, in order
     /// ([`TrialRecord::messages`]: the policy golden's inputs and outputs).
     pub keep_messages: bool,
+    /// Uniform noise of up to this much \[m] added to the arm height of every command the
+    /// policy sends, drawn per tick from the trial's own stream (0: none): a policy whose arm
+    /// does not hold its height still, as a learned policy's does. The policy never sees it.
+    pub arm_z_noise_m: f64,
 }
 
 impl TrialOptions {
@@ -117,6 +124,7 @@ impl TrialOptions {
             hidden: None,
             record_io: false,
             keep_messages: false,
+            arm_z_noise_m: 0.0,
         }
     }
     fn check(&self) -> Result<(), TrialError> {
@@ -125,6 +133,12 @@ impl TrialOptions {
             return Err(TrialError::Options(format!(
                 "max_s = {}, settle_s = {} (max_s in (0, {MAX_TRIAL_S}] s, settle_s in [0, {MAX_TRIAL_S}] s)",
                 self.max_s, self.settle_s
+            )));
+        }
+        let z = self.arm_z_noise_m;
+        if !(z.is_finite() && (0.0..=MAX_ARM_Z_NOISE_M).contains(&z)) {
+            return Err(TrialError::Options(format!(
+                "arm_z_noise_m = {z} (in [0, {MAX_ARM_Z_NOISE_M}] m)"
             )));
         }
         Ok(())
@@ -524,6 +538,7 @@ pub fn run_trial_swapped(
     };
     let mut slip_detected = None;
     let mut ended_at: Option<f64> = None;
+    let mut z_noise = trial_rng(seed ^ ARM_Z_NOISE_SALT, trial);
     let ticks = (opts.max_s / dt).ceil() as u64;
     let keep = |record: &mut TrialRecord, errors: Vec<unitac_core::chain::Rejection>| {
         for e in errors {
@@ -623,7 +638,10 @@ pub fn run_trial_swapped(
                 touching,
             });
         }
-        let cmd = world.command(&g, &a).map_err(step_error(t))?;
+        let mut cmd = world.command(&g, &a).map_err(step_error(t))?;
+        if opts.arm_z_noise_m > 0.0 {
+            cmd.arm.z_m += opts.arm_z_noise_m * (2.0 * z_noise.uniform() - 1.0);
+        }
         let held = truth.objects.iter().find(|o| o.held);
         record.trace.push(TraceRow {
             t_s: t,

@@ -139,3 +139,40 @@ fn a_scene_that_cannot_drive_the_world_is_an_error() {
         assert!(matches!(e, TrialError::Options(_)), "{bad}: {e}");
     }
 }
+
+#[test]
+fn a_millimetre_of_arm_height_noise_does_not_turn_a_scripted_cup_grasp_into_a_collision() {
+    // The scripted VLA cup controller holds its arm height exactly; the same controller with up to
+    // +-1 mm of noise on every command's height (a learned policy's arm does not hold still)
+    // must grasp the same: the world's fingers stay around a cup while they are below its rim.
+    let task = TaskConfig::cup(Split::Train);
+    let scene = unitac_pipeline::load_scene("cup_deformation_vla", None).unwrap();
+    for n in 0..3 {
+        let still = run_trial(&scene, &task, 4242, n, &opts(&task, 40.0)).unwrap();
+        let noisy_opts = TrialOptions {
+            arm_z_noise_m: 1e-3,
+            ..opts(&task, 40.0)
+        };
+        let noisy = run_trial(&scene, &task, 4242, n, &noisy_opts).unwrap();
+        let (TaskOutcome::Cup(s), TaskOutcome::Cup(c)) = (&still.outcome, &noisy.outcome) else {
+            panic!("{:?}", noisy.outcome)
+        };
+        assert!(!c.collision, "trial {n}: {c:?}");
+        assert_eq!((c.lift, c.collision), (s.lift, s.collision), "trial {n}");
+        assert!(
+            (c.deformation_m - s.deformation_m).abs() < 1e-3,
+            "trial {n}: {c:?} vs {s:?}"
+        );
+        // The noise reached the world: the two trials' traces differ.
+        assert_ne!(still.trace, noisy.trace, "trial {n}");
+    }
+    // Out of range: refused before the trial.
+    let bad = TrialOptions {
+        arm_z_noise_m: f64::NAN,
+        ..opts(&task, 40.0)
+    };
+    assert!(matches!(
+        run_trial(&scene, &task, 4242, 0, &bad),
+        Err(TrialError::Options(_))
+    ));
+}
