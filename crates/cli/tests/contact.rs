@@ -20,6 +20,16 @@ fn save_rgb(path: &Path, f: &unitac_core::Frame) {
         .unwrap();
 }
 
+/// A frame as a JPEG at quality 95.
+fn jpeg(f: &unitac_core::Frame) -> Vec<u8> {
+    let img = image::RgbImage::from_raw(f.width, f.height, f.data().to_vec()).unwrap();
+    let mut out = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 95)
+        .encode_image(&img)
+        .unwrap();
+    out
+}
+
 fn run(args: &[&str]) -> (Option<i32>, Vec<Value>, String) {
     let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
         .args(args)
@@ -37,6 +47,21 @@ fn run(args: &[&str]) -> (Option<i32>, Vec<Value>, String) {
     )
 }
 
+/// `unitac replay <bag> --fast --json --sensor digit`, which must succeed: its JSON lines and
+/// its stderr.
+fn replay_digit(bag: &Path) -> (Vec<Value>, String) {
+    let (code, lines, stderr) = run(&[
+        "replay",
+        bag.to_str().unwrap(),
+        "--fast",
+        "--json",
+        "--sensor",
+        "digit",
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    (lines, stderr)
+}
+
 #[test]
 fn contract_on_good_and_bad_files() {
     let d = dir();
@@ -52,13 +77,7 @@ fn contract_on_good_and_bad_files() {
     save_rgb(&bg, &s.render(0).0);
     save_rgb(&press, &s.render(hold).0);
     // JPEG at high quality: compression noise must not read as contact.
-    let f = s.render(3).0;
-    let img = image::RgbImage::from_raw(f.width, f.height, f.data().to_vec()).unwrap();
-    let mut jpg = std::fs::File::create(&idle).unwrap();
-    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpg, 95)
-        .encode_image(&img)
-        .unwrap();
-    drop(jpg);
+    std::fs::write(&idle, jpeg(&s.render(3).0)).unwrap();
 
     // Truncated PNG, zero-byte file, grayscale and 16-bit versions of the press, a 1x1 image.
     let truncated = d.join("truncated.png");
@@ -220,14 +239,6 @@ fn truncated_jpeg_is_a_frame_error_and_a_bad_background() {
         MockConfig::new(SensorKind::GelsightMini, 5),
         Scenario::fabric_selection(),
     );
-    let jpeg = |f: &unitac_core::Frame| {
-        let img = image::RgbImage::from_raw(f.width, f.height, f.data().to_vec()).unwrap();
-        let mut out = Vec::new();
-        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 95)
-            .encode_image(&img)
-            .unwrap();
-        out
-    };
     let bg_bytes = jpeg(&s.render(0).0);
     let idle_bytes = jpeg(&s.render(2).0);
     let (bg, idle, cut, cut_bg) = (
@@ -364,11 +375,7 @@ fn replay_counts_a_cut_jpeg_message_as_a_failed_image() {
     let cut_at = 20;
     for k in 0..n {
         let f = s.render(k).0;
-        let img = image::RgbImage::from_raw(f.width, f.height, f.data().to_vec()).unwrap();
-        let mut data = Vec::new();
-        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut data, 95)
-            .encode_image(&img)
-            .unwrap();
+        let mut data = jpeg(&f);
         if k == cut_at {
             data.truncate(data.len() / 2);
         }
@@ -380,23 +387,7 @@ fn replay_counts_a_cut_jpeg_message_as_a_failed_image() {
         w.write(t, f.stamp.0, &msg).unwrap();
     }
     let path = w.finish().unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
-        .args([
-            "replay",
-            path.to_str().unwrap(),
-            "--fast",
-            "--json",
-            "--sensor",
-            "digit",
-        ])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let lines: Vec<Value> = String::from_utf8(o.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let (lines, stderr) = replay_digit(&path);
     assert_eq!(lines.len(), n as usize);
     let errors: Vec<usize> = (0..lines.len())
         .filter(|&i| lines[i].get("error").is_some())
@@ -408,7 +399,6 @@ fn replay_counts_a_cut_jpeg_message_as_a_failed_image() {
         lines[cut_at as usize]
     );
     assert!(lines.iter().all(|l| l["contact"] != true), "{lines:?}");
-    let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(stderr.contains("1 of 30"), "{stderr}");
 }
 
@@ -451,23 +441,7 @@ fn replay_learns_a_new_frame_size() {
         w.write(t, f.stamp.0, &Image::rgb8(&f)).unwrap();
     }
     let path = w.finish().unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
-        .args([
-            "replay",
-            path.to_str().unwrap(),
-            "--fast",
-            "--json",
-            "--sensor",
-            "digit",
-        ])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let lines: Vec<Value> = String::from_utf8(o.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let (lines, _) = replay_digit(&path);
     assert_eq!(lines.len(), 61);
     let errors = lines.iter().filter(|l| l.get("error").is_some()).count();
     let states = lines.iter().filter(|l| l["contact"].is_boolean()).count();
