@@ -47,6 +47,24 @@ fn run(args: &[&str]) -> (Option<i32>, Vec<Value>, String) {
     )
 }
 
+/// `unitac contact --sensor <sensor> --background <background> --json <files>`.
+fn contact_json(
+    sensor: &str,
+    background: &Path,
+    files: &[&Path],
+) -> (Option<i32>, Vec<Value>, String) {
+    let mut args = vec![
+        "contact",
+        "--sensor",
+        sensor,
+        "--background",
+        background.to_str().unwrap(),
+        "--json",
+    ];
+    args.extend(files.iter().map(|p| p.to_str().unwrap()));
+    run(&args)
+}
+
 /// `unitac replay <bag> --fast --json --sensor digit`, which must succeed: its JSON lines and
 /// its stderr.
 fn replay_digit(bag: &Path) -> (Vec<Value>, String) {
@@ -101,16 +119,8 @@ fn contract_on_good_and_bad_files() {
     let files = [
         &press, &idle, &truncated, &empty, &gray, &deep, &tiny, &missing,
     ];
-    let mut args = vec![
-        "contact",
-        "--sensor",
-        "gelsight-mini",
-        "--background",
-        bg.to_str().unwrap(),
-        "--json",
-    ];
-    args.extend(files.iter().map(|p| p.to_str().unwrap()));
-    let (code, lines, stderr) = run(&args);
+    let paths: Vec<&Path> = files.iter().map(|p| p.as_path()).collect();
+    let (code, lines, stderr) = contact_json("gelsight-mini", &bg, &paths);
     assert_eq!(code, Some(2), "some files failed: exit 2 ({stderr})");
     assert_eq!(lines.len(), files.len(), "one line per file, in order");
     for (l, f) in lines.iter().zip(files) {
@@ -168,15 +178,7 @@ fn all_good_files_exit_0_and_bad_background_exits_2() {
     let (bg, f) = (d.join("bg.png"), d.join("f.png"));
     save_rgb(&bg, &s.render(0).0);
     save_rgb(&f, &s.render(1).0);
-    let (code, lines, _) = run(&[
-        "contact",
-        "--sensor",
-        "digit",
-        "--background",
-        bg.to_str().unwrap(),
-        f.to_str().unwrap(),
-        "--json",
-    ]);
+    let (code, lines, _) = contact_json("digit", &bg, &[&f]);
     assert_eq!(code, Some(0));
     assert_eq!(lines[0]["contact"], false);
     assert_eq!(lines[0]["area_px"], 0.0);
@@ -212,15 +214,7 @@ fn all_good_files_exit_0_and_bad_background_exits_2() {
     image::RgbImage::from_pixel(1, 1, image::Rgb([200, 100, 100]))
         .save(&t2)
         .unwrap();
-    let (code, lines, _) = run(&[
-        "contact",
-        "--sensor",
-        "generic",
-        "--background",
-        t1.to_str().unwrap(),
-        t2.to_str().unwrap(),
-        "--json",
-    ]);
+    let (code, lines, _) = contact_json("generic", &t1, &[&t2]);
     assert_eq!(code, Some(0));
     assert_eq!(
         lines[0]["contact"], false,
@@ -251,16 +245,7 @@ fn truncated_jpeg_is_a_frame_error_and_a_bad_background() {
     std::fs::write(&idle, &idle_bytes).unwrap();
     std::fs::write(&cut, &idle_bytes[..idle_bytes.len() / 2]).unwrap();
     std::fs::write(&cut_bg, &bg_bytes[..bg_bytes.len() / 2]).unwrap();
-    let (code, lines, stderr) = run(&[
-        "contact",
-        "--sensor",
-        "gelsight-mini",
-        "--background",
-        bg.to_str().unwrap(),
-        "--json",
-        idle.to_str().unwrap(),
-        cut.to_str().unwrap(),
-    ]);
+    let (code, lines, stderr) = contact_json("gelsight-mini", &bg, &[&idle, &cut]);
     assert_eq!(code, Some(2), "a bad frame: exit 2 ({stderr})");
     assert_eq!(lines.len(), 2);
     assert_eq!(lines[0]["contact"], false, "{}", lines[0]);
@@ -271,15 +256,7 @@ fn truncated_jpeg_is_a_frame_error_and_a_bad_background() {
     assert!(e.contains("cut.jpg") && e.contains("truncated"), "{e}");
     assert!(lines[1].get("contact").is_none(), "{}", lines[1]);
 
-    let (code, lines, stderr) = run(&[
-        "contact",
-        "--sensor",
-        "gelsight-mini",
-        "--background",
-        cut_bg.to_str().unwrap(),
-        "--json",
-        idle.to_str().unwrap(),
-    ]);
+    let (code, lines, stderr) = contact_json("gelsight-mini", &cut_bg, &[&idle]);
     assert_eq!(code, Some(2), "{lines:?}");
     assert!(
         lines.is_empty()
@@ -300,14 +277,7 @@ fn oversized_image_header_states_the_limit() {
     image::RgbImage::from_pixel(8, 8, image::Rgb([90, 90, 90]))
         .save(&bg)
         .unwrap();
-    let mut args = vec![
-        "contact".to_string(),
-        "--sensor".into(),
-        "generic".into(),
-        "--background".into(),
-        bg.to_str().unwrap().into(),
-        "--json".into(),
-    ];
+    let mut files = Vec::new();
     let sizes = [(16_777_216u32, 1u32), (8193, 2), (4097, 4097)];
     for (w, h) in sizes {
         // A PNG header alone (no pixel data) claiming w x h.
@@ -324,10 +294,10 @@ fn oversized_image_header_states_the_limit() {
         }
         let p = d.join(format!("{w}x{h}.png"));
         std::fs::write(&p, png).unwrap();
-        args.push(p.to_str().unwrap().into());
+        files.push(p);
     }
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let (code, lines, _) = run(&args);
+    let paths: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
+    let (code, lines, _) = contact_json("generic", &bg, &paths);
     assert_eq!(code, Some(2));
     for ((w, h), l) in sizes.iter().zip(&lines) {
         let e = l["error"].as_str().unwrap();
@@ -488,15 +458,7 @@ fn degraded_presses_read_as_the_detector_reads_them() {
         );
         save_rgb(&bp, &bg);
         save_rgb(&fp, &frame);
-        let (code, lines, stderr) = run(&[
-            "contact",
-            "--sensor",
-            "digit",
-            "--background",
-            bp.to_str().unwrap(),
-            "--json",
-            fp.to_str().unwrap(),
-        ]);
+        let (code, lines, stderr) = contact_json("digit", &bp, &[&fp]);
         assert_eq!(code, Some(0), "{name}: {stderr}");
         let l = &lines[0];
         let mut det = ContactDetector::new(ContactParams::default(), kind.spec()).unwrap();
