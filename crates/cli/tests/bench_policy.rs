@@ -5,6 +5,9 @@
 
 use std::process::Command;
 
+mod common;
+use common::unitac_within;
+
 /// Every scene per task and mode (`<task>_<mode>` in the scene directories, the list
 /// `unitac_pipeline::tasks` finds), so a scene added there and left out of the bench fails here.
 fn scenes() -> Vec<String> {
@@ -71,15 +74,7 @@ fn bench_policy_prints_a_row_per_scene_mode_and_pass_and_the_python_rows() {
 
     // The text table: a line per row.
     let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
-        .args([
-            "bench",
-            "policy",
-            "--repeat",
-            "1",
-            "--ticks",
-            "0",
-            "--no-python",
-        ])
+        .args(bench_policy_args("0"))
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -119,23 +114,17 @@ fn the_all_stages_scene_loads_every_stage_kind() {
     }
 }
 
-/// `unitac args`, killed after `limit` (a hang is a failure, not a stuck test).
-fn unitac_within(args: &[&str], limit: std::time::Duration) -> std::process::Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_unitac"))
-        .args(args)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = std::time::Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > limit {
-            child.kill().unwrap();
-            panic!("unitac {args:?} still ran after {limit:?}");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(50));
-    }
-    child.wait_with_output().unwrap()
+/// `unitac bench policy` of one repeat, `ticks` ticks and no Python rows.
+fn bench_policy_args(ticks: &str) -> Vec<&str> {
+    vec![
+        "bench",
+        "policy",
+        "--repeat",
+        "1",
+        "--ticks",
+        ticks,
+        "--no-python",
+    ]
 }
 
 #[test]
@@ -143,20 +132,9 @@ fn a_bad_bundle_and_a_tick_count_out_of_range_are_exit_2_before_any_work() {
     let dir = std::env::temp_dir().join(format!("unitac-bench-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("manifest.json"), "{\"policy\": 1}").unwrap();
-    let o = unitac_within(
-        &[
-            "bench",
-            "policy",
-            "--repeat",
-            "1",
-            "--ticks",
-            "0",
-            "--no-python",
-            "--policy",
-            dir.to_str().unwrap(),
-        ],
-        std::time::Duration::from_secs(120),
-    );
+    let mut args = bench_policy_args("0");
+    args.extend(["--policy", dir.to_str().unwrap()]);
+    let o = unitac_within(&args, &[], std::time::Duration::from_secs(120));
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.starts_with("unitac: --policy "), "{err}");
@@ -165,15 +143,8 @@ fn a_bad_bundle_and_a_tick_count_out_of_range_are_exit_2_before_any_work() {
     let _ = std::fs::remove_dir_all(&dir);
 
     let o = unitac_within(
-        &[
-            "bench",
-            "policy",
-            "--repeat",
-            "1",
-            "--ticks",
-            "4294967295",
-            "--no-python",
-        ],
+        &bench_policy_args("4294967295"),
+        &[],
         std::time::Duration::from_secs(60),
     );
     let err = String::from_utf8_lossy(&o.stderr);

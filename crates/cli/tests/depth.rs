@@ -6,6 +6,9 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod common;
+use common::{calibrate_depth_args, press_files as presses};
+
 fn dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("unitac-depth-cli-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -22,22 +25,6 @@ fn unitac(args: &[&str]) -> (Option<i32>, String, String) {
         String::from_utf8_lossy(&o.stdout).into_owned(),
         String::from_utf8_lossy(&o.stderr).into_owned(),
     )
-}
-
-fn presses(d: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(d)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| {
-            p.file_name()
-                .unwrap()
-                .to_string_lossy()
-                .starts_with("press_")
-        })
-        .map(|p| p.display().to_string())
-        .collect();
-    v.sort();
-    v
 }
 
 fn json(path: &Path) -> Value {
@@ -62,22 +49,13 @@ fn calibrate_review_correct_and_refuse() {
     let bg = out.join("background.png");
     let cal = d.join("cal.json");
     let review = d.join("review");
-    let mut args = vec![
-        "calibrate",
-        "depth",
-        "--sensor",
-        "gelsight-mini",
-        "--ball-radius-mm",
-        "2",
+    let mut args = calibrate_depth_args("2", &bg, &cal);
+    args.extend([
         "--serial",
         "MOCK-0001",
-        "--background",
-        bg.to_str().unwrap(),
-        "--out",
-        cal.to_str().unwrap(),
         "--review",
         review.to_str().unwrap(),
-    ];
+    ]);
     args.extend(files.iter().map(String::as_str));
     let (code, _, err) = unitac(&args);
     assert_eq!(code, Some(0), "{err}");
@@ -303,20 +281,8 @@ fn circles_beyond_the_image_are_refused_at_once() {
             .collect();
         std::fs::write(&circles, Value::Array(list).to_string()).unwrap();
         std::fs::remove_file(&cal).ok();
-        let mut args = vec![
-            "calibrate",
-            "depth",
-            "--sensor",
-            "gelsight-mini",
-            "--ball-radius-mm",
-            "2",
-            "--background",
-            bg.to_str().unwrap(),
-            "--out",
-            cal.to_str().unwrap(),
-            "--circles",
-            circles.to_str().unwrap(),
-        ];
+        let mut args = calibrate_depth_args("2", &bg, &cal);
+        args.extend(["--circles", circles.to_str().unwrap()]);
         if with_review {
             args.extend(["--review", review.to_str().unwrap()]);
         }
@@ -341,18 +307,7 @@ fn degenerate_calibration_values_are_refused() {
     let (bg, files) = mock(&d, "3");
     let cal = d.join("cal.json");
     let depth = |radius: &str, extra: &[&str]| {
-        let mut args = vec![
-            "calibrate",
-            "depth",
-            "--sensor",
-            "gelsight-mini",
-            "--ball-radius-mm",
-            radius,
-            "--background",
-            bg.to_str().unwrap(),
-            "--out",
-            cal.to_str().unwrap(),
-        ];
+        let mut args = calibrate_depth_args(radius, &bg, &cal);
         args.extend(extra);
         args.extend(files.iter().map(String::as_str));
         unitac(&args)

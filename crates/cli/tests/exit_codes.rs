@@ -9,6 +9,8 @@ use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+mod common;
+
 /// How long a bad value may take to be refused (it is refused before any work).
 const LIMIT: Duration = Duration::from_secs(60);
 
@@ -204,26 +206,9 @@ fn unitac(args: &[String]) -> std::process::Output {
         .unwrap()
 }
 
-/// The `Commands:` of a help page (without `help`).
-fn commands(help: &str) -> Vec<String> {
-    let Some((_, rest)) = help.split_once("Commands:\n") else {
-        return Vec::new();
-    };
-    rest.lines()
-        .take_while(|l| !l.trim().is_empty())
-        .filter_map(|l| l.split_whitespace().next())
-        .filter(|c| *c != "help")
-        .map(String::from)
-        .collect()
-}
-
 /// The values of a target positional (`[possible values: a, b]` in the short help).
 fn targets(short_help: &str) -> Vec<String> {
-    let Some((_, rest)) = short_help.split_once("Arguments:\n") else {
-        return Vec::new();
-    };
-    rest.lines()
-        .take_while(|l| !l.trim().is_empty())
+    common::help_section(short_help, "Arguments")
         .filter_map(|l| l.split_once("[possible values: "))
         .flat_map(|(_, v)| {
             v.trim_end()
@@ -245,7 +230,7 @@ fn help(path: &[String], flag: &str) -> String {
 
 /// Every command the help pages list, down to the leaves, each leaf with its targets.
 fn walk(path: Vec<String>, out: &mut BTreeSet<String>) {
-    let subs = commands(&help(&path, "--help"));
+    let subs = common::help_commands(&help(&path, "--help"));
     if subs.is_empty() {
         let t = targets(&help(&path, "-h"));
         if t.is_empty() {

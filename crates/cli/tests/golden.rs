@@ -13,6 +13,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use unitac_core::golden::{diff, parse_lines};
 
+mod common;
+
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
@@ -148,32 +150,10 @@ fn depth_scene(dir: &Path) -> PathBuf {
         "--out",
         mock.to_str().unwrap(),
     ]);
-    let mut presses: Vec<String> = std::fs::read_dir(&mock)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| {
-            p.file_name()
-                .unwrap()
-                .to_string_lossy()
-                .starts_with("press_")
-        })
-        .map(|p| p.display().to_string())
-        .collect();
-    presses.sort();
+    let presses = common::press_files(&mock);
     let cal = dir.join("cal.json");
     let bg = mock.join("background.png");
-    let mut args = vec![
-        "calibrate",
-        "depth",
-        "--sensor",
-        "gelsight-mini",
-        "--ball-radius-mm",
-        "2",
-        "--background",
-        bg.to_str().unwrap(),
-        "--out",
-        cal.to_str().unwrap(),
-    ];
+    let mut args = common::calibrate_depth_args("2", &bg, &cal);
     args.extend(presses.iter().map(String::as_str));
     events(&args);
     let text = std::fs::read_to_string(root().join("launch/scenes/fabric_selection.yaml")).unwrap();

@@ -4,13 +4,8 @@
 
 use std::process::{Command, Output};
 
-fn unitac(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_unitac"))
-        .arg("gripper")
-        .args(args)
-        .output()
-        .unwrap()
-}
+mod common;
+use common::unitac_gripper as unitac;
 
 fn text(o: &Output) -> (String, String) {
     (

@@ -10,13 +10,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-fn unitac(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_unitac"))
-        .arg("gripper")
-        .args(args)
-        .output()
-        .unwrap()
-}
+mod common;
+use common::unitac_gripper as unitac;
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()

@@ -5,6 +5,8 @@
 
 use std::process::Command;
 
+mod common;
+
 fn help(path: &[String]) -> String {
     let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
         .args(path)
@@ -18,17 +20,7 @@ fn help(path: &[String]) -> String {
 /// Every help page below `path`, with its path.
 fn pages(path: Vec<String>, out: &mut Vec<(Vec<String>, String)>) {
     let text = help(&path);
-    let subs: Vec<String> = text
-        .split_once("Commands:\n")
-        .map(|(_, rest)| {
-            rest.lines()
-                .take_while(|l| !l.trim().is_empty())
-                .filter_map(|l| l.split_whitespace().next())
-                .filter(|c| *c != "help")
-                .map(String::from)
-                .collect()
-        })
-        .unwrap_or_default();
+    let subs = common::help_commands(&text);
     out.push((path.clone(), text));
     for s in subs {
         let mut p = path.clone();

@@ -10,6 +10,8 @@ use unitac_bag::{BagWriter, WriteOptions};
 use unitac_core::{SensorKind, Source};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
+mod common;
+
 fn unitac(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_unitac"))
         .args(args)
@@ -629,23 +631,9 @@ fn numbers_out_of_range_are_refused_not_clamped() {
         "--train 0 + --test 0 is 0; 1 to 100000 (inclusive)",
     );
     assert!(!ds.exists(), "nothing written");
-    let missing = d.join("missing.png");
-    assert_one_line(
-        &unitac(&[
-            "calibrate",
-            "depth",
-            "--sensor",
-            "gelsight-mini",
-            "--ball-radius-mm",
-            "2",
-            "--background",
-            missing.to_str().unwrap(),
-            "--out",
-            d.join("cal.json").to_str().unwrap(),
-            missing.to_str().unwrap(),
-        ]),
-        2,
-        "--background",
-    );
+    let (missing, cal) = (d.join("missing.png"), d.join("cal.json"));
+    let mut args = common::calibrate_depth_args("2", &missing, &cal);
+    args.push(missing.to_str().unwrap());
+    assert_one_line(&unitac(&args), 2, "--background");
     std::fs::remove_dir_all(&d).ok();
 }

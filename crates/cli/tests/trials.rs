@@ -4,6 +4,8 @@
 
 use std::process::{Command, Output};
 
+mod common;
+
 fn unitac(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_unitac"))
         .args(args)
@@ -317,28 +319,26 @@ fn learned_scene(dir: &std::path::Path, task: &str, bundle: &std::path::Path, ex
     std::fs::write(dir.join(format!("{task}_learned_vla.yaml")), out).unwrap();
 }
 
-/// `unitac args`, killed after `limit` (a hang is a failure, not a stuck test).
+/// `unitac args` (warnings and errors logged), killed after `limit`.
 fn unitac_within(args: &[&str], limit: std::time::Duration) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_unitac"))
-        .args(args)
-        .env("RUST_LOG", "warn")
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = std::time::Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > limit {
-            child.kill().unwrap();
-            let o = child.wait_with_output().unwrap();
-            panic!(
-                "unitac {args:?} still ran after {limit:?}: {}",
-                String::from_utf8_lossy(&o.stderr)
-            );
-        }
-        std::thread::sleep(std::time::Duration::from_millis(50));
-    }
-    child.wait_with_output().unwrap()
+    common::unitac_within(args, &[("RUST_LOG", "warn")], limit)
+}
+
+/// `unitac trials` of one training trial of the learned policy in `scene`, found in the scene
+/// directory `dir`.
+fn learned_trial_args<'a>(scene: &'a str, dir: &'a std::path::Path) -> Vec<&'a str> {
+    vec![
+        "trials",
+        "--scene",
+        scene,
+        "--policy",
+        "learned",
+        "--trials",
+        "1",
+        "--train",
+        "--scene-dir",
+        dir.to_str().unwrap(),
+    ]
 }
 
 fn tmp(name: &str) -> std::path::PathBuf {
@@ -353,19 +353,8 @@ fn a_learned_policy_that_fails_on_every_tick_is_counted_warned_and_exit_1() {
     let d = tmp("nan");
     stub(&d.join("nan"), &["--kind", "nan"]);
     learned_scene(&d, "stubnan", &d.join("nan/manifest.json"), "");
-    let args = [
-        "trials",
-        "--scene",
-        "stubnan",
-        "--policy",
-        "learned",
-        "--trials",
-        "1",
-        "--train",
-        "--scene-dir",
-        d.to_str().unwrap(),
-    ];
-    let mut json_args = args.to_vec();
+    let args = learned_trial_args("stubnan", &d);
+    let mut json_args = args.clone();
     json_args.push("--json");
     let o = unitac_within(&json_args, std::time::Duration::from_secs(300));
     let err = String::from_utf8_lossy(&o.stderr);
@@ -419,22 +408,9 @@ fn a_learned_policy_over_its_inference_budget_does_not_hang_the_trial() {
         &d.join("loop/manifest.json"),
         "inference_budget_s: 0.002",
     );
-    let o = unitac_within(
-        &[
-            "trials",
-            "--scene",
-            "stubloop",
-            "--policy",
-            "learned",
-            "--trials",
-            "1",
-            "--train",
-            "--json",
-            "--scene-dir",
-            d.to_str().unwrap(),
-        ],
-        std::time::Duration::from_secs(240),
-    );
+    let mut args = learned_trial_args("stubloop", &d);
+    args.push("--json");
+    let o = unitac_within(&args, std::time::Duration::from_secs(240));
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -461,19 +437,8 @@ fn training_seed_moves_only_a_bundle_in_the_seed_layout() {
     stub(&d.join("custom/stub"), &["--kind", "ok"]);
     stub(&d.join("seed0/stub"), &["--kind", "nan"]);
     learned_scene(&d, "stubseed", &d.join("custom/stub/manifest.json"), "");
-    let base = [
-        "trials",
-        "--scene",
-        "stubseed",
-        "--policy",
-        "learned",
-        "--trials",
-        "1",
-        "--train",
-        "--json",
-        "--scene-dir",
-        d.to_str().unwrap(),
-    ];
+    let mut base = learned_trial_args("stubseed", &d);
+    base.push("--json");
     let o = unitac_within(&base, std::time::Duration::from_secs(300));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
@@ -482,7 +447,7 @@ fn training_seed_moves_only_a_bundle_in_the_seed_layout() {
     assert_eq!(t["acted"], t["ticks"], "the scene's own bundle ran: {t}");
     assert!(j["training_seed"].is_null(), "{}", j["training_seed"]);
     // Asked for a training seed, a bundle outside the layout is refused, not rewritten.
-    let mut args = base.to_vec();
+    let mut args = base.clone();
     args.extend(["--training-seed", "0"]);
     let o = unitac_within(&args, std::time::Duration::from_secs(300));
     let err = String::from_utf8_lossy(&o.stderr);
