@@ -18,7 +18,9 @@ mod rig;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use unitac_core::Stamp;
-use unitac_policy::onnx::{Mismatch, NamedInputs, OnnxPolicy, RunError, RuntimeConfig};
+use unitac_policy::onnx::{
+    ActionChunk, Mismatch, NamedInputs, OnnxPolicy, RunError, RuntimeConfig,
+};
 use unitac_policy::{PolicyParams, PolicyStage, TickCounts, TickKind};
 
 fn stub(name: &str, args: &[&str]) -> PathBuf {
@@ -58,6 +60,18 @@ fn rig(dir: &Path, p: PolicyParams) -> rig::Rig {
         vec![0.45, 0.0, 0.04, 0.08, 0.1],
     ));
     r
+}
+
+/// The policy's act on `state`, with the cup's visual features at 0.1 and the latched and arm
+/// inputs at 0.
+fn act(p: &mut OnnxPolicy, state: &[f32; 8], t: Stamp) -> Result<ActionChunk, RunError> {
+    let (visual, two) = ([0.1f32; 5], [0.0f32; 2]);
+    let named = NamedInputs::new()
+        .with("observation.state", state)
+        .with("observation.visual", &visual)
+        .with("observation.latched", &two)
+        .with("observation.arm", &two);
+    p.act(&named, t)
 }
 
 fn counts(r: &rig::Rig) -> TickCounts {
@@ -116,14 +130,7 @@ fn a_std_below_the_smallest_normal_float_is_refused_at_load() {
     // At the floor it loads; an input that still normalises out of range fails its tick.
     let dir = stub("stdmin", &["--kind", "ok", "--input-std", "1.2e-38"]);
     let mut p = OnnxPolicy::load(&dir, &RuntimeConfig::default()).unwrap();
-    let state = [100.0f32; 8];
-    let (visual, two) = ([0.1f32; 5], [0.0f32; 2]);
-    let named = NamedInputs::new()
-        .with("observation.state", &state)
-        .with("observation.visual", &visual)
-        .with("observation.latched", &two)
-        .with("observation.arm", &two);
-    match p.act(&named, Stamp(0)) {
+    match act(&mut p, &[100.0; 8], Stamp(0)) {
         Err(e @ RunError::NonFiniteFeature { index: 0, .. }) => {
             assert!(e.to_string().contains("normalises to inf"), "{e}");
         }
@@ -209,14 +216,7 @@ fn the_default_budget_is_three_control_periods_and_within_it_the_bytes_are_the_s
         p.set_budget(budget);
         (0..5)
             .map(|i| {
-                let state = [0.01 * i as f32; 8];
-                let (visual, two) = ([0.1f32; 5], [0.0f32; 2]);
-                let named = NamedInputs::new()
-                    .with("observation.state", &state)
-                    .with("observation.visual", &visual)
-                    .with("observation.latched", &two)
-                    .with("observation.arm", &two);
-                let c = p.act(&named, Stamp(i * 33_333_333)).unwrap();
+                let c = act(&mut p, &[0.01 * i as f32; 8], Stamp(i * 33_333_333)).unwrap();
                 c.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
             })
             .collect::<Vec<_>>()
