@@ -9,7 +9,9 @@ use std::process::Command;
 fn trials_refuse_a_gripper_whose_weakest_grip_breaks_the_scenes_force_cap() {
     for scene in ["cup_deformation", "fabric_selection"] {
         let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
-            .args(["trials", "--scene", scene, "--modes", "vla", "--trials", "1"])
+            .args([
+                "trials", "--scene", scene, "--modes", "vla", "--trials", "1",
+            ])
             .args(["--gripper", "dh_ag95"])
             .output()
             .unwrap();
