@@ -161,7 +161,9 @@ fn image_dimensions_are_checked_before_decoding() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(
-        out.contains("image is 8192x8192, more than 16777216 pixels"),
+        out.contains(
+            "image is 8192x8192: the limit is 1..=8192 pixels a side and 16777216 pixels in all"
+        ),
         "{out}"
     );
     // A frame within the budget but not the background's size: refused before decoding too.
@@ -175,7 +177,7 @@ fn image_dimensions_are_checked_before_decoding() {
     );
     // An oversized background is a configuration error.
     let o = contact_limited(&["--background", big.to_str().unwrap(), bg.to_str().unwrap()]);
-    assert_one_line(&o, 2, "more than 16777216 pixels");
+    assert_one_line(&o, 2, "pixels a side and 16777216 pixels in all");
     std::fs::remove_dir_all(&d).ok();
 }
 

@@ -78,11 +78,13 @@ fn a_run_within_its_budget_gives_the_bytes_of_a_run_without_one() {
     let short = stub("short", 2_000);
     let mut s = Session::open("short", &short, &RuntimeConfig::default()).unwrap();
     let free = run(&mut s, None).unwrap();
-    // A budget that a short loop cannot reach first stops one run ...
-    assert!(matches!(
-        run(&mut s, Some(Duration::from_nanos(1))),
-        Err(InferError::OverBudget { .. })
-    ));
+    // A budget of 1 ns either stops the run or (when the run ends before the deadline thread
+    // gets to it, as it may on a loaded machine) returns it as it came: never other bytes ...
+    match run(&mut s, Some(Duration::from_nanos(1))) {
+        Err(InferError::OverBudget { .. }) => {}
+        Ok(v) => assert_eq!(v, free),
+        Err(e) => panic!("{e}"),
+    }
     // ... and the next run, within a generous budget, is not stopped and equals the free one.
     for _ in 0..3 {
         let within = run(&mut s, Some(Duration::from_secs(10))).unwrap();
