@@ -176,15 +176,9 @@ fn the_checker_refuses_what_the_loader_would_refuse() {
 /// A small demos.json of the cup task in the layout `unitac demos` writes: one demonstration of
 /// three ticks, one object, pooled latents 2 wide, every value inside its bounds.
 fn small_demos() -> serde_json::Value {
-    let names = [
-        "gripper.position_m",
-        "gripper.speed_m_s",
-        "gripper.force_n",
-        "arm.x_m",
-        "arm.y_m",
-        "arm.z_m",
-        "arm.lift_m",
-    ];
+    // The command actions as the recorder names them (one list, unitac_trials::demos).
+    let names = unitac_trials::demos::action_names();
+    assert_eq!(names.len(), 7, "{names:?}");
     let bounds = [
         [0.0, 0.11],
         [0.0, 0.2],
