@@ -13,7 +13,8 @@
 //! - `command`: the command and what it refuses; `trial`: what a trial draws; `truth`: the
 //!   ground truth and the outcome;
 //! - `arm`: the kinematic arm; `hold`: friction and slip of the held object;
-//! - [`observe`]: the camera's observation and the sensor view;
+//! - [`observe`]: the camera's observation and the sensor view; `noise`: every noise figure of
+//!   the world with what its source is;
 //! - [`expert`]: the scripted expert and the demonstration record.
 //!
 //! Same (config, seed, trial) and the same commands give the same truth, bit for bit.
@@ -29,6 +30,7 @@ pub mod cup;
 pub mod expert;
 pub mod fabric;
 mod hold;
+mod noise;
 pub mod observe;
 pub mod sensing;
 pub mod split;
@@ -46,6 +48,7 @@ pub use fabric::{
     lifted,
 };
 pub use hold::{G, Hold};
+pub use noise::{NoiseFigure, SourceKind};
 pub use observe::{ROUGHNESS_SET_SD_M, SensorView, VisionNoise, VisualObservation};
 pub use sensing::{GripperReading, GripperSensing};
 pub use trial::{ObjectSpec, TaskObject, TrialSpec, trial_rng};
@@ -161,112 +164,6 @@ impl TaskConfig {
     }
     pub fn fabric(split: Split) -> Self {
         Self::new(TaskKind::Fabric, split)
-    }
-}
-
-/// A noise or measurement figure of the world and where it comes from.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct NoiseFigure {
-    pub name: &'static str,
-    pub value: f64,
-    pub unit: &'static str,
-    /// A datasheet or published figure, our measurement, or "assumed" (then swept).
-    pub source: &'static str,
-}
-
-impl TaskConfig {
-    /// Every noise and measurement figure of this world with its source.
-    pub fn noise_figures(&self) -> Vec<NoiseFigure> {
-        let v = &self.vision;
-        let s = &self.sensing;
-        let assumed = "assumed (swept x0.5 / x1 / x2 by `unitac trials --sweep`)";
-        let fig = |name, value, unit, source| NoiseFigure {
-            name,
-            value,
-            unit,
-            source,
-        };
-        vec![
-            fig(
-                "camera position bias (per trial, sd)",
-                v.position_bias_m,
-                "m",
-                assumed,
-            ),
-            fig(
-                "camera position noise (per frame, sd)",
-                v.position_m,
-                "m",
-                assumed,
-            ),
-            fig(
-                "camera size bias (per trial, sd)",
-                v.size_bias_m,
-                "m",
-                assumed,
-            ),
-            fig("camera size noise (per frame, sd)", v.size_m, "m", assumed),
-            fig(
-                "camera fabric edge height bias (per trial, sd)",
-                v.edge_bias_m,
-                "m",
-                assumed,
-            ),
-            fig(
-                "camera fabric edge height noise (per frame, sd)",
-                v.edge_m,
-                "m",
-                assumed,
-            ),
-            fig(
-                "camera fabric roughness bias (per trial, sd)",
-                v.roughness_bias_m,
-                "m",
-                "our measurement: the Ra spread of the nominal fabric types (a camera that cannot resolve the texture); swept with the camera",
-            ),
-            fig(
-                "camera fabric roughness noise (per frame, sd)",
-                v.roughness_m,
-                "m",
-                "assumed: a quarter of that spread; swept with the camera",
-            ),
-            fig(
-                "gripper current resolution",
-                s.current_step_a,
-                "A",
-                "Robotiq 2F-85/2F-140 manual: gCU, about 10 mA per count",
-            ),
-            fig(
-                "gripper current noise (sd)",
-                s.current_noise_a,
-                "A",
-                "assumed",
-            ),
-            fig(
-                "gripper force constant (nominal)",
-                s.force_per_amp,
-                "N/A",
-                "assumed",
-            ),
-            fig(
-                "gripper force constant error (per trial, sd)",
-                s.gain_error_sd,
-                "relative",
-                "assumed",
-            ),
-            fig(
-                "gripper opening resolution",
-                s.opening_step_m,
-                "m",
-                "assumed (encoder)",
-            ),
-            fig(
-                "gel pad half width across the closing axis",
-                self.gripper.pad_half_width_m,
-                "m",
-                "GelSight Mini datasheet: 18.6 x 14.3 mm sensing area",
-            ),
-        ]
     }
 }
 

@@ -4,16 +4,16 @@
 //! current times a nominal force constant, with the current's resolution and noise and this
 //! gripper's own gain error (drawn per trial, unknown to everyone but the world).
 //!
-//! Figures and where they come from (`noise_sources` lists them with every other noise figure):
+//! Figures and where they come from (`TaskConfig::noise_figures` lists them with every other noise figure):
 //! - current resolution 10 mA: the Robotiq 2F-85 / 2F-140 status register gCU ("the current is
 //!   approximately 10 x value read in mA", Robotiq 2F-85 & 2F-140 instruction manual, 4.7);
-//! - current noise 5 mA (one standard deviation per reading): assumed;
+//! - current noise 5 mA (one standard deviation per reading): a modelling choice;
 //! - force constant 100 N/A nominal and a gain error of 15 % (one standard deviation, per
-//!   trial): assumed (a 2F-140 grips 10-125 N; friction in the screw drive makes force from
+//!   trial): modelling choices (a 2F-140 grips 10-125 N; friction in the screw drive makes force from
 //!   current a rough estimate, which is why grippers quote force ranges, not accuracies);
-//! - opening resolution 0.1 mm: assumed (encoder).
+//! - opening resolution 0.1 mm: a modelling choice (encoder).
 //! - object detection: the fingers stopped short of their target with the current at or above
-//!   20 mA (two counts; assumed), what gOBJ reports on a Robotiq.
+//!   20 mA (two counts; a modelling choice), what gOBJ reports on a Robotiq.
 
 use serde::Serialize;
 
