@@ -173,6 +173,44 @@ struct TrialLine<'a> {
     /// What went over the wire (serial grippers).
     #[serde(skip_serializing_if = "Option::is_none")]
     serial: Option<&'a SerialReport>,
+    /// The cup's stiffness as the policy read it and as it is (cup modes that read one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stiffness: Option<&'a unitac_trials::StiffnessReading>,
+}
+
+/// A mode's stiffness readings over its trials.
+#[derive(Debug, Serialize)]
+struct StiffnessSummary {
+    /// Trials whose policy read a stiffness, and those in which its readout clipped a reading
+    /// to its range (a reading at a bound).
+    read: usize,
+    clipped: usize,
+    /// Median of |read - true| / true over the trials read.
+    median_relative_error: f64,
+}
+
+fn stiffness_summary(rs: &[TrialRecord]) -> Option<StiffnessSummary> {
+    let read: Vec<&unitac_trials::StiffnessReading> =
+        rs.iter().filter_map(|r| r.stiffness.as_ref()).collect();
+    if read.is_empty() {
+        return None;
+    }
+    let mut errs: Vec<f64> = read
+        .iter()
+        .map(|s| (s.read_n_per_m - s.true_n_per_m).abs() / s.true_n_per_m)
+        .collect();
+    errs.sort_by(f64::total_cmp);
+    let n = errs.len();
+    let median = if n % 2 == 1 {
+        errs[n / 2]
+    } else {
+        0.5 * (errs[n / 2 - 1] + errs[n / 2])
+    };
+    Some(StiffnessSummary {
+        read: n,
+        clipped: read.iter().filter(|s| s.clipped_ticks > 0).count(),
+        median_relative_error: median,
+    })
 }
 
 #[derive(Debug, Serialize)]
@@ -184,6 +222,8 @@ struct ModeReport<'a> {
     /// never acted (every tick sent the safe action).
     policy_ticks: TickCounts,
     never_acted: Vec<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stiffness: Option<StiffnessSummary>,
     trials: Vec<TrialLine<'a>>,
 }
 
@@ -619,6 +659,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
                     clamps: clamps(rs),
                     policy_ticks: policy_ticks(rs),
                     never_acted: never_acted(rs),
+                    stiffness: stiffness_summary(rs),
                     trials: rs
                         .iter()
                         .map(|r| TrialLine {
@@ -635,6 +676,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
                             reflex: &r.reflex,
                             policy_ticks: &r.policy_ticks,
                             serial: r.serial.as_ref(),
+                            stiffness: r.stiffness.as_ref(),
                         })
                         .collect(),
                 })
@@ -714,6 +756,15 @@ fn text_report(
                 "{}: the policy gave no usable action on {}\n",
                 m.as_str(),
                 t.failures_text()
+            ));
+        }
+        if let Some(k) = stiffness_summary(rs) {
+            text.push_str(&format!(
+                "{}: stiffness read in {} trial(s), clipped to the readout's range in {}, median error {:.0} %\n",
+                m.as_str(),
+                k.read,
+                k.clipped,
+                100.0 * k.median_relative_error
             ));
         }
         let c = clamps(rs);

@@ -117,6 +117,12 @@ pub struct PolicyParams {
     pub hold_s: f64,
     /// Cup, vtla_real: opening added back after the probe touch to end its contact \[m].
     pub probe_release_m: f64,
+    /// Cup, vtla_real: the probe's press after first contact: the opening closed further from
+    /// the contact opening \[m], held this long \[s] before the release. A press the sensor sees
+    /// as a steady image: a mere touch lasts a few frames, and what it shows depends on where
+    /// the frames fall in it more than on the cup.
+    pub probe_press_m: f64,
+    pub probe_press_s: f64,
     /// Cup, vtla_real: gel indentation per mm^2 of contact area growth \[m/mm^2], subtracted
     /// from the finger travel to estimate the cup's own compression.
     pub gel_indent_m_per_mm2: f64,
@@ -202,6 +208,8 @@ impl Default for PolicyParams {
             squeeze_speed_m_s: 0.005,
             hold_s: 1.0,
             probe_release_m: 0.002,
+            probe_press_m: 0.002,
+            probe_press_s: 0.4,
             gel_indent_m_per_mm2: 2e-5,
             stiffness_bias_n_per_m: 300.0,
             stiffness_weights: Vec::new(),
@@ -276,6 +284,8 @@ impl PolicyParams {
             ("cup_z_m", self.cup_z_m),
             ("hold_s", self.hold_s),
             ("probe_release_m", self.probe_release_m),
+            ("probe_press_m", self.probe_press_m),
+            ("probe_press_s", self.probe_press_s),
             ("gel_indent_m_per_mm2", self.gel_indent_m_per_mm2),
             ("stiffness_bias_n_per_m", self.stiffness_bias_n_per_m),
             ("pad_m", self.pad_m),

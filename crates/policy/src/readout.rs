@@ -3,7 +3,9 @@
 //! over the leading dimension`), or a fitted ONNX model the scene names (a policy bundle of
 //! [`crate::onnx`] with one input `observation.tactile_latent` of `latent_len` values and one
 //! action `cup.stiffness` in N/m; scripts/fit_reference_policy.py exports them). Either way the
-//! result is clamped to [`min_stiffness_n_per_m`, `max_stiffness_n_per_m`].
+//! result is clamped to [`min_stiffness_n_per_m`, `max_stiffness_n_per_m`], and a reading that
+//! lay outside (the model's own bounds or the params' range) is reported as clipped: a reading at
+//! a bound says the latent lies where the readout cannot tell, never a stiffness.
 //!
 //! [`min_stiffness_n_per_m`]: crate::PolicyParams::min_stiffness_n_per_m
 //! [`max_stiffness_n_per_m`]: crate::PolicyParams::max_stiffness_n_per_m
@@ -87,14 +89,15 @@ impl Readout {
     }
 
     /// The stiffness \[N/m] the latent says, at `now` (the model is asked afresh each time),
-    /// clamped to the params' range, and whether the raw readout lay beyond that range by more
-    /// than [`crate::safety::CLAMP_REPORT`] of it.
+    /// clamped to the params' range, and whether it was clipped: the raw readout lay outside
+    /// that range, or outside the model's bounds (the bundle clamps its action to them).
     pub fn stiffness(
         &mut self,
         p: &PolicyParams,
         latent: &TactileLatent,
         now: Stamp,
     ) -> Result<(f64, bool), PolicyError> {
+        let mut clipped = false;
         let k = match self {
             Readout::Linear => linear(p, latent)?,
             Readout::Model(m) => {
@@ -102,6 +105,7 @@ impl Readout {
                 let chunk = m
                     .act(&NamedInputs::new().with(STIFFNESS_INPUT, &latent.data), now)
                     .map_err(|e| PolicyError::Failed(format!("stiffness model {}: {e}", m.id())))?;
+                clipped = chunk.clamped > 0;
                 chunk
                     .now(STIFFNESS_ACTION)
                     .map(f64::from)
@@ -114,8 +118,7 @@ impl Readout {
             ));
         }
         let (lo, hi) = (p.min_stiffness_n_per_m, p.max_stiffness_n_per_m);
-        let margin = crate::safety::CLAMP_REPORT * (hi - lo).abs();
-        Ok((k.clamp(lo, hi), k < lo - margin || k > hi + margin))
+        Ok((k.clamp(lo, hi), clipped || k < lo || k > hi))
     }
 }
 

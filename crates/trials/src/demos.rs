@@ -95,21 +95,33 @@ pub struct DemoConfig {
     /// The arm's travel time to a target \[s] (the scenes' `approach_s`): the probe touch starts
     /// once the arm has had it since its target was commanded (and has arrived).
     pub approach_s: f64,
+    /// Cup: the fingers open to the camera's diameter plus this while the arm approaches \[m]
+    /// (the cup controller's two gel pads and pre-grasp margin), so that the probe touch starts
+    /// where a policy's would.
+    pub pregrasp_m: f64,
+    /// The probe's press after first contact: opening closed further \[m] and how long \[s].
+    pub probe_press_m: f64,
+    pub probe_press_s: f64,
 }
 
 impl Default for DemoConfig {
     fn default() -> Self {
+        // The probe as the cup controller makes it (its params' defaults).
+        let p = unitac_policy::PolicyParams::default();
         Self {
             task: TaskKind::Cup,
             dt_s: 1.0 / 30.0,
-            touch_speed_m_s: 0.01,
-            touch_force_n: 3.0,
-            probe_release_m: 0.002,
+            touch_speed_m_s: p.touch_speed_m_s,
+            touch_force_n: p.touch_force_n,
+            probe_release_m: p.probe_release_m,
             timeout_s: 8.0,
             expert_s: 4.0,
             fabric_s: task::expert::default_run(TaskKind::Fabric).1,
             pooled_len: 96,
             approach_s: 1.5,
+            pregrasp_m: 2.0 * p.pad_m + p.pregrasp_margin_m,
+            probe_press_m: p.probe_press_m,
+            probe_press_s: p.probe_press_s,
         }
     }
 }
@@ -238,6 +250,7 @@ struct Driven {
 enum Phase {
     Approach,
     Touch,
+    Press,
     Release,
     Expert,
 }
@@ -569,16 +582,19 @@ fn record_inner(
                     truth.gripper.force_n,
                     seen.contact.as_ref().map_or(f32::NAN, |s| s.area_mm2),
                 );
-                Some(Phase::Release)
+                Some(Phase::Press)
             }
+            Phase::Press if elapsed >= c.probe_press_s => Some(Phase::Release),
             Phase::Release if !in_contact => Some(Phase::Expert),
             Phase::Expert if elapsed >= run_s => break,
-            Phase::Approach | Phase::Touch | Phase::Release
+            Phase::Approach | Phase::Touch | Phase::Press | Phase::Release
                 if elapsed > c.timeout_s && driver.is_some() =>
             {
                 break;
             }
-            Phase::Approach | Phase::Touch | Phase::Release if elapsed > c.timeout_s => {
+            Phase::Approach | Phase::Touch | Phase::Press | Phase::Release
+                if elapsed > c.timeout_s =>
+            {
                 return Err(timeout(match phase {
                     Phase::Approach => "the arm did not reach the cup",
                     Phase::Touch => "no contact with the cup",
@@ -595,7 +611,13 @@ fn record_inner(
             // Fingers at the expert's first opening until the probe: the expert's own closing
             // starts on the arm's true arrival, which no policy observes.
             Phase::Approach => TaskCommand {
-                gripper: *approach_grip.get_or_insert(expert.gripper),
+                gripper: *approach_grip.get_or_insert_with(|| {
+                    let mut g = expert.gripper;
+                    if let (TaskKind::Cup, Some(w)) = (c.task, visual.get("cup.diameter_m")) {
+                        g.opening_m = (w + c.pregrasp_m).min(g.opening_m);
+                    }
+                    g
+                }),
                 arm: expert.arm,
             },
             Phase::Expert => expert,
@@ -606,6 +628,17 @@ fn record_inner(
                     force_n: c.touch_force_n,
                 },
                 arm: expert.arm.clone(),
+            },
+            Phase::Press => TaskCommand {
+                gripper: GripperSetpoint {
+                    opening_m: d0 - c.probe_press_m,
+                    speed_m_s: c.touch_speed_m_s,
+                    force_n: c.touch_force_n,
+                },
+                arm: ArmSetpoint {
+                    lift_m: 0.0,
+                    ..expert.arm.clone()
+                },
             },
             Phase::Release => TaskCommand {
                 gripper: GripperSetpoint {

@@ -27,6 +27,6 @@ pub mod table;
 
 pub use gripper::{TrialGripper, UnknownTrialGripper};
 pub use run::{
-    ChainMessage, TouchSwap, TraceRow, TrialError, TrialOptions, TrialRecord, run_trial,
-    run_trial_on, run_trial_swapped,
+    ChainMessage, StiffnessReading, TouchSwap, TraceRow, TrialError, TrialOptions, TrialRecord,
+    run_trial, run_trial_on, run_trial_swapped,
 };

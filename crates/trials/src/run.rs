@@ -217,6 +217,8 @@ pub struct TrialRecord {
     /// policy's action, or the safe action and why (a policy error, an inference over its time
     /// limit, a refused action, the watchdog, the controller's `failed` phase).
     pub policy_ticks: unitac_policy::TickCounts,
+    /// The cup's stiffness as the policy read it and as it is, when the policy read one.
+    pub stiffness: Option<StiffnessReading>,
     /// Per tick, when [`TrialOptions::record_io`].
     #[serde(skip)]
     pub io: Vec<TickIo>,
@@ -228,6 +230,18 @@ pub struct TrialRecord {
     /// (a [`TouchSwap`]'s donor for another trial).
     #[serde(skip)]
     pub touch: Vec<Msg>,
+}
+
+/// A cup controller's stiffness reading against the truth.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StiffnessReading {
+    /// The last stiffness the policy's status named \[N/m] (after its readout's clip).
+    pub read_n_per_m: f64,
+    /// The cup's: grip force at the target deformation over that deformation \[N/m] (the
+    /// demonstrations' label, [`crate::demos::cup_stiffness`]).
+    pub true_n_per_m: f64,
+    /// Ticks on which the readout had to clip a reading to its range (`readout.stiffness`).
+    pub clipped_ticks: u64,
 }
 
 /// The touch ablation: the latents and comparisons the tactile stages send the policy stage
@@ -376,6 +390,20 @@ pub fn trial_sensor(scene: &Scene, seed: u64, trial: u32) -> MockSensor {
     }
     // The scenario is not rendered (the world's sensor view is); it only sizes the sensor.
     MockSensor::new(cfg, Scenario::idle(MAX_TRIAL_S))
+}
+
+/// The cup's true stiffness label \[N/m] (NaN without a cup).
+fn true_cup_stiffness(world: &TaskWorld) -> f64 {
+    let d = world.config().cup_criteria.target_deformation_m;
+    world
+        .spec()
+        .objects
+        .iter()
+        .find_map(|o| match &o.spec {
+            unitac_sim::task::ObjectSpec::Cup(c) => Some(crate::demos::cup_stiffness(c, d)),
+            unitac_sim::task::ObjectSpec::Fabric(_) => None,
+        })
+        .unwrap_or(f64::NAN)
 }
 
 fn describe(world: &TaskWorld) -> String {
@@ -532,6 +560,7 @@ pub fn run_trial_swapped(
         clamped: Default::default(),
         reflex: Default::default(),
         policy_ticks: Default::default(),
+        stiffness: None,
         io: Vec::new(),
         messages: Vec::new(),
         touch: Vec::new(),
@@ -620,6 +649,17 @@ pub fn run_trial_swapped(
         record.policy_ticks.count(&status);
         for c in &status.clamped {
             *record.clamped.entry(c.clone()).or_default() += 1;
+        }
+        if let Some(k) = unitac_policy::controller::cup::stiffness_in(&status.message) {
+            record.stiffness = Some(StiffnessReading {
+                read_n_per_m: k,
+                true_n_per_m: true_cup_stiffness(world.world()),
+                clipped_ticks: record
+                    .clamped
+                    .get("readout.stiffness")
+                    .copied()
+                    .unwrap_or(0),
+            });
         }
         if let Some(r) = status.message.strip_prefix("reflex: ") {
             let kind = if r.starts_with("slip") {

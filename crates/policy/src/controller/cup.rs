@@ -6,9 +6,10 @@
 //! vla:       approach (the camera's cup_width_m W, averaged over the approach) -> close
 //!            (position W + 2 pad - d - vla_offset_m: the gel surfaces at W - d, less the gels'
 //!            own give, calibrated on training cups) -> hold -> lift -> done
-//! vtla_real: approach -> close (lightly, until the contact state says contact: D0 = opening)
-//!            -> probe (open by probe_release_m until the contact ends, so the episode's latent
-//!            is encoded) -> await_latent (stiffness k from the live latent: force cap
+//! vtla_real: approach -> close (lightly, each tick to probe_release_m inside the measured
+//!            opening, until the contact state says contact: D0 = opening)
+//!            -> probe (press to D0 - probe_press_m for probe_press_s, then open to
+//!            D0 + probe_release_m until the contact ends, so the episode's latent is encoded) -> await_latent (stiffness k from the live latent: force cap
 //!            k d force_margin) -> squeeze (toward D0 - d - gel indentation; compression =
 //!            D0 - opening - gel_indent_m_per_mm2 x area growth, live) -> hold -> lift -> done
 //! vtla_pred: approach (stiffness k from the predicted latent, before any touch: force F = k d,
@@ -17,6 +18,17 @@
 //! ```
 //! Every mode aims the fingertips where the camera saw the cup (`cup_x_m`, `cup_y_m`, averaged
 //! over the approach and kept from then on), never at its true place.
+//!
+//! vtla_real's close asks for an opening just inside the measured one, never for the closed
+//! gripper: the safety layer moves a command at most `max_step_m` per tick, so from a command of
+//! the closed gripper the probe's release would take many ticks to come back, and the fingers
+//! would press on meanwhile (several mm into the cup, a touch the stiffness readout was never
+//! fitted on). Closing by a lead of `probe_release_m`, the release is one step, and the touch is
+//! the demonstrations' touch (which close at the same speed without a safety layer).
+//!
+//! The stiffness a mode reads goes into its status message as `stiffness K N/m`
+//! ([`stiffness_in`] reads it back), and a reading the readout had to clip to its range is
+//! reported as clamped (`readout.stiffness`).
 
 use super::{Estimate, Timed, action, arm, force, position};
 use crate::mode::Mode;
@@ -58,6 +70,8 @@ pub struct CupController {
     failure: Option<PolicyError>,
     /// Latent -> stiffness (the params' linear readout or a fitted model).
     readout: Readout,
+    /// The stiffness read \[N/m] (vtla_real: of the probe touch; vtla_pred: the last prediction).
+    stiffness: Option<f64>,
     /// The camera's cup: x, y and width, averaged over the approach.
     seen: Estimate<3>,
     /// Clamps inside the controller since the stage last asked.
@@ -78,6 +92,7 @@ impl CupController {
             compression: 0.0,
             failure: None,
             readout: Readout::Linear,
+            stiffness: None,
             seen: Estimate::default(),
             clamped: Vec::new(),
             p: p.clone(),
@@ -100,6 +115,7 @@ impl CupController {
         if clamped {
             self.clamped.push("readout.stiffness");
         }
+        self.stiffness = Some(k);
         Ok(k)
     }
 
@@ -198,7 +214,8 @@ impl CupController {
                 },
             },
             Phase::Probe => {
-                if contact.is_some_and(|c| !c.in_contact) {
+                let pressed = elapsed >= p.probe_press_s;
+                if pressed && contact.is_some_and(|c| !c.in_contact) {
                     self.t.go(Phase::AwaitLatent);
                 } else if elapsed >= p.contact_timeout_s {
                     return Err(self.timeout("the probe contact did not end"));
@@ -295,24 +312,39 @@ impl CupController {
                         force(p.min_opening_m, p.squeeze_speed_m_s, f),
                         at(0.0),
                         format!(
-                            "squeezing with {f:.2} N (predicted stiffness x {:.4} m)",
+                            "squeezing with {f:.2} N (predicted stiffness {:.1} N/m x {:.4} m)",
+                            self.stiffness.unwrap_or(f64::NAN),
                             self.d
                         ),
                     )
                 }
-                Mode::VtlaReal => action(
-                    position(p.min_opening_m, p.touch_speed_m_s, p.touch_force_n),
-                    at(0.0),
-                    "closing until contact",
-                ),
+                Mode::VtlaReal => {
+                    // Just inside the measured opening: the release after contact is one step.
+                    let o = obs.gripper().map_or(p.max_opening_m, |g| g.opening_m);
+                    let t = (o - p.probe_release_m).max(p.min_opening_m);
+                    action(
+                        position(t, p.touch_speed_m_s, p.touch_force_n),
+                        at(0.0),
+                        format!("closing until contact, fingers to {t:.4} m"),
+                    )
+                }
             },
             Phase::Probe | Phase::AwaitLatent => {
                 let (d0, _) = self.d0.unwrap_or((p.max_opening_m, 0.0));
-                action(
-                    position(d0 + p.probe_release_m, p.touch_speed_m_s, p.touch_force_n),
-                    at(0.0),
-                    format!("probe touch at {d0:.4} m, waiting for its latent"),
-                )
+                if self.t.phase == Phase::Probe && elapsed < p.probe_press_s {
+                    let t = (d0 - p.probe_press_m).max(p.min_opening_m);
+                    action(
+                        position(t, p.touch_speed_m_s, p.touch_force_n),
+                        at(0.0),
+                        format!("probe press to {t:.4} m from first contact at {d0:.4} m"),
+                    )
+                } else {
+                    action(
+                        position(d0 + p.probe_release_m, p.touch_speed_m_s, p.touch_force_n),
+                        at(0.0),
+                        format!("probe touch at {d0:.4} m, waiting for its latent"),
+                    )
+                }
             }
             Phase::Squeeze => {
                 let (d0, a0) = self.d0.unwrap_or((p.max_opening_m, 0.0));
@@ -323,8 +355,10 @@ impl CupController {
                     position(d0 - self.d - gel, p.squeeze_speed_m_s, f),
                     at(0.0),
                     format!(
-                        "squeezing: compression {:.4} of {:.4} m ({f:.2} N cap)",
-                        self.compression, self.d
+                        "squeezing: compression {:.4} of {:.4} m ({f:.2} N cap, stiffness {:.1} N/m)",
+                        self.compression,
+                        self.d,
+                        self.stiffness.unwrap_or(f64::NAN)
                     ),
                 )
             }
@@ -337,6 +371,13 @@ impl CupController {
             Phase::Done | Phase::Failed => action(self.hold(), at(p.lift_m), "cup lifted"),
         }
     }
+}
+
+/// The stiffness \[N/m] a cup controller's status message names (`stiffness K N/m`), if any.
+pub fn stiffness_in(message: &str) -> Option<f64> {
+    let (_, rest) = message.split_once("stiffness ")?;
+    let (k, _) = rest.split_once(" N/m")?;
+    k.parse().ok().filter(|k: &f64| k.is_finite())
 }
 
 impl Policy for CupController {
