@@ -176,3 +176,33 @@ fn a_millimetre_of_arm_height_noise_does_not_turn_a_scripted_cup_grasp_into_a_co
         Err(TrialError::Options(_))
     ));
 }
+
+#[test]
+fn the_probe_reads_an_unseen_cups_stiffness_in_the_closed_loop_without_clipping() {
+    // Unseen cups are 2-3x softer than the training cups the readout was fitted on: the probe's
+    // press must show the sensor the wall, in the closed loop as in the demonstrations.
+    let task = TaskConfig::cup(Split::Unseen);
+    let scene = unitac_pipeline::load_scene("cup_deformation_vtla_real", None).unwrap();
+    let mut errors = Vec::new();
+    let mut clipped = 0;
+    for n in 0..8 {
+        let r = run_trial(&scene, &task, 2, n, &opts(&task, 12.0)).unwrap();
+        let Some(s) = &r.stiffness else {
+            // No reading: the trial never touched the cup (a collision of the camera's place).
+            let TaskOutcome::Cup(c) = &r.outcome else {
+                panic!("{:?}", r.outcome)
+            };
+            assert!(c.collision, "trial {n} read no stiffness: {:?}", r.phases);
+            continue;
+        };
+        assert!(s.true_n_per_m > 100.0 && s.true_n_per_m < 400.0, "{s:?}");
+        clipped += usize::from(s.clipped_ticks > 0);
+        errors.push((s.read_n_per_m - s.true_n_per_m).abs() / s.true_n_per_m);
+    }
+    assert!(errors.len() >= 6, "{errors:?}");
+    // No reading at a bound of the readout's range (at most 5 % of trials: none of these).
+    assert_eq!(clipped, 0);
+    errors.sort_by(f64::total_cmp);
+    let median = errors[errors.len() / 2];
+    assert!(median < 0.3, "median relative error {median}: {errors:?}");
+}
