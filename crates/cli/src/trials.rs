@@ -436,7 +436,30 @@ struct SweepRow {
     table: Vec<Row>,
 }
 
-type Records = Vec<(Mode, Vec<TrialRecord>)>;
+/// One column of the tables: a mode's scene, or a variant of it (`vla_force`: the cup VLA
+/// scene with its force rule, the strongest camera-only baseline beside the position rule).
+#[derive(Debug, Clone)]
+struct Column {
+    mode: Mode,
+    name: String,
+}
+
+impl Column {
+    fn of(mode: Mode) -> Self {
+        Self {
+            mode,
+            name: mode.as_str().to_string(),
+        }
+    }
+    fn as_str(&self) -> &str {
+        &self.name
+    }
+}
+
+/// The cup VLA rule that is not the scene's own, as a column of its own.
+const VLA_FORCE: &str = "vla_force";
+
+type Records = Vec<(Column, Vec<TrialRecord>)>;
 
 fn outcomes(records: &Records) -> Vec<(String, Vec<TaskOutcome>)> {
     records
@@ -534,8 +557,34 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             )));
         }
     };
-    let scenes: Vec<(Mode, unitac_core::Scene)> =
-        scenes.into_iter().map(|(m, _, s)| (m, s)).collect();
+    let mut scenes: Vec<(Column, unitac_core::Scene)> = scenes
+        .into_iter()
+        .map(|(m, _, s)| (Column::of(m), s))
+        .collect();
+    // Cup: VLA's force rule beside its position rule (scripted scenes; a learned VLA has one).
+    if kind == TaskKind::Cup && a.policy != "learned" {
+        let force = scenes
+            .iter()
+            .find(|(c, _)| c.mode == Mode::Vla)
+            .map(|(_, s)| unitac_trials::scene::with_vla_rule(s, unitac_policy::VlaRule::Force));
+        if let Some(s) = force {
+            unitac_pipeline::build_stages(&s).map_err(|e| config(e.to_string()))?;
+            let at = scenes
+                .iter()
+                .position(|(c, _)| c.mode == Mode::Vla)
+                .map_or(0, |i| i + 1);
+            scenes.insert(
+                at,
+                (
+                    Column {
+                        mode: Mode::Vla,
+                        name: VLA_FORCE.into(),
+                    },
+                    s,
+                ),
+            );
+        }
+    }
     if a.calibrate_vla && kind != TaskKind::Cup {
         return Err(config(calibrate_usage()));
     }
@@ -553,14 +602,14 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     };
     let touch_modes = modes.iter().filter(|m| **m != Mode::Vla).count();
     let total = u64::from(a.trials)
-        * (modes.len() * (1 + variants.len()) + if a.permute_touch { touch_modes } else { 0 })
+        * (scenes.len() * (1 + variants.len()) + if a.permute_touch { touch_modes } else { 0 })
             as u64;
     let bar = progress::bar(total, &format!("trials {}", a.scene));
     let mut records: Records = Vec::new();
     for (m, scene) in &scenes {
         bar.set_message(format!("trials {} {}", a.scene, m.as_str()));
         let rs = run_trials(scene, &task, (a.seed, a.trials), &opts, gripper, &bar, None)?;
-        records.push((*m, rs));
+        records.push((m.clone(), rs));
     }
     let rows = table::table(kind, &outcomes(&records));
     // The policy's failures of every run: warnings, and runs where it never acted.
@@ -580,7 +629,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         for (m, scene) in &scenes {
             bar.set_message(format!("sweep {} {}", v.name, m.as_str()));
             rs_all.push((
-                *m,
+                m.clone(),
                 run_trials(scene, &t, (a.seed, a.trials), &opts, gripper, &bar, None)?,
             ));
         }
@@ -596,7 +645,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     let mut permuted_records: Records = Vec::new();
     if a.permute_touch {
         for ((m, scene), (_, own)) in scenes.iter().zip(&records) {
-            if *m == Mode::Vla {
+            if m.mode == Mode::Vla {
                 continue;
             }
             let n = own.len();
@@ -604,7 +653,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
                 (0..n).map(|i| own[(i + 1) % n].touch.clone()).collect();
             bar.set_message(format!("touch permuted {}", m.as_str()));
             permuted_records.push((
-                *m,
+                m.clone(),
                 run_trials(
                     scene,
                     &task,
@@ -798,7 +847,7 @@ fn text_report(
 /// training cups' trials just run (with the scene's own offset): new = old - mean(achieved -
 /// target) over the trials whose cup was gripped (a larger offset closes further).
 fn calibrate_vla(a: &TrialsArgs, task: &TaskConfig, records: &Records) -> Result<bool> {
-    let Some((_, rs)) = records.first() else {
+    let Some((_, rs)) = records.iter().find(|(c, _)| c.name == Mode::Vla.as_str()) else {
         anyhow::bail!("no trials");
     };
     let scene = rs.first().map_or("", |r| r.scene.as_str());
@@ -826,7 +875,47 @@ fn calibrate_vla(a: &TrialsArgs, task: &TaskConfig, records: &Records) -> Result
         errs.len(),
         rs.len(),
     ))?;
+    if let Some((_, rs)) = records.iter().find(|(c, _)| c.name == VLA_FORCE) {
+        crate::emit(calibrate_force_law(rs)?)?;
+    }
     Ok(true)
+}
+
+/// The force rule's stiffness law from the training cups: least squares of ln k on ln(W / 80
+/// mm) over the trials (k the cup's true stiffness, W the camera's width the rule read).
+fn calibrate_force_law(rs: &[TrialRecord]) -> Result<String> {
+    let pts: Vec<(f64, f64)> = rs
+        .iter()
+        .filter_map(|r| r.stiffness.as_ref())
+        .filter_map(|s| Some(((s.camera_width_m? / 0.08).ln(), s.true_n_per_m.ln())))
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .collect();
+    if pts.len() < 3 {
+        anyhow::bail!("fewer than 3 training cups read by the force rule: nothing to fit");
+    }
+    let n = pts.len() as f64;
+    let (mx, my) = (
+        pts.iter().map(|p| p.0).sum::<f64>() / n,
+        pts.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    if sxx <= 0.0 {
+        anyhow::bail!("the training cups' camera widths do not vary: nothing to fit");
+    }
+    let e = sxy / sxx;
+    let k80 = (my - e * mx).exp();
+    let resid = (pts
+        .iter()
+        .map(|p| (p.1 - (my + e * (p.0 - mx))).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    Ok(format!(
+        "{} training cups for the force rule: ln k residual {resid:.3} (rms)\n\
+         vla_stiffness_at_80mm_n_per_m: {k80:.1}\nvla_stiffness_exponent: {e:.3}\n",
+        pts.len()
+    ))
 }
 
 /// Points of one trace value over time.

@@ -24,7 +24,7 @@ pub mod ticks;
 pub use error::{FeatureError, InputError, PolicyLoadError, Problems, SceneStagesError};
 pub use learned::LearnedPolicy;
 pub use mode::{Mode, UnknownMode};
-pub use params::{PolicyKind, PolicyParams};
+pub use params::{PolicyKind, PolicyParams, VlaRule};
 pub use policy::{Action, ArmAction, GripperAction, Policy, PolicyError};
 pub use reflex::ReflexCounters;
 pub use stage::{PolicyStage, check_scene};

@@ -141,9 +141,36 @@ pub struct PolicyParams {
     /// on the training cups alone (`unitac trials --scene cup_deformation --modes vla --train
     /// --calibrate-vla`).
     pub vla_offset_m: f64,
+    /// Cup, vla: which camera-only rule squeezes the cup: `position` (close to the camera's
+    /// width + pads - d - `vla_offset_m`) or `force` (squeeze with F = k(W) d, the stiffness from
+    /// the camera's width W by `vla_stiffness_at_80mm_n_per_m` x (W / 80 mm)^`vla_stiffness_exponent`,
+    /// both fitted on the training cups alone: `unitac trials --scene cup_deformation --modes
+    /// vla --train --calibrate-vla`). The force rule is vtla_pred's squeeze with the camera's
+    /// stiffness in place of the predicted touch's.
+    pub vla_rule: VlaRule,
+    pub vla_stiffness_at_80mm_n_per_m: f64,
+    pub vla_stiffness_exponent: f64,
     /// Cup: the fingers open to the camera's width + 2 pads + this on the way to the cup \[m]
     /// (clears it with the camera's size and place errors: 2 cm against their ~4 mm).
     pub pregrasp_margin_m: f64,
+}
+
+/// The cup VLA mode's closing rule (see [`PolicyParams::vla_rule`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VlaRule {
+    #[default]
+    Position,
+    Force,
+}
+
+impl VlaRule {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            VlaRule::Position => "position",
+            VlaRule::Force => "force",
+        }
+    }
 }
 
 /// Which policy the stage runs.
@@ -218,6 +245,10 @@ impl Default for PolicyParams {
             force_margin: 1.5,
             pad_m: 0.003,
             vla_offset_m: 0.0,
+            vla_rule: VlaRule::Position,
+            // The thin-ring law of a paper cup (lateral stiffness ~ 1 / d^3) as the prior.
+            vla_stiffness_at_80mm_n_per_m: 300.0,
+            vla_stiffness_exponent: -3.0,
             pregrasp_margin_m: 0.02,
         }
     }
@@ -291,6 +322,16 @@ impl PolicyParams {
             ("pad_m", self.pad_m),
             ("pregrasp_margin_m", self.pregrasp_margin_m),
         ];
+        if !(self.vla_stiffness_at_80mm_n_per_m.is_finite()
+            && self.vla_stiffness_at_80mm_n_per_m > 0.0
+            && self.vla_stiffness_exponent.is_finite()
+            && self.vla_stiffness_exponent.abs() <= 10.0)
+        {
+            bad.push(format!(
+                "vla_stiffness_at_80mm_n_per_m = {} must be finite and > 0, vla_stiffness_exponent = {} finite and within +-10",
+                self.vla_stiffness_at_80mm_n_per_m, self.vla_stiffness_exponent
+            ));
+        }
         if !(self.vla_offset_m.is_finite() && self.vla_offset_m.abs() <= 1.0) {
             bad.push(format!(
                 "vla_offset_m = {} must be finite and within +-1 m",

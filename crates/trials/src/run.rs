@@ -242,6 +242,8 @@ pub struct StiffnessReading {
     pub true_n_per_m: f64,
     /// Ticks on which the readout had to clip a reading to its range (`readout.stiffness`).
     pub clipped_ticks: u64,
+    /// The camera's width the reading came from \[m] (vla's force rule), for its calibration.
+    pub camera_width_m: Option<f64>,
 }
 
 /// The touch ablation: the latents and comparisons the tactile stages send the policy stage
@@ -659,6 +661,7 @@ pub fn run_trial_swapped(
                     .get("readout.stiffness")
                     .copied()
                     .unwrap_or(0),
+                camera_width_m: unitac_policy::controller::cup::camera_width_in(&status.message),
             });
         }
         if let Some(r) = status.message.strip_prefix("reflex: ") {

@@ -27,6 +27,18 @@ pub fn scene_task(scene: &Scene) -> Result<(PolicyParams, TaskKind), TrialError>
     Ok((p, kind))
 }
 
+/// `scene` with its policy stage's `vla_rule` set to `rule` (the cup VLA scene's other
+/// camera-only rule, run as a baseline column by `unitac trials`).
+pub fn with_vla_rule(scene: &Scene, rule: unitac_policy::VlaRule) -> Scene {
+    let mut s = scene.clone();
+    for stage in s.stages.iter_mut().filter(|st| st.kind == "policy") {
+        if let serde_yaml::Value::Mapping(m) = &mut stage.params {
+            m.insert("vla_rule".into(), rule.as_str().into());
+        }
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -4,8 +4,10 @@
 //!
 //! ```text
 //! vla:       approach (the camera's cup_width_m W, averaged over the approach) -> close
-//!            (position W + 2 pad - d - vla_offset_m: the gel surfaces at W - d, less the gels'
-//!            own give, calibrated on training cups) -> hold -> lift -> done
+//!            (vla_rule position: to W + 2 pad - d - vla_offset_m, the gel surfaces at W - d,
+//!            less the gels' own give, calibrated on training cups; vla_rule force: force mode,
+//!            F = k(W) d, the stiffness the camera's width says by a law fitted on training
+//!            cups) -> hold -> lift -> done
 //! vtla_real: approach -> close (lightly, each tick to probe_release_m inside the measured
 //!            opening, until the contact state says contact: D0 = opening)
 //!            -> probe (press to D0 - probe_press_m for probe_press_s, then open to
@@ -33,7 +35,7 @@
 use super::{Estimate, Timed, action, arm, force, position};
 use crate::mode::Mode;
 use crate::observation::Observation;
-use crate::params::PolicyParams;
+use crate::params::{PolicyParams, VlaRule};
 use crate::policy::{Action, GripperAction, Policy, PolicyError};
 use crate::readout::Readout;
 use unitac_core::Stamp;
@@ -72,6 +74,8 @@ pub struct CupController {
     readout: Readout,
     /// The stiffness read \[N/m] (vtla_real: of the probe touch; vtla_pred: the last prediction).
     stiffness: Option<f64>,
+    /// vla's force rule: the camera's width the stiffness was read from \[m].
+    camera_width: Option<f64>,
     /// The camera's cup: x, y and width, averaged over the approach.
     seen: Estimate<3>,
     /// Clamps inside the controller since the stage last asked.
@@ -93,6 +97,7 @@ impl CupController {
             failure: None,
             readout: Readout::Linear,
             stiffness: None,
+            camera_width: None,
             seen: Estimate::default(),
             clamped: Vec::new(),
             p: p.clone(),
@@ -102,6 +107,25 @@ impl CupController {
     /// Where the camera saw the cup (the origin before any frame; no tick asks before one).
     fn place(&self) -> [f64; 2] {
         self.seen.mean().map_or([0.0, 0.0], |[x, y, _]| [x, y])
+    }
+
+    /// Whether the squeeze is a force-mode close to `force_n` (vtla_pred, and vla's force rule).
+    fn by_force(&self) -> bool {
+        self.mode == Mode::VtlaPred || (self.mode == Mode::Vla && self.p.vla_rule == VlaRule::Force)
+    }
+
+    /// vla's force rule: the stiffness the camera's width `w` says \[N/m], clamped to the
+    /// params' range (the clamp noted).
+    fn camera_stiffness(&mut self, w: f64) -> f64 {
+        let p = &self.p;
+        let k = p.vla_stiffness_at_80mm_n_per_m * (w / 0.08).powf(p.vla_stiffness_exponent);
+        let (lo, hi) = (p.min_stiffness_n_per_m, p.max_stiffness_n_per_m);
+        if !(lo..=hi).contains(&k) {
+            self.clamped.push("readout.stiffness");
+        }
+        let k = if k.is_finite() { k.clamp(lo, hi) } else { hi };
+        self.stiffness = Some(k);
+        k
     }
 
     /// The stiffness of latent `l`, its clamp noted.
@@ -168,13 +192,22 @@ impl CupController {
                 if elapsed >= p.approach_s {
                     if self.mode == Mode::Vla {
                         let w = self.seen.mean().map_or(p.max_opening_m, |m| m[2]);
-                        self.target_opening = Some(w + 2.0 * p.pad_m - self.d - p.vla_offset_m);
+                        match p.vla_rule {
+                            VlaRule::Position => {
+                                self.target_opening =
+                                    Some(w + 2.0 * p.pad_m - self.d - p.vla_offset_m);
+                            }
+                            VlaRule::Force => {
+                                self.force_n = Some(self.camera_stiffness(w) * self.d);
+                                self.camera_width = Some(w);
+                            }
+                        }
                     }
                     self.t.go(Phase::Close);
                 }
             }
             Phase::Close => match self.mode {
-                Mode::Vla => {
+                Mode::Vla if !self.by_force() => {
                     let target = self.target_opening.unwrap_or(p.max_opening_m);
                     let tol = p.deformation_tolerance_m / 2.0;
                     // Arrived, or stopped on the cup short of the target (the gripper's own
@@ -186,7 +219,7 @@ impl CupController {
                         return Err(self.timeout("the fingers did not reach the camera's target"));
                     }
                 }
-                Mode::VtlaPred => {
+                Mode::Vla | Mode::VtlaPred => {
                     let f = self.force_n.unwrap_or(0.0);
                     // An object detected and the fingers no longer moving: the motion word is
                     // the driver's own ("stopped" from the sim, "caught" from the Robotiq and DH
@@ -262,13 +295,13 @@ impl CupController {
     /// The grip once the squeeze is over.
     fn hold(&self) -> GripperAction {
         let p = &self.p;
-        match self.mode {
-            Mode::VtlaPred => force(
+        match self.by_force() {
+            true => force(
                 p.min_opening_m,
                 p.squeeze_speed_m_s,
                 self.force_n.unwrap_or(0.0),
             ),
-            _ => position(
+            false => position(
                 self.target_opening.unwrap_or(p.max_opening_m),
                 p.squeeze_speed_m_s,
                 self.force_n.unwrap_or(p.max_force_n),
@@ -295,6 +328,19 @@ impl CupController {
                 )
             }
             Phase::Close => match self.mode {
+                Mode::Vla if self.by_force() => {
+                    let f = self.force_n.unwrap_or(0.0);
+                    action(
+                        force(p.min_opening_m, p.squeeze_speed_m_s, f),
+                        at(0.0),
+                        format!(
+                            "squeezing with {f:.2} N (camera width {:.4} m: stiffness {:.1} N/m x {:.4} m)",
+                            self.camera_width.unwrap_or(f64::NAN),
+                            self.stiffness.unwrap_or(f64::NAN),
+                            self.d
+                        ),
+                    )
+                }
                 Mode::Vla => {
                     let t = self.target_opening.unwrap_or(p.max_opening_m);
                     action(
@@ -375,9 +421,18 @@ impl CupController {
 
 /// The stiffness \[N/m] a cup controller's status message names (`stiffness K N/m`), if any.
 pub fn stiffness_in(message: &str) -> Option<f64> {
-    let (_, rest) = message.split_once("stiffness ")?;
-    let (k, _) = rest.split_once(" N/m")?;
-    k.parse().ok().filter(|k: &f64| k.is_finite())
+    value_in(message, "stiffness ", " N/m")
+}
+
+/// The camera width \[m] vla's force rule read its stiffness from (`camera width W m`), if any.
+pub fn camera_width_in(message: &str) -> Option<f64> {
+    value_in(message, "camera width ", " m")
+}
+
+fn value_in(message: &str, key: &str, unit: &str) -> Option<f64> {
+    let (_, rest) = message.split_once(key)?;
+    let (v, _) = rest.split_once(unit)?;
+    v.parse().ok().filter(|v: &f64| v.is_finite())
 }
 
 impl Policy for CupController {
