@@ -370,6 +370,130 @@ fn cup_vtla_real_probes_then_squeezes_by_the_live_compression() {
 }
 
 #[test]
+fn cup_vtla_real_closes_just_inside_the_measured_opening_and_presses_before_the_release() {
+    // With a command of the closed gripper, the safety layer's 5 mm per tick brought the release
+    // back over many ticks while the fingers pressed on; now each command is a step from where
+    // the fingers are.
+    let mut rig = Rig::new(params(
+        "{mode: vtla_real, task: squeeze the cup, objects: [cup], latent_len: 4, \
+         visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
+    ));
+    let diameter = 0.08;
+    let mut opening = Vec::new();
+    cup_camera(&mut rig);
+    let mut t = rig.tick();
+    for _ in 0..400 {
+        opening.push(rig.opening);
+        rig.follow(&t.cmd, None);
+        let touching = rig.opening <= diameter;
+        let area = if touching {
+            20.0 + 1000.0 * (diameter - rig.opening) as f32
+        } else {
+            0.0
+        };
+        let c = rig.contact(touching, area);
+        rig.send(c);
+        cup_camera(&mut rig);
+        t = rig.tick();
+        if t.status.phase == "await_latent" {
+            break;
+        }
+    }
+    let p = unitac_policy::PolicyParams::default();
+    let ticks: Vec<_> = rig.ticks.iter().zip(&opening).collect();
+    let close: Vec<_> = ticks
+        .iter()
+        .filter(|(t, _)| t.status.phase == "close")
+        .collect();
+    assert!(close.len() > 10, "{}", close.len());
+    for (t, o) in &close[1..] {
+        // Each close command lies the release step inside the opening the fingers had.
+        assert!(
+            (t.cmd.position_m - (**o - p.probe_release_m)).abs() < 1e-9,
+            "{} at {o}",
+            t.cmd.position_m
+        );
+    }
+    let probe: Vec<_> = ticks
+        .iter()
+        .filter(|(t, _)| t.status.phase == "probe")
+        .collect();
+    let d0 = *probe[0].1;
+    let pressing: Vec<_> = probe
+        .iter()
+        .filter(|(t, _)| t.status.message.starts_with("probe press"))
+        .collect();
+    // The press holds probe_press_s at D0 - probe_press_m (30 Hz ticks), then the release is
+    // commanded whole at once: within one rate-limit step of the press.
+    let press_ticks = p.probe_press_s * 30.0;
+    assert!(
+        (pressing.len() as f64 - press_ticks).abs() <= 1.0,
+        "{} press ticks",
+        pressing.len()
+    );
+    let release = probe
+        .iter()
+        .find(|(t, _)| !t.status.message.starts_with("probe press"))
+        .unwrap();
+    assert!(
+        (release.0.cmd.position_m
+            - (pressing[0].0.cmd.position_m + p.probe_press_m + p.probe_release_m))
+            .abs()
+            < 2e-3,
+        "{:?}",
+        release.0.cmd
+    );
+    assert!(rig.ticks.iter().all(|t| t.status.safety_ok));
+    assert!(d0 < diameter + 1e-3, "{d0}");
+}
+
+#[test]
+fn cup_vla_force_rule_squeezes_with_the_stiffness_the_camera_width_says() {
+    let mut rig = Rig::new(params(
+        "{mode: vla, vla_rule: force, vla_stiffness_at_80mm_n_per_m: 400, \
+         vla_stiffness_exponent: -3, task: squeeze the cup, objects: [cup], \
+         visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
+    ));
+    let k_true = 400.0;
+    cup_camera(&mut rig);
+    let mut t = rig.tick();
+    for _ in 0..1200 {
+        // The cup pushes back with k_true x compression; the gripper stops at its force.
+        let stop = 0.08 - t.cmd.force_n / k_true;
+        rig.follow(&t.cmd, (t.cmd.mode == GripperMode::Force).then_some(stop));
+        rig.object_detected = rig.opening <= 0.08;
+        rig.force_n = (k_true * (0.08 - rig.opening)).max(0.0);
+        cup_camera(&mut rig);
+        t = rig.tick();
+        if t.status.phase == "done" {
+            break;
+        }
+    }
+    assert_eq!(rig.phases(), ["approach", "close", "hold", "lift", "done"]);
+    let close: Vec<_> = rig
+        .ticks
+        .iter()
+        .filter(|t| t.status.phase == "close")
+        .collect();
+    // An 80 mm cup: k = 400 N/m, F = k x 1 cm, in force mode, as vtla_pred squeezes.
+    assert!(close.iter().all(|t| t.cmd.mode == GripperMode::Force));
+    assert_eq!(close.last().unwrap().cmd.force_n, 4.0);
+    let m = &close[0].status.message;
+    assert_eq!(
+        unitac_policy::controller::cup::stiffness_in(m),
+        Some(400.0),
+        "{m}"
+    );
+    assert_eq!(
+        unitac_policy::controller::cup::camera_width_in(m),
+        Some(0.08),
+        "{m}"
+    );
+    // The camera's stiffness is the cup's here: the squeeze lands at 1 cm.
+    assert!((0.08 - rig.opening - 0.01).abs() < 2e-4, "{}", rig.opening);
+}
+
+#[test]
 fn cup_vtla_pred_sets_the_force_once_from_the_predicted_latent() {
     let mut rig = Rig::new(params(
         "{mode: vtla_pred, task: squeeze the cup by 1 cm, objects: [cup], latent_len: 4, \
