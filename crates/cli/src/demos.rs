@@ -1,9 +1,11 @@
-//! `unitac demos --scene S[,S2] --split train|unseen --seeds 1,2 --trials N --out DIR`: the
-//! scripted expert's demonstrations of the scenes' task with what a policy of every mode could
-//! observe (unitac_trials::demos), the frames going through each scene's own tactile stages
-//! (every stage before its policy stage; one chain per scene, the first one's contact state
-//! drives the cup's probe), written as `DIR/demos.json` for scripts/fit_reference_policy.py and
-//! scripts/lerobot_dataset.py.
+//! `unitac demos --scene S[,S2] [--mode M] --split train|unseen --seeds 1,2 --trials N --out DIR`:
+//! the scripted expert's demonstrations for mode M (default: the first scene's mode) of the
+//! scenes' task, with what a policy of every mode could observe (unitac_trials::demos), the
+//! frames going through each scene's own tactile stages (every stage before its policy stage; one
+//! chain per scene, the first one's contact state drives vtla_real's cup probe), written as
+//! `DIR/demos.json` for scripts/fit_reference_policy.py and scripts/lerobot_dataset.py. The
+//! expert decides from what M observes: vtla_real's demonstrations probe the cup and choose the
+//! fabric from the live comparison, vla's and vtla_pred's do neither (the camera's guesses).
 //!
 //! `--drive L [--drive-model M]` (DAgger): the learned scene L (its policy bundle M if given)
 //! drives the world through its own stages as in a trial, and every tick is labelled with the
@@ -15,6 +17,7 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use unitac_pipeline::{StageConfig, build_stage, load_scene_without_policy_models, stage_configs};
+use unitac_policy::Mode;
 use unitac_sim::MockConfig;
 use unitac_sim::task::{Split, TaskKind};
 use unitac_trials::demos::{
@@ -59,6 +62,7 @@ pub fn demos(
     trials: u32,
     out: &Path,
     driver: Option<Driver>,
+    mode: Option<&str>,
 ) -> anyhow::Result<String> {
     let n = seeds.len().saturating_mul(trials as usize);
     let config = |msg: String| anyhow::Error::new(ConfigError(msg));
@@ -94,6 +98,10 @@ pub fn demos(
         if k == 0 {
             instruction.clone_from(&p.task);
             cfg.task = kind;
+            cfg.mode = match mode {
+                Some(m) => m.parse::<Mode>().map_err(|e| config(e.to_string()))?,
+                None => p.mode,
+            };
             cfg.touch_speed_m_s = p.touch_speed_m_s;
             cfg.touch_force_n = p.touch_force_n;
             cfg.probe_release_m = p.probe_release_m;
@@ -213,10 +221,11 @@ pub fn demos(
         .driver
         .map_or_else(|| "expert".to_string(), |d| format!("driver {d}"));
     Ok(format!(
-        "{} demonstrations of {} ({:?} {objects}) in {}: {with_latent} with a latent, {who} succeeded in {ok}\n",
+        "{} demonstrations of {} ({:?} {objects}) in {}: {with_latent} with a latent, {who} succeeded in {ok}, deciding as {} observes\n",
         file.demos.len(),
         file.scene,
         split,
-        path.display()
+        path.display(),
+        cfg.mode.as_str()
     ))
 }

@@ -269,6 +269,11 @@ enum Cmd {
         /// names.
         #[arg(long, requires = "drive")]
         drive_model: Option<PathBuf>,
+        /// Whose demonstrations: vla | vtla_real | vtla_pred (the expert decides from what that
+        /// mode observes: vtla_real probes the cup and chooses the fabric by touch, vla and
+        /// vtla_pred do neither). Default: the first scene's mode.
+        #[arg(long)]
+        mode: Option<String>,
     },
     /// List the tactile sensors on the USB bus: model, serial, firmware, V4L2 node, modes.
     Devices {
@@ -982,6 +987,7 @@ fn main() -> ExitCode {
             out,
             drive,
             drive_model,
+            mode,
         } => {
             let driver = drive.map(|scene| demos::Driver {
                 scene,
@@ -994,6 +1000,7 @@ fn main() -> ExitCode {
                 set.trials,
                 &out,
                 driver,
+                mode.as_deref(),
             )
             .and_then(emit)
             .map(|()| true)

@@ -38,6 +38,85 @@ pub const FLAT_FILLET: f64 = 0.15;
 /// Height of a texture bump as a share of its radius.
 pub const BUMP_ASPECT: f64 = 0.35;
 
+/// The folded edge of a fabric stack as the gel sees it: where the fold's top crosses the gel,
+/// how thick a layer is and how many layers lie between the fold's top and the contact centre.
+///
+/// The gel (sensor plane: x along the fold, y down = world down) is pressed on the pinched
+/// stack. Fabric lies only below the fold's top, so a press is cut off at the image row
+/// `edge_mm` above the contact centre: material above it is absent, and the contact there is
+/// the gel at rest. The top layer's fold is rounded: over the rim the fabric bends away from
+/// the gel as a half-cylinder of radius half a layer (a fabric bent through 180 degrees around
+/// itself, its bend radius taken as half its thickness: a modelling choice), so a light press
+/// feels the fold's top a little below where it is. Below it the layers' boundaries (every
+/// `layer_mm` down from the top) show as shallow grooves where one layer's rounded edge meets
+/// the next (depth a tenth of a layer, at most 0.1 mm; a modelling choice, drawn so the layer
+/// count is in the image). Robotic cloth work reads the same cues from touch: a GelSight finds
+/// a cloth's edge in its image (N. Sunil et al., "Visuotactile Affordances for Cloth
+/// Manipulation with Local Control", CoRL 2022) and a fingertip's signal tells how many layers
+/// a pinch caught (S. Tirumala et al., "Learning to Singulate Layers of Cloth using Tactile
+/// Feedback", IROS 2022).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FoldEdge {
+    /// Height of the fold's top above the contact centre \[mm] (negative: below it).
+    pub edge_mm: f64,
+    /// Thickness of one layer \[mm] (positive).
+    pub layer_mm: f64,
+}
+
+/// Depth of the groove between two layers, as a share of a layer and at most
+/// [`GROOVE_MAX_MM`].
+pub const GROOVE_SHARE: f64 = 0.1;
+/// Deepest groove between layers \[mm].
+pub const GROOVE_MAX_MM: f64 = 0.1;
+
+impl FoldEdge {
+    /// Radius of the rounded rim at the fold's top \[mm].
+    pub fn rim_mm(&self) -> f64 {
+        0.5 * self.layer_mm.max(0.0)
+    }
+
+    /// Extra gap between the fabric and the plane of its lowest point \[mm] at `u` mm below the
+    /// fold's top, with its derivative in `u`; None above the top (no fabric there).
+    pub fn gap(&self, u: f64) -> Option<(f64, f64)> {
+        if u.is_nan() || u < 0.0 {
+            return None;
+        }
+        let rf = self.rim_mm();
+        let mut g = 0.0;
+        let mut dg = 0.0;
+        if u < rf {
+            // Half-cylinder: g = rf - sqrt(rf^2 - (rf - u)^2), steepest at the top; the slope is
+            // capped where the surface turns away from the gel.
+            let w = rf - u;
+            let root = (rf * rf - w * w).max(0.0).sqrt();
+            g += rf - root;
+            dg += if root > 0.0 {
+                (-w / root).max(-RIM_MAX_SLOPE)
+            } else {
+                -RIM_MAX_SLOPE
+            };
+        }
+        let t = self.layer_mm;
+        if t > 0.0 && u >= 0.5 * t {
+            // The nearest boundary between layers below the top, k t (k >= 1).
+            let k = (u / t).round().max(1.0);
+            let s = (u - k * t) / (GROOVE_WIDTH_SHARE * t);
+            if s.abs() < 1.0 {
+                let depth = (GROOVE_SHARE * t).min(GROOVE_MAX_MM);
+                let q = 1.0 - s * s;
+                g += depth * q * q;
+                dg += depth * 2.0 * q * (-2.0 * s) / (GROOVE_WIDTH_SHARE * t);
+            }
+        }
+        Some((g, dg))
+    }
+}
+
+/// Steepest slope of the rounded rim that is drawn (the surface turning away from the gel).
+const RIM_MAX_SLOPE: f64 = 4.0;
+/// Half-width of a groove between layers, as a share of a layer.
+const GROOVE_WIDTH_SHARE: f64 = 0.2;
+
 /// Something pressed into the gel.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Object {
@@ -56,6 +135,8 @@ pub struct Object {
     pub bump_mm: f64,
     /// Bumps per mm^2 (on a jittered grid; at most one bump per cell).
     pub bump_density: f64,
+    /// A fabric's folded edge crossing the gel (None: the object covers the whole press).
+    pub fold: Option<FoldEdge>,
 }
 
 impl Object {
@@ -70,6 +151,7 @@ impl Object {
             hardness: 1.0,
             bump_mm: 0.0,
             bump_density: 0.0,
+            fold: None,
         }
     }
     /// Smooth rigid indenters.
@@ -95,6 +177,12 @@ impl Object {
     pub fn with_bumps(mut self, radius_mm: f64, per_mm2: f64) -> Self {
         self.bump_mm = radius_mm.max(0.0);
         self.bump_density = per_mm2.max(0.0);
+        self
+    }
+
+    /// The press cut off at a fabric's folded edge (see [`FoldEdge`]).
+    pub fn with_fold(mut self, fold: FoldEdge) -> Self {
+        self.fold = Some(fold);
         self
     }
 

@@ -394,16 +394,8 @@ impl<'a> Press<'a> {
         let mut in_contact = false;
         {
             let (dx, dy) = (dxp * self.mm_per_px, dyp * self.mm_per_px);
-            // Object::gap, with the reciprocal precomputed for the common shapes.
-            let (g, gx, gy) = match o.shape {
-                Shape::Sphere => (
-                    0.5 * (dx * dx + dy * dy) * self.inv_r,
-                    dx * self.inv_r,
-                    dy * self.inv_r,
-                ),
-                Shape::Edge => (0.5 * dx * dx * self.inv_r, dx * self.inv_r, 0.0),
-                Shape::Flat => o.gap(dx, dy),
-            };
+            let gap = self.gap_at(dx, dy);
+            let (g, gx, gy) = gap.unwrap_or((f64::INFINITY, 0.0, 0.0));
             let cap = self.depth - g;
             if cap > 0.0 {
                 // Texture (Object::texture_height and its gradient, with the trigonometry
@@ -428,11 +420,15 @@ impl<'a> Press<'a> {
                 dz = [-gx + tx * s, -gy + ty * s];
                 in_contact = true;
             } else if self.a_px > 0.0 {
-                // Outside the contact the gel slopes back up to rest (smooth skirt).
-                let u = ((r - self.a_px) * self.inv_skirt).clamp(0.0, 1.0);
+                // Outside the contact the gel slopes back up to rest (smooth skirt); above a
+                // fold's top, from the top's row upward.
+                let (out_px, (ux, uy)) = match self.above_fold_px(dy) {
+                    Some(above) if r < self.a_px => (above, (0.0, -1.0)),
+                    _ => (r - self.a_px, unit()),
+                };
+                let u = (out_px * self.inv_skirt).clamp(0.0, 1.0);
                 height = (1.0 - u) * (1.0 - u) * self.depth * 0.15;
                 let slope = 2.0 * (1.0 - u) * self.depth * 0.15 * self.inv_skirt * 0.05;
-                let (ux, uy) = unit();
                 dz = [-ux * slope, -uy * slope];
             }
         }
@@ -464,6 +460,37 @@ impl<'a> Press<'a> {
 }
 
 impl Press<'_> {
+    /// The object's gap [mm] and its gradient at (dx, dy) mm from the contact centre (y down):
+    /// [`Object::gap`] (the common shapes with the reciprocal precomputed) plus a fold's rim and
+    /// grooves; None above a fold's top, where there is no material.
+    fn gap_at(&self, dx: f64, dy: f64) -> Option<(f64, f64, f64)> {
+        let o = self.obj;
+        let (g, gx, gy) = match o.shape {
+            Shape::Sphere => (
+                0.5 * (dx * dx + dy * dy) * self.inv_r,
+                dx * self.inv_r,
+                dy * self.inv_r,
+            ),
+            Shape::Edge => (0.5 * dx * dx * self.inv_r, dx * self.inv_r, 0.0),
+            Shape::Flat => o.gap(dx, dy),
+        };
+        match &o.fold {
+            None => Some((g, gx, gy)),
+            // y down: the top lies `edge_mm` above the centre, so `dy + edge_mm` below it.
+            Some(f) => f
+                .gap(dy + f.edge_mm)
+                .map(|(fg, fdg)| (g + fg, gx, gy + fdg)),
+        }
+    }
+
+    /// How far above a fold's top the row `dy` mm from the centre lies [px] (None: no fold, or
+    /// at or below the top).
+    fn above_fold_px(&self, dy: f64) -> Option<f64> {
+        let f = self.obj.fold.as_ref()?;
+        let u = dy + f.edge_mm;
+        (u < 0.0).then(|| -u * self.px_per_mm)
+    }
+
     /// Outward drag of the gel point at rest at (mx, my) by the press [px]: the depression's
     /// smooth part (cap or skirt, no texture) times MARKER_SHIFT_PX_PER_MM, as the plain press
     /// drags its markers, but carried by the gel (so a stuck pull moves it along rigidly).
@@ -475,11 +502,20 @@ impl Press<'_> {
             return [0.0; 2];
         }
         let (dx, dy) = (dxp * self.mm_per_px, dyp * self.mm_per_px);
-        let cap = self.depth - self.obj.gap(dx, dy).0;
+        // Without a fold, Object::gap itself (the bytes of every existing tangential render).
+        let gap = match self.obj.fold {
+            None => Some(self.obj.gap(dx, dy)),
+            Some(_) => self.gap_at(dx, dy),
+        };
+        let cap = self.depth - gap.map_or(f64::INFINITY, |g| g.0);
         let height = if cap > 0.0 {
             cap
         } else {
-            let u = ((r - self.a_px) * self.inv_skirt).clamp(0.0, 1.0);
+            let out_px = match self.above_fold_px(dy) {
+                Some(above) if r < self.a_px => above,
+                _ => r - self.a_px,
+            };
+            let u = (out_px * self.inv_skirt).clamp(0.0, 1.0);
             (1.0 - u) * (1.0 - u) * self.depth * 0.15
         };
         let shift = MARKER_SHIFT_PX_PER_MM * height.max(0.0);

@@ -300,20 +300,51 @@ fn slip_appears_when_the_grip_force_is_too_low() {
 }
 
 #[test]
-fn the_expert_selects_the_smoother_fabric_and_grasps_one_layer() {
+fn the_fabric_expert_touches_both_lets_go_then_grasps_the_cameras_choice() {
+    use unitac_sim::task::expert::{camera_choice, fabric_touched_both};
     let cfg = TaskConfig::fabric(Split::Train);
     let (dt, dur) = default_run(cfg.kind);
-    let mut smoother = Vec::new();
+    let mut chosen = Vec::new();
     for trial in 0..8 {
         let demo = run_expert(&cfg, 1, trial, dt, dur).unwrap();
         let f = fabric_outcome(&demo.outcome);
-        assert!(f.overall && f.layers == 1, "trial {trial}: {f:?}");
-        // Both were touched before the choice.
-        assert!(demo.final_truth.objects.iter().all(|o| o.touch_s >= 0.3));
-        smoother.push(f.smoother.clone());
+        // Whichever it chose, it grasped one layer of it and lifted it.
+        assert!(
+            f.grasp && f.layers == 1 && f.held == f.chosen,
+            "trial {trial}: {f:?}"
+        );
+        assert_eq!(f.overall, f.chosen == f.smoother, "trial {trial}: {f:?}");
+        // Both were touched and let go of (pressing nothing, open) before any grasp: the
+        // decision point, where the camera's mean roughness guesses so far name the choice.
+        let at = demo
+            .steps
+            .iter()
+            .position(|s| fabric_touched_both(&s.truth, &demo.spec, &cfg))
+            .unwrap_or_else(|| panic!("trial {trial}: never let go of both"));
+        assert!(demo.steps[..at].iter().all(|s| s.command.arm.lift_m == 0.0));
+        let seen = &demo.steps[..=at];
+        let mean = |name: &str| {
+            let i = seen[0].visual.names.iter().position(|n| n == name)?;
+            Some(seen.iter().map(|s| s.visual.values[i]).sum::<f64>() / seen.len() as f64)
+        };
+        let camera = camera_choice(&demo.spec, mean).unwrap();
+        assert_eq!(f.chosen, camera, "trial {trial}");
+        // The grasp after the decision is on the chosen fabric, and the touches before it used
+        // the touch force only.
+        let grasp_force = demo.steps[at..]
+            .iter()
+            .map(|s| s.command.gripper.force_n)
+            .fold(0.0, f64::max);
+        assert!(
+            demo.steps[..at]
+                .iter()
+                .all(|s| s.command.gripper.force_n <= 1.5)
+        );
+        assert!(grasp_force >= 1.5, "{grasp_force}");
+        chosen.push(f.chosen.clone());
     }
-    // Placement is random: the smoother one is sometimes a, sometimes b.
-    assert!(smoother.iter().any(|s| s == "fabric_a") && smoother.iter().any(|s| s == "fabric_b"));
+    // The camera names either fabric.
+    assert!(chosen.iter().any(|s| s == "fabric_a") && chosen.iter().any(|s| s == "fabric_b"));
 }
 
 #[test]

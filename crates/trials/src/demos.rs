@@ -6,31 +6,48 @@
 //! ([`DemoTick`], written in LeRobot's layout by scripts/lerobot_dataset.py), on training objects
 //! only.
 //!
+//! A demonstration is one mode's ([`DemoConfig::mode`]): the expert decides only from what that
+//! mode observes, so that its policy can imitate the decision. It reads the truth for where
+//! things are, as a teleoperator sees them (the objects' places, the fingers' geometry, the
+//! visible deformation; unitac_sim::task::expert), never for what only touch could tell.
+//!
 //! One cup demonstration, per tick of `dt_s`:
 //!
 //! ```text
 //! approach: the expert's arm command to the cup, the fingers at its first opening (wide), until
 //!           the arm has arrived and has had `approach_s` since its target was commanded
-//! touch:    close at touch_speed_m_s with touch_force_n until the contact stage says contact
-//!           (the opening there is D0): the probe touch the vtla_real controller makes
-//! release:  open to D0 + probe_release_m until the contact stage says the contact ended (the
-//!           episode's clip goes to the encoder: its latent is the touch's observation)
+//! touch:    (vtla_real) close at touch_speed_m_s with touch_force_n until the contact stage
+//!           says contact (the opening there is D0): the probe touch the vtla_real controller
+//!           makes
+//! release:  (vtla_real) open to D0 + probe_release_m until the contact stage says the contact
+//!           ended (the episode's clip goes to the encoder: its latent is the touch's observation)
 //! expert:   the expert's own commands (squeeze to its setpoint, settle, lift) for expert_s
 //! ```
 //!
-//! A fabric demonstration is the expert alone for `fabric_s` (it touches both fabrics itself,
-//! then grasps the smoother one and lifts it).
+//! The probe is vtla_real's alone: its trigger, the contact state, is in that mode's observation
+//! and not in vla's or vtla_pred's, whose demonstrations go from the approach to the squeeze.
+//!
+//! A fabric demonstration is the expert for `fabric_s`: it touches fabric A and lets go, touches
+//! B and lets go (each contact episode ends, so the encoder and the comparison stage see both),
+//! waits open for the decision, then grasps the chosen fabric and lifts it. The decision, made
+//! here once both touches are over, is the mode's: vtla_real's from the live PropertyComparison
+//! it holds (the smoother by touch; on a tie, the camera's guess), vla's and vtla_pred's from the
+//! camera's roughness guesses (their mean so far, as `observation.visual` holds them; vtla_pred's
+//! predicted latent is drawn without the object and says nothing about which is smoother). It is
+//! kept as [`Demo::chosen`] and [`Demo::decided_s`]. A vtla_real demonstration whose comparison
+//! does not come within `timeout_s` of the second release is an error.
 //!
 //! Several chains of stages may watch one demonstration (one per mode's scene: contact + encoder
 //! for vtla_real, contact + sampler for vtla_pred), each fed the same camera estimates and
-//! frames; the first chain's contact state drives the probe and the contact observation.
+//! frames; the first chain's contact state drives the probe and the contact observation, so
+//! every tick carries every mode's observations whichever mode's expert acts.
 //!
 //! Each tick the camera's estimate goes into the stages first (as in a trial: the sampler's
 //! object-level condition), then the frames are rendered at the sensor's own frame times by
-//! [`crate::bridge::SensorRig`] and pushed through the scene's tactile stages with [`Chain`] (contact + encoder for vtla_real, contact + sampler
-//! for vtla_pred): the stages are built by the caller from the scene, so this module sees only
-//! `Stage`s. Every latent the stages send is kept with the number of contacts begun before it
-//! (0: a prediction before any touch; 1: the probe touch). Same inputs, same bytes.
+//! [`crate::bridge::SensorRig`] and pushed through the stages with [`Chain`]: the stages are
+//! built by the caller from the scene, so this module sees only `Stage`s. Every latent the stages
+//! send is kept with the number of contacts begun before it (0: a prediction before any touch;
+//! 1: the first touch). Same inputs, same bytes.
 //!
 //! Each tick also goes into [`Demo::ticks`]: the observation slices every mode may read (the
 //! gripper status as the policy's `gripper` input reads it, the camera's estimate, the contact
@@ -43,9 +60,9 @@ use thiserror::Error;
 use unitac_core::Stage;
 use unitac_core::chain::Chain;
 use unitac_core::msg::{ArmCommand, ContactState, GripperCommand, LatentSource, Msg};
-use unitac_policy::Action;
 use unitac_policy::learned::Memory;
 use unitac_policy::observation::{Layout, input};
+use unitac_policy::{Action, Mode};
 use unitac_sim::task::{
     self, ArmSetpoint, GripperSetpoint, Split, TaskCommand, TaskConfig, TaskKind, TaskWorld,
     expert_command, trial_rng,
@@ -76,6 +93,10 @@ pub const STATE_LEN: usize = 8;
 pub struct DemoConfig {
     /// Which task.
     pub task: TaskKind,
+    /// Whose demonstration: what the expert decides from (module docs). vtla_real: the probe
+    /// touch before the cup's squeeze, the fabric chosen from the live PropertyComparison; vla and
+    /// vtla_pred: no probe, the fabric chosen from the camera's roughness guesses.
+    pub mode: Mode,
     /// Control period \[s].
     pub dt_s: f64,
     /// The probe touch: closing speed \[m/s], force bound \[N], opening added back to end it \[m]
@@ -110,6 +131,7 @@ impl Default for DemoConfig {
         let p = unitac_policy::PolicyParams::default();
         Self {
             task: TaskKind::Cup,
+            mode: Mode::VtlaReal,
             dt_s: 1.0 / 30.0,
             touch_speed_m_s: p.touch_speed_m_s,
             touch_force_n: p.touch_force_n,
@@ -225,6 +247,11 @@ pub struct Demo {
     /// and overall success.
     pub deformation_m: f64,
     pub success: bool,
+    /// Fabric: the fabric the expert decided to grasp ("" none, and for the cup) and the world
+    /// time of the decision \[s] (NaN: none); the decision's tick is the first with `t_s` at or
+    /// after it.
+    pub chosen: String,
+    pub decided_s: f64,
     /// Every control tick, first first.
     pub ticks: Vec<DemoTick>,
 }
@@ -471,6 +498,12 @@ fn record_inner(
         TaskKind::Fabric => c.fabric_s,
     };
     let mut since = 0.0;
+    // The probe touch is vtla_real's: its trigger, the contact state, is in its observation.
+    let probe = c.mode == Mode::VtlaReal;
+    // The fabric decision, when it was made, and since when the expert has waited for it.
+    let mut chosen: Option<String> = None;
+    let mut decided_s = f64::NAN;
+    let mut waiting_since: Option<f64> = None;
     let mut seen = Seen {
         contact: None,
         latents: Vec::new(),
@@ -560,8 +593,41 @@ fn record_inner(
         };
         seen.memory
             .gripper(status.object_detected, status.opening_m);
+        let visual = features("visual", Some(Msg::VisualObservation(camera)), &layout, 0)
+            .map_err(obs_err)?;
+        let visual = seen.memory.visual(&visual);
         let truth = world.world().truth();
-        let expert = expert_command(&truth, &spec, &cfg);
+        if c.task == TaskKind::Fabric
+            && chosen.is_none()
+            && task::expert::fabric_touched_both(&truth, &spec, &cfg)
+        {
+            let from = *waiting_since.get_or_insert(t);
+            // The camera's guesses as this mode's policy reads them: the mean so far.
+            let camera = |name: &str| {
+                let i = seen_visual.names.iter().position(|n| n == name)?;
+                visual.get(i).map(|v| f64::from(*v))
+            };
+            let sight = || task::expert::camera_choice(&spec, camera).map(str::to_string);
+            chosen = match c.mode {
+                // [A rougher, B rougher, tie, ..]: grasp the smoother; a tie leaves the camera.
+                Mode::VtlaReal => match seen.memory.comparison.as_deref() {
+                    Some([a, ..]) if *a > 0.5 => objects.get(1).cloned(),
+                    Some([_, b, ..]) if *b > 0.5 => objects.first().cloned(),
+                    Some(_) => sight(),
+                    None => None,
+                },
+                Mode::Vla | Mode::VtlaPred => sight(),
+            };
+            if chosen.is_some() {
+                decided_s = t;
+            } else if t - from > c.timeout_s {
+                if driver.is_some() {
+                    break;
+                }
+                return Err(timeout("no property comparison after both touches"));
+            }
+        }
+        let expert = expert_command(&truth, &spec, &cfg, chosen.as_deref());
         let arm = seen.memory.arm(t);
         let in_contact = seen.contact.as_ref().is_some_and(|s| s.in_contact);
         let elapsed = t - since;
@@ -573,7 +639,7 @@ fn record_inner(
                     && elapsed > c.dt_s
                     && arm[1] > 0.5 =>
             {
-                Some(Phase::Touch)
+                Some(if probe { Phase::Touch } else { Phase::Expert })
             }
             Phase::Touch if in_contact => {
                 d0 = truth.gripper.opening_m;
@@ -657,9 +723,6 @@ fn record_inner(
                 "more than {MAX_TICKS} ticks in one demonstration"
             )));
         }
-        let visual = features("visual", Some(Msg::VisualObservation(camera)), &layout, 0)
-            .map_err(obs_err)?;
-        let visual = seen.memory.visual(&visual);
         let [
             (_, latched),
             (_, contact),
@@ -742,6 +805,8 @@ fn record_inner(
         expert_force_n: truth.gripper.force_n,
         deformation_m,
         success,
+        chosen: chosen.unwrap_or_default(),
+        decided_s,
         ticks,
     })
 }

@@ -1,10 +1,13 @@
-//! The demonstration recorder through the shipped cup scenes' own tactile stages: deterministic
+//! The demonstration recorder through the shipped scenes' own tactile stages: deterministic
 //! (same seed and trial, same bytes), and it records what it says (the probe touch's real
-//! latent, the predicted latent before any touch, the labels of the cup drawn).
+//! latent, the predicted latent before any touch, the labels of the cup drawn), each mode's
+//! expert deciding from what that mode observes (vtla_real: the probe and the fabric comparison;
+//! vla and vtla_pred: neither, the camera's roughness guesses).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use unitac_core::Stage;
 use unitac_pipeline::{StageConfig, build_stage, load_scene_without_policy_models, stage_configs};
+use unitac_policy::Mode;
 use unitac_sim::MockConfig;
 use unitac_sim::task::{Split, TaskKind};
 use unitac_trials::demos::{Demo, DemoConfig, record, record_chains, record_driven};
@@ -107,7 +110,10 @@ fn a_fabric_demonstration_records_every_modes_observations_tick_by_tick() {
         serde_json::to_string(&record()).unwrap()
     );
     assert_eq!(d.objects, ["fabric_a", "fabric_b"]);
-    assert!(d.success, "the expert picks the smoother fabric");
+    // It decided from the comparison, and grasped and lifted what it chose.
+    assert!(d.objects.contains(&d.chosen), "{:?}", d.chosen);
+    let decision = d.ticks.iter().find(|t| t.t_s >= d.decided_s).unwrap();
+    assert_eq!(decision.comparison[..3].iter().sum::<f32>(), 1.0);
     let first = &d.ticks[0];
     let last = d.ticks.last().unwrap();
     // Fixed widths: 8 gripper values, the 10 camera values, per fabric 96 pooled values + known.
@@ -280,4 +286,122 @@ fn a_driven_cup_demonstration_that_never_reaches_the_cup_ends_at_the_timeout_wit
     assert!((59..=63).contains(&n), "{n} ticks");
     assert!(d.ticks.iter().all(|t| t.arm_target == 1));
     assert!(d.latents.iter().all(|l| l.touch == 0), "no probe touch");
+}
+
+/// A fabric demonstration of `mode`, seed 1, trial `trial`, both scenes' stages watching.
+fn fabric_demo(mode: Mode, trial: u32) -> Demo {
+    let s = load_scene_without_policy_models("fabric_selection_vtla_real", None).unwrap();
+    let sensor = MockConfig::new(s.source.sensor, s.source.seed);
+    let cfg = DemoConfig {
+        task: TaskKind::Fabric,
+        mode,
+        ..DemoConfig::default()
+    };
+    let chains = vec![
+        chain("fabric_selection_vtla_real"),
+        chain("fabric_selection_vtla_pred"),
+    ];
+    record_chains(Split::Train, 1, trial, &sensor, chains, &cfg).unwrap()
+}
+
+#[test]
+fn each_modes_fabric_expert_touches_both_then_decides_from_what_that_mode_observes() {
+    let mut by_touch = Vec::new();
+    for trial in 0..4 {
+        let real = fabric_demo(Mode::VtlaReal, trial);
+        let vla = fabric_demo(Mode::Vla, trial);
+        for d in [&real, &vla] {
+            let at = d.ticks.iter().position(|t| t.t_s >= d.decided_s).unwrap();
+            // Both touches ended (each live latent encoded) before the decision, and no tick
+            // before it lifted anything.
+            let t = &d.ticks[at];
+            assert_eq!(
+                [t.latent_real[96], t.latent_real[193]],
+                [1.0, 1.0],
+                "trial {trial}"
+            );
+            assert!(d.ticks[..at].iter().all(|t| t.action[6] == 0.0));
+            // After it, the arm goes to the chosen fabric and lifts it.
+            let k = d.objects.iter().position(|o| *o == d.chosen).unwrap() as u32 + 1;
+            let last = d.ticks.last().unwrap();
+            assert_eq!(last.arm_target, k, "trial {trial}");
+            assert!(last.action[6] > 0.0, "trial {trial}: {last:?}");
+            assert!(
+                last.state[3] > 0.0,
+                "trial {trial}: holding: {:?}",
+                last.state
+            );
+        }
+        // vtla_real: the comparison it holds at the decision ([A rougher, B rougher, tie, ..])
+        // names the smoother one.
+        let at = real.ticks.iter().find(|t| t.t_s >= real.decided_s).unwrap();
+        let by_comparison = if at.comparison[0] == 1.0 {
+            "fabric_b"
+        } else {
+            assert_eq!(at.comparison[1], 1.0, "trial {trial}: {:?}", at.comparison);
+            "fabric_a"
+        };
+        assert_eq!(real.chosen, by_comparison, "trial {trial}");
+        // vla: the lower of the camera's mean roughness guesses at the decision.
+        let at = vla.ticks.iter().find(|t| t.t_s >= vla.decided_s).unwrap();
+        let r = |name: &str| {
+            let i = vla.visual_names.iter().position(|n| n == name).unwrap();
+            at.visual[i]
+        };
+        let by_camera = if r("fabric_b_roughness") < r("fabric_a_roughness") {
+            "fabric_b"
+        } else {
+            "fabric_a"
+        };
+        assert_eq!(vla.chosen, by_camera, "trial {trial}");
+        by_touch.push(real.chosen.clone());
+    }
+    // The comparison names either fabric over these draws.
+    assert!(by_touch.iter().any(|c| c == "fabric_a") && by_touch.iter().any(|c| c == "fabric_b"));
+}
+
+#[test]
+fn only_vtla_reals_cup_demonstration_probes_before_the_squeeze() {
+    let s = load_scene_without_policy_models("cup_deformation_vtla_real", None).unwrap();
+    let sensor = MockConfig::new(s.source.sensor, s.source.seed);
+    let record = |mode| {
+        let cfg = DemoConfig {
+            mode,
+            ..DemoConfig::default()
+        };
+        let chains = vec![
+            chain("cup_deformation_vtla_real"),
+            chain("cup_deformation_vtla_pred"),
+        ];
+        record_chains(Split::Train, 5, 1, &sensor, chains, &cfg).unwrap()
+    };
+    let real = record(Mode::VtlaReal);
+    for mode in [Mode::Vla, Mode::VtlaPred] {
+        let d = record(mode);
+        // No probe: one contact episode (the squeeze), no tick at the probe's closing speed.
+        let cfg = DemoConfig::default();
+        let probing = |d: &Demo| {
+            d.ticks
+                .iter()
+                .filter(|t| {
+                    (f64::from(t.action[1]) - cfg.touch_speed_m_s).abs() < 1e-9
+                        && (f64::from(t.action[2]) - cfg.touch_force_n).abs() < 1e-6
+                })
+                .count()
+        };
+        assert_eq!(probing(&d), 0, "{mode:?}");
+        assert!(probing(&real) > 0);
+        assert!(d.latents.iter().all(|l| l.touch <= 1), "{mode:?}");
+        assert!(real.latents.iter().any(|l| l.touch == 2));
+        // The same cup, the same squeeze and outcome, sooner.
+        assert_eq!(d.stiffness_n_per_m, real.stiffness_n_per_m);
+        assert_eq!(d.expert_opening_m, real.expert_opening_m);
+        assert!(d.success && real.success);
+        assert!(d.ticks.len() < real.ticks.len());
+        assert!(
+            d.contact_opening_m.is_nan(),
+            "no probe contact: {}",
+            d.contact_opening_m
+        );
+    }
 }

@@ -25,6 +25,18 @@
 //! `touch_z_m` for a touch and `grasp_z_m` for the grasp (offsets, negative = below the top), so
 //! that the grasp aims into the top layer whatever the fold's height. The approach phases need
 //! a fresh visual observation; one without the object's edge height fails the controller.
+//!
+//! vtla_real grasps where its touch felt the fold. Each touch presses at the camera's height
+//! (`touch_z_m` below its edge estimate), and the gel image shows where the fold's top crosses
+//! the gel: fabric lies only below it, so the contact (a disc about the fingertip centre, the
+//! fabric over the rounded gel) is cut off at the fold's top. From the contact state's bounding
+//! box ([`fold_above_centre_m`]: its top row against the fingertip centre's row) the touch
+//! reads how far the fold's top is above the fingertip centre, in mm through the state's own
+//! area ratio (mm^2 per px). The grasp on the chosen fabric then goes to the fold's top so felt
+//! plus `grasp_z_m` (into the top layer), from the height the fingertips had at that touch,
+//! instead of from the camera's edge estimate. Where the touch did not see the fold (the whole
+//! disc: the fold's top above the contact; no contact state) the grasp falls back to the
+//! camera's height. vla and vtla_pred keep the camera's rule.
 
 use super::{Estimate, Timed, action, arm, force, position};
 use crate::error::PolicyLoadError;
@@ -66,6 +78,64 @@ pub struct FabricController {
     /// The camera's estimates of where A and B are (x, y) and of their edge heights: running
     /// means over the frames seen while approaching each.
     places: [Estimate<3>; 2],
+    /// vtla_real: the fold's top of A and B as each touch felt it: the fingertip height of the
+    /// touch plus the fold's height above the contact centre read from the contact state \[m]
+    /// (None: not felt, see [`fold_above_centre_m`]).
+    felt_top: [Option<f64>; 2],
+    /// vtla_real: touches of A and B that closed on nothing so far; each lowers that object's
+    /// next touch by `touch_z_m` (at most [`TOUCH_RETRIES`]).
+    missed: [u32; 2],
+}
+
+/// Touches that closed on nothing (the fingertips above the fold: the camera saw the edge too
+/// high) are tried again this many times, each `touch_z_m` lower.
+const TOUCH_RETRIES: u32 = 2;
+/// A touch has closed on nothing when the fingers are this near the smallest opening without
+/// a contact \[m].
+const CLOSED_ON_NOTHING_M: f64 = 0.001;
+
+/// Height over width of the tactile images this stack reads (GelSight Mini and DIGIT: 320 x 240,
+/// DIGIT also 640 x 480): with the fingertip centre at the image's centre, its row is this times
+/// its column.
+const IMAGE_ASPECT: f64 = 0.75;
+/// A fold's top read at least this share of the contact's half-width above the centre is the
+/// disc's own top: the fold lies above the contact and its height is not seen.
+const WHOLE_DISC: f64 = 0.9;
+/// A contact box narrower than this shows no fold (a press a few pixels across) \[px].
+const MIN_BOX_PX: f64 = 8.0;
+
+/// How far a fabric's fold's top lies above the fingertip centre \[m], read from a contact
+/// state, or None where the state does not show it (no contact, an empty box, no mm scale, the
+/// whole disc).
+///
+/// The fabric over the rounded gel presses a disc about the fingertip centre, cut off where the
+/// fabric ends, at the fold's top (crates/sim: `FoldEdge`): the top of the contact's bounding
+/// box is the fold, a sharp edge in the image, while the disc's rim fades out (its detected
+/// width and bottom move with the press depth and the detector's threshold). So the box's top is
+/// read against the fingertip centre's row: the box is centred on the fingertip along the fold
+/// (x), which is the image's centre column, and the images are [`IMAGE_ASPECT`] as tall as
+/// wide, so the centre row is that times the box's mid column. The pixel size comes from the
+/// state itself: `sqrt(area_mm2 / area_px)`. A top as far above the centre as [`WHOLE_DISC`] of
+/// the disc's half-width or of its reach below the centre is the disc's own top, not the fold;
+/// a box narrower than [`MIN_BOX_PX`] shows none.
+pub fn fold_above_centre_m(c: &unitac_core::msg::ContactState) -> Option<f64> {
+    let [x0, y0, x1, y1] = c.bbox_px;
+    let (w, h) = (
+        f64::from(x1.saturating_sub(x0)),
+        f64::from(y1.saturating_sub(y0)),
+    );
+    let (mm2, px) = (f64::from(c.area_mm2), f64::from(c.area_px));
+    if !c.in_contact || w < MIN_BOX_PX || h <= 0.0 || !(mm2 > 0.0 && px > 0.0) {
+        return None;
+    }
+    let centre_row = IMAGE_ASPECT * 0.5 * (f64::from(x0) + f64::from(x1));
+    let above_px = centre_row - f64::from(y0);
+    let below_px = f64::from(y1) - centre_row;
+    if above_px >= WHOLE_DISC * (0.5 * w).min(below_px) {
+        return None;
+    }
+    let m = above_px * (mm2 / px).sqrt() * 1e-3;
+    m.is_finite().then_some(m)
 }
 
 impl FabricController {
@@ -96,6 +166,8 @@ impl FabricController {
             chosen: None,
             failure: None,
             places: [Estimate::default(); 2],
+            felt_top: [None; 2],
+            missed: [0; 2],
             p: p.clone(),
         })
     }
@@ -162,18 +234,32 @@ impl FabricController {
             .map_or([0.0, 0.0], |i| self.place(i))
     }
 
-    /// Height of a touch on object `i`.
+    /// Height of a touch on object `i` (lower by `touch_z_m` for each touch of it that closed on
+    /// nothing).
     fn touch_z(&self, i: usize) -> f64 {
-        self.height(i, self.p.touch_z_m).unwrap_or(self.p.max_z_m)
+        let missed = f64::from(self.missed.get(i).copied().unwrap_or(0));
+        self.height(i, self.p.touch_z_m * (1.0 + missed))
+            .unwrap_or(self.p.max_z_m)
     }
 
-    /// Height of the grasp on the chosen object.
+    /// Height of the grasp on the chosen object: `grasp_z_m` below the fold's top as the touch
+    /// felt it (vtla_real), else as the camera sees it.
     fn grasp_z(&self) -> f64 {
+        let Some(i) = self.chosen.as_deref().and_then(|c| self.index(c)) else {
+            return self.p.max_z_m;
+        };
+        if let Some(top) = self.felt_top.get(i).copied().flatten() {
+            return (top + self.p.grasp_z_m).clamp(self.p.min_z_m, self.p.max_z_m);
+        }
+        self.height(i, self.p.grasp_z_m).unwrap_or(self.p.max_z_m)
+    }
+
+    /// Whether the grasp height comes from the touch.
+    fn grasp_felt(&self) -> bool {
         self.chosen
             .as_deref()
             .and_then(|c| self.index(c))
-            .and_then(|i| self.height(i, self.p.grasp_z_m))
-            .unwrap_or(self.p.max_z_m)
+            .is_some_and(|i| self.felt_top.get(i).copied().flatten().is_some())
     }
 
     /// The object with more (or less) of the property: index 0 = A, 1 = B.
@@ -230,10 +316,26 @@ impl FabricController {
             }
             Phase::Press(i) => {
                 if in_contact == Some(true) {
+                    // The latest contact of the touch shows where the fold's top is (the press
+                    // is deepest at the end of the hold); the fingertips are at the touch height.
+                    let above = obs.contact().and_then(fold_above_centre_m);
+                    let z = self.touch_z(i);
+                    if let Some(slot) = self.felt_top.get_mut(i) {
+                        *slot = above.map(|a| z + a);
+                    }
                     let at = *self.contact_at.get_or_insert(now);
                     if now.secs_since(at) >= p.touch_hold_s {
                         self.t.go(Phase::Release(i));
                     }
+                } else if self.contact_at.is_none()
+                    && opening.is_some_and(|o| o <= p.min_opening_m + CLOSED_ON_NOTHING_M)
+                    && self.missed.get(i).is_some_and(|&m| m < TOUCH_RETRIES)
+                {
+                    // Closed on nothing: above the fold. Open and touch again, lower.
+                    if let Some(m) = self.missed.get_mut(i) {
+                        *m += 1;
+                    }
+                    self.t.go(Phase::Approach(i));
                 } else if elapsed >= p.contact_timeout_s {
                     let e = PolicyError::Timeout(format!(
                         "no contact on {} within {} s",
@@ -374,7 +476,16 @@ impl FabricController {
             Phase::Grasp => action(
                 grip,
                 arm(&chosen, at, grasp_z, 0.0),
-                format!("grasping {chosen} ({:.2} N)", p.grasp_force_n),
+                format!(
+                    "grasping {chosen} ({:.2} N) at {:.2} mm, {}",
+                    p.grasp_force_n,
+                    grasp_z * 1e3,
+                    if self.grasp_felt() {
+                        "below the fold's top felt by touch"
+                    } else {
+                        "below the camera's edge height"
+                    }
+                ),
             ),
             Phase::Lift => action(
                 grip,

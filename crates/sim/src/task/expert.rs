@@ -1,14 +1,32 @@
-//! The scripted expert: a function (truth, trial, config) -> command per control tick that
-//! solves both tasks reading ground truth, and the demonstration record the reference policies
-//! will be fitted on.
+//! The scripted expert: a function (truth, trial, config, decision) -> command per control tick
+//! that solves both tasks, and the demonstration record the reference policies are fitted on.
+//!
+//! The expert reads the truth only for what a teleoperator sees: where the objects were placed,
+//! the fingers' geometry (what is between them, how long each fabric was pressed, where the arm
+//! is) and the visible deformation. Whatever a policy could not see, it does not decide from:
+//! the fabric to grasp is the caller's decision, made from what the imitating mode observes
+//! (crates/trials demos.rs: the live PropertyComparison for vtla_real, the camera's roughness
+//! guesses for vla and vtla_pred; [`run_expert`] here: the camera's, [`camera_choice`]).
 //!
 //! Cup: open wide, bring the fingertips to half the cup's height, close at 20 mm/s to the opening
 //! at which the world's static equilibrium gives the target deformation
-//! ([`static_finger_for`] on the cup's true wall), wait until the wall has settled there, lift
-//! 5 cm. Fabric: pinch each fabric at its single-layer height with 1.5 N until it has been touched
-//! 0.3 s, open, then pinch the smoother one (true roughness) at its single-layer height with
-//! twice the force friction needs to carry it, and lift 8 cm. Stateless: the phase follows from
-//! the truth (what is between the fingers, how long each fabric was touched, where the arm is).
+//! ([`static_finger_for`] on the cup's wall: the squeeze whose settled deformation is the
+//! target), wait until the wall has settled there, lift 5 cm.
+//!
+//! Fabric:
+//!
+//! ```text
+//! touch A:   pinch fabric A at its single-layer height with 1.5 N until pressed 0.3 s
+//! release A: open wide (the contact episode ends: the encoder sees A's clip)
+//! touch B:   the same on fabric B
+//! release B: open wide at B and wait, open, for the caller's decision
+//! grasp:     pinch the chosen fabric at its single-layer height with twice the force friction
+//!            needs to carry it (the first close after both touches: the grasp attempt)
+//! lift:      8 cm
+//! ```
+//!
+//! Stateless: the phase follows from what is seen (what is between the fingers, how long each
+//! fabric was pressed, where the arm is) and the decision passed in.
 
 use serde::Serialize;
 
@@ -59,11 +77,18 @@ fn placed<'a>(spec: &TrialSpec, name: &'a str) -> (&'a str, [f64; 2]) {
     (name, spec.object(name).map_or([0.0, 0.0], |o| o.placed_m))
 }
 
-/// The expert's command for this tick.
-pub fn expert_command(truth: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskCommand {
+/// The expert's command for this tick. `choice`: the fabric to grasp, once the caller has
+/// decided (fabric; None until then: the expert touches both, lets go and waits open; see
+/// [`fabric_touched_both`]). The cup task ignores it.
+pub fn expert_command(
+    truth: &TaskTruth,
+    spec: &TrialSpec,
+    cfg: &TaskConfig,
+    choice: Option<&str>,
+) -> TaskCommand {
     match cfg.kind {
         TaskKind::Cup => cup_command(truth, spec, cfg),
-        TaskKind::Fabric => fabric_command(truth, spec, cfg),
+        TaskKind::Fabric => fabric_command(truth, spec, cfg, choice),
     }
 }
 
@@ -127,31 +152,88 @@ fn cup_command(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskCommand
     }
 }
 
-fn fabric_command(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskCommand {
+/// Whether fabric `name` has been pressed long enough to count as touched.
+fn touched(t: &TaskTruth, name: &str) -> bool {
+    t.objects
+        .iter()
+        .any(|o| o.name == name && o.touch_s >= TOUCH_DWELL_S)
+}
+
+/// The opening at which the fingers are clear of fabric `f` \[m].
+fn fabric_wide(f: &super::FabricSpec, cfg: &TaskConfig) -> f64 {
+    f.stack_m() + 0.01 + 2.0 * cfg.gripper.pad_m
+}
+
+/// Whether the fabric expert has touched both fabrics and let go of the second (the fingers
+/// pressing nothing, open clear of the fabric they are around): the point at which it waits for
+/// the decision ([`expert_command`]'s `choice`).
+pub fn fabric_touched_both(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> bool {
+    let names: Vec<&str> = spec
+        .objects
+        .iter()
+        .filter(|o| spec.fabric(&o.name).is_some())
+        .map(|o| o.name.as_str())
+        .collect();
+    if names.is_empty() || !names.iter().all(|n| touched(t, n)) {
+        return false;
+    }
+    let clear = match spec.fabric(&t.contact.object) {
+        Some(f) => t.gripper.opening_m >= fabric_wide(f, cfg) - 1e-4,
+        None => true,
+    };
+    t.gripper.force_n <= 0.0 && clear
+}
+
+/// The fabric whose camera roughness guess (`<name>.roughness_ra_m`, from `roughness`: the
+/// camera's estimate the caller keeps, e.g. its mean so far) is the lowest; the first on a tie,
+/// None when no fabric has a guess.
+pub fn camera_choice(
+    spec: &TrialSpec,
+    roughness: impl Fn(&str) -> Option<f64>,
+) -> Option<&str> {
+    let mut best: Option<(&str, f64)> = None;
+    for o in &spec.objects {
+        if spec.fabric(&o.name).is_none() {
+            continue;
+        }
+        let Some(r) = roughness(&format!("{}.roughness_ra_m", o.name)).filter(|r| r.is_finite())
+        else {
+            continue;
+        };
+        if best.is_none_or(|(_, b)| r < b) {
+            best = Some((&o.name, r));
+        }
+    }
+    best.map(|(n, _)| n)
+}
+
+fn fabric_command(
+    t: &TaskTruth,
+    spec: &TrialSpec,
+    cfg: &TaskConfig,
+    choice: Option<&str>,
+) -> TaskCommand {
     let g = cfg.gripper;
-    let touched = |name: &str| {
-        t.objects
-            .iter()
-            .any(|o| o.name == name && o.touch_s >= TOUCH_DWELL_S)
-    };
-    let (goal, grasp) = if !touched("fabric_a") {
-        ("fabric_a", false)
-    } else if !touched("fabric_b") {
-        ("fabric_b", false)
+    let first = spec.objects.first().map_or("", |o| o.name.as_str());
+    let second = spec.objects.get(1).map_or("", |o| o.name.as_str());
+    let (goal, grasp) = if !touched(t, first) {
+        (first, false)
+    } else if !touched(t, second) {
+        (second, false)
+    } else if let Some(c) = choice {
+        (c, true)
     } else {
-        (spec.smoother(), true)
+        // Both touched, no decision yet: let go of the second and wait there, open.
+        ("", false)
     };
-    let Some(f) = spec.fabric(goal) else {
-        return home(cfg);
-    };
-    // Let go of another fabric before moving on.
+    // Let go of another fabric before moving on (and of the second while undecided).
     let other = t.contact.object.as_str();
     if !other.is_empty()
         && other != goal
         && let Some(o) = spec.fabric(other)
     {
-        let wide = o.stack_m() + 0.01 + 2.0 * g.pad_m;
-        if t.gripper.force_n > 0.0 || t.gripper.opening_m < wide - 1e-4 {
+        let wide = fabric_wide(o, cfg);
+        if t.gripper.force_n > 0.0 || t.gripper.opening_m < wide - 1e-4 || goal.is_empty() {
             return command(
                 wide,
                 g.max_speed_m_s,
@@ -162,8 +244,23 @@ fn fabric_command(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskComm
             );
         }
     }
+    let goal = if goal.is_empty() { second } else { goal };
+    let Some(f) = spec.fabric(goal) else {
+        return home(cfg);
+    };
     let z = f.single_layer_z_m();
-    let wide = f.stack_m() + 0.01 + 2.0 * g.pad_m;
+    let wide = fabric_wide(f, cfg);
+    if !grasp && touched(t, goal) {
+        // Undecided, away from the fabrics' grip: wait open above the second one.
+        return command(
+            wide,
+            g.max_speed_m_s,
+            TOUCH_FORCE_N,
+            placed(spec, goal),
+            z,
+            0.0,
+        );
+    }
     let around = t.contact.object == goal;
     let force = if grasp {
         // Twice what static friction must carry at the top of the lift, accelerating.
@@ -207,7 +304,10 @@ pub struct Demonstration {
 /// Salt of the camera's per-frame noise stream (separate from the trial's draw).
 const VISION_SALT: u64 = 0x5649_5349_4F4E_0001;
 
-/// Run the expert for `duration_s` at control period `dt_s` on trial `trial` of `seed`.
+/// Run the expert for `duration_s` at control period `dt_s` on trial `trial` of `seed`. The
+/// fabric to grasp is the camera's: once both are touched ([`fabric_touched_both`]), the one
+/// whose roughness guess, averaged over the camera's frames so far, is the lowest
+/// ([`camera_choice`]); what a vision-only policy could decide, right or wrong.
 pub fn run_expert(
     cfg: &TaskConfig,
     seed: u64,
@@ -215,8 +315,26 @@ pub fn run_expert(
     dt_s: f64,
     duration_s: f64,
 ) -> Result<Demonstration, WorldError> {
-    run_policy(cfg, seed, trial, dt_s, duration_s, |t, spec| {
-        expert_command(t, spec, cfg)
+    let mut sum: Vec<f64> = Vec::new();
+    let mut frames = 0.0;
+    let mut choice: Option<String> = None;
+    run_seeing(cfg, seed, trial, dt_s, duration_s, |t, spec, seen| {
+        if sum.len() != seen.values.len() {
+            sum = vec![0.0; seen.values.len()];
+            frames = 0.0;
+        }
+        for (s, v) in sum.iter_mut().zip(&seen.values) {
+            *s += v;
+        }
+        frames += 1.0;
+        if choice.is_none() && cfg.kind == TaskKind::Fabric && fabric_touched_both(t, spec, cfg) {
+            let mean = |name: &str| {
+                let i = seen.names.iter().position(|n| n == name)?;
+                sum.get(i).map(|s| s / frames)
+            };
+            choice = camera_choice(spec, mean).map(str::to_string);
+        }
+        expert_command(t, spec, cfg, choice.as_deref())
     })
 }
 
@@ -229,6 +347,20 @@ pub fn run_policy(
     dt_s: f64,
     duration_s: f64,
     mut policy: impl FnMut(&TaskTruth, &TrialSpec) -> TaskCommand,
+) -> Result<Demonstration, WorldError> {
+    run_seeing(cfg, seed, trial, dt_s, duration_s, |t, spec, _| {
+        policy(t, spec)
+    })
+}
+
+/// [`run_policy`] with the policy also given the camera's observation of the tick.
+fn run_seeing(
+    cfg: &TaskConfig,
+    seed: u64,
+    trial: u32,
+    dt_s: f64,
+    duration_s: f64,
+    mut policy: impl FnMut(&TaskTruth, &TrialSpec, &VisualObservation) -> TaskCommand,
 ) -> Result<Demonstration, WorldError> {
     if !(dt_s.is_finite() && dt_s > 0.0 && dt_s <= super::MAX_STEP_S) {
         return Err(WorldError::BadStep(dt_s));
@@ -246,8 +378,8 @@ pub fn run_policy(
     let mut truth = w.truth();
     let mut steps = Vec::with_capacity(n as usize);
     for _ in 0..n as usize {
-        let cmd = policy(&truth, w.spec());
         let visual = w.observe_visual(&mut rng);
+        let cmd = policy(&truth, w.spec(), &visual);
         let next = w.step(&cmd, dt_s)?;
         steps.push(DemoStep {
             t_s: truth.t_s,

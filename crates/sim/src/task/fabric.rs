@@ -314,8 +314,9 @@ impl Default for FabricCriteria {
 /// The fabric task's outcome with the values behind each criterion.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct FabricOutcome {
-    /// The fabric the policy decided on (the first it lifted, else the one held; "" none), the
-    /// one held at the end ("" none), and the smoother one of the pair.
+    /// The fabric the policy decided on (the object of its first grasp attempt, else the one it
+    /// announced, else the one held; "" none: `TaskWorld::decide`), the one held at the end
+    /// ("" none), and the smoother one of the pair.
     pub chosen: String,
     pub held: String,
     pub smoother: String,
@@ -333,7 +334,8 @@ pub struct FabricOutcome {
 }
 
 impl FabricOutcome {
-    /// `chosen`: the fabric the policy decided on (the first it lifted, else the one it holds);
+    /// `chosen`: the fabric the policy decided on (its first grasp attempt's, else the one it
+    /// announced, else the one it holds);
     /// `held`: the one between the fingers at the end ("" none). Selection and grasp are scored
     /// apart, as in the paper: selection is the decision alone, grasp is the held fabric's (a
     /// single layer, lifted, slip within the bound); overall needs both, on the same fabric.

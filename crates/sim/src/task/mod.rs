@@ -178,6 +178,10 @@ const CUP_MARGIN_M: f64 = 0.005;
 const PINCH_DEPTH_M: f64 = 0.015;
 /// Contact force that counts as touching an object \[N].
 const TOUCH_N: f64 = 0.2;
+/// A grasp attempt: the fingers hold an object (grip force at least [`TOUCH_N`]) and have
+/// raised it this far off where it rests \[m]. A touch (fingers closed on it, the arm still)
+/// never raises it; a lift with open fingers raises nothing.
+pub const GRASP_ATTEMPT_LIFT_M: f64 = 0.002;
 
 /// How an object sits between the fingers when it comes between them.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -255,8 +259,11 @@ pub struct TaskWorld {
     collision: bool,
     dropped: bool,
     peak_deformation_mm: f64,
-    /// The object of the first command that lifted (the policy's decision).
-    decision: Option<usize>,
+    /// The object the policy announced as its choice ([`TaskWorld::decide`]).
+    announced: Option<usize>,
+    /// The object of the first grasp attempt: the first one the fingers held and raised
+    /// [`GRASP_ATTEMPT_LIFT_M`] off the table.
+    attempted: Option<usize>,
     /// Last step's slip (signed) and integrator steps.
     slip_step_m: f64,
     substeps: u32,
@@ -288,7 +295,8 @@ impl TaskWorld {
             collision: false,
             dropped: false,
             peak_deformation_mm: 0.0,
-            decision: None,
+            announced: None,
+            attempted: None,
             slip_step_m: 0.0,
             substeps: 0,
         }
@@ -300,11 +308,21 @@ impl TaskWorld {
 
     /// The policy announced its decision: the object called `name` (fabric selection's choice,
     /// scored apart from the grasp). The first announcement counts; an unknown name is ignored.
-    /// Without one, the decision is the object the policy first lifted.
+    /// What the fingers do decides first: the decision is the object of the first grasp
+    /// attempt (held and raised [`GRASP_ATTEMPT_LIFT_M`]); the announcement stands only for a
+    /// policy that attempted no grasp (its grasp closed on nothing), and without either the
+    /// decision is the object held at the end.
     pub fn decide(&mut self, name: &str) {
-        if self.decision.is_none() {
-            self.decision = self.spec.objects.iter().position(|o| o.name == name);
+        if self.announced.is_none() {
+            self.announced = self.spec.objects.iter().position(|o| o.name == name);
         }
+    }
+
+    /// The object of the first grasp attempt so far (None: no attempt yet).
+    pub fn grasp_attempt(&self) -> Option<&str> {
+        self.attempted
+            .and_then(|i| self.spec.objects.get(i))
+            .map(|o| o.name.as_str())
     }
 
     /// Change one hidden variable of a freshly reset trial (see [`Hidden`]); the trial's random
@@ -370,9 +388,6 @@ impl TaskWorld {
             next.substep(cmd, target, h)?;
         }
         next.t = self.t + dt_s;
-        if next.decision.is_none() && cmd.arm.lift_m > 0.0 {
-            next.decision = target;
-        }
         *self = next;
         Ok(self.truth())
     }
@@ -608,6 +623,9 @@ impl TaskWorld {
                 self.slip_step_m += slip;
                 if grip >= TOUCH_N {
                     s.touch_s += h;
+                    if self.attempted.is_none() && s.hold.z_m >= GRASP_ATTEMPT_LIFT_M {
+                        self.attempted = Some(i);
+                    }
                 }
                 if grip <= 0.0
                     && let Fingers::Around { offset_m, .. } = &mut self.fingers
@@ -807,10 +825,11 @@ impl TaskWorld {
                 truth.collision,
             )),
             TaskKind::Fabric => {
-                // The decision: the one the policy announced ([`TaskWorld::decide`]) or first
-                // lifted, else the one it holds.
+                // The decision: the object of the first grasp attempt, else the one the policy
+                // announced ([`TaskWorld::decide`]), else the one it holds.
                 let chosen = self
-                    .decision
+                    .attempted
+                    .or(self.announced)
                     .or(held)
                     .and_then(|i| truth.objects.get(i))
                     .map_or("", |o| o.name.as_str());

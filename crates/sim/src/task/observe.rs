@@ -21,7 +21,7 @@ use serde::Serialize;
 
 use super::{ObjectSpec, TaskKind, TaskWorld};
 use crate::mock::{GroundTruth, MockSensor};
-use crate::object::Object;
+use crate::object::{FoldEdge, Object};
 use crate::rng::SplitMix64;
 use crate::tangential::{DEFAULT_LIMIT_M, Tangential};
 use unitac_core::Frame;
@@ -135,7 +135,9 @@ impl VisualObservation {
 #[derive(Debug, Clone, PartialEq)]
 pub struct SensorView {
     pub t_s: f64,
-    /// The touched object as the gel sees it (None: nothing between the fingers).
+    /// The touched object as the gel sees it (None: nothing between the fingers); a fabric
+    /// carries its folded edge ([`FoldEdge`]: where the fold's top crosses the gel, the layer
+    /// thickness), so the press shows where the pinch is on the fold.
     pub object: Option<Object>,
     /// Gel penetration \[m] (0 when not touching).
     pub penetration_m: f64,
@@ -253,7 +255,21 @@ impl TaskWorld {
                     obj.label = o.name.clone();
                     obj
                 }
-                ObjectSpec::Fabric(f) => f.fabric.object(&o.name),
+                ObjectSpec::Fabric(f) => {
+                    let obj = f.fabric.object(&o.name);
+                    // The fold's top above the fingertip centre (the contact centre): the fabric's
+                    // folded edge stands `stack_m` above its base, which is lifted with it.
+                    let base = truth
+                        .objects
+                        .iter()
+                        .find(|t| t.name == o.name)
+                        .map_or(0.0, |t| t.position_m[2]);
+                    let above_m = f.stack_m() - (truth.arm.position_m[2] - base);
+                    obj.with_fold(FoldEdge {
+                        edge_mm: above_m * 1e3,
+                        layer_mm: f.layer_m * 1e3,
+                    })
+                }
             });
         let touching = c.penetration_m > 0.0;
         SensorView {
