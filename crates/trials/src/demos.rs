@@ -14,11 +14,14 @@
 //! One cup demonstration, per tick of `dt_s`:
 //!
 //! ```text
-//! approach: the expert's arm command to the cup, the fingers at its first opening (wide), until
-//!           the arm has arrived and has had `approach_s` since its target was commanded
+//! approach: the expert's arm command to the cup, the fingers at the camera's width + the pads +
+//!           the pre-grasp margin (`pregrasp_m`, as the cup controller opens), until the arm has
+//!           arrived and has had `approach_s` since its target was commanded
 //! touch:    (vtla_real) close at touch_speed_m_s with touch_force_n until the contact stage
 //!           says contact (the opening there is D0): the probe touch the vtla_real controller
-//!           makes
+//!           makes, from a distance that varies with the camera's error as the controller's does
+//! press:    (vtla_real) to D0 - probe_press_m for probe_press_s (the sensor sees a steady
+//!           press of the wall, what the stiffness readout reads)
 //! release:  (vtla_real) open to D0 + probe_release_m until the contact stage says the contact
 //!           ended (the episode's clip goes to the encoder: its latent is the touch's observation)
 //! expert:   the expert's own commands (squeeze to its setpoint, settle, lift) for expert_s
@@ -481,6 +484,8 @@ fn record_inner(
     let mut chains: Vec<Chain> = chains.into_iter().map(Chain::new).collect();
     let mut driver = driver.map(Chain::new);
     let visual = world.visual();
+    // The cup's width as the camera first sees it: the approach opens to it plus the pre-grasp.
+    let seen_width = visual.get("cup.diameter_m");
     let visual_msg = visual_message(&visual);
     let layout = Layout {
         latent_len: 0,
@@ -674,12 +679,13 @@ fn record_inner(
             since = t;
         }
         let cmd = match phase {
-            // Fingers at the expert's first opening until the probe: the expert's own closing
-            // starts on the arm's true arrival, which no policy observes.
+            // Fingers at the expert's first opening (a cup: the camera's width + the pads + the
+            // pre-grasp margin, as the cup controller opens) until the probe or the squeeze: the
+            // expert's own closing starts on the arm's true arrival, which no policy observes.
             Phase::Approach => TaskCommand {
                 gripper: *approach_grip.get_or_insert_with(|| {
                     let mut g = expert.gripper;
-                    if let (TaskKind::Cup, Some(w)) = (c.task, visual.get("cup.diameter_m")) {
+                    if let (TaskKind::Cup, Some(w)) = (c.task, seen_width) {
                         g.opening_m = (w + c.pregrasp_m).min(g.opening_m);
                     }
                     g
