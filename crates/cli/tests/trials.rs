@@ -41,22 +41,24 @@ fn one_cup_trial_per_mode_gives_every_row_and_each_outcome() {
         .map(|r| r["criterion"].as_str().unwrap())
         .collect();
     assert_eq!(criteria, ["lift", "target deformation", "overall"]);
-    let paper = [[18, 20, 19], [0, 20, 18], [0, 20, 18]];
+    // VLA's force rule is a column of its own beside its position rule (no paper figure).
+    let paper = [
+        [Some(18), None, Some(20), Some(19)],
+        [Some(0), None, Some(20), Some(18)],
+        [Some(0), None, Some(20), Some(18)],
+    ];
     for (r, want) in rows.iter().zip(paper) {
         let cells = r["cells"].as_array().unwrap();
         let modes: Vec<&str> = cells.iter().map(|c| c["mode"].as_str().unwrap()).collect();
-        assert_eq!(modes, ["vla", "vtla_real", "vtla_pred"]);
+        assert_eq!(modes, ["vla", "vla_force", "vtla_real", "vtla_pred"]);
         for (c, p) in cells.iter().zip(want) {
-            assert_eq!(
-                (c["trials"].as_u64(), c["paper"].as_u64()),
-                (Some(1), Some(p))
-            );
+            assert_eq!((c["trials"].as_u64(), c["paper"].as_u64()), (Some(1), p));
             assert!(c["ours"].as_u64().unwrap() <= 1);
         }
     }
     // Each cell is the count of its mode's trial outcomes.
     let modes = j["modes"].as_array().unwrap();
-    assert_eq!(modes.len(), 3);
+    assert_eq!(modes.len(), 4);
     for (i, m) in modes.iter().enumerate() {
         let t = &m["trials"].as_array().unwrap()[0];
         let cup = &t["outcome"]["cup"];
@@ -65,10 +67,20 @@ fn one_cup_trial_per_mode_gives_every_row_and_each_outcome() {
             let ours = row["cells"][i]["ours"].as_u64().unwrap();
             assert_eq!(ours, u64::from(cup[key].as_bool().unwrap()), "{key} of {m}");
         }
-        assert_eq!(
-            m["scene"],
-            format!("cup_deformation_{}", m["mode"].as_str().unwrap())
-        );
+        let mode = m["mode"].as_str().unwrap();
+        let scene = if mode == "vla_force" { "vla" } else { mode };
+        assert_eq!(m["scene"], format!("cup_deformation_{scene}"));
+        // The force rules and the touch readouts name the stiffness they read and the cup's.
+        if mode != "vla" {
+            let s = &t["stiffness"];
+            assert!(
+                s["read_n_per_m"].as_f64().unwrap() > 0.0
+                    && s["true_n_per_m"].as_f64().unwrap() > 0.0,
+                "{t}"
+            );
+            assert_eq!(s["camera_width_m"].is_f64(), mode == "vla_force", "{t}");
+            assert!(m["stiffness"]["median_relative_error"].is_f64(), "{m}");
+        }
     }
     let png = std::fs::read(dir.join("cup_deformation.png")).unwrap();
     assert_eq!(&png[1..4], b"PNG");
