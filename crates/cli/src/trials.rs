@@ -881,13 +881,16 @@ fn calibrate_vla(a: &TrialsArgs, task: &TaskConfig, records: &Records) -> Result
     Ok(true)
 }
 
-/// The force rule's stiffness law from the training cups: least squares of ln k on ln(W / 80
-/// mm) over the trials (k the cup's true stiffness, W the camera's width the rule read).
+/// The force rule's stiffness law from the training cups: least squares of ln k on ln(D / 80
+/// mm) over the trials, k and D the cups' true stiffness and diameter: a calibration against
+/// reference values, as the touch readouts are fitted on true labels (fitted on the camera's
+/// noisy widths instead, the slope flattens, -2.1 for -3, and the law under-reads wider cups'
+/// softness).
 fn calibrate_force_law(rs: &[TrialRecord]) -> Result<String> {
     let pts: Vec<(f64, f64)> = rs
         .iter()
         .filter_map(|r| r.stiffness.as_ref())
-        .filter_map(|s| Some(((s.camera_width_m? / 0.08).ln(), s.true_n_per_m.ln())))
+        .map(|s| ((s.true_diameter_m / 0.08).ln(), s.true_n_per_m.ln()))
         .filter(|(x, y)| x.is_finite() && y.is_finite())
         .collect();
     if pts.len() < 3 {

@@ -242,8 +242,10 @@ pub struct StiffnessReading {
     pub true_n_per_m: f64,
     /// Ticks on which the readout had to clip a reading to its range (`readout.stiffness`).
     pub clipped_ticks: u64,
-    /// The camera's width the reading came from \[m] (vla's force rule), for its calibration.
+    /// The camera's width the reading came from \[m] (vla's force rule).
     pub camera_width_m: Option<f64>,
+    /// The cup's true diameter \[m] (for calibrating a camera rule on training cups).
+    pub true_diameter_m: f64,
 }
 
 /// The touch ablation: the latents and comparisons the tactile stages send the policy stage
@@ -394,18 +396,20 @@ pub fn trial_sensor(scene: &Scene, seed: u64, trial: u32) -> MockSensor {
     MockSensor::new(cfg, Scenario::idle(MAX_TRIAL_S))
 }
 
-/// The cup's true stiffness label \[N/m] (NaN without a cup).
-fn true_cup_stiffness(world: &TaskWorld) -> f64 {
+/// The cup's true stiffness label \[N/m] and diameter \[m] (NaN without a cup).
+fn true_cup(world: &TaskWorld) -> (f64, f64) {
     let d = world.config().cup_criteria.target_deformation_m;
     world
         .spec()
         .objects
         .iter()
         .find_map(|o| match &o.spec {
-            unitac_sim::task::ObjectSpec::Cup(c) => Some(crate::demos::cup_stiffness(c, d)),
+            unitac_sim::task::ObjectSpec::Cup(c) => {
+                Some((crate::demos::cup_stiffness(c, d), c.diameter_m))
+            }
             unitac_sim::task::ObjectSpec::Fabric(_) => None,
         })
-        .unwrap_or(f64::NAN)
+        .unwrap_or((f64::NAN, f64::NAN))
 }
 
 fn describe(world: &TaskWorld) -> String {
@@ -655,7 +659,8 @@ pub fn run_trial_swapped(
         if let Some(k) = unitac_policy::controller::cup::stiffness_in(&status.message) {
             record.stiffness = Some(StiffnessReading {
                 read_n_per_m: k,
-                true_n_per_m: true_cup_stiffness(world.world()),
+                true_n_per_m: true_cup(world.world()).0,
+                true_diameter_m: true_cup(world.world()).1,
                 clipped_ticks: record
                     .clamped
                     .get("readout.stiffness")
