@@ -1,6 +1,11 @@
-"""Train the learned VLA / VTLA-real / VTLA-pred policies on a LeRobot v3.0 dataset of the
+"""Train the learned VLA / VTLA-real / VTLA-pred policies on LeRobot v3.0 datasets of the
 scripted expert's demonstrations (scripts/lerobot_dataset.py), numpy only, and export each to ONNX
 in the policy bundle format of crates/policy/src/onnx (manifest.json with LeRobot names).
+
+A --dataset DS is one task's (its directory name is the task's, e.g. cup_deformation): either a
+directory of one dataset per mode, DS/<mode> (the expert's demonstrations for that mode, deciding
+from what the mode observes: scripts/learned_policies.sh), each mode trained on its own; or a
+dataset itself (meta/info.json), every mode trained on it.
 
 usage: train_policy.py --dataset DS [--dataset DS2 ...] --out DIR [--seed S] [--dagger DIR]
        train_policy.py --select --dataset DS [...]     (the hyperparameter table, printed)
@@ -78,6 +83,13 @@ MAX_FRAMES = 2_000_000
 BARRIER = 10.0
 # A pre-clip value further beyond a bound than this share of its range counts as beyond.
 FAR_FRACTION = 0.02
+
+
+def mode_root(root, mode):
+    """The dataset mode `mode` of the task dataset `root` trains on: root/mode if it is a
+    dataset, else root."""
+    own = os.path.join(root, mode)
+    return own if os.path.isfile(os.path.join(own, "meta", "info.json")) else root
 
 
 def load(root):
@@ -241,10 +253,11 @@ def select(datasets):
     for hp in GRID:
         losses = {}
         for root in datasets:
-            _, _, _, seeds = load(root)
-            held = max(seeds.values())
             for mode in MODES:
-                _, _, _, x, y, rows, _, h, _ = prepared(root, mode, keep=lambda s: s != held)
+                data = mode_root(root, mode)
+                _, _, _, seeds = load(data)
+                held = max(seeds.values())
+                _, _, _, x, y, rows, _, h, _ = prepared(data, mode, keep=lambda s: s != held)
                 p = fit(x[rows], y[rows], h, hp, seed=0)
                 out, _ = forward(p, h, x[~rows])
                 losses[f"{os.path.basename(root.rstrip('/'))}/{mode}"] = float(((out - y[~rows]) ** 2).mean())
@@ -336,14 +349,16 @@ def train_all(datasets, out, seed, dagger=None):
             t0 = time.time()
             more = os.path.join(dagger, f"{task}_{mode}") if dagger else None
             extra = [more] if more and os.path.isdir(more) else []
-            info, names, bounds, x, y, _, stats, h, n_base = prepared(root, mode, extra=extra)
+            data = mode_root(root, mode)
+            info, names, bounds, x, y, _, stats, h, n_base = prepared(data, mode, extra=extra)
             p = fit(x, y, h, {"hidden": HIDDEN, "lr": LR, "weight_decay": WEIGHT_DECAY}, seed)
             out_, _ = forward(p, h, x)
             name = f"{task}_{mode}"
-            instruction = pq.read_table(os.path.join(root, "meta", "tasks.parquet")).column(
+            instruction = pq.read_table(os.path.join(data, "meta", "tasks.parquet")).column(
                 "__index_level_0__")[0].as_py()
             export(p, h, stats, info, names, bounds, mode, os.path.join(out, name), name, instruction)
-            report.append({"policy": name, "frames": len(x), "dagger": bool(extra), "inputs": x.shape[1],
+            report.append({"policy": name, "dataset": os.path.relpath(data, os.path.dirname(root.rstrip("/"))),
+                           "frames": len(x), "dagger": bool(extra), "inputs": x.shape[1],
                            "train_loss": float(((out_ - y) ** 2).mean()),
                            "beyond_share_demos": beyond_share(p, h, x[:n_base], stats, names, bounds),
                            "beyond_share_dagger": beyond_share(p, h, x[n_base:], stats, names, bounds)
@@ -369,7 +384,7 @@ def check_onnx(bundles, datasets):
             f64 = lambda v: v.astype(np.float32).astype(np.float64)
             p = {k: f64(w[k]) for k in w.files if not k.startswith("head_")}
             h = {k[len("head_"):]: f64(w[k]) for k in w.files if k.startswith("head_")}
-            _, cols, _, _ = load(root)
+            _, cols, _, _ = load(mode_root(root, mode))
             feed, xs = {}, []
             for spec in man["inputs"]:
                 v = cols[spec["name"]][:512]

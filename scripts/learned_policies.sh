@@ -1,18 +1,25 @@
 #!/usr/bin/env bash
 # Setup step: the learned VLA / VTLA-real / VTLA-pred policies of both tasks in
 # .build/models/learned, and the demonstrations they are trained on as LeRobot v3.0 datasets.
-#   1. `unitac demos` records the scripted expert on the TRAINING objects of each task (seeds
-#      1,2,3 x 20 trials), the vtla_real and vtla_pred scenes' tactile stages watching the same
-#      trials, so every tick carries every mode's observations;
-#   2. scripts/lerobot_dataset.py lays them out in .build/models/learned/datasets/<task> (LeRobot
-#      v3.0);
-#   3. models/train_policy.py trains the 3 modes x 2 tasks once per training seed (0, 1, 2) into
-#      .build/models/learned/seed<k>/<task>_<mode> (ONNX + manifest.json) and checks ONNX Runtime
-#      against its numpy forward.
+#   1. `unitac demos --mode M` records the scripted expert on the TRAINING objects of each task
+#      (seeds 1,2,3 x 20 trials) deciding from what mode M observes: vtla_real's demonstrations
+#      probe the cup before the squeeze and grasp the fabric the live comparison names; vla's
+#      grasp the fabric the camera's roughness guesses name, with no probe. vtla_pred observes
+#      nothing more that the probe or the choice could use (its predicted latent is drawn
+#      without the object), so its demonstrations are vla's (the same draws, the same commands:
+#      recorded once, the dataset copied). The vtla_real and vtla_pred scenes' tactile stages
+#      watch every trial, so every tick carries every mode's observations; each vtla_real fabric
+#      demonstration must hold the comparison at its decision, and the decisions must name both
+#      fabrics (checked here on the recorded demos.json);
+#   2. scripts/lerobot_dataset.py lays them out in .build/models/learned/datasets/<task>/<mode>
+#      (LeRobot v3.0);
+#   3. models/train_policy.py trains the 3 modes x 2 tasks once per training seed (0, 1, 2), each
+#      mode on its own demonstrations, into .build/models/learned/seed<k>/<task>_<mode> (ONNX +
+#      manifest.json) and checks ONNX Runtime against its numpy forward.
 # UNITAC_DAGGER=1 (opt-in, not a setup step: its retrained policies did worse in closed loop,
 # crates/policy/README.md "DAgger") adds one round of DAgger per training seed: each first-round
 # policy drives the world on the training objects (`unitac demos --drive`, draw seed 4,
-# DAGGER_TRIALS trials), every tick labelled with the expert's command there, laid out as LeRobot
+# DAGGER_TRIALS trials), every tick labelled with that mode's expert's command there, laid out as LeRobot
 # datasets (.build/models/learned/dagger/seed<k>/<task>_<mode>), and models/train_policy.py
 # --dagger trains each seed's policies again on the demonstrations plus its own DAgger states.
 # Needs steps 5 and 6 of scripts/setup.sh (the reference and touch bundles the scenes load).
@@ -51,12 +58,38 @@ start=$SECONDS
 cargo build --release --locked -q -p unitac-cli
 rm -rf "$OUT.tmp"
 mkdir -p "$OUT.tmp"
+# Every vtla_real fabric demonstration decided once the comparison was in its observation, and
+# the demonstrations of each mode decided for both fabrics.
+check_decisions() {
+  "$VENV/bin/python" - "$@" <<'PY'
+import json, sys
+path, mode = sys.argv[1], sys.argv[2]
+demos = json.load(open(path))["demos"]
+chosen = set()
+for d in demos:
+    where = f"{path}: seed {d['seed']} trial {d['trial']}"
+    if not d["chosen"]:
+        sys.exit(f"{where}: no decision")
+    chosen.add(d["chosen"])
+    at = next(t for t in d["ticks"] if t["t_s"] >= d["decided_s"])
+    if mode == "vtla_real" and sum(at["comparison"][:3]) != 1.0:
+        sys.exit(f"{where}: decided at {d['decided_s']:.3f} s without the comparison")
+if len(chosen) < 2:
+    sys.exit(f"{path}: every decision was {sorted(chosen)}")
+print(f"[setup] {mode} fabric decisions: " + ", ".join(
+    f"{c} {sum(d['chosen'] == c for d in demos)}" for c in sorted(chosen)), file=sys.stderr)
+PY
+}
 sets=()
 for task in "${TASKS[@]}"; do
-  target/release/unitac demos --scene "${task}_vtla_real,${task}_vtla_pred" --split train \
-    --seeds 1,2,3 --trials 20 --out "$OUT.tmp/demos/$task" >&2
-  "$VENV/bin/python" scripts/lerobot_dataset.py --demos "$OUT.tmp/demos/$task/demos.json" \
-    --out "$OUT.tmp/datasets/$task" >&2
+  for mode in vtla_real vla; do
+    target/release/unitac demos --scene "${task}_vtla_real,${task}_vtla_pred" --mode "$mode" \
+      --split train --seeds 1,2,3 --trials 20 --out "$OUT.tmp/demos/$task/$mode" >&2
+    [ "$task" = fabric_selection ] && check_decisions "$OUT.tmp/demos/$task/$mode/demos.json" "$mode"
+    "$VENV/bin/python" scripts/lerobot_dataset.py --demos "$OUT.tmp/demos/$task/$mode/demos.json" \
+      --out "$OUT.tmp/datasets/$task/$mode" >&2
+  done
+  cp -r "$OUT.tmp/datasets/$task/vla" "$OUT.tmp/datasets/$task/vtla_pred"
   sets+=(--dataset "$OUT.tmp/datasets/$task")
 done
 rm -rf "$OUT.tmp/demos"
@@ -71,8 +104,8 @@ for seed in "${SEEDS[@]}"; do
   for task in "${TASKS[@]}"; do
     for mode in "${MODES[@]}"; do
       d="$OUT.tmp/dagger/seed$seed/${task}_$mode"
-      target/release/unitac demos --scene "${task}_vtla_real,${task}_vtla_pred" --split train \
-        --seeds "$DAGGER_SEED" --trials "$DAGGER_TRIALS" --drive "${task}_learned_$mode" \
+      target/release/unitac demos --scene "${task}_vtla_real,${task}_vtla_pred" --mode "$mode" \
+        --split train --seeds "$DAGGER_SEED" --trials "$DAGGER_TRIALS" --drive "${task}_learned_$mode" \
         --drive-model "$OUT.tmp/round0/seed$seed/${task}_$mode/manifest.json" --out "$d.demos" >&2
       "$VENV/bin/python" scripts/lerobot_dataset.py --demos "$d.demos/demos.json" --out "$d" >&2
       rm -rf "$d.demos"

@@ -213,6 +213,7 @@ fn a_touch_that_closes_on_nothing_is_tried_again_lower() {
         [
             "approach_a",
             "press_a",
+            "reopen_a",
             "approach_a",
             "press_a",
             "release_a",
@@ -230,6 +231,17 @@ fn a_touch_that_closes_on_nothing_is_tried_again_lower() {
     let (first, second) = (press_a[0].arm.z_m, press_a.last().unwrap().arm.z_m);
     assert!((first - (EDGE_A_M - 0.001)).abs() < 1e-12);
     assert!((second - (EDGE_A_M - 0.002)).abs() < 1e-12);
+    // The fingers open where they closed before the arm goes lower: closed fingers lowered
+    // onto the fold would come down on it.
+    let reopen = phase_ticks(&rig, "reopen_a");
+    assert!(reopen.iter().all(|t| t.arm.z_m == first));
+    let lowered = rig
+        .ticks
+        .iter()
+        .skip_while(|t| t.status.phase != "reopen_a")
+        .find(|t| t.status.phase == "approach_a")
+        .unwrap();
+    assert!(lowered.arm.z_m < first, "{} vs {first}", lowered.arm.z_m);
 }
 
 #[test]

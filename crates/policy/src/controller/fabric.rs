@@ -6,6 +6,7 @@
 //!   approach_a -> press_a (close lightly until contact, hold touch_hold_s) -> release_a
 //!   -> approach_b -> press_b -> release_b -> compare (timeout) -> approach_grasp -> grasp
 //!   -> lift -> done
+//!   press_x closed on nothing -> reopen_x (open where it is) -> approach_x (lower), twice
 //! vla / vtla_pred:
 //!   look (the camera's <object>_<property> estimates) -> approach_grasp -> grasp -> lift -> done
 //! any phase -> failed (a timeout, a tie): the error goes to the safety layer every tick
@@ -53,6 +54,8 @@ enum Phase {
     Approach(usize),
     Press(usize),
     Release(usize),
+    /// A touch closed on nothing: open where it was, then approach again lower.
+    Reopen(usize),
     Compare,
     ApproachGrasp,
     Grasp,
@@ -331,17 +334,25 @@ impl FabricController {
                     && opening.is_some_and(|o| o <= p.min_opening_m + CLOSED_ON_NOTHING_M)
                     && self.missed.get(i).is_some_and(|&m| m < TOUCH_RETRIES)
                 {
-                    // Closed on nothing: above the fold. Open and touch again, lower.
-                    if let Some(m) = self.missed.get_mut(i) {
-                        *m += 1;
-                    }
-                    self.t.go(Phase::Approach(i));
+                    // Closed on nothing: above the fold. Open where the fingers are (closed
+                    // fingers lowered onto the fold would come down on it), then touch again
+                    // lower.
+                    self.t.go(Phase::Reopen(i));
                 } else if elapsed >= p.contact_timeout_s {
                     let e = PolicyError::Timeout(format!(
                         "no contact on {} within {} s",
                         self.objects[i], p.contact_timeout_s
                     ));
                     return Err(self.fail(e));
+                }
+            }
+            Phase::Reopen(i) => {
+                let open = opening.is_some_and(|o| o >= p.max_opening_m - p.max_step_m);
+                if open || elapsed >= p.approach_s {
+                    if let Some(m) = self.missed.get_mut(i) {
+                        *m += 1;
+                    }
+                    self.t.go(Phase::Approach(i));
                 }
             }
             Phase::Release(i) => {
@@ -463,6 +474,14 @@ impl FabricController {
                 arm(&self.objects[i], self.place(i), self.touch_z(i), 0.0),
                 format!("releasing {}", self.objects[i]),
             ),
+            Phase::Reopen(i) => action(
+                open,
+                arm(&self.objects[i], self.place(i), self.touch_z(i), 0.0),
+                format!(
+                    "the touch closed on nothing above {}: opening to touch lower",
+                    self.objects[i]
+                ),
+            ),
             Phase::Compare => action(
                 open,
                 arm("home", home, p.max_z_m, 0.0),
@@ -516,6 +535,8 @@ impl Policy for FabricController {
             Phase::Press(_) => "press_b",
             Phase::Release(0) => "release_a",
             Phase::Release(_) => "release_b",
+            Phase::Reopen(0) => "reopen_a",
+            Phase::Reopen(_) => "reopen_b",
             Phase::Compare => "compare",
             Phase::ApproachGrasp => "approach_grasp",
             Phase::Grasp => "grasp",
@@ -533,7 +554,7 @@ impl Policy for FabricController {
                 r.push("latent_pred");
             }
             Phase::Look | Phase::ApproachGrasp | Phase::Approach(_) => r.push("visual"),
-            Phase::Press(_) | Phase::Release(_) => r.push("contact"),
+            Phase::Press(_) | Phase::Release(_) | Phase::Reopen(_) => r.push("contact"),
             _ => {}
         }
         r
@@ -545,7 +566,11 @@ impl Policy for FabricController {
         // choice is made.
         let choosing = matches!(
             self.t.phase,
-            Phase::Approach(_) | Phase::Press(_) | Phase::Release(_) | Phase::Compare
+            Phase::Approach(_)
+                | Phase::Press(_)
+                | Phase::Release(_)
+                | Phase::Reopen(_)
+                | Phase::Compare
         );
         if self.mode == Mode::VtlaReal && choosing {
             r.push("comparison");

@@ -187,10 +187,7 @@ pub fn fabric_touched_both(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) ->
 /// The fabric whose camera roughness guess (`<name>.roughness_ra_m`, from `roughness`: the
 /// camera's estimate the caller keeps, e.g. its mean so far) is the lowest; the first on a tie,
 /// None when no fabric has a guess.
-pub fn camera_choice(
-    spec: &TrialSpec,
-    roughness: impl Fn(&str) -> Option<f64>,
-) -> Option<&str> {
+pub fn camera_choice(spec: &TrialSpec, roughness: impl Fn(&str) -> Option<f64>) -> Option<&str> {
     let mut best: Option<(&str, f64)> = None;
     for o in &spec.objects {
         if spec.fabric(&o.name).is_none() {
