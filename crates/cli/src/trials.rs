@@ -833,7 +833,7 @@ fn text_report(
         }
     }
     if !permuted.is_empty() {
-        text.push_str("\ntouch permuted across trials (trial i reads trial i + 1's latents and comparisons)\n");
+        text.push_str("\ntouch permuted across trials (trial i reads trial i + 1's latents, comparisons and contact geometry)\n");
         text.push_str(&table::render(permuted));
     }
     for row in sweep {

@@ -248,10 +248,12 @@ pub struct StiffnessReading {
     pub true_diameter_m: f64,
 }
 
-/// The touch ablation: the latents and comparisons the tactile stages send the policy stage
-/// carry another trial's values (the k-th latent of each source and the k-th comparison the
-/// donor trial's stages made), each keeping its own stamp and object; the policy's other
-/// inputs, the world and the frames are this trial's.
+/// The touch ablation: the latents, comparisons and contact geometry the tactile stages send the
+/// policy stage carry another trial's values (the k-th latent of each source, the k-th
+/// comparison, and the k-th in-contact state's box, centroid, areas and strength the donor
+/// trial's stages made), each keeping its own stamp, object and contact on/off; the policy's
+/// other inputs, the world and the frames are this trial's. When a contact starts and ends stays
+/// this trial's: a policy cannot touch without knowing that it touches.
 #[derive(Debug, Default)]
 pub struct TouchSwap {
     donor: Vec<Msg>,
@@ -259,6 +261,8 @@ pub struct TouchSwap {
     real: usize,
     predicted: usize,
     comparisons: usize,
+    /// This trial's in-contact states so far.
+    contacts: usize,
     /// This trial's own, in order.
     own: Vec<Msg>,
 }
@@ -311,6 +315,21 @@ impl TouchSwap {
                     c.sentence.clone_from(&d.sentence);
                 }
                 Msg::PropertyComparison(c)
+            }
+            Msg::ContactState(mut c) if c.in_contact => {
+                self.own.push(Msg::ContactState(c.clone()));
+                let k = self.contacts;
+                self.contacts += 1;
+                if let Some(Msg::ContactState(d)) =
+                    self.nth(k, |m| matches!(m, Msg::ContactState(d) if d.in_contact))
+                {
+                    c.bbox_px = d.bbox_px;
+                    c.centroid_px = d.centroid_px;
+                    c.area_px = d.area_px;
+                    c.area_mm2 = d.area_mm2;
+                    c.strength = d.strength;
+                }
+                Msg::ContactState(c)
             }
             m => m,
         }

@@ -6,6 +6,16 @@ use unitac_core::msg::Msg;
 use unitac_sim::task::{Split, TaskConfig, TaskKind};
 use unitac_trials::{TouchSwap, TrialGripper, TrialOptions, run_trial_swapped};
 
+fn contacts(msgs: &[unitac_trials::ChainMessage]) -> Vec<&unitac_core::msg::ContactState> {
+    msgs.iter()
+        .filter(|m| !m.input)
+        .filter_map(|m| match &m.msg {
+            Msg::ContactState(c) if c.in_contact => Some(c),
+            _ => None,
+        })
+        .collect()
+}
+
 fn latents(msgs: &[unitac_trials::ChainMessage]) -> Vec<&unitac_core::msg::TactileLatent> {
     msgs.iter()
         .filter(|m| !m.input)
@@ -40,17 +50,44 @@ fn a_swapped_trial_reads_the_donors_latent_at_its_own_stamp() {
     let (o, d) = (latents(&own.messages), latents(&donor.messages));
     assert!(!o.is_empty() && !d.is_empty());
     assert_ne!(o[0].data, d[0].data, "two cups, two latents");
-    // The record keeps the trial's own touch.
-    assert_eq!(own.touch.len(), o.len());
+    // The record keeps the trial's own touch: its latents and in-contact states.
+    let kept = |r: &unitac_trials::TrialRecord| {
+        r.touch
+            .iter()
+            .filter(|m| matches!(m, Msg::TactileLatent(_)))
+            .count()
+    };
+    assert_eq!(kept(&own), o.len());
+    assert!(own.touch.len() > o.len());
     let swapped = run(0, TouchSwap::new(donor.touch.clone()));
     let s = latents(&swapped.messages);
     assert_eq!(s[0].data, d[0].data);
     assert_eq!(s[0].header.stamp, o[0].header.stamp);
     // What the stages made is still this trial's.
-    match &swapped.touch[0] {
-        Msg::TactileLatent(l) => assert_eq!(l.data, o[0].data),
+    match swapped
+        .touch
+        .iter()
+        .find(|m| matches!(m, Msg::TactileLatent(_)))
+    {
+        Some(Msg::TactileLatent(l)) => assert_eq!(l.data, o[0].data),
         m => panic!("{m:?}"),
     }
+    // The contact's geometry is the donor's, its stamp and its start this trial's.
+    let (oc, dc, sc) = (
+        contacts(&own.messages),
+        contacts(&donor.messages),
+        contacts(&swapped.messages),
+    );
+    assert!(!oc.is_empty() && !dc.is_empty() && !sc.is_empty());
+    assert_eq!(sc[0].header.stamp, oc[0].header.stamp);
+    assert_eq!(
+        (sc[0].area_mm2, sc[0].bbox_px, sc[0].strength),
+        (dc[0].area_mm2, dc[0].bbox_px, dc[0].strength)
+    );
+    assert_ne!(
+        oc[0].area_mm2, dc[0].area_mm2,
+        "two cups, two first contacts"
+    );
     // Up to the latent's arrival the trial is the plain one.
     let upto = |r: &unitac_trials::TrialRecord| {
         r.trace
