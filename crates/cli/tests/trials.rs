@@ -2,17 +2,8 @@
 //! trial's outcome; bad arguments are exit 2.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use std::process::{Command, Output};
-
 mod common;
-
-fn unitac(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_unitac"))
-        .args(args)
-        .env("RUST_LOG", "warn")
-        .output()
-        .unwrap()
-}
+use common::unitac;
 
 #[test]
 fn one_cup_trial_per_mode_gives_every_row_and_each_outcome() {
@@ -296,7 +287,7 @@ fn root() -> std::path::PathBuf {
 /// A stub policy bundle (crates/policy/tests/make_stub_policy.py: the learned cup VLA policy's
 /// inputs and actions) in `dir`.
 fn stub(dir: &std::path::Path, args: &[&str]) {
-    let st = Command::new(python())
+    let st = std::process::Command::new(python())
         .arg(root().join("crates/policy/tests/make_stub_policy.py"))
         .arg(dir)
         .args(args)
@@ -332,7 +323,7 @@ fn learned_scene(dir: &std::path::Path, task: &str, bundle: &std::path::Path, ex
 }
 
 /// `unitac args` (warnings and errors logged), killed after `limit`.
-fn unitac_within(args: &[&str], limit: std::time::Duration) -> Output {
+fn unitac_within(args: &[&str], limit: std::time::Duration) -> std::process::Output {
     common::unitac_within(args, &[("RUST_LOG", "warn")], limit)
 }
 

@@ -23,6 +23,24 @@ fn cup_camera(rig: &mut Rig) {
     rig.send(m);
 }
 
+/// A cup controller's run to `done` on the 80 mm cup of [`cup_camera`], a wall that pushes back
+/// with `k_true` x compression (the gripper stops at its force, and detects the cup once on it).
+fn squeeze_a_linear_cup(rig: &mut Rig, k_true: f64) {
+    cup_camera(rig);
+    let mut t = rig.tick();
+    for _ in 0..1200 {
+        let stop = 0.08 - t.cmd.force_n / k_true;
+        rig.follow(&t.cmd, (t.cmd.mode == GripperMode::Force).then_some(stop));
+        rig.object_detected = rig.opening <= 0.08;
+        rig.force_n = (k_true * (0.08 - rig.opening)).max(0.0);
+        cup_camera(rig);
+        t = rig.tick();
+        if t.status.phase == "done" {
+            break;
+        }
+    }
+}
+
 /// The camera's folded-edge heights in the fabric run: A alternates between two estimates
 /// frame by frame (per-frame noise), B is steady.
 const EDGE_A_M: [f64; 2] = [0.0030, 0.0034];
@@ -454,21 +472,7 @@ fn cup_vla_force_rule_squeezes_with_the_stiffness_the_camera_width_says() {
          vla_stiffness_exponent: -3, task: squeeze the cup, objects: [cup], \
          visual_names: [cup_x_m, cup_y_m, cup_width_m]}",
     ));
-    let k_true = 400.0;
-    cup_camera(&mut rig);
-    let mut t = rig.tick();
-    for _ in 0..1200 {
-        // The cup pushes back with k_true x compression; the gripper stops at its force.
-        let stop = 0.08 - t.cmd.force_n / k_true;
-        rig.follow(&t.cmd, (t.cmd.mode == GripperMode::Force).then_some(stop));
-        rig.object_detected = rig.opening <= 0.08;
-        rig.force_n = (k_true * (0.08 - rig.opening)).max(0.0);
-        cup_camera(&mut rig);
-        t = rig.tick();
-        if t.status.phase == "done" {
-            break;
-        }
-    }
+    squeeze_a_linear_cup(&mut rig, 400.0);
     assert_eq!(rig.phases(), ["approach", "close", "hold", "lift", "done"]);
     let close: Vec<_> = rig
         .ticks
@@ -501,21 +505,7 @@ fn cup_vtla_pred_sets_the_force_once_from_the_predicted_latent() {
     ));
     let l = rig.latent(LatentSource::Predicted, vec![0.5; 4]);
     rig.send(l);
-    let k_true = 500.0;
-    cup_camera(&mut rig);
-    let mut t = rig.tick();
-    for _ in 0..1200 {
-        // The cup pushes back with k_true x compression; the gripper stops at its force.
-        let stop = 0.08 - t.cmd.force_n / k_true;
-        rig.follow(&t.cmd, (t.cmd.mode == GripperMode::Force).then_some(stop));
-        rig.object_detected = rig.opening <= 0.08;
-        rig.force_n = (k_true * (0.08 - rig.opening)).max(0.0);
-        cup_camera(&mut rig);
-        t = rig.tick();
-        if t.status.phase == "done" {
-            break;
-        }
-    }
+    squeeze_a_linear_cup(&mut rig, 500.0);
     assert_eq!(rig.phases(), ["approach", "close", "hold", "lift", "done"]);
     assert!(rig.ticks.iter().all(|t| t.status.safety_ok));
     let close: Vec<_> = rig

@@ -7,6 +7,15 @@ use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+/// `unitac args`, logging at warn.
+pub fn unitac(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .unwrap()
+}
+
 /// `unitac gripper args`.
 pub fn unitac_gripper(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_unitac"))

@@ -328,20 +328,7 @@ impl CupController {
                 )
             }
             Phase::Close => match self.mode {
-                Mode::Vla if self.by_force() => {
-                    let f = self.force_n.unwrap_or(0.0);
-                    action(
-                        force(p.min_opening_m, p.squeeze_speed_m_s, f),
-                        at(0.0),
-                        format!(
-                            "squeezing with {f:.2} N (camera width {:.4} m: stiffness {:.1} N/m x {:.4} m)",
-                            self.camera_width.unwrap_or(f64::NAN),
-                            self.stiffness.unwrap_or(f64::NAN),
-                            self.d
-                        ),
-                    )
-                }
-                Mode::Vla => {
+                Mode::Vla if !self.by_force() => {
                     let t = self.target_opening.unwrap_or(p.max_opening_m);
                     action(
                         position(t, p.squeeze_speed_m_s, p.max_force_n),
@@ -352,13 +339,18 @@ impl CupController {
                         ),
                     )
                 }
-                Mode::VtlaPred => {
+                Mode::Vla | Mode::VtlaPred => {
                     let f = self.force_n.unwrap_or(0.0);
+                    // Where the stiffness came from: the camera's width or the predicted touch.
+                    let from = match self.camera_width {
+                        Some(w) => format!("camera width {w:.4} m: stiffness"),
+                        None => "predicted stiffness".into(),
+                    };
                     action(
                         force(p.min_opening_m, p.squeeze_speed_m_s, f),
                         at(0.0),
                         format!(
-                            "squeezing with {f:.2} N (predicted stiffness {:.1} N/m x {:.4} m)",
+                            "squeezing with {f:.2} N ({from} {:.1} N/m x {:.4} m)",
                             self.stiffness.unwrap_or(f64::NAN),
                             self.d
                         ),
