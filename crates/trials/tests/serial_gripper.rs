@@ -106,15 +106,17 @@ fn top_speed(r: &TrialRecord, phase: &str) -> f64 {
 /// Where the grippers differ (seed 1 trial 19): the policy closes until contact at its touch
 /// speed, 10 mm/s, with a 3 N bound; the 2F-140's slowest is 30 mm/s and its weakest 10 N (the
 /// driver clamps to the model's range, the device's registers hold it), so the serial close
-/// overruns the first touch and squeezes the cup deeper. On this trial's cup the in-process
-/// squeeze lands in the target band and the serial one past it (12.5 mm peak against 9.6).
+/// overruns the first touch and squeezes the cup deeper. On this trial's cup both land in the
+/// target band, the serial squeeze 1.1 mm deeper (10.7 mm peak against 9.6; the close commands
+/// an opening just inside the measured one, so the overrun is what the faster fingers cover in
+/// the contact's detection time, no longer a close toward the closed gripper).
 #[test]
 fn where_they_differ_the_serial_gripper_touched_at_its_minimum_speed() {
     let a = trial("cup_deformation_vtla_real", 1, 19, TrialGripper::InProcess);
     let b = trial("cup_deformation_vtla_real", 1, 19, SERIAL);
     assert_went_over_the_wire(&b);
     let (ca, cb) = (cup(&a), cup(&b));
-    assert!(ca.overall && cb.over_compressed, "{ca:?} vs {cb:?}");
+    assert!(ca.overall && cb.overall, "{ca:?} vs {cb:?}");
     assert_eq!(
         (a.end_phase.as_str(), b.end_phase.as_str()),
         ("done", "done")
