@@ -116,11 +116,11 @@ const MIN_BOX_PX: f64 = 8.0;
 /// box is the fold, a sharp edge in the image, while the disc's rim fades out (its detected
 /// width and bottom move with the press depth and the detector's threshold). So the box's top is
 /// read against the fingertip centre's row: the box is centred on the fingertip along the fold
-/// (x), which is the image's centre column, and the images are [`IMAGE_ASPECT`] as tall as
+/// (x), which is the image's centre column, and the images are `IMAGE_ASPECT` as tall as
 /// wide, so the centre row is that times the box's mid column. The pixel size comes from the
-/// state itself: `sqrt(area_mm2 / area_px)`. A top as far above the centre as [`WHOLE_DISC`] of
+/// state itself: `sqrt(area_mm2 / area_px)`. A top as far above the centre as `WHOLE_DISC` of
 /// the disc's half-width or of its reach below the centre is the disc's own top, not the fold;
-/// a box narrower than [`MIN_BOX_PX`] shows none.
+/// a box narrower than `MIN_BOX_PX` shows none.
 pub fn fold_above_centre_m(c: &unitac_core::msg::ContactState) -> Option<f64> {
     let [x0, y0, x1, y1] = c.bbox_px;
     let (w, h) = (

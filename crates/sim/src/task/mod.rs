@@ -178,7 +178,7 @@ const CUP_MARGIN_M: f64 = 0.005;
 const PINCH_DEPTH_M: f64 = 0.015;
 /// Contact force that counts as touching an object \[N].
 const TOUCH_N: f64 = 0.2;
-/// A grasp attempt: the fingers hold an object (grip force at least [`TOUCH_N`]) and have
+/// A grasp attempt: the fingers hold an object (grip force at least `TOUCH_N`) and have
 /// raised it this far off where it rests \[m]. A touch (fingers closed on it, the arm still)
 /// never raises it; a lift with open fingers raises nothing.
 pub const GRASP_ATTEMPT_LIFT_M: f64 = 0.002;
