@@ -98,7 +98,8 @@ fn a_scene_file_added_is_a_scene_everywhere_with_no_other_edit() {
     bench.push("bench/scenes/all_stages.yaml".into());
     assert_eq!(lines(&o), bench);
 
-    // `unitac trials`: the copy's task, in the one mode it has a scene for.
+    // `unitac trials`: the copy's task, in the one mode it has a scene for (and, a cup VLA
+    // scene, its force rule's column beside it, from the same scene).
     let o = unitac(
         &["trials", "--scene", "cup_copy", "--trials", "1", "--json"],
         Some(&scenes),
@@ -106,9 +107,11 @@ fn a_scene_file_added_is_a_scene_everywhere_with_no_other_edit() {
     let j: serde_json::Value = serde_json::from_str(&lines(&o).join("\n")).unwrap();
     assert_eq!(j["task"], "cup_copy");
     let modes = j["modes"].as_array().unwrap();
-    assert_eq!(modes.len(), 1, "{j}");
+    assert_eq!(modes.len(), 2, "{j}");
     assert_eq!(modes[0]["mode"], "vla");
     assert_eq!(modes[0]["scene"], "cup_copy_vla");
+    assert_eq!(modes[1]["mode"], "vla_force");
+    assert_eq!(modes[1]["scene"], "cup_copy_vla");
     assert!(modes[0]["trials"][0]["outcome"]["cup"].is_object(), "{j}");
     std::fs::remove_dir_all(&tmp).ok();
 }
