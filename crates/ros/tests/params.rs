@@ -118,7 +118,8 @@ fn full_params() -> [serde_json::Map<String, Value>; 6] {
                "objects": ["fabric_x", "fabric_y"], "visual_names": ["fabric_x_roughness"],
                "stiffness_weights": [1.0, 2.0], "latent_len": 96, "min_opening_m": 0.001,
                "max_opening_m": 0.1, "min_z_m": 0.01, "max_z_m": 0.4,
-               "touch_z_m": -0.002, "grasp_z_m": -0.0005, "inference_budget_s": 0.2}),
+               "touch_z_m": -0.002, "grasp_z_m": -0.0005, "inference_budget_s": 0.2,
+               "vla_rule": "force"}),
     );
     [contact, slip, encoder, compare, sampler, policy]
 }
