@@ -5,9 +5,7 @@
 mod rig;
 
 use rig::*;
-use unitac_core::msg::{
-    GripperMode, Header, LatentSource, Msg, PropertyComparison, VisualObservation, Winner,
-};
+use unitac_core::msg::{GripperMode, Header, LatentSource, Msg, VisualObservation};
 
 const FABRIC: &str = "{mode: vtla_real, task: pick the smoother fabric, \
     visual_names: [fabric_a_x_m, fabric_a_y_m, fabric_a_edge_height_m, \
@@ -91,20 +89,7 @@ fn fabric_run(rig: &mut Rig, send_comparison: bool, drop_contact: usize, max_tic
         }
         if send_comparison && last.status.phase == "compare" && !sent {
             sent = true;
-            rig.send(Msg::PropertyComparison(PropertyComparison {
-                header: rig.header(),
-                property: "roughness".into(),
-                episode_a: 1,
-                label_a: "fabric_a".into(),
-                episode_b: 2,
-                label_b: "fabric_b".into(),
-                winner: Winner::A,
-                score_a: 0.8,
-                score_b: 0.2,
-                margin: 0.6,
-                confidence: 0.9,
-                sentence: "A is rougher than B".into(),
-            }));
+            rig.send(rig.a_is_rougher());
         }
         let frame = camera(rig, n);
         rig.send(frame);

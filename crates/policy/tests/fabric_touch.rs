@@ -6,9 +6,7 @@
 mod rig;
 
 use rig::*;
-use unitac_core::msg::{
-    ContactState, GripperMode, Msg, PropertyComparison, VisualObservation, Winner, samples,
-};
+use unitac_core::msg::{ContactState, GripperMode, Msg, VisualObservation, samples};
 use unitac_policy::controller::fabric::fold_above_centre_m;
 
 /// GelSight Mini's mm per pixel at 320 x 240.
@@ -124,20 +122,7 @@ fn run(rig: &mut Rig, bbox: impl Fn(&str, usize) -> Option<[u32; 4]>) {
         rig.send(Msg::ContactState(c));
         if last.status.phase == "compare" && !sent {
             sent = true;
-            rig.send(Msg::PropertyComparison(PropertyComparison {
-                header: rig.header(),
-                property: "roughness".into(),
-                episode_a: 1,
-                label_a: "fabric_a".into(),
-                episode_b: 2,
-                label_b: "fabric_b".into(),
-                winner: Winner::A,
-                score_a: 0.8,
-                score_b: 0.2,
-                margin: 0.6,
-                confidence: 0.9,
-                sentence: "A is rougher than B".into(),
-            }));
+            rig.send(rig.a_is_rougher());
         }
         let frame = camera(rig);
         rig.send(frame);

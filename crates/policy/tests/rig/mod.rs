@@ -164,6 +164,24 @@ impl Rig {
         self.motion = if d.abs() > 1e-12 { "moving" } else { "stopped" }.into();
     }
 
+    /// The comparison of the two fabric touches: A (episode 1) is rougher than B (episode 2).
+    pub fn a_is_rougher(&self) -> Msg {
+        Msg::PropertyComparison(unitac_core::msg::PropertyComparison {
+            header: self.header(),
+            property: "roughness".into(),
+            episode_a: 1,
+            label_a: "fabric_a".into(),
+            episode_b: 2,
+            label_b: "fabric_b".into(),
+            winner: unitac_core::msg::Winner::A,
+            score_a: 0.8,
+            score_b: 0.2,
+            margin: 0.6,
+            confidence: 0.9,
+            sentence: "A is rougher than B".into(),
+        })
+    }
+
     /// The phases in the order they first appeared.
     pub fn phases(&self) -> Vec<String> {
         let mut v: Vec<String> = Vec::new();
