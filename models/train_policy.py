@@ -58,15 +58,11 @@ import pyarrow.parquet as pq
 from onnx import TensorProto, helper
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from generate_reference import gradient_check_error, init, i64, model, save, sha256  # noqa: E402
+from generate_reference import gradient_check_error, init, i64, model, save  # noqa: E402
+import unitac_schema as schema  # noqa: E402
 
-COMMON = ["observation.state", "observation.latched", "observation.arm", "observation.visual"]
-MODES = {
-    "vla": COMMON,
-    "vtla_real": COMMON + ["observation.contact", "observation.tactile_latent_real",
-                           "observation.comparison"],
-    "vtla_pred": COMMON + ["observation.tactile_latent_pred"],
-}
+# The observation features each mode's policy reads (schema/policy.json).
+MODES = schema.LEARNED_FEATURES
 # Chosen with --select (see the module doc; README "Learned policies" has the table).
 HIDDEN = 128
 LR = 3e-3
@@ -74,15 +70,15 @@ WEIGHT_DECAY = 1e-4
 EPOCHS = 30
 BATCH = 256
 GRID = [{"hidden": h, "lr": lr, "weight_decay": WEIGHT_DECAY} for h in [64, 128] for lr in [1e-3, 3e-3]]
-# The unit of each action value; its bounds are the dataset's (info.json action "bounds": the
-# range the recording scene's safety layer held it to); an arm target's score is in [0, 1].
-UNITS = {"gripper.position_m": "m", "gripper.speed_m_s": "m/s", "gripper.force_n": "N",
-         "arm.x_m": "m", "arm.y_m": "m", "arm.z_m": "m", "arm.lift_m": "m"}
+# The unit of each action value (schema/policy.json); its bounds are the dataset's (info.json
+# action "bounds": the range the recording scene's safety layer held it to); an arm target's
+# score is in [0, 1].
+UNITS = schema.UNITS
 MAX_FRAMES = 2_000_000
 # Weight of the squared distance beyond a bound in the loss (set once, not searched).
 BARRIER = 10.0
 # A pre-clip value further beyond a bound than this share of its range counts as beyond.
-FAR_FRACTION = 0.02
+FAR_FRACTION = schema.FAR_FRACTION
 
 
 def mode_root(root, mode):
@@ -110,7 +106,7 @@ def load(root):
             v = c.flatten().to_numpy(zero_copy_only=False) if n > 1 else c.to_numpy(zero_copy_only=False)
             parts.append(np.asarray(v, np.float64).reshape(-1, n))
         cols[key] = np.concatenate(parts)
-    if len(cols["action"]) > MAX_FRAMES:
+    if len(cols[schema.ACTION]) > MAX_FRAMES:
         raise SystemExit(f"{root}: more than {MAX_FRAMES} frames")
     ep = pq.read_table(os.path.join(root, "meta", "episodes", "chunk-000", "file-000.parquet"),
                        columns=["episode_index", "seed"]).to_pydict()
@@ -120,18 +116,18 @@ def load(root):
 
 def targets(info, cols):
     """The action matrix [frames, 7 + targets], its names and per name (unit, min, max)."""
-    cats = info["features"]["action.arm_target"]["categories"]
-    onehot = np.eye(len(cats))[cols["action.arm_target"][:, 0].astype(int)]
-    action = info["features"]["action"]
+    cats = info["features"][schema.ARM_TARGET]["categories"]
+    onehot = np.eye(len(cats))[cols[schema.ARM_TARGET][:, 0].astype(int)]
+    action = info["features"][schema.ACTION]
     b = action.get("bounds")
     if not b or len(b["min"]) != len(action["names"]) or len(b["max"]) != len(action["names"]):
         raise SystemExit("info.json: the action feature has no bounds for every value")
-    bounds = {n: (UNITS.get(n, "m"), float(lo), float(hi))
+    bounds = {n: (UNITS[n], float(lo), float(hi))
               for n, lo, hi in zip(action["names"], b["min"], b["max"])}
     for c in cats:
-        bounds[f"arm.target.{c}"] = ("score", 0.0, 1.0)
-    names = list(action["names"]) + [f"arm.target.{c}" for c in cats]
-    return np.concatenate([cols["action"], onehot], axis=1), names, bounds
+        bounds[schema.ARM_TARGET_PREFIX + c] = (schema.ARM_TARGET_UNIT, 0.0, 1.0)
+    names = list(action["names"]) + [schema.ARM_TARGET_PREFIX + c for c in cats]
+    return np.concatenate([cols[schema.ACTION], onehot], axis=1), names, bounds
 
 
 def observations(cols, mode):
@@ -281,47 +277,30 @@ def export(p, h, stats, info, names, bounds, mode, out_dir, name, task):
              helper.make_node("Gemm", ["a2", "W3", "b3"], ["z"]),
              helper.make_node("Max", ["z", "lo"], ["z_lo"]),
              helper.make_node("Min", ["z_lo", "hi"], ["flat"]),
-             helper.make_node("Reshape", ["flat", "chunk_shape"], ["action"])]
+             helper.make_node("Reshape", ["flat", "chunk_shape"], [schema.OUTPUT])]
     inits = [init(k, p[k]) for k in ("W1", "b1", "W2", "b2", "W3", "b3")]
     inits += [init(k, h[k]) for k in ("lo", "hi")]
     inits.append(i64("chunk_shape", [-1, 1, a]))
     g = helper.make_graph(
         nodes, f"{name}_policy",
         [helper.make_tensor_value_info(k, TensorProto.FLOAT, ["batch", w]) for k, w in zip(feats, widths)],
-        [helper.make_tensor_value_info("action", TensorProto.FLOAT, ["batch", 1, a])], inits)
+        [helper.make_tensor_value_info(schema.OUTPUT, TensorProto.FLOAT, ["batch", 1, a])], inits)
     os.makedirs(out_dir, exist_ok=True)
-    path = os.path.join(out_dir, "policy.onnx")
+    path = os.path.join(out_dir, schema.ONNX_FILE)
     save(model(g), path)
     lst = lambda v: [float(t) for t in v]
     inputs, at = [], 0
     for k, w in zip(feats, widths):
-        inputs.append({"name": k, "dtype": "float32", "shape": ["batch", w],
-                       "names": list(info["features"][k]["names"]),
+        inputs.append({"name": k, "shape": ["batch", w], "names": list(info["features"][k]["names"]),
                        "normalization": {"mode": "mean_std", "mean": lst(xm[at:at + w]),
                                          "std": lst(xs[at:at + w])}})
         at += w
-    actions = []
-    for n in names:
-        unit, lo, hi = bounds[n]
-        actions.append({"name": n, "unit": unit, "min": lo, "max": hi})
-    manifest = {
-        "policy": name,
-        "version": "1",
-        "description": f"learned {mode} policy for '{task}' (models/train_policy.py): one MLP "
-                       f"architecture for all modes, {mode}'s observation slices",
-        "file": "policy.onnx",
-        "sha256": sha256(path),
-        "control_rate_hz": float(info["fps"]),
-        "chunk_size": 1,
-        "n_action_steps": 1,
-        "temporal_ensemble_coeff": None,
-        "inputs": inputs,
-        "output": {"name": "action", "dtype": "float32", "shape": ["batch", 1, a],
-                   "normalization": {"mode": "mean_std", "mean": lst(ym), "std": lst(ys)},
-                   "actions": actions},
-    }
-    with open(os.path.join(out_dir, "manifest.json"), "w") as f:
-        json.dump(manifest, f, indent=1)
+    actions = [{"name": n, "unit": bounds[n][0], "min": bounds[n][1], "max": bounds[n][2]} for n in names]
+    schema.write_policy_manifest(
+        out_dir, name,
+        f"learned {mode} policy for '{task}' (models/train_policy.py): one MLP architecture for all "
+        f"modes, {mode}'s observation slices",
+        info["fps"], inputs, actions, {"mode": "mean_std", "mean": lst(ym), "std": lst(ys)})
     np.savez(os.path.join(out_dir, "weights.npz"), **p, **{f"head_{k}": v for k, v in h.items()})
 
 
@@ -393,7 +372,7 @@ def check_onnx(bundles, datasets):
                 feed[spec["name"]] = v
                 xs.append(v.astype(np.float64))
             s = ort.InferenceSession(os.path.join(d, "policy.onnx"), providers=["CPUExecutionProvider"])
-            got = s.run(["action"], feed)[0][:, 0, :]
+            got = s.run([schema.OUTPUT], feed)[0][:, 0, :]
             want, _ = forward(p, h, np.concatenate(xs, axis=1))
             diff = float(np.abs(got - want).max())
             worst = max(worst, diff)

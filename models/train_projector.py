@@ -64,6 +64,8 @@ from onnx import TensorProto, helper, numpy_helper
 
 # The bundle helpers (file hash, declared inputs/outputs, manifest entries, initialisers).
 from generate_reference import entry, gradient_check_error, init, sha256
+# The policies' layout (the stiffness readout's input, action and range; the manifest writer).
+import unitac_schema as schema
 
 OPSET = 20
 FIELDS = ["category:cup", "category:fabric", "width_m", "height_m", "edge_height_m", "roughness"]
@@ -74,7 +76,7 @@ SIGMA_MIN = 0.1
 SENSOR_PCS = 4
 STEPS, SAMPLES = 16, 8
 GUIDANCE_GRID = [0.5, 1.0, 1.5, 2.0, 3.0]
-K_MIN, K_MAX = 20.0, 5000.0
+K_MIN, K_MAX = schema.K_MIN, schema.K_MAX
 LAMBDAS = [10.0 ** e for e in np.arange(-3.0, 5.01, 0.5)]
 
 
@@ -452,43 +454,30 @@ def export_stiffness(parts, d, out_dir, name, fit, cups):
     b = coef[-1] - (mu / sd) @ coef[:-1]
     os.makedirs(out_dir, exist_ok=True)
     nodes = [
-        helper.make_node("MatMul", ["observation.tactile_latent", "w"], ["m"]),
+        helper.make_node("MatMul", [schema.STIFFNESS_INPUT, "w"], ["m"]),
         helper.make_node("Add", ["m", "b"], ["logk"]),
         helper.make_node("Exp", ["logk"], ["k"]),
         helper.make_node("Clip", ["k", "lo", "hi"], ["kc"]),
-        helper.make_node("Reshape", ["kc", "shape"], ["action"]),
+        helper.make_node("Reshape", ["kc", "shape"], [schema.OUTPUT]),
     ]
     g = helper.make_graph(
         nodes, name,
-        [helper.make_tensor_value_info("observation.tactile_latent", TensorProto.FLOAT, ["batch", d])],
-        [helper.make_tensor_value_info("action", TensorProto.FLOAT, ["batch", 1, 1])],
+        [helper.make_tensor_value_info(schema.STIFFNESS_INPUT, TensorProto.FLOAT, ["batch", d])],
+        [helper.make_tensor_value_info(schema.OUTPUT, TensorProto.FLOAT, ["batch", 1, 1])],
         [init("w", w[:, None]), init("b", [b]), init("lo", K_MIN), init("hi", K_MAX),
          numpy_helper.from_array(np.array([-1, 1, 1], np.int64), "shape")])
     m = helper.make_model(g, opset_imports=[helper.make_opsetid("", OPSET)], producer_name="unitac-projector")
     m.ir_version = 9
     onnx.checker.check_model(m)
-    onnx.save(m, os.path.join(out_dir, "policy.onnx"))
-    manifest = {
-        "policy": name,
-        "version": "1",
-        "description": "cup stiffness [N/m] from the pooled tactile latent [2, 48] (token mean, token mean of "
-                       f"squares): ridge of log k (lambda {fit['lambda']:g}) on the touch encoder's latents of "
-                       f"{fit['train_cups']} training cups (models/train_projector.py); reads real or predicted "
-                       "latents of that form",
-        "file": "policy.onnx",
-        "sha256": sha256(os.path.join(out_dir, "policy.onnx")),
-        "control_rate_hz": 30.0,
-        "chunk_size": 1,
-        "n_action_steps": 1,
-        "temporal_ensemble_coeff": None,
-        "inputs": [{"name": "observation.tactile_latent", "dtype": "float32", "shape": ["batch", d],
-                    "normalization": {"mode": "identity"}}],
-        "output": {"name": "action", "dtype": "float32", "shape": ["batch", 1, 1],
-                   "normalization": {"mode": "identity"},
-                   "actions": [{"name": "cup.stiffness", "unit": "N/m", "min": K_MIN, "max": K_MAX}]},
-    }
-    with open(os.path.join(out_dir, "manifest.json"), "w") as f:
-        json.dump(manifest, f, indent=2, sort_keys=True)
+    onnx.save(m, os.path.join(out_dir, schema.ONNX_FILE))
+    schema.write_policy_manifest(
+        out_dir, name,
+        "cup stiffness [N/m] from the pooled tactile latent [2, 48] (token mean, token mean of "
+        f"squares): ridge of log k (lambda {fit['lambda']:g}) on the touch encoder's latents of "
+        f"{fit['train_cups']} training cups (models/train_projector.py); reads real or predicted "
+        "latents of that form",
+        30.0, [{"name": schema.STIFFNESS_INPUT, "shape": ["batch", d], "normalization": {"mode": "identity"}}],
+        schema.stiffness_actions(), {"mode": "identity"})
     with open(os.path.join(out_dir, "latents.json"), "w") as f:
         json.dump({"mean": cups.mean(0).tolist(), "std": cups.std(0).tolist(), "count": len(cups)}, f)
 

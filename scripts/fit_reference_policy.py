@@ -25,18 +25,21 @@ cup.stiffness in N/m bounded to [20, 5000] (the policy params' stiffness range).
 (lambda grid, CV errors, held-out errors, baselines) goes to DIR/fit.json and stdout.
 """
 import argparse
-import hashlib
 import json
 import os
+import sys
 
 import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-K_MIN, K_MAX = 20.0, 5000.0
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models"))
+import unitac_schema as schema  # noqa: E402
+
+# The stiffness range [N/m] and the readout without a model: the policy params' defaults.
+K_MIN, K_MAX, PRIOR_K = schema.K_MIN, schema.K_MAX, schema.PRIOR_K
 LAMBDAS = [10.0 ** e for e in np.arange(-3.0, 5.01, 0.5)]
 TARGETS = ["k", "log"]
-PRIOR_K = 300.0  # the policy params' stiffness_bias_n_per_m, the readout without a model
 
 
 def observations(path, source, touch):
@@ -125,7 +128,7 @@ def export(m, rows, dim, name, out, description):
         numpy_helper.from_array(np.array([-1, 1, 1], np.int64), "chunk_shape"),
     ]
     nodes = [
-        helper.make_node("Reshape", ["observation.tactile_latent", "token_shape"], ["tokens"]),
+        helper.make_node("Reshape", [schema.STIFFNESS_INPUT, "token_shape"], ["tokens"]),
         helper.make_node("ReduceMean", ["tokens", "row_axis"], ["pooled"], keepdims=0),
         helper.make_node("MatMul", ["pooled", "w"], ["k_lin"]),
         helper.make_node("Add", ["k_lin", "b"], ["k_norm"]),
@@ -139,44 +142,24 @@ def export(m, rows, dim, name, out, description):
                   helper.make_node("Add", ["t_scaled", "t_mean"], ["log_k"]),
                   helper.make_node("Exp", ["log_k"], ["k"])]
         last = "k"
-    nodes.append(helper.make_node("Reshape", [last, "chunk_shape"], ["action"]))
+    nodes.append(helper.make_node("Reshape", [last, "chunk_shape"], [schema.OUTPUT]))
     g = helper.make_graph(
         nodes, name,
-        [helper.make_tensor_value_info("observation.tactile_latent", TensorProto.FLOAT,
-                                       ["batch", rows * dim])],
-        [helper.make_tensor_value_info("action", TensorProto.FLOAT, ["batch", 1, 1])],
+        [helper.make_tensor_value_info(schema.STIFFNESS_INPUT, TensorProto.FLOAT, ["batch", rows * dim])],
+        [helper.make_tensor_value_info(schema.OUTPUT, TensorProto.FLOAT, ["batch", 1, 1])],
         inits)
     model = helper.make_model(g, opset_imports=[helper.make_opsetid("", 20)])
     model.ir_version = 9
     onnx.checker.check_model(model)
     os.makedirs(out, exist_ok=True)
-    path = os.path.join(out, "policy.onnx")
-    onnx.save(model, path)
-    sha = hashlib.sha256(open(path, "rb").read()).hexdigest()
+    onnx.save(model, os.path.join(out, schema.ONNX_FILE))
     lst = lambda a: [float(v) for v in a]
-    manifest = {
-        "policy": name,
-        "version": "1",
-        "description": description,
-        "file": "policy.onnx",
-        "sha256": sha,
-        "control_rate_hz": 30.0,
-        "chunk_size": 1,
-        "n_action_steps": 1,
-        "temporal_ensemble_coeff": None,
-        "inputs": [{
-            "name": "observation.tactile_latent", "dtype": "float32", "shape": ["batch", rows * dim],
-            "normalization": {"mode": "mean_std", "mean": lst(np.tile(m["mu"], rows)),
-                              "std": lst(np.tile(m["sd"], rows))}}],
-        "output": {
-            "name": "action", "dtype": "float32", "shape": ["batch", 1, 1],
-            "normalization": ({"mode": "identity"} if m["target"] == "log" else
-                              {"mode": "mean_std", "mean": [float(m["ym"])],
-                               "std": [float(m["ys"])]}),
-            "actions": [{"name": "cup.stiffness", "unit": "N/m", "min": K_MIN, "max": K_MAX}]},
-    }
-    with open(os.path.join(out, "manifest.json"), "w") as f:
-        json.dump(manifest, f, indent=1, allow_nan=False)
+    inputs = [{"name": schema.STIFFNESS_INPUT, "shape": ["batch", rows * dim],
+               "normalization": {"mode": "mean_std", "mean": lst(np.tile(m["mu"], rows)),
+                                 "std": lst(np.tile(m["sd"], rows))}}]
+    norm = ({"mode": "identity"} if m["target"] == "log" else
+            {"mode": "mean_std", "mean": [float(m["ym"])], "std": [float(m["ys"])]})
+    schema.write_policy_manifest(out, name, description, 30.0, inputs, schema.stiffness_actions(), norm)
 
 
 def main():

@@ -32,16 +32,12 @@ layout (LeRobot's v3.0, read by LeRobotDataset in lerobot 0.4.x):
     data/chunk-000/file-000.parquet       the features, timestamp, frame_index, episode_index,
                                           index, task_index
 
-Features (float32 unless said): observation.state [8] (the gripper status as the policy reads
-it), observation.visual [V] (the mean of the camera's estimates so far), observation.contact [3],
-observation.latched [2] (the opening at the first object-detect, known), observation.arm [2] (time
-since the commanded arm target last changed, at most 10 s, and whether the arm had its travel time),
-observation.tactile_latent_real and observation.tactile_latent_pred [objects x (P + 1)] (per
-object the pooled latent, then known), observation.comparison [5], action [7] (the gripper's
-position, speed, force limit and the arm's x, y, z, lift: the policy's action values; its
-info.json entry has `bounds`, {min, max} per value: the range the recording scene's safety layer
-held it to), action.arm_target [1] (int64: 0 home, k + 1 object k; its info.json entry lists them
-as `categories`).
+Features: those of schema/policy.json (read through models/unitac_schema.py), float32: every
+observation feature a mode's learned policy reads (observation.visual has the scene's names, the
+per-object latent slots objects x (P + 1): the pooled latent, then known), then action (the
+policy's command values; its info.json entry has `bounds`, {min, max} per value: the range the
+recording scene's safety layer held it to), and action.arm_target [1] (int64: 0 home, k + 1
+object k; its info.json entry lists them as `categories`).
 """
 import argparse
 import json
@@ -54,6 +50,9 @@ import tempfile
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models"))
+import unitac_schema as schema  # noqa: E402
 
 CODEBASE_VERSION = "v3.0"
 CHUNKS_SIZE = 1000
@@ -76,12 +75,6 @@ MAX_ABS = 1e6
 # The top-level entries of a dataset directory that --out may replace.
 DATASET_ENTRIES = {"meta", "data", "videos"}
 
-STATE_NAMES = ["opening_m", "target_m", "target_known", "force_n", "force_known",
-               "current_a", "current_known", "object_detected"]
-CONTACT_NAMES = ["in_contact", "area_mm2", "strength"]
-LATCHED_NAMES = ["opening_at_object_detect_m", "known"]
-ARM_NAMES = ["since_target_s", "travelled"]
-COMPARISON_NAMES = ["winner_a", "winner_b", "tie", "margin", "confidence"]
 INDEX_FEATURES = {
     "timestamp": {"dtype": "float32", "shape": [1], "names": None},
     "frame_index": {"dtype": "int64", "shape": [1], "names": None},
@@ -172,17 +165,11 @@ def features_of(d, first):
     width = need(config, "pooled_len", "integer", "demos.json: config")
     if not 1 <= width <= MAX_WIDTH:
         fail(f"demos.json: config: pooled_len {width} (1 to {MAX_WIDTH})")
-    return [
-        ("state", "observation.state", "float32", STATE_NAMES),
-        ("visual", "observation.visual", "float32", list(visual)),
-        ("contact", "observation.contact", "float32", CONTACT_NAMES),
-        ("latched", "observation.latched", "float32", LATCHED_NAMES),
-        ("arm", "observation.arm", "float32", ARM_NAMES),
-        ("latent_real", "observation.tactile_latent_real", "float32", latent_names(objects, width)),
-        ("latent_pred", "observation.tactile_latent_pred", "float32", latent_names(objects, width)),
-        ("comparison", "observation.comparison", "float32", COMPARISON_NAMES),
-        ("action", "action", "float32", list(d["action_names"])),
-        ("arm_target", "action.arm_target", "int64", ["arm_target"]),
+    scene = {"visual": list(visual), "latent_real": latent_names(objects, width),
+             "latent_pred": latent_names(objects, width)}
+    return [(i, k, "float32", schema.names(i) or scene[i]) for i, k in schema.DATASET_FEATURES] + [
+        ("action", schema.ACTION, "float32", list(d["action_names"])),
+        ("arm_target", schema.ARM_TARGET, "int64", ["arm_target"]),
     ]
 
 
@@ -401,8 +388,8 @@ def tables(d, robot_type):
     features = {key: {"dtype": dtype, "shape": [len(names)], "names": names}
                 for _, key, dtype, names in feats}
     # The arm target's values: 0 home, k + 1 object k.
-    features["action.arm_target"]["categories"] = ["home"] + list(objects)
-    features["action"]["bounds"] = bounds
+    features[schema.ARM_TARGET]["categories"] = ["home"] + list(objects)
+    features[schema.ACTION]["bounds"] = bounds
     features.update(INDEX_FEATURES)
     info = {
         "codebase_version": CODEBASE_VERSION,

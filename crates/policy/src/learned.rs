@@ -39,42 +39,15 @@ use std::path::Path;
 use unitac_core::Stamp;
 use unitac_core::msg::{GripperMode, LatentSource, TactileLatent};
 
-pub const STATE: &str = "observation.state";
-pub const VISUAL: &str = "observation.visual";
-pub const LATCHED: &str = "observation.latched";
-pub const ARM: &str = "observation.arm";
-pub const CONTACT: &str = "observation.contact";
-pub const LATENT_REAL: &str = "observation.tactile_latent_real";
-pub const LATENT_PRED: &str = "observation.tactile_latent_pred";
-pub const COMPARISON: &str = "observation.comparison";
-/// The command actions, in the order of [`Action::values`].
-const COMMANDS: [&str; 7] = [
-    "gripper.position_m",
-    "gripper.speed_m_s",
-    "gripper.force_n",
-    "arm.x_m",
-    "arm.y_m",
-    "arm.z_m",
-    "arm.lift_m",
-];
-/// What `take_clamped` reports for a tick whose model output was beyond a command's bound by
-/// more than [`crate::onnx::FAR_FRACTION`] of its range, per command.
-const BEYOND: [&str; 7] = [
-    "learned.gripper.position_m",
-    "learned.gripper.speed_m_s",
-    "learned.gripper.force_n",
-    "learned.arm.x_m",
-    "learned.arm.y_m",
-    "learned.arm.z_m",
-    "learned.arm.lift_m",
-];
+pub use crate::schema::{
+    ARM, COMPARISON, CONTACT, LATCHED, LATENT_PRED, LATENT_REAL, MAX_SINCE_TARGET_S, STATE, VISUAL,
+};
+use crate::schema::{
+    ARM_LEN, ARM_TARGET_PREFIX, COMMANDS, COMMANDS_BEYOND as BEYOND, COMPARISON_LEN, CONTACT_LEN,
+    LATCHED_LEN,
+};
 /// How far a policy's control rate may be from the scene's, relative.
 pub const RATE_TOLERANCE: f64 = 1e-6;
-/// Values of the contact and comparison slices.
-const CONTACT_LEN: usize = 3;
-/// The longest time `observation.arm` counts \[s].
-pub const MAX_SINCE_TARGET_S: f64 = 10.0;
-const COMPARISON_LEN: usize = 5;
 
 /// Token mean, then token mean of squares, of `tokens` (\[n, w] row-major): the pooled latent
 /// the touch projector predicts and the learned policies read.
@@ -341,9 +314,9 @@ impl LearnedPolicy {
         }
         let mut targets = Vec::new();
         for t in std::iter::once("home").chain(params.objects.iter().map(String::as_str)) {
-            match at(&format!("arm.target.{t}")) {
+            match at(&format!("{ARM_TARGET_PREFIX}{t}")) {
                 Some(i) => targets.push((t.to_string(), i)),
-                None => problems.push(format!("no score action 'arm.target.{t}'")),
+                None => problems.push(format!("no score action '{ARM_TARGET_PREFIX}{t}'")),
             }
         }
         let n_obj = params.objects.len();
@@ -373,8 +346,11 @@ impl LearnedPolicy {
                     )),
                     None => problems.push(format!("{VISUAL} states no names")),
                 },
-                LATCHED | ARM if numel != 2 => {
-                    problems.push(format!("{}: {numel} values, not 2", i.name));
+                LATCHED if numel != LATCHED_LEN => {
+                    problems.push(format!("{LATCHED}: {numel} values, not {LATCHED_LEN}"));
+                }
+                ARM if numel != ARM_LEN => {
+                    problems.push(format!("{ARM}: {numel} values, not {ARM_LEN}"));
                 }
                 CONTACT if numel != CONTACT_LEN => {
                     problems.push(format!("{CONTACT}: {numel} values, not {CONTACT_LEN}"));

@@ -17,6 +17,7 @@ pub mod policy;
 pub mod readout;
 pub mod reflex;
 pub mod safety;
+pub mod schema;
 pub mod stage;
 pub mod task;
 pub mod ticks;

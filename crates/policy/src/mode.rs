@@ -7,6 +7,7 @@
 
 use crate::error::SceneStagesError;
 use crate::observation::{INPUTS, input};
+use crate::schema;
 use serde::{Deserialize, Serialize};
 use std::str::FromStr;
 use thiserror::Error;
@@ -44,24 +45,22 @@ impl Mode {
         }
     }
 
-    /// The inputs this mode reads (names in [`INPUTS`]), for the given task kind.
+    /// The inputs this mode reads (names in [`INPUTS`]), for the given task kind, as
+    /// schema/policy.json lists them. Every mode aims the arm where the camera sees the objects
+    /// (`visual`). vtla_real reads the contact state and, for a fabric, the comparison of the two
+    /// touches' latents (the compare stage consumes the encoder's output), for a cup the probe
+    /// touch's live latent (it sets the squeeze's force cap). vtla_pred reads the predicted
+    /// latent (sampled once, from the background frame before the approach) and nothing derived
+    /// from a tactile frame after that: no contact state, no live comparison.
     pub fn inputs(self, fabric: bool) -> Vec<&'static str> {
-        let mut v = vec!["gripper"];
-        match (self, fabric) {
-            // Every mode aims the arm where the camera sees the objects.
-            (Mode::Vla, _) => v.push("visual"),
-            // Fabric: the choice is the comparison of the two touches' latents (the compare
-            // stage consumes the encoder's output; the policy reads the comparison); the
-            // camera's edge heights set the fingertip heights.
-            (Mode::VtlaReal, true) => v.extend(["contact", "comparison", "visual"]),
-            // Cup: a probe touch, whose episode's live latent sets the squeeze's force cap.
-            (Mode::VtlaReal, false) => v.extend(["contact", "latent_real", "visual"]),
-            // The predicted latent (sampled once, from the background frame before the
-            // approach) sets the grasp (fabric) or squeeze (cup) force; nothing derived from a
-            // tactile frame after that is read: no contact state, no live comparison.
-            (Mode::VtlaPred, _) => v.extend(["latent_pred", "visual"]),
-        }
-        v
+        let task = if fabric {
+            "fabric_selection"
+        } else {
+            "cup_deformation"
+        };
+        schema::mode_inputs(self.as_str(), task)
+            .map(<[&str]>::to_vec)
+            .unwrap_or_default()
     }
 }
 

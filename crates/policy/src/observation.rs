@@ -5,6 +5,7 @@
 //! is one entry there and its name in [`crate::mode::Mode::inputs`].
 
 use crate::error::{FeatureError, InputError};
+use crate::schema;
 use unitac_core::Stamp;
 use unitac_core::msg::{
     ContactState, GripperStatus, LatentSource, Msg, PropertyComparison, TactileLatent,
@@ -30,8 +31,6 @@ pub struct InputSpec {
     pub name: &'static str,
     /// What it is, for messages.
     pub what: &'static str,
-    /// The slice of the observation vector it fills (LeRobot key).
-    pub feature: &'static str,
     /// The scene stage kind that produces it; None: it comes from outside the scene (the
     /// gripper driver or the sim, the arm stack's camera model).
     pub produced_by: Option<&'static str>,
@@ -148,27 +147,24 @@ pub static INPUTS: &[InputSpec] = &[
     InputSpec {
         name: "gripper",
         what: "gripper status",
-        feature: "observation.state",
         produced_by: None,
         default_budget_s: 0.2,
         accepts: |m| matches!(m, Msg::GripperStatus(_)),
-        width: |_| 8,
+        width: |_| schema::STATE_LEN,
         features: gripper_features,
     },
     InputSpec {
         name: "contact",
         what: "contact state",
-        feature: "observation.contact",
         produced_by: Some("contact"),
         default_budget_s: 0.25,
         accepts: |m| matches!(m, Msg::ContactState(_)),
-        width: |_| 3,
+        width: |_| schema::CONTACT_LEN,
         features: contact_features,
     },
     InputSpec {
         name: "latent_real",
         what: "live tactile latent",
-        feature: "observation.tactile_latent",
         produced_by: Some("encoder"),
         default_budget_s: 60.0,
         accepts: |m| matches!(m, Msg::TactileLatent(l) if l.source == LatentSource::Real),
@@ -178,7 +174,6 @@ pub static INPUTS: &[InputSpec] = &[
     InputSpec {
         name: "latent_pred",
         what: "predicted tactile latent",
-        feature: "observation.tactile_latent",
         produced_by: Some("sampler"),
         default_budget_s: 600.0,
         accepts: |m| matches!(m, Msg::TactileLatent(l) if l.source == LatentSource::Predicted),
@@ -188,17 +183,15 @@ pub static INPUTS: &[InputSpec] = &[
     InputSpec {
         name: "comparison",
         what: "property comparison",
-        feature: "observation.comparison",
         produced_by: Some("compare"),
         default_budget_s: 600.0,
         accepts: |m| matches!(m, Msg::PropertyComparison(_)),
-        width: |_| 5,
+        width: |_| schema::COMPARISON_LEN,
         features: comparison_features,
     },
     InputSpec {
         name: "visual",
         what: "visual observation",
-        feature: "observation.visual",
         produced_by: None,
         default_budget_s: 0.5,
         accepts: |m| matches!(m, Msg::VisualObservation(_)),
@@ -206,6 +199,14 @@ pub static INPUTS: &[InputSpec] = &[
         features: visual_features,
     },
 ];
+
+impl InputSpec {
+    /// The slice of the observation vector it fills (its LeRobot key in schema/policy.json; the
+    /// input's own name for one the schema does not list, which the schema test rules out).
+    pub fn feature(&self) -> &'static str {
+        schema::input_feature(self.name).unwrap_or(self.name)
+    }
+}
 
 /// The input named `name`.
 pub fn input(name: &str) -> Option<&'static InputSpec> {
@@ -386,7 +387,7 @@ impl Assembler {
             .map(|(spec, _, _)| {
                 let len = (spec.width)(&self.layout);
                 let s = Slice {
-                    name: spec.feature,
+                    name: spec.feature(),
                     start,
                     len,
                 };

@@ -5,6 +5,7 @@ use crate::error::Problems;
 use crate::mode::Mode;
 use crate::observation::Layout;
 use crate::safety::{Bounds, SafeAction};
+use crate::schema;
 use crate::task::Task;
 use serde::{Deserialize, Serialize};
 
@@ -238,10 +239,10 @@ impl Default for PolicyParams {
             probe_press_m: 0.002,
             probe_press_s: 0.4,
             gel_indent_m_per_mm2: 2e-5,
-            stiffness_bias_n_per_m: 300.0,
+            stiffness_bias_n_per_m: schema::STIFFNESS_PRIOR_N_PER_M,
             stiffness_weights: Vec::new(),
-            min_stiffness_n_per_m: 20.0,
-            max_stiffness_n_per_m: 5000.0,
+            min_stiffness_n_per_m: schema::STIFFNESS_MIN_N_PER_M,
+            max_stiffness_n_per_m: schema::STIFFNESS_MAX_N_PER_M,
             force_margin: 1.5,
             pad_m: 0.003,
             vla_offset_m: 0.0,

@@ -43,14 +43,15 @@ impl Action {
     /// The numbers of the action with their names (for the finiteness check and for policies
     /// that output a flat vector, e.g. `action.gripper.position_m`).
     pub fn values(&self) -> [(&'static str, f64); 7] {
+        let [position, speed, force, x, y, z, lift] = crate::schema::COMMANDS;
         [
-            ("gripper.position_m", self.gripper.position_m),
-            ("gripper.speed_m_s", self.gripper.speed_m_s),
-            ("gripper.force_n", self.gripper.force_n),
-            ("arm.x_m", self.arm.x_m),
-            ("arm.y_m", self.arm.y_m),
-            ("arm.z_m", self.arm.z_m),
-            ("arm.lift_m", self.arm.lift_m),
+            (position, self.gripper.position_m),
+            (speed, self.gripper.speed_m_s),
+            (force, self.gripper.force_n),
+            (x, self.arm.x_m),
+            (y, self.arm.y_m),
+            (z, self.arm.z_m),
+            (lift, self.arm.lift_m),
         ]
     }
 }

@@ -19,10 +19,8 @@ use unitac_core::Stamp;
 use unitac_core::msg::TactileLatent;
 use unitac_infer::bundle::Dim;
 
-/// The model's one input and one action.
-pub const STIFFNESS_INPUT: &str = "observation.tactile_latent";
-pub const STIFFNESS_ACTION: &str = "cup.stiffness";
-pub const STIFFNESS_UNIT: &str = "N/m";
+/// The model's one input and one action (schema/policy.json).
+pub use crate::schema::{STIFFNESS_ACTION, STIFFNESS_INPUT, STIFFNESS_UNIT};
 
 /// Where the stiffness comes from.
 #[derive(Debug, Default)]

@@ -63,9 +63,9 @@ use thiserror::Error;
 use unitac_core::Stage;
 use unitac_core::chain::Chain;
 use unitac_core::msg::{ArmCommand, ContactState, GripperCommand, LatentSource, Msg};
+use unitac_policy::Mode;
 use unitac_policy::learned::Memory;
 use unitac_policy::observation::{Layout, input};
-use unitac_policy::{Action, Mode};
 use unitac_sim::task::{
     self, ArmSetpoint, GripperSetpoint, Split, TaskCommand, TaskConfig, TaskKind, TaskWorld,
     expert_command, trial_rng,
@@ -84,12 +84,8 @@ const MAX_LATENTS: usize = 64;
 pub const MAX_CHAINS: usize = 4;
 /// Most ticks one demonstration records (10 min at 30 Hz).
 pub const MAX_TICKS: usize = 18_000;
-/// Values of the comparison slice (the policy's `comparison` input).
-pub const COMPARISON_LEN: usize = 5;
-/// Values of the contact slice (the policy's `contact` input).
-pub const CONTACT_LEN: usize = 3;
-/// Values of the gripper slice (the policy's `gripper` input).
-pub const STATE_LEN: usize = 8;
+/// Values of the comparison, contact and gripper slices (schema/policy.json).
+pub use unitac_policy::schema::{COMPARISON_LEN, CONTACT_LEN, STATE_LEN};
 
 /// How a demonstration touches and how long it runs.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -213,7 +209,7 @@ pub struct DemoTick {
     pub latent_pred: Vec<f32>,
     /// The latest property comparison as the policy's `comparison` input reads it.
     pub comparison: Vec<f32>,
-    /// The command, as the policy's action values ([`Action::values`] order).
+    /// The command, as the policy's action values ([`unitac_policy::Action::values`] order).
     pub action: Vec<f32>,
     /// Where the arm went: 0 home, k + 1 object k.
     pub arm_target: u32,
@@ -817,7 +813,7 @@ fn record_inner(
     })
 }
 
-/// A world command as the policy's action values ([`Action::values`]' order and names).
+/// A world command as the policy's action values ([`unitac_policy::Action::values`]' order and names).
 pub fn action_values(cmd: &TaskCommand) -> Vec<f32> {
     let g = &cmd.gripper;
     let a = &cmd.arm;
@@ -835,23 +831,7 @@ pub fn action_values(cmd: &TaskCommand) -> Vec<f32> {
     .collect()
 }
 
-/// The names of [`action_values`], as [`Action::values`] has them.
+/// The names of [`action_values`], as [`unitac_policy::Action::values`] has them (schema/policy.json).
 pub fn action_names() -> Vec<&'static str> {
-    let a = Action {
-        gripper: unitac_policy::GripperAction {
-            mode: unitac_core::msg::GripperMode::Position,
-            position_m: 0.0,
-            speed_m_s: 0.0,
-            force_n: 0.0,
-        },
-        arm: unitac_policy::ArmAction {
-            target: String::new(),
-            x_m: 0.0,
-            y_m: 0.0,
-            z_m: 0.0,
-            lift_m: 0.0,
-        },
-        note: String::new(),
-    };
-    a.values().iter().map(|(n, _)| *n).collect()
+    unitac_policy::schema::COMMANDS.to_vec()
 }

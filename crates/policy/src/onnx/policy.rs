@@ -17,8 +17,8 @@ use unitac_infer::bundle::sha256_file;
 use unitac_infer::runtime::{InferError, RuntimeConfig, Session};
 
 /// A predicted value further than this share of its action's range beyond a bound counts as
-/// beyond it ([`ActionChunk::beyond`]); closer, it is only clamped.
-pub const FAR_FRACTION: f32 = 0.02;
+/// beyond it ([`ActionChunk::beyond`]); closer, it is only clamped (schema/policy.json).
+pub use crate::schema::FAR_FRACTION;
 
 /// Every problem found loading one policy.
 #[derive(Debug, Clone, PartialEq)]
