@@ -23,7 +23,9 @@
 # datasets (.build/models/learned/dagger/seed<k>/<task>_<mode>), and models/train_policy.py
 # --dagger trains each seed's policies again on the demonstrations plus its own DAgger states.
 # Needs steps 5 and 6 of scripts/setup.sh (the reference and touch bundles the scenes load).
-# Skipped when its inputs did not change (a stamp of them in .build/models/learned/.stamp).
+# Skipped when its inputs did not change (a stamp of them in .build/models/learned/.stamp); when
+# they did, the demonstrations are recorded again and the policies trained only if the datasets
+# or the trainer differ from those they were trained on (scripts/stamps.sh).
 # UNITAC_LEARNED puts it elsewhere (the policy tests read it too).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -41,14 +43,16 @@ DAGGER="${UNITAC_DAGGER:-0}"
 DAGGER_SEED=4
 DAGGER_TRIALS=4
 log() { printf '[setup] %s\n' "$*" >&2; }
+# shellcheck source=scripts/stamps.sh
+source scripts/stamps.sh
 
-inputs=(scripts/learned_policies.sh scripts/lerobot_dataset.py models/train_policy.py
-  models/generate_reference.py Cargo.lock crates/cli/src/demos.rs crates/cli/src/main.rs
+inputs=(scripts/learned_policies.sh scripts/stamps.sh scripts/lerobot_dataset.py models/train_policy.py
+  models/generate_reference.py models/unitac_schema.py schema/policy.json Cargo.lock crates/cli/src/demos.rs crates/cli/src/main.rs
   launch/scenes/*_learned_*.yaml
   launch/scenes/cup_deformation_vtla_real.yaml launch/scenes/cup_deformation_vtla_pred.yaml
   launch/scenes/fabric_selection_vtla_real.yaml launch/scenes/fabric_selection_vtla_pred.yaml
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
-key="$( (cat "${inputs[@]}" "$MODELS/.stamp" "$MODELS/touch/.stamp" 2>/dev/null; echo "dagger $DAGGER") | sha256sum | cut -d' ' -f1)"
+key="$( (cat "${inputs[@]}" "$MODELS/reference/manifest.json" "$MODELS/touch/manifest.json" 2>/dev/null; echo "dagger $DAGGER") | sha256sum | cut -d' ' -f1)"
 if [ "$(cat "$OUT/.stamp" 2>/dev/null)" = "$key" ] \
   && [ -f "$OUT/seed${SEEDS[-1]}/${TASKS[-1]}_vtla_pred/manifest.json" ]; then
   exit 0
@@ -93,6 +97,21 @@ for task in "${TASKS[@]}"; do
   sets+=(--dataset "$OUT.tmp/datasets/$task")
 done
 rm -rf "$OUT.tmp/demos"
+log "learned policies: demonstrations and datasets in $((SECONDS - start)) s"
+# The policies depend on the datasets, the trainer and the training seeds; DAgger's states also on
+# the closed loop, so with DAgger they are always trained again.
+data_key="$( (content_key "$OUT.tmp/datasets" models/train_policy.py models/generate_reference.py \
+  models/unitac_schema.py schema/policy.json "$VENV/.unitac-stamp"; echo "seeds ${SEEDS[*]} dagger $DAGGER") \
+  | sha256sum | cut -d' ' -f1)"
+if [ "$DAGGER" = 0 ] && stands "$OUT" "$data_key" \
+  && [ -f "$OUT/seed${SEEDS[-1]}/${TASKS[-1]}_vtla_pred/manifest.json" ]; then
+  log "learned policies: the datasets are byte-identical to the policies': they stand ($((SECONDS - start)) s)"
+  rm -rf "$OUT/datasets"
+  mv "$OUT.tmp/datasets" "$OUT/datasets"
+  rm -rf "$OUT.tmp"
+  echo "$key" >"$OUT/.stamp"
+  exit 0
+fi
 first="$OUT.tmp"
 [ "$DAGGER" = 1 ] && first="$OUT.tmp/round0"
 for seed in "${SEEDS[@]}"; do
@@ -116,6 +135,7 @@ for seed in "${SEEDS[@]}"; do
 done
 rm -rf "$OUT.tmp/round0"
 "$VENV/bin/python" models/train_policy.py --check-onnx "$OUT.tmp/seed0" "${sets[@]}" >/dev/null
+echo "$data_key" >"$OUT.tmp/.data-key"
 rm -rf "$OUT"
 mv "$OUT.tmp" "$OUT"
 echo "$key" >"$OUT/.stamp"

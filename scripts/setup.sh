@@ -30,7 +30,9 @@
 #      (scripts/learned_policies.sh: expert demonstrations of both tasks on training objects,
 #      LeRobot v3.0 datasets, models/train_policy.py for 3 modes x 2 tasks x 3 training seeds)
 # Each step keeps a stamp of its inputs and is skipped when they did not change, so a re-run with
-# nothing changed takes a couple of seconds.
+# nothing changed takes a couple of seconds. A model step whose sources changed makes its data
+# again and trains only if that data (or its trainer) differs from what its models were trained on
+# (scripts/stamps.sh): a change that leaves the demonstrations byte-identical retrains nothing.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
@@ -40,7 +42,8 @@ VENV_JAZZY="$ROOT/.venv-jazzy"
 mkdir -p "$BUILD"
 
 log() { printf '[setup] %s\n' "$*" >&2; }
-hash_of() { cat "$@" | sha256sum | cut -d' ' -f1; }
+# shellcheck source=scripts/stamps.sh
+source "$ROOT/scripts/stamps.sh"
 
 # --- 1. apt -----------------------------------------------------------------------------------
 APT_PKGS=(libclang-dev cmake iproute2 util-linux fonts-dejavu-core)
@@ -67,7 +70,7 @@ fi
 # exported CMake files point at their build container's Python).
 make_venv() {
   local venv="$1" reqs="$2" key real_inc np_inc
-  key="$(hash_of "$reqs" scripts/setup.sh)"
+  key="$(hash_of "$reqs" <(declare -f make_venv))"
   [ "$(cat "$venv/.unitac-stamp" 2>/dev/null)" != "$key" ] || return 0
   log "venv: installing $reqs into ${venv#"$ROOT"/} (first run: ~1 min, ~300-400 MB)"
   [ -x "$venv/bin/python" ] || "$PY" -m venv "$venv"
@@ -155,13 +158,21 @@ models_inputs=(models/generate_reference.py Cargo.lock crates/cli/src/dataset.rs
   $(find crates/sim/src crates/contact/src crates/core/src -name '*.rs' | sort))
 models_key="$(hash_of "${models_inputs[@]}" "$VENV/.unitac-stamp")"
 if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS/reference/manifest.json" ]; then
-  log "models: generating the reference bundle (dataset from the mock sensor, then fitting)"
+  log "models: the reference bundle's dataset from the mock sensor"
   cargo build --release --locked -q -p unitac-cli
   rm -rf "$MODELS/data" "$MODELS/reference.tmp"
   target/release/unitac dataset fabrics --out "$MODELS/data"
-  "$VENV/bin/python" models/generate_reference.py "$MODELS/reference.tmp" --data "$MODELS/data" >"$MODELS/fit.json"
-  rm -rf "$MODELS/reference" "$MODELS/data"
-  mv "$MODELS/reference.tmp" "$MODELS/reference"
+  data_key="$(content_key "$MODELS/data" models/generate_reference.py crates/infer/src/preprocess.rs "$VENV/.unitac-stamp")"
+  if stands "$MODELS/reference" "$data_key" && [ -f "$MODELS/reference/manifest.json" ]; then
+    log "models: the dataset is byte-identical to the reference bundle's: the bundle stands"
+  else
+    log "models: fitting the reference bundle"
+    "$VENV/bin/python" models/generate_reference.py "$MODELS/reference.tmp" --data "$MODELS/data" >"$MODELS/fit.json"
+    echo "$data_key" >"$MODELS/reference.tmp/.data-key"
+    rm -rf "$MODELS/reference"
+    mv "$MODELS/reference.tmp" "$MODELS/reference"
+  fi
+  rm -rf "$MODELS/data"
   echo "$models_key" >"$MODELS/.stamp"
 fi
 # --- 6. touch projector -----------------------------------------------------------------------
@@ -173,9 +184,9 @@ TOUCH="$MODELS/touch"
 touch_inputs=(models/train_projector.py Cargo.lock crates/cli/src/touch_dataset.rs crates/cli/src/dataset.rs
   launch/scenes/cup_deformation_vtla_real.yaml objects/split.yaml
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
-touch_key="$(hash_of "${touch_inputs[@]}" "$MODELS/.stamp")"
+touch_key="$(hash_of "${touch_inputs[@]}" "$MODELS/reference/manifest.json")"
 if [ "$(cat "$TOUCH/.stamp" 2>/dev/null)" != "$touch_key" ] || [ ! -f "$TOUCH/manifest.json" ]; then
-  log "touch projector: touch dataset of training and unseen objects, training (~5 min on 2 cores)"
+  log "touch projector: touch dataset of training and unseen objects (~2 min on 2 cores)"
   cargo build --release --locked -q -p unitac-cli
   rm -rf "$TOUCH.tmp" && mkdir -p "$TOUCH.tmp/data"
   for s in gelsight-mini digit; do
@@ -184,10 +195,19 @@ if [ "$(cat "$TOUCH/.stamp" 2>/dev/null)" != "$touch_key" ] || [ ! -f "$TOUCH/ma
     target/release/unitac dataset touch --split unseen --seeds 101,102,103 --trials 20 --sensor "$s" \
       --out "$TOUCH.tmp/data/unseen-$s" >&2
   done
-  "$VENV/bin/python" models/train_projector.py --train "$TOUCH.tmp"/data/train-*/touch.json \
-    --unseen "$TOUCH.tmp"/data/unseen-*/touch.json --reference "$MODELS/reference" --out "$TOUCH.tmp" >/dev/null
-  rm -rf "$TOUCH.tmp/data" "$TOUCH"
-  mv "$TOUCH.tmp" "$TOUCH"
+  data_key="$(content_key "$TOUCH.tmp/data" models/train_projector.py models/generate_reference.py \
+    models/unitac_schema.py schema/policy.json "$MODELS/reference/manifest.json")"
+  if stands "$TOUCH" "$data_key" && [ -f "$TOUCH/manifest.json" ]; then
+    log "touch projector: the dataset is byte-identical to the projector's: it stands"
+    rm -rf "$TOUCH.tmp"
+  else
+    log "touch projector: training (~3 min on 2 cores)"
+    "$VENV/bin/python" models/train_projector.py --train "$TOUCH.tmp"/data/train-*/touch.json \
+      --unseen "$TOUCH.tmp"/data/unseen-*/touch.json --reference "$MODELS/reference" --out "$TOUCH.tmp" >/dev/null
+    echo "$data_key" >"$TOUCH.tmp/.data-key"
+    rm -rf "$TOUCH.tmp/data" "$TOUCH"
+    mv "$TOUCH.tmp" "$TOUCH"
+  fi
   echo "$touch_key" >"$TOUCH/.stamp"
 fi
 # --- 7. reference policies --------------------------------------------------------------------
@@ -195,7 +215,7 @@ POLICIES="$MODELS/policy"
 policy_inputs=(scripts/fit_reference_policy.py Cargo.lock launch/scenes/cup_deformation_vtla_real.yaml
   crates/cli/src/demos.rs
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
-policy_key="$(hash_of "${policy_inputs[@]}" "$MODELS/.stamp")"
+policy_key="$(hash_of "${policy_inputs[@]}" "$MODELS/reference/manifest.json")"
 if [ "$(cat "$POLICIES/.stamp" 2>/dev/null)" != "$policy_key" ] || [ ! -f "$POLICIES/cup_stiffness_real/manifest.json" ]; then
   log "policies: expert demonstrations on training cups, fitting the stiffness readout"
   cargo build --release --locked -q -p unitac-cli
@@ -204,11 +224,19 @@ if [ "$(cat "$POLICIES/.stamp" 2>/dev/null)" != "$policy_key" ] || [ ! -f "$POLI
   demos="$POLICIES.tmp/demos"
   target/release/unitac demos --scene cup_deformation_vtla_real --split train --seeds 1,2,3 --trials 20 --out "$demos/train" >&2
   target/release/unitac demos --scene cup_deformation_vtla_real --split unseen --seeds 101,102 --trials 10 --out "$demos/unseen" >&2
-  "$VENV/bin/python" scripts/fit_reference_policy.py --train "$demos/train/demos.json" \
-    --eval "$demos/unseen/demos.json" --source real --name cup_stiffness_real \
-    --out "$POLICIES.tmp/cup_stiffness_real" >/dev/null
-  rm -rf "$POLICIES.tmp/demos" "$POLICIES"
-  mv "$POLICIES.tmp" "$POLICIES"
+  data_key="$(content_key "$demos" scripts/fit_reference_policy.py models/unitac_schema.py schema/policy.json \
+    "$VENV/.unitac-stamp")"
+  if stands "$POLICIES" "$data_key" && [ -f "$POLICIES/cup_stiffness_real/manifest.json" ]; then
+    log "policies: the demonstrations are byte-identical to the readout's: it stands"
+    rm -rf "$POLICIES.tmp"
+  else
+    "$VENV/bin/python" scripts/fit_reference_policy.py --train "$demos/train/demos.json" \
+      --eval "$demos/unseen/demos.json" --source real --name cup_stiffness_real \
+      --out "$POLICIES.tmp/cup_stiffness_real" >/dev/null
+    echo "$data_key" >"$POLICIES.tmp/.data-key"
+    rm -rf "$POLICIES.tmp/demos" "$POLICIES"
+    mv "$POLICIES.tmp" "$POLICIES"
+  fi
   echo "$policy_key" >"$POLICIES/.stamp"
 fi
 # --- 8. learned policies ----------------------------------------------------------------------
