@@ -11,6 +11,7 @@ scenes/ beside this file), as `unitac scenes` lists them: a YAML file added ther
 scene.launch.py scene:=<name> with no other edit. What a scene runs at (the sim task, its control
 rate and trial length) is read by the nodes from the scene file, not copied here.
 """
+import glob
 import os
 import re
 from xml.sax.saxutils import quoteattr
@@ -22,9 +23,26 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 URDF_DIR = os.path.join(os.path.dirname(HERE), "urdf")
 PACKAGE = "unitac_ros"
 
-# Serial gripper models the gripper node drives: crates/gripper's Model::ALL, by name, in its order
-# (crates/ros/tests/launch.rs checks that they are the same).
-SERIAL_GRIPPERS = ("robotiq_2f85", "robotiq_2f140", "dh_ag95", "dh_pge50")
+# grippers/ beside launch/ (the source tree; share/unitac_ros of an install): one profile file per
+# gripper model, the files the nodes compile in; $UNITAC_GRIPPERS adds more, as the nodes read it.
+GRIPPER_DIR = os.path.join(os.path.dirname(HERE), "grippers")
+
+
+def serial_grippers():
+    """The serial gripper models the gripper node drives, by name: every profile whose family is not
+    sim (crates/gripper's Model::all(); crates/ros/tests/launch.rs checks that they are the same)."""
+    families = {}
+    extra = [os.environ["UNITAC_GRIPPERS"]] if os.environ.get("UNITAC_GRIPPERS") else []
+    for d in [GRIPPER_DIR] + extra:
+        for path in sorted(glob.glob(os.path.join(d, "*.yaml"))):
+            with open(path) as f:
+                p = yaml.safe_load(f)
+            if isinstance(p, dict) and isinstance(p.get("name"), str):
+                families[p["name"]] = p.get("family")
+    return tuple(sorted(n for n, family in families.items() if family != "sim"))
+
+
+SERIAL_GRIPPERS = serial_grippers()
 
 # Launch arguments: name -> (default, description). Every setting is a declared argument.
 ARGUMENTS = {
@@ -240,6 +258,9 @@ def plan(scene_name, args=None):
             continue  # that node runs this stage as well
         if k == "policy":
             p, remaps = {"scene": scene_path, "arm_frame": a["arm_frame"]}, []
+            if gripper in SERIAL_GRIPPERS:
+                # The safety layer's bounds inside the model's profile (stroke, grip, speed).
+                p["policy.gripper"] = gripper
             if gripper == "action":
                 # The robot's gripper controller: GripperCommand goals out, its joint_states in.
                 p.update({"gripper_input": "joint_states", "gripper_output": "action",

@@ -11,6 +11,7 @@ pub mod golden;
 pub mod msg;
 pub mod pace;
 pub mod pixel;
+pub mod profile;
 pub mod scene;
 pub mod sensor;
 pub mod setpoint;

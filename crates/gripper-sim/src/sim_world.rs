@@ -212,7 +212,7 @@ mod tests {
         let world = World::new(WorldConfig::new(cup));
         let limits = Limits {
             min_force_n: 1.0,
-            ..Model::Robotiq2F85.calibration().limits
+            ..Model::named("robotiq_2f85").unwrap().calibration().limits
         };
         let mut g = SimWorldGripper::new(world, limits);
         let start = g.state().opening_m.unwrap();

@@ -73,8 +73,8 @@ fn updates_after(g: &SerialGripper, n: u64) -> impl FnMut(&SerialGripper) -> boo
 
 #[test]
 fn robotiq_activation_position_and_force() {
-    let dev = device(Model::Robotiq2F85, false, Some(0.05));
-    let mut g = driver(&dev, Model::Robotiq2F85);
+    let dev = device(Model::named("robotiq_2f85").unwrap(), false, Some(0.05));
+    let mut g = driver(&dev, Model::named("robotiq_2f85").unwrap());
     wait_for("the first status", &g, |g| {
         g.state().activation == Activation::Inactive
     });
@@ -129,8 +129,8 @@ fn robotiq_activation_position_and_force() {
 
 #[test]
 fn restart_while_holding_keeps_the_object_held() {
-    let dev = device(Model::Robotiq2F85, true, Some(0.04));
-    let mut g = driver(&dev, Model::Robotiq2F85);
+    let dev = device(Model::named("robotiq_2f85").unwrap(), true, Some(0.04));
+    let mut g = driver(&dev, Model::named("robotiq_2f85").unwrap());
     wait_for("active", &g, |g| g.state().activation == Activation::Active);
     g.command(cmd(0.0, 80.0)).unwrap();
     wait_for("caught", &g, |g| g.state().motion == Motion::Caught);
@@ -138,7 +138,7 @@ fn restart_while_holding_keeps_the_object_held() {
     drop(g);
 
     // A new driver, even one asked to activate, reads first and writes nothing.
-    let mut g = driver(&dev, Model::Robotiq2F85);
+    let mut g = driver(&dev, Model::named("robotiq_2f85").unwrap());
     g.activate().unwrap();
     wait_for("status after restart", &g, |g| g.state().updates >= 20);
     let s = g.state();
@@ -153,8 +153,8 @@ fn restart_while_holding_keeps_the_object_held() {
 
 #[test]
 fn link_faults_are_retried_or_reported_and_never_block() {
-    let dev = device(Model::Robotiq2F85, true, None);
-    let mut g = driver(&dev, Model::Robotiq2F85);
+    let dev = device(Model::named("robotiq_2f85").unwrap(), true, None);
+    let mut g = driver(&dev, Model::named("robotiq_2f85").unwrap());
     wait_for("active", &g, |g| g.state().activation == Activation::Active);
 
     // One-off faults: recovered by the retry, the state stays fault-free.
@@ -232,8 +232,8 @@ fn link_faults_are_retried_or_reported_and_never_block() {
 
 #[test]
 fn overcurrent_needs_clear_fault_and_is_the_only_ract_low() {
-    let dev = device(Model::Robotiq2F85, true, None);
-    let mut g = driver(&dev, Model::Robotiq2F85);
+    let dev = device(Model::named("robotiq_2f85").unwrap(), true, None);
+    let mut g = driver(&dev, Model::named("robotiq_2f85").unwrap());
     wait_for("active", &g, |g| g.state().activation == Activation::Active);
     dev.overcurrent();
     wait_for("overcurrent", &g, |g| {
@@ -255,13 +255,13 @@ fn overcurrent_needs_clear_fault_and_is_the_only_ract_low() {
 
 #[test]
 fn one_second_without_communication_is_reported_then_cleared() {
-    let dev = device(Model::Robotiq2F85, true, None);
-    let g = driver(&dev, Model::Robotiq2F85);
+    let dev = device(Model::named("robotiq_2f85").unwrap(), true, None);
+    let g = driver(&dev, Model::named("robotiq_2f85").unwrap());
     wait_for("active", &g, |g| g.state().activation == Activation::Active);
     drop(g);
     std::thread::sleep(Duration::from_millis(1300));
     assert_eq!(dev.snapshot().fault, 0x09);
-    let mut g = driver(&dev, Model::Robotiq2F85);
+    let mut g = driver(&dev, Model::named("robotiq_2f85").unwrap());
     wait_for("fault 0x09", &g, |g| {
         matches!(g.state().fault, Some(Fault::Minor { code: 0x09, .. }))
     });
@@ -274,11 +274,11 @@ fn unplugged_adapter_is_reopened_by_its_stable_name() {
     let dir = std::env::temp_dir().join(format!("unitac-gripper-replug-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let link: PathBuf = dir.join("usb-Robotiq_sim-if00-port0");
-    let mut cfg = DeviceConfig::new(Model::Robotiq2F85);
+    let mut cfg = DeviceConfig::new(Model::named("robotiq_2f85").unwrap());
     cfg.start_active = true;
     cfg.link = Some(link.clone());
     let dev = SimDevice::spawn(cfg).unwrap();
-    let mut dcfg = DriverConfig::new(&link, Model::Robotiq2F85);
+    let mut dcfg = DriverConfig::new(&link, Model::named("robotiq_2f85").unwrap());
     dcfg.timeout = Duration::from_millis(30);
     let g = SerialGripper::start(dcfg).unwrap();
     wait_for("active", &g, |g| g.state().activation == Activation::Active);
@@ -302,8 +302,8 @@ fn unplugged_adapter_is_reopened_by_its_stable_name() {
 
 #[test]
 fn dh_initialise_move_and_catch() {
-    let dev = device(Model::DhAg95, false, Some(0.06));
-    let mut g = driver(&dev, Model::DhAg95);
+    let dev = device(Model::named("dh_ag95").unwrap(), false, Some(0.06));
+    let mut g = driver(&dev, Model::named("dh_ag95").unwrap());
     wait_for("first status", &g, |g| {
         g.state().activation == Activation::Inactive
     });
@@ -326,7 +326,7 @@ fn dh_initialise_move_and_catch() {
     assert_eq!(dev.snapshot().activations, 1);
     // Restart: no re-initialisation of an initialised gripper.
     drop(g);
-    let mut g = driver(&dev, Model::DhAg95);
+    let mut g = driver(&dev, Model::named("dh_ag95").unwrap());
     g.activate().unwrap();
     wait_for("status after restart", &g, |g| g.state().updates >= 10);
     assert_eq!(g.state().motion, Motion::Caught);
@@ -337,7 +337,7 @@ fn dh_initialise_move_and_catch() {
 fn missing_port_is_a_link_fault_naming_the_port() {
     let g = SerialGripper::start(DriverConfig::new(
         "/dev/ttyUSB-unitac-none",
-        Model::Robotiq2F85,
+        Model::named("robotiq_2f85").unwrap(),
     ))
     .unwrap();
     wait_for(
@@ -349,7 +349,7 @@ fn missing_port_is_a_link_fault_naming_the_port() {
 
 #[test]
 fn every_model_activates_and_reaches_a_position_in_si_units() {
-    for model in Model::ALL {
+    for model in Model::all() {
         let dev = device(model, false, None);
         let mut g = driver(&dev, model);
         g.activate().unwrap();
@@ -368,7 +368,7 @@ fn sim_world_gripper_in_process_and_over_the_pty_agree() {
     use unitac_gripper_sim::sim_world::{SimWorldGripper, WorldFingers};
     use unitac_sim::{Cup, World, WorldConfig};
     let world = || World::new(WorldConfig::new(Cup::paper(60.0)));
-    let limits = Model::Robotiq2F85.calibration().limits;
+    let limits = Model::named("robotiq_2f85").unwrap().calibration().limits;
     let close = GripperSetpoint {
         opening_m: 0.0,
         speed_m_s: 0.15,
@@ -383,11 +383,11 @@ fn sim_world_gripper_in_process_and_over_the_pty_agree() {
     let l = local.state();
     assert_eq!(l.motion, Motion::Caught);
 
-    let mut cfg = DeviceConfig::new(Model::Robotiq2F85);
+    let mut cfg = DeviceConfig::new(Model::named("robotiq_2f85").unwrap());
     cfg.start_active = true;
     let fingers = WorldFingers::new(world(), limits.max_opening_m);
     let dev = SimDevice::spawn_with(cfg, Box::new(fingers)).unwrap();
-    let mut g = driver(&dev, Model::Robotiq2F85);
+    let mut g = driver(&dev, Model::named("robotiq_2f85").unwrap());
     wait_for("active", &g, |g| g.state().activation == Activation::Active);
     g.command(close).unwrap();
     wait_for("caught over the pty", &g, |g| {
@@ -412,7 +412,7 @@ fn sim_world_gripper_in_process_and_over_the_pty_agree() {
 #[test]
 fn requests_no_gripper_serves_get_exception_replies_on_the_wire() {
     // Raw frames on the pty, as any Modbus master may send them.
-    let dev = device(Model::Robotiq2F85, false, None);
+    let dev = device(Model::named("robotiq_2f85").unwrap(), false, None);
     let mut port = unitac_gripper::port::open(&dev.path(), 115_200).unwrap();
     port.set_timeout(Duration::from_millis(500)).unwrap();
     let mut ask = |pdu: &[u8]| {

@@ -33,7 +33,7 @@ fn step<'a>(lines: &'a [serde_json::Value], name: &str) -> &'a serde_json::Value
 
 #[test]
 fn pyrobotiqgripper_drives_the_simulated_2f85() {
-    let mut cfg = DeviceConfig::new(Model::Robotiq2F85);
+    let mut cfg = DeviceConfig::new(Model::named("robotiq_2f85").unwrap());
     cfg.activation_s = 0.2;
     // A 40 mm object, fingers open at 85 mm.
     cfg.object = Some(SimObject {

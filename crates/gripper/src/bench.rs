@@ -177,14 +177,21 @@ mod tests {
 
     #[test]
     fn wire_limits_from_frame_sizes() {
-        let r = cycle(Model::Robotiq2F85, Cycle::Motion);
+        let r = cycle(Model::named("robotiq_2f85").unwrap(), Cycle::Motion);
         assert_eq!(r[0].encode(9).unwrap().len(), 19);
         assert_eq!(reply_len(&r[0]), 11);
         let hz = 1.0 / wire_time(&r, 115_200);
         assert!((hz - 115_200.0 / 370.0).abs() < 1e-9, "{hz}");
-        let d = 1.0 / wire_time(&cycle(Model::DhAg95, Cycle::Motion), 115_200);
+        let d = 1.0
+            / wire_time(
+                &cycle(Model::named("dh_ag95").unwrap(), Cycle::Motion),
+                115_200,
+            );
         assert!((d - 115_200.0 / 490.0).abs() < 1e-9, "{d}");
-        for m in [Model::Robotiq2F85, Model::DhAg95] {
+        for m in [
+            Model::named("robotiq_2f85").unwrap(),
+            Model::named("dh_ag95").unwrap(),
+        ] {
             let r = cycle(m, Cycle::StatusOnly);
             assert_eq!(r[0].encode(9).unwrap().len(), 8);
             let hz = 1.0 / wire_time(&r, 115_200);
@@ -194,7 +201,7 @@ mod tests {
 
     #[test]
     fn a_status_only_cycle_writes_nothing() {
-        for m in Model::ALL {
+        for m in Model::all() {
             assert!(
                 cycle(m, Cycle::StatusOnly)
                     .iter()

@@ -268,7 +268,7 @@ mod tests {
 
     #[test]
     fn a_force_bound_below_the_weakest_grip_is_refused() {
-        let ag95 = crate::Model::DhAg95.calibration().limits;
+        let ag95 = crate::Model::named("dh_ag95").unwrap().calibration().limits;
         let e = ag95.check_force_bound(40.0).unwrap_err();
         assert_eq!(
             e,
@@ -281,7 +281,10 @@ mod tests {
         assert!(e.to_string().contains("40 N"), "{e}");
         assert!(ag95.check_force_bound(45.0).is_ok());
         assert!(ag95.check_force_bound(f64::NAN).is_err());
-        let f140 = crate::Model::Robotiq2F140.calibration().limits;
+        let f140 = crate::Model::named("robotiq_2f140")
+            .unwrap()
+            .calibration()
+            .limits;
         assert!(f140.check_force_bound(40.0).is_ok());
     }
 }

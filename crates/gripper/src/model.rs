@@ -1,13 +1,16 @@
 //! The supported models: register family, defaults and the calibration of raw ranges to SI.
 //!
-//! Where each figure comes from (see the README's table): strokes, force and speed ranges are the
-//! manufacturers' published specifications; the linear raw <-> SI maps between them, Robotiq's
-//! fully-closed raw position and DH's percent scales are assumptions to check on the unit.
+//! A model is a gripper profile (grippers/<name>.yaml, `unitac_core::profile`: stroke, force and
+//! speed ranges, family, factory slave id and line rate, each figure with its source) of a serial
+//! family; a new model of a known family is a new file, no code. The linear raw <-> SI maps
+//! between the ranges, Robotiq's fully-closed raw position and DH's percent scales are this
+//! crate's, per family: assumptions to check on the unit (see the README's table).
 
 use crate::gripper::{Limits, Linear};
 use serde::Serialize;
 use std::fmt;
 use std::str::FromStr;
+use unitac_core::profile::{self, GripperFamily, GripperProfile, ProfileError};
 
 /// Register family.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -19,13 +22,26 @@ pub enum Family {
     Dh,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Model {
-    Robotiq2F85,
-    Robotiq2F140,
-    DhAg95,
-    DhPge50,
+/// A serial gripper model: its profile and register family (equal by name: one name, one profile
+/// per process).
+#[derive(Debug, Clone, Copy)]
+pub struct Model {
+    profile: &'static GripperProfile,
+    family: Family,
+}
+
+impl PartialEq for Model {
+    fn eq(&self, other: &Self) -> bool {
+        self.name() == other.name()
+    }
+}
+
+impl Eq for Model {}
+
+impl Serialize for Model {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
 }
 
 /// Calibration of one model's raw registers.
@@ -41,47 +57,61 @@ pub struct Calibration {
 }
 
 impl Model {
-    pub const ALL: [Model; 4] = [
-        Model::Robotiq2F85,
-        Model::Robotiq2F140,
-        Model::DhAg95,
-        Model::DhPge50,
-    ];
+    /// The model of a profile; None for the world's own gripper (no serial family).
+    pub fn of(profile: &'static GripperProfile) -> Option<Model> {
+        let family = match profile.family {
+            GripperFamily::Robotiq => Family::Robotiq,
+            GripperFamily::Dh => Family::Dh,
+            GripperFamily::Sim => return None,
+        };
+        Some(Model { profile, family })
+    }
+
+    /// Every serial model, by name (the shipped profiles and `UNITAC_GRIPPERS`'; none if that
+    /// directory holds a broken file: naming a model then says why).
+    pub fn all() -> Vec<Model> {
+        profile::gripper_profiles()
+            .map(|all| all.iter().filter_map(Model::of).collect())
+            .unwrap_or_default()
+    }
+
+    /// The model named `name`.
+    pub fn named(name: &str) -> Result<Model, UnknownModel> {
+        let p = profile::gripper_profile(name).map_err(|e| match e {
+            ProfileError::Unknown { .. } => UnknownModel(format!(
+                "unknown gripper model {name:?} (known: {})",
+                known_models()
+            )),
+            other => UnknownModel(other.to_string()),
+        })?;
+        Model::of(p).ok_or_else(|| {
+            UnknownModel(format!(
+                "{name:?} is the simulated world's gripper, not a serial model (known: {})",
+                known_models()
+            ))
+        })
+    }
+
     pub fn name(self) -> &'static str {
-        match self {
-            Model::Robotiq2F85 => "robotiq_2f85",
-            Model::Robotiq2F140 => "robotiq_2f140",
-            Model::DhAg95 => "dh_ag95",
-            Model::DhPge50 => "dh_pge50",
-        }
+        self.profile.name
+    }
+    pub fn profile(self) -> &'static GripperProfile {
+        self.profile
     }
     pub fn family(self) -> Family {
-        match self {
-            Model::Robotiq2F85 | Model::Robotiq2F140 => Family::Robotiq,
-            Model::DhAg95 | Model::DhPge50 => Family::Dh,
-        }
+        self.family
     }
-    /// Factory slave id (Robotiq manual: 9; DH manual: 1).
+    /// Factory slave id (Robotiq manual: 9; DH manual: 1), from the profile.
     pub fn default_slave(self) -> u8 {
-        match self.family() {
-            Family::Robotiq => 9,
-            Family::Dh => 1,
-        }
+        self.profile.slave.unwrap_or(1)
     }
-    /// Factory line rate (both manuals: 115200 8N1).
+    /// Factory line rate (both manuals: 115200 8N1), from the profile.
     pub fn default_baud(self) -> u32 {
-        115_200
+        self.profile.baud.unwrap_or(115_200)
     }
     pub fn calibration(self) -> Calibration {
-        // (stroke m, min/max force N, min/max speed m/s): published specifications.
-        let (stroke, fmin, fmax, vmin, vmax) = match self {
-            Model::Robotiq2F85 => (0.085, 20.0, 235.0, 0.020, 0.150),
-            Model::Robotiq2F140 => (0.140, 10.0, 125.0, 0.030, 0.250),
-            // DH give an opening/closing time (0.7 s for the full stroke), not a speed: the top
-            // speed here is stroke / 0.7 s.
-            Model::DhAg95 => (0.095, 45.0, 160.0, 0.095 / 0.7 / 100.0, 0.095 / 0.7),
-            Model::DhPge50 => (0.050, 15.0, 50.0, 0.050 / 0.7 / 100.0, 0.050 / 0.7),
-        };
+        let p = self.profile;
+        let (stroke, [fmin, fmax], [vmin, vmax]) = (p.stroke_m, p.force_n, p.speed_m_s);
         let limits = Limits {
             max_opening_m: stroke,
             min_speed_m_s: vmin,
@@ -89,7 +119,7 @@ impl Model {
             min_force_n: fmin,
             max_force_n: fmax,
         };
-        match self.family() {
+        match self.family {
             // Assumption: raw 0 = fully open, 0xE3 = fingertips touching (units differ by a few
             // counts; calibrate), speed and force linear over 0..255.
             Family::Robotiq => Calibration {
@@ -119,24 +149,21 @@ impl fmt::Display for Model {
     }
 }
 
-/// A gripper model name that is none of [`Model::ALL`].
+/// A gripper model name that is no serial model's (the message says which are, or why the
+/// profiles could not be read).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown gripper model {name:?} (known: {known})", name = .0, known = known_models())]
+#[error("{0}")]
 pub struct UnknownModel(pub String);
 
 fn known_models() -> String {
-    let names: Vec<_> = Model::ALL.iter().map(|m| m.name()).collect();
+    let names: Vec<_> = Model::all().iter().map(|m| m.name()).collect();
     names.join(", ")
 }
 
 impl FromStr for Model {
     type Err = UnknownModel;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let k = s.to_ascii_lowercase().replace(['-', ' '], "_");
-        Model::ALL
-            .into_iter()
-            .find(|m| m.name() == k || m.name().replace('_', "") == k.replace('_', ""))
-            .ok_or_else(|| UnknownModel(s.to_string()))
+        Model::named(s)
     }
 }
 
@@ -146,10 +173,20 @@ mod tests {
 
     #[test]
     fn names_parse_back() {
-        for m in Model::ALL {
+        for m in Model::all() {
             assert_eq!(m.name().parse::<Model>().unwrap(), m);
         }
-        assert_eq!("Robotiq-2F85".parse::<Model>().unwrap(), Model::Robotiq2F85);
+        assert_eq!(
+            "Robotiq-2F85".parse::<Model>().unwrap().name(),
+            "robotiq_2f85"
+        );
+        assert!(
+            "sim"
+                .parse::<Model>()
+                .unwrap_err()
+                .to_string()
+                .contains("not a serial model")
+        );
         assert!(
             "robotiq_3f"
                 .parse::<Model>()
@@ -161,7 +198,7 @@ mod tests {
 
     #[test]
     fn calibrations_cover_the_limits() {
-        for m in Model::ALL {
+        for m in Model::all() {
             let c = m.calibration();
             let l = c.limits;
             // Open and closed ends map inside the raw ranges and back within a count.

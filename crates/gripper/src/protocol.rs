@@ -463,7 +463,7 @@ mod tests {
     #[test]
     fn a_raw_position_beyond_the_calibration_is_clamped_and_flagged() {
         // gPO 230 with fully closed calibrated at 227 read as an opening of -1.12 mm.
-        let mut s = Session::new(Model::Robotiq2F85);
+        let mut s = Session::new(Model::named("robotiq_2f85").unwrap());
         let mut wants = Wants::default();
         let mut st = GripperState::default();
         let r = s.next_request(&wants, &st);
@@ -507,7 +507,7 @@ mod tests {
 
     #[test]
     fn start_reads_first_and_writes_nothing_to_an_active_gripper() {
-        let mut s = Session::new(Model::Robotiq2F85);
+        let mut s = Session::new(Model::named("robotiq_2f85").unwrap());
         let mut wants = Wants {
             activate: true,
             ..Wants::default()

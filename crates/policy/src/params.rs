@@ -8,6 +8,7 @@ use crate::safety::{Bounds, SafeAction};
 use crate::schema;
 use crate::task::Task;
 use serde::{Deserialize, Serialize};
+use unitac_core::profile::GripperProfile;
 
 /// Most values in `observation.tactile_latent` (a latent is at most this long).
 pub const MAX_LATENT_LEN: usize = 1 << 16;
@@ -51,12 +52,16 @@ pub struct PolicyParams {
     pub budget_latent_s: f64,
     pub budget_comparison_s: f64,
     pub budget_visual_s: f64,
-    /// Bounds of every command (the gripper's limits and the scene's).
+    /// The gripper's profile (grippers/<name>.yaml, `unitac_core::profile`), empty for none:
+    /// when named, the command bounds below are held inside its stroke, strongest grip and
+    /// fastest speed, and `stroke_m` is its stroke.
+    pub gripper: String,
+    /// Bounds of every command (the scene's, inside the gripper's when `gripper` names one).
     pub min_opening_m: f64,
     pub max_opening_m: f64,
     /// The gripper's full stroke \[m] (not a command bound: the scene's `max_opening_m` may be
     /// narrower): a GripperStatus reporting an opening outside [0, stroke_m] is an invalid
-    /// input. The default is the widest supported gripper's (Robotiq 2F-140, the sim's).
+    /// input. The default is the widest shipped profile's; a named `gripper` replaces it.
     pub stroke_m: f64,
     pub max_speed_m_s: f64,
     pub max_force_n: f64,
@@ -198,9 +203,13 @@ impl Default for PolicyParams {
             budget_latent_s: 60.0,
             budget_comparison_s: 600.0,
             budget_visual_s: 0.5,
+            gripper: String::new(),
             min_opening_m: 0.0,
             max_opening_m: 0.085,
-            stroke_m: 0.14,
+            stroke_m: unitac_core::profile::SHIPPED_GRIPPERS
+                .iter()
+                .map(|p| p.stroke_m)
+                .fold(0.0, f64::max),
             max_speed_m_s: 0.15,
             max_force_n: 40.0,
             max_step_m: 0.005,
@@ -262,6 +271,9 @@ impl PolicyParams {
         let task = Task::parse(&self.task).map_err(|e| e.to_string());
         if let Err(e) = &task {
             bad.push(e.clone());
+        }
+        if let Err(e) = self.profile() {
+            bad.push(e.to_string());
         }
         if let Err(e) = self.bounds().check() {
             bad.extend(e.0);
@@ -437,12 +449,34 @@ impl PolicyParams {
         std::time::Duration::from_secs_f64(s.clamp(MIN_INFERENCE_BUDGET_S, MAX_INFERENCE_BUDGET_S))
     }
 
+    /// The profile `gripper` names (None: it names none).
+    pub fn profile(
+        &self,
+    ) -> Result<Option<&'static GripperProfile>, unitac_core::profile::ProfileError> {
+        if self.gripper.is_empty() {
+            return Ok(None);
+        }
+        unitac_core::profile::gripper_profile(&self.gripper).map(Some)
+    }
+
+    /// The command bounds: the scene's, inside the named gripper's stroke, strongest grip and
+    /// fastest speed (a profile that cannot be read is reported by [`Self::check`]).
+    /// The gripper's stroke: the named profile's, else `stroke_m`.
+    pub fn stroke(&self) -> f64 {
+        match self.profile() {
+            Ok(Some(p)) => p.stroke_m,
+            _ => self.stroke_m,
+        }
+    }
+
     pub fn bounds(&self) -> Bounds {
+        let g = self.profile().ok().flatten();
+        let inside = |v: f64, limit: Option<f64>| limit.map_or(v, |l| v.min(l));
         Bounds {
             min_opening_m: self.min_opening_m,
-            max_opening_m: self.max_opening_m,
-            max_speed_m_s: self.max_speed_m_s,
-            max_force_n: self.max_force_n,
+            max_opening_m: inside(self.max_opening_m, g.map(|p| p.stroke_m)),
+            max_speed_m_s: inside(self.max_speed_m_s, g.map(|p| p.speed_m_s[1])),
+            max_force_n: inside(self.max_force_n, g.map(|p| p.force_n[1])),
             max_step_m: self.max_step_m,
             max_force_step_n: self.max_force_step_n,
             min_z_m: self.min_z_m,
@@ -467,7 +501,7 @@ impl PolicyParams {
         Layout {
             latent_len: self.latent_len,
             visual_names: self.visual_names.clone(),
-            stroke_m: Some(self.stroke_m),
+            stroke_m: Some(self.stroke()),
         }
     }
 

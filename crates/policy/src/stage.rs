@@ -130,11 +130,13 @@ impl PolicyStage {
     /// a learned policy's features come from).
     fn build(
         scene: &str,
-        params: PolicyParams,
+        mut params: PolicyParams,
         policy: Box<dyn Policy>,
         extra: &[&'static str],
     ) -> Result<Self, PolicyLoadError> {
         let task = params.check()?;
+        // The named gripper's stroke, resolved once.
+        params.stroke_m = params.stroke();
         let mut inputs = params.mode.inputs(task.is_pick());
         for e in extra {
             if !inputs.contains(e) {

@@ -243,6 +243,11 @@ fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
             let gp = &g["parameters"]["unitac_gripper_node"];
             assert_eq!(gp["model"], "robotiq_2f85");
             assert_eq!(gp["port"], "/dev/ttyGRIP");
+            // and holds the policy's safety bounds inside that model's profile.
+            assert_eq!(
+                g["parameters"]["unitac_policy_node"]["policy.gripper"], "robotiq_2f85",
+                "{file}"
+            );
         }
     }
 }
@@ -528,7 +533,7 @@ fn a_scene_file_added_is_launched_by_name_with_no_other_edit() {
             .is_none()
     );
 
-    let models: Vec<&str> = unitac_gripper::Model::ALL
+    let models: Vec<&str> = unitac_gripper::Model::all()
         .iter()
         .map(|m| m.name())
         .collect();

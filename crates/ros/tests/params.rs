@@ -119,7 +119,7 @@ fn full_params() -> [serde_json::Map<String, Value>; 6] {
                "stiffness_weights": [1.0, 2.0], "latent_len": 96, "min_opening_m": 0.001,
                "max_opening_m": 0.1, "min_z_m": 0.01, "max_z_m": 0.4,
                "touch_z_m": -0.002, "grasp_z_m": -0.0005, "inference_budget_s": 0.2,
-               "vla_rule": "force"}),
+               "vla_rule": "force", "gripper": "robotiq_2f140"}),
     );
     [contact, slip, encoder, compare, sampler, policy]
 }

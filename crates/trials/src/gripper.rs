@@ -32,7 +32,7 @@ pub enum TrialGripper {
 
 impl TrialGripper {
     /// The grippers a trial can drive: the world's own, then each serial model (in
-    /// [`Model::ALL`]'s order) whose stroke opens around the narrowest unseen cup with a gel pad
+    /// [`Model::all`]'s order, by name) whose stroke opens around the narrowest unseen cup with a gel pad
     /// on each finger (objects/split.yaml; 84 + 2 x 3 mm): a narrower one collides with every
     /// unseen cup.
     pub fn offered() -> Vec<TrialGripper> {
@@ -40,7 +40,7 @@ impl TrialGripper {
             + 2.0 * unitac_sim::task::GripperLimits::default().pad_m;
         std::iter::once(TrialGripper::InProcess)
             .chain(
-                Model::ALL
+                Model::all()
                     .into_iter()
                     .filter(|m| m.calibration().limits.max_opening_m >= narrowest_m)
                     .map(TrialGripper::Serial),
@@ -140,8 +140,8 @@ mod tests {
     fn names_parse_back() {
         for g in [
             TrialGripper::InProcess,
-            TrialGripper::Serial(Model::Robotiq2F140),
-            TrialGripper::Serial(Model::DhAg95),
+            TrialGripper::Serial(Model::named("robotiq_2f140").unwrap()),
+            TrialGripper::Serial(Model::named("dh_ag95").unwrap()),
         ] {
             assert_eq!(g.name().parse::<TrialGripper>().unwrap(), g);
         }
@@ -159,8 +159,8 @@ mod tests {
             TrialGripper::offered(),
             [
                 TrialGripper::InProcess,
-                TrialGripper::Serial(Model::Robotiq2F140),
-                TrialGripper::Serial(Model::DhAg95),
+                TrialGripper::Serial(Model::named("dh_ag95").unwrap()),
+                TrialGripper::Serial(Model::named("robotiq_2f140").unwrap()),
             ]
         );
     }

@@ -514,7 +514,8 @@ pub fn run_trial_swapped(
         .iter()
         .position(|s| s.kind == "policy")
         .unwrap_or(scene.stages.len());
-    let params = policy_params(scene)?;
+    let (scene, params, task) = crate::scene::for_gripper(scene, task, gripper)?;
+    let (scene, task) = (&scene, &task);
     let stages = unitac_pipeline::build_stages(scene).map_err(|e| TrialError::Scene {
         scene: scene.name.clone(),
         msg: e.to_string(),

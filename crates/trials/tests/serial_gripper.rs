@@ -9,7 +9,9 @@ use unitac_sim::task::{CupOutcome, Split, TaskConfig, TaskOutcome};
 use unitac_trials::run::trace_jsonl;
 use unitac_trials::{TrialGripper, TrialOptions, TrialRecord, run_trial_on};
 
-const SERIAL: TrialGripper = TrialGripper::Serial(Model::Robotiq2F140);
+fn serial() -> TrialGripper {
+    TrialGripper::Serial(Model::named("robotiq_2f140").unwrap())
+}
 
 /// One serial trial at a time: each runs a driver thread and a device thread beside the trial
 /// loop, and the device's 1 s no-communication watchdog runs on wall time.
@@ -63,7 +65,7 @@ fn assert_went_over_the_wire(r: &TrialRecord) {
         "{ticks} ticks: {s:?}"
     );
     assert!(s.device_requests >= s.exchanges && s.device_replies >= s.exchanges);
-    let cal = Model::Robotiq2F140.calibration();
+    let cal = Model::named("robotiq_2f140").unwrap().calibration();
     let raw = s.last_raw_position.unwrap();
     assert_eq!(s.last_opening_m, Some(cal.position.to_si(f64::from(raw))));
     assert!((s.position_step_m - 0.14 / 227.0).abs() < 1e-12);
@@ -79,7 +81,7 @@ fn assert_went_over_the_wire(r: &TrialRecord) {
 fn the_cup_trial_over_the_serial_gripper_agrees_with_the_in_process_one() {
     for scene in ["cup_deformation_vla", "cup_deformation_vtla_real"] {
         let a = trial(scene, 1, 0, TrialGripper::InProcess);
-        let b = trial(scene, 1, 0, SERIAL);
+        let b = trial(scene, 1, 0, serial());
         assert_eq!((a.gripper.as_str(), a.serial.as_ref()), ("sim", None));
         assert_went_over_the_wire(&b);
         assert_eq!(a.objects, b.objects, "{scene}: the same world");
@@ -113,7 +115,7 @@ fn top_speed(r: &TrialRecord, phase: &str) -> f64 {
 #[test]
 fn where_they_differ_the_serial_gripper_touched_at_its_minimum_speed() {
     let a = trial("cup_deformation_vtla_real", 1, 19, TrialGripper::InProcess);
-    let b = trial("cup_deformation_vtla_real", 1, 19, SERIAL);
+    let b = trial("cup_deformation_vtla_real", 1, 19, serial());
     assert_went_over_the_wire(&b);
     let (ca, cb) = (cup(&a), cup(&b));
     assert!(ca.overall && cb.overall, "{ca:?} vs {cb:?}");
@@ -121,7 +123,7 @@ fn where_they_differ_the_serial_gripper_touched_at_its_minimum_speed() {
         (a.end_phase.as_str(), b.end_phase.as_str()),
         ("done", "done")
     );
-    let limits = Model::Robotiq2F140.calibration().limits;
+    let limits = Model::named("robotiq_2f140").unwrap().calibration().limits;
     assert_eq!(limits.min_speed_m_s, 0.03);
     assert!(
         top_speed(&a, "close") <= 0.0101,
@@ -137,8 +139,8 @@ fn where_they_differ_the_serial_gripper_touched_at_its_minimum_speed() {
 
 #[test]
 fn a_serial_trial_gives_the_same_trace_bytes_twice() {
-    let a = trial("cup_deformation_vla", 5, 1, SERIAL);
-    let b = trial("cup_deformation_vla", 5, 1, SERIAL);
+    let a = trial("cup_deformation_vla", 5, 1, serial());
+    let b = trial("cup_deformation_vla", 5, 1, serial());
     assert_eq!(trace_jsonl(&a).unwrap(), trace_jsonl(&b).unwrap());
     assert_eq!(a.outcome, b.outcome);
 }

@@ -507,7 +507,7 @@ mod tests {
     use crate::device::physics::Kinematic;
 
     fn robotiq() -> Box<dyn Registers> {
-        let m = Model::Robotiq2F85;
+        let m = Model::named("robotiq_2f85").unwrap();
         let max = m.calibration().limits.max_opening_m;
         for_model(m, Box::new(Kinematic::new(max, None)), 0.05, false)
     }
@@ -655,7 +655,7 @@ mod tests {
 
     #[test]
     fn robotiq_reactivation_clears_the_object_and_a_full_close_is_reached_at_the_stop() {
-        let m = Model::Robotiq2F85;
+        let m = Model::named("robotiq_2f85").unwrap();
         let obj = crate::device::physics::SimObject {
             width_m: 0.04,
             stiffness_n_per_m: 20_000.0,

@@ -106,13 +106,28 @@ pub struct GripperLimits {
     pub pad_half_width_m: f64,
 }
 
-impl Default for GripperLimits {
-    fn default() -> Self {
+impl GripperLimits {
+    /// This gripper with the profile `p`'s stroke, strongest grip and fastest speed (the gel
+    /// pads stay).
+    pub fn with_profile(self, p: &unitac_core::profile::GripperProfile) -> Self {
         Self {
-            max_opening_m: 0.14,
+            max_opening_m: p.stroke_m,
+            max_force_n: p.force_n[1],
+            max_speed_m_s: p.speed_m_s[1],
+            ..self
+        }
+    }
+}
+
+impl Default for GripperLimits {
+    /// The world's own gripper (grippers/sim.yaml) with GelSight Mini pads.
+    fn default() -> Self {
+        let sim = unitac_core::profile::SIM_GRIPPER;
+        Self {
+            max_opening_m: sim.stroke_m,
             pad_m: 0.003,
-            max_speed_m_s: 0.1,
-            max_force_n: 40.0,
+            max_speed_m_s: sim.speed_m_s[1],
+            max_force_n: sim.force_n[1],
             // GelSight Mini: 18.6 x 14.3 mm sensing area (datasheet), the long side horizontal.
             pad_half_width_m: 0.0093,
         }
