@@ -95,9 +95,12 @@ SENSOR_MACROS = {"gelsight-mini": ("gelsight_mini.urdf.xacro", "gelsight_mini"),
 # stage too, after its contact stage). Nodes read their stages' parameters from the scene file
 # themselves, through the same registry and typed structs as `unitac run`; nothing is copied here,
 # so nothing can be dropped. Override a stage parameter with `<stage>.<key>` in params_file.
-STAGE_NODES = {"contact": "unitac_contact_node", "slip": "unitac_contact_node", "policy": "unitac_policy_node"}
+# The map is stage_nodes.yaml beside this file, which the node binaries read too.
+with open(os.path.join(HERE, "stage_nodes.yaml")) as _f:
+    _NODE_STAGES = yaml.safe_load(_f)
 # These run in one inference node.
-INFERENCE_STAGES = {"encoder", "compare", "sampler"}
+INFERENCE_STAGES = set(_NODE_STAGES["unitac_inference_node"])
+STAGE_NODES = {k: exe for exe, kinds in _NODE_STAGES.items() for k in kinds if k not in INFERENCE_STAGES}
 
 
 def scene_dirs():

@@ -54,7 +54,10 @@ fn bad_ports_get_messages_that_say_what_is_wrong() {
     let o = unitac(&["--port", "sim", "--model", "robotiq_3f", "status"]);
     let (_, err) = text(&o);
     assert_eq!(o.status.code(), Some(2));
-    assert!(err.contains("known: dh_ag95, dh_pge50, robotiq_2f140, robotiq_2f85"), "{err}");
+    assert!(
+        err.contains("known: dh_ag95, dh_pge50, robotiq_2f140, robotiq_2f85"),
+        "{err}"
+    );
 }
 
 #[test]

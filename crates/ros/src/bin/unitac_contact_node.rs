@@ -52,9 +52,6 @@ impl Default for Params {
     }
 }
 
-/// Stage kinds this node runs.
-const STAGES: &[&str] = &["contact", "slip"];
-
 /// An image received: its header stamp (checked) and the converted frame.
 struct Received {
     stamp: anyhow::Result<unitac_core::Stamp>,
@@ -86,13 +83,15 @@ fn drain<T>(
 }
 
 fn run() -> anyhow::Result<()> {
-    let mut base = NodeBase::<Params>::new("unitac_contact", STAGES)?;
+    // Stage kinds this node runs (launch/stage_nodes.yaml).
+    let stages = unitac_ros::node_stages("unitac_contact_node")?;
+    let mut base = NodeBase::<Params>::new("unitac_contact", stages)?;
     let p = base.params()?;
     let (scene, stages) = unitac_ros::scene_stages(
         "unitac_contact_node",
         &p.scene,
         &p.sensor_kind,
-        STAGES,
+        stages,
         base.stage_overrides(),
     )?;
     // What the contact stage emits beyond the states: depth (a depth calibration), the overlay.

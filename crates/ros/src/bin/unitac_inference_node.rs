@@ -20,8 +20,11 @@ use unitac_core::{Chain, Msg, Scene, sensor_id_of};
 use unitac_ros::node::NodeBase;
 use unitac_ros::{convert, diagnostics, image};
 
-/// Stage kinds this node runs (the contact stage runs in the contact node).
-const INFERENCE_STAGES: &[&str] = &["encoder", "compare", "sampler"];
+/// Stage kinds this node runs (launch/stage_nodes.yaml; the contact stage runs in the contact
+/// node).
+fn inference_stages() -> anyhow::Result<&'static [&'static str]> {
+    unitac_ros::node_stages("unitac_inference_node")
+}
 
 #[derive(RosParams, Debug, Clone)]
 struct Params {
@@ -48,16 +51,14 @@ fn build(
     overrides: &[(String, serde_yaml::Value)],
 ) -> anyhow::Result<(Scene, Vec<Box<dyn unitac_core::Stage>>)> {
     let wanted = unitac_ros::list_param(&p.stages);
-    if let Some(bad) = wanted
-        .iter()
-        .find(|s| !INFERENCE_STAGES.contains(&s.as_str()))
-    {
+    let all = inference_stages()?;
+    if let Some(bad) = wanted.iter().find(|s| !all.contains(&s.as_str())) {
         anyhow::bail!(
             "stages: '{bad}' is not an inference stage ({})",
-            INFERENCE_STAGES.join(", ")
+            all.join(", ")
         );
     }
-    let kinds: Vec<&str> = INFERENCE_STAGES
+    let kinds: Vec<&str> = all
         .iter()
         .copied()
         .filter(|k| wanted.is_empty() || wanted.iter().any(|w| w == k))
@@ -94,7 +95,7 @@ impl Timing {
 }
 
 fn run() -> anyhow::Result<()> {
-    let mut base = NodeBase::<Params>::new("unitac_inference", INFERENCE_STAGES)?;
+    let mut base = NodeBase::<Params>::new("unitac_inference", inference_stages()?)?;
     let p = base.params()?;
     let (scene, stages) = build(&p, base.stage_overrides())?;
     let mut chain = Chain::new(stages);
