@@ -84,14 +84,15 @@ impl Bounds {
     /// Each action value's name and range, in the order of [`Action::values`].
     pub fn ranges(&self) -> [(&'static str, f64, f64); 7] {
         let reach = self.max_reach_m;
+        let [position, speed, force, x, y, z, lift] = crate::schema::COMMANDS;
         [
-            ("gripper.position_m", self.min_opening_m, self.max_opening_m),
-            ("gripper.speed_m_s", 0.0, self.max_speed_m_s),
-            ("gripper.force_n", 0.0, self.max_force_n),
-            ("arm.x_m", -reach, reach),
-            ("arm.y_m", -reach, reach),
-            ("arm.z_m", self.min_z_m, self.max_z_m),
-            ("arm.lift_m", 0.0, self.max_lift_m),
+            (position, self.min_opening_m, self.max_opening_m),
+            (speed, 0.0, self.max_speed_m_s),
+            (force, 0.0, self.max_force_n),
+            (x, -reach, reach),
+            (y, -reach, reach),
+            (z, self.min_z_m, self.max_z_m),
+            (lift, 0.0, self.max_lift_m),
         ]
     }
 
