@@ -9,7 +9,8 @@ use crate::region::{Peel, RegionInputs, RegionScratch, contact_region};
 use crate::residual::{self, Inputs, ResidualScratch, residual_mask};
 use crate::shading::{self, ShadingScratch};
 use unitac_core::msg::{ContactState, Header};
-use unitac_core::{Frame, Msg, SensorKind, SensorSpec, StageError};
+use unitac_core::sensor::Markers;
+use unitac_core::{Frame, Msg, SensorSpec, StageError};
 
 /// Plausible range of the per-channel illumination gain against the background.
 const GAIN_RANGE: (f32, f32) = (0.2, 5.0);
@@ -98,7 +99,7 @@ impl ContactDetector {
         p.check()?;
         let mask_markers = p
             .mask_markers
-            .unwrap_or(spec.kind == SensorKind::GelsightMini);
+            .unwrap_or(spec.kind.markers() == Markers::Yes);
         Ok(Self {
             p,
             spec,

@@ -28,6 +28,17 @@ impl SensorKind {
         }
     }
 
+    /// Whether the gel carries marker dots (GelSight Mini: a printed dot grid; DIGIT: none;
+    /// a generic gel: not known). The contact stage masks them by default where there are some,
+    /// the slip stage refuses a gel without them, the mock sensor draws them where there are.
+    pub fn markers(self) -> Markers {
+        match self {
+            SensorKind::GelsightMini => Markers::Yes,
+            SensorKind::Digit => Markers::No,
+            SensorKind::Generic => Markers::Unknown,
+        }
+    }
+
     pub fn spec(self) -> SensorSpec {
         match self {
             // Native stream: MJPG 3280x2464 @ 25 fps only; the vendor pipeline crops a border and
@@ -62,6 +73,14 @@ impl SensorKind {
             },
         }
     }
+}
+
+/// Whether a sensor kind's gel carries marker dots ([`SensorKind::markers`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Markers {
+    Yes,
+    No,
+    Unknown,
 }
 
 impl fmt::Display for SensorKind {

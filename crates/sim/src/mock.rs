@@ -105,7 +105,7 @@ impl MockConfig {
             seed,
             noise_dn: 1.0,
             drift: Drift::default(),
-            markers: sensor == SensorKind::GelsightMini,
+            markers: sensor.markers() == unitac_core::sensor::Markers::Yes,
         }
     }
 }

@@ -138,7 +138,7 @@ impl SlipParams {
     /// [`check`](Self::check), and that a `kind` gel has marker dots (DIGIT has none).
     pub fn check_for(&self, kind: unitac_core::SensorKind) -> Result<(), ParamsError> {
         self.check()?;
-        if kind == unitac_core::SensorKind::Digit {
+        if kind.markers() == unitac_core::sensor::Markers::No {
             return Err(ParamsError::NoMarkers {
                 sensor: kind.to_string(),
             });
