@@ -405,3 +405,30 @@ fn only_vtla_reals_cup_demonstration_probes_before_the_squeeze() {
         );
     }
 }
+
+/// A demonstration tick's fields are the schema's dataset features (schema/policy.json: each
+/// feature's id is the tick's field the dataset writer reads), plus its time, command and arm
+/// target: a feature added to the schema without its field, or the other way round, fails here.
+#[test]
+fn a_tick_holds_the_schemas_dataset_features() {
+    let d = demo("cup_deformation_vtla_real", Split::Train, 5, 1);
+    let tick = serde_json::to_value(&d.ticks[0]).unwrap();
+    let mut fields: Vec<&str> = tick
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(String::as_str)
+        .collect();
+    let mut want: Vec<&str> = unitac_policy::schema::DATASET_FEATURES
+        .iter()
+        .map(|(id, _)| *id)
+        .chain(["t_s", "action", "arm_target"])
+        .collect();
+    fields.sort_unstable();
+    want.sort_unstable();
+    assert_eq!(fields, want);
+    assert_eq!(
+        tick["action"].as_array().unwrap().len(),
+        unitac_policy::schema::COMMANDS.len()
+    );
+}
