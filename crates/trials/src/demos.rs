@@ -255,14 +255,6 @@ pub struct Demo {
     pub ticks: Vec<DemoTick>,
 }
 
-/// The stiffness the cup controllers read from a latent: the grip force that holds the cup's
-/// wall at a loss of diameter `d_m`, divided by `d_m` (the wall is a cubic spring per side).
-pub fn cup_stiffness(cup: &task::CupSpec, d_m: f64) -> f64 {
-    let x_mm = d_m * 1e3 / 2.0;
-    let (force_n, _) = cup.wall.spring(x_mm);
-    force_n / d_m
-}
-
 pub use unitac_policy::learned::pooled;
 
 /// The driver's answer to one input: its commands, when both came (a tick's answer), and
@@ -802,7 +794,7 @@ fn record_inner(
         contact_area_mm2: at_contact.2,
         latents: seen.latents,
         diameter_m: cup.as_ref().map_or(f64::NAN, |c| c.diameter_m),
-        stiffness_n_per_m: cup.as_ref().map_or(f64::NAN, |c| cup_stiffness(c, d)),
+        stiffness_n_per_m: cup.as_ref().map_or(f64::NAN, |c| c.stiffness_n_per_m(d)),
         expert_opening_m: last_cmd.map_or(f64::NAN, |c| c.gripper.opening_m),
         expert_force_n: truth.gripper.force_n,
         deformation_m,

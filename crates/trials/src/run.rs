@@ -238,7 +238,7 @@ pub struct StiffnessReading {
     /// The last stiffness the policy's status named \[N/m] (after its readout's clip).
     pub read_n_per_m: f64,
     /// The cup's: grip force at the target deformation over that deformation \[N/m] (the
-    /// demonstrations' label, [`crate::demos::cup_stiffness`]).
+    /// demonstrations' label, [`unitac_sim::task::CupSpec::stiffness_n_per_m`]).
     pub true_n_per_m: f64,
     /// Ticks on which the readout had to clip a reading to its range (`readout.stiffness`).
     pub clipped_ticks: u64,
@@ -424,7 +424,7 @@ fn true_cup(world: &TaskWorld) -> (f64, f64) {
         .iter()
         .find_map(|o| match &o.spec {
             unitac_sim::task::ObjectSpec::Cup(c) => {
-                Some((crate::demos::cup_stiffness(c, d), c.diameter_m))
+                Some((c.stiffness_n_per_m(d), c.diameter_m))
             }
             unitac_sim::task::ObjectSpec::Fabric(_) => None,
         })

@@ -78,6 +78,15 @@ pub struct CupSpec {
 }
 
 impl CupSpec {
+    /// The cup's stiffness \[N/m] as the labels and the cup controllers use it: the grip force
+    /// that holds the wall at a loss of diameter `d_m` \[m], divided by `d_m` (the wall is a cubic
+    /// spring per side, in the squeeze world's mm units: converted here, at the world's edge).
+    pub fn stiffness_n_per_m(&self, d_m: f64) -> f64 {
+        let x_mm = d_m * 1e3 / 2.0;
+        let (force_n, _) = self.wall.spring(x_mm);
+        force_n / d_m
+    }
+
     /// Draw a cup from `var` with `rng`.
     pub fn draw(var: &CupVariation, rng: &mut SplitMix64) -> CupSpec {
         let diameter_m = (var.diameter_mm.draw(rng) * 1e-3 + var.size_offset_m).max(0.02);
