@@ -1,4 +1,4 @@
-//! A gripper profile file as written (grippers/<name>.yaml) and its checks: shared by the build
+//! A gripper profile file as written (`grippers/<name>.yaml`) and its checks: shared by the build
 //! script, which turns the shipped files into constants, and by `unitac_core::profile`, which
 //! reads a user's files at run time.
 

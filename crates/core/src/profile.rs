@@ -1,4 +1,4 @@
-//! Device profiles as data: a gripper is one file, grippers/<name>.yaml, with what differs
+//! Device profiles as data: a gripper is one file, `grippers/<name>.yaml`, with what differs
 //! between models (stroke, force and speed ranges, register family, factory slave id and line
 //! rate) and where each figure comes from. The serial driver's limits and calibration
 //! (unitac-gripper), the simulated world's gripper (unitac-sim) and the safety layer's bounds

@@ -1,6 +1,6 @@
 //! The supported models: register family, defaults and the calibration of raw ranges to SI.
 //!
-//! A model is a gripper profile (grippers/<name>.yaml, `unitac_core::profile`: stroke, force and
+//! A model is a gripper profile (`grippers/<name>.yaml`, `unitac_core::profile`: stroke, force and
 //! speed ranges, family, factory slave id and line rate, each figure with its source) of a serial
 //! family; a new model of a known family is a new file, no code. The linear raw <-> SI maps
 //! between the ranges, Robotiq's fully-closed raw position and DH's percent scales are this

@@ -52,7 +52,7 @@ pub struct PolicyParams {
     pub budget_latent_s: f64,
     pub budget_comparison_s: f64,
     pub budget_visual_s: f64,
-    /// The gripper's profile (grippers/<name>.yaml, `unitac_core::profile`), empty for none:
+    /// The gripper's profile (`grippers/<name>.yaml`, `unitac_core::profile`), empty for none:
     /// when named, the command bounds below are held inside its stroke, strongest grip and
     /// fastest speed, and `stroke_m` is its stroke.
     pub gripper: String,

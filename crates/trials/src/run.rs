@@ -423,9 +423,7 @@ fn true_cup(world: &TaskWorld) -> (f64, f64) {
         .objects
         .iter()
         .find_map(|o| match &o.spec {
-            unitac_sim::task::ObjectSpec::Cup(c) => {
-                Some((c.stiffness_n_per_m(d), c.diameter_m))
-            }
+            unitac_sim::task::ObjectSpec::Cup(c) => Some((c.stiffness_n_per_m(d), c.diameter_m)),
             unitac_sim::task::ObjectSpec::Fabric(_) => None,
         })
         .unwrap_or((f64::NAN, f64::NAN))
