@@ -22,7 +22,6 @@ usage: generate_reference.py OUT_DIR [--data DATA_DIR]
 Without --data only the models that need no fitting are written (and no manifest).
 """
 import argparse
-import hashlib
 import json
 import os
 import sys
@@ -30,6 +29,9 @@ import sys
 import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
+
+# The file hash of every bundle manifest (one helper with the policy manifests').
+from unitac_schema import sha256
 
 OPSET = 20
 SIZE = 64          # encoder input side (pixels)
@@ -303,10 +305,6 @@ def gradient_check_error(loss_grad, p, x, y, eps=1e-6):
             fd = (lp - lm) / (2 * eps)
             worst = max(worst, abs(fd - g[k][idx]) / max(1.0, abs(fd)))
     return worst
-
-def sha256(path):
-    return hashlib.sha256(open(path, "rb").read()).hexdigest()
-
 
 def io_spec(path):
     m = onnx.load(path)

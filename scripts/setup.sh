@@ -154,7 +154,7 @@ source "$ROOT/scripts/env.sh"
 build_msgs "$BUILD"
 # --- 5. reference model bundle ----------------------------------------------------------------
 MODELS="$BUILD/models"
-models_inputs=(models/generate_reference.py Cargo.lock crates/cli/src/dataset.rs crates/infer/src/preprocess.rs
+models_inputs=(models/generate_reference.py models/unitac_schema.py Cargo.lock crates/cli/src/dataset.rs crates/infer/src/preprocess.rs
   $(find crates/sim/src crates/contact/src crates/core/src -name '*.rs' | sort))
 models_key="$(hash_of "${models_inputs[@]}" "$VENV/.unitac-stamp")"
 if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS/reference/manifest.json" ]; then
@@ -162,7 +162,7 @@ if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS
   cargo build --release --locked -q -p unitac-cli
   rm -rf "$MODELS/data" "$MODELS/reference.tmp"
   target/release/unitac dataset fabrics --out "$MODELS/data"
-  data_key="$(content_key "$MODELS/data" models/generate_reference.py crates/infer/src/preprocess.rs "$VENV/.unitac-stamp")"
+  data_key="$(content_key "$MODELS/data" models/generate_reference.py models/unitac_schema.py crates/infer/src/preprocess.rs "$VENV/.unitac-stamp")"
   if stands "$MODELS/reference" "$data_key" && [ -f "$MODELS/reference/manifest.json" ]; then
     log "models: the dataset is byte-identical to the reference bundle's: the bundle stands"
   else
