@@ -91,7 +91,7 @@ pub fn demos(
                 "scene {}: its task is '{}', another scene's is the {} task",
                 scene.name,
                 p.task,
-                task.map_or("", |t| t.as_str())
+                task.map_or("", |t| t.name())
             )));
         }
         task = Some(kind);
@@ -213,10 +213,7 @@ pub fn demos(
     let path = out.join("demos.json");
     let text = serde_json::to_string(&file)?;
     std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-    let objects = match cfg.task {
-        TaskKind::Cup => "cups",
-        TaskKind::Fabric => "fabrics",
-    };
+    let objects = cfg.task.objects();
     let who = file
         .driver
         .map_or_else(|| "expert".to_string(), |d| format!("driver {d}"));

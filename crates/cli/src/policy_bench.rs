@@ -87,7 +87,7 @@ struct Script {
     world: WorldStepper,
     truth: TaskTruth,
     mode: Mode,
-    fabric: bool,
+    decides: bool,
     latent_len: usize,
     gel_indent_m_per_mm2: f64,
     objects: Vec<String>,
@@ -100,13 +100,10 @@ struct Script {
 }
 
 impl Script {
-    fn new(p: &PolicyParams, episode: u32) -> anyhow::Result<Self> {
-        let fabric = unitac_trials::scene::task_kind(p) == Ok(TaskKind::Fabric);
-        let cfg = if fabric {
-            TaskConfig::fabric(Split::Train)
-        } else {
-            TaskConfig::cup(Split::Train)
-        };
+    fn new(p: &PolicyParams, kind: TaskKind, episode: u32) -> anyhow::Result<Self> {
+        // A task that decides between objects gets the comparison once both were touched.
+        let decides = kind.decides();
+        let cfg = TaskConfig::new(kind, Split::Train);
         let world = TaskWorld::reset(&cfg, SEED, episode);
         let truth = world.truth();
         // The tactile stages are scripted from the world (no frames are rendered); the sensor
@@ -127,7 +124,7 @@ impl Script {
             truth,
             world,
             mode: p.mode,
-            fabric,
+            decides,
             latent_len: p.latent_len,
             gel_indent_m_per_mm2: p.gel_indent_m_per_mm2,
             objects: p.objects.clone(),
@@ -192,7 +189,7 @@ impl Script {
             area_mm2: area as f32,
             ..samples::contact_state()
         }));
-        match (self.mode, self.fabric) {
+        match (self.mode, self.decides) {
             // The sampler predicts once the sensor prior (the background) is known: at once.
             (Mode::VtlaPred, _) if !self.latent_sent => {
                 self.latent_sent = true;
@@ -210,7 +207,7 @@ impl Script {
             .iter()
             .take(2)
             .all(|o| self.touched.contains(o));
-        if self.fabric && both && !self.comparison_sent {
+        if self.decides && both && !self.comparison_sent {
             self.comparison_sent = true;
             out.push(self.comparison());
         }
@@ -284,6 +281,7 @@ impl Script {
 /// it names (the fitted readout, an ONNX inference in the tick that reads k).
 struct ScenePolicy {
     params: PolicyParams,
+    kind: TaskKind,
     scene: String,
     model: Option<std::path::PathBuf>,
 }
@@ -299,6 +297,7 @@ impl ScenePolicy {
 fn scene_policy(name: &str) -> anyhow::Result<ScenePolicy> {
     let scene = unitac_pipeline::load_scene(name, None).map_err(|e| anyhow::anyhow!("{e}"))?;
     let cfgs = unitac_pipeline::stage_configs(&scene).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let kind = unitac_trials::scene::scene_kind(&scene, &[])?;
     cfgs.into_iter()
         .find_map(|c| match c {
             StageConfig::Policy {
@@ -307,6 +306,7 @@ fn scene_policy(name: &str) -> anyhow::Result<ScenePolicy> {
                 model,
             } => Some(ScenePolicy {
                 params: *params,
+                kind,
                 scene,
                 model,
             }),
@@ -376,7 +376,7 @@ fn run_pass(
         let (params, scene) = (&sp.params, &sp.scene);
         let stage = sp.stage()?;
         let mut chain = Chain::new(vec![Box::new(stage)]);
-        let mut script = Script::new(params, episode as u32)?;
+        let mut script = Script::new(params, sp.kind, episode as u32)?;
         if let Some((p, _)) = onnx.as_mut() {
             p.reset();
         }

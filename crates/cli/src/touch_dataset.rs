@@ -141,7 +141,7 @@ pub fn touch(
         sensor.fps = fps;
     }
     let demo_cfg = DemoConfig {
-        expert_s: 0.0,
+        run_s: Some(0.0),
         ..DemoConfig::default()
     };
     let bar = crate::progress::bar(n as u64, "touch");

@@ -15,7 +15,7 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU32, Ordering};
 use unitac_plot::{Axis, Band, Chart, Figure, PALETTE, Series, Stroke};
 use unitac_policy::{Mode, TickCounts};
-use unitac_sim::task::{Split, TaskConfig, TaskKind, TaskOutcome};
+use unitac_sim::task::{PlotKind, Split, Sweep, TaskConfig, TaskKind, TaskOutcome};
 use unitac_trials::serial::SerialReport;
 use unitac_trials::table::{self, Row};
 use unitac_trials::{TouchSwap, TrialGripper, TrialOptions, TrialRecord, run_trial_swapped};
@@ -316,45 +316,35 @@ fn run_trials(
     Ok(out)
 }
 
-/// One variation of the world for `--sweep`.
-#[derive(Debug, Clone, Copy, Serialize)]
+/// One variation of the world for `--sweep` (the task's [`unitac_sim::task::Task::sweep`]).
+#[derive(Debug, Clone, Serialize)]
 struct Variant {
-    name: &'static str,
+    name: String,
     camera_noise: f64,
     cup_stiffness: f64,
     cup_size_mm: f64,
+    #[serde(skip)]
+    sweep: Sweep,
 }
 
 impl Variant {
-    fn apply(&self, task: &TaskConfig) -> TaskConfig {
-        let mut t = task.clone();
-        t.vision = t.vision.scaled(self.camera_noise);
-        t.cup.stiffness_scale *= self.cup_stiffness;
-        t.cup.size_offset_m += self.cup_size_mm * 1e-3;
-        t
-    }
-    /// The sweep of a task: camera noise x0.5 / x2; the cup also stiffness x0.5 / x2 and size
-    /// -10 / +10 mm (the nominal row is the main table).
-    fn sweep(kind: TaskKind) -> Vec<Variant> {
-        let v = |name, camera_noise, cup_stiffness, cup_size_mm| Variant {
-            name,
+    fn of(sweep: Sweep) -> Variant {
+        let (mut camera_noise, mut cup_stiffness, mut cup_size_mm) = (1.0, 1.0, 0.0);
+        match sweep {
+            Sweep::CameraNoise(f) => camera_noise = f,
+            Sweep::CupStiffness(f) => cup_stiffness = f,
+            Sweep::CupSize(d) => cup_size_mm = d * 1e3,
+        }
+        Variant {
+            name: sweep.name(),
             camera_noise,
             cup_stiffness,
             cup_size_mm,
-        };
-        let mut out = vec![
-            v("camera noise x0.5", 0.5, 1.0, 0.0),
-            v("camera noise x2", 2.0, 1.0, 0.0),
-        ];
-        if kind == TaskKind::Cup {
-            out.extend([
-                v("cup stiffness x0.5", 1.0, 0.5, 0.0),
-                v("cup stiffness x2", 1.0, 2.0, 0.0),
-                v("cup size -10 mm", 1.0, 1.0, -10.0),
-                v("cup size +10 mm", 1.0, 1.0, 10.0),
-            ]);
+            sweep,
         }
-        out
+    }
+    fn apply(&self, task: &TaskConfig) -> TaskConfig {
+        self.sweep.apply(task)
     }
 }
 
@@ -520,6 +510,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     // one their policy stages name, the same for every mode.
     let mut scenes = Vec::new();
     let mut kinds = Vec::new();
+    let mut squeeze_vla = false;
     for m in &modes {
         let name = unitac_pipeline::mode_scene(&task_name, *m);
         let mut scene = unitac_pipeline::load_scene(&name, a.scene_dir.clone())
@@ -544,7 +535,14 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
                 ))
             })?;
         }
-        kinds.push(format!("{} ({})", scene.name, kind.as_str()));
+        kinds.push(format!("{} ({})", scene.name, kind.name()));
+        // The squeeze controller's VLA has two camera-only rules (vla_rule), and a fitted one.
+        if *m == Mode::Vla {
+            squeeze_vla = matches!(
+                unitac_policy::task::Task::parse(&params.task),
+                Ok(unitac_policy::task::Task::Squeeze { .. })
+            );
+        }
         scenes.push((*m, kind, scene));
     }
     let kind = match scenes.as_slice() {
@@ -561,8 +559,9 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         .into_iter()
         .map(|(m, _, s)| (Column::of(m), s))
         .collect();
-    // Cup: VLA's force rule beside its position rule (scripted scenes; a learned VLA has one).
-    if kind == TaskKind::Cup && a.policy != "learned" {
+    // The squeeze controller: VLA's force rule beside its position rule (scripted scenes; a
+    // learned VLA has one).
+    if squeeze_vla && a.policy != "learned" {
         let force = scenes
             .iter()
             .find(|(c, _)| c.mode == Mode::Vla)
@@ -585,7 +584,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             );
         }
     }
-    if a.calibrate_vla && kind != TaskKind::Cup {
+    if a.calibrate_vla && !squeeze_vla {
         return Err(config(calibrate_usage()));
     }
     let split = if a.train { Split::Train } else { Split::Unseen };
@@ -596,7 +595,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     };
     let gripper = a.gripper;
     let variants = if a.sweep {
-        Variant::sweep(kind)
+        kind.sweep().into_iter().map(Variant::of).collect()
     } else {
         Vec::new()
     };
@@ -637,7 +636,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             note(format!("{} ({})", m.as_str(), v.name), rs);
         }
         sweep.push(SweepRow {
-            variant: *v,
+            variant: v.clone(),
             table: table::table(kind, &outcomes(&rs_all)),
         });
     }
@@ -763,19 +762,7 @@ fn text_report(
     records: &Records,
     sweep: &[SweepRow],
 ) -> String {
-    let c = unitac_sim::task::split::SPLIT.cups;
-    let what = match (kind, split) {
-        (TaskKind::Cup, Split::Unseen) => format!(
-            "unseen cups ({:.0}-{:.0} mm)",
-            c.unseen_diameter_mm.0, c.unseen_diameter_mm.1
-        ),
-        (TaskKind::Cup, Split::Train) => format!(
-            "training cups ({:.0}-{:.0} mm)",
-            c.train_diameter_mm.0, c.train_diameter_mm.1
-        ),
-        (TaskKind::Fabric, Split::Unseen) => "fabric selection, unseen fabric types".into(),
-        (TaskKind::Fabric, Split::Train) => "fabric selection, training fabric types".into(),
-    };
+    let what = kind.describe(split);
     let policy = match (a.policy.as_str(), training_seed) {
         ("learned", Some(k)) => format!("learned policies (training seed {k})"),
         ("learned", None) => "learned policies (the scenes' bundles)".to_string(),
@@ -932,8 +919,8 @@ fn plot(dir: &Path, scene: &str, kind: TaskKind, records: &Records) -> Result<()
     std::fs::create_dir_all(dir).with_context(|| format!("--plot {}", dir.display()))?;
     let strokes = [Stroke::Solid, Stroke::Dashed, Stroke::Solid];
     let mut figure;
-    match kind {
-        TaskKind::Cup => {
+    match kind.plot() {
+        PlotKind::Deformation => {
             let mut chart = Chart::new(
                 "cup deformation (loss of diameter)",
                 Axis::linear("t [s]"),
@@ -959,7 +946,7 @@ fn plot(dir: &Path, scene: &str, kind: TaskKind, records: &Records) -> Result<()
             }
             figure = Figure::new(1000, 560).panel(chart);
         }
-        TaskKind::Fabric => {
+        PlotKind::ForceAndSlip => {
             let mut force = Chart::new(
                 "grip force",
                 Axis::linear("t [s]"),

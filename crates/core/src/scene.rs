@@ -154,6 +154,8 @@ struct SceneFile {
     scene: String,
     #[serde(default)]
     description: String,
+    #[serde(default)]
+    task: Option<String>,
     source: SourceSpec,
     #[serde(default)]
     models: BTreeMap<String, PathBuf>,
@@ -168,6 +170,9 @@ struct SceneFile {
 pub struct Scene {
     pub name: String,
     pub description: String,
+    /// The task the scene works on (`task: cup_deformation`; the sim's task world and the
+    /// trials look it up by this name), if it names one.
+    pub task: Option<String>,
     pub path: PathBuf,
     pub source: SourceSpec,
     /// Model name -> resolved file path (only the models some stage uses).
@@ -283,6 +288,14 @@ impl Scene {
                 format!("'{}' must be non-empty [A-Za-z0-9_-]", file.scene),
             ));
         }
+        if let Some(t) = &file.task
+            && (t.is_empty() || !t.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'))
+        {
+            return Err(bad(
+                "task",
+                format!("'{}' must be non-empty [A-Za-z0-9_]", one_line(t)),
+            ));
+        }
         if let Some(fps) = file.source.fps {
             if !(fps.is_finite() && (MIN_FPS..=1000.0).contains(&fps)) {
                 return Err(bad(
@@ -359,6 +372,7 @@ impl Scene {
         Ok(Scene {
             name: file.scene,
             description: file.description,
+            task: file.task,
             path: p(),
             source: file.source,
             models,

@@ -77,7 +77,7 @@ fn a_vtla_real_cup_trial_over_ros_reaches_the_target_deformation() {
     );
 }
 
-/// A learned VTLA-real trial of `task` (cup | fabric) over ROS: the scene's learned policy
+/// A learned VTLA-real trial of `task` (cup_deformation | fabric_selection) over ROS: the scene's learned policy
 /// (trained by setup on demonstrations) drives the sim through the same nodes as the scripted
 /// scene's, to its timeout. Returns the observer's record.
 fn learned_trial(scene: &str, task: &str, seconds: f64) -> Value {
@@ -144,13 +144,17 @@ fn learned_trial(scene: &str, task: &str, seconds: f64) -> Value {
 #[test]
 fn learned_vtla_real_trials_of_both_tasks_run_over_ros_to_their_end() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
-    let cup = learned_trial("cup_deformation_learned_vtla_real", "cup", 12.0);
+    let cup = learned_trial("cup_deformation_learned_vtla_real", "cup_deformation", 12.0);
     assert!(
         cup["outcome"]["outcome"]["cup"].is_object(),
         "{}",
         cup["outcome"]
     );
-    let fabric = learned_trial("fabric_selection_learned_vtla_real", "fabric", 16.0);
+    let fabric = learned_trial(
+        "fabric_selection_learned_vtla_real",
+        "fabric_selection",
+        16.0,
+    );
     assert!(
         fabric["outcome"]["outcome"]["fabric"].is_object(),
         "{}",

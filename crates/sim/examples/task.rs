@@ -1,14 +1,13 @@
 //! Run the scripted expert on task trials and print each outcome:
-//! `cargo run -p unitac-sim --example task -- cup|fabric [--seed N] [--trials N] [--unseen]
-//! [--fixed-opening M]` (cup: training cups unless `--unseen`; `--fixed-opening`: the size-blind
-//! baseline grip closing to M metres instead of the expert).
+//! `cargo run -p unitac-sim --example task -- cup_deformation|fabric_selection [--seed N]
+//! [--trials N] [--unseen] [--fixed-opening M]` (training objects unless `--unseen`;
+//! `--fixed-opening`: the size-blind cup grip closing to M metres instead of the expert).
 
 use std::error::Error;
 use std::io::Write;
 
-use unitac_sim::task::expert::default_run;
 use unitac_sim::task::{
-    Split, TaskConfig, TaskOutcome, fixed_opening_command, run_expert, run_policy,
+    Split, TaskConfig, TaskKind, TaskOutcome, fixed_opening_command, run_expert, run_policy,
 };
 
 fn main() -> Result<(), Box<dyn Error>> {
@@ -25,12 +24,10 @@ fn main() -> Result<(), Box<dyn Error>> {
     } else {
         Split::Train
     };
-    let cfg = match args.first().map(String::as_str) {
-        Some("cup") => TaskConfig::cup(split),
-        Some("fabric") => TaskConfig::fabric(Split::Train),
-        _ => return Err("usage: task cup|fabric [--seed N] [--trials N] [--unseen]".into()),
-    };
-    let (dt, duration) = default_run(cfg.kind);
+    let usage = "usage: task cup_deformation|fabric_selection [--seed N] [--trials N] [--unseen]";
+    let kind = TaskKind::named(args.first().ok_or(usage)?, &[])?;
+    let cfg = TaskConfig::new(kind, split);
+    let (dt, duration) = cfg.kind.expert_run();
     let mut out = std::io::stdout().lock();
     let mut ok = 0;
     for trial in 0..trials.min(1000) {
@@ -78,6 +75,7 @@ fn main() -> Result<(), Box<dyn Error>> {
                     f.overall
                 )?;
             }
+            TaskOutcome::Criteria(c) => writeln!(out, "trial {trial:3}: {:?}", c.met)?,
         }
     }
     let who = if fixed.is_some() {

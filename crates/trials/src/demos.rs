@@ -24,13 +24,15 @@
 //!           press of the wall, what the stiffness readout reads)
 //! release:  (vtla_real) open to D0 + probe_release_m until the contact stage says the contact
 //!           ended (the episode's clip goes to the encoder: its latent is the touch's observation)
-//! expert:   the expert's own commands (squeeze to its setpoint, settle, lift) for expert_s
+//! expert:   the expert's own commands (squeeze to its setpoint, settle, lift) for `run_s`
 //! ```
 //!
 //! The probe is vtla_real's alone: its trigger, the contact state, is in that mode's observation
 //! and not in vla's or vtla_pred's, whose demonstrations go from the approach to the squeeze.
 //!
-//! A fabric demonstration is the expert for `fabric_s`: it touches fabric A and lets go, touches
+//! This is the shape of a task whose demonstrations probe first ([`Task::probe_first`]; the
+//! approach opens to the camera value [`Task::approach_width`] names). Any other task's
+//! demonstration is its expert for `run_s`. The fabric expert touches fabric A and lets go, touches
 //! B and lets go (each contact episode ends, so the encoder and the comparison stage see both),
 //! waits open for the decision, then grasps the chosen fabric and lifts it. The decision, made
 //! here once both touches are over, is the mode's: vtla_real's from the live PropertyComparison
@@ -105,10 +107,9 @@ pub struct DemoConfig {
     pub probe_release_m: f64,
     /// Longest approach, touch or release \[s].
     pub timeout_s: f64,
-    /// How long the expert runs after the probe \[s] (cup).
-    pub expert_s: f64,
-    /// How long the expert runs on the fabrics \[s].
-    pub fabric_s: f64,
+    /// How long the expert runs (after the probe, in a task that probes first) \[s]; None: the
+    /// task's own length ([`Task::demo_s`]).
+    pub run_s: Option<f64>,
     /// Values of one pooled latent ([`pooled`] of the encoder's tokens; the sampler's latent is
     /// pooled already): a latent of another size is an error.
     pub pooled_len: usize,
@@ -129,15 +130,14 @@ impl Default for DemoConfig {
         // The probe as the cup controller makes it (its params' defaults).
         let p = unitac_policy::PolicyParams::default();
         Self {
-            task: TaskKind::Cup,
+            task: TaskKind::CUP,
             mode: Mode::VtlaReal,
             dt_s: 1.0 / 30.0,
             touch_speed_m_s: p.touch_speed_m_s,
             touch_force_n: p.touch_force_n,
             probe_release_m: p.probe_release_m,
             timeout_s: 8.0,
-            expert_s: 4.0,
-            fabric_s: task::expert::default_run(TaskKind::Fabric).1,
+            run_s: None,
             pooled_len: 96,
             approach_s: 1.5,
             pregrasp_m: 2.0 * p.pad_m + p.pregrasp_margin_m,
@@ -421,13 +421,12 @@ fn record_inner(
     }
     let ok = c.probe_release_m.is_finite()
         && c.probe_release_m >= 0.0
-        && (0.0..=600.0).contains(&c.expert_s)
-        && (0.0..=600.0).contains(&c.fabric_s)
+        && c.run_s.is_none_or(|s| (0.0..=600.0).contains(&s))
         && c.timeout_s <= 600.0
         && (0.0..=60.0).contains(&c.approach_s);
     if !ok {
         return Err(DemoError::Config(
-            "probe_release_m must be >= 0; expert_s, fabric_s and timeout_s at most 600 s; approach_s in [0, 60] s".into(),
+            "probe_release_m must be >= 0; run_s in [0, 600] s; timeout_s at most 600 s; approach_s in [0, 60] s".into(),
         ));
     }
     if !(1..=4096).contains(&c.pooled_len) {
@@ -447,13 +446,6 @@ fn record_inner(
     let spec = world.spec().clone();
     let objects: Vec<String> = spec.objects.iter().map(|o| o.name.clone()).collect();
     let cup = spec.cup().cloned();
-    if c.task == TaskKind::Cup && cup.is_none() {
-        return Err(DemoError::World {
-            seed,
-            trial,
-            msg: "the trial has no cup".into(),
-        });
-    }
     let world_err = |e: StepError| DemoError::World {
         seed,
         trial,
@@ -472,8 +464,9 @@ fn record_inner(
     let mut chains: Vec<Chain> = chains.into_iter().map(Chain::new).collect();
     let mut driver = driver.map(Chain::new);
     let visual = world.visual();
-    // The cup's width as the camera first sees it: the approach opens to it plus the pre-grasp.
-    let seen_width = visual.get("cup.diameter_m");
+    // The object's width as the camera first sees it: the approach opens to it plus the
+    // pre-grasp.
+    let seen_width = c.task.approach_width().and_then(|n| visual.get(n));
     let visual_msg = visual_message(&visual);
     let layout = Layout {
         latent_len: 0,
@@ -482,14 +475,12 @@ fn record_inner(
     };
     let width = c.pooled_len;
 
-    let mut phase = match c.task {
-        TaskKind::Cup => Phase::Approach,
-        TaskKind::Fabric => Phase::Expert,
+    let mut phase = if c.task.probe_first() {
+        Phase::Approach
+    } else {
+        Phase::Expert
     };
-    let run_s = match c.task {
-        TaskKind::Cup => c.expert_s,
-        TaskKind::Fabric => c.fabric_s,
-    };
+    let run_s = c.run_s.unwrap_or_else(|| c.task.demo_s());
     let mut since = 0.0;
     // The probe touch is vtla_real's: its trigger, the contact state, is in its observation.
     let probe = c.mode == Mode::VtlaReal;
@@ -590,17 +581,14 @@ fn record_inner(
             .map_err(obs_err)?;
         let visual = seen.memory.visual(&visual);
         let truth = world.world().truth();
-        if c.task == TaskKind::Fabric
-            && chosen.is_none()
-            && task::expert::fabric_touched_both(&truth, &spec, &cfg)
-        {
+        if c.task.decides() && chosen.is_none() && c.task.awaits_decision(&truth, &spec, &cfg) {
             let from = *waiting_since.get_or_insert(t);
             // The camera's guesses as this mode's policy reads them: the mean so far.
             let camera = |name: &str| {
                 let i = seen_visual.names.iter().position(|n| n == name)?;
                 visual.get(i).map(|v| f64::from(*v))
             };
-            let sight = || task::expert::camera_choice(&spec, camera).map(str::to_string);
+            let sight = || c.task.camera_choice(&spec, &camera).map(str::to_string);
             chosen = match c.mode {
                 // [A rougher, B rougher, tie, ..]: grasp the smoother; a tie leaves the camera.
                 Mode::VtlaReal => match seen.memory.comparison.as_deref() {
@@ -673,7 +661,7 @@ fn record_inner(
             Phase::Approach => TaskCommand {
                 gripper: *approach_grip.get_or_insert_with(|| {
                     let mut g = expert.gripper;
-                    if let (TaskKind::Cup, Some(w)) = (c.task, seen_width) {
+                    if let Some(w) = seen_width {
                         g.opening_m = (w + c.pregrasp_m).min(g.opening_m);
                     }
                     g
@@ -776,10 +764,12 @@ fn record_inner(
         seen.keep(out.produced, k, t, &layout);
     }
     let truth = world.world().truth();
-    let (deformation_m, success) = match world.outcome() {
-        task::TaskOutcome::Cup(o) => (o.deformation_m, o.overall),
-        task::TaskOutcome::Fabric(o) => (f64::NAN, o.overall),
+    let outcome = world.outcome();
+    let deformation_m = match &outcome {
+        task::TaskOutcome::Cup(o) => o.deformation_m,
+        _ => f64::NAN,
     };
+    let success = outcome.overall();
     let d = cfg.cup_criteria.target_deformation_m;
     Ok(Demo {
         task: c.task,

@@ -112,14 +112,12 @@ pub struct TrialOptions {
 }
 
 impl TrialOptions {
-    /// The limits the table runs use: the cup task 40 s, the fabric task 90 s (touch, touch,
-    /// compare, grasp, lift at the policy's speeds), 1 s to settle.
+    /// The limits the table runs use: the task's longest trial ([`unitac_sim::task::Task::trial_s`]:
+    /// the cup task 40 s, the fabric task 90 s for touch, touch, compare, grasp, lift at the
+    /// policy's speeds), 1 s to settle.
     pub fn for_task(kind: TaskKind) -> Self {
         Self {
-            max_s: match kind {
-                TaskKind::Cup => 40.0,
-                TaskKind::Fabric => 90.0,
-            },
+            max_s: kind.trial_s(),
             settle_s: 1.0,
             hidden: None,
             record_io: false,
@@ -540,7 +538,7 @@ pub fn run_trial_swapped(
             scene: scene.name.clone(),
             msg: format!(
                 "policy objects {foreign:?} are not in the {} task's world ({})",
-                task.kind.as_str(),
+                task.kind.name(),
                 names.join(", ")
             ),
         });

@@ -1,31 +1,38 @@
-//! What a closed-loop scene asks of the sim world: the task its policy stage names (`squeeze the
-//! cup ...` is the cup task, `pick the ...` the fabric task). The trials, the policy benchmark and
-//! the ROS sim node all take the task from the scene this way, so no list maps scene names to
-//! tasks.
+//! What a closed-loop scene asks of the sim world: the task it names (`task: cup_deformation`).
+//! The trials, the demonstrations, the policy benchmark and the ROS sim node all take the task
+//! from the scene this way; the policy's sentence is only the task's text for the policy.
 
 use crate::gripper::TrialGripper;
 use crate::run::{TrialError, policy_params};
 use unitac_core::Scene;
 use unitac_policy::PolicyParams;
-use unitac_policy::task::{Task, TaskError};
 use unitac_sim::task::{TaskConfig, TaskKind};
 
-/// The sim task of a policy's task string.
-pub fn task_kind(p: &PolicyParams) -> Result<TaskKind, TaskError> {
-    Ok(match Task::parse(&p.task)? {
-        Task::Pick { .. } => TaskKind::Fabric,
-        Task::Squeeze { .. } => TaskKind::Cup,
-    })
+/// The task a scene names, among `extra` and the shipped tasks.
+pub fn scene_kind(scene: &Scene, extra: &[TaskKind]) -> Result<TaskKind, TrialError> {
+    let bad = |msg: String| TrialError::Scene {
+        scene: scene.name.clone(),
+        msg,
+    };
+    let name = scene
+        .task
+        .as_deref()
+        .ok_or_else(|| bad("names no task (task: <name>)".into()))?;
+    TaskKind::named(name, extra).map_err(|e| bad(e.to_string()))
 }
 
-/// The scene's policy params (checked) and the sim task they ask for.
+/// The scene's policy params (checked) and the shipped task it names.
 pub fn scene_task(scene: &Scene) -> Result<(PolicyParams, TaskKind), TrialError> {
+    scene_task_in(scene, &[])
+}
+
+/// [`scene_task`] with tasks defined elsewhere (`extra`) beside the shipped ones.
+pub fn scene_task_in(
+    scene: &Scene,
+    extra: &[TaskKind],
+) -> Result<(PolicyParams, TaskKind), TrialError> {
     let p = policy_params(scene)?;
-    let kind = task_kind(&p).map_err(|e| TrialError::Scene {
-        scene: scene.name.clone(),
-        msg: e.to_string(),
-    })?;
-    Ok((p, kind))
+    Ok((p, scene_kind(scene, extra)?))
 }
 
 /// `scene` with its policy stage's `key` set to `value`.
@@ -71,19 +78,28 @@ pub fn for_gripper(
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)]
     use super::*;
 
     #[test]
-    fn the_task_string_names_the_sim_task() {
-        let p = |task: &str| PolicyParams {
-            task: task.into(),
-            ..PolicyParams::default()
+    fn the_scene_names_the_sim_task() {
+        let scene = |task: Option<&str>| Scene {
+            task: task.map(String::from),
+            ..unitac_pipeline::load_scene("cup_deformation_vla", None).unwrap()
         };
-        assert_eq!(task_kind(&p("squeeze the cup by 1 cm")), Ok(TaskKind::Cup));
         assert_eq!(
-            task_kind(&p("pick the rougher fabric")),
-            Ok(TaskKind::Fabric)
+            scene_kind(&scene(Some("fabric_selection")), &[]).unwrap(),
+            TaskKind::FABRIC
         );
-        assert!(task_kind(&p("dance")).is_err());
+        assert_eq!(
+            scene_kind(&scene(None), &[]).unwrap_err().to_string(),
+            "scene 'cup_deformation_vla': names no task (task: <name>)"
+        );
+        assert!(
+            scene_kind(&scene(Some("dance")), &[])
+                .unwrap_err()
+                .to_string()
+                .contains("no task 'dance' (known: cup_deformation, fabric_selection)")
+        );
     }
 }

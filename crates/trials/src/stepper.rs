@@ -24,8 +24,8 @@ use thiserror::Error;
 use unitac_core::msg::{ArmCommand, GripperCommand, GripperStatus, VisualObservation};
 use unitac_core::{Frame, GripperSetpoint, SensorKind, Stamp};
 use unitac_sim::task::{
-    self, ArmSetpoint, ArmTarget, Split, TaskCommand, TaskConfig, TaskOutcome, TaskTruth,
-    TaskWorld, trial_rng,
+    self, ArmSetpoint, ArmTarget, Split, TaskCommand, TaskConfig, TaskKind, TaskOutcome, TaskTruth,
+    TaskWorld, UnknownTask, trial_rng,
 };
 use unitac_sim::{GroundTruth, MockConfig, MockSensor, Scenario, SplitMix64, WorldError};
 
@@ -35,8 +35,8 @@ const SIM_CAMERA_SALT: u64 = 0x524f_5356_4953_0001;
 /// Why the world cannot take a step, or a trial cannot be set up.
 #[derive(Debug, Error)]
 pub enum StepError {
-    #[error("task must be cup or fabric, got '{0}'")]
-    Task(String),
+    #[error(transparent)]
+    Task(#[from] UnknownTask),
     #[error("split must be train or unseen, got '{0}'")]
     Split(String),
     #[error("control rate {0} Hz is not in [1, 1000]")]
@@ -55,7 +55,7 @@ pub enum StepError {
 /// parameters).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimSpec {
-    /// cup | fabric
+    /// The task's name (`cup_deformation`, `fabric_selection`).
     pub task: String,
     /// train | unseen (the fabric task has one set and ignores it)
     pub split: String,
@@ -153,11 +153,7 @@ impl WorldStepper {
             "unseen" => Split::Unseen,
             other => return Err(StepError::Split(other.into())),
         };
-        let cfg = match spec.task.as_str() {
-            "cup" => TaskConfig::cup(split),
-            "fabric" => TaskConfig::fabric(split),
-            other => return Err(StepError::Task(other.into())),
-        };
+        let cfg = TaskConfig::new(TaskKind::named(&spec.task, &[])?, split);
         let (rate_hz, duration_s, seed, trial) =
             (spec.rate_hz, spec.duration_s, spec.seed, spec.trial);
         if !(rate_hz.is_finite() && (1.0..=1000.0).contains(&rate_hz)) {
@@ -295,7 +291,7 @@ mod tests {
     }
 
     fn sim() -> WorldStepper {
-        WorldStepper::for_spec(&spec("cup", "train", 30.0, 1.0)).unwrap()
+        WorldStepper::for_spec(&spec("cup_deformation", "train", 30.0, 1.0)).unwrap()
     }
 
     #[test]
@@ -306,9 +302,10 @@ mod tests {
                 .to_string()
         };
         assert!(e("mug", "train", 30.0, 1.0).contains("'mug'"));
-        assert!(e("cup", "test", 30.0, 1.0).contains("'test'"));
-        assert!(e("cup", "train", 0.0, 1.0).contains("control rate"));
-        assert!(e("cup", "train", 30.0, f64::NAN).contains("duration"));
+        assert!(e("cup", "train", 30.0, 1.0).contains("no task 'cup'"));
+        assert!(e("cup_deformation", "test", 30.0, 1.0).contains("'test'"));
+        assert!(e("cup_deformation", "train", 0.0, 1.0).contains("control rate"));
+        assert!(e("cup_deformation", "train", 30.0, f64::NAN).contains("duration"));
     }
 
     #[test]

@@ -1,55 +1,12 @@
-//! The paper-style success table: per criterion and mode, our count beside the paper's.
-//!
-//! The paper's figures (real robot, 20 trials per mode): fabric selection VLA 11/20, VTLA-real
-//! 20/20, VTLA-pred 18/20; grasp 6, 19, 16; overall 4, 19, 16. Unseen cup: lift 18, 20, 19;
-//! target deformation 0, 20, 18; overall 0, 20, 18.
+//! The paper-style success table: per criterion and mode, our count beside the paper's. The rows
+//! and the paper's figures are the task's ([`unitac_sim::task::Task::criteria`],
+//! [`unitac_sim::task::Task::paper`]).
 
 use serde::Serialize;
 use unitac_sim::task::{TaskKind, TaskOutcome};
 
 /// Trials per mode in the paper's tables.
 pub const PAPER_TRIALS: u32 = 20;
-
-/// The paper's count for a task, criterion and mode (None: a mode or criterion it does not
-/// report).
-pub fn paper(kind: TaskKind, criterion: &str, mode: &str) -> Option<u32> {
-    let col = match mode {
-        "vla" => 0,
-        "vtla_real" => 1,
-        "vtla_pred" => 2,
-        _ => return None,
-    };
-    let row: [u32; 3] = match (kind, criterion) {
-        (TaskKind::Fabric, "selection") => [11, 20, 18],
-        (TaskKind::Fabric, "grasp") => [6, 19, 16],
-        (TaskKind::Fabric, "overall") => [4, 19, 16],
-        (TaskKind::Cup, "lift") => [18, 20, 19],
-        (TaskKind::Cup, "target deformation") => [0, 20, 18],
-        (TaskKind::Cup, "overall") => [0, 20, 18],
-        _ => return None,
-    };
-    row.get(col).copied()
-}
-
-/// The table's rows for a task, in order.
-pub fn criteria(kind: TaskKind) -> [&'static str; 3] {
-    match kind {
-        TaskKind::Fabric => ["selection", "grasp", "overall"],
-        TaskKind::Cup => ["lift", "target deformation", "overall"],
-    }
-}
-
-/// Whether an outcome meets a criterion (false for a criterion of the other task).
-pub fn meets(outcome: &TaskOutcome, criterion: &str) -> bool {
-    match (outcome, criterion) {
-        (TaskOutcome::Fabric(f), "selection") => f.selection,
-        (TaskOutcome::Fabric(f), "grasp") => f.grasp,
-        (TaskOutcome::Cup(c), "lift") => c.lift,
-        (TaskOutcome::Cup(c), "target deformation") => c.deformation,
-        (o, "overall") => o.overall(),
-        _ => false,
-    }
-}
 
 /// One cell: our successes of `trials`, and the paper's of 20.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -70,7 +27,7 @@ pub struct Row {
 
 /// The table of a task from each mode's outcomes (`(mode, outcomes)` in column order).
 pub fn table(kind: TaskKind, modes: &[(String, Vec<TaskOutcome>)]) -> Vec<Row> {
-    criteria(kind)
+    kind.criteria()
         .iter()
         .map(|&criterion| Row {
             criterion: criterion.to_string(),
@@ -78,9 +35,9 @@ pub fn table(kind: TaskKind, modes: &[(String, Vec<TaskOutcome>)]) -> Vec<Row> {
                 .iter()
                 .map(|(mode, outcomes)| Cell {
                     mode: mode.clone(),
-                    ours: outcomes.iter().filter(|o| meets(o, criterion)).count() as u32,
+                    ours: outcomes.iter().filter(|o| o.meets(criterion)).count() as u32,
                     trials: outcomes.len() as u32,
-                    paper: paper(kind, criterion, mode),
+                    paper: kind.paper(criterion, mode),
                     paper_trials: PAPER_TRIALS,
                 })
                 .collect(),
@@ -142,7 +99,7 @@ mod tests {
                 vec![cup(true, 0.0095), cup(false, 0.0)],
             ),
         ];
-        let rows = table(TaskKind::Cup, &modes);
+        let rows = table(TaskKind::CUP, &modes);
         let got: Vec<(String, Vec<u32>)> = rows
             .iter()
             .map(|r| {
@@ -168,7 +125,7 @@ mod tests {
             "{text}"
         );
         assert_eq!(text.lines().count(), 4);
-        assert_eq!(paper(TaskKind::Fabric, "selection", "vtla_pred"), Some(18));
-        assert_eq!(paper(TaskKind::Fabric, "lift", "vla"), None);
+        assert_eq!(TaskKind::FABRIC.paper("selection", "vtla_pred"), Some(18));
+        assert_eq!(TaskKind::FABRIC.paper("lift", "vla"), None);
     }
 }

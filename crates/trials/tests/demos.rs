@@ -95,7 +95,7 @@ fn a_fabric_demonstration_records_every_modes_observations_tick_by_tick() {
         let s = load_scene_without_policy_models("fabric_selection_vtla_real", None).unwrap();
         let sensor = MockConfig::new(s.source.sensor, s.source.seed);
         let cfg = DemoConfig {
-            task: TaskKind::Fabric,
+            task: TaskKind::FABRIC,
             ..DemoConfig::default()
         };
         let chains = vec![
@@ -226,8 +226,8 @@ fn a_driven_demonstration_moves_the_world_by_the_driver_and_labels_it_with_the_e
     let s = load_scene_without_policy_models("fabric_selection_vtla_real", None).unwrap();
     let sensor = MockConfig::new(s.source.sensor, s.source.seed);
     let cfg = DemoConfig {
-        task: TaskKind::Fabric,
-        fabric_s: 3.0,
+        task: TaskKind::FABRIC,
+        run_s: Some(3.0),
         ..DemoConfig::default()
     };
     let driver: Vec<Box<dyn Stage>> = vec![Box::new(StayHome { opening_m: 0.03 })];
@@ -293,7 +293,7 @@ fn fabric_demo(mode: Mode, trial: u32) -> Demo {
     let s = load_scene_without_policy_models("fabric_selection_vtla_real", None).unwrap();
     let sensor = MockConfig::new(s.source.sensor, s.source.seed);
     let cfg = DemoConfig {
-        task: TaskKind::Fabric,
+        task: TaskKind::FABRIC,
         mode,
         ..DemoConfig::default()
     };

@@ -42,11 +42,8 @@ fn hidden_variables_change_nothing_a_policy_sees_before_contact() {
         Hidden::Mass(3.0),
         Hidden::Position([shift, -shift]),
     ];
-    for (kind, max_s) in [(TaskKind::Cup, 8.0), (TaskKind::Fabric, 20.0)] {
-        let base = match kind {
-            TaskKind::Cup => "cup_deformation",
-            TaskKind::Fabric => "fabric_selection",
-        };
+    for (kind, max_s) in [(TaskKind::CUP, 8.0), (TaskKind::FABRIC, 20.0)] {
+        let base = kind.name();
         // The scene controllers, and the policies learned from demonstrations (setup trains
         // them; the expert of the demonstrations read ground truth, the policies must not).
         let scenes = unitac_policy::Mode::ALL.into_iter().flat_map(|m| {

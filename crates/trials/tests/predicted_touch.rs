@@ -21,7 +21,7 @@ const SCENE: &str = "cup_deformation_vtla_pred";
 /// The predicted latent of trial `n` (unseen cups) and the camera's cup diameter then.
 fn predicted(n: u32, hidden: Option<Hidden>) -> (TactileLatent, f64) {
     let scene = unitac_pipeline::load_scene(SCENE, None).unwrap();
-    let task = TaskConfig::new(TaskKind::Cup, Split::Unseen);
+    let task = TaskConfig::new(TaskKind::CUP, Split::Unseen);
     let opts = TrialOptions {
         max_s: 2.5,
         hidden,
@@ -108,7 +108,7 @@ fn the_category_is_part_of_the_condition() {
         .unwrap();
     let mut chain = Chain::new(vec![build_stage(&scene, cfg).unwrap()]);
     let trial = {
-        let task = TaskConfig::new(TaskKind::Cup, Split::Unseen);
+        let task = TaskConfig::new(TaskKind::CUP, Split::Unseen);
         let opts = TrialOptions {
             max_s: 2.5,
             keep_messages: true,

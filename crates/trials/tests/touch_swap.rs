@@ -29,8 +29,8 @@ fn latents(msgs: &[unitac_trials::ChainMessage]) -> Vec<&unitac_core::msg::Tacti
 #[test]
 fn a_swapped_trial_reads_the_donors_latent_at_its_own_stamp() {
     let scene = unitac_pipeline::load_scene("cup_deformation_vtla_real", None).unwrap();
-    let task = TaskConfig::new(TaskKind::Cup, Split::Train);
-    let mut opts = TrialOptions::for_task(TaskKind::Cup);
+    let task = TaskConfig::new(TaskKind::CUP, Split::Train);
+    let mut opts = TrialOptions::for_task(TaskKind::CUP);
     opts.keep_messages = true;
     opts.max_s = 6.0;
     let run = |trial, swap| {

@@ -36,7 +36,8 @@ struct Params {
     /// A closed-loop scene (name or path, as the policy node's): its policy stage names the task
     /// and the control rate (empty: `task` and `control_rate_hz` say them)
     scene: String,
-    /// cup | fabric (empty: the scene's; without a scene, cup)
+    /// The task's name, cup_deformation | fabric_selection (empty: the scene's; without a scene,
+    /// cup_deformation)
     task: String,
     /// train | unseen (cups: 60/65/70 mm vs 90 mm; the fabric task has one set)
     split: String,
@@ -106,13 +107,13 @@ struct Pending {
     arm: Option<ArmCommand>,
 }
 
-/// The task, control rate and trial length filled in: from the scene's policy stage when `scene`
+/// The task, control rate and trial length filled in: from the scene (its task, its policy stage's rate) when `scene`
 /// is set (a `task` or `control_rate_hz` given as well must agree with it), the defaults
 /// otherwise; a `duration_s` of 0 is the task's trial length (`TrialOptions::for_task`).
 fn resolve(mut p: Params) -> anyhow::Result<Params> {
     if p.scene.is_empty() {
         if p.task.is_empty() {
-            p.task = TaskKind::Cup.as_str().into();
+            p.task = TaskKind::CUP.name().into();
         }
         if p.control_rate_hz == 0.0 {
             p.control_rate_hz = unitac_policy::PolicyParams::default().control_rate_hz;
@@ -120,12 +121,12 @@ fn resolve(mut p: Params) -> anyhow::Result<Params> {
     } else {
         let scene = unitac_pipeline::load_scene(&p.scene, None)?;
         let (policy, kind) = unitac_trials::scene::scene_task(&scene)?;
-        if !p.task.is_empty() && p.task != kind.as_str() {
+        if !p.task.is_empty() && p.task != kind.name() {
             anyhow::bail!(
-                "task:={} but scene {}'s policy stage is the {} task",
+                "task:={} but scene {} names the {} task",
                 p.task,
                 scene.name,
-                kind.as_str()
+                kind.name()
             );
         }
         if p.control_rate_hz != 0.0 && p.control_rate_hz != policy.control_rate_hz {
@@ -136,14 +137,11 @@ fn resolve(mut p: Params) -> anyhow::Result<Params> {
                 policy.control_rate_hz
             );
         }
-        p.task = kind.as_str().into();
+        p.task = kind.name().into();
         p.control_rate_hz = policy.control_rate_hz;
     }
     if p.duration_s == 0.0 {
-        let kind = [TaskKind::Cup, TaskKind::Fabric]
-            .into_iter()
-            .find(|k| k.as_str() == p.task);
-        if let Some(k) = kind {
+        if let Ok(k) = TaskKind::named(&p.task, &[]) {
             p.duration_s = unitac_trials::TrialOptions::for_task(k).max_s;
         }
     }

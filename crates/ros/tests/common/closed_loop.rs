@@ -230,10 +230,11 @@ impl Loop {
         obs: &Observer,
         path: GripperPath,
     ) -> Self {
-        Self::start_scene(at, ns, duration_s, obs, path, SCENE, "cup")
+        Self::start_scene(at, ns, duration_s, obs, path, SCENE, "cup_deformation")
     }
 
-    /// [`Self::start_with`] on `scene`, the sim running `task` (cup | fabric).
+    /// [`Self::start_with`] on `scene`, the sim running `task` (the scene's: cup_deformation |
+    /// fabric_selection).
     pub fn start_scene(
         at: Launcher,
         ns: &str,

@@ -9,13 +9,16 @@
 //! render now; `outcome` is the task's success criteria with their values. Public values are SI;
 //! the squeeze world keeps its mm inside and is converted here.
 //!
-//! - [`cup`], [`fabric`]: the objects of each task, their per-trial draw and the criteria;
+//! - `kind`: what a task is ([`Task`], [`TaskKind`]); [`cup_deformation`] and
+//!   [`fabric_selection`]: the two tasks, each in one module (its draw, camera values, criteria,
+//!   expert);
+//! - [`cup`], [`fabric`]: the objects the tasks draw (their physics, draw and outcome);
 //! - `command`: the command and what it refuses; `trial`: what a trial draws; `truth`: the
 //!   ground truth and the outcome;
 //! - `arm`: the kinematic arm; `hold`: friction and slip of the held object;
 //! - [`observe`]: the camera's observation and the sensor view; `noise`: every noise figure of
 //!   the world with what its source is;
-//! - [`expert`]: the scripted expert and the demonstration record.
+//! - [`expert`]: running the tasks' experts, and the demonstration record.
 //!
 //! Same (config, seed, trial) and the same commands give the same truth, bit for bit.
 
@@ -27,9 +30,12 @@ use crate::world::{Gel, Gripper, World, WorldConfig, WorldError, WorldTruth};
 mod arm;
 mod command;
 pub mod cup;
+pub mod cup_deformation;
 pub mod expert;
 pub mod fabric;
+pub mod fabric_selection;
 mod hold;
+mod kind;
 mod noise;
 pub mod observe;
 pub mod sensing;
@@ -40,19 +46,20 @@ mod truth;
 pub use arm::{ArmLimits, ArmState};
 pub use command::{ArmSetpoint, ArmTarget, GripperSetpoint, MAX_STEP_S, TaskCommand};
 pub use cup::{CupCriteria, CupOutcome, CupSpec, CupVariation};
-pub use expert::{
-    DemoStep, Demonstration, expert_command, fixed_opening_command, run_expert, run_policy,
-};
+pub use cup_deformation::{CupDeformation, fixed_opening_command};
+pub use expert::{DemoStep, Demonstration, expert_command, run_expert, run_policy};
 pub use fabric::{
     FABRICS, Fabric, FabricCriteria, FabricOutcome, FabricSpec, FabricVariation, LIFT_TOLERANCE_M,
     lifted,
 };
+pub use fabric_selection::FabricSelection;
 pub use hold::{G, Hold};
+pub use kind::{Judged, PlotKind, Sweep, Task, TaskKind, UnknownTask, paper_column};
 pub use noise::{NoiseFigure, SourceKind};
 pub use observe::{ROUGHNESS_SET_SD_M, SensorView, VisionNoise, VisualObservation};
 pub use sensing::{GripperReading, GripperSensing};
 pub use trial::{ObjectSpec, TaskObject, TrialSpec, trial_rng};
-pub use truth::{ContactTruth, GripperTruth, ObjectTruth, TaskOutcome, TaskTruth};
+pub use truth::{ContactTruth, CriteriaOutcome, GripperTruth, ObjectTruth, TaskOutcome, TaskTruth};
 
 /// A uniform distribution on [lo, hi].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -61,23 +68,6 @@ pub struct Uniform(pub f64, pub f64);
 impl Uniform {
     pub fn draw(&self, rng: &mut SplitMix64) -> f64 {
         self.0 + (self.1 - self.0) * rng.uniform()
-    }
-}
-
-/// Which task.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum TaskKind {
-    Cup,
-    Fabric,
-}
-
-impl TaskKind {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            TaskKind::Cup => "cup",
-            TaskKind::Fabric => "fabric",
-        }
     }
 }
 
@@ -175,10 +165,10 @@ impl TaskConfig {
         }
     }
     pub fn cup(split: Split) -> Self {
-        Self::new(TaskKind::Cup, split)
+        Self::new(TaskKind::CUP, split)
     }
     pub fn fabric(split: Split) -> Self {
-        Self::new(TaskKind::Fabric, split)
+        Self::new(TaskKind::FABRIC, split)
     }
 }
 
@@ -367,7 +357,7 @@ impl TaskWorld {
             }
         }
         if let Hidden::Position(d) = h {
-            let names = observe::visual_names(self.cfg.kind);
+            let names = self.cfg.kind.visual_names();
             for (name, b) in names.iter().zip(&mut self.spec.vision_bias) {
                 if name.ends_with(".x_m") {
                     *b -= d[0];
@@ -823,49 +813,19 @@ impl TaskWorld {
     pub fn outcome(&self) -> TaskOutcome {
         let truth = self.truth();
         let held = truth.objects.iter().position(|o| o.held);
-        let lift = held
+        let lift_m = held
             .and_then(|i| truth.objects.get(i))
             .map_or(0.0, |o| o.position_m[2]);
-        match self.cfg.kind {
-            TaskKind::Cup => TaskOutcome::Cup(CupOutcome::judge(
-                &self.cfg.cup_criteria,
-                held.is_some(),
-                lift,
-                if held.is_some() {
-                    truth.contact.deformation_m
-                } else {
-                    0.0
-                },
-                truth.peak_deformation_m,
-                truth.collision,
-            )),
-            TaskKind::Fabric => {
-                // The decision: the object of the first grasp attempt, else the one the policy
-                // announced ([`TaskWorld::decide`]), else the one it holds.
-                let chosen = self
-                    .attempted
-                    .or(self.announced)
-                    .or(held)
-                    .and_then(|i| truth.objects.get(i))
-                    .map_or("", |o| o.name.as_str());
-                let holding = held
-                    .and_then(|i| truth.objects.get(i))
-                    .map_or("", |o| o.name.as_str());
-                TaskOutcome::Fabric(FabricOutcome::judge(
-                    &self.cfg.fabric_criteria,
-                    chosen,
-                    holding,
-                    self.spec.smoother(),
-                    if held.is_some() {
-                        truth.contact.layers
-                    } else {
-                        0
-                    },
-                    lift,
-                    truth.contact.slip_total_m,
-                    truth.collision,
-                ))
-            }
-        }
+        self.cfg.kind.judge(
+            &self.cfg,
+            &Judged {
+                truth: &truth,
+                spec: &self.spec,
+                held,
+                lift_m,
+                attempted: self.attempted,
+                announced: self.announced,
+            },
+        )
     }
 }

@@ -19,7 +19,7 @@
 
 use serde::Serialize;
 
-use super::{ObjectSpec, TaskKind, TaskWorld};
+use super::{ObjectSpec, TaskWorld};
 use crate::mock::{GroundTruth, MockSensor};
 use crate::object::{FoldEdge, Object};
 use crate::rng::SplitMix64;
@@ -96,23 +96,9 @@ impl VisionNoise {
     }
 }
 
-/// The names of the camera's values for a task, in order (SI units in the names).
-pub fn visual_names(kind: TaskKind) -> Vec<String> {
-    let per = |o: &str, fields: &[&str]| -> Vec<String> {
-        fields.iter().map(|f| format!("{o}.{f}")).collect()
-    };
-    match kind {
-        TaskKind::Cup => per("cup", &["x_m", "y_m", "z_m", "diameter_m", "height_m"]),
-        TaskKind::Fabric => {
-            let f = ["x_m", "y_m", "z_m", "edge_height_m"];
-            let mut v = per("fabric_a", &f);
-            v.extend(per("fabric_b", &f));
-            // Last, so that the other values' per-trial bias draws stay what they were.
-            v.extend(per("fabric_a", &["roughness_ra_m"]));
-            v.extend(per("fabric_b", &["roughness_ra_m"]));
-            v
-        }
-    }
+/// `<object>.<field>` for each field.
+pub fn per_object(object: &str, fields: &[&str]) -> Vec<String> {
+    fields.iter().map(|f| format!("{object}.{f}")).collect()
 }
 
 /// A camera observation: names and values (same order every tick).
@@ -207,7 +193,7 @@ impl SensorView {
 impl TaskWorld {
     /// The camera's estimate now, with this frame's noise drawn from `rng`.
     pub fn observe_visual(&self, rng: &mut SplitMix64) -> VisualObservation {
-        let names = visual_names(self.cfg.kind);
+        let names = self.cfg.kind.visual_names();
         let truth = self.truth();
         let values = names
             .iter()

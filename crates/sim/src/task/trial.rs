@@ -2,9 +2,7 @@
 
 use serde::Serialize;
 
-use super::observe;
-use super::split::{FabricType, SPLIT};
-use super::{CupSpec, FabricSpec, G, Split, TaskConfig, TaskKind, Uniform};
+use super::{CupSpec, FabricSpec, G, Split, TaskConfig, TaskKind};
 use crate::rng::SplitMix64;
 
 /// An object of the trial.
@@ -57,49 +55,8 @@ impl TrialSpec {
     /// Draw trial `trial` of `seed`: the objects, their properties and places, the camera's bias.
     pub fn draw(cfg: &TaskConfig, seed: u64, trial: u32) -> TrialSpec {
         let mut rng = trial_rng(seed, trial);
-        let objects = match cfg.kind {
-            TaskKind::Cup => {
-                let c = CupSpec::draw(&cfg.cup, &mut rng);
-                let v = &cfg.cup;
-                let placed_m = [
-                    v.centre_m[0] + Uniform(-v.spread_m[0], v.spread_m[0]).draw(&mut rng),
-                    v.centre_m[1] + Uniform(-v.spread_m[1], v.spread_m[1]).draw(&mut rng),
-                ];
-                vec![TaskObject {
-                    name: "cup".into(),
-                    spec: ObjectSpec::Cup(c),
-                    placed_m,
-                }]
-            }
-            TaskKind::Fabric => {
-                let v = &cfg.fabric;
-                let types: Vec<&FabricType> = v
-                    .types
-                    .iter()
-                    .filter_map(|t| SPLIT.fabrics.get(t))
-                    .collect();
-                let n = types.len();
-                // Two different types (the build script checks each split lists two or more).
-                let i = ((rng.uniform() * n as f64) as usize).min(n.saturating_sub(1));
-                let j = ((rng.uniform() * n.saturating_sub(1) as f64) as usize)
-                    .min(n.saturating_sub(2));
-                let j = if j >= i { j + 1 } else { j };
-                [("fabric_a", i, 0), ("fabric_b", j, 1)]
-                    .into_iter()
-                    .filter_map(|(name, k, place)| {
-                        let f = FabricSpec::draw(types.get(k)?, v, &mut rng);
-                        let s = Uniform(-v.spread_m, v.spread_m);
-                        let p = v.places_m[place];
-                        Some(TaskObject {
-                            name: name.into(),
-                            spec: ObjectSpec::Fabric(f),
-                            placed_m: [p[0] + s.draw(&mut rng), p[1] + s.draw(&mut rng)],
-                        })
-                    })
-                    .collect()
-            }
-        };
-        let names = observe::visual_names(cfg.kind);
+        let objects = cfg.kind.draw(cfg, &mut rng);
+        let names = cfg.kind.visual_names();
         let vision_bias = names
             .iter()
             .map(|n| cfg.vision.bias_sigma(n) * rng.gaussian())

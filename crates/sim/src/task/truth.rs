@@ -1,5 +1,7 @@
 //! Ground truth of a task world after a step, and the task's outcome.
 
+use std::collections::BTreeMap;
+
 use serde::Serialize;
 
 use super::{ArmState, CupOutcome, FabricOutcome};
@@ -70,19 +72,38 @@ pub struct TaskTruth {
     pub substeps: u32,
 }
 
-/// A task's outcome.
+/// A task's outcome: the shipped tasks' with the values behind each criterion, or any task's
+/// criteria by name.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TaskOutcome {
     Cup(CupOutcome),
     Fabric(FabricOutcome),
+    Criteria(CriteriaOutcome),
+}
+
+/// An outcome as criteria met or not (`overall` among them) and the values behind them.
+#[derive(Debug, Clone, PartialEq, Serialize, Default)]
+pub struct CriteriaOutcome {
+    pub met: BTreeMap<String, bool>,
+    pub values: BTreeMap<String, f64>,
 }
 
 impl TaskOutcome {
     pub fn overall(&self) -> bool {
-        match self {
-            TaskOutcome::Cup(c) => c.overall,
-            TaskOutcome::Fabric(f) => f.overall,
+        self.meets("overall")
+    }
+    /// Whether the outcome meets the criterion called so (false for one it does not judge).
+    pub fn meets(&self, criterion: &str) -> bool {
+        match (self, criterion) {
+            (TaskOutcome::Cup(c), "lift") => c.lift,
+            (TaskOutcome::Cup(c), "target deformation") => c.deformation,
+            (TaskOutcome::Cup(c), "overall") => c.overall,
+            (TaskOutcome::Fabric(f), "selection") => f.selection,
+            (TaskOutcome::Fabric(f), "grasp") => f.grasp,
+            (TaskOutcome::Fabric(f), "overall") => f.overall,
+            (TaskOutcome::Criteria(c), name) => c.met.get(name).copied().unwrap_or(false),
+            _ => false,
         }
     }
 }
