@@ -218,11 +218,11 @@ def plan(scene_name, args=None):
         nodes.append({"executable": "unitac_gripper_node", "name": "unitac_gripper", "namespace": a["namespace"],
                       "parameters": [{"model": gripper, "port": a["gripper_port"]}] + extra, "remappings": []})
     if a["sensor"] == "true" and source == "sim":
-        if "policy" not in kinds:
-            skipped.append(("source", f"source:=sim needs a scene with a policy stage (its task is the sim's); "
-                                      f"{scene['scene']} has none"))
+        if "policy" not in kinds or not scene.get("task"):
+            skipped.append(("source", f"source:=sim needs a scene with a task and a policy stage; "
+                                      f"{scene['scene']} has not both"))
         else:
-            # The sim node reads its task and control rate from the scene's policy stage, and
+            # The sim node reads its task from the scene, its control rate from the policy stage, and
             # runs the task's trial length unless duration_s is given.
             p = {"scene": scene_path, "split": a["split"], "seed": int(a["seed"]), "trial": int(a["trial"]),
                  **({"duration_s": float(a["duration_s"])} if a["duration_s"] else {}),

@@ -129,7 +129,7 @@ fn a_scene_that_cannot_drive_the_world_is_an_error() {
     let e = run_trial(&cup, &fabric, 1, 0, &opts(&fabric, 2.0)).unwrap_err();
     assert!(
         e.to_string().contains(
-            "policy objects [\"cup\"] are not in the fabric task's world (fabric_a, fabric_b)"
+            "policy objects [\"cup\"] are not in the fabric_selection task's world (fabric_a, fabric_b)"
         ),
         "{e}"
     );

@@ -145,47 +145,14 @@ fn cup_command(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskCommand
         return home(cfg);
     };
     let g = cfg.gripper;
-    let z = 0.5 * cup.height_m;
     let target_mm = cfg.cup_criteria.target_deformation_m * 1e3;
     let finger_mm = static_finger_for(&cup.wall, &cfg.gel, target_mm, g.max_force_n);
     let squeeze = (cup.diameter_m - 2.0 * finger_mm * 1e-3 + 2.0 * g.pad_m).max(0.0);
-    let wide = (cup.diameter_m + 0.02 + 2.0 * g.pad_m).min(g.max_opening_m);
-    let around = t.contact.object == "cup";
-    // Once the lift is under way (the arm heads above the grasp height, the cup in the grip),
-    // keep lifting; start it when the wall has settled at the squeeze.
-    let lifting = around && t.gripper.force_n > 0.0 && t.arm.target_m[2] > z + 1e-4;
-    let settled = around
-        && t.arm.arrived
+    // Lift once the wall has settled at the squeeze.
+    let settled = t.arm.arrived
         && (t.gripper.opening_m - squeeze).abs() < 5e-5
         && t.contact.deformation_rate_m_s.abs() < 1e-3;
-    if lifting || settled {
-        command(
-            squeeze,
-            CLOSE_M_S,
-            g.max_force_n,
-            placed(spec, "cup"),
-            z,
-            CUP_LIFT_M,
-        )
-    } else if around && (t.arm.arrived || t.gripper.force_n > 0.0) {
-        command(
-            squeeze,
-            CLOSE_M_S,
-            g.max_force_n,
-            placed(spec, "cup"),
-            z,
-            0.0,
-        )
-    } else {
-        command(
-            wide,
-            g.max_speed_m_s,
-            g.max_force_n,
-            placed(spec, "cup"),
-            z,
-            0.0,
-        )
-    }
+    grip_and_lift(t, spec, cfg, squeeze, settled)
 }
 
 /// A size-blind cup grip, the baseline that shows the task is not trivial: the expert's approach
@@ -197,43 +164,42 @@ pub fn fixed_opening_command(
     cfg: &TaskConfig,
     opening_m: f64,
 ) -> TaskCommand {
+    let stopped =
+        t.arm.arrived && ((t.gripper.opening_m - opening_m).abs() < 1e-4 || t.gripper.stalled);
+    grip_and_lift(t, spec, cfg, opening_m, stopped)
+}
+
+/// Open wide (the cup's diameter + 2 cm) to the cup at half its height, close to `opening_m`
+/// once around it, and lift when `ready` (the cup between the fingers) or once the lift is under
+/// way (the arm heads above the grasp height, the cup in the grip).
+fn grip_and_lift(
+    t: &TaskTruth,
+    spec: &TrialSpec,
+    cfg: &TaskConfig,
+    opening_m: f64,
+    ready: bool,
+) -> TaskCommand {
     let Some(cup) = spec.cup() else {
         return home(cfg);
     };
     let g = cfg.gripper;
     let z = 0.5 * cup.height_m;
-    let wide = (cup.diameter_m + 0.02 + 2.0 * g.pad_m).min(g.max_opening_m);
     let around = t.contact.object == "cup";
     let lifting = around && t.gripper.force_n > 0.0 && t.arm.target_m[2] > z + 1e-4;
-    let stopped = around
-        && t.arm.arrived
-        && ((t.gripper.opening_m - opening_m).abs() < 1e-4 || t.gripper.stalled);
-    if lifting || stopped {
-        command(
-            opening_m,
-            CLOSE_M_S,
-            g.max_force_n,
-            placed(spec, "cup"),
-            z,
-            CUP_LIFT_M,
-        )
+    let (opening_m, speed, lift) = if lifting || (around && ready) {
+        (opening_m, CLOSE_M_S, CUP_LIFT_M)
     } else if around && (t.arm.arrived || t.gripper.force_n > 0.0) {
-        command(
-            opening_m,
-            CLOSE_M_S,
-            g.max_force_n,
-            placed(spec, "cup"),
-            z,
-            0.0,
-        )
+        (opening_m, CLOSE_M_S, 0.0)
     } else {
-        command(
-            wide,
-            g.max_speed_m_s,
-            g.max_force_n,
-            placed(spec, "cup"),
-            z,
-            0.0,
-        )
-    }
+        let wide = (cup.diameter_m + 0.02 + 2.0 * g.pad_m).min(g.max_opening_m);
+        (wide, g.max_speed_m_s, 0.0)
+    };
+    command(
+        opening_m,
+        speed,
+        g.max_force_n,
+        placed(spec, "cup"),
+        z,
+        lift,
+    )
 }
