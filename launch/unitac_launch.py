@@ -44,10 +44,32 @@ def serial_grippers():
 
 SERIAL_GRIPPERS = serial_grippers()
 
+# sensors/ beside launch/: one profile file per sensor kind, the files the nodes compile in;
+# $UNITAC_SENSORS adds more, as the nodes read it.
+SENSOR_DIR = os.path.join(os.path.dirname(HERE), "sensors")
+
+
+def sensor_profiles():
+    """Sensor kind -> its profile (sensors/<kind>.yaml, then $UNITAC_SENSORS, as the nodes read them)."""
+    kinds = {}
+    extra = [os.environ["UNITAC_SENSORS"]] if os.environ.get("UNITAC_SENSORS") else []
+    for d in [SENSOR_DIR] + extra:
+        for path in sorted(glob.glob(os.path.join(d, "*.yaml"))):
+            with open(path) as f:
+                p = yaml.safe_load(f)
+            if isinstance(p, dict) and isinstance(p.get("name"), str):
+                kinds[p["name"]] = p
+    return kinds
+
+
+SENSOR_KINDS = sensor_profiles()
+# Sensor kind -> (file in urdf/, macro): the frames tf:=true publishes (each profile's `urdf`).
+SENSOR_MACROS = {k: (f"{p['urdf']}.urdf.xacro", p["urdf"]) for k, p in SENSOR_KINDS.items() if p.get("urdf")}
+
 # Launch arguments: name -> (default, description). Every setting is a declared argument.
 ARGUMENTS = {
     "source": ("", "Frame source: mock | v4l | bag | sim (sim: the task world node, closed loop; empty: the scene's)"),
-    "sensor_kind": ("", "gelsight-mini | digit | generic (empty: the scene's)"),
+    "sensor_kind": ("", f"{' | '.join(sorted(SENSOR_KINDS))} (empty: the scene's)"),
     "sensor_id": ("gsmini", "Sensor id (mock, v4l); frame_ids are <sensor_id>_optical_frame (match the URDF)"),
     "serial": ("", "Serial of a live sensor (v4l; empty: the only one of sensor_kind connected)"),
     "bag": ("", "Bag path: rosbag2 directory, .mcap or .db3 (bag source; empty: the scene's)"),
@@ -87,9 +109,6 @@ ARGUMENTS = {
 
 # Every value of the gripper argument.
 GRIPPERS = SERIAL_GRIPPERS + ("sim", "action", "none")
-# Sensor kind -> (file in urdf/, macro): the frames tf:=true publishes.
-SENSOR_MACROS = {"gelsight-mini": ("gelsight_mini.urdf.xacro", "gelsight_mini"),
-                 "digit": ("digit.urdf.xacro", "digit")}
 
 # Stage kind -> the node that runs it (one node per executable: the contact node runs the slip
 # stage too, after its contact stage). Nodes read their stages' parameters from the scene file

@@ -77,9 +77,9 @@ fn frames(n: usize) -> anyhow::Result<Vec<Frame>> {
 
 /// Mock GelSight Mini frames of the fabric scene at `scale` x 320x240.
 fn frames_at(n: usize, scale: u32) -> anyhow::Result<Vec<Frame>> {
-    let spec = SensorKind::GelsightMini.spec().scaled(scale);
+    let spec = SensorKind::GELSIGHT_MINI.spec().scaled(scale);
     let mut s = MockSensor::with_spec(
-        MockConfig::new(SensorKind::GelsightMini, 5),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 5),
         spec,
         Scenario::fabric_selection(),
     )?;
@@ -146,7 +146,7 @@ fn bench_contact_at(
 ) -> anyhow::Result<(ContactBench, String)> {
     let frames = frames_at(n.max(20), scale)?;
     let bg = frames.first().context("no frames")?.clone();
-    let mut det = ContactDetector::new(ContactParams::default(), SensorKind::GelsightMini.spec())
+    let mut det = ContactDetector::new(ContactParams::default(), SensorKind::GELSIGHT_MINI.spec())
         .map_err(anyhow::Error::msg)?;
     det.set_background_frame(&bg);
     // Warm-up, then time each step (detection, hysteresis, episodes, background update).
@@ -292,7 +292,7 @@ fn rust_pass(bag: &std::path::Path, detect: bool) -> anyhow::Result<(usize, f64)
                 None => {
                     let mut d = ContactDetector::new(
                         ContactParams::default(),
-                        SensorKind::GelsightMini.spec(),
+                        SensorKind::GELSIGHT_MINI.spec(),
                     )
                     .map_err(anyhow::Error::msg)?;
                     d.set_background_frame(&f);

@@ -135,7 +135,7 @@ pub fn fabrics(out: &Path, train: usize, test: usize, seed: u64) -> anyhow::Resu
     for i in 0..train + test {
         let (obj, depth, s) = fabric(&mut rng, &format!("fabric_{i}"));
         let (x, b) = clip_of(
-            SensorKind::GelsightMini,
+            SensorKind::GELSIGHT_MINI,
             seed.wrapping_add(i as u64),
             press(&obj, depth),
             &pre,
@@ -188,7 +188,7 @@ mod tests {
         let mut seen = Vec::new();
         for i in 0..40 {
             let (obj, depth, _) = fabric(&mut rng, "unseen");
-            let kind = SensorKind::GelsightMini;
+            let kind = SensorKind::GELSIGHT_MINI;
             let sensor = MockSensor::new(MockConfig::new(kind, 777 + i), press(&obj, depth));
             let clip = first_clip(sensor, pre.clip_frames * 2).unwrap();
             let out = enc.encode(&clip).unwrap();

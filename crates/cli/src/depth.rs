@@ -44,7 +44,7 @@ pub enum CalibrateCmd {
 
 #[derive(clap::Args, Debug)]
 pub struct CalibrateDepthArgs {
-    /// Sensor kind: gelsight-mini | digit | generic.
+    /// Sensor kind: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS.
     #[arg(long)]
     sensor: SensorKind,
     /// Radius of the ball pressed into the gel, in mm.
@@ -78,7 +78,7 @@ pub struct CalibrateDepthArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct MockPressesArgs {
-    /// Sensor kind: gelsight-mini | digit | generic (the frames' size and mm per pixel).
+    /// Sensor kind: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS (the frames' size and mm per pixel).
     #[arg(long, default_value = "gelsight-mini")]
     sensor: SensorKind,
     /// Radius of the pressed ball, in mm.
@@ -466,7 +466,7 @@ fn depth_png(
 /// `unitac eval depth`: calibrate from mock presses, then depth against the truth at several
 /// approaches, noise and shading levels (three presses each); PNGs of a few into `out`.
 pub fn eval_depth(out: Option<&Path>) -> anyhow::Result<DepthEval> {
-    let spec = SensorKind::GelsightMini.spec();
+    let spec = SensorKind::GELSIGHT_MINI.spec();
     if let Some(d) = out {
         std::fs::create_dir_all(d).map_err(|e| usage(format!("--out {}: {e}", d.display())))?;
     }
@@ -627,7 +627,7 @@ fn python_depth(
 
 /// `unitac bench depth`: 320x240 and 640x480 (the 320x240 calibration at twice the size).
 pub fn bench_depth(n: usize, repeat: usize, with_python: bool) -> anyhow::Result<DepthBenches> {
-    let base = SensorKind::GelsightMini.spec();
+    let base = SensorKind::GELSIGHT_MINI.spec();
     let cal = mock_calibration(base, 40)?;
     let mut sizes = Vec::new();
     let mut python = String::from("not run");

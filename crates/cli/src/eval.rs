@@ -271,12 +271,12 @@ fn eval_sensor(kind: SensorKind, idle_s: f64) -> anyhow::Result<SensorReport> {
 }
 
 pub fn eval_contact(idle_s: f64) -> anyhow::Result<EvalReport> {
-    let sensors = [SensorKind::GelsightMini, SensorKind::Digit]
+    let sensors = [SensorKind::GELSIGHT_MINI, SensorKind::DIGIT]
         .into_iter()
         .map(|k| eval_sensor(k, idle_s))
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let mut ball_presses = ball_areas(SensorKind::GelsightMini)?;
-    ball_presses.extend(ball_areas(SensorKind::Digit)?);
+    let mut ball_presses = ball_areas(SensorKind::GELSIGHT_MINI)?;
+    ball_presses.extend(ball_areas(SensorKind::DIGIT)?);
     Ok(EvalReport {
         positive_mm: POSITIVE_MM,
         sensors,
@@ -359,7 +359,7 @@ impl EvalReport {
     /// One row per sensor and skirt: area over the Hertz and geometric discs per approach.
     fn skirt_rows(&self, s: &mut String, peel: bool) {
         use std::fmt::Write as _;
-        for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
+        for kind in [SensorKind::GELSIGHT_MINI, SensorKind::DIGIT] {
             for skirt in std::iter::once(Skirt::default()).chain(SWEEP_SKIRTS) {
                 let name = skirt.to_string();
                 let cells: String = SWEEP_APPROACHES

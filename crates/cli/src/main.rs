@@ -85,7 +85,7 @@ enum Cmd {
     /// --json). Coordinates are in the input image's pixels. A bad file gets an error line and the
     /// others still run; exit code 2 if any file failed.
     Contact {
-        /// Sensor kind: gelsight-mini | digit | generic (sets marker masking and mm per pixel).
+        /// Sensor kind: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS (sets marker masking and mm per pixel).
         #[arg(long)]
         sensor: unitac_core::SensorKind,
         /// Image of the gel without contact.
@@ -141,7 +141,7 @@ enum Cmd {
         /// One JSON line per image message instead of the text summary.
         #[arg(long)]
         json: bool,
-        /// Sensor kind of the bag's images: gelsight-mini | digit | generic (without --scene).
+        /// Sensor kind of the bag's images: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS (without --scene).
         #[arg(long, default_value = "gelsight-mini")]
         sensor: unitac_core::SensorKind,
         /// Run this scene's stages (name or path; its sensor kind) instead of the default contact
@@ -244,7 +244,7 @@ enum Cmd {
         seed: u64,
         #[command(flatten)]
         set: TrialSet,
-        /// `dataset touch`: sensor kind: gelsight-mini | digit | generic.
+        /// `dataset touch`: sensor kind: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS.
         #[arg(long, default_value = "gelsight-mini")]
         sensor: unitac_core::SensorKind,
     },

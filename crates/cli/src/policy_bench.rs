@@ -109,7 +109,7 @@ impl Script {
         // The tactile stages are scripted from the world (no frames are rendered); the sensor
         // only completes the stepper.
         let sensor = MockSensor::new(
-            MockConfig::new(SensorKind::GelsightMini, SEED),
+            MockConfig::new(SensorKind::GELSIGHT_MINI, SEED),
             Scenario::idle(1.0),
         );
         let world = WorldStepper::new(

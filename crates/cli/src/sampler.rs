@@ -96,7 +96,7 @@ fn projector_case() -> anyhow::Result<Case> {
     };
     let v = OnnxVelocity::new(v)?;
     let mut prior = unitac_infer::prior::SensorPrior::new(b.manifest.preprocess.clone(), enc);
-    let kind = SensorKind::GelsightMini;
+    let kind = SensorKind::GELSIGHT_MINI;
     let idle = unitac_sim::MockSensor::new(
         unitac_sim::MockConfig::new(kind, 3),
         unitac_sim::Scenario::idle(1.0),
@@ -589,7 +589,7 @@ fn encoder_latency(reps: usize) -> anyhow::Result<f64> {
     let pre = unitac_infer::preprocess::Preprocess::reference();
     let obj = unitac_sim::Scenario::fabric("bench", 0.04, 0.9);
     let sensor = unitac_sim::MockSensor::new(
-        unitac_sim::MockConfig::new(SensorKind::GelsightMini, 3),
+        unitac_sim::MockConfig::new(SensorKind::GELSIGHT_MINI, 3),
         crate::dataset::press(&obj, 0.5),
     );
     let clip = crate::dataset::first_clip(sensor, pre.clip_frames * 2)?;

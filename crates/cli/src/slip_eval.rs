@@ -192,7 +192,7 @@ pub fn cases() -> Vec<Case> {
 
 /// One touch through contact + slip; the SlipState of the last frame and the truth.
 fn run_case(case: &Case, seed: u64) -> anyhow::Result<Outcome> {
-    let kind = SensorKind::GelsightMini;
+    let kind = SensorKind::GELSIGHT_MINI;
     let mut cfg = MockConfig::new(kind, seed);
     cfg.fps = 25.0;
     let sensor = MockSensor::new(cfg, Scenario::idle(1.0));

@@ -84,7 +84,7 @@ fn replay_digit(bag: &Path) -> (Vec<Value>, String) {
 fn contract_on_good_and_bad_files() {
     let d = dir();
     let s = MockSensor::new(
-        MockConfig::new(SensorKind::GelsightMini, 3),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 3),
         Scenario::fabric_selection(),
     );
     let hold = (Scenario::fabric_selection()
@@ -174,7 +174,7 @@ fn contract_on_good_and_bad_files() {
 fn all_good_files_exit_0_and_bad_background_exits_2() {
     let d = dir().join("ok");
     std::fs::create_dir_all(&d).unwrap();
-    let s = MockSensor::new(MockConfig::new(SensorKind::Digit, 1), Scenario::idle(1.0));
+    let s = MockSensor::new(MockConfig::new(SensorKind::DIGIT, 1), Scenario::idle(1.0));
     let (bg, f) = (d.join("bg.png"), d.join("f.png"));
     save_rgb(&bg, &s.render(0).0);
     save_rgb(&f, &s.render(1).0);
@@ -230,7 +230,7 @@ fn truncated_jpeg_is_a_frame_error_and_a_bad_background() {
     let d = dir().join("cutjpeg");
     std::fs::create_dir_all(&d).unwrap();
     let s = MockSensor::new(
-        MockConfig::new(SensorKind::GelsightMini, 5),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 5),
         Scenario::fabric_selection(),
     );
     let bg_bytes = jpeg(&s.render(0).0);
@@ -333,7 +333,7 @@ fn replay_counts_a_cut_jpeg_message_as_a_failed_image() {
     let d = dir().join("cutbag");
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    let s = MockSensor::new(MockConfig::new(SensorKind::Digit, 6), Scenario::idle(2.0));
+    let s = MockSensor::new(MockConfig::new(SensorKind::DIGIT, 6), Scenario::idle(2.0));
     let mut w = BagWriter::create(&d.join("bag"), WriteOptions::default()).unwrap();
     let t = w
         .add_topic(
@@ -386,16 +386,16 @@ fn replay_learns_a_new_frame_size() {
         width: w,
         height: h,
         mm_per_px: 0.0405 * 320.0 / f64::from(w),
-        ..SensorKind::Digit.spec()
+        ..SensorKind::DIGIT.spec()
     };
     let small = MockSensor::with_spec(
-        MockConfig::new(SensorKind::Digit, 4),
+        MockConfig::new(SensorKind::DIGIT, 4),
         spec(32, 24),
         Scenario::idle(1.0),
     )
     .unwrap();
     let large = MockSensor::with_spec(
-        MockConfig::new(SensorKind::Digit, 4),
+        MockConfig::new(SensorKind::DIGIT, 4),
         spec(64, 48),
         Scenario::idle(2.0),
     )
@@ -432,7 +432,7 @@ fn degraded_presses_read_as_the_detector_reads_them() {
     use unitac_sim::degrade::{Degrade, idle_fixture, press_fixture};
     let d = dir().join("degraded");
     std::fs::create_dir_all(&d).unwrap();
-    let kind = SensorKind::Digit;
+    let kind = SensorKind::DIGIT;
     let spec = kind.spec().scaled(2);
     let cfg = MockConfig::new(kind, 42);
     let deg = |seed| Degrade {

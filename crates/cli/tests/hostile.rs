@@ -43,7 +43,7 @@ fn assert_one_line(o: &Output, code: i32, needle: &str) {
 /// The mock fabric scene's first `n` frames as an rgb8 MCAP bag (a directory or a bare file).
 fn mock_bag(path: &Path, n: usize, opts: WriteOptions) {
     let mut s = MockSensor::new(
-        MockConfig::new(SensorKind::GelsightMini, 7),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 7),
         Scenario::fabric_selection(),
     );
     let mut w = BagWriter::create(path, opts).unwrap();
@@ -345,7 +345,7 @@ fn replay_with_failed_images_exits_1_and_says_how_many() {
         .add_topic("/gs/image_raw", "sensor_msgs/msg/Image")
         .unwrap();
     let mut s = MockSensor::new(
-        MockConfig::new(SensorKind::GelsightMini, 7),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 7),
         Scenario::fabric_selection(),
     );
     for i in 0..5 {

@@ -28,7 +28,7 @@ fn tmpdir(name: &str) -> PathBuf {
 /// with frame_id <sensor>_optical_frame. Returns the stamps.
 fn mock_bag(path: &Path) -> Vec<i64> {
     let mut s = MockSensor::new(
-        MockConfig::new(SensorKind::GelsightMini, 7),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 7),
         Scenario::fabric_selection(),
     );
     let mut w = BagWriter::create(path, WriteOptions::default()).unwrap();

@@ -49,7 +49,7 @@ fn press(kind: SensorKind, scale: u32) -> (Vec<ContactState>, ContactEpisode, f6
 
 #[test]
 fn area_in_mm2_follows_the_frame_size() {
-    for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
+    for kind in [SensorKind::GELSIGHT_MINI, SensorKind::DIGIT] {
         for scale in [1, 2] {
             let (states, ep, truth_mm2) = press(kind, scale);
             let mm_per_px = kind.spec().mm_per_px / f64::from(scale);

@@ -13,7 +13,7 @@ use unitac_sim::ballpress::{BallPress, PressNoise, random_presses, render_presse
 const BALL_MM: f64 = 2.0;
 
 fn cfg() -> MockConfig {
-    let mut c = MockConfig::new(SensorKind::GelsightMini, 11);
+    let mut c = MockConfig::new(SensorKind::GELSIGHT_MINI, 11);
     c.markers = false;
     c
 }
@@ -95,7 +95,7 @@ fn evaluate(cal: &DepthCalibration, spec: SensorSpec, approach: f64, noise: Pres
 
 #[test]
 fn circles_are_found_where_the_presses_are() {
-    let spec = SensorKind::GelsightMini.spec();
+    let spec = SensorKind::GELSIGHT_MINI.spec();
     let (_, found) = calibrate(spec, 1.0);
     assert!(found.len() >= 38, "{} of 40 presses found", found.len());
     for (c, p) in &found {
@@ -114,7 +114,7 @@ fn circles_are_found_where_the_presses_are() {
 
 #[test]
 fn depth_from_a_calibration_matches_the_truth_under_noise_and_shading() {
-    let spec = SensorKind::GelsightMini.spec();
+    let spec = SensorKind::GELSIGHT_MINI.spec();
     let (cal, _) = calibrate(spec, 1.0);
     eprintln!("fit rms slope {:.4}", cal.fit_rms_slope);
     let mut bad = false;
@@ -144,7 +144,7 @@ fn depth_from_a_calibration_matches_the_truth_under_noise_and_shading() {
 
 #[test]
 fn a_calibration_applies_at_twice_the_size_and_refuses_another_aspect() {
-    let spec = SensorKind::GelsightMini.spec();
+    let spec = SensorKind::GELSIGHT_MINI.spec();
     let (cal, _) = calibrate(spec, 1.0);
     let big = spec.scaled(2);
     let s = evaluate(
@@ -190,7 +190,7 @@ fn a_calibration_applies_at_twice_the_size_and_refuses_another_aspect() {
 fn the_contact_stage_takes_its_area_from_depth_when_a_scene_gives_a_calibration() {
     use unitac_contact::{ContactParams, ContactStage};
     use unitac_core::{Msg, Stage, Stamp};
-    let spec = SensorKind::GelsightMini.spec();
+    let spec = SensorKind::GELSIGHT_MINI.spec();
     let (cal, _) = calibrate(spec, 1.0);
     let press = BallPress {
         center_px: [150.0, 110.0],
@@ -257,7 +257,7 @@ fn the_contact_stage_emits_a_depth_map_per_frame_and_an_overlay_only_when_asked(
     use unitac_contact::overlay::{CENTROID, OUTLINE};
     use unitac_contact::{ContactParams, ContactStage};
     use unitac_core::{Msg, Stage, Stamp};
-    let spec = SensorKind::GelsightMini.spec();
+    let spec = SensorKind::GELSIGHT_MINI.spec();
     let (cal, _) = calibrate(spec, 1.0);
     let press = BallPress {
         center_px: [150.0, 110.0],

@@ -54,7 +54,7 @@ fn labels() -> ContactParams {
 
 #[test]
 fn fabric_scenario_gives_two_labelled_episodes_on_both_sensors() {
-    for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
+    for kind in [SensorKind::GELSIGHT_MINI, SensorKind::DIGIT] {
         let r = run(
             MockConfig::new(kind, 11),
             Scenario::fabric_selection(),
@@ -90,7 +90,7 @@ fn fabric_scenario_gives_two_labelled_episodes_on_both_sensors() {
 
 #[test]
 fn ten_minutes_of_drift_and_noise_without_contact_give_no_episode() {
-    for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
+    for kind in [SensorKind::GELSIGHT_MINI, SensorKind::DIGIT] {
         let mut cfg = MockConfig::new(kind, 99);
         cfg.drift = Drift::warmup();
         cfg.fps = 25.0;
@@ -104,7 +104,7 @@ fn ten_minutes_of_drift_and_noise_without_contact_give_no_episode() {
 
 #[test]
 fn exposure_steps_do_not_fire_or_break_contacts() {
-    let mut cfg = MockConfig::new(SensorKind::GelsightMini, 5);
+    let mut cfg = MockConfig::new(SensorKind::GELSIGHT_MINI, 5);
     // +30 % at 0.7 s (no contact yet), -25 % at 1.9 s (during the hold on fabric A).
     cfg.drift.steps = vec![(0.7, 1.3), (1.9, 0.75)];
     let r = run(cfg, Scenario::fabric_selection(), labels());
@@ -119,7 +119,7 @@ fn exposure_steps_do_not_fire_or_break_contacts() {
 
 #[test]
 fn a_contact_held_for_three_minutes_is_not_absorbed() {
-    let mut cfg = MockConfig::new(SensorKind::Digit, 3);
+    let mut cfg = MockConfig::new(SensorKind::DIGIT, 3);
     cfg.fps = 25.0;
     cfg.drift = Drift::warmup();
     let fabric = Scenario::fabric("fabric_a", 0.03, 0.9);
@@ -141,7 +141,7 @@ fn a_contact_held_for_three_minutes_is_not_absorbed() {
 
 #[test]
 fn saturated_dark_and_wrong_size_frames_are_errors_and_leave_state_intact() {
-    let kind = SensorKind::GelsightMini;
+    let kind = SensorKind::GELSIGHT_MINI;
     let mut sensor = MockSensor::new(MockConfig::new(kind, 1), Scenario::fabric_selection());
     let mut det = ContactDetector::new(ContactParams::default(), kind.spec()).unwrap();
     for _ in 0..15 {
@@ -166,7 +166,7 @@ fn saturated_dark_and_wrong_size_frames_are_errors_and_leave_state_intact() {
 
 #[test]
 fn noise_is_measured_per_cell() {
-    let kind = SensorKind::Digit;
+    let kind = SensorKind::DIGIT;
     let mut sensor = MockSensor::new(MockConfig::new(kind, 5), Scenario::idle(2.0));
     let mut det = ContactDetector::new(ContactParams::default(), kind.spec()).unwrap();
     for _ in 0..10 {
@@ -183,7 +183,7 @@ fn noise_is_measured_per_cell() {
 #[test]
 fn coordinates_are_in_input_pixels() {
     for stride in [1, 2, 4] {
-        let kind = SensorKind::Digit;
+        let kind = SensorKind::DIGIT;
         let s = MockSensor::new(MockConfig::new(kind, 8), Scenario::fabric_selection());
         let p = ContactParams {
             stride,
@@ -238,7 +238,7 @@ fn episode_clips_are_bounded_and_hold_the_peak() {
         ..labels()
     };
     let r = run(
-        MockConfig::new(SensorKind::GelsightMini, 4),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 4),
         Scenario::fabric_selection(),
         p,
     );
@@ -257,7 +257,7 @@ fn episode_clips_are_bounded_and_hold_the_peak() {
 
 #[test]
 fn background_saves_loads_and_rejects_bad_files() {
-    let kind = SensorKind::GelsightMini;
+    let kind = SensorKind::GELSIGHT_MINI;
     let s = MockSensor::new(MockConfig::new(kind, 2), Scenario::idle(1.0));
     let mut det = ContactDetector::new(ContactParams::default(), kind.spec()).unwrap();
     for k in 0..10 {
@@ -314,7 +314,7 @@ fn background_saves_loads_and_rejects_bad_files() {
 
 #[test]
 fn markers_are_masked_on_gelsight() {
-    let kind = SensorKind::GelsightMini;
+    let kind = SensorKind::GELSIGHT_MINI;
     let s = MockSensor::new(MockConfig::new(kind, 21), Scenario::fabric_selection());
     let k = (Scenario::fabric_selection()
         .first_hold_time("fabric_a")
@@ -342,7 +342,7 @@ fn markers_are_masked_on_gelsight() {
 
 #[test]
 fn bad_params_are_rejected() {
-    let spec = SensorKind::Digit.spec();
+    let spec = SensorKind::DIGIT.spec();
     for p in [
         ContactParams {
             stride: 0,
@@ -377,7 +377,7 @@ fn bad_params_are_rejected() {
 fn stage_saves_its_background_and_the_next_run_starts_without_learning() {
     let dir = std::env::temp_dir().join(format!("unitac-bgdir-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let kind = SensorKind::Digit;
+    let kind = SensorKind::DIGIT;
     let p = ContactParams {
         background_dir: Some(dir.clone()),
         ..Default::default()

@@ -186,16 +186,16 @@ fn check_sizes(kind: SensorKind, profile_of: SensorKind) {
 
 #[test]
 fn gelsight_mini_presses_under_shading_and_noise() {
-    check_sizes(SensorKind::GelsightMini, SensorKind::GelsightMini);
+    check_sizes(SensorKind::GELSIGHT_MINI, SensorKind::GELSIGHT_MINI);
 }
 
 #[test]
 fn digit_presses_under_shading_and_noise() {
-    check_sizes(SensorKind::Digit, SensorKind::Digit);
+    check_sizes(SensorKind::DIGIT, SensorKind::DIGIT);
 }
 
 /// An unprofiled GelSight-type sensor: the generic profile on GelSight Mini frames.
 #[test]
 fn generic_profile_on_gelsight_frames_at_both_sizes() {
-    check_sizes(SensorKind::GelsightMini, SensorKind::Generic);
+    check_sizes(SensorKind::GELSIGHT_MINI, SensorKind::GENERIC);
 }

@@ -16,7 +16,7 @@ fn fold_press(
     depth_mm: f64,
     hardness: f64,
 ) -> (ContactState, usize, u32) {
-    let kind = SensorKind::GelsightMini;
+    let kind = SensorKind::GELSIGHT_MINI;
     let sensor = MockSensor::new(MockConfig::new(kind, 5), Scenario::idle(1.0));
     let fabric = Object::new("fabric_a", 6.0, 0.03, 0.7)
         .with_hardness(hardness)
@@ -44,7 +44,7 @@ fn fold_press(
 
 #[test]
 fn the_detected_contact_stops_at_the_fold_and_follows_it() {
-    let spec = SensorKind::GelsightMini.spec();
+    let spec = SensorKind::GELSIGHT_MINI.spec();
     let centre = f64::from(spec.height) / 2.0;
     let px_per_mm = 1.0 / spec.mm_per_px;
     for (depth, hardness) in [(0.3, 0.85), (0.6, 0.5), (0.83, 0.8)] {

@@ -29,11 +29,11 @@ fn slip_states(out: Vec<Msg>) -> Vec<SlipState> {
 
 /// 12 frames at rest, 8 pressed 0.8 mm, `tan` ramped in over 8 frames, held 4: the SlipStates.
 fn touch(markers: bool, tan: Tangential) -> Vec<SlipState> {
-    let mut cfg = MockConfig::new(SensorKind::GelsightMini, 11);
+    let mut cfg = MockConfig::new(SensorKind::GELSIGHT_MINI, 11);
     cfg.markers = markers;
     let sensor = MockSensor::new(cfg, Scenario::idle(1.0));
     let fabric = Scenario::fabric("fabric", 0.02, 0.8);
-    let mut c = chain(SensorKind::GelsightMini);
+    let mut c = chain(SensorKind::GELSIGHT_MINI);
     let mut states = Vec::new();
     for k in 0..32u64 {
         let share = (k.saturating_sub(20) as f64 / 8.0).min(1.0);
@@ -104,7 +104,7 @@ fn a_gel_without_dots_gives_invalid_states_not_nan() {
 
 #[test]
 fn a_sensor_without_markers_is_refused_by_name() {
-    let err = SlipStage::new(SlipParams::default(), SensorKind::Digit.spec()).unwrap_err();
+    let err = SlipStage::new(SlipParams::default(), SensorKind::DIGIT.spec()).unwrap_err();
     assert_eq!(
         err,
         ParamsError::NoMarkers {
@@ -117,17 +117,17 @@ fn a_sensor_without_markers_is_refused_by_name() {
         slip_on: 0.2,
         ..SlipParams::default()
     };
-    assert!(SlipStage::new(bad, SensorKind::GelsightMini.spec()).is_err());
+    assert!(SlipStage::new(bad, SensorKind::GELSIGHT_MINI.spec()).is_err());
 }
 
 #[test]
 fn a_frame_of_another_size_is_rejected_and_tracking_goes_on() {
     let sensor = MockSensor::new(
-        MockConfig::new(SensorKind::GelsightMini, 3),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 3),
         Scenario::idle(1.0),
     );
     let fabric = Scenario::fabric("fabric", 0.02, 0.8);
-    let spec = SensorKind::GelsightMini.spec();
+    let spec = SensorKind::GELSIGHT_MINI.spec();
     let mut slip = SlipStage::new(SlipParams::default(), spec).unwrap();
     let clock = unitac_core::ManualClock::default();
     let (bg, _) = sensor.render_contact(0, None, None);
@@ -179,10 +179,10 @@ fn a_frame_of_another_size_is_rejected_and_tracking_goes_on() {
 fn the_overlay_draws_the_markers_displacements_from_rest_while_in_contact() {
     use unitac_contact::MarkerField;
     use unitac_contact::overlay::ARROW;
-    let spec = SensorKind::GelsightMini.spec();
+    let spec = SensorKind::GELSIGHT_MINI.spec();
     let shift_m = [0.3e-3, -0.1e-3];
     for markers in [true, false] {
-        let mut cfg = MockConfig::new(SensorKind::GelsightMini, 11);
+        let mut cfg = MockConfig::new(SensorKind::GELSIGHT_MINI, 11);
         cfg.markers = markers;
         let sensor = MockSensor::new(cfg, Scenario::idle(1.0));
         let fabric = Scenario::fabric("fabric", 0.02, 0.8);

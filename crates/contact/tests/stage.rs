@@ -42,7 +42,7 @@ fn idle_frames(kind: SensorKind, n: u64) -> Vec<Frame> {
 fn a_saved_background_that_fails_to_load_is_warned_about_once_and_learned() {
     let dir = std::env::temp_dir().join(format!("unitac-badbg-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let kind = SensorKind::Digit;
+    let kind = SensorKind::DIGIT;
     std::fs::write(
         Background::path_for(&dir, "mock_digit"),
         b"not a background",
@@ -99,7 +99,7 @@ fn the_store_is_asked_once_and_given_the_background_at_the_end() {
         loads: Arc::clone(&loads),
         saves: Arc::clone(&saves),
     };
-    let kind = SensorKind::GelsightMini;
+    let kind = SensorKind::GELSIGHT_MINI;
     let mut stage =
         ContactStage::with_store(ContactParams::default(), kind.spec(), Some(Box::new(store)))
             .unwrap();
@@ -116,10 +116,10 @@ fn sized_frames(w: u32, h: u32, range: std::ops::Range<u64>) -> Vec<Frame> {
         width: w,
         height: h,
         mm_per_px: 0.0405 * 320.0 / f64::from(w),
-        ..SensorKind::Digit.spec()
+        ..SensorKind::DIGIT.spec()
     };
     let s = MockSensor::with_spec(
-        MockConfig::new(SensorKind::Digit, 4),
+        MockConfig::new(SensorKind::DIGIT, 4),
         spec,
         Scenario::idle(3.0),
     )
@@ -131,7 +131,7 @@ fn sized_frames(w: u32, h: u32, range: std::ops::Range<u64>) -> Vec<Frame> {
 fn a_sustained_new_frame_size_is_learned_again_and_an_odd_frame_is_only_rejected() {
     let p = ContactParams::default();
     let (learn, n) = (p.learn_frames as usize, p.new_size_frames as usize);
-    let mut stage = ContactStage::new(p, SensorKind::Digit.spec()).unwrap();
+    let mut stage = ContactStage::new(p, SensorKind::DIGIT.spec()).unwrap();
     // One 32x24 frame first, then 60 of 64x48 (the first frame used to lock the size).
     let mut frames = sized_frames(32, 24, 0..1);
     frames.extend(sized_frames(64, 48, 1..61));

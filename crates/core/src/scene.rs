@@ -106,7 +106,7 @@ pub struct SourceSpec {
 }
 
 fn default_sensor() -> SensorKind {
-    SensorKind::GelsightMini
+    SensorKind::GELSIGHT_MINI
 }
 
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -445,7 +445,7 @@ mod tests {
     fn parses_a_minimal_scene() {
         let s = Scene::parse(OK, Path::new("demo.yaml"), &ctx()).unwrap();
         assert_eq!(s.name, "demo");
-        assert_eq!(s.source.sensor, SensorKind::Digit);
+        assert_eq!(s.source.sensor, SensorKind::DIGIT);
         assert_eq!(s.source.seed, 3);
         assert_eq!(s.stages.len(), 1);
         assert_eq!(s.edges, EdgeSpec::default());

@@ -1,77 +1,142 @@
-//! Sensor specifications (facts from ../shared/notes/sensors.md).
+//! Sensor kinds as data: a sensor kind is one file, `sensors/<name>.yaml`, with what differs
+//! between kinds (image size and crop, mm per pixel, markers, the camera settings and LED control,
+//! how its USB device is recognised, the mock sensor's lighting, its URDF macro) and where each
+//! figure comes from. The driver, the contact stage, the mock sensor and the launch planner read
+//! the profile; no code asks which kind a sensor is.
+//!
+//! The shipped files are checked and compiled in at build time (crates/core/build.rs: a broken
+//! file fails the build); a directory in `UNITAC_SENSORS` adds kinds at run time, read once per
+//! process (a file there replaces a shipped kind of the same name). [`SensorKind`] is a copyable
+//! handle to a profile, compared, hashed and serialized by its name.
 
-use serde::{Deserialize, Serialize};
+#[path = "../build/sensor_profile.rs"]
+mod raw;
+
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::fmt;
+use std::hash::{Hash, Hasher};
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
+use std::sync::OnceLock;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum SensorKind {
-    GelsightMini,
-    Digit,
-    /// Any other RGB tactile camera: no vendor defaults beyond the output size.
-    Generic,
+/// Largest profile file read \[bytes], and most files read from `UNITAC_SENSORS`.
+pub const MAX_PROFILE_BYTES: usize = 64 << 10;
+pub const MAX_PROFILES: usize = 64;
+
+/// One sensor kind (module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorProfile {
+    pub name: &'static str,
+    pub description: &'static str,
+    /// Size the camera streams at, and the size the driver publishes.
+    pub native: [u32; 2],
+    pub size: [u32; 2],
+    pub fps: f64,
+    /// Gel-surface millimetres per published pixel.
+    pub mm_per_px: f64,
+    pub markers: Markers,
+    /// Fraction of the width and height cut from each side before the resize.
+    pub crop: f64,
+    /// Largest upscale of the decoded crop to the output size.
+    pub max_upscale: f64,
+    /// The camera settings written at open (a calibration file may override them).
+    pub camera: CameraDefaults,
+    pub led: LedControl,
+    /// How its USB device is recognised (None: only by an explicit choice).
+    pub usb: Option<UsbMatch>,
+    /// The mock sensor's lit gel, R, G, B.
+    pub mock_light: [LightChannel; 3],
+    /// Its URDF macro (`urdf/<urdf>.urdf.xacro`).
+    pub urdf: Option<&'static str>,
 }
 
-impl SensorKind {
-    pub const ALL: [SensorKind; 3] = [
-        SensorKind::GelsightMini,
-        SensorKind::Digit,
-        SensorKind::Generic,
-    ];
+/// The camera settings a kind opens with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CameraDefaults {
+    /// Manual exposure in 100 us units.
+    pub exposure: Option<u32>,
+    pub white_balance_k: Option<u32>,
+    pub gain: Option<u32>,
+    /// LED levels R, G, B (0..=15).
+    pub led: Option<[u8; 3]>,
+}
 
-    pub fn as_str(self) -> &'static str {
-        match self {
-            SensorKind::GelsightMini => "gelsight-mini",
-            SensorKind::Digit => "digit",
-            SensorKind::Generic => "generic",
-        }
+/// How a kind's LEDs are set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LedControl {
+    None,
+    /// DIGIT: the V4L2 zoom control carries (r << 8) | (g << 4) | b from firmware 200.
+    Digit,
+}
+
+/// How a kind's USB device is recognised and where its serial is.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UsbMatch {
+    /// (vendor, product) ids.
+    pub id: [u16; 2],
+    /// The ids of its firmware-update mode.
+    pub dfu_id: Option<[u16; 2]>,
+    /// The product name must start with this.
+    pub product_prefix: Option<&'static str>,
+    /// `A` stands for A-Z or 0-9, anything else for itself; None: any serial (and a device
+    /// without one is still the kind).
+    pub serial_pattern: Option<&'static str>,
+    /// Where the serial is read, first match wins.
+    pub serial_from: &'static [SerialFrom],
+}
+
+/// Where a serial number is read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SerialFrom {
+    UsbSerial,
+    /// The product name's last word ("GelSight Mini R0B 28J3-CWXU").
+    ProductLastWord,
+}
+
+impl UsbMatch {
+    /// Whether `s` is a serial of this kind.
+    pub fn serial_ok(&self, s: &str) -> bool {
+        let Some(p) = self.serial_pattern else {
+            return !s.is_empty();
+        };
+        s.len() == p.len()
+            && s.bytes().zip(p.bytes()).all(|(c, want)| match want {
+                b'A' => c.is_ascii_uppercase() || c.is_ascii_digit(),
+                _ => c == want,
+            })
     }
+}
 
-    /// Whether the gel carries marker dots (GelSight Mini: a printed dot grid; DIGIT: none;
-    /// a generic gel: not known). The contact stage masks them by default where there are some,
-    /// the slip stage refuses a gel without them, the mock sensor draws them where there are.
-    pub fn markers(self) -> Markers {
-        match self {
-            SensorKind::GelsightMini => Markers::Yes,
-            SensorKind::Digit => Markers::No,
-            SensorKind::Generic => Markers::Unknown,
-        }
-    }
+/// One channel of the mock sensor's lit gel: `base + gain x term(u, v)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightChannel {
+    pub base: f32,
+    pub gain: f32,
+    pub term: LightTerm,
+}
 
-    pub fn spec(self) -> SensorSpec {
-        match self {
-            // Native stream: MJPG 3280x2464 @ 25 fps only; the vendor pipeline crops a border and
-            // resizes to 320x240, ~0.0634 mm/px at that size.
-            SensorKind::GelsightMini => SensorSpec {
-                kind: self,
-                native_width: 3280,
-                native_height: 2464,
-                width: 320,
-                height: 240,
-                fps: 25.0,
-                mm_per_px: 0.0634,
-            },
-            // QVGA 320x240 @ 60/30 fps or VGA 640x480 @ 30/15 fps; ~0.0405 mm/px.
-            SensorKind::Digit => SensorSpec {
-                kind: self,
-                native_width: 320,
-                native_height: 240,
-                width: 320,
-                height: 240,
-                fps: 60.0,
-                mm_per_px: 0.0405,
-            },
-            SensorKind::Generic => SensorSpec {
-                kind: self,
-                native_width: 320,
-                native_height: 240,
-                width: 320,
-                height: 240,
-                fps: 30.0,
-                mm_per_px: 0.05,
-            },
-        }
+/// The shape of a channel's gradient over the image (u, v in [0, 1) from the left and the top).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LightTerm {
+    U,
+    V,
+    OneMinusU,
+    OneMinusV,
+    VOneMinusU,
+}
+
+impl LightChannel {
+    /// The channel's level at (u, v), before the vignette.
+    pub fn at(&self, u: f32, v: f32) -> f32 {
+        let g = self.gain;
+        self.base
+            + match self.term {
+                LightTerm::U => g * u,
+                LightTerm::V => g * v,
+                LightTerm::OneMinusU => g * (1.0 - u),
+                LightTerm::OneMinusV => g * (1.0 - v),
+                LightTerm::VOneMinusU => g * v * (1.0 - u),
+            }
     }
 }
 
@@ -83,25 +148,257 @@ pub enum Markers {
     Unknown,
 }
 
+include!(concat!(env!("OUT_DIR"), "/sensors_generated.rs"));
+
+/// A sensor kind: a handle to its profile.
+#[derive(Clone, Copy)]
+pub struct SensorKind(&'static SensorProfile);
+
+impl SensorKind {
+    pub fn as_str(self) -> &'static str {
+        self.0.name
+    }
+    pub fn profile(self) -> &'static SensorProfile {
+        self.0
+    }
+
+    /// Whether the gel carries marker dots (GelSight Mini: a printed dot grid; DIGIT: none;
+    /// a generic gel: not known). The contact stage masks them by default where there are some,
+    /// the slip stage refuses a gel without them, the mock sensor draws them where there are.
+    pub fn markers(self) -> Markers {
+        self.0.markers
+    }
+
+    pub fn spec(self) -> SensorSpec {
+        let p = self.0;
+        SensorSpec {
+            kind: self,
+            native_width: p.native[0],
+            native_height: p.native[1],
+            width: p.size[0],
+            height: p.size[1],
+            fps: p.fps,
+            mm_per_px: p.mm_per_px,
+        }
+    }
+
+    /// Every known kind: the shipped ones and those of `UNITAC_SENSORS`, sorted by name.
+    pub fn all() -> Vec<SensorKind> {
+        registry().0.clone()
+    }
+
+    /// The kind whose USB device `id`, product name and serial `serial` (None: none read)
+    /// describe, among [`SensorKind::all`].
+    pub fn of_usb(id: [u16; 2], product: Option<&str>, serial: Option<&str>) -> Option<SensorKind> {
+        SensorKind::all().into_iter().find(|k| {
+            k.0.usb.as_ref().is_some_and(|u| {
+                u.id == id
+                    && u.product_prefix
+                        .is_none_or(|pre| product.is_some_and(|p| p.starts_with(pre)))
+                    && (u.serial_pattern.is_none() || serial.is_some_and(|s| u.serial_ok(s)))
+            })
+        })
+    }
+}
+
+impl PartialEq for SensorKind {
+    fn eq(&self, other: &Self) -> bool {
+        self.0.name == other.0.name
+    }
+}
+impl Eq for SensorKind {}
+impl Hash for SensorKind {
+    fn hash<H: Hasher>(&self, h: &mut H) {
+        self.0.name.hash(h);
+    }
+}
+impl fmt::Debug for SensorKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.0.name)
+    }
+}
 impl fmt::Display for SensorKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.as_str())
     }
 }
+impl Serialize for SensorKind {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.0.name)
+    }
+}
+impl<'de> Deserialize<'de> for SensorKind {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
 
-/// A sensor kind name that is none of [`SensorKind::ALL`].
+/// A sensor kind name that is no known kind, or a `UNITAC_SENSORS` file that is no profile.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown sensor kind '{0}' (known: gelsight-mini, digit, generic)")]
-pub struct UnknownSensorKind(pub String);
+pub enum UnknownSensorKind {
+    #[error("unknown sensor kind '{name}' (known: {known})")]
+    Unknown { name: String, known: String },
+    #[error("sensor profile {path}: {msg}")]
+    Bad { path: String, msg: String },
+}
 
 impl FromStr for SensorKind {
     type Err = UnknownSensorKind;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        SensorKind::ALL
-            .into_iter()
+        let (all, err) = registry();
+        if let Some(e) = err {
+            return Err(e.clone());
+        }
+        all.iter()
             .find(|k| k.as_str() == s)
-            .ok_or_else(|| UnknownSensorKind(s.to_string()))
+            .copied()
+            .ok_or_else(|| UnknownSensorKind::Unknown {
+                name: s.chars().take(64).collect(),
+                known: all
+                    .iter()
+                    .map(|k| k.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            })
     }
+}
+
+impl SensorProfile {
+    /// A profile from `text`, the file `path` (its stem must be the kind's name). Its strings are
+    /// leaked: bounded, at most [`MAX_PROFILES`] small files per process.
+    pub fn parse(text: &str, path: &Path) -> Result<SensorProfile, UnknownSensorKind> {
+        let bad = |msg: String| UnknownSensorKind::Bad {
+            path: path.display().to_string(),
+            msg,
+        };
+        crate::yaml::check(text, MAX_PROFILE_BYTES).map_err(|e| bad(e.to_string()))?;
+        let r: raw::RawSensor = serde_yaml::from_str(text).map_err(|e| bad(e.to_string()))?;
+        let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("");
+        let problems = r.problems(stem);
+        if !problems.is_empty() {
+            return Err(bad(problems.join("; ")));
+        }
+        let leak = |s: String| -> &'static str { Box::leak(s.into_boxed_str()) };
+        let term = |t: &str| match t {
+            "u" => LightTerm::U,
+            "v" => LightTerm::V,
+            "1-u" => LightTerm::OneMinusU,
+            "1-v" => LightTerm::OneMinusV,
+            _ => LightTerm::VOneMinusU,
+        };
+        let light = |(base, gain, t): &(f32, f32, String)| LightChannel {
+            base: *base,
+            gain: *gain,
+            term: term(t),
+        };
+        let [r0, r1, r2] = &r.mock_light;
+        Ok(SensorProfile {
+            name: leak(r.name),
+            description: leak(r.description),
+            native: r.native,
+            size: r.size,
+            fps: r.fps,
+            mm_per_px: r.mm_per_px,
+            markers: match r.markers.as_str() {
+                "yes" => Markers::Yes,
+                "no" => Markers::No,
+                _ => Markers::Unknown,
+            },
+            crop: r.crop,
+            max_upscale: r.max_upscale,
+            camera: CameraDefaults {
+                exposure: r.camera.exposure,
+                white_balance_k: r.camera.white_balance_k,
+                gain: r.camera.gain,
+                led: r.camera.led,
+            },
+            led: if r.led == "digit" {
+                LedControl::Digit
+            } else {
+                LedControl::None
+            },
+            usb: r.usb.map(|u| UsbMatch {
+                id: u.id,
+                dfu_id: u.dfu_id,
+                product_prefix: u.product_prefix.map(leak),
+                serial_pattern: u.serial.pattern.map(leak),
+                serial_from: Box::leak(
+                    u.serial
+                        .from
+                        .iter()
+                        .map(|f| {
+                            if f == "usb_serial" {
+                                SerialFrom::UsbSerial
+                            } else {
+                                SerialFrom::ProductLastWord
+                            }
+                        })
+                        .collect::<Vec<_>>()
+                        .into_boxed_slice(),
+                ),
+            }),
+            mock_light: [light(r0), light(r1), light(r2)],
+            urdf: r.urdf.map(leak),
+        })
+    }
+}
+
+/// The profiles in `dir` (`*.yaml`, sorted by name).
+pub fn read_dir(dir: &Path) -> Result<Vec<SensorProfile>, UnknownSensorKind> {
+    let err = |path: &Path, msg: String| UnknownSensorKind::Bad {
+        path: path.display().to_string(),
+        msg,
+    };
+    let mut paths: Vec<PathBuf> = Vec::new();
+    for e in std::fs::read_dir(dir).map_err(|e| err(dir, e.to_string()))? {
+        let p = e.map_err(|e| err(dir, e.to_string()))?.path();
+        if p.extension().is_some_and(|x| x == "yaml") {
+            paths.push(p);
+            if paths.len() > MAX_PROFILES {
+                return Err(err(dir, format!("more than {MAX_PROFILES} .yaml files")));
+            }
+        }
+    }
+    paths.sort();
+    let mut out = Vec::new();
+    for p in paths {
+        let len = std::fs::metadata(&p)
+            .map_err(|e| err(&p, e.to_string()))?
+            .len();
+        if len > MAX_PROFILE_BYTES as u64 {
+            return Err(err(
+                &p,
+                format!("{len} bytes, more than {MAX_PROFILE_BYTES}"),
+            ));
+        }
+        let text = std::fs::read_to_string(&p).map_err(|e| err(&p, e.to_string()))?;
+        out.push(SensorProfile::parse(&text, &p)?);
+    }
+    Ok(out)
+}
+
+/// Every kind (shipped, then `UNITAC_SENSORS`' replacing or adding, sorted by name), and the
+/// error of a `UNITAC_SENSORS` directory that could not be read (its kinds are then absent).
+fn registry() -> &'static (Vec<SensorKind>, Option<UnknownSensorKind>) {
+    static ALL: OnceLock<(Vec<SensorKind>, Option<UnknownSensorKind>)> = OnceLock::new();
+    ALL.get_or_init(|| {
+        let mut all: Vec<SensorKind> = SensorKind::SHIPPED.to_vec();
+        let mut error = None;
+        if let Some(dir) = std::env::var_os("UNITAC_SENSORS") {
+            match read_dir(Path::new(&dir)) {
+                Ok(ps) => {
+                    for p in ps {
+                        all.retain(|k| k.as_str() != p.name);
+                        all.push(SensorKind(Box::leak(Box::new(p))));
+                    }
+                }
+                Err(e) => error = Some(e),
+            }
+        }
+        all.sort_by(|a, b| a.as_str().cmp(b.as_str()));
+        (all, error)
+    })
 }
 
 /// What the rest of the stack needs to know about a sensor's output.
@@ -138,11 +435,12 @@ impl SensorSpec {
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)]
     use super::*;
 
     #[test]
     fn scaled_keeps_the_field_of_view() {
-        let s = SensorKind::GelsightMini.spec();
+        let s = SensorKind::GELSIGHT_MINI.spec();
         let d = s.scaled(2);
         assert_eq!((d.width, d.height), (640, 480));
         let fov = |s: SensorSpec| {
@@ -161,15 +459,58 @@ mod tests {
 
     #[test]
     fn names_round_trip() {
-        for k in SensorKind::ALL {
+        for k in SensorKind::SHIPPED {
             assert_eq!(k.as_str().parse::<SensorKind>(), Ok(k));
         }
-        assert!("kinect".parse::<SensorKind>().is_err());
+        assert_eq!(
+            "kinect".parse::<SensorKind>().unwrap_err().to_string(),
+            "unknown sensor kind 'kinect' (known: digit, gelsight-mini, generic)"
+        );
+    }
+
+    #[test]
+    fn usb_devices_are_recognised_from_the_profiles() {
+        let gs = |p: &str, s: Option<&str>| SensorKind::of_usb([0x0c45, 0x636d], Some(p), s);
+        assert_eq!(
+            gs("GelSight Mini R0B 28J3-CWXU", Some("28J3-CWXU")),
+            Some(SensorKind::GELSIGHT_MINI)
+        );
+        // The id is a generic camera's: the name and a serial of the pattern decide.
+        assert_eq!(gs("USB Camera", Some("28J3-CWXU")), None);
+        assert_eq!(gs("GelSight Mini", Some("28j3-cwxu")), None);
+        assert_eq!(gs("GelSight Mini", None), None);
+        assert_eq!(
+            SensorKind::of_usb([0x2833, 0x0209], None, None),
+            Some(SensorKind::DIGIT)
+        );
+        assert_eq!(SensorKind::of_usb([1, 2], None, None), None);
+    }
+
+    #[test]
+    fn a_broken_profile_names_every_problem() {
+        let text = "{name: x, description: d, native: [0, 1], size: [320, 240], fps: .nan, \
+                    mm_per_px: 0.05, markers: maybe, crop: 0.6, max_upscale: 1, led: rgb, \
+                    mock_light: [[1, 2, u], [1, 2, w], [1, 2, v]]}";
+        let e = SensorProfile::parse(text, Path::new("/p/y.yaml"))
+            .unwrap_err()
+            .to_string();
+        for want in [
+            "/p/y.yaml",
+            "not the file's name",
+            "native = [0, 1]",
+            "fps = NaN",
+            "markers \"maybe\"",
+            "crop = 0.6",
+            "led \"rgb\"",
+            "mock_light[1]",
+        ] {
+            assert!(e.contains(want), "{want}: {e}");
+        }
     }
 
     #[test]
     fn gelsight_streams_only_full_size() {
-        let s = SensorKind::GelsightMini.spec();
+        let s = SensorKind::GELSIGHT_MINI.spec();
         assert_eq!((s.native_width, s.native_height), (3280, 2464));
         assert_eq!((s.width, s.height), (320, 240));
     }

@@ -68,7 +68,7 @@ pub struct Calibration {
     pub mm_per_px: f64,
     #[serde(default)]
     pub camera: CameraSettings,
-    /// See `DecodeConfig::max_upscale` (default: 1.1 for GelSight Mini, 1.0 otherwise).
+    /// See `DecodeConfig::max_upscale` (default: the kind's profile's, 1.1 for GelSight Mini).
     #[serde(default)]
     pub max_upscale: Option<f64>,
 }
@@ -77,22 +77,17 @@ impl Calibration {
     /// Vendor defaults for a model, used when a serial has no file.
     pub fn default_for(kind: SensorKind, serial: &str) -> Self {
         let spec = kind.spec();
-        let (roi, camera) = match kind {
-            SensorKind::GelsightMini => (Crop::uniform(1.0 / 7.0), CameraSettings::gelsight_mini()),
-            SensorKind::Digit => (Crop::NONE, CameraSettings::digit()),
-            SensorKind::Generic => (Crop::NONE, CameraSettings::default()),
-        };
         Self {
             serial: serial.to_string(),
             kind,
-            roi,
+            roi: Crop::uniform(kind.profile().crop),
             rotation: Rotation::None,
             flip_horizontal: false,
             flip_vertical: false,
             width: spec.width,
             height: spec.height,
             mm_per_px: spec.mm_per_px,
-            camera,
+            camera: CameraSettings::for_kind(kind),
             max_upscale: None,
         }
     }
@@ -106,10 +101,7 @@ impl Calibration {
             flip_horizontal: self.flip_horizontal,
             flip_vertical: self.flip_vertical,
             dct_scaling: true,
-            max_upscale: self.max_upscale.unwrap_or(match self.kind {
-                SensorKind::GelsightMini => crate::decode::GELSIGHT_MAX_UPSCALE,
-                _ => 1.0,
-            }),
+            max_upscale: self.max_upscale.unwrap_or(self.kind.profile().max_upscale),
         }
     }
 
@@ -215,23 +207,23 @@ rotation: cw270\nwidth: 240\nheight: 320\nmm_per_px: 0.0405\ncamera: {led: {r: 1
     fn load_for_uses_defaults_bounds_size_and_checks_serial() {
         let dir = std::env::temp_dir().join(format!("unitac-calib-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let d = Calibration::load_for(&dir, SensorKind::GelsightMini, "AB12-CD34").unwrap();
+        let d = Calibration::load_for(&dir, SensorKind::GELSIGHT_MINI, "AB12-CD34").unwrap();
         assert_eq!(
             d,
-            Calibration::default_for(SensorKind::GelsightMini, "AB12-CD34")
+            Calibration::default_for(SensorKind::GELSIGHT_MINI, "AB12-CD34")
         );
         std::fs::write(dir.join("D00045.yaml"), DIGIT).unwrap();
-        let c = Calibration::load_for(&dir, SensorKind::Digit, "D00045").unwrap();
+        let c = Calibration::load_for(&dir, SensorKind::DIGIT, "D00045").unwrap();
         assert_eq!(c.width, 240);
         std::fs::write(dir.join("D00046.yaml"), DIGIT).unwrap();
-        assert!(Calibration::load_for(&dir, SensorKind::Digit, "D00046").is_err());
+        assert!(Calibration::load_for(&dir, SensorKind::DIGIT, "D00046").is_err());
         std::fs::write(dir.join("D00047.yaml"), vec![b'#'; 70_000]).unwrap();
         assert!(matches!(
-            Calibration::load_for(&dir, SensorKind::Digit, "D00047"),
+            Calibration::load_for(&dir, SensorKind::DIGIT, "D00047"),
             Err(CalibrationError::TooLarge { .. })
         ));
         // A serial with a path in it never reaches the file system.
-        let c = Calibration::load_for(&dir, SensorKind::Digit, "../D00045").unwrap();
+        let c = Calibration::load_for(&dir, SensorKind::DIGIT, "../D00045").unwrap();
         assert_eq!(c.width, 320);
         std::fs::remove_dir_all(&dir).unwrap();
     }

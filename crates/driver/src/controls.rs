@@ -7,6 +7,7 @@
 use crate::capture::{CaptureDevice, DeviceError};
 use serde::{Deserialize, Serialize};
 use unitac_core::SensorKind;
+use unitac_core::sensor::LedControl;
 
 /// V4L2 control ids (linux/v4l2-controls.h).
 pub mod cid {
@@ -97,25 +98,21 @@ pub struct CameraSettings {
     pub white_balance_k: Option<u32>,
     #[serde(default)]
     pub gain: Option<u32>,
-    /// DIGIT only.
+    /// Written on kinds whose profile has an LED control (DIGIT).
     #[serde(default)]
     pub led: Option<Led>,
 }
 
 impl CameraSettings {
-    /// Vendor advice: auto white balance off at 4500 K, manual exposure, gain 0.
-    pub fn gelsight_mini() -> Self {
+    /// The settings a kind opens with (its profile's `camera`: GelSight Mini, the vendor's auto
+    /// white balance off at 4500 K, manual exposure, gain 0; DIGIT, its LEDs full).
+    pub fn for_kind(kind: SensorKind) -> Self {
+        let c = kind.profile().camera;
         Self {
-            exposure: Some(156),
-            white_balance_k: Some(4500),
-            gain: Some(0),
-            led: None,
-        }
-    }
-    pub fn digit() -> Self {
-        Self {
-            led: Some(Led::FULL),
-            ..Self::default()
+            exposure: c.exposure,
+            white_balance_k: c.white_balance_k,
+            gain: c.gain,
+            led: c.led.map(|[r, g, b]| Led { r, g, b }),
         }
     }
     pub fn validate(&self) -> Result<(), SettingsError> {
@@ -172,7 +169,7 @@ impl CameraSettings {
         if let Some(g) = self.gain {
             v.push(ControlWrite::new("gain", cid::GAIN, g.into()));
         }
-        if kind == SensorKind::Digit {
+        if kind.profile().led == LedControl::Digit {
             if let Some(value) = self.led.and_then(|l| digit_led_value(l, firmware)) {
                 v.push(ControlWrite::new("led", cid::ZOOM_ABSOLUTE, value));
             }
@@ -264,7 +261,8 @@ mod tests {
 
     #[test]
     fn plan_turns_auto_modes_off_first() {
-        let p = CameraSettings::gelsight_mini().plan(SensorKind::GelsightMini, 0);
+        let p =
+            CameraSettings::for_kind(SensorKind::GELSIGHT_MINI).plan(SensorKind::GELSIGHT_MINI, 0);
         let names: Vec<_> = p.iter().map(|w| w.name).collect();
         assert_eq!(
             names,
@@ -276,11 +274,12 @@ mod tests {
                 "gain"
             ]
         );
-        // LEDs only on DIGIT.
-        let s = CameraSettings::digit();
-        assert!(s.plan(SensorKind::GelsightMini, 200).is_empty());
+        // LEDs only where the profile has an LED control (DIGIT).
+        let s = CameraSettings::for_kind(SensorKind::DIGIT);
+        assert_eq!(s.led, Some(Led::FULL));
+        assert!(s.plan(SensorKind::GELSIGHT_MINI, 200).is_empty());
         assert_eq!(
-            s.plan(SensorKind::Digit, 200),
+            s.plan(SensorKind::DIGIT, 200),
             [ControlWrite::new("led", cid::ZOOM_ABSOLUTE, 4095)]
         );
     }

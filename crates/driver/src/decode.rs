@@ -160,9 +160,6 @@ fn one() -> f64 {
     1.0
 }
 
-/// Default `max_upscale` for GelSight Mini (lets the 3280x2464 stream decode at 1/8).
-pub const GELSIGHT_MAX_UPSCALE: f64 = 1.1;
-
 fn yes() -> bool {
     true
 }
@@ -181,15 +178,21 @@ impl DecodeConfig {
             max_upscale: 1.0,
         }
     }
-    /// GelSight Mini vendor pipeline: 1/7 border per side, 320x240. Decoded at 1/8 scale
-    /// (DC only, `crate::dcjpeg`): the cropped region is then 293x220, upsampled 1.09x to
-    /// 320x240; `max_upscale: 1.0` decodes at 1/4 instead (full detail, about 2.5x the CPU).
-    pub fn gelsight_mini() -> Self {
+    /// A kind's pipeline from its profile: its crop, published size and largest upscale.
+    pub fn for_kind(kind: unitac_core::SensorKind) -> Self {
+        let p = kind.profile();
         Self {
-            crop: Crop::uniform(1.0 / 7.0),
-            max_upscale: GELSIGHT_MAX_UPSCALE,
-            ..Self::plain(320, 240)
+            crop: Crop::uniform(p.crop),
+            max_upscale: p.max_upscale,
+            ..Self::plain(p.size[0], p.size[1])
         }
+    }
+    /// GelSight Mini vendor pipeline (sensors/gelsight-mini.yaml): 1/7 border per side,
+    /// 320x240. Decoded at 1/8 scale (DC only, `crate::dcjpeg`): the cropped region is then
+    /// 293x220, upsampled 1.09x to 320x240 (its `max_upscale` 1.1 allows it); `max_upscale: 1.0`
+    /// decodes at 1/4 instead (full detail, about 2.5x the CPU).
+    pub fn gelsight_mini() -> Self {
+        Self::for_kind(unitac_core::SensorKind::GELSIGHT_MINI)
     }
     pub fn check(&self) -> Result<(), DecodeError> {
         check_size(self.out_width, self.out_height)?;

@@ -6,23 +6,20 @@
 //! interface, `<port>/<port>:<cfg>.<intf>/video4linux/videoN/{name,index}`. A UVC camera has two
 //! nodes per interface: `index` 0 is the capture node, 1 the metadata node (skipped).
 //!
-//! Matching: DIGIT is 2833:0209. GelSight Mini uses the generic Arducam/Microdia id 0c45:636d, so
-//! it must also have a product name starting "GelSight Mini" and a serial of the form
+//! Matching: each sensor profile's `usb` (sensors/<kind>.yaml, `unitac_core::sensor::UsbMatch`).
+//! DIGIT is 2833:0209. GelSight Mini uses the generic Arducam/Microdia id 0c45:636d, so its
+//! profile also asks for a product name starting "GelSight Mini" and a serial of the form
 //! XXXX-XXXX (A-Z, 0-9); an ordinary camera with the same id is not a sensor.
 
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 use unitac_core::SensorKind;
+use unitac_core::sensor::{SerialFrom, UsbMatch};
 
 /// Most sysfs entries looked at per directory, and the most bytes read per attribute.
 const MAX_ENTRIES: usize = 4096;
 const MAX_ATTR_BYTES: u64 = 4096;
-
-pub const DIGIT_ID: (u16, u16) = (0x2833, 0x0209);
-/// DIGIT in firmware-update (DFU) mode: not a camera until it is power-cycled.
-pub const DIGIT_DFU_ID: (u16, u16) = (0x0403, 0x0fde);
-pub const GELSIGHT_MINI_ID: (u16, u16) = (0x0c45, 0x636d);
 
 #[derive(Debug, Error)]
 pub enum DiscoverError {
@@ -33,7 +30,7 @@ pub enum DiscoverError {
     },
     #[error("no tactile sensor with serial '{0}' (connected: {1})")]
     NotFound(String, String),
-    #[error("sensor {0} is in firmware-update mode (USB 0403:0fde); power-cycle it")]
+    #[error("sensor {0} is in firmware-update mode; power-cycle it")]
     FirmwareUpdateMode(String),
     #[error("sensor {0} has no V4L2 capture node (uvcvideo not loaded, or a charge-only cable?)")]
     NoCaptureNode(String),
@@ -89,47 +86,44 @@ impl UsbDevice {
 #[serde(rename_all = "kebab-case")]
 pub enum Identity {
     Sensor(SensorKind),
-    DigitFirmwareUpdate,
+    /// A sensor of this kind in its firmware-update mode (not a camera until power-cycled).
+    FirmwareUpdate(SensorKind),
     /// A camera that is not a tactile sensor (e.g. an Arducam with GelSight's USB id).
     OtherCamera,
     NotACamera,
 }
 
-/// `[A-Z0-9]{4}-[A-Z0-9]{4}`
-pub fn is_gelsight_serial(s: &str) -> bool {
-    let b = s.as_bytes();
-    let ok = |c: &u8| c.is_ascii_uppercase() || c.is_ascii_digit();
-    b.len() == 9 && b[4] == b'-' && b[..4].iter().all(ok) && b[5..].iter().all(ok)
+/// The serial of a device of the kind `usb` describes: from where its profile says, first match
+/// of its pattern wins.
+pub fn serial_of(d: &UsbDevice, usb: &UsbMatch) -> Option<String> {
+    usb.serial_from.iter().find_map(|from| {
+        let s = match from {
+            SerialFrom::UsbSerial => d.serial.as_deref(),
+            SerialFrom::ProductLastWord => d
+                .product
+                .as_deref()
+                .and_then(|p| p.split_whitespace().last()),
+        }?;
+        usb.serial_ok(s).then(|| s.to_string())
+    })
 }
 
-/// The GelSight Mini serial: the USB serial, or else the product name's last word
-/// ("GelSight Mini R0B 28J3-CWXU").
-pub fn gelsight_serial(d: &UsbDevice) -> Option<String> {
-    if let Some(s) = d.serial.as_deref().filter(|s| is_gelsight_serial(s)) {
-        return Some(s.to_string());
-    }
-    d.product
-        .as_deref()
-        .and_then(|p| p.split_whitespace().last())
-        .filter(|s| is_gelsight_serial(s))
-        .map(str::to_string)
-}
-
+/// What the device is: the sensor kind whose profile matches it (ids, product name, serial), a
+/// kind's firmware-update mode, or another device.
 pub fn identify(d: &UsbDevice) -> Identity {
-    let id = (d.vendor, d.product_id);
-    if id == DIGIT_ID {
-        return Identity::Sensor(SensorKind::Digit);
-    }
-    if id == DIGIT_DFU_ID {
-        return Identity::DigitFirmwareUpdate;
-    }
-    if id == GELSIGHT_MINI_ID
-        && d.product
-            .as_deref()
-            .is_some_and(|p| p.starts_with("GelSight Mini"))
-        && gelsight_serial(d).is_some()
-    {
-        return Identity::Sensor(SensorKind::GelsightMini);
+    let id = [d.vendor, d.product_id];
+    let kinds = SensorKind::all();
+    for k in &kinds {
+        let Some(u) = &k.profile().usb else { continue };
+        if u.dfu_id == Some(id) {
+            return Identity::FirmwareUpdate(*k);
+        }
+        let named = u
+            .product_prefix
+            .is_none_or(|pre| d.product.as_deref().is_some_and(|p| p.starts_with(pre)));
+        if u.id == id && named && (u.serial_pattern.is_none() || serial_of(d, u).is_some()) {
+            return Identity::Sensor(*k);
+        }
     }
     if d.video.is_empty() {
         Identity::NotACamera
@@ -252,11 +246,12 @@ pub fn discover(root: &Path) -> Result<Discovery, DiscoverError> {
     for dev in scan_usb(root)? {
         match identify(&dev) {
             Identity::Sensor(kind) => {
-                let serial = match kind {
-                    SensorKind::GelsightMini => gelsight_serial(&dev),
-                    _ => dev.serial.clone(),
-                }
-                .unwrap_or_else(|| format!("usb-{}", dev.port));
+                let serial = kind
+                    .profile()
+                    .usb
+                    .as_ref()
+                    .and_then(|u| serial_of(&dev, u))
+                    .unwrap_or_else(|| format!("usb-{}", dev.port));
                 d.sensors.push(FoundSensor {
                     kind,
                     serial,
@@ -267,7 +262,7 @@ pub fn discover(root: &Path) -> Result<Discovery, DiscoverError> {
                     port: dev.port.clone(),
                 });
             }
-            Identity::DigitFirmwareUpdate => d
+            Identity::FirmwareUpdate(_) => d
                 .firmware_update
                 .push(dev.serial.clone().unwrap_or_else(|| dev.port.clone())),
             Identity::OtherCamera => d.other_cameras.push(format!(
@@ -316,17 +311,54 @@ pub fn find_by_serial(root: &Path, serial: &str) -> Result<(FoundSensor, PathBuf
 
 #[cfg(test)]
 mod tests {
+    #![allow(clippy::unwrap_used)]
     use super::*;
 
+    fn dev(id: [u16; 2], serial: Option<&str>, product: Option<&str>) -> UsbDevice {
+        UsbDevice {
+            port: "1-2".into(),
+            vendor: id[0],
+            product_id: id[1],
+            serial: serial.map(String::from),
+            bcd_device: None,
+            product: product.map(String::from),
+            manufacturer: None,
+            video: Vec::new(),
+        }
+    }
+
     #[test]
-    fn gelsight_serial_pattern() {
-        assert!(is_gelsight_serial("28J3-CWXU"));
-        assert!(is_gelsight_serial("0000-AAAA"));
-        assert!(!is_gelsight_serial("28j3-CWXU"));
-        assert!(!is_gelsight_serial("28J3CWXU"));
-        assert!(!is_gelsight_serial("28J3-CWXU1"));
-        assert!(!is_gelsight_serial("SN0001"));
-        assert!(!is_gelsight_serial("28J3_CWXU"));
-        assert!(!is_gelsight_serial("28J3-CWX\u{e9}"));
+    fn gelsight_serials_follow_the_profiles_pattern() {
+        let u = SensorKind::GELSIGHT_MINI.profile().usb.clone().unwrap();
+        let id = [0x0c45, 0x636d];
+        for good in ["28J3-CWXU", "0000-AAAA"] {
+            assert_eq!(
+                serial_of(&dev(id, Some(good), None), &u).as_deref(),
+                Some(good)
+            );
+        }
+        for bad in [
+            "28j3-CWXU",
+            "28J3CWXU",
+            "28J3-CWXU1",
+            "SN0001",
+            "28J3_CWXU",
+            "28J3-CWX\u{e9}",
+        ] {
+            assert_eq!(serial_of(&dev(id, Some(bad), None), &u), None, "{bad}");
+        }
+        // Else the product name's last word.
+        let d = dev(id, Some("x"), Some("GelSight Mini R0B 28J3-CWXU"));
+        assert_eq!(serial_of(&d, &u).as_deref(), Some("28J3-CWXU"));
+        assert_eq!(identify(&d), Identity::Sensor(SensorKind::GELSIGHT_MINI));
+        // The same id on another camera is not a sensor.
+        assert_eq!(
+            identify(&dev(id, Some("28J3-CWXU"), Some("USB Camera"))),
+            Identity::NotACamera
+        );
+        assert_eq!(
+            identify(&dev([0x0403, 0x0fde], Some("D00051"), None)),
+            Identity::FirmwareUpdate(SensorKind::DIGIT)
+        );
     }
 }

@@ -42,13 +42,13 @@ fn identifies_sensors_and_rejects_look_alikes() {
     assert_eq!(
         ids,
         [
-            Identity::Sensor(SensorKind::Digit),
-            Identity::Sensor(SensorKind::GelsightMini),
+            Identity::Sensor(SensorKind::DIGIT),
+            Identity::Sensor(SensorKind::GELSIGHT_MINI),
             Identity::OtherCamera, // Arducam with GelSight's USB id
             Identity::OtherCamera, // "GelSight Mini R0B" without a serial
             Identity::NotACamera,
-            Identity::DigitFirmwareUpdate,
-            Identity::Sensor(SensorKind::Digit), // no V4L2 node, still a DIGIT
+            Identity::FirmwareUpdate(SensorKind::DIGIT),
+            Identity::Sensor(SensorKind::DIGIT), // no V4L2 node, still a DIGIT
             Identity::NotACamera,
         ]
     );
@@ -65,9 +65,9 @@ fn discovery_summary() {
     assert_eq!(
         s,
         [
-            (SensorKind::Digit, "D00045", Some("0200")),
-            (SensorKind::GelsightMini, "28J3-CWXU", Some("0100")),
-            (SensorKind::Digit, "D00102", Some("0103")),
+            (SensorKind::DIGIT, "D00045", Some("0200")),
+            (SensorKind::GELSIGHT_MINI, "28J3-CWXU", Some("0100")),
+            (SensorKind::DIGIT, "D00102", Some("0103")),
         ]
     );
     assert_eq!(d.sensors[1].nodes, ["video2", "video3"]);
@@ -83,7 +83,7 @@ fn discovery_summary() {
 fn open_by_serial_finds_the_capture_node_or_says_why_not() {
     let root = fixture("two_sensors");
     let (s, node) = find_by_serial(&root, "28J3-CWXU").unwrap();
-    assert_eq!(s.kind, SensorKind::GelsightMini);
+    assert_eq!(s.kind, SensorKind::GELSIGHT_MINI);
     assert_eq!(node, root.join("dev/video2"));
     let (_, node) = find_by_serial(&root, "D00045").unwrap();
     assert_eq!(node, root.join("dev/video0"));

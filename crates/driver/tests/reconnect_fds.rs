@@ -19,7 +19,7 @@ fn descriptors_do_not_grow_over_100_reconnects() {
     let world = World::new("D00045", qvga_yuyv(), yuyv_gradient(320, 240));
     world.lock().unwrap().hold_fd = true;
     let clock = FakeClock::new();
-    let cal = Calibration::default_for(SensorKind::Digit, "D00045");
+    let cal = Calibration::default_for(SensorKind::DIGIT, "D00045");
     let mut cfg = StreamConfig::new("D00045", cal);
     cfg.request.formats = vec![unitac_driver::decode::PixelFormat::Yuyv];
     let backend = FakeBackend {

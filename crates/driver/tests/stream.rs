@@ -17,7 +17,7 @@ fn digit_stream(
     world: &std::sync::Arc<std::sync::Mutex<World>>,
     clock: &FakeClock,
 ) -> SensorStream<FakeBackend, FakeClock> {
-    let cal = Calibration::default_for(SensorKind::Digit, "D00045");
+    let cal = Calibration::default_for(SensorKind::DIGIT, "D00045");
     let mut cfg = StreamConfig::new("D00045", cal);
     cfg.request.formats = vec![PixelFormat::Yuyv];
     SensorStream::open(
@@ -149,7 +149,7 @@ fn a_missing_sensor_at_start_is_an_error() {
     let (world, clock) = (digit_world(), FakeClock::new());
     let cfg = StreamConfig::new(
         "D99999",
-        Calibration::default_for(SensorKind::Digit, "D99999"),
+        Calibration::default_for(SensorKind::DIGIT, "D99999"),
     );
     let r = SensorStream::open(
         cfg,
@@ -167,7 +167,7 @@ fn no_wanted_format_is_fatal_at_open() {
     let (world, clock) = (digit_world(), FakeClock::new());
     let mut cfg = StreamConfig::new(
         "D00045",
-        Calibration::default_for(SensorKind::Digit, "D00045"),
+        Calibration::default_for(SensorKind::DIGIT, "D00045"),
     );
     cfg.request.formats = vec![PixelFormat::Mjpg];
     let r = SensorStream::open(
@@ -234,7 +234,7 @@ fn gelsight_stream(
     world: &std::sync::Arc<std::sync::Mutex<World>>,
     clock: &FakeClock,
 ) -> SensorStream<FakeBackend, FakeClock> {
-    let cal = Calibration::default_for(SensorKind::GelsightMini, "28J3-CWXU");
+    let cal = Calibration::default_for(SensorKind::GELSIGHT_MINI, "28J3-CWXU");
     let mut cfg = StreamConfig::new("28J3-CWXU", cal);
     cfg.request.formats = vec![PixelFormat::Yuyv];
     cfg.request.width = 640;
@@ -288,7 +288,7 @@ fn reconnect_backs_off_then_reopens_by_serial_and_restores_settings() {
     let first = s.next_frame().unwrap().unwrap();
     let settings = CameraSettings {
         exposure: Some(200),
-        ..CameraSettings::gelsight_mini()
+        ..CameraSettings::for_kind(unitac_core::SensorKind::GELSIGHT_MINI)
     };
     s.set_camera_settings(settings).unwrap();
     world.lock().unwrap().present = false;

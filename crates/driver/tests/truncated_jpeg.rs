@@ -124,7 +124,7 @@ fn a_cut_mjpeg_buffer_is_a_corrupt_frame_of_the_stream() {
     };
     let world = World::new("28J3-CWXU", mode, jpeg.clone());
     let clock = FakeClock::new();
-    let cal = Calibration::default_for(SensorKind::GelsightMini, "28J3-CWXU");
+    let cal = Calibration::default_for(SensorKind::GELSIGHT_MINI, "28J3-CWXU");
     let mut cfg = StreamConfig::new("28J3-CWXU", cal);
     cfg.request.formats = vec![PixelFormat::Mjpg];
     cfg.request.width = w;

@@ -407,7 +407,7 @@ mod tests {
             panic!("{cfgs:?}")
         };
         assert_eq!((params.slip_on, params.slip_off), (0.2, 0.1));
-        assert_eq!(sensor.kind, unitac_core::SensorKind::GelsightMini);
+        assert_eq!(sensor.kind, unitac_core::SensorKind::GELSIGHT_MINI);
         assert_eq!(build_stages(&s).unwrap()[1].name(), "slip");
     }
 
@@ -469,18 +469,18 @@ mod tests {
             )
             .unwrap()
         };
-        let good = cal("good.json", SensorKind::GelsightMini, 640, 480);
+        let good = cal("good.json", SensorKind::GELSIGHT_MINI, 640, 480);
         assert_eq!(
             build_stages(&with("depth_ok", &good)).unwrap()[0].name(),
             "contact"
         );
-        let digit = cal("digit.json", SensorKind::Digit, 320, 240);
+        let digit = cal("digit.json", SensorKind::DIGIT, 320, 240);
         let e = build_stages(&with("depth_digit", &digit))
             .err()
             .unwrap()
             .to_string();
         assert!(e.contains("digit") && e.contains("gelsight-mini"), "{e}");
-        let square = cal("square.json", SensorKind::GelsightMini, 320, 320);
+        let square = cal("square.json", SensorKind::GELSIGHT_MINI, 320, 320);
         let e = build_stages(&with("depth_square", &square))
             .err()
             .unwrap()

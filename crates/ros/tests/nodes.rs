@@ -436,7 +436,7 @@ fn fabric_bag<M: unitac_bag::RosMessage>(
     std::fs::remove_dir_all(&dir).ok();
     let mut w = BagWriter::create(&dir, WriteOptions::default()).unwrap();
     let t = w.add_topic(topic, type_name).unwrap();
-    let mut cfg = unitac_sim::MockConfig::new(unitac_core::SensorKind::GelsightMini, 7);
+    let mut cfg = unitac_sim::MockConfig::new(unitac_core::SensorKind::GELSIGHT_MINI, 7);
     cfg.sensor_id = "gs".into();
     let mut mock = unitac_sim::MockSensor::new(
         cfg,

@@ -63,7 +63,7 @@ fn full_params() -> [serde_json::Map<String, Value>; 6] {
     let cal = tmp("depth-cal.json");
     unitac_contact::depth::DepthCalibration {
         format: unitac_contact::depth::model::FORMAT,
-        sensor: unitac_core::SensorKind::GelsightMini,
+        sensor: unitac_core::SensorKind::GELSIGHT_MINI,
         serial: String::new(),
         width: 320,
         height: 240,

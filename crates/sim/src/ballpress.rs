@@ -548,8 +548,8 @@ mod tests {
 
     #[test]
     fn a_rendered_press_differs_from_the_background_only_around_it() {
-        let spec = SensorKind::GelsightMini.spec();
-        let mut cfg = MockConfig::new(SensorKind::GelsightMini, 3);
+        let spec = SensorKind::GELSIGHT_MINI.spec();
+        let mut cfg = MockConfig::new(SensorKind::GELSIGHT_MINI, 3);
         cfg.markers = false;
         let p = BallPress {
             center_px: [100.0, 120.0],

@@ -75,11 +75,11 @@ fn row(name: &str, s: &MockSensor, repeat: usize) -> RenderRow {
 pub fn render_bench(repeat: usize) -> Result<RenderBench, FrameError> {
     let repeat = repeat.max(1);
     let mut rows = Vec::new();
-    for kind in [SensorKind::GelsightMini, SensorKind::Digit] {
+    for kind in [SensorKind::GELSIGHT_MINI, SensorKind::DIGIT] {
         let s = MockSensor::new(MockConfig::new(kind, 5), Scenario::fabric_selection());
         rows.push(row(kind.as_str(), &s, repeat));
     }
-    let d = SensorKind::Digit.spec();
+    let d = SensorKind::DIGIT.spec();
     let vga = SensorSpec {
         width: 640,
         height: 480,
@@ -89,7 +89,7 @@ pub fn render_bench(repeat: usize) -> Result<RenderBench, FrameError> {
         mm_per_px: d.mm_per_px * 0.5,
         ..d
     };
-    let mut cfg = MockConfig::new(SensorKind::Digit, 5);
+    let mut cfg = MockConfig::new(SensorKind::DIGIT, 5);
     cfg.fps = vga.fps;
     let s = MockSensor::with_spec(cfg, vga, Scenario::fabric_selection())?;
     rows.push(row("digit-vga", &s, repeat));

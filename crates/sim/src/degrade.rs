@@ -225,7 +225,7 @@ mod tests {
 
     #[test]
     fn a_shifted_press_moves_its_truth() {
-        let cfg = MockConfig::new(SensorKind::Digit, 1);
+        let cfg = MockConfig::new(SensorKind::DIGIT, 1);
         let sc = Scenario::held(&crate::Object::sphere("ball", 5.0), 0.5, 1.0);
         let d = Degrade {
             shading_dn: 0.0,
@@ -233,10 +233,10 @@ mod tests {
             shift: (0, 0),
             seed: 1,
         };
-        let a = press_fixture(&cfg, SensorKind::Digit.spec(), &sc, "ball", d).unwrap();
+        let a = press_fixture(&cfg, SensorKind::DIGIT.spec(), &sc, "ball", d).unwrap();
         let b = press_fixture(
             &cfg,
-            SensorKind::Digit.spec(),
+            SensorKind::DIGIT.spec(),
             &sc,
             "ball",
             Degrade {

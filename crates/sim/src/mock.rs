@@ -299,16 +299,16 @@ mod tests {
 
     #[test]
     fn same_seed_same_bytes_other_seed_other_bytes() {
-        let a = sensor(SensorKind::GelsightMini, 7).render(40).0;
-        let b = sensor(SensorKind::GelsightMini, 7).render(40).0;
-        let c = sensor(SensorKind::GelsightMini, 8).render(40).0;
+        let a = sensor(SensorKind::GELSIGHT_MINI, 7).render(40).0;
+        let b = sensor(SensorKind::GELSIGHT_MINI, 7).render(40).0;
+        let c = sensor(SensorKind::GELSIGHT_MINI, 8).render(40).0;
         assert_eq!(a, b);
         assert_ne!(a.data(), c.data());
     }
 
     #[test]
     fn frames_are_stamped_at_the_frame_rate() {
-        let mut s = sensor(SensorKind::Digit, 1);
+        let mut s = sensor(SensorKind::DIGIT, 1);
         let f0 = s.next_frame().unwrap().unwrap();
         let f1 = s.next_frame().unwrap().unwrap();
         assert_eq!(f0.stamp, EPOCH);
@@ -318,7 +318,7 @@ mod tests {
 
     #[test]
     fn contact_changes_pixels_only_where_truth_says() {
-        let s = sensor(SensorKind::GelsightMini, 3);
+        let s = sensor(SensorKind::GELSIGHT_MINI, 3);
         let fps = s.cfg.fps;
         let (idle, t_idle) = s.render(0);
         assert_eq!((t_idle.penetration_mm, t_idle.contact_px), (0.0, 0));
@@ -347,7 +347,7 @@ mod tests {
 
     #[test]
     fn truth_mask_matches_contact_pixels_and_drift_scales_the_image() {
-        let mut cfg = MockConfig::new(SensorKind::Digit, 2);
+        let mut cfg = MockConfig::new(SensorKind::DIGIT, 2);
         cfg.drift.steps.push((1.0, 1.25));
         let s = MockSensor::new(cfg, Scenario::fabric_selection());
         let (before, tb) = s.render(10);
@@ -369,8 +369,8 @@ mod tests {
 
     #[test]
     fn gelsight_has_marker_dots_digit_does_not() {
-        let g = sensor(SensorKind::GelsightMini, 1).render(0).0;
-        let d = sensor(SensorKind::Digit, 1).render(0).0;
+        let g = sensor(SensorKind::GELSIGHT_MINI, 1).render(0).0;
+        let d = sensor(SensorKind::DIGIT, 1).render(0).0;
         // A marker centre (12, 12) is much darker than the gel beside it (24, 12).
         let lum = |f: &Frame, x, y| {
             f.pixel(x, y)
@@ -385,8 +385,8 @@ mod tests {
 
     #[test]
     fn a_spec_outside_the_frame_bounds_is_refused_at_construction() {
-        let cfg = MockConfig::new(SensorKind::Digit, 1);
-        let spec = SensorKind::Digit.spec();
+        let cfg = MockConfig::new(SensorKind::DIGIT, 1);
+        let spec = SensorKind::DIGIT.spec();
         for (width, height) in [(0, 240), (320, unitac_core::frame::MAX_SIDE + 1)] {
             let bad = SensorSpec {
                 width,
@@ -419,7 +419,7 @@ mod tests {
 
     #[test]
     fn scenario_runs_to_its_end() {
-        let mut s = sensor(SensorKind::GelsightMini, 0);
+        let mut s = sensor(SensorKind::GELSIGHT_MINI, 0);
         let n = s.frame_count();
         let mut k = 0;
         while s.next_frame().unwrap().is_some() {

@@ -6,7 +6,7 @@
 //! depression, a vignetted background, and per-pixel noise of about 1 DN. The output is a pure
 //! function of the press, the gain and the noise stream.
 
-use unitac_core::{SensorKind, SensorSpec};
+use unitac_core::SensorSpec;
 
 use crate::object::{Object, Shape};
 use crate::rng::{GaussianTable, SplitMix64, quantise_f32};
@@ -565,28 +565,20 @@ fn render_base(spec: &SensorSpec, background: &[f32], markers: bool) -> Vec<f32>
     base
 }
 
-/// Lit, vignetted gel without contact (float DN per channel, RGB).
+/// Lit, vignetted gel without contact (float DN per channel, RGB): the kind's lighting from its
+/// profile (`mock_light`: DIGIT's strong colour gradients from LEDs at the edges, GelSight Mini's
+/// bright, mostly uniform, slightly tinted gel).
 fn render_background(spec: &SensorSpec) -> Vec<f32> {
     let (w, h) = (spec.width as usize, spec.height as usize);
     let mut bg = vec![0f32; w * h * 3];
-    let digit = spec.kind == SensorKind::Digit;
+    let light = spec.kind.profile().mock_light;
     for y in 0..h {
         for x in 0..w {
             let u = x as f32 / w as f32;
             let v = y as f32 / h as f32;
             let r2 = (u - 0.5).powi(2) + (v - 0.5).powi(2);
             let vig = 1.0 - 0.6 * r2;
-            let rgb = if digit {
-                // DIGIT: strong colour gradients from LEDs at the edges.
-                [
-                    70.0 + 110.0 * u,
-                    80.0 + 90.0 * (1.0 - v),
-                    90.0 + 100.0 * v * (1.0 - u),
-                ]
-            } else {
-                // GelSight Mini: bright, mostly uniform, slightly tinted.
-                [150.0 + 20.0 * u, 145.0 + 15.0 * v, 160.0 - 20.0 * u]
-            };
+            let rgb = light.map(|c| c.at(u, v));
             let i = (y * w + x) * 3;
             for c in 0..3 {
                 bg[i + c] = rgb[c] * vig;

@@ -154,7 +154,7 @@ fn the_gel_sees_the_fold_one_layer_and_two_layers_press_differently() {
     let f = w0.spec().fabric("fabric_a").unwrap().clone();
     assert!(f.layers >= 2);
     let sensor = MockSensor::new(
-        MockConfig::new(SensorKind::GelsightMini, 4),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 4),
         Scenario::idle(1.0),
     );
     let spec = *sensor.spec();

@@ -447,7 +447,7 @@ fn the_rendered_frame_follows_the_world() {
     let cfg = TaskConfig::fabric(Split::Train);
     let mut w = TaskWorld::reset(&cfg, 1, 0);
     let sensor = MockSensor::new(
-        MockConfig::new(SensorKind::GelsightMini, 1),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 1),
         Scenario::idle(1.0),
     );
     let (_, idle) = w.sensor_view().render(&sensor, 0);
@@ -473,7 +473,7 @@ fn max_marker_dy(g: &unitac_sim::GroundTruth) -> f64 {
 #[test]
 fn the_gel_displacement_of_a_lift_moves_the_rendered_markers() {
     let sensor = MockSensor::new(
-        MockConfig::new(SensorKind::GelsightMini, 1),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 1),
         Scenario::idle(1.0),
     );
     let mm_per_px = sensor.spec().mm_per_px;

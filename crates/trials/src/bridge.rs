@@ -365,7 +365,7 @@ mod tests {
 
     #[test]
     fn rig_renders_each_frame_once_at_its_own_time() {
-        let cfg = MockConfig::new(SensorKind::GelsightMini, 5);
+        let cfg = MockConfig::new(SensorKind::GELSIGHT_MINI, 5);
         let sensor = MockSensor::new(cfg, Scenario::idle(1.0));
         let mut rig = SensorRig::new(sensor);
         let w = TaskWorld::reset(&TaskConfig::cup(Split::Train), 3, 0);

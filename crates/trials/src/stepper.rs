@@ -285,7 +285,7 @@ mod tests {
             trial: 0,
             rate_hz,
             duration_s,
-            sensor: SensorKind::GelsightMini,
+            sensor: SensorKind::GELSIGHT_MINI,
             sensor_id: "gsmini".into(),
         }
     }

@@ -45,7 +45,7 @@ pub fn tmpdir(name: &str) -> PathBuf {
 /// The first `n` frames of the mock GelSight Mini in the fabric scene (learning, then contacts).
 pub fn mock_frames(n: usize) -> Vec<Frame> {
     let mut s = MockSensor::new(
-        MockConfig::new(SensorKind::GelsightMini, 3),
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 3),
         Scenario::fabric_selection(),
     );
     let mut out = Vec::new();
@@ -60,7 +60,7 @@ pub fn mock_frames(n: usize) -> Vec<Frame> {
 
 pub fn contact_stage() -> Vec<Box<dyn Stage>> {
     vec![Box::new(
-        ContactStage::new(ContactParams::default(), SensorKind::GelsightMini.spec()).unwrap(),
+        ContactStage::new(ContactParams::default(), SensorKind::GELSIGHT_MINI.spec()).unwrap(),
     )]
 }
 

@@ -167,7 +167,7 @@ mod tests {
 
     #[test]
     fn a_gel_without_dots_has_none() {
-        let f = Frame::black_of(SensorKind::Digit, "d");
+        let f = Frame::black_of(SensorKind::DIGIT, "d");
         assert!(find_dots(&f, &params()).unwrap().is_empty());
         assert!(find_dots(&frame_with(&[]), &params()).unwrap().is_empty());
     }

@@ -49,7 +49,7 @@ struct Params {
     control_rate_hz: f64,
     /// Sim time of the trial, in seconds (0: the task's trial length, as `unitac trials` runs it)
     duration_s: f64,
-    /// Mock tactile sensor: gelsight-mini | digit | generic, and its id (frame_id
+    /// Mock tactile sensor: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS, and its id (frame_id
     /// `<sensor_id>_optical_frame`)
     sensor: String,
     sensor_id: String,
