@@ -28,18 +28,24 @@ PACKAGE = "unitac_ros"
 GRIPPER_DIR = os.path.join(os.path.dirname(HERE), "grippers")
 
 
-def serial_grippers():
-    """The serial gripper models the gripper node drives, by name: every profile whose family is not
-    sim (crates/gripper's Model::all(); crates/ros/tests/launch.rs checks that they are the same)."""
-    families = {}
-    extra = [os.environ["UNITAC_GRIPPERS"]] if os.environ.get("UNITAC_GRIPPERS") else []
-    for d in [GRIPPER_DIR] + extra:
+def profiles(directory, env):
+    """Name -> profile of every *.yaml in `directory`, then in $`env` (a later one of a name
+    replaces it), as the nodes read them."""
+    found = {}
+    extra = [os.environ[env]] if os.environ.get(env) else []
+    for d in [directory] + extra:
         for path in sorted(glob.glob(os.path.join(d, "*.yaml"))):
             with open(path) as f:
                 p = yaml.safe_load(f)
             if isinstance(p, dict) and isinstance(p.get("name"), str):
-                families[p["name"]] = p.get("family")
-    return tuple(sorted(n for n, family in families.items() if family != "sim"))
+                found[p["name"]] = p
+    return found
+
+
+def serial_grippers():
+    """The serial gripper models the gripper node drives, by name: every profile whose family is not
+    sim (crates/gripper's Model::all(); crates/ros/tests/launch.rs checks that they are the same)."""
+    return tuple(sorted(n for n, p in profiles(GRIPPER_DIR, "UNITAC_GRIPPERS").items() if p.get("family") != "sim"))
 
 
 SERIAL_GRIPPERS = serial_grippers()
@@ -47,22 +53,7 @@ SERIAL_GRIPPERS = serial_grippers()
 # sensors/ beside launch/: one profile file per sensor kind, the files the nodes compile in;
 # $UNITAC_SENSORS adds more, as the nodes read it.
 SENSOR_DIR = os.path.join(os.path.dirname(HERE), "sensors")
-
-
-def sensor_profiles():
-    """Sensor kind -> its profile (sensors/<kind>.yaml, then $UNITAC_SENSORS, as the nodes read them)."""
-    kinds = {}
-    extra = [os.environ["UNITAC_SENSORS"]] if os.environ.get("UNITAC_SENSORS") else []
-    for d in [SENSOR_DIR] + extra:
-        for path in sorted(glob.glob(os.path.join(d, "*.yaml"))):
-            with open(path) as f:
-                p = yaml.safe_load(f)
-            if isinstance(p, dict) and isinstance(p.get("name"), str):
-                kinds[p["name"]] = p
-    return kinds
-
-
-SENSOR_KINDS = sensor_profiles()
+SENSOR_KINDS = profiles(SENSOR_DIR, "UNITAC_SENSORS")
 # Sensor kind -> (file in urdf/, macro): the frames tf:=true publishes (each profile's `urdf`).
 SENSOR_MACROS = {k: (f"{p['urdf']}.urdf.xacro", p["urdf"]) for k, p in SENSOR_KINDS.items() if p.get("urdf")}
 

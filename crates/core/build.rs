@@ -47,26 +47,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 fn sensors(dir: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
     println!("cargo::rerun-if-changed={}", dir.display());
     println!("cargo::rerun-if-changed=build/sensor_profile.rs");
-    let mut profiles = Vec::new();
-    for entry in std::fs::read_dir(dir)? {
-        let path = entry?.path();
-        if path.extension().is_none_or(|e| e != "yaml") {
-            continue;
-        }
-        println!("cargo::rerun-if-changed={}", path.display());
-        let stem = path
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .ok_or("a sensor profile's name is not UTF-8")?
-            .to_string();
-        let raw: sensor_profile::RawSensor = serde_yaml::from_str(&std::fs::read_to_string(&path)?)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-        let problems = raw.problems(&stem);
-        if !problems.is_empty() {
-            return Err(format!("{}: {}", path.display(), problems.join("; ")).into());
-        }
-        profiles.push(raw);
-    }
+    let mut profiles: Vec<sensor_profile::RawSensor> =
+        read_profiles(dir, |r: &sensor_profile::RawSensor, stem| r.problems(stem))?;
     profiles.sort_by(|a, b| a.name.cmp(&b.name));
     let opt = |v: Option<String>| v.map_or("None".to_string(), |s| format!("Some({s})"));
     let term = |t: &str| match t {
@@ -156,27 +138,10 @@ fn sensors(dir: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
 /// a rule fails the build with every problem.
 fn grippers(dir: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
     println!("cargo::rerun-if-changed={}", dir.display());
-    let mut profiles = Vec::new();
-    for entry in std::fs::read_dir(dir)? {
-        let path = entry?.path();
-        if path.extension().is_none_or(|e| e != "yaml") {
-            continue;
-        }
-        println!("cargo::rerun-if-changed={}", path.display());
-        let stem = path
-            .file_stem()
-            .and_then(|s| s.to_str())
-            .ok_or("a gripper profile's name is not UTF-8")?
-            .to_string();
-        let raw: gripper_profile::RawGripper =
-            serde_yaml::from_str(&std::fs::read_to_string(&path)?)
-                .map_err(|e| format!("{}: {e}", path.display()))?;
-        let problems = raw.problems(&stem);
-        if !problems.is_empty() {
-            return Err(format!("{}: {}", path.display(), problems.join("; ")).into());
-        }
-        profiles.push(raw);
-    }
+    let mut profiles: Vec<gripper_profile::RawGripper> =
+        read_profiles(dir, |r: &gripper_profile::RawGripper, stem| {
+            r.problems(stem)
+        })?;
     profiles.sort_by(|a, b| a.name.cmp(&b.name));
     let family = |f: &str| match f {
         "robotiq" => "Robotiq",
@@ -207,4 +172,33 @@ fn grippers(dir: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
     let out = PathBuf::from(std::env::var("OUT_DIR")?).join("grippers_generated.rs");
     std::fs::write(out, code)?;
     Ok(())
+}
+
+/// Every `*.yaml` in `dir`, parsed and checked by `problems` (given the file's stem); a file that
+/// breaks a rule fails the build with every problem.
+fn read_profiles<T: serde::de::DeserializeOwned>(
+    dir: &std::path::Path,
+    problems: impl Fn(&T, &str) -> Vec<String>,
+) -> Result<Vec<T>, Box<dyn std::error::Error>> {
+    let mut out = Vec::new();
+    for entry in std::fs::read_dir(dir)? {
+        let path = entry?.path();
+        if path.extension().is_none_or(|e| e != "yaml") {
+            continue;
+        }
+        println!("cargo::rerun-if-changed={}", path.display());
+        let stem = path
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .ok_or("a profile's file name is not UTF-8")?
+            .to_string();
+        let raw: T = serde_yaml::from_str(&std::fs::read_to_string(&path)?)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        let p = problems(&raw, &stem);
+        if !p.is_empty() {
+            return Err(format!("{}: {}", path.display(), p.join("; ")).into());
+        }
+        out.push(raw);
+    }
+    Ok(out)
 }

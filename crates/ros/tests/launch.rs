@@ -300,7 +300,7 @@ fn planned_parameters_are_accepted_by_the_nodes() {
             if exe == "unitac_sim_node" {
                 let cup = unitac_trials::TrialOptions::for_task(unitac_sim::task::TaskKind::CUP);
                 let want = format!(
-                    "the cup task at {} Hz for {} s of sim time",
+                    "the cup_deformation task at {} Hz for {} s of sim time",
                     unitac_policy::PolicyParams::default().control_rate_hz,
                     cup.max_s
                 );
