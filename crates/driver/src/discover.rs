@@ -6,7 +6,7 @@
 //! interface, `<port>/<port>:<cfg>.<intf>/video4linux/videoN/{name,index}`. A UVC camera has two
 //! nodes per interface: `index` 0 is the capture node, 1 the metadata node (skipped).
 //!
-//! Matching: each sensor profile's `usb` (sensors/<kind>.yaml, `unitac_core::sensor::UsbMatch`).
+//! Matching: each sensor profile's `usb` (`sensors/<kind>.yaml`, `unitac_core::sensor::UsbMatch`).
 //! DIGIT is 2833:0209. GelSight Mini uses the generic Arducam/Microdia id 0c45:636d, so its
 //! profile also asks for a product name starting "GelSight Mini" and a serial of the form
 //! XXXX-XXXX (A-Z, 0-9); an ordinary camera with the same id is not a sensor.

@@ -30,9 +30,10 @@
 //! The probe is vtla_real's alone: its trigger, the contact state, is in that mode's observation
 //! and not in vla's or vtla_pred's, whose demonstrations go from the approach to the squeeze.
 //!
-//! This is the shape of a task whose demonstrations probe first ([`Task::probe_first`]; the
-//! approach opens to the camera value [`Task::approach_width`] names). Any other task's
-//! demonstration is its expert for `run_s`. The fabric expert touches fabric A and lets go, touches
+//! This is the shape of a task whose demonstrations probe first
+//! ([`unitac_sim::task::Task::probe_first`]; the approach opens to the camera value
+//! [`unitac_sim::task::Task::approach_width`] names). Any other task's demonstration is its
+//! expert for `run_s`. The fabric expert touches fabric A and lets go, touches
 //! B and lets go (each contact episode ends, so the encoder and the comparison stage see both),
 //! waits open for the decision, then grasps the chosen fabric and lifts it. The decision, made
 //! here once both touches are over, is the mode's: vtla_real's from the live PropertyComparison
@@ -108,7 +109,7 @@ pub struct DemoConfig {
     /// Longest approach, touch or release \[s].
     pub timeout_s: f64,
     /// How long the expert runs (after the probe, in a task that probes first) \[s]; None: the
-    /// task's own length ([`Task::demo_s`]).
+    /// task's own length ([`unitac_sim::task::Task::demo_s`]).
     pub run_s: Option<f64>,
     /// Values of one pooled latent ([`pooled`] of the encoder's tokens; the sampler's latent is
     /// pooled already): a latent of another size is an error.
