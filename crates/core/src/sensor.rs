@@ -183,21 +183,8 @@ impl SensorKind {
     }
 
     /// Every known kind: the shipped ones and those of `UNITAC_SENSORS`, sorted by name.
-    pub fn all() -> Vec<SensorKind> {
-        registry().0.clone()
-    }
-
-    /// The kind whose USB device `id`, product name and serial `serial` (None: none read)
-    /// describe, among [`SensorKind::all`].
-    pub fn of_usb(id: [u16; 2], product: Option<&str>, serial: Option<&str>) -> Option<SensorKind> {
-        SensorKind::all().into_iter().find(|k| {
-            k.0.usb.as_ref().is_some_and(|u| {
-                u.id == id
-                    && u.product_prefix
-                        .is_none_or(|pre| product.is_some_and(|p| p.starts_with(pre)))
-                    && (u.serial_pattern.is_none() || serial.is_some_and(|s| u.serial_ok(s)))
-            })
-        })
+    pub fn all() -> &'static [SensorKind] {
+        &registry().0
     }
 }
 
@@ -466,24 +453,6 @@ mod tests {
             "kinect".parse::<SensorKind>().unwrap_err().to_string(),
             "unknown sensor kind 'kinect' (known: digit, gelsight-mini, generic)"
         );
-    }
-
-    #[test]
-    fn usb_devices_are_recognised_from_the_profiles() {
-        let gs = |p: &str, s: Option<&str>| SensorKind::of_usb([0x0c45, 0x636d], Some(p), s);
-        assert_eq!(
-            gs("GelSight Mini R0B 28J3-CWXU", Some("28J3-CWXU")),
-            Some(SensorKind::GELSIGHT_MINI)
-        );
-        // The id is a generic camera's: the name and a serial of the pattern decide.
-        assert_eq!(gs("USB Camera", Some("28J3-CWXU")), None);
-        assert_eq!(gs("GelSight Mini", Some("28j3-cwxu")), None);
-        assert_eq!(gs("GelSight Mini", None), None);
-        assert_eq!(
-            SensorKind::of_usb([0x2833, 0x0209], None, None),
-            Some(SensorKind::DIGIT)
-        );
-        assert_eq!(SensorKind::of_usb([1, 2], None, None), None);
     }
 
     #[test]

@@ -112,8 +112,7 @@ pub fn serial_of(d: &UsbDevice, usb: &UsbMatch) -> Option<String> {
 /// kind's firmware-update mode, or another device.
 pub fn identify(d: &UsbDevice) -> Identity {
     let id = [d.vendor, d.product_id];
-    let kinds = SensorKind::all();
-    for k in &kinds {
+    for k in SensorKind::all() {
         let Some(u) = &k.profile().usb else { continue };
         if u.dfu_id == Some(id) {
             return Identity::FirmwareUpdate(*k);
@@ -360,5 +359,19 @@ mod tests {
             identify(&dev([0x0403, 0x0fde], Some("D00051"), None)),
             Identity::FirmwareUpdate(SensorKind::DIGIT)
         );
+        // The id is a generic camera's: the name and a serial of the pattern decide.
+        let gs = |p: &str, s: Option<&str>| identify(&dev(id, s, Some(p)));
+        assert_eq!(
+            gs("GelSight Mini R0B 28J3-CWXU", Some("28J3-CWXU")),
+            Identity::Sensor(SensorKind::GELSIGHT_MINI)
+        );
+        assert_eq!(gs("USB Camera", Some("28J3-CWXU")), Identity::NotACamera);
+        assert_eq!(gs("GelSight Mini", Some("28j3-cwxu")), Identity::NotACamera);
+        assert_eq!(gs("GelSight Mini", None), Identity::NotACamera);
+        assert_eq!(
+            identify(&dev([0x2833, 0x0209], None, None)),
+            Identity::Sensor(SensorKind::DIGIT)
+        );
+        assert_eq!(identify(&dev([1, 2], None, None)), Identity::NotACamera);
     }
 }
