@@ -592,7 +592,7 @@ def main():
     f_cond, _, lam_cond, _ = ridge_cv(cond(o, s)[ctr], np.log(k_tr), size_bin)
     head = property_head(a.reference)
     fab = [r for r in un if r["category"] == "fabric"]
-    truth = np.array([r["truth"]["roughness_ra_mm"] for r in fab])
+    truth = np.array([r["truth"]["roughness_ra_m"] for r in fab])
     key = [(r["sensor"], r["seed"], r["trial"]) for r in fab]
     pairs = [(i, j) for i in range(len(fab)) for j in range(i + 1, len(fab)) if key[i] == key[j]]
 
@@ -604,7 +604,7 @@ def main():
     # Roughness readouts: the reference property head, and a ridge fitted on the encoder's
     # pooled latents of the TRAINING fabrics (lambda by leave-one-seed-out).
     ftr = [r for r in tr if r["category"] == "fabric"]
-    ra_tr = np.array([r["truth"]["roughness_ra_mm"] for r in ftr])
+    ra_tr = np.array([r["truth"]["roughness_ra_m"] for r in ftr])
     seed_tr = np.array([r["seed"] for r in ftr])
     f_rough = ridge_cv(np.array([r["latent"] for r in ftr]), ra_tr, seed_tr)[0]
     readouts = {"property_head": lambda zz: head(zz)[:, 1], "ridge_on_encoder_latents": f_rough}

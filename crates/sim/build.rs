@@ -26,7 +26,7 @@ struct Cups {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CupRange {
-    diameter_mm: [f64; 2],
+    diameter_m: [f64; 2],
 }
 
 #[derive(Deserialize)]
@@ -40,13 +40,13 @@ struct Fabrics {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FabricType {
-    roughness_mm: [f64; 2],
-    period_mm: [f64; 2],
-    bump_mm: [f64; 2],
+    roughness_m: [f64; 2],
+    period_m: [f64; 2],
+    bump_m: [f64; 2],
     bump_density: [f64; 2],
     hardness: [f64; 2],
-    layer_mm: [f64; 2],
-    k_n_per_mm: [f64; 2],
+    layer_m: [f64; 2],
+    k_n_per_m: [f64; 2],
     friction: [f64; 2],
     mass_kg: [f64; 2],
     layers: [u32; 2],
@@ -91,14 +91,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     writeln!(out, "    cups: CupSplit {{")?;
     writeln!(
         out,
-        "        train_diameter_mm: {},",
-        range("cups.train.diameter_mm", c.train.diameter_mm, 20.0, 200.0)
+        "        train_diameter_m: {},",
+        range("cups.train.diameter_m", c.train.diameter_m, 0.020, 0.200)
             .map_err(|e| bad(e.to_string()))?
     )?;
     writeln!(
         out,
-        "        unseen_diameter_mm: {},",
-        range("cups.unseen.diameter_mm", c.unseen.diameter_mm, 20.0, 200.0)
+        "        unseen_diameter_m: {},",
+        range("cups.unseen.diameter_m", c.unseen.diameter_m, 0.020, 0.200)
             .map_err(|e| bad(e.to_string()))?
     )?;
     for (k, v, lo, hi) in [
@@ -147,13 +147,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         writeln!(out, "            FabricType {{")?;
         writeln!(out, "                name: {name:?},")?;
         for (k, v, lo, hi) in [
-            ("roughness_mm", t.roughness_mm, 0.0, 1.0),
-            ("period_mm", t.period_mm, 0.05, 10.0),
-            ("bump_mm", t.bump_mm, 0.0, 2.0),
-            ("bump_density", t.bump_density, 0.0, 10.0),
+            ("roughness_m", t.roughness_m, 0.0, 1e-3),
+            ("period_m", t.period_m, 5e-5, 0.010),
+            ("bump_m", t.bump_m, 0.0, 0.002),
+            ("bump_density", t.bump_density, 0.0, 1e7),
             ("hardness", t.hardness, 0.05, 1.0),
-            ("layer_mm", t.layer_mm, 0.1, 10.0),
-            ("k_n_per_mm", t.k_n_per_mm, 0.01, 100.0),
+            ("layer_m", t.layer_m, 1e-4, 0.010),
+            ("k_n_per_m", t.k_n_per_m, 10.0, 1e5),
             ("friction", t.friction, 0.01, 5.0),
             ("mass_kg", t.mass_kg, 0.001, 5.0),
         ] {

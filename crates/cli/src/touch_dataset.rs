@@ -207,7 +207,7 @@ pub fn touch(
                     latent: pooled(&e.tokens, w),
                     truth: serde_json::json!({
                         "type": f.fabric.name,
-                        "roughness_ra_mm": f.roughness_ra_mm,
+                        "roughness_ra_m": f.roughness_ra_m,
                         "hardness": f.fabric.hardness,
                     }),
                 });

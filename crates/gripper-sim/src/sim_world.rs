@@ -5,7 +5,7 @@
 //!
 //! Uses only the world's public API: `World::step` with a per-step position target (the commanded
 //! speed and force limit are applied here; the world's own speed limit still holds).
-//! Opening = the world's `width_mm` (cup diameter - 2 x finger position).
+//! Opening = the world's `width_m` (cup diameter - 2 x finger position).
 
 use crate::device::physics::{Drive, Fingers, Physics};
 use unitac_gripper::gripper::{
@@ -47,12 +47,12 @@ impl WorldFingers {
     pub fn error(&self) -> Option<&WorldError> {
         self.error.as_ref()
     }
-    fn diameter_mm(&self) -> f64 {
-        self.world.config().cup.diameter_mm
+    fn diameter_m(&self) -> f64 {
+        self.world.config().cup.diameter_m
     }
     fn read(&self, stalled: bool, closing: bool) -> Fingers {
         Fingers {
-            opening_m: (self.truth.width_mm * 1e-3).min(self.max_opening_m),
+            opening_m: self.truth.width_m.min(self.max_opening_m),
             force_n: self.truth.force_n,
             stalled,
             closing,
@@ -65,13 +65,12 @@ impl Physics for WorldFingers {
         if !(dt.is_finite() && dt > 0.0) || self.error.is_some() {
             return self.fingers;
         }
-        let p = self.truth.finger_mm;
+        let p = self.truth.finger_m;
         let step = if d.enabled {
-            let target =
-                (self.diameter_mm() - d.target_m.clamp(0.0, self.max_opening_m) * 1e3) / 2.0;
+            let target = (self.diameter_m() - d.target_m.clamp(0.0, self.max_opening_m)) / 2.0;
             // Opening speed is split over two fingers.
             self.world
-                .drive(dt, target, d.speed_m_s * 1e3 / 2.0, d.force_n)
+                .drive(dt, target, d.speed_m_s / 2.0, d.force_n)
                 .map(|s| (s.truth, s.closing, s.stalled))
         } else {
             // Motor off: the cup pushes the fingers back to touching.
@@ -208,7 +207,7 @@ mod tests {
 
     #[test]
     fn squeezes_the_cup_to_the_force_limit_and_reports_caught_public_world_api_only() {
-        let cup = Cup::paper(60.0);
+        let cup = Cup::paper(0.060);
         let world = World::new(WorldConfig::new(cup));
         let limits = Limits {
             min_force_n: 1.0,
@@ -239,6 +238,6 @@ mod tests {
         let f = s.force_n.unwrap();
         assert!((4.5..5.5).contains(&f), "force {f}");
         assert!(s.opening_m.unwrap() < 0.060, "cup compressed: {s:?}");
-        assert!(g.fingers().truth().deformation_mm > 0.0);
+        assert!(g.fingers().truth().deformation_m > 0.0);
     }
 }

@@ -367,7 +367,7 @@ fn every_model_activates_and_reaches_a_position_in_si_units() {
 fn sim_world_gripper_in_process_and_over_the_pty_agree() {
     use unitac_gripper_sim::sim_world::{SimWorldGripper, WorldFingers};
     use unitac_sim::{Cup, World, WorldConfig};
-    let world = || World::new(WorldConfig::new(Cup::paper(60.0)));
+    let world = || World::new(WorldConfig::new(Cup::paper(0.060)));
     let limits = Model::named("robotiq_2f85").unwrap().calibration().limits;
     let close = GripperSetpoint {
         opening_m: 0.0,

@@ -43,10 +43,10 @@ fn main() -> Result<(), Box<dyn Error>> {
                 let cup = demo.spec.cup().ok_or("no cup")?;
                 writeln!(
                     out,
-                    "trial {trial:3} cup {:2.0} mm k {:.3} N/mm m {:3.0} g mu {:.2}: \
+                    "trial {trial:3} cup {:2.0} mm k {:.0} N/m m {:3.0} g mu {:.2}: \
                      lift {} ({:.1} mm) deformation {} ({:.2} mm, peak {:.2}) overall {}",
                     cup.diameter_m * 1e3,
-                    cup.wall.k_n_per_mm,
+                    cup.wall.k_n_per_m,
                     cup.mass_kg * 1e3,
                     cup.friction_static,
                     c.lift,

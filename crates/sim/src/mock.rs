@@ -29,8 +29,8 @@ pub struct GroundTruth {
     pub gain: f64,
     /// Grip force per finger \[N] when the world drives the scenario (0 otherwise).
     pub force_n: f64,
-    /// Cup deformation (loss of diameter) \[mm] when the world drives the scenario (0 otherwise).
-    pub deformation_mm: f64,
+    /// Cup deformation (loss of diameter) \[m] when the world drives the scenario (0 otherwise).
+    pub deformation_m: f64,
     /// The tangential input of this frame (zero: none).
     pub tangential: Tangential,
     /// Every marker dot whose rest centre is in the frame, at rest and moved by the tangential
@@ -186,12 +186,12 @@ impl MockSensor {
         let (frame, mut truth) = self.render_contact(index, touching.map(|o| (o, depth)), None);
         truth.label = obj.map(|o| o.label.clone()).unwrap_or_default();
         truth.force_n = grip.map_or(0.0, |g| g.force_n);
-        truth.deformation_mm = grip.map_or(0.0, |g| g.deformation_mm);
+        truth.deformation_m = grip.map_or(0.0, |g| g.deformation_m);
         (frame, truth)
     }
 
     /// Render frame `index` of a press the caller gives instead of the scenario (a task world's
-    /// sensor view): `press` = (object, gel penetration \[mm]); `force_n` and `deformation_mm`
+    /// sensor view): `press` = (object, gel penetration \[mm]); `force_n` and `deformation_m`
     /// go into the ground truth as they are, and the label is the object's even when it does not
     /// touch.
     pub fn render_press(
@@ -199,13 +199,13 @@ impl MockSensor {
         index: u64,
         press: Option<(&Object, f64)>,
         force_n: f64,
-        deformation_mm: f64,
+        deformation_m: f64,
     ) -> (Frame, GroundTruth) {
         let label = press.map(|(o, _)| o.label.clone()).unwrap_or_default();
         let (frame, mut truth) = self.render_contact(index, press, None);
         truth.label = label;
         truth.force_n = force_n;
-        truth.deformation_mm = deformation_mm;
+        truth.deformation_m = deformation_m;
         (frame, truth)
     }
 
@@ -239,7 +239,7 @@ impl MockSensor {
             mask: contact.mask,
             gain,
             force_n: 0.0,
-            deformation_mm: 0.0,
+            deformation_m: 0.0,
             tangential: tangential.copied().unwrap_or_default(),
             markers: self.renderer.marker_truth(press, tangential),
         };

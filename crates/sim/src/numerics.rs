@@ -2,7 +2,7 @@
 //! and extreme cups, and a stability map (wall stiffness x step size).
 //!
 //! The task is the paper's cup squeeze with a prescribed finger motion (so every method sees the
-//! same input): from 0.4 mm open the finger closes at 4 mm/s to the position where the static
+//! same input): from 0.4 mm open the finger closes at 40 mm/s to the position where the static
 //! deformation is 1 cm (or the gel force reaches the gripper's 20 N limit, for walls too stiff to
 //! dent), then holds 0.3 s. Measured: final deformation and peak grip force, against a reference
 //! run with semi-implicit Euler at 1e-7 s (whose own error is estimated from a run at 2e-7 s).
@@ -15,13 +15,13 @@ use crate::world::{Cup, Gel, Method, Substep, World, WorldConfig, static_finger_
 mod charts;
 use charts::series_style;
 
-/// Target deformation \[mm] and force limit \[N] of the task.
-pub const TARGET_MM: f64 = 10.0;
+/// Target deformation \[m] and force limit \[N] of the task.
+pub const TARGET_M: f64 = 0.010;
 pub const MAX_FORCE_N: f64 = 20.0;
-/// Closing speed [mm/s], hold \[s], start \[mm].
-pub const SPEED_MM_S: f64 = 40.0;
+/// Closing speed [m/s], hold \[s], start \[m].
+pub const SPEED_M_S: f64 = 0.040;
 pub const HOLD_S: f64 = 0.3;
-pub const START_MM: f64 = -0.4;
+pub const START_M: f64 = -0.0004;
 /// Reference step \[s].
 pub const REF_STEP_S: f64 = 1e-7;
 /// Step sizes of the accuracy runs \[s].
@@ -32,8 +32,8 @@ pub const DEFAULT_STEP_S: f64 = 1e-3;
 /// The prescribed task for one cup.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Task {
-    /// Final finger position \[mm].
-    pub finger_mm: f64,
+    /// Final finger position \[m].
+    pub finger_m: f64,
     /// End of the closing ramp and of the run \[s].
     pub close_s: f64,
     pub end_s: f64,
@@ -41,10 +41,10 @@ pub struct Task {
 
 impl Task {
     pub fn for_cup(cup: &Cup) -> Self {
-        let finger_mm = static_finger_for(cup, &Gel::default(), TARGET_MM, MAX_FORCE_N);
-        let close_s = (finger_mm - START_MM) / SPEED_MM_S;
+        let finger_m = static_finger_for(cup, &Gel::default(), TARGET_M, MAX_FORCE_N);
+        let close_s = (finger_m - START_M) / SPEED_M_S;
         Self {
-            finger_mm,
+            finger_m,
             close_s,
             end_s: close_s + HOLD_S,
         }
@@ -52,9 +52,9 @@ impl Task {
     /// Finger position at time t.
     pub fn finger_at(&self, t: f64) -> f64 {
         if t >= self.close_s {
-            self.finger_mm
+            self.finger_m
         } else {
-            START_MM + SPEED_MM_S * t.max(0.0)
+            START_M + SPEED_M_S * t.max(0.0)
         }
     }
 }
@@ -62,17 +62,17 @@ impl Task {
 /// Result of one run of the task.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Outcome {
-    pub final_deformation_mm: f64,
-    /// Deformation the moment the finger stops (the end of the closing ramp) \[mm]: still
+    pub final_deformation_m: f64,
+    /// Deformation the moment the finger stops (the end of the closing ramp) \[m]: still
     /// dynamic, unlike the final one, which the hold lets settle to the static equilibrium.
-    pub stop_deformation_mm: f64,
+    pub stop_deformation_m: f64,
     pub peak_force_n: f64,
     /// Integrator steps taken (sub-steps included).
     pub steps: u64,
-    /// Largest |x - x_static| in the first and the second half of the hold \[mm] (a growing
+    /// Largest |x - x_static| in the first and the second half of the hold \[m] (a growing
     /// oscillation = unstable).
-    pub hold_swing_first_mm: f64,
-    pub hold_swing_second_mm: f64,
+    pub hold_swing_first_m: f64,
+    pub hold_swing_second_m: f64,
     /// Why the run stopped early, if it did.
     pub diverged: Option<String>,
 }
@@ -81,9 +81,9 @@ impl Outcome {
     /// Bounded: no divergence and the hold's oscillation does not grow.
     pub fn stable(&self) -> bool {
         self.diverged.is_none()
-            && self.final_deformation_mm.is_finite()
-            && !(self.hold_swing_second_mm > self.hold_swing_first_mm
-                && self.hold_swing_second_mm > 1e-9)
+            && self.final_deformation_m.is_finite()
+            && !(self.hold_swing_second_m > self.hold_swing_first_m
+                && self.hold_swing_second_m > 1e-12)
     }
 }
 
@@ -91,8 +91,8 @@ impl Outcome {
 pub fn run_task(cup: &Cup, method: Method, substep: Substep, h: f64) -> Outcome {
     let task = Task::for_cup(cup);
     let mut cfg = WorldConfig::new(cup.clone()).with_method(method, substep);
-    cfg.start_mm = START_MM;
-    let x_static = static_wall(cup, &cfg.gel, task.finger_mm);
+    cfg.start_m = START_M;
+    let x_static = static_wall(cup, &cfg.gel, task.finger_m);
     let mut w = World::new(cfg);
     // Steps that land exactly on the end of the closing ramp (no input kink inside a step).
     let n_close = (task.close_s / h).round().max(1.0) as u64;
@@ -100,12 +100,12 @@ pub fn run_task(cup: &Cup, method: Method, substep: Substep, h: f64) -> Outcome 
     let n = n_close + ((task.end_s - task.close_s) / h).round().max(2.0) as u64;
     let hold_mid = task.close_s + 0.5 * (n - n_close) as f64 * h;
     let mut out = Outcome {
-        final_deformation_mm: f64::NAN,
-        stop_deformation_mm: f64::NAN,
+        final_deformation_m: f64::NAN,
+        stop_deformation_m: f64::NAN,
         peak_force_n: 0.0,
         steps: 0,
-        hold_swing_first_mm: 0.0,
-        hold_swing_second_mm: 0.0,
+        hold_swing_first_m: 0.0,
+        hold_swing_second_m: 0.0,
         diverged: None,
     };
     for i in 1..=n {
@@ -114,21 +114,21 @@ pub fn run_task(cup: &Cup, method: Method, substep: Substep, h: f64) -> Outcome 
             Ok(s) => {
                 out.steps += u64::from(s.substeps);
                 out.peak_force_n = out.peak_force_n.max(s.step_peak_force_n);
-                out.final_deformation_mm = s.deformation_mm;
+                out.final_deformation_m = s.deformation_m;
                 if i == n_close {
-                    out.stop_deformation_mm = s.deformation_mm;
+                    out.stop_deformation_m = s.deformation_m;
                 }
-                let swing = (0.5 * s.deformation_mm - x_static).abs();
+                let swing = (0.5 * s.deformation_m - x_static).abs();
                 if i > n_close && t > hold_mid {
-                    out.hold_swing_second_mm = out.hold_swing_second_mm.max(swing);
+                    out.hold_swing_second_m = out.hold_swing_second_m.max(swing);
                 } else if i > n_close {
-                    out.hold_swing_first_mm = out.hold_swing_first_mm.max(swing);
+                    out.hold_swing_first_m = out.hold_swing_first_m.max(swing);
                 }
             }
             Err(e) => {
                 out.diverged = Some(e.to_string());
-                out.final_deformation_mm = f64::NAN;
-                out.stop_deformation_mm = f64::NAN;
+                out.final_deformation_m = f64::NAN;
+                out.stop_deformation_m = f64::NAN;
                 out.peak_force_n = f64::NAN;
                 break;
             }
@@ -144,13 +144,13 @@ pub struct AccuracyRow {
     pub method: Method,
     pub substeps: bool,
     pub step_s: f64,
-    pub final_deformation_mm: f64,
-    pub stop_deformation_mm: f64,
+    pub final_deformation_m: f64,
+    pub stop_deformation_m: f64,
     pub peak_force_n: f64,
-    /// |final deformation - reference| \[mm] (NaN when diverged).
-    pub err_deformation_mm: f64,
-    /// |deformation when the finger stops - reference| \[mm].
-    pub err_stop_deformation_mm: f64,
+    /// |final deformation - reference| \[m] (NaN when diverged).
+    pub err_deformation_m: f64,
+    /// |deformation when the finger stops - reference| \[m].
+    pub err_stop_deformation_m: f64,
     /// |peak force - reference| \[N].
     pub err_force_n: f64,
     /// Largest of the three relative errors.
@@ -165,12 +165,12 @@ pub struct AccuracyRow {
 pub struct Reference {
     pub cup: Cup,
     pub task: Task,
-    pub final_deformation_mm: f64,
-    pub stop_deformation_mm: f64,
+    pub final_deformation_m: f64,
+    pub stop_deformation_m: f64,
     pub peak_force_n: f64,
     /// Difference to a run at twice the reference step (an estimate of its own error).
-    pub self_err_deformation_mm: f64,
-    pub self_err_stop_deformation_mm: f64,
+    pub self_err_deformation_m: f64,
+    pub self_err_stop_deformation_m: f64,
     pub self_err_force_n: f64,
     /// Stability bounds at the end state \[s].
     pub bound_explicit_s: f64,
@@ -182,7 +182,7 @@ pub struct Reference {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StabilityCell {
     pub method: Method,
-    pub k_n_per_mm: f64,
+    pub k_n_per_m: f64,
     pub step_s: f64,
     /// The bound (module docs of `world`) at the task's end state says stable.
     pub predicted_stable: bool,
@@ -194,7 +194,7 @@ pub struct NumericsReport {
     pub task: String,
     pub references: Vec<Reference>,
     pub accuracy: Vec<AccuracyRow>,
-    pub map_stiffness_n_per_mm: Vec<f64>,
+    pub map_stiffness_n_per_m: Vec<f64>,
     pub map_steps_s: Vec<f64>,
     pub stability: Vec<StabilityCell>,
     /// Cells where prediction and observation disagree.
@@ -217,8 +217,8 @@ impl Default for NumericsOptions {
             cups: vec![Cup::soft(), Cup::stiff(), Cup::extreme()],
             steps_s: STEPS_S.to_vec(),
             ref_step_s: REF_STEP_S,
-            // 0.01 .. 1000 N/mm: five decades.
-            map_stiffness: (0..11).map(|i| 10f64.powf(-2.0 + 0.5 * i as f64)).collect(),
+            // 10 N/m .. 1 MN/m: five decades.
+            map_stiffness: (0..11).map(|i| 10f64.powf(1.0 + 0.5 * i as f64)).collect(),
             map_steps: STEPS_S.iter().rev().copied().collect(),
         }
     }
@@ -228,10 +228,10 @@ impl Default for NumericsOptions {
 pub fn end_state_bounds(cup: &Cup) -> (f64, f64) {
     let task = Task::for_cup(cup);
     let gel = Gel::default();
-    let x = static_wall(cup, &gel, task.finger_mm);
-    let d = task.finger_mm - x;
+    let x = static_wall(cup, &gel, task.finger_m);
+    let d = task.finger_m - x;
     let k = cup.spring(x).1 + gel.elastic(d).1;
-    let c = cup.damping() + if d > 0.0 { gel.c_n_s_per_mm } else { 0.0 };
+    let c = cup.damping() + if d > 0.0 { gel.c_n_s_per_m } else { 0.0 };
     (
         Method::ExplicitEuler.stable_step(cup.mass(), k, c),
         Method::SemiImplicitEuler.stable_step(cup.mass(), k, c),
@@ -279,11 +279,11 @@ pub fn report_with_progress(
         let reference = Reference {
             cup: cup.clone(),
             task: Task::for_cup(cup),
-            final_deformation_mm: r.final_deformation_mm,
-            stop_deformation_mm: r.stop_deformation_mm,
+            final_deformation_m: r.final_deformation_m,
+            stop_deformation_m: r.stop_deformation_m,
             peak_force_n: r.peak_force_n,
-            self_err_deformation_mm: (r.final_deformation_mm - r2.final_deformation_mm).abs(),
-            self_err_stop_deformation_mm: (r.stop_deformation_mm - r2.stop_deformation_mm).abs(),
+            self_err_deformation_m: (r.final_deformation_m - r2.final_deformation_m).abs(),
+            self_err_stop_deformation_m: (r.stop_deformation_m - r2.stop_deformation_m).abs(),
             self_err_force_n: (r.peak_force_n - r2.peak_force_n).abs(),
             bound_explicit_s: be,
             bound_semi_implicit_s: bs,
@@ -315,22 +315,21 @@ pub fn report_with_progress(
                 std::hint::black_box(run_task(cup, m, sub, h));
                 wall_s = wall_s.min(t0.elapsed().as_secs_f64());
             }
-            let ed = (o.final_deformation_mm - reference.final_deformation_mm).abs();
+            let ed = (o.final_deformation_m - reference.final_deformation_m).abs();
             let ef = (o.peak_force_n - reference.peak_force_n).abs();
             accuracy.push(AccuracyRow {
                 cup: cup.label.clone(),
                 method: m,
                 substeps: matches!(sub, Substep::Stability { .. }),
                 step_s: h,
-                final_deformation_mm: o.final_deformation_mm,
-                stop_deformation_mm: o.stop_deformation_mm,
+                final_deformation_m: o.final_deformation_m,
+                stop_deformation_m: o.stop_deformation_m,
                 peak_force_n: o.peak_force_n,
-                err_deformation_mm: ed,
-                err_stop_deformation_mm: (o.stop_deformation_mm - reference.stop_deformation_mm)
-                    .abs(),
+                err_deformation_m: ed,
+                err_stop_deformation_m: (o.stop_deformation_m - reference.stop_deformation_m).abs(),
                 err_force_n: ef,
-                rel_err: rel(o.final_deformation_mm, reference.final_deformation_mm)
-                    .max(rel(o.stop_deformation_mm, reference.stop_deformation_mm))
+                rel_err: rel(o.final_deformation_m, reference.final_deformation_m)
+                    .max(rel(o.stop_deformation_m, reference.stop_deformation_m))
                     .max(rel(o.peak_force_n, reference.peak_force_n)),
                 steps: o.steps,
                 wall_s,
@@ -345,7 +344,7 @@ pub fn report_with_progress(
     let mut stability = Vec::new();
     for m in Method::ALL {
         for &k in &opts.map_stiffness {
-            let cup = Cup::new("map", 80.0, k);
+            let cup = Cup::new("map", 0.080, k);
             let (be, bs) = end_state_bounds(&cup);
             for &h in &opts.map_steps {
                 let o = run_task(&cup, m, Substep::Off, h);
@@ -356,7 +355,7 @@ pub fn report_with_progress(
                 };
                 stability.push(StabilityCell {
                     method: m,
-                    k_n_per_mm: k,
+                    k_n_per_m: k,
                     step_s: h,
                     predicted_stable,
                     observed_stable: o.stable(),
@@ -372,14 +371,14 @@ pub fn report_with_progress(
         .count();
     NumericsReport {
         task: format!(
-            "close at {SPEED_MM_S} mm/s from {START_MM} mm to a static deformation of \
-             {TARGET_MM} mm (or {MAX_FORCE_N} N), hold {HOLD_S} s; reference: semi-implicit \
+            "close at {SPEED_M_S} m/s from {START_M} m to a static deformation of \
+             {TARGET_M} m (or {MAX_FORCE_N} N), hold {HOLD_S} s; reference: semi-implicit \
              Euler at {:e} s",
             opts.ref_step_s
         ),
         references,
         accuracy,
-        map_stiffness_n_per_mm: opts.map_stiffness.clone(),
+        map_stiffness_n_per_m: opts.map_stiffness.clone(),
         map_steps_s: opts.map_steps.clone(),
         stability,
         map_disagreements,
@@ -397,20 +396,20 @@ impl NumericsReport {
         );
         let _ = writeln!(
             s,
-            "  cup      k [N/mm]  finger [mm]  final defo. [mm]  at stop [mm]  peak force [N]  self-error [mm / mm / N]        bound expl. [s]  bound semi [s]"
+            "  cup        k [N/m]  finger [m]  final defo. [m]  at stop [m]  peak force [N]  self-error [m / m / N]          bound expl. [s]  bound semi [s]"
         );
         for r in &self.references {
             let _ = writeln!(
                 s,
-                "  {:<8} {:>8.3}  {:>11.3}  {:>16.6}  {:>12.6}  {:>14.6}  {:>7.1e} / {:>7.1e} / {:>7.1e}  {:>15.2e}  {:>14.2e}",
+                "  {:<8} {:>10.1}  {:>10.3e}  {:>15.6e}  {:>11.6e}  {:>14.6}  {:>7.1e} / {:>7.1e} / {:>7.1e}  {:>15.2e}  {:>14.2e}",
                 r.cup.label,
-                r.cup.k_n_per_mm,
-                r.task.finger_mm,
-                r.final_deformation_mm,
-                r.stop_deformation_mm,
+                r.cup.k_n_per_m,
+                r.task.finger_m,
+                r.final_deformation_m,
+                r.stop_deformation_m,
                 r.peak_force_n,
-                r.self_err_deformation_mm,
-                r.self_err_stop_deformation_mm,
+                r.self_err_deformation_m,
+                r.self_err_stop_deformation_m,
                 r.self_err_force_n,
                 r.bound_explicit_s,
                 r.bound_semi_implicit_s
@@ -419,7 +418,7 @@ impl NumericsReport {
         let _ = writeln!(s, "\naccuracy against run time (one core, best of 3)");
         let _ = writeln!(
             s,
-            "  cup      method                     step [s]   steps      time [ms]  err final [mm]  err stop [mm]  err peak [N]  rel. err"
+            "  cup      method                     step [s]   steps      time [ms]  err final [m]   err stop [m]   err peak [N]  rel. err"
         );
         for a in &self.accuracy {
             let (_, name) = series_style(a.method, a.substeps);
@@ -428,8 +427,8 @@ impl NumericsReport {
             } else {
                 format!(
                     "{:>14.2e}  {:>13.2e}  {:>12.2e}  {:>8.1e}{}",
-                    a.err_deformation_mm,
-                    a.err_stop_deformation_mm,
+                    a.err_deformation_m,
+                    a.err_stop_deformation_m,
                     a.err_force_n,
                     a.rel_err,
                     if a.stable {
@@ -456,18 +455,18 @@ impl NumericsReport {
         );
         for m in Method::ALL {
             let _ = writeln!(s, "  {m}");
-            let mut hdr = String::from("    k [N/mm] \\ h [s]");
+            let mut hdr = String::from("     k [N/m] \\ h [s]");
             for h in &self.map_steps_s {
                 let _ = write!(hdr, " {:>6.0e}", h);
             }
             let _ = writeln!(s, "{hdr}");
-            for &k in &self.map_stiffness_n_per_mm {
-                let mut row = format!("    {:>17.3}", k);
+            for &k in &self.map_stiffness_n_per_m {
+                let mut row = format!("    {:>17.1}", k);
                 for &h in &self.map_steps_s {
                     if let Some(c) = self
                         .stability
                         .iter()
-                        .find(|c| c.method == m && c.k_n_per_mm == k && c.step_s == h)
+                        .find(|c| c.method == m && c.k_n_per_m == k && c.step_s == h)
                     {
                         let mark = if c.observed_stable { "S" } else { "U" };
                         let flag = if c.predicted_stable == c.observed_stable {
@@ -508,12 +507,12 @@ mod tests {
             Substep::Stability { safety: 0.5 },
             DEFAULT_STEP_S,
         );
-        assert!(o.stable() && o.final_deformation_mm.is_finite(), "{o:?}");
+        assert!(o.stable() && o.final_deformation_m.is_finite(), "{o:?}");
         assert!(
-            rel(o.final_deformation_mm, r.final_deformation_mm) < 5e-3,
+            rel(o.final_deformation_m, r.final_deformation_m) < 5e-3,
             "{} vs {}",
-            o.final_deformation_mm,
-            r.final_deformation_mm
+            o.final_deformation_m,
+            r.final_deformation_m
         );
         assert!(
             rel(o.peak_force_n, r.peak_force_n) < 5e-3,
@@ -536,13 +535,13 @@ mod tests {
         );
         // Backward Euler at the same step stays finite and bounded.
         let b = run_task(&cup, Method::BackwardEuler, Substep::Off, DEFAULT_STEP_S);
-        assert!(b.stable() && rel(b.final_deformation_mm, r.final_deformation_mm) < 0.05);
+        assert!(b.stable() && rel(b.final_deformation_m, r.final_deformation_m) < 0.05);
     }
 
     #[test]
     fn explicit_euler_is_flagged_unstable_where_the_bound_says() {
-        for k in [0.1, 10.0, 1000.0] {
-            let cup = Cup::new("k", 80.0, k);
+        for k in [100.0, 1e4, 1e6] {
+            let cup = Cup::new("k", 0.080, k);
             let (be, _) = end_state_bounds(&cup);
             assert!(
                 run_task(&cup, Method::ExplicitEuler, Substep::Off, 0.5 * be).stable(),
@@ -561,7 +560,7 @@ mod tests {
             cups: vec![Cup::stiff()],
             steps_s: vec![1e-3, 1e-4],
             ref_step_s: 1e-6,
-            map_stiffness: vec![0.1, 10.0],
+            map_stiffness: vec![100.0, 1e4],
             map_steps: vec![1e-4, 1e-3],
         };
         let r = report(&opts);

@@ -9,6 +9,11 @@
 //! object's surface flattens around the contact, which this model renders as radii of curvature
 //! divided by h: a soft fabric indents the gel less for the same approach and spreads the contact
 //! over the area a rigid one of the same approach would cover (a^2 = 2 R d is kept).
+//!
+//! Units: the gel-side geometry here and in the renderer is in millimetres of gel, the mock
+//! sensor's own scale (its image is `px_per_mm` pixels per millimetre). Everything else in the
+//! workspace is SI; world quantities enter through [`MM_PER_M`] where a task hands an object to
+//! the renderer.
 
 /// Indenter shape. `Object::radius_mm` is the sphere's radius, the flat punch's radius, or the
 /// edge's radius of curvature.
@@ -32,6 +37,10 @@ impl Shape {
         }
     }
 }
+
+/// Millimetres of gel per metre: the one conversion between the world's SI quantities and the
+/// renderer's gel geometry.
+pub const MM_PER_M: f64 = 1e3;
 
 /// Fillet of a flat punch's rim, as a share of its radius.
 pub const FLAT_FILLET: f64 = 0.15;

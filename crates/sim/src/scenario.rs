@@ -1,5 +1,6 @@
 //! Scenarios: timed phases of pressing objects into the gel.
 
+use crate::object::MM_PER_M;
 pub use crate::object::Object;
 use crate::world::{Cup, GripSample, WorldConfig, grip_cup};
 use thiserror::Error;
@@ -64,7 +65,7 @@ fn press(o: &Object, depth: f64, hold_s: f64) -> [Phase; 3] {
 }
 
 fn start_pen(samples: &[GripSample]) -> f64 {
-    samples.first().map_or(0.0, |s| s.penetration_mm)
+    samples.first().map_or(0.0, |s| s.penetration_m * MM_PER_M)
 }
 
 impl Scenario {
@@ -165,16 +166,17 @@ impl Scenario {
     /// limit until the cup is compressed by 1 cm (ground truth), holds 1 s, opens. The gel
     /// penetration the world computes drives the renderer; force and deformation are ground truth.
     pub fn cup_deformation() -> Scenario {
-        Self::cup_grip(&Cup::paper(80.0), 10.0)
+        Self::cup_grip(&Cup::paper(0.080), 0.010)
     }
 
-    /// Grip `cup` until it is compressed by `target_mm` (or the gripper's force limit), hold 1 s,
-    /// open (world-driven; semi-implicit Euler with sub-stepping, 1 ms control period).
-    pub fn cup_grip(cup: &Cup, target_mm: f64) -> Scenario {
+    /// Grip `cup` until it is compressed by `target_m` \[m] (or the gripper's force limit), hold
+    /// 1 s, open (world-driven; semi-implicit Euler with sub-stepping, 1 ms control period). The
+    /// world's penetration becomes the phases' gel depth in mm.
+    pub fn cup_grip(cup: &Cup, target_m: f64) -> Scenario {
         let object = cup.object();
         let mut phases = vec![free(1.0)];
         let mut grip = Vec::new();
-        match grip_cup(WorldConfig::new(cup.clone()), target_mm, 1.0, 1e-3) {
+        match grip_cup(WorldConfig::new(cup.clone()), target_m, 1.0, 1e-3) {
             Ok(run) => {
                 // One phase per 10 ms of the grip, linear between world samples; the settled part
                 // of the hold (0.1 s after closing until opening) is one constant phase.
@@ -200,9 +202,9 @@ impl Scenario {
                                 duration_s: dt,
                                 object: Some(object.clone()),
                                 from_mm: pen_prev,
-                                to_mm: s.penetration_mm,
+                                to_mm: s.penetration_m * MM_PER_M,
                             });
-                            pen_prev = s.penetration_mm;
+                            pen_prev = s.penetration_m * MM_PER_M;
                             hold_open = false;
                         }
                     }
@@ -311,8 +313,11 @@ mod tests {
         let (d, o) = s.at(t);
         assert_eq!(o.unwrap().label, "cup");
         let g = s.grip_at(t).unwrap();
-        assert!((g.deformation_mm - 10.0).abs() < 0.1, "{g:?}");
-        assert!((g.penetration_mm - d).abs() < 1e-3, "{g:?} vs {d}");
+        assert!((g.deformation_m - 0.010).abs() < 1e-4, "{g:?}");
+        assert!(
+            (g.penetration_m * MM_PER_M - d).abs() < 1e-3,
+            "{g:?} vs {d}"
+        );
         assert!(d > 0.4 && d < 1.0, "{d}");
         assert!(g.force_n > 1.0);
         // Phases are continuous and the scenario ends free.

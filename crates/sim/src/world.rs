@@ -12,12 +12,12 @@ pub mod integrate;
 pub mod model;
 
 pub use integrate::{Method, Substep, UnknownMethod};
-pub use model::{Cup, GEL_DOME_MM, Gel, Gripper, static_finger_for, static_wall};
+pub use model::{Cup, GEL_DOME_M, Gel, Gripper, static_finger_for, static_wall};
 
 /// What the gripper is told to do.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub enum Command {
-    /// Finger position \[mm] (closing, 0 = touching the undeformed cup).
+    /// Finger position \[m] (closing, 0 = touching the undeformed cup).
     Position(f64),
     /// Grip force per finger \[N].
     Force(f64),
@@ -32,8 +32,8 @@ pub struct WorldConfig {
     pub substep: Substep,
     /// Sub-steps allowed per step before the world reports that it cannot keep the bound.
     pub max_substeps: u32,
-    /// Finger position at t = 0 \[mm] (negative: open, not touching).
-    pub start_mm: f64,
+    /// Finger position at t = 0 \[m] (negative: open, not touching).
+    pub start_m: f64,
 }
 
 impl WorldConfig {
@@ -46,7 +46,7 @@ impl WorldConfig {
             method: Method::SemiImplicitEuler,
             substep: Substep::Stability { safety: 0.5 },
             max_substeps: 100_000,
-            start_mm: -0.4,
+            start_m: -0.0004,
         }
     }
     pub fn with_method(mut self, method: Method, substep: Substep) -> Self {
@@ -83,18 +83,18 @@ pub enum WorldError {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
 pub struct WorldTruth {
     pub t_s: f64,
-    /// Finger position \[mm] (closing, 0 = touching the undeformed cup).
-    pub finger_mm: f64,
-    /// Gripper opening \[mm]: cup diameter - 2 x finger position.
-    pub width_mm: f64,
+    /// Finger position \[m] (closing, 0 = touching the undeformed cup).
+    pub finger_m: f64,
+    /// Gripper opening \[m]: cup diameter - 2 x finger position.
+    pub width_m: f64,
     /// Force between gel and cup \[N] per finger.
     pub force_n: f64,
-    /// Loss of cup diameter \[mm] (2 x wall deformation).
-    pub deformation_mm: f64,
-    /// Gel penetration \[mm]; negative is the gap to the wall.
-    pub penetration_mm: f64,
-    /// Wall velocity [mm/s].
-    pub wall_velocity_mm_s: f64,
+    /// Loss of cup diameter \[m] (2 x wall deformation).
+    pub deformation_m: f64,
+    /// Gel penetration \[m]; negative is the gap to the wall.
+    pub penetration_m: f64,
+    /// Wall velocity [m/s].
+    pub wall_velocity_m_s: f64,
     /// Integrator steps this world step took.
     pub substeps: u32,
     /// Largest force at the end of any of those sub-steps \[N] (a peak inside the step).
@@ -125,7 +125,7 @@ pub struct World {
 
 impl World {
     pub fn new(cfg: WorldConfig) -> Self {
-        let p = cfg.start_mm;
+        let p = cfg.start_m;
         Self {
             cfg,
             t: 0.0,
@@ -140,9 +140,9 @@ impl World {
         &self.cfg
     }
     /// Set the wall state directly (free-oscillation studies).
-    pub fn set_wall(&mut self, x_mm: f64, v_mm_s: f64) {
-        self.x = x_mm;
-        self.v = v_mm_s;
+    pub fn set_wall(&mut self, x_m: f64, v_m_s: f64) {
+        self.x = x_m;
+        self.v = v_m_s;
     }
     pub fn time(&self) -> f64 {
         self.t
@@ -152,7 +152,7 @@ impl World {
         self.newton_max_iters
     }
 
-    /// Total mechanical energy of wall and gels \[mJ].
+    /// Total mechanical energy of wall and gels \[J].
     pub fn energy(&self) -> f64 {
         0.5 * self.cfg.cup.mass() * self.v * self.v
             + self.cfg.cup.spring_energy(self.x)
@@ -162,12 +162,12 @@ impl World {
     pub fn truth(&self, substeps: u32) -> WorldTruth {
         WorldTruth {
             t_s: self.t,
-            finger_mm: self.p,
-            width_mm: self.cfg.cup.diameter_mm - 2.0 * self.p,
+            finger_m: self.p,
+            width_m: self.cfg.cup.diameter_m - 2.0 * self.p,
             force_n: self.force,
-            deformation_mm: 2.0 * self.x,
-            penetration_mm: self.p - self.x,
-            wall_velocity_mm_s: self.v,
+            deformation_m: 2.0 * self.x,
+            penetration_m: self.p - self.x,
+            wall_velocity_m_s: self.v,
             substeps,
             step_peak_force_n: self.force,
         }
@@ -179,7 +179,7 @@ impl World {
             return Err(WorldError::BadStep(h));
         }
         let g = self.cfg.gripper;
-        let vmax = g.speed_mm_s.max(0.0) * h;
+        let vmax = g.speed_m_s.max(0.0) * h;
         let dp = match cmd {
             Command::Position(target) => (target - self.p).clamp(-vmax, vmax),
             Command::Force(target) => (g.force_gain * (target - self.force) * h).clamp(-vmax, vmax),
@@ -194,18 +194,18 @@ impl World {
         self.step_finger(h, p1)
     }
 
-    /// Advance by `h` seconds as a gripper drive does: the finger moves toward `target_mm` at no
-    /// more than `speed_mm_s`, and does not close further while the force is at or above
+    /// Advance by `h` seconds as a gripper drive does: the finger moves toward `target_m` at no
+    /// more than `speed_m_s`, and does not close further while the force is at or above
     /// `force_n` (the commanded force bound; the world's own limits still hold).
     pub fn drive(
         &mut self,
         h: f64,
-        target_mm: f64,
-        speed_mm_s: f64,
+        target_m: f64,
+        speed_m_s: f64,
         force_n: f64,
     ) -> Result<DriveStep, WorldError> {
-        let v = speed_mm_s.max(0.0) * h;
-        let next = self.p + (target_mm - self.p).clamp(-v, v);
+        let v = speed_m_s.max(0.0) * h;
+        let next = self.p + (target_m - self.p).clamp(-v, v);
         let closing = next > self.p;
         let stalled = closing && self.force >= force_n;
         let to = if stalled { self.p } else { next };
@@ -217,7 +217,7 @@ impl World {
         })
     }
 
-    /// Advance by `h` seconds while the finger moves linearly to `p1` \[mm] (a prescribed motion,
+    /// Advance by `h` seconds while the finger moves linearly to `p1` \[m] (a prescribed motion,
     /// as the numerics report uses so every method sees the same input).
     pub fn step_finger(&mut self, h: f64, p1: f64) -> Result<WorldTruth, WorldError> {
         if !(h.is_finite() && h > 0.0) {
@@ -250,10 +250,10 @@ impl World {
         if !(self.x.is_finite() && self.v.is_finite() && self.force.is_finite()) {
             return Some("non-finite state".into());
         }
-        let r = 0.5 * self.cfg.cup.diameter_mm;
+        let r = 0.5 * self.cfg.cup.diameter_m;
         if self.x.abs() > r {
             return Some(format!(
-                "wall moved {:.1} mm, more than the cup's radius",
+                "wall moved {:.4} m, more than the cup's radius",
                 self.x
             ));
         }
@@ -265,9 +265,9 @@ impl World {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
 pub struct GripSample {
     pub t_s: f64,
-    pub penetration_mm: f64,
+    pub penetration_m: f64,
     pub force_n: f64,
-    pub deformation_mm: f64,
+    pub deformation_m: f64,
 }
 
 /// What a closed-loop grip did.
@@ -277,36 +277,36 @@ pub struct GripRun {
     /// Time the target deformation (or the force limit) was reached \[s], and the hold's end.
     pub closed_s: f64,
     pub hold_end_s: f64,
-    pub final_deformation_mm: f64,
+    pub final_deformation_m: f64,
     pub peak_force_n: f64,
 }
 
 /// The paper's cup task, closed loop: close at the speed limit until the cup is compressed by
-/// `target_mm` (ground-truth deformation) or the force limit is hit, hold for `hold_s`, open
+/// `target_m` (ground-truth deformation) or the force limit is hit, hold for `hold_s`, open
 /// back to the start. Control period `dt` \[s]; one sample per control period.
 pub fn grip_cup(
     cfg: WorldConfig,
-    target_mm: f64,
+    target_m: f64,
     hold_s: f64,
     dt: f64,
 ) -> Result<GripRun, WorldError> {
     let mut w = World::new(cfg);
-    let start = w.cfg.start_mm;
-    let far = w.cfg.cup.diameter_mm * 0.5;
+    let start = w.cfg.start_m;
+    let far = w.cfg.cup.diameter_m * 0.5;
     let mut samples = Vec::new();
     let mut peak: f64 = 0.0;
     let sample = |t: WorldTruth| GripSample {
         t_s: t.t_s,
-        penetration_mm: t.penetration_mm,
+        penetration_m: t.penetration_m,
         force_n: t.force_n,
-        deformation_mm: t.deformation_mm,
+        deformation_m: t.deformation_m,
     };
     samples.push(sample(w.truth(0)));
     // Close.
     let max_steps = (60.0 / dt).ceil() as u64;
     let mut k = 0;
     let mut last = w.truth(0);
-    while last.deformation_mm < target_mm && k < max_steps {
+    while last.deformation_m < target_m && k < max_steps {
         last = w.step(dt, Command::Position(far))?;
         peak = peak.max(last.step_peak_force_n);
         samples.push(sample(last));
@@ -324,10 +324,10 @@ pub fn grip_cup(
         samples.push(sample(last));
     }
     let hold_end_s = w.t;
-    let final_deformation_mm = last.deformation_mm;
+    let final_deformation_m = last.deformation_m;
     // Open until the gel has left the wall and the finger is back at the start.
     k = 0;
-    while (w.p > start + 1e-9 || last.penetration_mm > start * 0.25) && k < max_steps {
+    while (w.p > start + 1e-12 || last.penetration_m > start * 0.25) && k < max_steps {
         last = w.step(dt, Command::Position(start))?;
         samples.push(sample(last));
         k += 1;
@@ -336,7 +336,7 @@ pub fn grip_cup(
         samples,
         closed_s,
         hold_end_s,
-        final_deformation_mm,
+        final_deformation_m,
         peak_force_n: peak,
     })
 }
@@ -355,13 +355,13 @@ mod tests {
 
     fn free(method: Method, cup: Cup, h: f64, steps: usize) -> (f64, Vec<f64>) {
         let mut cfg = WorldConfig::new(cup).with_method(method, Substep::Off);
-        cfg.start_mm = -30.0; // fingers far away: a free wall
+        cfg.start_m = -0.030; // fingers far away: a free wall
         let mut w = World::new(cfg);
-        w.set_wall(1.0, 0.0);
+        w.set_wall(0.001, 0.0);
         let e0 = w.energy();
         let mut es = Vec::with_capacity(steps);
         for _ in 0..steps {
-            match w.step_finger(h, -30.0) {
+            match w.step_finger(h, -0.030) {
                 Ok(_) => es.push(w.energy()),
                 Err(_) => {
                     es.push(f64::INFINITY);
@@ -373,21 +373,21 @@ mod tests {
     }
 
     fn undamped(k: f64) -> Cup {
-        let mut c = Cup::new("free", 80.0, k);
+        let mut c = Cup::new("free", 0.080, k);
         c.damping_ratio = 0.0;
         c
     }
 
     #[test]
     fn energy_does_not_grow_in_a_free_oscillation() {
-        for cup in [undamped(0.05), undamped(5.0), undamped(500.0)] {
-            let w = (cup.k_n_per_mm / cup.mass()).sqrt();
+        for cup in [undamped(50.0), undamped(5e3), undamped(5e5)] {
+            let w = (cup.k_n_per_m / cup.mass()).sqrt();
             let h = 0.2 / w; // 31 steps per period
             let steps = 100 * 32; // 100 periods
             // Semi-implicit: energy oscillates within O(w h) of E0 and does not drift.
             let (e0, es) = free(Method::SemiImplicitEuler, cup.clone(), h, steps);
             let max = es.iter().cloned().fold(0.0, f64::max);
-            assert!(max <= e0 * 1.15, "{}: {max} vs {e0}", cup.k_n_per_mm);
+            assert!(max <= e0 * 1.15, "{}: {max} vs {e0}", cup.k_n_per_m);
             let tail = es[es.len() - 64..].iter().cloned().fold(0.0, f64::max);
             let head = es[..64].iter().cloned().fold(0.0, f64::max);
             // (The maxima of two windows differ a little with the sampling phase.)
@@ -410,8 +410,8 @@ mod tests {
     fn explicit_euler_is_unstable_beyond_its_bound_and_stable_within() {
         // A linear wall (the bound is derived for the linearisation), damping ratio 0.05.
         let mut cup = Cup::stiff();
-        cup.k3_n_per_mm3 = 0.0;
-        let (m, k, c) = (cup.mass(), cup.k_n_per_mm, cup.damping());
+        cup.k3_n_per_m3 = 0.0;
+        let (m, k, c) = (cup.mass(), cup.k_n_per_m, cup.damping());
         let bound = Method::ExplicitEuler.stable_step(m, k, c);
         let w = (k / m).sqrt();
         assert!((bound - 2.0 * 0.05 / w).abs() < 1e-12 * bound.max(1.0));
@@ -432,12 +432,12 @@ mod tests {
 
     #[test]
     fn force_rises_monotonically_with_indentation() {
-        for cup in [Cup::soft(), Cup::paper(80.0), Cup::stiff(), Cup::extreme()] {
+        for cup in [Cup::soft(), Cup::paper(0.080), Cup::stiff(), Cup::extreme()] {
             // Static: force at the gel vs finger position.
             let gel = Gel::default();
             let mut prev = -1.0;
             for i in 1..200 {
-                let p = i as f64 * 0.05;
+                let p = i as f64 * 5e-5;
                 let x = static_wall(&cup, &gel, p);
                 let f = gel.elastic(p - x).0;
                 assert!(f > prev, "{}: {f} <= {prev} at {p}", cup.label);
@@ -446,16 +446,16 @@ mod tests {
             }
             // Dynamic: a slow close (1 mm/s) with the implicit method. The gel's viscous part
             // (at most cg x finger speed = 0.002 N) may relax while the wall starts to move.
-            let tol = Gel::default().c_n_s_per_mm * 1.0;
+            let tol = Gel::default().c_n_s_per_m * 1e-3;
             let cfg =
                 WorldConfig::new(cup.clone()).with_method(Method::BackwardEuler, Substep::Off);
             let mut w = World::new(cfg);
             let mut prev = 0.0;
             let mut pen_prev = f64::NEG_INFINITY;
             for i in 1..2000 {
-                let t = w.step_finger(1e-3, -0.4 + i as f64 * 1e-3).unwrap();
-                if t.penetration_mm > 0.0 {
-                    assert!(t.penetration_mm > pen_prev, "{}", cup.label);
+                let t = w.step_finger(1e-3, -0.0004 + i as f64 * 1e-6).unwrap();
+                if t.penetration_m > 0.0 {
+                    assert!(t.penetration_m > pen_prev, "{}", cup.label);
                     assert!(
                         t.force_n >= prev - tol,
                         "{}: {} < {prev}",
@@ -463,7 +463,7 @@ mod tests {
                         t.force_n
                     );
                 }
-                pen_prev = t.penetration_mm;
+                pen_prev = t.penetration_m;
                 prev = t.force_n;
             }
             assert!(prev > 0.0);
@@ -472,16 +472,16 @@ mod tests {
 
     #[test]
     fn grip_reaches_the_target_deformation_and_reports_truth() {
-        let cfg = WorldConfig::new(Cup::paper(80.0));
-        let run = grip_cup(cfg, 10.0, 0.5, 1e-3).unwrap();
-        assert!((run.final_deformation_mm - 10.0).abs() < 0.1, "{run:?}");
+        let cfg = WorldConfig::new(Cup::paper(0.080));
+        let run = grip_cup(cfg, 0.010, 0.5, 1e-3).unwrap();
+        assert!((run.final_deformation_m - 0.010).abs() < 1e-4, "{run:?}");
         assert!(run.peak_force_n > 1.0 && run.peak_force_n < 5.0);
         let last = run.samples.last().unwrap();
-        assert!(last.penetration_mm < 0.0 && last.force_n == 0.0);
+        assert!(last.penetration_m < 0.0 && last.force_n == 0.0);
         // A near-rigid cup: the gripper stalls at its force limit, deformation stays small.
         let cfg = WorldConfig::new(Cup::extreme());
-        let run = grip_cup(cfg, 10.0, 0.2, 1e-3).unwrap();
-        assert!(run.final_deformation_mm < 0.2);
+        let run = grip_cup(cfg, 0.010, 0.2, 1e-3).unwrap();
+        assert!(run.final_deformation_m < 2e-4);
         assert!(
             run.peak_force_n >= 20.0 && run.peak_force_n < 22.0,
             "{}",
@@ -506,7 +506,7 @@ mod tests {
         let mut w = World::new(cfg);
         let mut err = None;
         for i in 0..5000 {
-            if let Err(e) = w.step_finger(1e-3, -0.4 + i as f64 * 4e-3) {
+            if let Err(e) = w.step_finger(1e-3, -0.0004 + i as f64 * 4e-6) {
                 err = Some(e);
                 break;
             }

@@ -97,16 +97,16 @@ fn the_expert_solves_training_cups_and_the_unseen_cup() {
     }
     // Both families were drawn from the split's ranges: 8 training sizes, then 4 unseen ones.
     let split = unitac_sim::task::split::SPLIT.cups;
-    let within = |d: f64, r: unitac_sim::task::Uniform| d * 1e3 >= r.0 && d * 1e3 <= r.1;
+    let within = |d: f64, r: unitac_sim::task::Uniform| d >= r.0 && d <= r.1;
     assert!(
         diameters[..8]
             .iter()
-            .all(|&d| within(d, split.train_diameter_mm))
+            .all(|&d| within(d, split.train_diameter_m))
     );
     assert!(
         diameters[8..]
             .iter()
-            .all(|&d| within(d, split.unseen_diameter_mm))
+            .all(|&d| within(d, split.unseen_diameter_m))
     );
     let mut distinct = diameters.clone();
     distinct.sort_by(f64::total_cmp);
@@ -417,7 +417,7 @@ fn the_camera_sees_positions_and_sizes_with_noise_and_only_a_guess_of_roughness(
         }
     }
     // Roughness is the one tactile property it guesses, with the set's spread as its error.
-    let ra = |name: &str| w.spec().fabric(name).unwrap().roughness_ra_mm * 1e-3;
+    let ra = |name: &str| w.spec().fabric(name).unwrap().roughness_ra_m;
     for o in ["fabric_a", "fabric_b"] {
         let est = a.get(&format!("{o}.roughness_ra_m")).unwrap();
         assert!((est - ra(o)).abs() < 5.0 * ROUGHNESS_SET_SD_M, "{est}");

@@ -36,7 +36,7 @@ impl TrialGripper {
     /// on each finger (objects/split.yaml; 84 + 2 x 3 mm): a narrower one collides with every
     /// unseen cup.
     pub fn offered() -> Vec<TrialGripper> {
-        let narrowest_m = unitac_sim::task::split::SPLIT.cups.unseen_diameter_mm.0 * 1e-3
+        let narrowest_m = unitac_sim::task::split::SPLIT.cups.unseen_diameter_m.0
             + 2.0 * unitac_sim::task::GripperLimits::default().pad_m;
         std::iter::once(TrialGripper::InProcess)
             .chain(

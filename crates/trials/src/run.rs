@@ -184,7 +184,7 @@ pub struct TrialRecord {
     pub mode: String,
     pub seed: u64,
     pub trial: u32,
-    /// The objects drawn, for reading a trace (e.g. `cup 90 mm, 0.21 N/mm`).
+    /// The objects drawn, for reading a trace (e.g. `cup 90 mm, 210 N/m`).
     pub objects: String,
     pub control_rate_hz: f64,
     pub duration_s: f64,
@@ -435,15 +435,18 @@ fn describe(world: &TaskWorld) -> String {
         .iter()
         .map(|o| match &o.spec {
             ObjectSpec::Cup(c) => format!(
-                "{} {:.0} mm, {:.3} N/mm, {:.0} g",
+                "{} {:.0} mm, {:.0} N/m, {:.0} g",
                 o.name,
                 c.diameter_m * 1e3,
-                c.wall.k_n_per_mm,
+                c.wall.k_n_per_m,
                 c.mass_kg * 1e3
             ),
             ObjectSpec::Fabric(f) => format!(
                 "{} {} (Ra {:.4} mm, {} layers)",
-                o.name, f.fabric.name, f.roughness_ra_mm, f.layers
+                o.name,
+                f.fabric.name,
+                f.roughness_ra_m * 1e3,
+                f.layers
             ),
         })
         .collect::<Vec<_>>()

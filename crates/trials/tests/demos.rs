@@ -39,9 +39,9 @@ fn the_recorder_is_deterministic_and_records_the_probe_touch() {
     assert_eq!(l.shape, [64, 48]);
     assert!(l.data.iter().all(|v| v.is_finite()));
     // The contact was found near the cup's width (fingers = diameter + two 3 mm pads).
-    let train = unitac_sim::task::split::SPLIT.cups.train_diameter_mm;
+    let train = unitac_sim::task::split::SPLIT.cups.train_diameter_m;
     assert!(
-        (train.0..=train.1).contains(&(a.diameter_m * 1e3)),
+        (train.0..=train.1).contains(&a.diameter_m),
         "{}",
         a.diameter_m
     );
@@ -49,7 +49,7 @@ fn the_recorder_is_deterministic_and_records_the_probe_touch() {
         (a.contact_opening_m - (a.diameter_m + 0.006)).abs() < 0.003,
         "{a:?}"
     );
-    // Labels: the paper-cup law (0.3 N/mm at 80 mm, ~1/d^3, x 0.8..1.2, cubic stiffening).
+    // Labels: the paper-cup law (300 N/m at 80 mm, ~1/d^3, x 0.8..1.2, cubic stiffening).
     let nominal = 300.0 * (0.08 / a.diameter_m).powi(3);
     assert!(
         a.stiffness_n_per_m > 0.75 * nominal && a.stiffness_n_per_m < 1.25 * nominal,
@@ -68,9 +68,9 @@ fn the_recorder_is_deterministic_and_records_the_probe_touch() {
 #[test]
 fn the_predicted_latent_comes_before_any_touch_and_unseen_is_an_unseen_size() {
     let d = demo("cup_deformation_vtla_pred", Split::Unseen, 7, 0);
-    let unseen = unitac_sim::task::split::SPLIT.cups.unseen_diameter_mm;
+    let unseen = unitac_sim::task::split::SPLIT.cups.unseen_diameter_m;
     assert!(
-        (unseen.0..=unseen.1).contains(&(d.diameter_m * 1e3)),
+        (unseen.0..=unseen.1).contains(&d.diameter_m),
         "{}",
         d.diameter_m
     );

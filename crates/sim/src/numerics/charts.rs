@@ -64,10 +64,10 @@ impl NumericsReport {
         type Measure = fn(&AccuracyRow, &Reference) -> f64;
         let panels: [(&str, Measure); 3] = [
             ("final deformation", |a, r| {
-                rel(a.final_deformation_mm, r.final_deformation_mm)
+                rel(a.final_deformation_m, r.final_deformation_m)
             }),
             ("deformation when the finger stops", |a, r| {
-                rel(a.stop_deformation_mm, r.stop_deformation_mm)
+                rel(a.stop_deformation_m, r.stop_deformation_m)
             }),
             ("peak grip force", |a, r| {
                 rel(a.peak_force_n, r.peak_force_n)
@@ -119,7 +119,7 @@ impl NumericsReport {
         }
         for (ci, r) in self.references.iter().enumerate() {
             fig = fig.legend(LegendEntry::marker(
-                format!("{} cup, {} N/mm", r.cup.label, r.cup.k_n_per_mm),
+                format!("{} cup, {} N/m", r.cup.label, r.cup.k_n_per_m),
                 BLACK,
                 cup_marker(ci),
             ));
@@ -132,7 +132,7 @@ impl NumericsReport {
     /// Stability map per method: cells green (stable) or red (unstable), '*' where the derived
     /// bound predicts otherwise, the bound as a black line.
     pub fn stability_plot(&self) -> Figure {
-        let ks = &self.map_stiffness_n_per_mm;
+        let ks = &self.map_stiffness_n_per_m;
         let hs = &self.map_steps_s;
         // Log range half a cell beyond the first and last sample, and the half cell.
         let span = |v: &[f64]| -> (f64, f64, f64) {
@@ -153,11 +153,11 @@ impl NumericsReport {
             for m in Method::ALL {
                 let mut chart = Chart::new(
                     series_style(m, false).1,
-                    Axis::log("wall stiffness k [N/mm]").range(p(kx0), p(kx1)),
+                    Axis::log("wall stiffness k [N/m]").range(p(kx0), p(kx1)),
                     Axis::log("step h [s]").range(p(hy0), p(hy1)),
                 );
                 for c in self.stability.iter().filter(|c| c.method == m) {
-                    let (lk, lh) = (c.k_n_per_mm.log10(), c.step_s.log10());
+                    let (lk, lh) = (c.k_n_per_m.log10(), c.step_s.log10());
                     chart = chart.cell(Cell {
                         x: (p(lk - dk), p(lk + dk)),
                         y: (p(lh - dh), p(lh + dh)),
@@ -171,7 +171,7 @@ impl NumericsReport {
                     let bound: Vec<(f64, f64)> = (0..=80)
                         .map(|i| {
                             let k = p(kx0 + (kx1 - kx0) * f64::from(i) / 80.0);
-                            let (be, bs) = end_state_bounds(&Cup::new("map", 80.0, k));
+                            let (be, bs) = end_state_bounds(&Cup::new("map", 0.080, k));
                             (k, if m == Method::ExplicitEuler { be } else { bs })
                         })
                         .collect();

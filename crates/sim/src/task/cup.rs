@@ -3,7 +3,7 @@
 //!
 //! Cups: diameters drawn from the split's ranges (objects/split.yaml: training 58-74 mm, unseen
 //! 84-96 mm); height 1.3 x diameter. Wall stiffness from the world's paper-cup law (`Cup::paper`:
-//! 0.3 N/mm per side at 80 mm, ~ 1/d^3, the thin-ring law) times a per-trial factor; mass (cup and
+//! 300 N/m per side at 80 mm, ~ 1/d^3, the thin-ring law) times a per-trial factor; mass (cup and
 //! contents) and the gel-on-paper friction are drawn per trial.
 //! The gel penetration and the grip force come from the world ([`crate::world`]).
 
@@ -20,8 +20,8 @@ pub const HEIGHT_PER_DIAMETER: f64 = 1.3;
 /// Per-trial variation of a cup: the split's ranges (objects/split.yaml) and the sweeps' knobs.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CupVariation {
-    /// Diameter \[mm] (the split's range).
-    pub diameter_mm: Uniform,
+    /// Diameter \[m] (the split's range).
+    pub diameter_m: Uniform,
     /// Factor on the paper-cup stiffness law.
     pub stiffness_factor: Uniform,
     /// Cup plus contents \[kg].
@@ -43,9 +43,9 @@ impl CupVariation {
     pub fn for_split(split: Split) -> Self {
         let c = SPLIT.cups;
         Self {
-            diameter_mm: match split {
-                Split::Train => c.train_diameter_mm,
-                Split::Unseen => c.unseen_diameter_mm,
+            diameter_m: match split {
+                Split::Train => c.train_diameter_m,
+                Split::Unseen => c.unseen_diameter_m,
             },
             stiffness_factor: c.stiffness_factor,
             mass_kg: c.mass_kg,
@@ -73,27 +73,26 @@ pub struct CupSpec {
     pub mass_kg: f64,
     pub friction_static: f64,
     pub friction_kinetic: f64,
-    /// The wall model the world squeezes (mm units inside the world).
+    /// The wall model the world squeezes.
     pub wall: Cup,
 }
 
 impl CupSpec {
     /// The cup's stiffness \[N/m] as the labels and the cup controllers use it: the grip force
     /// that holds the wall at a loss of diameter `d_m` \[m], divided by `d_m` (the wall is a cubic
-    /// spring per side, in the squeeze world's mm units: converted here, at the world's edge).
+    /// spring per side).
     pub fn stiffness_n_per_m(&self, d_m: f64) -> f64 {
-        let x_mm = d_m * 1e3 / 2.0;
-        let (force_n, _) = self.wall.spring(x_mm);
+        let (force_n, _) = self.wall.spring(d_m / 2.0);
         force_n / d_m
     }
 
     /// Draw a cup from `var` with `rng`.
     pub fn draw(var: &CupVariation, rng: &mut SplitMix64) -> CupSpec {
-        let diameter_m = (var.diameter_mm.draw(rng) * 1e-3 + var.size_offset_m).max(0.02);
-        let mut wall = Cup::paper(diameter_m * 1e3);
+        let diameter_m = (var.diameter_m.draw(rng) + var.size_offset_m).max(0.02);
+        let mut wall = Cup::paper(diameter_m);
         let k = var.stiffness_factor.draw(rng) * var.stiffness_scale;
-        wall.k_n_per_mm *= k;
-        wall.k3_n_per_mm3 *= k;
+        wall.k_n_per_m *= k;
+        wall.k3_n_per_m3 *= k;
         let mu = var.friction.draw(rng);
         CupSpec {
             diameter_m,

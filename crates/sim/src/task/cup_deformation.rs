@@ -38,10 +38,10 @@ impl Task for CupDeformation {
     fn describe(&self, split: Split) -> String {
         let c = SPLIT.cups;
         let (which, d) = match split {
-            Split::Unseen => ("unseen", c.unseen_diameter_mm),
-            Split::Train => ("training", c.train_diameter_mm),
+            Split::Unseen => ("unseen", c.unseen_diameter_m),
+            Split::Train => ("training", c.train_diameter_m),
         };
-        format!("{which} cups ({:.0}-{:.0} mm)", d.0, d.1)
+        format!("{which} cups ({:.0}-{:.0} mm)", d.0 * 1e3, d.1 * 1e3)
     }
 
     fn draw(&self, cfg: &TaskConfig, rng: &mut SplitMix64) -> Vec<TaskObject> {
@@ -145,9 +145,9 @@ fn cup_command(t: &TaskTruth, spec: &TrialSpec, cfg: &TaskConfig) -> TaskCommand
         return home(cfg);
     };
     let g = cfg.gripper;
-    let target_mm = cfg.cup_criteria.target_deformation_m * 1e3;
-    let finger_mm = static_finger_for(&cup.wall, &cfg.gel, target_mm, g.max_force_n);
-    let squeeze = (cup.diameter_m - 2.0 * finger_mm * 1e-3 + 2.0 * g.pad_m).max(0.0);
+    let target_m = cfg.cup_criteria.target_deformation_m;
+    let finger_m = static_finger_for(&cup.wall, &cfg.gel, target_m, g.max_force_n);
+    let squeeze = (cup.diameter_m - 2.0 * finger_m + 2.0 * g.pad_m).max(0.0);
     // Lift once the wall has settled at the squeeze.
     let settled = t.arm.arrived
         && (t.gripper.opening_m - squeeze).abs() < 5e-5

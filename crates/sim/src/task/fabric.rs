@@ -17,7 +17,7 @@ use serde::Serialize;
 use super::Split;
 use super::hold::G;
 use super::split::{FabricType, SPLIT};
-use crate::object::Object;
+use crate::object::{MM_PER_M, Object};
 use crate::rng::SplitMix64;
 use crate::world::Cup;
 
@@ -25,17 +25,17 @@ use crate::world::Cup;
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Fabric {
     pub name: &'static str,
-    /// Texture as the gel sees it: sine amplitude and period \[mm], bumps (radius \[mm],
-    /// per mm^2), hardness (share of the approach the gel takes).
-    pub roughness_mm: f64,
-    pub period_mm: f64,
-    pub bump_mm: f64,
+    /// Texture as the gel sees it: sine amplitude and period \[m], bumps (radius \[m],
+    /// per m^2), hardness (share of the approach the gel takes).
+    pub roughness_m: f64,
+    pub period_m: f64,
+    pub bump_m: f64,
     pub bump_density: f64,
     pub hardness: f64,
-    /// Thickness of one layer \[mm].
-    pub layer_mm: f64,
-    /// Compression stiffness of the stack per side at no load [N/mm].
-    pub k_n_per_mm: f64,
+    /// Thickness of one layer \[m].
+    pub layer_m: f64,
+    /// Compression stiffness of the stack per side at no load [N/m].
+    pub k_n_per_m: f64,
     /// Friction coefficient gel on fabric (static).
     pub friction: f64,
     pub mass_kg: f64,
@@ -43,11 +43,19 @@ pub struct Fabric {
 
 impl Fabric {
     /// What the gel sees (the fabric over a rounded fingertip, radius 6 mm as in the fabric
-    /// scenario).
+    /// scenario), in the renderer's gel units ([`crate::object::MM_PER_M`]).
     pub fn object(&self, label: &str) -> Object {
-        Object::new(label, 6.0, self.roughness_mm, self.period_mm)
-            .with_hardness(self.hardness)
-            .with_bumps(self.bump_mm, self.bump_density)
+        Object::new(
+            label,
+            6.0,
+            self.roughness_m * MM_PER_M,
+            self.period_m * MM_PER_M,
+        )
+        .with_hardness(self.hardness)
+        .with_bumps(
+            self.bump_m * MM_PER_M,
+            self.bump_density / (MM_PER_M * MM_PER_M),
+        )
     }
 }
 
@@ -57,61 +65,61 @@ impl Fabric {
 pub const FABRICS: [Fabric; 5] = [
     Fabric {
         name: "terry",
-        roughness_mm: 0.06,
-        period_mm: 0.9,
-        bump_mm: 0.35,
-        bump_density: 1.2,
+        roughness_m: 6.0e-5,
+        period_m: 0.0009,
+        bump_m: 0.00035,
+        bump_density: 1.2e6,
         hardness: 0.5,
-        layer_mm: 2.4,
-        k_n_per_mm: 1.0,
+        layer_m: 0.0024,
+        k_n_per_m: 1000.0,
         friction: 0.9,
         mass_kg: 0.060,
     },
     Fabric {
         name: "waffle",
-        roughness_mm: 0.05,
-        period_mm: 1.4,
-        bump_mm: 0.0,
+        roughness_m: 5.0e-5,
+        period_m: 0.0014,
+        bump_m: 0.0,
         bump_density: 0.0,
         hardness: 0.7,
-        layer_mm: 1.6,
-        k_n_per_mm: 2.0,
+        layer_m: 0.0016,
+        k_n_per_m: 2000.0,
         friction: 0.7,
         mass_kg: 0.045,
     },
     Fabric {
         name: "linen",
-        roughness_mm: 0.035,
-        period_mm: 0.7,
-        bump_mm: 0.0,
+        roughness_m: 3.5e-5,
+        period_m: 0.0007,
+        bump_m: 0.0,
         bump_density: 0.0,
         hardness: 0.85,
-        layer_mm: 0.7,
-        k_n_per_mm: 6.0,
+        layer_m: 0.0007,
+        k_n_per_m: 6000.0,
         friction: 0.5,
         mass_kg: 0.030,
     },
     Fabric {
         name: "flannel",
-        roughness_mm: 0.02,
-        period_mm: 0.8,
-        bump_mm: 0.2,
-        bump_density: 0.8,
+        roughness_m: 2.0e-5,
+        period_m: 0.0008,
+        bump_m: 0.0002,
+        bump_density: 8.0e5,
         hardness: 0.6,
-        layer_mm: 1.2,
-        k_n_per_mm: 1.5,
+        layer_m: 0.0012,
+        k_n_per_m: 1500.0,
         friction: 0.8,
         mass_kg: 0.040,
     },
     Fabric {
         name: "microfibre",
-        roughness_mm: 0.015,
-        period_mm: 0.6,
-        bump_mm: 0.0,
+        roughness_m: 1.5e-5,
+        period_m: 0.0006,
+        bump_m: 0.0,
         bump_density: 0.0,
         hardness: 0.55,
-        layer_mm: 1.0,
-        k_n_per_mm: 1.2,
+        layer_m: 0.001,
+        k_n_per_m: 1200.0,
         friction: 1.0,
         mass_kg: 0.035,
     },
@@ -167,8 +175,8 @@ pub struct FabricSpec {
     pub friction_static: f64,
     pub friction_kinetic: f64,
     pub mass_kg: f64,
-    /// Mean absolute deviation of the texture height the gel sees (Ra) \[mm]: lower is smoother.
-    pub roughness_ra_mm: f64,
+    /// Mean absolute deviation of the texture height the gel sees (Ra) \[m]: lower is smoother.
+    pub roughness_ra_m: f64,
     pub hang_length_m: f64,
     pub table_friction: f64,
 }
@@ -183,13 +191,13 @@ impl FabricSpec {
     pub fn draw(t: &FabricType, var: &FabricVariation, rng: &mut SplitMix64) -> FabricSpec {
         let fabric = Fabric {
             name: t.name,
-            roughness_mm: t.roughness_mm.draw(rng),
-            period_mm: t.period_mm.draw(rng),
-            bump_mm: t.bump_mm.draw(rng),
+            roughness_m: t.roughness_m.draw(rng),
+            period_m: t.period_m.draw(rng),
+            bump_m: t.bump_m.draw(rng),
             bump_density: t.bump_density.draw(rng),
             hardness: t.hardness.draw(rng),
-            layer_mm: t.layer_mm.draw(rng),
-            k_n_per_mm: t.k_n_per_mm.draw(rng),
+            layer_m: t.layer_m.draw(rng),
+            k_n_per_m: t.k_n_per_m.draw(rng),
             friction: t.friction.draw(rng),
             mass_kg: t.mass_kg.draw(rng),
         };
@@ -204,11 +212,11 @@ impl FabricSpec {
         let mu = fabric.friction;
         FabricSpec {
             layers: layers.max(1),
-            layer_m: fabric.layer_mm * 1e-3,
+            layer_m: fabric.layer_m,
             friction_static: mu,
             friction_kinetic: mu * var.kinetic_ratio,
             mass_kg: fabric.mass_kg,
-            roughness_ra_mm: roughness_ra_mm(&fabric.object("ra")),
+            roughness_ra_m: roughness_ra_m(&fabric.object("ra")),
             hang_length_m: var.hang_length_m,
             table_friction: var.table_friction,
             fabric,
@@ -242,12 +250,12 @@ impl FabricSpec {
     /// thickness n t, the fabric's stiffness per side, stiffening so that at
     /// [`STACK_FORCE_N`] 80 % of the stack is squeezed out; 1 g of moving mass per side.
     pub fn stack(&self, n: u32) -> Cup {
-        let t_mm = f64::from(n.max(1)) * self.layer_m * 1e3;
-        let k = self.fabric.k_n_per_mm;
-        let x80 = 0.4 * t_mm;
+        let t_m = f64::from(n.max(1)) * self.layer_m;
+        let k = self.fabric.k_n_per_m;
+        let x80 = 0.4 * t_m;
         let k3 = ((STACK_FORCE_N - k * x80) / (x80 * x80 * x80)).max(0.0);
-        let mut c = Cup::new(self.fabric.name, t_mm, k);
-        c.k3_n_per_mm3 = k3;
+        let mut c = Cup::new(self.fabric.name, t_m, k);
+        c.k3_n_per_m3 = k3;
         c.wall_mass_kg = 0.001;
         c.damping_ratio = 0.3;
         c
@@ -267,9 +275,9 @@ impl FabricSpec {
     }
 }
 
-/// Ra of an object's texture height over a 10 x 10 mm patch (200 x 200 samples) \[mm]: the same
+/// Ra of an object's texture height over a 10 x 10 mm patch (200 x 200 samples) \[m]: the same
 /// texture the renderer draws.
-pub fn roughness_ra_mm(o: &Object) -> f64 {
+pub fn roughness_ra_m(o: &Object) -> f64 {
     let n = 200;
     let step = 10.0 / f64::from(n);
     let hs: Vec<f64> = (0..n * n)
@@ -279,7 +287,7 @@ pub fn roughness_ra_mm(o: &Object) -> f64 {
         })
         .collect();
     let mean = hs.iter().sum::<f64>() / hs.len() as f64;
-    hs.iter().map(|h| (h - mean).abs()).sum::<f64>() / hs.len() as f64
+    hs.iter().map(|h| (h - mean).abs()).sum::<f64>() / hs.len() as f64 / MM_PER_M
 }
 
 /// A lift criterion's height is met within this \[m]: the arm's own "arrived" band (0.5 mm), the
@@ -397,7 +405,7 @@ mod tests {
     fn the_fabric_set_ranks_by_measured_roughness_as_stated() {
         let ra: Vec<f64> = FABRICS
             .iter()
-            .map(|f| roughness_ra_mm(&f.object("x")))
+            .map(|f| roughness_ra_m(&f.object("x")))
             .collect();
         // Terry (texture and bumps) is the roughest, microfibre the smoothest; all differ.
         for w in ra.windows(2) {
@@ -432,8 +440,8 @@ mod tests {
     fn the_stack_spring_nears_solid_at_its_design_force() {
         let s = spec(2, 0.0012);
         let c = s.stack(2);
-        let x80 = 0.4 * 2.4;
+        let x80 = 0.4 * 0.0024;
         assert!((c.spring(x80).0 - STACK_FORCE_N).abs() < 1e-9);
-        assert!(c.spring(0.1).0 < 0.2);
+        assert!(c.spring(1e-4).0 < 0.2);
     }
 }

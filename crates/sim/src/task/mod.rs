@@ -6,8 +6,8 @@
 //! cup world of [`crate::world`] squeezing the cup or the fabric stack between the gels, sub-stepped
 //! inside) and the held object's friction and slip; `observe_visual` is what a camera model could
 //! estimate (noisy, never tactile properties or forces); `sensor_view` is what the mock sensor must
-//! render now; `outcome` is the task's success criteria with their values. Public values are SI;
-//! the squeeze world keeps its mm inside and is converted here.
+//! render now; `outcome` is the task's success criteria with their values. Units are SI
+//! throughout, the squeeze world's included.
 //!
 //! - `kind`: what a task is ([`Task`], [`TaskKind`]); [`cup_deformation`] and
 //!   [`fabric_selection`]: the two tasks, each in one module (its draw, camera values, criteria,
@@ -191,8 +191,8 @@ pub const GRASP_ATTEMPT_LIFT_M: f64 = 0.002;
 /// How an object sits between the fingers when it comes between them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Grip {
-    /// Width the gels close on \[mm] (cup diameter or chord, fabric stack) and layers caught.
-    width_mm: f64,
+    /// Width the gels close on \[m] (cup diameter or chord, fabric stack) and layers caught.
+    width_m: f64,
     layers: u32,
     offset_m: [f64; 2],
 }
@@ -227,12 +227,12 @@ pub enum Hidden {
 #[derive(Debug, Clone)]
 enum Fingers {
     Free {
-        opening_mm: f64,
+        opening_m: f64,
     },
     Around {
         obj: usize,
         world: Box<World>,
-        width_mm: f64,
+        width_m: f64,
         layers: u32,
         /// Arm height over the object's lift when it came between the fingers \[m].
         z_rel_m: f64,
@@ -263,7 +263,7 @@ pub struct TaskWorld {
     stalled: bool,
     collision: bool,
     dropped: bool,
-    peak_deformation_mm: f64,
+    peak_deformation_m: f64,
     /// The object the policy announced as its choice ([`TaskWorld::decide`]).
     announced: Option<usize>,
     /// The object of the first grasp attempt: the first one the fingers held and raised
@@ -293,13 +293,13 @@ impl TaskWorld {
             t: 0.0,
             arm: ArmState::at(cfg.arm.home_m),
             fingers: Fingers::Free {
-                opening_mm: cfg.gripper.max_opening_m * 1e3,
+                opening_m: cfg.gripper.max_opening_m,
             },
             objects,
             stalled: false,
             collision: false,
             dropped: false,
-            peak_deformation_mm: 0.0,
+            peak_deformation_m: 0.0,
             announced: None,
             attempted: None,
             slip_step_m: 0.0,
@@ -336,10 +336,10 @@ impl TaskWorld {
         for (o, s) in self.spec.objects.iter_mut().zip(&mut self.objects) {
             match (&mut o.spec, h) {
                 (ObjectSpec::Cup(c), Hidden::Stiffness(f)) => {
-                    c.wall.k_n_per_mm *= f;
-                    c.wall.k3_n_per_mm3 *= f;
+                    c.wall.k_n_per_m *= f;
+                    c.wall.k3_n_per_m3 *= f;
                 }
-                (ObjectSpec::Fabric(fab), Hidden::Stiffness(f)) => fab.fabric.k_n_per_mm *= f,
+                (ObjectSpec::Fabric(fab), Hidden::Stiffness(f)) => fab.fabric.k_n_per_m *= f,
                 (ObjectSpec::Cup(c), Hidden::Friction(f)) => {
                     c.friction_static *= f;
                     c.friction_kinetic *= f;
@@ -420,7 +420,7 @@ impl TaskWorld {
         }
     }
 
-    /// Whether object `i` comes between fingertips centred at `pos` with `inner_mm` between the
+    /// Whether object `i` comes between fingertips centred at `pos` with `inner_m` between the
     /// gel surfaces, and how it is gripped.
     ///
     /// Cup (a cylinder; the fingers close along y, the pads `2 w` wide along x): a centre within
@@ -434,7 +434,7 @@ impl TaskWorld {
     /// close (kept in the offset until the grip).
     /// Fabric: the fold lies along x; fingertips within [`FOLD_REACH_M`] of it across and half
     /// [`EDGE_LENGTH_M`] along it straddle it and catch the layers above their height.
-    fn between(&self, i: usize, pos: [f64; 3], inner_mm: f64) -> Reach {
+    fn between(&self, i: usize, pos: [f64; 3], inner_m: f64) -> Reach {
         let (Some(o), Some(s)) = (self.spec.objects.get(i), self.objects.get(i)) else {
             return Reach::Outside;
         };
@@ -445,7 +445,7 @@ impl TaskWorld {
                 if z < CUP_MARGIN_M || z > c.height_m - CUP_MARGIN_M {
                     return Reach::Outside;
                 }
-                self.cup_reach(c, dx, dy, inner_mm)
+                self.cup_reach(c, dx, dy, inner_m)
             }
             ObjectSpec::Fabric(f) => {
                 if dy.abs() > FOLD_REACH_M || dx.abs() > EDGE_LENGTH_M / 2.0 {
@@ -455,10 +455,10 @@ impl TaskWorld {
                 if n == 0 {
                     return Reach::Outside;
                 }
-                let width_mm = f64::from(n) * f.layer_m * 1e3;
-                if width_mm <= inner_mm {
+                let width_m = f64::from(n) * f.layer_m;
+                if width_m <= inner_m {
                     Reach::Inside(Grip {
-                        width_mm,
+                        width_m,
                         layers: n,
                         offset_m: [dx, dy],
                     })
@@ -471,7 +471,7 @@ impl TaskWorld {
 
     /// [`TaskWorld::between`] for a cup at the fingertips' height band: `(dx, dy)` its centre
     /// from the fingertip centre \[m].
-    fn cup_reach(&self, c: &CupSpec, dx: f64, dy: f64, inner_mm: f64) -> Reach {
+    fn cup_reach(&self, c: &CupSpec, dx: f64, dy: f64, inner_m: f64) -> Reach {
         let r = c.diameter_m / 2.0;
         let w = self.cfg.gripper.pad_half_width_m;
         let e = dx.abs() - w;
@@ -488,15 +488,15 @@ impl TaskWorld {
                 (2.0 * (r * r - e * e).sqrt(), dx)
             }
         };
-        let half_mm = (r * r - e.max(0.0).powi(2)).sqrt() * 1e3;
-        let gap_mm = inner_mm / 2.0;
-        if dy.abs() * 1e3 + half_mm <= gap_mm {
+        let half_m = (r * r - e.max(0.0).powi(2)).sqrt();
+        let gap_m = inner_m / 2.0;
+        if dy.abs() + half_m <= gap_m {
             Reach::Inside(Grip {
-                width_mm: width_m * 1e3,
+                width_m,
                 layers: 1,
                 offset_m: [x, dy],
             })
-        } else if dy.abs() * 1e3 - half_mm >= gap_mm {
+        } else if dy.abs() - half_m >= gap_m {
             Reach::Outside
         } else {
             Reach::Collision
@@ -531,18 +531,18 @@ impl TaskWorld {
         }
     }
 
-    /// Opening at which the gel surfaces meet \[mm].
-    fn pad2_mm(&self) -> f64 {
-        2e3 * self.cfg.gripper.pad_m
+    /// Opening at which the gel surfaces meet \[m].
+    fn pad2_m(&self) -> f64 {
+        2.0 * self.cfg.gripper.pad_m
     }
 
-    /// The squeeze world's object: the cup's wall across `width_mm` (its diameter, or the chord
+    /// The squeeze world's object: the cup's wall across `width_m` (its diameter, or the chord
     /// an offset grip meets; same wall law), or the fabric's stack of `layers`.
-    fn squeezed(&self, i: usize, layers: u32, width_mm: f64) -> Option<crate::world::Cup> {
+    fn squeezed(&self, i: usize, layers: u32, width_m: f64) -> Option<crate::world::Cup> {
         match &self.spec.objects.get(i)?.spec {
             ObjectSpec::Cup(c) => {
                 let mut wall = c.wall.clone();
-                wall.diameter_mm = width_mm;
+                wall.diameter_m = width_m;
                 Some(wall)
             }
             ObjectSpec::Fabric(f) => Some(f.stack(layers)),
@@ -566,13 +566,13 @@ impl TaskWorld {
         };
         let cand = self.arm.advanced(&self.cfg.arm, goal, h);
         let mut blocked = false;
-        if let Fingers::Free { opening_mm } = self.fingers {
-            let inner_mm = opening_mm - self.pad2_mm();
+        if let Fingers::Free { opening_m } = self.fingers {
+            let inner_m = opening_m - self.pad2_m();
             for i in 0..self.objects.len() {
-                match self.between(i, cand.position_m, inner_mm) {
+                match self.between(i, cand.position_m, inner_m) {
                     Reach::Outside => continue,
                     Reach::Inside(grip) => {
-                        self.engage(i, grip, opening_mm, cand.position_m[2])?;
+                        self.engage(i, grip, opening_m, cand.position_m[2])?;
                     }
                     Reach::Collision => {
                         self.collision = true;
@@ -591,23 +591,23 @@ impl TaskWorld {
         // 2. The gripper: its bounds, then free fingers or the squeeze world.
         let lim = self.cfg.gripper;
         let g = &cmd.gripper;
-        let open_mm = g.opening_m.min(lim.max_opening_m) * 1e3;
-        let speed_mm_s = g.speed_m_s.min(lim.max_speed_m_s) * 1e3;
+        let open_m = g.opening_m.min(lim.max_opening_m);
+        let speed_m_s = g.speed_m_s.min(lim.max_speed_m_s);
         let force_n = g.force_n.min(lim.max_force_n);
         self.stalled = false;
         match &mut self.fingers {
-            Fingers::Free { opening_mm } => {
-                *opening_mm += (open_mm - *opening_mm).clamp(-speed_mm_s * h, speed_mm_s * h);
+            Fingers::Free { opening_m } => {
+                *opening_m += (open_m - *opening_m).clamp(-speed_m_s * h, speed_m_s * h);
             }
             Fingers::Around {
                 world,
-                width_mm,
+                width_m,
                 last,
                 ..
             } => {
                 // Each finger takes half the opening change.
-                let target_p = (*width_mm - (open_mm - 2e3 * lim.pad_m)) / 2.0;
-                let d = world.drive(h, target_p, speed_mm_s / 2.0, force_n)?;
+                let target_p = (*width_m - (open_m - 2.0 * lim.pad_m)) / 2.0;
+                let d = world.drive(h, target_p, speed_m_s / 2.0, force_n)?;
                 self.stalled = d.stalled;
                 *last = d.truth;
                 self.substeps += last.substeps;
@@ -660,35 +660,35 @@ impl TaskWorld {
         let pos = self.arm.position_m;
         if let Fingers::Around {
             obj,
-            width_mm,
+            width_m,
             z_rel_m,
             layers,
             last,
             ..
         } = &self.fingers
         {
-            let (i, width_mm, z_rel, layers, last) = (*obj, *width_mm, *z_rel_m, *layers, *last);
+            let (i, width_m, z_rel, layers, last) = (*obj, *width_m, *z_rel_m, *layers, *last);
             let s = self.objects.get(i).map_or(Hold::default(), |s| s.hold);
             let margin = match self.spec.objects.get(i).map(|o| &o.spec) {
                 Some(ObjectSpec::Cup(c)) => c.height_m - CUP_MARGIN_M - z_rel,
                 _ => PINCH_DEPTH_M,
             };
-            let touching = last.force_n > 0.0 || last.penetration_mm > 0.0;
-            let pad2 = self.pad2_mm();
+            let touching = last.force_n > 0.0 || last.penetration_m > 0.0;
+            let pad2 = self.pad2_m();
             if s.slip_net_m > margin {
                 self.dropped = true;
                 self.fingers = Fingers::Free {
-                    opening_mm: last.width_mm.min(width_mm) + pad2,
+                    opening_m: last.width_m.min(width_m) + pad2,
                 };
             } else if !touching {
                 match self.around_at(i, pos) {
                     None => {
                         self.fingers = Fingers::Free {
-                            opening_mm: last.width_mm + pad2,
+                            opening_m: last.width_m + pad2,
                         };
                     }
-                    Some(g) if g.width_mm != width_mm || g.layers != layers => {
-                        self.engage(i, g, last.width_mm + pad2, pos[2])?;
+                    Some(g) if g.width_m != width_m || g.layers != layers => {
+                        self.engage(i, g, last.width_m + pad2, pos[2])?;
                     }
                     Some(_) => {
                         if let Fingers::Around { z_rel_m, .. } = &mut self.fingers {
@@ -698,7 +698,7 @@ impl TaskWorld {
                 }
             }
             if let Some(ObjectSpec::Cup(_)) = self.spec.objects.get(i).map(|o| &o.spec) {
-                self.peak_deformation_mm = self.peak_deformation_mm.max(last.deformation_mm);
+                self.peak_deformation_m = self.peak_deformation_m.max(last.deformation_m);
             }
         }
         Ok(())
@@ -708,21 +708,21 @@ impl TaskWorld {
         &mut self,
         i: usize,
         grip: Grip,
-        opening_mm: f64,
+        opening_m: f64,
         arm_z: f64,
     ) -> Result<(), WorldError> {
-        let Some(model) = self.squeezed(i, grip.layers, grip.width_mm) else {
+        let Some(model) = self.squeezed(i, grip.layers, grip.width_m) else {
             return Ok(());
         };
         let lim = self.cfg.gripper;
         let mut wc = WorldConfig::new(model);
         wc.gel = self.cfg.gel;
         wc.gripper = Gripper {
-            speed_mm_s: lim.max_speed_m_s * 1e3 / 2.0,
+            speed_m_s: lim.max_speed_m_s / 2.0,
             max_force_n: lim.max_force_n,
             ..Gripper::default()
         };
-        wc.start_mm = (grip.width_mm - (opening_mm - self.pad2_mm())) / 2.0;
+        wc.start_m = (grip.width_m - (opening_m - self.pad2_m())) / 2.0;
         let world = World::new(wc);
         let last = world.truth(0);
         let s = &mut self.objects[i];
@@ -730,7 +730,7 @@ impl TaskWorld {
         self.fingers = Fingers::Around {
             obj: i,
             world: Box::new(world),
-            width_mm: grip.width_mm,
+            width_m: grip.width_m,
             layers: grip.layers,
             z_rel_m: arm_z - s.hold.z_m,
             offset_m: grip.offset_m,
@@ -742,9 +742,9 @@ impl TaskWorld {
     /// Ground truth now.
     pub fn truth(&self) -> TaskTruth {
         let (gripper, contact) = match &self.fingers {
-            Fingers::Free { opening_mm } => (
+            Fingers::Free { opening_m } => (
                 GripperTruth {
-                    opening_m: opening_mm * 1e-3,
+                    opening_m: *opening_m,
                     force_n: 0.0,
                     stalled: false,
                 },
@@ -761,16 +761,16 @@ impl TaskWorld {
                     .map_or(String::new(), |o| o.name.clone());
                 (
                     GripperTruth {
-                        opening_m: (last.width_mm + self.pad2_mm()) * 1e-3,
+                        opening_m: last.width_m + self.pad2_m(),
                         force_n: last.force_n,
                         stalled: self.stalled,
                     },
                     ContactTruth {
                         object: name,
                         layers: *layers,
-                        penetration_m: last.penetration_mm * 1e-3,
-                        deformation_m: last.deformation_mm * 1e-3,
-                        deformation_rate_m_s: 2.0 * last.wall_velocity_mm_s * 1e-3,
+                        penetration_m: last.penetration_m,
+                        deformation_m: last.deformation_m,
+                        deformation_rate_m_s: 2.0 * last.wall_velocity_m_s,
                         friction_n: hold.friction_n,
                         tangential_m: 0.5 * hold.friction_n / self.cfg.gel_shear_n_per_m.max(1.0),
                         slip_step_m: self.slip_step_m,
@@ -802,7 +802,7 @@ impl TaskWorld {
                     touch_s: s.touch_s,
                 })
                 .collect(),
-            peak_deformation_m: self.peak_deformation_mm * 1e-3,
+            peak_deformation_m: self.peak_deformation_m,
             collision: self.collision,
             dropped: self.dropped,
             substeps: self.substeps,

@@ -21,7 +21,7 @@ use serde::Serialize;
 
 use super::{ObjectSpec, TaskWorld};
 use crate::mock::{GroundTruth, MockSensor};
-use crate::object::{FoldEdge, Object};
+use crate::object::{FoldEdge, MM_PER_M, Object};
 use crate::rng::SplitMix64;
 use crate::tangential::{DEFAULT_LIMIT_M, Tangential};
 use unitac_core::Frame;
@@ -42,7 +42,7 @@ pub struct VisionNoise {
 }
 
 /// Standard deviation of the Ra of the five fabrics in [`super::FABRICS`] \[m] (population
-/// standard deviation of `roughness_ra_mm`, checked by a test): the spread a camera that cannot
+/// standard deviation of `roughness_ra_m`, checked by a test): the spread a camera that cannot
 /// resolve the texture is left with.
 pub const ROUGHNESS_SET_SD_M: f64 = 1.0125e-5;
 
@@ -177,7 +177,10 @@ impl SensorView {
     /// dots moved by [`SensorView::tangential`]; force and deformation go into the ground truth
     /// as they are.
     pub fn render(&self, sensor: &MockSensor, index: u64) -> (Frame, GroundTruth) {
-        let press = self.object.as_ref().map(|o| (o, self.penetration_m * 1e3));
+        let press = self
+            .object
+            .as_ref()
+            .map(|o| (o, self.penetration_m * MM_PER_M));
         let (frame, mut truth) = sensor.render_contact(index, press, self.tangential().as_ref());
         truth.label = self
             .object
@@ -185,7 +188,7 @@ impl SensorView {
             .map(|o| o.label.clone())
             .unwrap_or_default();
         truth.force_n = self.force_n;
-        truth.deformation_mm = self.deformation_m * 1e3;
+        truth.deformation_m = self.deformation_m;
         (frame, truth)
     }
 }
@@ -221,7 +224,7 @@ impl TaskWorld {
             ("diameter_m", ObjectSpec::Cup(c)) => c.diameter_m,
             ("height_m", ObjectSpec::Cup(c)) => c.height_m,
             ("edge_height_m", ObjectSpec::Fabric(f)) => f.stack_m(),
-            ("roughness_ra_m", ObjectSpec::Fabric(f)) => f.roughness_ra_mm * 1e-3,
+            ("roughness_ra_m", ObjectSpec::Fabric(f)) => f.roughness_ra_m,
             _ => return None,
         })
     }
@@ -252,8 +255,8 @@ impl TaskWorld {
                         .map_or(0.0, |t| t.position_m[2]);
                     let above_m = f.stack_m() - (truth.arm.position_m[2] - base);
                     obj.with_fold(FoldEdge {
-                        edge_mm: above_m * 1e3,
-                        layer_mm: f.layer_m * 1e3,
+                        edge_mm: above_m * MM_PER_M,
+                        layer_mm: f.layer_m * MM_PER_M,
                     })
                 }
             });
@@ -275,13 +278,13 @@ impl TaskWorld {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::task::{FABRICS, fabric::roughness_ra_mm};
+    use crate::task::{FABRICS, fabric::roughness_ra_m};
 
     #[test]
     fn the_roughness_sigma_is_the_fabric_sets_ra_spread() {
         let ra: Vec<f64> = FABRICS
             .iter()
-            .map(|f| roughness_ra_mm(&f.object("x")) * 1e-3)
+            .map(|f| roughness_ra_m(&f.object("x")))
             .collect();
         let mean = ra.iter().sum::<f64>() / ra.len() as f64;
         let var = ra.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / ra.len() as f64;

@@ -11,8 +11,9 @@ use super::Uniform;
 /// Cups: diameter ranges per split, and what both splits share.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CupSplit {
-    pub train_diameter_mm: Uniform,
-    pub unseen_diameter_mm: Uniform,
+    /// Cup diameter \[m].
+    pub train_diameter_m: Uniform,
+    pub unseen_diameter_m: Uniform,
     /// Factor on the paper-cup wall law.
     pub stiffness_factor: Uniform,
     /// Cup plus contents \[kg].
@@ -25,17 +26,17 @@ pub struct CupSplit {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct FabricType {
     pub name: &'static str,
-    /// Sine texture amplitude and period \[mm], bump radius \[mm] and density \[per mm^2],
+    /// Sine texture amplitude and period \[m], bump radius \[m] and density \[per m^2],
     /// hardness (the share of the approach the gel takes).
-    pub roughness_mm: Uniform,
-    pub period_mm: Uniform,
-    pub bump_mm: Uniform,
+    pub roughness_m: Uniform,
+    pub period_m: Uniform,
+    pub bump_m: Uniform,
     pub bump_density: Uniform,
     pub hardness: Uniform,
-    /// One layer's thickness \[mm], compression stiffness per side at no load [N/mm], static
+    /// One layer's thickness \[m], compression stiffness per side at no load [N/m], static
     /// friction gel on cloth, mass \[kg].
-    pub layer_mm: Uniform,
-    pub k_n_per_mm: Uniform,
+    pub layer_m: Uniform,
+    pub k_n_per_m: Uniform,
     pub friction: Uniform,
     pub mass_kg: Uniform,
     /// Layers at the folded edge, inclusive.
@@ -74,7 +75,7 @@ mod tests {
     fn the_committed_split_separates_training_from_unseen_objects() {
         let c = SPLIT.cups;
         // By range: no training diameter reaches an unseen one.
-        assert!(c.train_diameter_mm.1 < c.unseen_diameter_mm.0, "{c:?}");
+        assert!(c.train_diameter_m.1 < c.unseen_diameter_m.0, "{c:?}");
         let f = SPLIT.fabrics;
         // By type: every listed type exists, none is on both sides.
         for t in f.train_types.iter().chain(f.unseen_types) {

@@ -95,9 +95,9 @@ impl TrialSpec {
         let mut best: Option<(&str, f64)> = None;
         for o in &self.objects {
             if let ObjectSpec::Fabric(f) = &o.spec
-                && best.is_none_or(|(_, r)| f.roughness_ra_mm < r)
+                && best.is_none_or(|(_, r)| f.roughness_ra_m < r)
             {
-                best = Some((&o.name, f.roughness_ra_mm));
+                best = Some((&o.name, f.roughness_ra_m));
             }
         }
         best.map_or("", |(n, _)| n)

@@ -45,8 +45,8 @@ impl Method {
         }
     }
 
-    /// Largest stable step \[s] for a linear oscillator of mass `m` [N s^2/mm], stiffness `k`
-    /// [N/mm] and damping `c` [N s/mm] (see the module docs). `f64::INFINITY` when any step is
+    /// Largest stable step \[s] for a linear oscillator of mass `m` \[kg], stiffness `k`
+    /// [N/m] and damping `c` [N s/m] (see the module docs). `f64::INFINITY` when any step is
     /// stable, 0 when none is.
     pub fn stable_step(self, m: f64, k: f64, c: f64) -> f64 {
         if k.is_nan() || m.is_nan() || k <= 0.0 || m <= 0.0 {
@@ -98,9 +98,12 @@ pub enum Substep {
     Stability { safety: f64 },
 }
 
-/// Iterations and tolerance of the Newton solve [mm] (relative to 1 + |x|).
+/// Iterations and relative tolerance of the Newton solve: a step ends when it moves the wall by
+/// less than `NEWTON_TOL` x (`NEWTON_SCALE_M` + |x|).
 const NEWTON_ITERS: u32 = 60;
-const NEWTON_TOL_MM: f64 = 1e-13;
+const NEWTON_TOL: f64 = 1e-13;
+/// Length scale of the Newton tolerance and of the bracket's first step \[m] (1 mm).
+const NEWTON_SCALE_M: f64 = 1e-3;
 
 impl World {
     /// Number of sub-steps for a step of `h` from the current state.
@@ -135,11 +138,7 @@ impl World {
         let cup = &self.cfg.cup;
         let (_, ks) = cup.spring(x);
         let (_, kg) = self.cfg.gel.elastic(p - x);
-        let cg = if p > x {
-            self.cfg.gel.c_n_s_per_mm
-        } else {
-            0.0
-        };
+        let cg = if p > x { self.cfg.gel.c_n_s_per_m } else { 0.0 };
         (ks + kg, cup.damping() + cg)
     }
 
@@ -193,7 +192,7 @@ impl World {
         };
         // Bracket the root around the explicit guess.
         let guess = x0 + h * v0;
-        let mut step = 1e-3_f64.max((h * v0).abs());
+        let mut step = (NEWTON_SCALE_M * 1e-3).max((h * v0).abs());
         let (mut lo, mut hi) = (guess, guess);
         let mut k = 0;
         while r(lo) > 0.0 && k < 200 {
@@ -201,7 +200,7 @@ impl World {
             step *= 2.0;
             k += 1;
         }
-        step = 1e-3_f64.max((h * v0).abs());
+        step = (NEWTON_SCALE_M * 1e-3).max((h * v0).abs());
         k = 0;
         while r(hi) < 0.0 && k < 200 {
             hi += step;
@@ -221,7 +220,9 @@ impl World {
                 xn = 0.5 * (lo + hi);
             }
             let dx = (xn - x).abs();
-            if dx <= NEWTON_TOL_MM * (1.0 + x.abs()) || hi - lo <= NEWTON_TOL_MM {
+            if dx <= NEWTON_TOL * (NEWTON_SCALE_M + x.abs())
+                || hi - lo <= NEWTON_TOL * NEWTON_SCALE_M
+            {
                 return (xn, it);
             }
             x = xn;
