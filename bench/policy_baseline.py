@@ -87,17 +87,17 @@ def main():
     for _ in range(20):  # warm-up, as on the Rust side
         tick()
     queue = []
-    act_us, inferred_us = [], []
+    act_s, inferred_s = [], []
     for _ in range(ticks):
         t0 = time.perf_counter()
         _, inf = tick()
-        us = (time.perf_counter() - t0) * 1e6
-        act_us.append(us)
+        s = time.perf_counter() - t0
+        act_s.append(s)
         if inf:
-            inferred_us.append(us)
+            inferred_s.append(s)
 
     period = 1.0 / m["control_rate_hz"]
-    starts, paced_us = [], []
+    starts, paced_s = [], []
     queue = []
     t_start = time.perf_counter()
     for i in range(paced):
@@ -107,11 +107,11 @@ def main():
         t0 = time.perf_counter()
         starts.append(t0)
         tick()
-        paced_us.append((time.perf_counter() - t0) * 1e6)
+        paced_s.append(time.perf_counter() - t0)
 
     print(json.dumps({
-        "act_us": act_us, "inferred_us": inferred_us,
-        "paced_starts_s": starts, "paced_act_us": paced_us, "period_ms": period * 1e3,
+        "act_s": act_s, "inferred_s": inferred_s,
+        "paced_starts_s": starts, "paced_act_s": paced_s, "period_s": period,
         "python": platform.python_version(), "onnxruntime": ort.__version__,
         "numpy": np.__version__,
     }))

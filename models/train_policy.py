@@ -135,8 +135,10 @@ def observations(cols, mode):
 
 
 def standardise(x):
+    """Mean and std per element; an element constant to rounding (its spread below 1e-9 of its
+    size: SI values such as a contact area in m^2 are far smaller than 1 and still vary) gets std 1."""
     mu, sd = x.mean(0), x.std(0)
-    return mu, np.where(sd > 1e-6, sd, 1.0)
+    return mu, np.where(sd > 1e-9 * np.maximum(np.abs(mu), 1e-12), sd, 1.0)
 
 
 def head(names, bounds, ym, ys):

@@ -3,7 +3,7 @@
 Usage: pyrobotiq_rate.py PORT [SECONDS]
 Connects, then calls readStatus() (FC 0x04, three registers at 0x07D0: the same request as
 `unitac gripper ... bench` without --allow-motion) back to back for SECONDS (default 5) and prints
-one JSON line: {"client", "version", "reads", "seconds", "rate_hz", "p50_ms", "p99_ms"}. Reads
+one JSON line: {"client", "version", "reads", "seconds", "rate_hz", "p50_s", "p99_s"}. Reads
 only: the gripper does not move.
 """
 
@@ -30,7 +30,7 @@ def main() -> int:
     rtt.sort()
 
     def pick(q):
-        return rtt[min(len(rtt) - 1, round(q * (len(rtt) - 1)))] * 1e3
+        return rtt[min(len(rtt) - 1, round(q * (len(rtt) - 1)))]
 
     print(json.dumps({
         "client": "pyrobotiqgripper",
@@ -38,8 +38,8 @@ def main() -> int:
         "reads": len(rtt),
         "seconds": round(total, 3),
         "rate_hz": round(len(rtt) / total, 1),
-        "p50_ms": round(pick(0.5), 3),
-        "p99_ms": round(pick(0.99), 3),
+        "p50_s": round(pick(0.5), 6),
+        "p99_s": round(pick(0.99), 6),
     }))
     return 0
 

@@ -171,7 +171,7 @@ fn fixture() -> Written {
             frame_seq: 12,
             in_contact: true,
             area_px: 1234.5,
-            area_mm2: 7.25,
+            area_m2: 7.25e-6,
             centroid_px: [160.5, 120.25],
             bbox_px: [10, 20, 30, 40],
             strength: 0.75,
@@ -186,7 +186,7 @@ fn fixture() -> Written {
             end: Stamp(t),
             frame_count: 48,
             peak_area_px: 2048.0,
-            peak_area_mm2: 11.5,
+            peak_area_m2: 11.5e-6,
             peak_frame_seq: 40,
             label: "fabric_a".into(),
         },
@@ -456,7 +456,8 @@ fn bags_written_here_are_read_by_rosbags_field_for_field() {
         assert_eq!(c["frame_seq"], 12);
         assert_eq!(c["in_contact"], true);
         assert_eq!(c["area_px"], 1234.5);
-        assert_eq!(c["area_mm2"], 7.25);
+        // As f32: serde_json parses floats to within an ulp of f64, not always exactly.
+        assert_eq!(c["area_m2"].as_f64().map(|v| v as f32), Some(7.25e-6_f32));
         assert_eq!(c["centroid_px"], serde_json::json!([160.5, 120.25]));
         assert_eq!(c["bbox_px"], serde_json::json!([10, 20, 30, 40]));
         assert_eq!(c["strength"], 0.75);
@@ -469,7 +470,10 @@ fn bags_written_here_are_read_by_rosbags_field_for_field() {
         assert_eq!(time(&e["end"]), x.episode.end.0);
         assert_eq!(e["frame_count"], 48);
         assert_eq!(e["peak_area_px"], 2048.0);
-        assert_eq!(e["peak_area_mm2"], 11.5);
+        assert_eq!(
+            e["peak_area_m2"].as_f64().map(|v| v as f32),
+            Some(11.5e-6_f32)
+        );
         assert_eq!(e["peak_frame_seq"], 40);
         assert_eq!(e["label"], "fabric_a");
         // TactileProperties

@@ -105,14 +105,14 @@ pub(crate) fn raw_frames_dir(
     Ok(dir)
 }
 
-/// The timing a Python baseline printed (`min_us`, `median_us`, `mean_us`, `p90_us`).
+/// The timing a Python baseline printed (`min_s`, `median_s`, `mean_s`, `p90_s`).
 pub(crate) fn python_timing(j: &serde_json::Value) -> Timing {
     let f = |k: &str| j[k].as_f64().unwrap_or(f64::NAN);
     Timing {
-        min_us: f("min_us"),
-        median_us: f("median_us"),
-        mean_us: f("mean_us"),
-        p90_us: f("p90_us"),
+        min_s: f("min_s"),
+        median_s: f("median_s"),
+        mean_s: f("mean_s"),
+        p90_s: f("p90_s"),
     }
 }
 
@@ -159,11 +159,11 @@ fn bench_contact_at(
         for f in &frames {
             let t0 = Instant::now();
             let _ = black_box(det.step(black_box(f)));
-            rust.push(t0.elapsed().as_secs_f64() * 1e6);
+            rust.push(t0.elapsed().as_secs_f64());
             let t0 = Instant::now();
             let s: u64 = black_box(f.data()).iter().map(|&b| u64::from(b)).sum();
             black_box(s);
-            floor.push(t0.elapsed().as_secs_f64() * 1e6);
+            floor.push(t0.elapsed().as_secs_f64());
         }
     }
     let rust = timing(rust);
@@ -174,7 +174,7 @@ fn bench_contact_at(
     } else {
         (None, String::new())
     };
-    let ratio = python.as_ref().map(|p| p.median_us / rust.median_us);
+    let ratio = python.as_ref().map(|p| p.median_s / rust.median_s);
     Ok((
         ContactBench {
             frame: format!(
@@ -182,7 +182,7 @@ fn bench_contact_at(
                 bg.width, bg.height
             ),
             frames_timed: frames.len() * repeat,
-            over_floor: rust.median_us / floor.median_us.max(1e-3),
+            over_floor: rust.median_s / floor.median_s.max(1e-9),
             rust,
             python,
             ratio_median: ratio,
@@ -220,17 +220,21 @@ impl ContactBenches {
             );
             s += &format!(
                 "  unitac (Rust)           median {:>8.1} us  mean {:>8.1} us\n",
-                b.rust.median_us, b.rust.mean_us
+                b.rust.median_s * 1e6,
+                b.rust.mean_s * 1e6
             );
             if let Some(p) = &b.python {
                 s += &format!(
                     "  numpy + OpenCV (gs_sdk) median {:>8.1} us  mean {:>8.1} us  [{}]\n",
-                    p.median_us, p.mean_us, self.python_versions
+                    p.median_s * 1e6,
+                    p.mean_s * 1e6,
+                    self.python_versions
                 );
             }
             s += &format!(
                 "  floor (one read pass)   median {:>8.1} us  (unitac is {:.1}x the floor)\n",
-                b.floor.median_us, b.over_floor
+                b.floor.median_s * 1e6,
+                b.over_floor
             );
             if let Some(r) = b.ratio_median {
                 s += &format!("  speed-up (median): {r:.1}x\n");
@@ -327,7 +331,7 @@ pub fn bench_replay(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
             count = k;
             read.push(rust_pass(&bag, false)?.1);
         }
-        let rust_pass_s = timing(full).median_us;
+        let rust_pass_s = timing(full).median_s;
         let (python_fps, python_pass_s, versions) = if with_python {
             let (fps, pass, v) = python_replay(&bag, repeat)?;
             (Some(fps), Some(pass), v)
@@ -343,7 +347,7 @@ pub fn bench_replay(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
             passes: repeat,
             rust_fps,
             rust_pass_s,
-            rust_read_fps: count as f64 / timing(read).median_us,
+            rust_read_fps: count as f64 / timing(read).median_s,
             python_fps,
             python_pass_s,
             python_versions: versions,

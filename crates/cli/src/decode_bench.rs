@@ -22,10 +22,10 @@ const FPS: f64 = 25.0;
 
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct Timing {
-    pub median_us: f64,
-    pub mean_us: f64,
-    pub cpu_median_us: f64,
-    pub cpu_mean_us: f64,
+    pub median_s: f64,
+    pub mean_s: f64,
+    pub cpu_median_s: f64,
+    pub cpu_mean_s: f64,
 }
 
 /// One pipeline's per-frame time (JPEG bytes in, 320x240 RGB8 out unless said otherwise).
@@ -90,10 +90,10 @@ fn timing(wall: &mut Vec<f64>, cpu: &mut Vec<f64>) -> Timing {
         unitac_core::timing(std::mem::take(cpu)),
     );
     Timing {
-        median_us: w.median_us,
-        mean_us: w.mean_us,
-        cpu_median_us: c.median_us,
-        cpu_mean_us: c.mean_us,
+        median_s: w.median_s,
+        mean_s: w.mean_s,
+        cpu_median_s: c.median_s,
+        cpu_mean_s: c.mean_s,
     }
 }
 
@@ -170,8 +170,8 @@ fn time_each(
         for j in jpegs {
             let (t0, c0) = (Instant::now(), cpu_now());
             f(black_box(j))?;
-            cpu.push((cpu_now().saturating_sub(c0)).as_secs_f64() * 1e6);
-            wall.push(t0.elapsed().as_secs_f64() * 1e6);
+            cpu.push((cpu_now().saturating_sub(c0)).as_secs_f64());
+            wall.push(t0.elapsed().as_secs_f64());
         }
     }
     Ok(timing(&mut wall, &mut cpu))
@@ -196,10 +196,10 @@ fn time_decoder(
 fn python_timing(j: &serde_json::Value) -> Timing {
     let f = |k: &str| j[k].as_f64().unwrap_or(f64::NAN);
     Timing {
-        median_us: f("median_us"),
-        mean_us: f("mean_us"),
-        cpu_median_us: f("cpu_median_us"),
-        cpu_mean_us: f("cpu_mean_us"),
+        median_s: f("median_s"),
+        mean_s: f("mean_s"),
+        cpu_median_s: f("cpu_median_s"),
+        cpu_mean_s: f("cpu_mean_s"),
     }
 }
 
@@ -216,8 +216,8 @@ fn time_yuv(order: Yuv422, buf: &[u8], repeat: usize) -> anyhow::Result<Timing> 
     for _ in 0..repeat * 50 {
         let (t0, c0) = (Instant::now(), cpu_now());
         yuv422_to_rgb_into(order, black_box(buf), 320, 240, 640, black_box(&mut out))?;
-        cpu.push((cpu_now().saturating_sub(c0)).as_secs_f64() * 1e6);
-        wall.push(t0.elapsed().as_secs_f64() * 1e6);
+        cpu.push((cpu_now().saturating_sub(c0)).as_secs_f64());
+        wall.push(t0.elapsed().as_secs_f64());
     }
     Ok(timing(&mut wall, &mut cpu))
 }
@@ -354,11 +354,11 @@ pub fn bench_decode(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
         }
         py_yuv = Some((python_timing(&j["yuyv"]), python_timing(&j["uyvy"])));
     }
-    let share = rust.cpu_median_us * 1e-6 * FPS;
+    let share = rust.cpu_median_s * FPS;
     let vendor = py_rows.first().map(|r| Timing { ..r.t });
     let best = py_rows
         .iter()
-        .min_by(|a, b| a.t.median_us.total_cmp(&b.t.median_us));
+        .min_by(|a, b| a.t.median_s.total_cmp(&b.t.median_s));
     Ok(DecodeBench {
         input: format!(
             "{n} distinct MJPEG {GS_W}x{GS_H} (quality 85, generated gel with markers, noise 1 DN) -> crop 1/7 per side -> {tw}x{th} RGB8"
@@ -367,13 +367,11 @@ pub fn bench_decode(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
         jpeg_bytes_mean: jpegs.iter().map(Vec::len).sum::<usize>() / n,
         restart_jpeg_bytes_mean: rst_jpegs.iter().map(Vec::len).sum::<usize>() / n,
         dct_scale: scale,
-        ratio_median: vendor.as_ref().map(|p| p.median_us / rust.median_us),
-        ratio_cpu_median: vendor
-            .as_ref()
-            .map(|p| p.cpu_median_us / rust.cpu_median_us),
-        python_core_share_at_25fps: vendor.as_ref().map(|p| p.cpu_median_us * 1e-6 * FPS),
+        ratio_median: vendor.as_ref().map(|p| p.median_s / rust.median_s),
+        ratio_cpu_median: vendor.as_ref().map(|p| p.cpu_median_s / rust.cpu_median_s),
+        python_core_share_at_25fps: vendor.as_ref().map(|p| p.cpu_median_s * FPS),
         best_python: best.map(|r| r.name.clone()),
-        ratio_vs_best_python: best.map(|r| r.t.median_us / rust.median_us),
+        ratio_vs_best_python: best.map(|r| r.t.median_s / rust.median_s),
         core_share_at_25fps: share,
         fits_25fps_in_fifth_of_a_core: share < 0.20,
         mean_abs_diff_vs_opencv: mad,
@@ -385,10 +383,10 @@ pub fn bench_decode(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
         python_versions: versions,
         yuyv_ratio_median: py_yuv
             .as_ref()
-            .map(|(y, _)| y.median_us / yuyv_rust.median_us),
+            .map(|(y, _)| y.median_s / yuyv_rust.median_s),
         uyvy_ratio_median: py_yuv
             .as_ref()
-            .map(|(_, u)| u.median_us / uyvy_rust.median_us),
+            .map(|(_, u)| u.median_s / uyvy_rust.median_s),
         yuyv_python: py_yuv.as_ref().map(|(y, _)| Timing { ..*y }),
         uyvy_python: py_yuv.map(|(_, u)| u),
         yuyv_rust,
@@ -401,7 +399,9 @@ impl DecodeBench {
         let line = |name: &str, t: &Timing| {
             format!(
                 "  {name:<52} median {:>8.1} us  mean {:>8.1} us  cpu median {:>8.1} us\n",
-                t.median_us, t.mean_us, t.cpu_median_us
+                t.median_s * 1e6,
+                t.mean_s * 1e6,
+                t.cpu_median_s * 1e6
             )
         };
         let mut s = format!(

@@ -504,13 +504,13 @@ pub fn eval_depth(out: Option<&Path>) -> anyhow::Result<DepthEval> {
                     se += f64::from(a - b).powi(2);
                     n += 1;
                 }
-                let pe = (f64::from(s.penetration_mm) - approach).abs();
+                let pe = (f64::from(s.penetration_m) * 1e3 - approach).abs();
                 pe_sum += pe;
                 pe_max = pe_max.max(pe);
                 let hertz = std::f64::consts::PI * p.press.contact_radius_mm().powi(2);
                 let geo = std::f64::consts::PI * p.press.geometric_radius_mm().powi(2);
-                ah += s.area_mm2 / hertz;
-                ag += s.area_mm2 / geo;
+                ah += s.area_m2 * 1e6 / hertz;
+                ag += s.area_m2 * 1e6 / geo;
                 let m = det.measure(&p.frame).map_err(anyhow::Error::msg)?;
                 dh += f64::from(m.area_px) * spec.mm2_per_px() / hertz;
                 if let Some(d) = out {
@@ -577,20 +577,23 @@ impl DepthBenches {
             );
             s += &format!(
                 "  unitac (Rust)      median {:>9.1} us  min {:>9.1} us  p90 {:>9.1} us  ({:.1} % of one core at 25 fps)\n",
-                b.rust.median_us,
-                b.rust.min_us,
-                b.rust.p90_us,
+                b.rust.median_s * 1e6,
+                b.rust.min_s * 1e6,
+                b.rust.p90_s * 1e6,
                 b.core_share_at_25fps * 100.0
             );
             if let (Some(p), Some(r)) = (&b.python, b.ratio_median) {
                 s += &format!(
                     "  Python (gs_sdk)    median {:>9.1} us  min {:>9.1} us  p90 {:>9.1} us  Rust is {r:.1}x faster\n",
-                    p.median_us, p.min_us, p.p90_us
+                    p.median_s * 1e6,
+                    p.min_s * 1e6,
+                    p.p90_s * 1e6
                 );
             }
             s += &format!(
                 "  floor (read pass)  median {:>9.1} us  Rust / floor {:.1}x\n",
-                b.floor.median_us, b.over_floor
+                b.floor.median_s * 1e6,
+                b.over_floor
             );
         }
         s += &format!("Python: {}\n{}\n", self.python, self.note);
@@ -651,11 +654,11 @@ pub fn bench_depth(n: usize, repeat: usize, with_python: bool) -> anyhow::Result
             for f in &frames {
                 let t0 = Instant::now();
                 black_box(est.estimate(black_box(f))?);
-                rust.push(t0.elapsed().as_secs_f64() * 1e6);
+                rust.push(t0.elapsed().as_secs_f64());
                 let t0 = Instant::now();
                 let s: u64 = black_box(f.data()).iter().map(|&b| u64::from(b)).sum();
                 black_box(s);
-                floor.push(t0.elapsed().as_secs_f64() * 1e6);
+                floor.push(t0.elapsed().as_secs_f64());
             }
         }
         let (rust, floor) = (timing(rust), timing(floor));
@@ -672,10 +675,10 @@ pub fn bench_depth(n: usize, repeat: usize, with_python: bool) -> anyhow::Result
                 spec.width, spec.height
             ),
             frames_timed: frames.len() * repeat,
-            ratio_median: py.as_ref().map(|p| p.median_us / rust.median_us),
+            ratio_median: py.as_ref().map(|p| p.median_s / rust.median_s),
             python: py,
-            over_floor: rust.median_us / floor.median_us.max(1e-3),
-            core_share_at_25fps: rust.median_us * 25.0 / 1e6,
+            over_floor: rust.median_s / floor.median_s.max(1e-9),
+            core_share_at_25fps: rust.median_s * 25.0,
             rust,
             floor,
         });

@@ -417,15 +417,15 @@ fn run_bench(a: &GripperArgs) -> anyhow::Result<bool> {
         "link", "cycles/s", "wire limit", "ratio", "p50 ms", "p99 ms", "failures"
     );
     for r in &results {
-        let ms = |x: Option<f64>| x.map_or("-".into(), |v| format!("{v:.3}"));
+        let ms = |x: Option<f64>| x.map_or("-".into(), |v| format!("{:.3}", v * 1e3));
         println!(
             "{:<48} {:>9.1} {:>11.1} {:>6.1}% {:>9} {:>9} {:>8}",
             r.label,
             r.rate_hz,
             r.wire_limit_hz,
             100.0 * r.ratio,
-            ms(r.rtt_p50_ms),
-            ms(r.rtt_p99_ms),
+            ms(r.rtt_p50_s),
+            ms(r.rtt_p99_s),
             r.failures
         );
     }

@@ -690,8 +690,8 @@ fn cmd_contact(
                 let contact = m.contact;
                 let dj = d.map(|d| {
                     serde_json::json!({
-                        "contact": d.contact, "penetration_mm": d.penetration_mm,
-                        "area_px": d.area_px, "area_mm2": d.area_mm2, "centroid": d.centroid_px,
+                        "contact": d.contact, "penetration_m": d.penetration_m,
+                        "area_px": d.area_px, "area_m2": d.area_m2, "centroid": d.centroid_px,
                     })
                 });
                 if json {
@@ -718,7 +718,10 @@ fn cmd_contact(
                     if let Some(d) = d {
                         t += &format!(
                             "; depth: penetration {:.3} mm area {:.2} mm^2 centroid ({:.1}, {:.1})",
-                            d.penetration_mm, d.area_mm2, d.centroid_px[0], d.centroid_px[1]
+                            f64::from(d.penetration_m) * 1e3,
+                            d.area_m2 * 1e6,
+                            d.centroid_px[0],
+                            d.centroid_px[1]
                         );
                     }
                     t

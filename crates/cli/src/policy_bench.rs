@@ -89,7 +89,7 @@ struct Script {
     mode: Mode,
     decides: bool,
     latent_len: usize,
-    gel_indent_m_per_mm2: f64,
+    gel_indent_m_per_m2: f64,
     objects: Vec<String>,
     visual_names: Vec<String>,
     in_contact: bool,
@@ -126,7 +126,7 @@ impl Script {
             mode: p.mode,
             decides,
             latent_len: p.latent_len,
-            gel_indent_m_per_mm2: p.gel_indent_m_per_mm2,
+            gel_indent_m_per_m2: p.gel_indent_m_per_m2,
             objects: p.objects.clone(),
             visual_names: p.visual_names.clone(),
             in_contact: false,
@@ -171,7 +171,7 @@ impl Script {
         // The gel's contact area grows with its indentation (the inverse of the cup
         // controller's own estimate).
         let area = if now_in {
-            10.0 + c.penetration_m / self.gel_indent_m_per_mm2.max(1e-12)
+            10e-6 + c.penetration_m / self.gel_indent_m_per_m2.max(1e-12)
         } else {
             0.0
         };
@@ -186,7 +186,7 @@ impl Script {
         out.push(Msg::ContactState(ContactState {
             header: unitac_core::msg::Header::new(self.stamp(), "gel"),
             in_contact: now_in,
-            area_mm2: area as f32,
+            area_m2: area as f32,
             ..samples::contact_state()
         }));
         match (self.mode, self.decides) {
@@ -354,10 +354,10 @@ fn named(inputs: &Inputs) -> NamedInputs<'_> {
 /// One pass's samples.
 #[derive(Default)]
 struct Samples {
-    tick_us: Vec<f64>,
-    inferred_us: Vec<f64>,
-    act_us: Vec<f64>,
-    act_inferred_us: Vec<f64>,
+    tick_s: Vec<f64>,
+    inferred_s: Vec<f64>,
+    act_s: Vec<f64>,
+    act_inferred_s: Vec<f64>,
     starts_s: Vec<f64>,
     phases: Vec<String>,
 }
@@ -400,26 +400,26 @@ fn run_pass(
             }
             let t0 = Instant::now();
             let out = chain.run(status);
-            let mut act_us = None;
+            let mut act_s = None;
             if let Some((p, inputs)) = onnx.as_mut() {
                 let named = named(inputs);
                 let t1 = Instant::now();
                 let chunk = p
                     .act(&named, stamp)
                     .with_context(|| format!("{scene}: onnx act"))?;
-                let us = t1.elapsed().as_secs_f64() * 1e6;
-                act_us = Some((us, chunk.inferred));
+                let dt = t1.elapsed().as_secs_f64();
+                act_s = Some((dt, chunk.inferred));
             }
-            let tick_us = t0.elapsed().as_secs_f64() * 1e6;
+            let tick_s = t0.elapsed().as_secs_f64();
             if let Some(e) = out.errors.first() {
                 bail!("{scene}: the policy stage rejected a tick: {e}");
             }
-            s.tick_us.push(tick_us);
-            if let Some((us, inferred)) = act_us {
-                s.act_us.push(us);
+            s.tick_s.push(tick_s);
+            if let Some((dt, inferred)) = act_s {
+                s.act_s.push(dt);
                 if inferred {
-                    s.inferred_us.push(tick_us);
-                    s.act_inferred_us.push(us);
+                    s.inferred_s.push(tick_s);
+                    s.act_inferred_s.push(dt);
                 }
             }
             let phase = out.produced.iter().find_map(|m| match m {
@@ -458,10 +458,10 @@ fn paced_act(onnx: &mut OnnxPolicy, inputs: &Inputs, ticks: usize) -> anyhow::Re
         let chunk = onnx
             .act(&named(inputs), stamp)
             .context("onnx act (paced)")?;
-        let us = t0.elapsed().as_secs_f64() * 1e6;
-        all.push(us);
+        let dt = t0.elapsed().as_secs_f64();
+        all.push(dt);
         if chunk.inferred {
-            inferred.push(us);
+            inferred.push(dt);
         }
     }
     Ok(TickRow {
@@ -471,7 +471,7 @@ fn paced_act(onnx: &mut OnnxPolicy, inputs: &Inputs, ticks: usize) -> anyhow::Re
         what: "onnx act, paced".into(),
         tick: tail(all),
         inferred: Some(tail(inferred)),
-        period: Some(period_jitter(&starts, period as f64 / 1e6)),
+        period: Some(period_jitter(&starts, period as f64 * 1e-9)),
         phases: Vec::new(),
     })
 }
@@ -552,8 +552,8 @@ fn python_rows(
         scene: "-".into(),
         mode: "-".into(),
         what: "onnx act".into(),
-        tick: tail(samples("act_us")),
-        inferred: Some(tail(samples("inferred_us"))),
+        tick: tail(samples("act_s")),
+        inferred: Some(tail(samples("inferred_s"))),
         period: None,
         phases: Vec::new(),
     };
@@ -563,11 +563,11 @@ fn python_rows(
         scene: "-".into(),
         mode: "-".into(),
         what: "onnx act, sleep-paced".into(),
-        tick: tail(samples("paced_act_us")),
+        tick: tail(samples("paced_act_s")),
         inferred: None,
         period: Some(period_jitter(
             &starts,
-            j["period_ms"].as_f64().unwrap_or(f64::NAN),
+            j["period_s"].as_f64().unwrap_or(f64::NAN),
         )),
         phases: Vec::new(),
     });
@@ -603,23 +603,23 @@ pub fn bench_policy(opts: &Options) -> anyhow::Result<PolicyBench> {
         for name in scenes() {
             let sp = scene_policy(&name)?;
             let (params, scene) = (&sp.params, &sp.scene);
-            let period_ms = 1e3 / params.control_rate_hz;
+            let period_s = 1.0 / params.control_rate_hz;
             let row = |what: &str, s: &Samples, inferred: bool| TickRow {
                 transport: "embedded".into(),
                 scene: scene.clone(),
                 mode: params.mode.as_str().into(),
                 what: what.into(),
-                tick: tail(s.tick_us.clone()),
-                inferred: inferred.then(|| tail(s.inferred_us.clone())),
-                period: (s.starts_s.len() > 1).then(|| period_jitter(&s.starts_s, period_ms)),
+                tick: tail(s.tick_s.clone()),
+                inferred: inferred.then(|| tail(s.inferred_s.clone())),
+                period: (s.starts_s.len() > 1).then(|| period_jitter(&s.starts_s, period_s)),
                 phases: s.phases.clone(),
             };
             let plain = run_pass(&sp, opts.episodes, None, None)?;
             rows.push(row("controller", &plain, false));
             let with = run_pass(&sp, opts.episodes, None, Some((&mut onnx, &inputs)))?;
             rows.push(row("controller + onnx act", &with, true));
-            act_all.extend(with.act_us.iter().copied());
-            act_inferred.extend(with.act_inferred_us.iter().copied());
+            act_all.extend(with.act_s.iter().copied());
+            act_inferred.extend(with.act_inferred_s.iter().copied());
             if opts.paced_ticks > 1 {
                 let paced = run_pass(&sp, 1, Some(opts.paced_ticks), Some((&mut onnx, &inputs)))?;
                 rows.push(row("controller + onnx, paced", &paced, true));
@@ -655,11 +655,11 @@ pub fn bench_policy(opts: &Options) -> anyhow::Result<PolicyBench> {
                 0
             };
             let (act, paced_row, v) = python_rows(&dir, act_ticks.max(1), paced)?;
-            let inf = |r: &TickRow| r.inferred.map_or(f64::NAN, |t| t.p50_us);
+            let inf = |r: &TickRow| r.inferred.map_or(f64::NAN, |t| t.p50_s);
             ratios = Some(Ratios {
-                p50: act.tick.p50_us / ours.tick.p50_us.max(1e-9),
-                p99: act.tick.p99_us / ours.tick.p99_us.max(1e-9),
-                inferred_p50: inf(&act) / inf(&ours).max(1e-9),
+                p50: act.tick.p50_s / ours.tick.p50_s.max(1e-12),
+                p99: act.tick.p99_s / ours.tick.p99_s.max(1e-12),
+                inferred_p50: inf(&act) / inf(&ours).max(1e-12),
             });
             rows.push(act);
             rows.extend(paced_row);

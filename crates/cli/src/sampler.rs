@@ -33,8 +33,8 @@ pub struct Row {
     pub steps: u32,
     pub guidance: f64,
     pub model_calls: u32,
-    /// Median wall time per sample \[us], batched guidance, one thread.
-    pub time_us: f64,
+    /// Median wall time per sample \[s], batched guidance, one thread.
+    pub time_s: f64,
     /// RMS error of the sample against the exact (Gaussian) or fine-step (projector) answer.
     pub error: f64,
     /// What the guards would say: "ok", or the start of their report.
@@ -186,13 +186,10 @@ fn timed(
     for _ in 0..reps {
         let t0 = Instant::now();
         let out = sample(&mut case.v, cfg, &off(), &case.prior, &case.cond)?;
-        times.push(t0.elapsed().as_secs_f64() * 1e6);
+        times.push(t0.elapsed().as_secs_f64());
         last = Some(out);
     }
-    Ok((
-        unitac_core::timing(times).median_us,
-        last.context("no run")?,
-    ))
+    Ok((unitac_core::timing(times).median_s, last.context("no run")?))
 }
 
 fn truth(case: &mut Case, s: f64) -> anyhow::Result<Vec<f64>> {
@@ -234,7 +231,7 @@ pub fn table(reps: usize) -> anyhow::Result<Vec<Row>> {
                         seed: SEED,
                         batched: true,
                     };
-                    let (time_us, out) = timed(&mut case, &cfg, reps)?;
+                    let (time_s, out) = timed(&mut case, &cfg, reps)?;
                     let g = Guards::new(case.v.sigma_min);
                     let guarded = sample(&mut case.v, &cfg, &g, &case.prior, &case.cond)?;
                     let guard = if guarded.valid {
@@ -248,7 +245,7 @@ pub fn table(reps: usize) -> anyhow::Result<Vec<Row>> {
                         steps,
                         guidance: s,
                         model_calls: out.model_calls,
-                        time_us,
+                        time_s,
                         error: rms(&out.x, &exact),
                         guard,
                     });
@@ -348,7 +345,7 @@ fn error_vs_time(rows: &[Row]) -> Figure {
                 let points = rows
                     .iter()
                     .filter(|r| r.model == model && r.guidance == s && r.solver == *solver)
-                    .map(|r| (r.time_us * 1e-6, r.error))
+                    .map(|r| (r.time_s, r.error))
                     .collect();
                 chart = chart.series(
                     Series::new(PALETTE[k], points)
@@ -416,7 +413,7 @@ impl Report {
                     r.solver.as_str(),
                     r.steps,
                     r.model_calls,
-                    r.time_us,
+                    r.time_s * 1e6,
                     r.error,
                     r.guard
                 );
@@ -456,7 +453,7 @@ impl Report {
 pub struct VersusEuler50 {
     pub model: String,
     pub euler50_error: f64,
-    pub euler50_us: f64,
+    pub euler50_s: f64,
     pub best: Option<Row>,
     pub best_time_ratio: Option<f64>,
 }
@@ -467,8 +464,8 @@ pub struct VersusEuler50 {
 pub struct Batching {
     pub model: String,
     pub rounds: usize,
-    pub batched_us: f64,
-    pub two_calls_us: f64,
+    pub batched_s: f64,
+    pub two_calls_s: f64,
     /// two calls / one batch-2 call: median and range over the rounds.
     pub speedup: f64,
     pub speedup_min: f64,
@@ -479,7 +476,7 @@ pub struct Batching {
 pub struct Bench {
     pub versus_euler50: Vec<VersusEuler50>,
     pub batching: Vec<Batching>,
-    pub encoder_properties_us: f64,
+    pub encoder_properties_s: f64,
 }
 
 /// Rounds of the batching comparison (each times both forms `reps` times, alternating).
@@ -515,8 +512,8 @@ fn batching(case: &mut Case, reps: usize) -> anyhow::Result<Batching> {
     Ok(Batching {
         model: case.name.into(),
         rounds: BATCH_ROUNDS,
-        batched_us: med(&mut b),
-        two_calls_us: med(&mut t),
+        batched_s: med(&mut b),
+        two_calls_s: med(&mut t),
         speedup: med(&mut ratio),
         speedup_min: lo,
         speedup_max: hi,
@@ -546,7 +543,7 @@ pub fn bench(reps: usize) -> anyhow::Result<Bench> {
                     steps,
                     guidance: s,
                     model_calls: out.model_calls,
-                    time_us: t,
+                    time_s: t,
                     error: rms(&out.x, &exact),
                     guard: String::new(),
                 });
@@ -560,13 +557,13 @@ pub fn bench(reps: usize) -> anyhow::Result<Bench> {
         let best = rows
             .iter()
             .filter(|r| r.error <= e50.error && !(r.solver == Solver::Euler && r.steps == 50))
-            .min_by(|a, b| a.time_us.total_cmp(&b.time_us))
+            .min_by(|a, b| a.time_s.total_cmp(&b.time_s))
             .cloned();
         versus.push(VersusEuler50 {
             model: case.name.into(),
             euler50_error: e50.error,
-            euler50_us: e50.time_us,
-            best_time_ratio: best.as_ref().map(|b| b.time_us / e50.time_us),
+            euler50_s: e50.time_s,
+            best_time_ratio: best.as_ref().map(|b| b.time_s / e50.time_s),
             best,
         });
     }
@@ -577,7 +574,7 @@ pub fn bench(reps: usize) -> anyhow::Result<Bench> {
     Ok(Bench {
         versus_euler50: versus,
         batching: batch,
-        encoder_properties_us: encoder_latency(reps * 4)?,
+        encoder_properties_s: encoder_latency(reps * 4)?,
     })
 }
 
@@ -598,9 +595,9 @@ fn encoder_latency(reps: usize) -> anyhow::Result<f64> {
     for _ in 0..reps {
         let t0 = Instant::now();
         enc.encode(&clip).map_err(|e| anyhow::anyhow!("{e}"))?;
-        t.push(t0.elapsed().as_secs_f64() * 1e6);
+        t.push(t0.elapsed().as_secs_f64());
     }
-    Ok(unitac_core::timing(t).median_us)
+    Ok(unitac_core::timing(t).median_s)
 }
 
 impl Bench {
@@ -618,7 +615,7 @@ impl Bench {
                     "trained, unseen cup, error vs Heun-1024"
                 },
                 v.euler50_error,
-                v.euler50_us
+                v.euler50_s * 1e6
             );
             if let (Some(b), Some(r)) = (&v.best, v.best_time_ratio) {
                 s += &format!(
@@ -627,7 +624,7 @@ impl Bench {
                     b.steps,
                     b.model_calls,
                     b.error,
-                    b.time_us,
+                    b.time_s * 1e6,
                     100.0 * r
                 );
             }
@@ -636,8 +633,8 @@ impl Bench {
             s += &format!(
                 "  guidance branches (Heun-16, {}): one batch-2 call {:.0} us, two calls {:.0} us: {:.2}x (median of {} rounds, range {:.2}-{:.2}x)\n",
                 b.model,
-                b.batched_us,
-                b.two_calls_us,
+                b.batched_s * 1e6,
+                b.two_calls_s * 1e6,
                 b.speedup,
                 b.rounds,
                 b.speedup_min,
@@ -646,7 +643,7 @@ impl Bench {
         }
         s += &format!(
             "  encoder + property head per episode: {:.0} us\n",
-            self.encoder_properties_us
+            self.encoder_properties_s * 1e6
         );
         s
     }

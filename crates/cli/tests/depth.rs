@@ -145,7 +145,7 @@ fn calibrate_review_correct_and_refuse() {
         let disc = std::f64::consts::PI * t["contact_radius_px"].as_f64().unwrap().powi(2);
         let ratio = v["depth"]["area_px"].as_f64().unwrap() / disc;
         assert!((0.75..1.25).contains(&ratio), "{v} vs disc {disc}");
-        let pen = v["depth"]["penetration_mm"].as_f64().unwrap();
+        let pen = v["depth"]["penetration_m"].as_f64().unwrap() * 1e3;
         assert!(
             (pen - t["approach_mm"].as_f64().unwrap()).abs() < 0.05,
             "{v} {t}"

@@ -234,7 +234,7 @@ fn bad_configuration_is_one_line_exit_2() {
             "objects: [bottle]",
             "object 'bottle' is of category 'bottle'",
         ),
-        ("budget", "budget_ms: 1e308", "budget_ms 1e308 is outside"),
+        ("budget", "budget_s: 1e308", "budget_s 1e308 is outside"),
         ("cuda", "providers: cuda", "provider cuda is not available"),
     ] {
         scene_error(

@@ -226,15 +226,15 @@ impl ContactDetector {
             .max(1.0)
     }
 
-    /// Gel-surface mm^2 per pixel of a `width` x `height` frame: the sensor spec's mm per pixel
+    /// Gel-surface m^2 per pixel of a `width` x `height` frame: the sensor spec's scale per pixel
     /// is for its published size, and a frame of another size covers the same field of view
     /// (GelSight Mini at 640x480: a quarter of the 320x240 figure).
-    pub fn mm2_per_px(&self, width: u32, height: u32) -> f64 {
+    pub fn m2_per_px(&self, width: u32, height: u32) -> f64 {
         let px = f64::from(width) * f64::from(height);
         if px <= 0.0 {
-            return self.spec.mm2_per_px();
+            return self.spec.m2_per_px();
         }
-        self.spec.mm2_per_px() * f64::from(self.spec.width) * f64::from(self.spec.height) / px
+        self.spec.m2_per_px() * f64::from(self.spec.width) * f64::from(self.spec.height) / px
     }
 
     /// The detection grid of a frame size: `stride` times the size scale.
@@ -561,12 +561,12 @@ impl ContactDetector {
             return Ok(closed);
         }
         let m = self.measure(f)?;
-        let mm2_per_px = self.mm2_per_px(geo.width, geo.height);
+        let m2_per_px = self.m2_per_px(geo.width, geo.height);
         let model = &self.model;
         let k = self.size_scale(geo.width, geo.height);
         let (raw, mut out) = self
             .episodes
-            .update(f, m.area_px, k * k, &self.p, mm2_per_px, || {
+            .update(f, m.area_px, k * k, &self.p, m2_per_px, || {
                 background_of(model).and_then(|b| b.frame(&f.sensor_id))
             });
         if !self.episodes.in_contact() && !raw {
@@ -581,7 +581,7 @@ impl ContactDetector {
             frame_seq: f.seq,
             in_contact: self.episodes.in_contact(),
             area_px: m.area_px,
-            area_mm2: m.area_px * mm2_per_px as f32,
+            area_m2: (f64::from(m.area_px) * m2_per_px) as f32,
             centroid_px: m.centroid,
             bbox_px: m.bbox,
             strength: m.strength,
@@ -639,11 +639,11 @@ impl ContactDetector {
 
     /// Close an open episode (end of input).
     pub fn flush(&mut self, sensor_id: &str) -> Vec<Msg> {
-        let mm2_per_px = self.geo.map_or(self.spec.mm2_per_px(), |g| {
-            self.mm2_per_px(g.width, g.height)
-        });
+        let m2_per_px = self
+            .geo
+            .map_or(self.spec.m2_per_px(), |g| self.m2_per_px(g.width, g.height));
         let model = &self.model;
-        self.episodes.close(sensor_id, &self.p, mm2_per_px, || {
+        self.episodes.close(sensor_id, &self.p, m2_per_px, || {
             background_of(model).and_then(|b| b.frame(sensor_id))
         })
     }

@@ -75,7 +75,7 @@ impl Episodes {
         area_px: f32,
         area_scale: f32,
         p: &ContactParams,
-        mm2_per_px: f64,
+        m2_per_px: f64,
         background: impl FnOnce() -> Option<Frame>,
     ) -> (bool, Vec<Msg>) {
         let raw = if self.in_contact {
@@ -109,7 +109,7 @@ impl Episodes {
                     self.clip.clear();
                     self.peak_frame = None;
                 } else {
-                    out = self.close(&f.sensor_id, p, mm2_per_px, background);
+                    out = self.close(&f.sensor_id, p, m2_per_px, background);
                 }
             }
         } else {
@@ -142,7 +142,7 @@ impl Episodes {
         &mut self,
         sensor_id: &str,
         p: &ContactParams,
-        mm2_per_px: f64,
+        m2_per_px: f64,
         background: impl FnOnce() -> Option<Frame>,
     ) -> Vec<Msg> {
         self.in_contact = false;
@@ -162,7 +162,7 @@ impl Episodes {
             end: ep.last,
             frame_count: ep.frames,
             peak_area_px: ep.peak_area,
-            peak_area_mm2: ep.peak_area * mm2_per_px as f32,
+            peak_area_m2: (f64::from(ep.peak_area) * m2_per_px) as f32,
             peak_frame_seq: ep.peak_seq,
             label: label.clone(),
         })];

@@ -173,7 +173,7 @@ impl ContactStage {
                 y1 = y1.max(y + 1);
             }
             cs.area_px = s.area_px as f32;
-            cs.area_mm2 = s.area_mm2 as f32;
+            cs.area_m2 = s.area_m2 as f32;
             cs.centroid_px = s.centroid_px;
             cs.bbox_px = [x0, y0, x1, y1];
         }
@@ -193,7 +193,7 @@ impl ContactStage {
             header: Header::optical(f.stamp, &f.sensor_id),
             width: f.width,
             height: f.height,
-            pixel_m: s.mm_per_px * 1e-3,
+            pixel_m: s.m_per_px,
             depth_m,
         }));
         Ok(())

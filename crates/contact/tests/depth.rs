@@ -82,9 +82,9 @@ fn evaluate(cal: &DepthCalibration, spec: SensorSpec, approach: f64, noise: Pres
             se += f64::from(a - b).powi(2);
             n += 1;
         }
-        pen = f64::max(pen, (f64::from(s.penetration_mm) - approach).abs());
+        pen = f64::max(pen, (f64::from(s.penetration_m) * 1e3 - approach).abs());
         let disc = std::f64::consts::PI * p.press.contact_radius_mm().powi(2);
-        area += s.area_mm2 / disc / rendered.len() as f64;
+        area += s.area_m2 * 1e6 / disc / rendered.len() as f64;
     }
     Score {
         rmse_mm: (se / n as f64).sqrt(),
@@ -226,7 +226,7 @@ fn the_contact_stage_takes_its_area_from_depth_when_a_scene_gives_a_calibration(
             for m in stage.process(&Msg::Frame(f), &clock).unwrap() {
                 if let Msg::ContactState(cs) = m {
                     if cs.in_contact {
-                        area = Some((f64::from(cs.area_mm2), cs.centroid_px));
+                        area = Some((f64::from(cs.area_m2) * 1e6, cs.centroid_px));
                     }
                 }
             }

@@ -4,13 +4,28 @@
 //! Two streams agree when they have the same events in the same order with the same fields;
 //! integers, strings and booleans must be equal, floats equal within a relative tolerance
 //! ([`FLOAT_TOLERANCE`]) because ONNX Runtime may sum in another order on another thread count or
-//! CPU. Everything else in the stages is integer or deterministic float code, so in practice the
+//! CPU. Near zero the tolerance is relative to the field's everyday scale, read from its unit
+//! suffix ([`unit_scale`]: a millimetre for `_m`, a square millimetre for `_m2`), so that an SI
+//! length or area is compared as tightly as a value of order one. Everything else in the stages is integer or deterministic float code, so in practice the
 //! streams are byte-identical on one machine.
 
 use serde_json::Value;
 
-/// Relative tolerance for floats: |a - b| <= tol * max(1, |a|, |b|).
+/// Relative tolerance for floats: |a - b| <= tol * max(scale, |a|, |b|), with the field's
+/// [`unit_scale`].
 pub const FLOAT_TOLERANCE: f64 = 1e-5;
+
+/// The everyday scale of a field by its unit suffix: 1e-3 for lengths (`_m`, `_m_s`), 1e-6 for
+/// areas (`_m2`), 1 otherwise.
+pub fn unit_scale(field: &str) -> f64 {
+    if field.ends_with("_m2") {
+        1e-6
+    } else if field.ends_with("_m") || field.ends_with("_m_s") {
+        1e-3
+    } else {
+        1.0
+    }
+}
 
 /// The first difference between two event streams, as one line naming the event and field.
 pub fn diff(expected: &[Value], got: &[Value]) -> Option<String> {
@@ -53,7 +68,9 @@ fn diff_value(e: &Value, g: &Value, path: &str) -> Option<String> {
                 a.as_f64().unwrap_or(f64::NAN),
                 b.as_f64().unwrap_or(f64::NAN),
             );
-            let tol = FLOAT_TOLERANCE * 1f64.max(x.abs()).max(y.abs());
+            let field = path.rsplit('.').next().unwrap_or("");
+            let field = field.split('[').next().unwrap_or(field);
+            let tol = FLOAT_TOLERANCE * unit_scale(field).max(x.abs()).max(y.abs());
             ((x - y).abs() > tol || x.is_nan() != y.is_nan())
                 .then(|| format!("{path}: {x} expected, {y} got"))
         }
@@ -120,6 +137,25 @@ mod tests {
         c = a.clone();
         c[0].as_object_mut().unwrap().remove("peak");
         assert!(diff(&a, &c).unwrap().contains("fields"));
+    }
+
+    #[test]
+    fn si_lengths_and_areas_are_compared_at_their_own_scale() {
+        let a =
+            vec![json!({"type": "contact_state", "area_m2": 5e-6, "shear_x_m": 2e-4, "s": 5e-6})];
+        let moved = |k: &str, v: f64| {
+            let mut b = a.clone();
+            b[0][k] = json!(v);
+            diff(&a, &b)
+        };
+        // A 10 % change of a 5 mm^2 area or a 0.2 mm shear is caught ...
+        assert!(moved("area_m2", 5.5e-6).unwrap().contains(".area_m2"));
+        assert!(moved("shear_x_m", 2.2e-4).unwrap().contains(".shear_x_m"));
+        // ... a change in the last digits is not, nor one below the floor of a unitless value.
+        assert_eq!(moved("area_m2", 5.000001e-6), None);
+        assert_eq!(moved("s", 5.5e-6), None);
+        assert_eq!(unit_scale("speed_m_s"), 1e-3);
+        assert_eq!(unit_scale("strength"), 1.0);
     }
 
     #[test]

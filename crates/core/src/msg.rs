@@ -315,13 +315,11 @@ macro_rules! declare_msg {
                         "peak_index": m.peak_index,
                         "frame_seqs": m.frames.iter().map(|f| f.seq).collect::<Vec<_>>(),
                     }),
-                    // In mm, so that the goldens' tolerance (relative, at least 1e-5 absolute)
-                    // is tight on them.
                     Msg::Depth(d) => serde_json::json!({
                         "header": d.header, "width": d.width, "height": d.height,
-                        "pixel_mm": d.pixel_m * 1e3,
+                        "pixel_m": d.pixel_m,
                         "known": d.depth_m.iter().filter(|v| v.is_finite()).count(),
-                        "max_mm": f64::from(d.depth_m.iter().copied().filter(|v| v.is_finite()).fold(0.0f32, f32::max)) * 1e3,
+                        "max_m": f64::from(d.depth_m.iter().copied().filter(|v| v.is_finite()).fold(0.0f32, f32::max)),
                         "digest": d.digest(),
                     }),
                     $( Msg::$name(m) => serde_json::to_value(m).unwrap_or_default(), )*

@@ -399,11 +399,21 @@ pub struct SensorSpec {
     pub width: u32,
     pub height: u32,
     pub fps: f64,
-    /// Gel-surface millimetres per published pixel.
+    /// Gel-surface millimetres per published pixel (the device's figure, as its profile and
+    /// calibration give it; [`SensorSpec::m_per_px`] is the same in SI).
     pub mm_per_px: f64,
 }
 
 impl SensorSpec {
+    /// Gel-surface metres per published pixel: the one conversion of the device's mm figure.
+    pub fn m_per_px(&self) -> f64 {
+        self.mm_per_px * 1e-3
+    }
+    /// Gel-surface square metres per published pixel.
+    pub fn m2_per_px(&self) -> f64 {
+        self.m_per_px() * self.m_per_px()
+    }
+    /// The same in mm^2, for the lab's reports against references in mm.
     pub fn mm2_per_px(&self) -> f64 {
         self.mm_per_px * self.mm_per_px
     }

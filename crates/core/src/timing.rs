@@ -6,39 +6,40 @@
 
 use serde::Serialize;
 
-/// Summary of timed samples, in microseconds. All 0 when there were no samples.
+/// Summary of timed samples, in seconds (reports print them in us or ms). All 0 when there
+/// were no samples.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Timing {
     /// Fastest sample (least disturbed by other load on the machine).
-    pub min_us: f64,
+    pub min_s: f64,
     /// Middle sample (the upper one of the two for an even count).
-    pub median_us: f64,
-    pub mean_us: f64,
+    pub median_s: f64,
+    pub mean_s: f64,
     /// 90th percentile (nearest rank below).
-    pub p90_us: f64,
+    pub p90_s: f64,
 }
 
-/// Summarise samples \[us]; NaN samples sort last (`f64::total_cmp`).
-pub fn timing(mut samples_us: Vec<f64>) -> Timing {
-    samples_us.sort_by(f64::total_cmp);
-    let n = samples_us.len();
-    let at = |i: usize| samples_us.get(i).copied().unwrap_or(0.0);
+/// Summarise samples \[s]; NaN samples sort last (`f64::total_cmp`).
+pub fn timing(mut samples_s: Vec<f64>) -> Timing {
+    samples_s.sort_by(f64::total_cmp);
+    let n = samples_s.len();
+    let at = |i: usize| samples_s.get(i).copied().unwrap_or(0.0);
     Timing {
-        min_us: at(0),
-        median_us: at(n / 2),
-        mean_us: samples_us.iter().sum::<f64>() / n.max(1) as f64,
-        p90_us: at(n * 9 / 10),
+        min_s: at(0),
+        median_s: at(n / 2),
+        mean_s: samples_s.iter().sum::<f64>() / n.max(1) as f64,
+        p90_s: at(n * 9 / 10),
     }
 }
 
-/// Tail of latency-type samples (control ticks, message latencies), in microseconds: what a
+/// Tail of latency-type samples (control ticks, message latencies), in seconds: what a
 /// control loop's deadline is judged by. Nearest-rank percentiles; all 0 when there were none.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Tail {
     pub n: usize,
-    pub p50_us: f64,
-    pub p99_us: f64,
-    pub max_us: f64,
+    pub p50_s: f64,
+    pub p99_s: f64,
+    pub max_s: f64,
 }
 
 /// The nearest-rank `q` quantile (0 < q <= 1) of sorted samples: the smallest sample with at
@@ -49,44 +50,44 @@ fn nearest_rank(sorted: &[f64], q: f64) -> f64 {
     sorted.get(rank - 1).copied().unwrap_or(0.0)
 }
 
-/// Summarise latency samples \[us] (NaN sorts last).
-pub fn tail(mut samples_us: Vec<f64>) -> Tail {
-    samples_us.sort_by(f64::total_cmp);
+/// Summarise latency samples \[s] (NaN sorts last).
+pub fn tail(mut samples_s: Vec<f64>) -> Tail {
+    samples_s.sort_by(f64::total_cmp);
     Tail {
-        n: samples_us.len(),
-        p50_us: nearest_rank(&samples_us, 0.5),
-        p99_us: nearest_rank(&samples_us, 0.99),
-        max_us: samples_us.last().copied().unwrap_or(0.0),
+        n: samples_s.len(),
+        p50_s: nearest_rank(&samples_s, 0.5),
+        p99_s: nearest_rank(&samples_s, 0.99),
+        max_s: samples_s.last().copied().unwrap_or(0.0),
     }
 }
 
 /// How regularly a paced loop ran: the achieved periods (between consecutive iteration starts)
-/// against the period it was paced at, in milliseconds.
+/// against the period it was paced at, in seconds.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PeriodJitter {
-    pub target_ms: f64,
+    pub target_s: f64,
     pub periods: usize,
-    pub p50_ms: f64,
-    pub p99_ms: f64,
+    pub p50_s: f64,
+    pub p99_s: f64,
     /// Largest |period - target|.
-    pub max_dev_ms: f64,
+    pub max_dev_s: f64,
 }
 
 /// Achieved periods from iteration start times \[s, any origin, increasing] of a loop paced
-/// at `target_ms`.
-pub fn period_jitter(starts_s: &[f64], target_ms: f64) -> PeriodJitter {
-    let mut periods: Vec<f64> = starts_s.windows(2).map(|w| (w[1] - w[0]) * 1e3).collect();
-    let max_dev_ms = periods
+/// at `target_s`.
+pub fn period_jitter(starts_s: &[f64], target_s: f64) -> PeriodJitter {
+    let mut periods: Vec<f64> = starts_s.windows(2).map(|w| w[1] - w[0]).collect();
+    let max_dev_s = periods
         .iter()
-        .map(|p| (p - target_ms).abs())
+        .map(|p| (p - target_s).abs())
         .fold(0.0, f64::max);
     periods.sort_by(f64::total_cmp);
     PeriodJitter {
-        target_ms,
+        target_s,
         periods: periods.len(),
-        p50_ms: nearest_rank(&periods, 0.5),
-        p99_ms: nearest_rank(&periods, 0.99),
-        max_dev_ms,
+        p50_s: nearest_rank(&periods, 0.5),
+        p99_s: nearest_rank(&periods, 0.99),
+        max_dev_s,
     }
 }
 
@@ -97,11 +98,11 @@ mod tests {
     #[test]
     fn order_statistics_of_unsorted_samples() {
         let t = timing(vec![9.0, 1.0, 5.0, 3.0, 7.0, 2.0, 4.0, 6.0, 8.0, 10.0]);
-        assert_eq!((t.min_us, t.median_us, t.p90_us), (1.0, 6.0, 10.0));
-        assert!((t.mean_us - 5.5).abs() < 1e-12);
+        assert_eq!((t.min_s, t.median_s, t.p90_s), (1.0, 6.0, 10.0));
+        assert!((t.mean_s - 5.5).abs() < 1e-12);
         let one = timing(vec![3.0]);
         assert_eq!(
-            (one.min_us, one.median_us, one.mean_us, one.p90_us),
+            (one.min_s, one.median_s, one.mean_s, one.p90_s),
             (3.0, 3.0, 3.0, 3.0)
         );
     }
@@ -110,33 +111,30 @@ mod tests {
     fn no_samples_is_all_zero() {
         let t = timing(Vec::new());
         assert_eq!(
-            (t.min_us, t.median_us, t.mean_us, t.p90_us),
+            (t.min_s, t.median_s, t.mean_s, t.p90_s),
             (0.0, 0.0, 0.0, 0.0)
         );
     }
 
     #[test]
-    fn tail_uses_nearest_ranks() {
+    fn tail_ses_nearest_ranks() {
         // 1..=200: p50 is the 100th sample, p99 the 198th.
         let t = tail((1..=200).rev().map(f64::from).collect());
-        assert_eq!(
-            (t.n, t.p50_us, t.p99_us, t.max_us),
-            (200, 100.0, 198.0, 200.0)
-        );
+        assert_eq!((t.n, t.p50_s, t.p99_s, t.max_s), (200, 100.0, 198.0, 200.0));
         let one = tail(vec![7.0]);
-        assert_eq!((one.p50_us, one.p99_us, one.max_us), (7.0, 7.0, 7.0));
-        assert_eq!(tail(Vec::new()).max_us, 0.0);
+        assert_eq!((one.p50_s, one.p99_s, one.max_s), (7.0, 7.0, 7.0));
+        assert_eq!(tail(Vec::new()).max_s, 0.0);
     }
 
     #[test]
     fn period_jitter_of_start_times() {
         // Periods 30, 40, 30 ms against 33 ms: the largest deviation is 7 ms.
-        let j = period_jitter(&[1.0, 1.03, 1.07, 1.10], 33.0);
+        let j = period_jitter(&[1.0, 1.03, 1.07, 1.10], 0.033);
         assert_eq!(j.periods, 3);
-        assert!((j.p50_ms - 30.0).abs() < 1e-9, "{j:?}");
-        assert!((j.p99_ms - 40.0).abs() < 1e-9, "{j:?}");
-        assert!((j.max_dev_ms - 7.0).abs() < 1e-9, "{j:?}");
-        let none = period_jitter(&[1.0], 33.0);
-        assert_eq!((none.periods, none.max_dev_ms), (0, 0.0));
+        assert!((j.p50_s - 0.030).abs() < 1e-12, "{j:?}");
+        assert!((j.p99_s - 0.040).abs() < 1e-12, "{j:?}");
+        assert!((j.max_dev_s - 0.007).abs() < 1e-12, "{j:?}");
+        let none = period_jitter(&[1.0], 0.033);
+        assert_eq!((none.periods, none.max_dev_s), (0, 0.0));
     }
 }

@@ -53,7 +53,7 @@ fn real_messages_map_field_by_field() {
             ("frame_seq", "uint64", "u64"),
             ("in_contact", "bool", "bool"),
             ("area_px", "float32", "f32"),
-            ("area_mm2", "float32", "f32"),
+            ("area_m2", "float32", "f32"),
             ("centroid_px", "float32[2]", "[f32; 2]"),
             ("bbox_px", "uint32[4]", "[u32; 4]"),
             ("strength", "float32", "f32"),

@@ -119,8 +119,9 @@ pub struct BenchResult {
     pub wire_limit_hz: f64,
     /// rate / wire limit.
     pub ratio: f64,
-    pub rtt_p50_ms: Option<f64>,
-    pub rtt_p99_ms: Option<f64>,
+    /// Round trip of one request and its reply \[s], median and 99th percentile.
+    pub rtt_p50_s: Option<f64>,
+    pub rtt_p99_s: Option<f64>,
 }
 
 /// Run the `kind` cycle of `model` back to back for `duration` over `client`.
@@ -166,8 +167,8 @@ pub fn run<L: Link>(
         rate_hz: rate,
         wire_limit_hz: limit,
         ratio: rate / limit,
-        rtt_p50_ms: s.rtt_percentile(0.5).map(|x| x * 1e3),
-        rtt_p99_ms: s.rtt_percentile(0.99).map(|x| x * 1e3),
+        rtt_p50_s: s.rtt_percentile(0.5),
+        rtt_p99_s: s.rtt_percentile(0.99),
     })
 }
 

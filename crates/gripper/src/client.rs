@@ -44,19 +44,19 @@ impl<P: serialport::SerialPort + ?Sized> Link for Box<P> {
 
 #[derive(Debug, Error)]
 pub enum ModbusError {
-    #[error("no reply from slave {slave} within {timeout_ms} ms")]
-    NoReply { slave: u8, timeout_ms: u64 },
+    #[error("no reply from slave {slave} within {timeout_s} s")]
+    NoReply { slave: u8, timeout_s: f64 },
     #[error(
-        "incomplete reply from slave {slave}: got {got} of {expected} bytes within {timeout_ms} ms"
+        "incomplete reply from slave {slave}: got {got} of {expected} bytes within {timeout_s} s"
     )]
     Incomplete {
         slave: u8,
         got: usize,
         expected: usize,
-        timeout_ms: u64,
+        timeout_s: f64,
     },
-    #[error("garbled reply: {bytes} bytes with no valid frame (CRC errors) within {timeout_ms} ms")]
-    Garbled { bytes: usize, timeout_ms: u64 },
+    #[error("garbled reply: {bytes} bytes with no valid frame (CRC errors) within {timeout_s} s")]
+    Garbled { bytes: usize, timeout_s: f64 },
     #[error(
         "reply from slave {got}, expected slave {expected} (wrong slave id or two devices on the bus)"
     )]
@@ -290,7 +290,7 @@ impl<L: Link> RtuClient<L> {
             }
             let now = Instant::now();
             if now >= deadline {
-                let timeout_ms = self.cfg.timeout.as_millis() as u64;
+                let timeout_s = self.cfg.timeout.as_secs_f64();
                 let slave = self.cfg.slave;
                 return Err(if let Some(got) = wrong_slave {
                     ModbusError::WrongSlave {
@@ -298,18 +298,18 @@ impl<L: Link> RtuClient<L> {
                         got,
                     }
                 } else if received == 0 {
-                    ModbusError::NoReply { slave, timeout_ms }
+                    ModbusError::NoReply { slave, timeout_s }
                 } else if self.dec.dropped() > dropped0 || self.dec.head_len().is_none() {
                     ModbusError::Garbled {
                         bytes: received,
-                        timeout_ms,
+                        timeout_s,
                     }
                 } else {
                     ModbusError::Incomplete {
                         slave,
                         got: self.dec.buffered(),
                         expected: self.dec.head_len().unwrap_or(0),
-                        timeout_ms,
+                        timeout_s,
                     }
                 });
             }

@@ -45,9 +45,9 @@ pub struct SamplerParams {
     /// Seeded samples per object; the published latent is their mean (a point estimate for
     /// readouts; 1: the sample itself). Object i's sample k is seeded `seed + i * samples + k`.
     pub samples: u32,
-    /// Pick solver and steps to fit this compute budget per latent \[ms] instead (live use: the
+    /// Pick solver and steps to fit this compute budget per latent \[s] instead (live use: the
     /// choice depends on the measured model-call time, so it is not for byte-exact replays).
-    pub budget_ms: Option<f64>,
+    pub budget_s: Option<f64>,
     #[serde(flatten)]
     pub runtime: RuntimeConfig,
 }
@@ -61,7 +61,7 @@ impl Default for SamplerParams {
             seed: 0,
             objects: vec!["cup".into()],
             samples: 1,
-            budget_ms: None,
+            budget_s: None,
             runtime: RuntimeConfig::default(),
         }
     }
@@ -71,15 +71,15 @@ impl Default for SamplerParams {
 /// time from 4 steps on as long as s h <= 4 sigma_min; below that, Euler with as many steps as
 /// fit. None if not even the stability bound fits.
 pub fn choose_for_budget(
-    budget_us: f64,
-    call_us: f64,
+    budget_s: f64,
+    call_s: f64,
     guidance: f64,
     sigma_min: f64,
 ) -> Option<(Solver, u32)> {
-    if !(budget_us.is_finite() && call_us.is_finite() && call_us > 0.0) {
+    if !(budget_s.is_finite() && call_s.is_finite() && call_s > 0.0) {
         return None;
     }
-    let calls = (budget_us / call_us).floor().min(1e5) as u32;
+    let calls = (budget_s / call_s).floor().min(1e5) as u32;
     let min_steps = if guidance > 1.0 {
         (guidance / (4.0 * sigma_min)).ceil() as u32
     } else {
@@ -96,8 +96,8 @@ pub fn choose_for_budget(
     }
 }
 
-/// Largest compute budget per latent a scene may ask for \[ms].
-pub const MAX_BUDGET_MS: f64 = 60_000.0;
+/// Largest compute budget per latent a scene may ask for \[s].
+pub const MAX_BUDGET_S: f64 = 60.0;
 
 /// The conditional and the prior (sensor-only) conditions of `object` for a velocity model whose
 /// manifest entry is `spec` and whose condition inputs are `dims` wide: flat, in input order.
@@ -177,10 +177,10 @@ impl SamplerStage {
                 p.samples
             )));
         }
-        if let Some(ms) = p.budget_ms {
-            if !(ms.is_finite() && ms > 0.0 && ms <= MAX_BUDGET_MS) {
+        if let Some(b) = p.budget_s {
+            if !(b.is_finite() && b > 0.0 && b <= MAX_BUDGET_S) {
                 return Err(bad(format!(
-                    "budget_ms {ms:e} is outside (0, {MAX_BUDGET_MS}]"
+                    "budget_s {b:e} is outside (0, {MAX_BUDGET_S}]"
                 )));
             }
         }
@@ -253,20 +253,21 @@ impl SamplerStage {
             seed: p.seed,
             batched: true,
         };
-        if let Some(ms) = p.budget_ms {
+        if let Some(budget_s) = p.budget_s {
             // Measure one batch-2 call (median of 9) on zeros.
             let c = velocity.cond_dim();
             let mut t = Vec::new();
             for _ in 0..9 {
                 let t0 = Instant::now();
                 velocity.eval(&vec![0.0; 2 * d], &[0.5, 0.5], &vec![0.0; 2 * c], 2)?;
-                t.push(t0.elapsed().as_secs_f64() * 1e6);
+                t.push(t0.elapsed().as_secs_f64());
             }
-            let call_us = unitac_core::timing(t).median_us;
-            let (s, n) = choose_for_budget(ms * 1e3, call_us, p.guidance, velocity.sigma_min)
+            let call_s = unitac_core::timing(t).median_s;
+            let (s, n) = choose_for_budget(budget_s, call_s, p.guidance, velocity.sigma_min)
                 .ok_or_else(|| {
                     bad(format!(
-                        "a budget of {ms} ms does not fit a stable solve (one call: {call_us:.0} us)"
+                        "a budget of {budget_s} s does not fit a stable solve (one call: {:.0} us)",
+                        call_s * 1e6
                     ))
                 })?;
             cfg.solver = s;
@@ -403,18 +404,18 @@ mod tests {
 
     #[test]
     fn budget_picks_heun_when_it_fits_and_refuses_the_impossible() {
-        // 40 us per call, 1.5 ms budget: 37 calls -> Heun 18.
+        // 40 ms per call, 1.5 s budget: 37 calls -> Heun 18.
         assert_eq!(
-            choose_for_budget(1500.0, 40.0, 1.5, 0.1),
+            choose_for_budget(1.5, 0.04, 1.5, 0.1),
             Some((Solver::Heun, 18))
         );
         // 6 calls: Heun 3 < 4 -> Euler 6 (stable: needs >= 4 for s = 1.5).
         assert_eq!(
-            choose_for_budget(240.0, 40.0, 1.5, 0.1),
+            choose_for_budget(0.25, 0.04, 1.5, 0.1),
             Some((Solver::Euler, 6))
         );
         // s = 20 needs 50 steps; 10 calls cannot be stable.
-        assert_eq!(choose_for_budget(400.0, 40.0, 20.0, 0.1), None);
-        assert_eq!(choose_for_budget(f64::NAN, 40.0, 1.5, 0.1), None);
+        assert_eq!(choose_for_budget(0.41, 0.04, 20.0, 0.1), None);
+        assert_eq!(choose_for_budget(f64::NAN, 0.04, 1.5, 0.1), None);
     }
 }

@@ -67,14 +67,14 @@ impl TickRow {
             self.scene,
             self.what,
             self.tick.n,
-            self.tick.p50_us,
-            self.tick.p99_us,
-            self.tick.max_us,
-            opt(self.inferred.map(|t| t.p50_us), 1),
-            opt(self.inferred.map(|t| t.p99_us), 1),
-            opt(p.map(|j| j.p50_ms), 3),
-            opt(p.map(|j| j.p99_ms), 3),
-            opt(p.map(|j| j.max_dev_ms), 3),
+            self.tick.p50_s * 1e6,
+            self.tick.p99_s * 1e6,
+            self.tick.max_s * 1e6,
+            opt(self.inferred.map(|t| t.p50_s * 1e6), 1),
+            opt(self.inferred.map(|t| t.p99_s * 1e6), 1),
+            opt(p.map(|j| j.p50_s * 1e3), 3),
+            opt(p.map(|j| j.p99_s * 1e3), 3),
+            opt(p.map(|j| j.max_dev_s * 1e3), 3),
         )
     }
 }
@@ -91,9 +91,9 @@ mod tests {
             scene: "cup_deformation_vla".into(),
             mode: "vla".into(),
             what: "controller".into(),
-            tick: unitac_core::tail(vec![2.0, 4.0]),
+            tick: unitac_core::tail(vec![2e-6, 4e-6]),
             inferred: None,
-            period: Some(unitac_core::period_jitter(&[0.0, 0.034], 33.333)),
+            period: Some(unitac_core::period_jitter(&[0.0, 0.034], 0.033333)),
             phases: vec!["approach".into()],
         };
         let line = row.line();

@@ -93,7 +93,7 @@ fn contact_features(m: &Msg, _: &Layout, out: &mut Vec<f32>) -> Result<(), Featu
         return Err(FeatureError::WrongKind("contact state"));
     };
     out.push(if c.in_contact { 1.0 } else { 0.0 });
-    out.push(finite("area_mm2", f64::from(c.area_mm2))?);
+    out.push(finite("area_m2", f64::from(c.area_m2))?);
     out.push(finite("strength", f64::from(c.strength))?);
     Ok(())
 }

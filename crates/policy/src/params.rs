@@ -129,9 +129,10 @@ pub struct PolicyParams {
     /// the frames fall in it more than on the cup.
     pub probe_press_m: f64,
     pub probe_press_s: f64,
-    /// Cup, vtla_real: gel indentation per mm^2 of contact area growth \[m/mm^2], subtracted
-    /// from the finger travel to estimate the cup's own compression.
-    pub gel_indent_m_per_mm2: f64,
+    /// Cup, vtla_real: gel indentation per square metre of contact area growth [m/m^2]
+    /// (20 m/m^2 = 20 um per mm^2), subtracted from the finger travel to estimate the cup's own
+    /// compression.
+    pub gel_indent_m_per_m2: f64,
     /// Latent -> stiffness readout \[N/m]: bias + weights . (latent averaged over its leading
     /// dimension), clamped to [min, max]. Empty weights: the bias (a prior) alone.
     pub stiffness_bias_n_per_m: f64,
@@ -247,7 +248,7 @@ impl Default for PolicyParams {
             probe_release_m: 0.002,
             probe_press_m: 0.002,
             probe_press_s: 0.4,
-            gel_indent_m_per_mm2: 2e-5,
+            gel_indent_m_per_m2: 20.0,
             stiffness_bias_n_per_m: schema::STIFFNESS_PRIOR_N_PER_M,
             stiffness_weights: Vec::new(),
             min_stiffness_n_per_m: schema::STIFFNESS_MIN_N_PER_M,
@@ -330,7 +331,7 @@ impl PolicyParams {
             ("probe_release_m", self.probe_release_m),
             ("probe_press_m", self.probe_press_m),
             ("probe_press_s", self.probe_press_s),
-            ("gel_indent_m_per_mm2", self.gel_indent_m_per_mm2),
+            ("gel_indent_m_per_m2", self.gel_indent_m_per_m2),
             ("stiffness_bias_n_per_m", self.stiffness_bias_n_per_m),
             ("pad_m", self.pad_m),
             ("pregrasp_margin_m", self.pregrasp_margin_m),

@@ -203,7 +203,7 @@ impl PolicyStage {
             slip: slip.as_ref().filter(|s| s.valid && fresh(s.header.stamp)),
             contact: contact
                 .as_ref()
-                .filter(|c| fresh(c.header.stamp) && c.area_mm2.is_finite()),
+                .filter(|c| fresh(c.header.stamp) && c.area_m2.is_finite()),
             object_detected: g.object_detected,
             opening_m,
             force_n: Some(g.force_n).filter(|f| f.is_finite()),

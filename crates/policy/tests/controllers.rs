@@ -84,7 +84,7 @@ fn fabric_run(rig: &mut Rig, send_comparison: bool, drop_contact: usize, max_tic
         }
         let silent = press_ticks > 10 && press_ticks <= 10 + drop_contact;
         if !silent {
-            let c = rig.contact(on_fabric && rig.opening <= 0.05, 30.0);
+            let c = rig.contact(on_fabric && rig.opening <= 0.05, 30e-6);
             rig.send(c);
         }
         if send_comparison && last.status.phase == "compare" && !sent {
@@ -327,7 +327,7 @@ fn cup_vtla_real_probes_then_squeezes_by_the_live_compression() {
         rig.follow(&t.cmd, None);
         let touching = rig.opening <= diameter;
         let area = if touching {
-            20.0 + 1000.0 * (diameter - rig.opening) as f32
+            20e-6 + 1e-3 * (diameter - rig.opening) as f32
         } else {
             0.0
         };
@@ -390,7 +390,7 @@ fn cup_vtla_real_closes_just_inside_the_measured_opening_and_presses_before_the_
         rig.follow(&t.cmd, None);
         let touching = rig.opening <= diameter;
         let area = if touching {
-            20.0 + 1000.0 * (diameter - rig.opening) as f32
+            20e-6 + 1e-3 * (diameter - rig.opening) as f32
         } else {
             0.0
         };

@@ -23,7 +23,7 @@ fn params_for(mode: &str) -> unitac_policy::PolicyParams {
     ))
 }
 
-/// A contact state of a 320 x 240 image with this box (its area the box's, in mm^2 by the
+/// A contact state of a 320 x 240 image with this box (its area the box's, in m^2 by the
 /// GelSight Mini's scale).
 fn state(in_contact: bool, bbox_px: [u32; 4]) -> ContactState {
     let [x0, y0, x1, y1] = bbox_px;
@@ -32,7 +32,7 @@ fn state(in_contact: bool, bbox_px: [u32; 4]) -> ContactState {
         in_contact,
         bbox_px,
         area_px,
-        area_mm2: area_px * (MM_PER_PX * MM_PER_PX) as f32,
+        area_m2: (f64::from(area_px) * (MM_PER_PX * 1e-3).powi(2)) as f32,
         ..samples::contact_state()
     }
 }
@@ -60,7 +60,7 @@ fn the_fold_is_read_from_the_top_of_the_contact_against_the_centre_row() {
         None
     );
     let mut unscaled = state(true, [120, 100, 200, 160]);
-    unscaled.area_mm2 = 0.0;
+    unscaled.area_m2 = 0.0;
     assert_eq!(fold_above_centre_m(&unscaled), None);
 }
 

@@ -128,7 +128,7 @@ fn run(reflex: bool) -> Run {
         let contact = ContactState {
             header: header(now),
             in_contact: w.touching(),
-            area_mm2: if w.touching() { 30.0 } else { 0.0 },
+            area_m2: if w.touching() { 30e-6 } else { 0.0 },
             ..samples::contact_state()
         };
         let slip = SlipState {

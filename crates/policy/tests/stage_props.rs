@@ -101,7 +101,7 @@ fn hostile(kind: u8, t: i64, v: f64) -> Msg {
         1 => Msg::ContactState(ContactState {
             header,
             in_contact: v > 0.05,
-            area_mm2: v as f32,
+            area_m2: (v * 1e-6) as f32,
             ..samples::contact_state()
         }),
         2 => Msg::TactileLatent(TactileLatent {

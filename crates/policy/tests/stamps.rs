@@ -123,7 +123,7 @@ fn a_latent_or_contact_from_the_future_leaves_every_tick_answered() {
     for _ in 0..5 {
         rig.tick();
     }
-    let mut c = rig.contact(true, 20.0);
+    let mut c = rig.contact(true, 20e-6);
     if let Msg::ContactState(x) = &mut c {
         x.header.stamp = Stamp(rig.now + 5_000_000_000);
     }

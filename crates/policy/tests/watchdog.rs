@@ -154,7 +154,7 @@ fn once_the_latent_is_used_its_producer_may_go() {
     for _ in 0..1200 {
         let touching = opening <= diameter;
         let area = if touching {
-            20.0 + 1000.0 * (diameter - opening) as f32
+            20e-6 + 1e-3 * (diameter - opening) as f32
         } else {
             0.0
         };

@@ -18,7 +18,8 @@ pub struct Counters {
     /// Events that are no error of the node's but a warning (the policy node: ticks on which
     /// the policy failed: an error, an inference over its time limit, a refused action).
     pub warnings: u64,
-    pub busy_us: f64,
+    /// Time spent processing \[s].
+    pub busy_s: f64,
     pub last_error: String,
     /// Latencies that made no sense (a stamp more than a minute from the node's clock: a bag
     /// replayed without sim time, a stamp in the future); counted, never averaged in.
@@ -113,7 +114,7 @@ impl Updater {
         self.last = Instant::now();
         self.last_frames = c.frames_in;
         let mean = if c.frames_in > 0 {
-            c.busy_us / c.frames_in as f64
+            c.busy_s / c.frames_in as f64
         } else {
             0.0
         };
@@ -130,7 +131,7 @@ impl Updater {
             kv("errors", c.errors.to_string()),
             kv("dropped", c.dropped.to_string()),
             kv("latency_out_of_range", c.latency_out_of_range.to_string()),
-            kv("mean_process_us", format!("{mean:.1}")),
+            kv("mean_process_us", format!("{:.1}", mean * 1e6)),
         ];
         if c.latency_n > 0 {
             let mean = c.latency_sum / c.latency_n as f64;

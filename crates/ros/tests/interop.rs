@@ -92,7 +92,7 @@ fn r2r_publishes_rclpy_receives() {
     assert_eq!(cs["frame_seq"], 4_294_967_301u64);
     assert_eq!(cs["in_contact"], true);
     assert_eq!(cs["area_px"], 1234.5);
-    assert!((cs["area_mm2"].as_f64().unwrap() - 4.9619).abs() < 1e-5);
+    assert!((cs["area_m2"].as_f64().unwrap() - 4.9619e-6).abs() < 1e-11);
     assert_eq!(cs["centroid_px"], serde_json::json!([160.25, 119.75]));
     assert_eq!(cs["bbox_px"], serde_json::json!([140, 100, 181, 141]));
     assert_eq!(cs["strength"], 0.625);

@@ -98,7 +98,7 @@ fn full_params() -> [serde_json::Map<String, Value>; 6] {
         json!({"property": "hardness", "pairs": [["x", "y"]]}),
     );
     let mut sampler_special = json!({"solver": "midpoint", "objects": ["fabric_x", "fabric_y"],
-                                     "budget_ms": 50.0});
+                                     "budget_s": 0.05});
     sampler_special
         .as_object_mut()
         .unwrap()

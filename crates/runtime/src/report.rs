@@ -20,8 +20,8 @@ pub struct StageReport {
     pub errors: u64,
     /// Time inside `process`, total and per call.
     pub busy_s: f64,
-    pub mean_us: f64,
-    pub max_us: f64,
+    pub mean_s: f64,
+    pub max_s: f64,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -62,7 +62,13 @@ impl RunReport {
             let _ = writeln!(
                 s,
                 "  stage {:<10} in {:>6} out {:>6} dropped {:>4} errors {:>4}  mean {:>8.1} us  max {:>8.1} us",
-                st.name, st.input, st.output, st.dropped, st.errors, st.mean_us, st.max_us
+                st.name,
+                st.input,
+                st.output,
+                st.dropped,
+                st.errors,
+                st.mean_s * 1e6,
+                st.max_s * 1e6
             );
         }
         for e in &self.episodes {
@@ -75,7 +81,7 @@ impl RunReport {
                 e.end.secs_since(self.stream_start),
                 e.frame_count,
                 e.peak_area_px,
-                e.peak_area_mm2
+                f64::from(e.peak_area_m2) * 1e6
             );
         }
         for p in &self.properties {
@@ -131,12 +137,12 @@ impl StageReport {
             dropped,
             errors: c.errors,
             busy_s: busy * 1e-9,
-            mean_us: if c.input > 0 {
-                busy / c.input as f64 * 1e-3
+            mean_s: if c.input > 0 {
+                busy / c.input as f64 * 1e-9
             } else {
                 0.0
             },
-            max_us: c.max_ns as f64 * 1e-3,
+            max_s: c.max_ns as f64 * 1e-9,
         }
     }
 }

@@ -230,10 +230,10 @@ pub struct Demo {
     pub visual_names: Vec<String>,
     pub visual_values: Vec<f64>,
     /// The gripper at the probe's first contact: opening \[m] and force \[N], and the contact
-    /// stage's area \[mm^2] there (cup; NaN for the fabrics).
+    /// stage's area \[m^2] there (cup; NaN for the fabrics).
     pub contact_opening_m: f64,
     pub contact_force_n: f64,
-    pub contact_area_mm2: f32,
+    pub contact_area_m2: f32,
     pub latents: Vec<LatentRecord>,
     /// Labels (ground truth and the expert). The cup's diameter \[m], its stiffness as the
     /// controllers use it (grip force at the target deformation / the target deformation,
@@ -628,7 +628,7 @@ fn record_inner(
                 at_contact = (
                     d0,
                     truth.gripper.force_n,
-                    seen.contact.as_ref().map_or(f32::NAN, |s| s.area_mm2),
+                    seen.contact.as_ref().map_or(f32::NAN, |s| s.area_m2),
                 );
                 Some(Phase::Press)
             }
@@ -782,7 +782,7 @@ fn record_inner(
         visual_values: visual.values,
         contact_opening_m: at_contact.0,
         contact_force_n: at_contact.1,
-        contact_area_mm2: at_contact.2,
+        contact_area_m2: at_contact.2,
         latents: seen.latents,
         diameter_m: cup.as_ref().map_or(f64::NAN, |c| c.diameter_m),
         stiffness_n_per_m: cup.as_ref().map_or(f64::NAN, |c| c.stiffness_n_per_m(d)),

@@ -324,7 +324,7 @@ impl TouchSwap {
                     c.bbox_px = d.bbox_px;
                     c.centroid_px = d.centroid_px;
                     c.area_px = d.area_px;
-                    c.area_mm2 = d.area_mm2;
+                    c.area_m2 = d.area_m2;
                     c.strength = d.strength;
                 }
                 Msg::ContactState(c)

@@ -81,13 +81,10 @@ fn a_swapped_trial_reads_the_donors_latent_at_its_own_stamp() {
     assert!(!oc.is_empty() && !dc.is_empty() && !sc.is_empty());
     assert_eq!(sc[0].header.stamp, oc[0].header.stamp);
     assert_eq!(
-        (sc[0].area_mm2, sc[0].bbox_px, sc[0].strength),
-        (dc[0].area_mm2, dc[0].bbox_px, dc[0].strength)
+        (sc[0].area_m2, sc[0].bbox_px, sc[0].strength),
+        (dc[0].area_m2, dc[0].bbox_px, dc[0].strength)
     );
-    assert_ne!(
-        oc[0].area_mm2, dc[0].area_mm2,
-        "two cups, two first contacts"
-    );
+    assert_ne!(oc[0].area_m2, dc[0].area_m2, "two cups, two first contacts");
     // Up to the latent's arrival the trial is the plain one.
     let upto = |r: &unitac_trials::TrialRecord| {
         r.trace

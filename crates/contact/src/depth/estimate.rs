@@ -192,16 +192,20 @@ impl Default for DepthParams {
     }
 }
 
-/// The summary of one frame's depth (the map itself: [`DepthEstimator::depth_mm`]).
+/// The summary of one frame's depth (the map itself: [`DepthEstimator::depth_mm`]), in SI: the
+/// estimator works in the calibration's millimetres inside and converts here.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DepthSummary {
-    pub penetration_mm: f32,
+    /// Deepest penetration \[m].
+    pub penetration_m: f32,
     pub contact: bool,
     pub area_px: u32,
-    pub area_mm2: f64,
+    /// Contact area \[m^2].
+    pub area_m2: f64,
     /// Centroid of the contact region \[px] (x, y); the peak when there is none.
     pub centroid_px: [f32; 2],
-    pub mm_per_px: f64,
+    /// Gel-surface metres per pixel of the frame.
+    pub m_per_px: f64,
 }
 
 /// Depth per frame against one background, for one calibration.
@@ -371,12 +375,12 @@ impl DepthEstimator {
         let pen = (best / 9.0).max(0.0);
         self.mask.iter_mut().for_each(|m| *m = false);
         let mut summary = DepthSummary {
-            penetration_mm: pen,
+            penetration_m: pen * 1e-3,
             contact: false,
             area_px: 0,
-            area_mm2: 0.0,
+            area_m2: 0.0,
             centroid_px: [(at % w.max(1)) as f32, (at / w.max(1)) as f32],
-            mm_per_px: self.mm_per_px,
+            m_per_px: self.mm_per_px * 1e-3,
         };
         if pen < self.params.min_penetration_mm {
             return summary;
@@ -401,7 +405,7 @@ impl DepthEstimator {
         let nf = n.max(1) as f64;
         summary.contact = true;
         summary.area_px = n as u32;
-        summary.area_mm2 = n as f64 * self.mm_per_px * self.mm_per_px;
+        summary.area_m2 = n as f64 * summary.m_per_px * summary.m_per_px;
         summary.centroid_px = [(sx / nf) as f32, (sy / nf) as f32];
         summary
     }

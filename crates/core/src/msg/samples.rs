@@ -16,7 +16,7 @@ pub fn contact_state() -> ContactState {
         frame_seq: 5,
         in_contact: true,
         area_px: 1.5,
-        area_mm2: 0.25,
+        area_m2: 0.25e-6,
         centroid_px: [3.0, 4.0],
         bbox_px: [1, 2, 3, 4],
         strength: 0.5,
@@ -34,7 +34,7 @@ pub fn contact_episode() -> ContactEpisode {
         end: Stamp(1_000_000_007),
         frame_count: 9,
         peak_area_px: 10.5,
-        peak_area_mm2: 0.5,
+        peak_area_m2: 0.5e-6,
         peak_frame_seq: 4,
         label: "fabric_a".into(),
     }

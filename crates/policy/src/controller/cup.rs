@@ -13,7 +13,7 @@
 //!            -> probe (press to D0 - probe_press_m for probe_press_s, then open to
 //!            D0 + probe_release_m until the contact ends, so the episode's latent is encoded) -> await_latent (stiffness k from the live latent: force cap
 //!            k d force_margin) -> squeeze (toward D0 - d - gel indentation; compression =
-//!            D0 - opening - gel_indent_m_per_mm2 x area growth, live) -> hold -> lift -> done
+//!            D0 - opening - gel_indent_m_per_m2 x area growth, live) -> hold -> lift -> done
 //! vtla_pred: approach (stiffness k from the predicted latent, before any touch: force F = k d,
 //!            computed once) -> close (force mode, F) -> hold -> lift -> done
 //! any phase -> failed (a timeout): the error goes to the safety layer every tick
@@ -236,7 +236,7 @@ impl CupController {
                 }
                 Mode::VtlaReal => match (contact, opening) {
                     (Some(c), Some(o)) if c.in_contact => {
-                        self.d0 = Some((o, f64::from(c.area_mm2)));
+                        self.d0 = Some((o, f64::from(c.area_m2)));
                         self.probe_at = Some(now);
                         self.t.go(Phase::Probe);
                     }
@@ -267,7 +267,7 @@ impl CupController {
             Phase::Squeeze => {
                 let (d0, a0) = self.d0.unwrap_or((p.max_opening_m, 0.0));
                 if let (Some(c), Some(o)) = (contact, opening) {
-                    let gel = p.gel_indent_m_per_mm2 * (f64::from(c.area_mm2) - a0).max(0.0);
+                    let gel = p.gel_indent_m_per_m2 * (f64::from(c.area_m2) - a0).max(0.0);
                     self.compression = if c.in_contact { d0 - o - gel } else { 0.0 };
                     if self.compression >= self.d - p.deformation_tolerance_m / 2.0 {
                         self.target_opening = Some(o);
@@ -386,8 +386,8 @@ impl CupController {
             }
             Phase::Squeeze => {
                 let (d0, a0) = self.d0.unwrap_or((p.max_opening_m, 0.0));
-                let area = obs.contact().map_or(a0, |c| f64::from(c.area_mm2));
-                let gel = p.gel_indent_m_per_mm2 * (area - a0).max(0.0);
+                let area = obs.contact().map_or(a0, |c| f64::from(c.area_m2));
+                let gel = p.gel_indent_m_per_m2 * (area - a0).max(0.0);
                 let f = self.force_n.unwrap_or(p.touch_force_n);
                 action(
                     position(d0 - self.d - gel, p.squeeze_speed_m_s, f),

@@ -118,7 +118,7 @@ const MIN_BOX_PX: f64 = 8.0;
 /// read against the fingertip centre's row: the box is centred on the fingertip along the fold
 /// (x), which is the image's centre column, and the images are `IMAGE_ASPECT` as tall as
 /// wide, so the centre row is that times the box's mid column. The pixel size comes from the
-/// state itself: `sqrt(area_mm2 / area_px)`. A top as far above the centre as `WHOLE_DISC` of
+/// state itself: `sqrt(area_m2 / area_px)`. A top as far above the centre as `WHOLE_DISC` of
 /// the disc's half-width or of its reach below the centre is the disc's own top, not the fold;
 /// a box narrower than `MIN_BOX_PX` shows none.
 pub fn fold_above_centre_m(c: &unitac_core::msg::ContactState) -> Option<f64> {
@@ -127,8 +127,8 @@ pub fn fold_above_centre_m(c: &unitac_core::msg::ContactState) -> Option<f64> {
         f64::from(x1.saturating_sub(x0)),
         f64::from(y1.saturating_sub(y0)),
     );
-    let (mm2, px) = (f64::from(c.area_mm2), f64::from(c.area_px));
-    if !c.in_contact || w < MIN_BOX_PX || h <= 0.0 || !(mm2 > 0.0 && px > 0.0) {
+    let (m2, px) = (f64::from(c.area_m2), f64::from(c.area_px));
+    if !c.in_contact || w < MIN_BOX_PX || h <= 0.0 || !(m2 > 0.0 && px > 0.0) {
         return None;
     }
     let centre_row = IMAGE_ASPECT * 0.5 * (f64::from(x0) + f64::from(x1));
@@ -137,7 +137,7 @@ pub fn fold_above_centre_m(c: &unitac_core::msg::ContactState) -> Option<f64> {
     if above_px >= WHOLE_DISC * (0.5 * w).min(below_px) {
         return None;
     }
-    let m = above_px * (mm2 / px).sqrt() * 1e-3;
+    let m = above_px * (m2 / px).sqrt();
     m.is_finite().then_some(m)
 }
 

@@ -74,11 +74,11 @@ impl Rig {
         assert!(out.produced.is_empty(), "only GripperStatus ticks");
     }
 
-    pub fn contact(&self, in_contact: bool, area_mm2: f32) -> Msg {
+    pub fn contact(&self, in_contact: bool, area_m2: f32) -> Msg {
         Msg::ContactState(ContactState {
             header: self.header(),
             in_contact,
-            area_mm2,
+            area_m2,
             ..samples::contact_state()
         })
     }

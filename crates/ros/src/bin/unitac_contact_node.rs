@@ -242,7 +242,7 @@ fn run() -> anyhow::Result<()> {
             }
             publish(out.produced, &mut in_contact, &mut counters);
             counters.latency(base.age_s(captured));
-            counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
+            counters.busy_s += t0.elapsed().as_secs_f64();
         }
         let extra = [("in_contact", in_contact.to_string())];
         if let Some(a) = diag.tick(&mut counters, base.now(), &extra) {

@@ -594,7 +594,7 @@ async fn run_async() -> anyhow::Result<()> {
                 }
                 count_ticks(&out.produced, &mut ticks);
                 pubs.publish(out.produced, &mut counters, &mut last_status);
-                counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
+                counters.busy_s += t0.elapsed().as_secs_f64();
             }
             Some(e) = events.next() => pubs.action_event(e),
             Some(()) = next_goal(&mut pubs) => {}

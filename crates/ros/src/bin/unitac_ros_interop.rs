@@ -28,7 +28,7 @@ fn fixture_contact() -> ContactState {
         frame_seq: 4_294_967_301,
         in_contact: true,
         area_px: 1234.5,
-        area_mm2: 4.9619,
+        area_m2: 4.9619e-6,
         centroid_px: [160.25, 119.75],
         bbox_px: [140, 100, 181, 141],
         strength: 0.625,

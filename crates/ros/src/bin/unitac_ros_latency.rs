@@ -64,7 +64,7 @@ fn run() -> anyhow::Result<()> {
             node.spin_once(Duration::from_micros(200));
             while let Some(Some(s)) = states.next().now_or_never() {
                 if let Some(t) = sent.remove(&(s.header.stamp.sec, s.header.stamp.nanosec)) {
-                    lat.push(t.elapsed().as_secs_f64() * 1e3);
+                    lat.push(t.elapsed().as_secs_f64());
                 }
             }
         }
@@ -81,7 +81,7 @@ fn run() -> anyhow::Result<()> {
         node.spin_once(Duration::from_millis(1));
         while let Some(Some(s)) = states.next().now_or_never() {
             if let Some(t) = sent.remove(&(s.header.stamp.sec, s.header.stamp.nanosec)) {
-                lat.push(t.elapsed().as_secs_f64() * 1e3);
+                lat.push(t.elapsed().as_secs_f64());
             }
         }
     }
@@ -94,7 +94,7 @@ fn run() -> anyhow::Result<()> {
     println!(
         "{}",
         serde_json::json!({"rate_hz": rate, "sent": count, "received": lat.len(),
-            "p50_ms": q(0.5), "p99_ms": q(0.99), "max_ms": q(1.0)})
+            "p50_s": q(0.5), "p99_s": q(0.99), "max_s": q(1.0)})
     );
     Ok(())
 }

@@ -200,7 +200,7 @@ fn run_source(base: &mut Base, p: &Params, scene: &Scene) -> anyhow::Result<()> 
             counters.latency(base.age_s(f.stamp));
             counters.frames_in += 1;
             counters.messages_out += 1;
-            counters.busy_us += t1.elapsed().as_secs_f64() * 1e6;
+            counters.busy_s += t1.elapsed().as_secs_f64();
             if let Some(a) = diag.tick(&mut counters, base.now(), &[("device", device.clone())]) {
                 base.publish_diagnostics(&a)?;
             }
@@ -311,7 +311,7 @@ fn run_bag(base: &mut Base, p: &Params, scene: &Scene) -> anyhow::Result<()> {
             publisher.publish_raw(&buf)?;
             counters.frames_in += 1;
             counters.messages_out += 1;
-            counters.busy_us += t1.elapsed().as_secs_f64() * 1e6;
+            counters.busy_s += t1.elapsed().as_secs_f64();
             if let Some(a) = diag.tick(&mut counters, base.now(), &[("topic", topic.clone())]) {
                 base.publish_diagnostics(&a)?;
             }

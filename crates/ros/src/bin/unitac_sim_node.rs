@@ -262,7 +262,7 @@ fn run() -> anyhow::Result<()> {
     let mut pending = Pending::default();
     // Over-ROS tick timing (a benchmark's figures, reported with the outcome): GripperStatus
     // published -> both commands for it received [us], and when they arrived [s].
-    let mut round_trip_us: Vec<f64> = Vec::new();
+    let mut round_trip_s: Vec<f64> = Vec::new();
     let mut answered_s: Vec<f64> = Vec::new();
     while !base.stopped() && !sim.done() {
         let t0 = Instant::now();
@@ -274,7 +274,7 @@ fn run() -> anyhow::Result<()> {
             counters.published(pub_image.publish(&image::from_frame(f)));
         }
         // Busy: rendering and publishing, not the waits.
-        counters.busy_us += t0.elapsed().as_secs_f64() * 1e6;
+        counters.busy_s += t0.elapsed().as_secs_f64();
         if let (true, Some(last)) = (p.sync_contact, o.frames.last()) {
             let want = last.stamp;
             let waited = Instant::now();
@@ -307,7 +307,7 @@ fn run() -> anyhow::Result<()> {
         counters.published(pub_joint.publish(&convert::joint_state(&o.gripper, &p.joint_name)));
         counters.published(pub_status.publish(&convert::gripper_status(&o.gripper)));
         let sent = Instant::now();
-        counters.busy_us += t1.elapsed().as_secs_f64() * 1e6;
+        counters.busy_s += t1.elapsed().as_secs_f64();
         // Wait for the commands stamped now (older ones are dropped; a newer one cannot exist).
         let waited = Instant::now();
         let mut got = |pending: &mut Pending, base: &mut NodeBase<Params>| {
@@ -336,7 +336,7 @@ fn run() -> anyhow::Result<()> {
             }
         }
         if answered {
-            round_trip_us.push(sent.elapsed().as_secs_f64() * 1e6);
+            round_trip_s.push(sent.elapsed().as_secs_f64());
             answered_s.push(start.elapsed().as_secs_f64());
         }
         if held_mode {
@@ -378,9 +378,9 @@ fn run() -> anyhow::Result<()> {
         "contact_timeouts": contact_timeouts,
         "outcome": sim.outcome(),
         // Status published -> its two commands received (DDS both ways + the policy's tick).
-        "tick_round_trip": unitac_core::tail(round_trip_us),
+        "tick_round_trip": unitac_core::tail(round_trip_s),
         // Wall periods between answered ticks (paced by max_rate; a benchmark figure).
-        "command_period": unitac_core::period_jitter(&answered_s, 1e3 / p.control_rate_hz),
+        "command_period": unitac_core::period_jitter(&answered_s, 1.0 / p.control_rate_hz),
     });
     println!("{outcome}");
     pub_outcome.publish(&r2r::std_msgs::msg::String {

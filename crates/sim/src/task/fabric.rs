@@ -43,7 +43,7 @@ pub struct Fabric {
 
 impl Fabric {
     /// What the gel sees (the fabric over a rounded fingertip, radius 6 mm as in the fabric
-    /// scenario), in the renderer's gel units ([`crate::object::MM_PER_M`]).
+    /// scenario), in the renderer's gel units (`object::MM_PER_M`).
     pub fn object(&self, label: &str) -> Object {
         Object::new(
             label,

@@ -1,4 +1,4 @@
-//! Areas in mm^2 follow the frame size: a sensor's mm per pixel is for its published size
+//! Areas in m^2 follow the frame size: a sensor's mm per pixel is for its published size
 //! (320x240), and the same gel streamed at 640x480 has half the mm per pixel.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -41,37 +41,37 @@ fn press(kind: SensorKind, scale: u32) -> (Vec<ContactState>, ContactEpisode, f6
             }
         }
     }
-    // The true contact disc in mm^2.
-    let mm_per_px = kind.spec().mm_per_px / f64::from(scale);
-    let truth_mm2 = f64::from(fx.contact_px) * mm_per_px * mm_per_px;
-    (states, episode.expect("an episode on release"), truth_mm2)
+    // The true contact disc in m^2.
+    let m_per_px = kind.spec().m_per_px() / f64::from(scale);
+    let truth_m2 = f64::from(fx.contact_px) * m_per_px * m_per_px;
+    (states, episode.expect("an episode on release"), truth_m2)
 }
 
 #[test]
-fn area_in_mm2_follows_the_frame_size() {
+fn area_in_m2_follows_the_frame_size() {
     for kind in [SensorKind::GELSIGHT_MINI, SensorKind::DIGIT] {
         for scale in [1, 2] {
-            let (states, ep, truth_mm2) = press(kind, scale);
-            let mm_per_px = kind.spec().mm_per_px / f64::from(scale);
+            let (states, ep, truth_m2) = press(kind, scale);
+            let m_per_px = kind.spec().m_per_px() / f64::from(scale);
             let last = states.iter().rfind(|c| c.area_px > 0.0).unwrap();
-            let per_px = f64::from(last.area_mm2) / f64::from(last.area_px);
+            let per_px = f64::from(last.area_m2) / f64::from(last.area_px);
             assert!(
-                (per_px / (mm_per_px * mm_per_px) - 1.0).abs() < 1e-4,
-                "{kind} x{scale}: {per_px} mm^2 per px, expected {}",
-                mm_per_px * mm_per_px
+                (per_px / (m_per_px * m_per_px) - 1.0).abs() < 1e-4,
+                "{kind} x{scale}: {per_px} m^2 per px, expected {}",
+                m_per_px * m_per_px
             );
             // The same press reads the same physical area at either size.
-            let ratio = f64::from(last.area_mm2) / truth_mm2;
+            let ratio = f64::from(last.area_m2) / truth_m2;
             assert!(
                 (1.0 / 1.5..=1.5).contains(&ratio),
-                "{kind} x{scale}: {} mm^2 against the true {truth_mm2:.2} mm^2",
-                last.area_mm2
+                "{kind} x{scale}: {} m^2 against the true {truth_m2:e} m^2",
+                last.area_m2
             );
-            let peak = states.iter().map(|c| c.area_mm2).fold(0.0f32, f32::max);
+            let peak = states.iter().map(|c| c.area_m2).fold(0.0f32, f32::max);
             assert!(
-                (ep.peak_area_mm2 / peak - 1.0).abs() < 1e-3,
-                "{kind} x{scale}: episode peak {} mm^2, states' peak {peak}",
-                ep.peak_area_mm2
+                (ep.peak_area_m2 / peak - 1.0).abs() < 1e-3,
+                "{kind} x{scale}: episode peak {} m^2, states' peak {peak}",
+                ep.peak_area_m2
             );
         }
     }
