@@ -512,7 +512,7 @@ pub fn eval_depth(out: Option<&Path>) -> anyhow::Result<DepthEval> {
                 ah += s.area_m2 * 1e6 / hertz;
                 ag += s.area_m2 * 1e6 / geo;
                 let m = det.measure(&p.frame).map_err(anyhow::Error::msg)?;
-                dh += f64::from(m.area_px) * spec.mm2_per_px() / hertz;
+                dh += f64::from(m.area_px) * spec.m2_per_px() * 1e6 / hertz;
                 if let Some(d) = out {
                     if k == 0 && noise_dn == 4.0 && shading_dn == 20.0 {
                         let path = d.join(format!("depth_{:.1}mm_noise4_shading20.png", approach));

@@ -145,7 +145,7 @@ fn ball_area(
             continue;
         }
         found += 1;
-        let area = f64::from(m.area_px) * spec.mm2_per_px();
+        let area = f64::from(m.area_px) * spec.m2_per_px() * 1e6;
         h += area / (std::f64::consts::PI * p.press.contact_radius_mm().powi(2));
         g += area / (std::f64::consts::PI * p.press.geometric_radius_mm().powi(2));
     }

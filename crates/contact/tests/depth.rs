@@ -303,7 +303,7 @@ fn the_contact_stage_emits_a_depth_map_per_frame_and_an_overlay_only_when_asked(
                         assert_eq!(d.header.frame_id, format!("{}_optical_frame", f.sensor_id));
                         assert_eq!((d.width, d.height), (spec.width, spec.height));
                         assert_eq!(d.depth_m.len(), (spec.width * spec.height) as usize);
-                        assert!((d.pixel_m - spec.mm_per_px * 1e-3).abs() < 1e-9);
+                        assert!((d.pixel_m - spec.m_per_px()).abs() < 1e-9);
                         last = Some(d);
                     }
                     Msg::ContactOverlay(o) => overlays.push(o),

@@ -6,8 +6,9 @@
 //! ([`FLOAT_TOLERANCE`]) because ONNX Runtime may sum in another order on another thread count or
 //! CPU. Near zero the tolerance is relative to the field's everyday scale, read from its unit
 //! suffix ([`unit_scale`]: a millimetre for `_m`, a square millimetre for `_m2`), so that an SI
-//! length or area is compared as tightly as a value of order one. Everything else in the stages is integer or deterministic float code, so in practice the
-//! streams are byte-identical on one machine.
+//! length or area is compared as tightly as a value of order one. Everything else in the stages
+//! is integer or deterministic float code, so in practice the streams are byte-identical on one
+//! machine.
 
 use serde_json::Value;
 

@@ -413,10 +413,6 @@ impl SensorSpec {
     pub fn m2_per_px(&self) -> f64 {
         self.m_per_px() * self.m_per_px()
     }
-    /// The same in mm^2, for the lab's reports against references in mm.
-    pub fn mm2_per_px(&self) -> f64 {
-        self.mm_per_px * self.mm_per_px
-    }
 
     /// The same sensor publishing `scale` times the width and height over the same field of
     /// view (e.g. GelSight Mini at 640x480: `scaled(2)`).

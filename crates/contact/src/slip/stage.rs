@@ -128,8 +128,8 @@ impl SlipStage {
 
     fn state(&self, f: &Frame, m: Option<Measured>, tracked: u32) -> SlipState {
         // Metres per pixel of this frame (the spec's scale is for its own output width).
-        let m_per_px = self.spec.mm_per_px * 1e-3 * f64::from(self.spec.width.max(1))
-            / f64::from(f.width.max(1));
+        let m_per_px =
+            self.spec.m_per_px() * f64::from(self.spec.width.max(1)) / f64::from(f.width.max(1));
         let mut s = SlipState {
             header: Header::optical(f.stamp, &f.sensor_id),
             sensor_id: f.sensor_id.clone(),
