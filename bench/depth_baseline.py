@@ -14,7 +14,7 @@ level (median of the outer two pixels) and penetration (largest 3x3 mean) as the
 One saving over gs_sdk: the eigenvalue grid and the index lists are built once per size
 (gs_sdk rebuilds them on every call), so the baseline is, if anything, faster than gs_sdk.
 
-usage: depth_baseline.py FRAMES.raw BACKGROUND.raw CAL.json WIDTH HEIGHT MM_PER_PX REPEAT
+usage: depth_baseline.py FRAMES.raw BACKGROUND.raw CAL.json WIDTH HEIGHT M_PER_PX REPEAT
 prints one JSON object: per-frame times in microseconds.
 """
 import json
@@ -30,7 +30,7 @@ from scipy import fftpack
 def main():
     frames_path, bg_path, cal_path = sys.argv[1:4]
     w, h = int(sys.argv[4]), int(sys.argv[5])
-    mm = float(sys.argv[6])
+    m_per_px = float(sys.argv[6])
     repeat = int(sys.argv[7])
     cv2.setNumThreads(1)
     frames = np.fromfile(frames_path, np.uint8).reshape(-1, h, w, 3)
@@ -79,8 +79,8 @@ def main():
         r, g, b = d[..., 0], d[..., 1], d[..., 2]
         feats = np.stack([ones, r, g, b, r * r, g * g, b * b, r * g, r * b, g * b,
                           u, v, u * r, u * g, u * b, v * r, v * g, v * b], -1)
-        p = feats @ kx * mm
-        q = feats @ ky * mm
+        p = feats @ kx * m_per_px
+        q = feats @ ky * m_per_px
         z = poisson_neumann(p, q).astype(np.float32)
         z = z - np.median(z[border])
         pen = cv2.blur(z, (3, 3)).max()

@@ -13,21 +13,21 @@ use unitac_contact::depth::{
 };
 use unitac_contact::{ContactDetector, ContactParams};
 use unitac_core::{Frame, SensorKind, SensorSpec, Timing, timing};
-use unitac_sim::MockConfig;
 use unitac_sim::ballpress::{BallPress, PressNoise, random_presses, render_presses};
+use unitac_sim::{MM_PER_M, MockConfig};
 
 use crate::args::{f64_in, int_in, usage};
 use crate::images::read_frame;
 
 /// Most press images one calibration reads.
 const MAX_PRESSES: usize = 500;
-/// Ball radii `calibrate depth` takes \[mm].
-const BALL_RADIUS_MM: (f64, f64) = (0.1, 100.0);
-/// Ball radii `calibrate mock-presses` renders \[mm]: the largest one's contact disc at a 1 mm
+/// Ball radii `calibrate depth` takes \[m].
+const BALL_RADIUS_M: (f64, f64) = (1e-4, 0.1);
+/// Ball radii `calibrate mock-presses` renders \[m]: the largest one's contact disc at a 1 mm
 /// approach still fits the mock sensor's frame.
-const MOCK_BALL_RADIUS_MM: (f64, f64) = (0.5, 10.0);
-/// Gel millimetres per pixel `calibrate depth --mm-per-px` takes.
-const MM_PER_PX: (f64, f64) = (0.001, 1.0);
+const MOCK_BALL_RADIUS_M: (f64, f64) = (5e-4, 0.01);
+/// Gel-surface metres per pixel `calibrate depth --m-per-px` takes.
+const M_PER_PX: (f64, f64) = (1e-6, 1e-3);
 
 /// `unitac calibrate ...`
 #[derive(clap::Subcommand, Debug)]
@@ -35,7 +35,7 @@ pub enum CalibrateCmd {
     /// Fit a sensor's depth calibration from presses of a ball of known radius: finds each
     /// press's contact circle (review PNGs and circles.json in --review; correct circles there
     /// and pass the file back with --circles), fits colour + position -> gel slope, and writes
-    /// the calibration file (sensor, serial, image size, mm per pixel).
+    /// the calibration file (sensor, serial, image size, metres per pixel).
     Depth(CalibrateDepthArgs),
     /// Write mock ball presses (PNG) and a background to try `calibrate depth` on, with their
     /// truth (truth.json: centre, ball radius, approach per press).
@@ -47,9 +47,9 @@ pub struct CalibrateDepthArgs {
     /// Sensor kind: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS.
     #[arg(long)]
     sensor: SensorKind,
-    /// Radius of the ball pressed into the gel, in mm.
-    #[arg(long, value_parser = f64_in(BALL_RADIUS_MM.0, BALL_RADIUS_MM.1))]
-    ball_radius_mm: f64,
+    /// Radius of the ball pressed into the gel, in m (a 4 mm ball: 0.002).
+    #[arg(long, value_parser = f64_in(BALL_RADIUS_M.0, BALL_RADIUS_M.1))]
+    ball_radius_m: f64,
     /// Image of the gel without contact (same size as the presses).
     #[arg(long)]
     background: PathBuf,
@@ -62,10 +62,10 @@ pub struct CalibrateDepthArgs {
     /// The sensor's serial (a calibration is refused for frames of another serial).
     #[arg(long, default_value = "")]
     serial: String,
-    /// Gel millimetres per pixel at the images' size (default: the sensor kind's, scaled to
+    /// Gel-surface metres per pixel at the images' size (default: the sensor kind's, scaled to
     /// the images' width). Measure it with a ruler pressed on the gel for a real sensor.
-    #[arg(long, value_parser = f64_in(MM_PER_PX.0, MM_PER_PX.1))]
-    mm_per_px: Option<f64>,
+    #[arg(long, value_parser = f64_in(M_PER_PX.0, M_PER_PX.1))]
+    m_per_px: Option<f64>,
     /// Circles to use instead of the ones found: the circles.json that --review wrote, edited
     /// (x, y, r in pixels per file; "skip": true leaves a press out). Each circle's centre lies
     /// in the image and its radius is at most half the image's shorter side.
@@ -81,10 +81,10 @@ pub struct MockPressesArgs {
     /// Sensor kind: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS (the frames' size and mm per pixel).
     #[arg(long, default_value = "gelsight-mini")]
     sensor: SensorKind,
-    /// Radius of the pressed ball, in mm.
-    #[arg(long, default_value_t = 2.0,
-          value_parser = f64_in(MOCK_BALL_RADIUS_MM.0, MOCK_BALL_RADIUS_MM.1))]
-    ball_radius_mm: f64,
+    /// Radius of the pressed ball, in m.
+    #[arg(long, default_value_t = 0.002,
+          value_parser = f64_in(MOCK_BALL_RADIUS_M.0, MOCK_BALL_RADIUS_M.1))]
+    ball_radius_m: f64,
     /// Presses to write.
     #[arg(long, default_value_t = 40, value_parser = int_in(1usize, MAX_PRESSES))]
     count: usize,
@@ -202,9 +202,9 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
         .map_err(|e| usage(format!("--background {e:#}")))?;
     let (w, h) = (bg.width as usize, bg.height as usize);
     let spec = a.sensor.spec();
-    let mm_per_px = match a.mm_per_px {
+    let m_per_px = match a.m_per_px {
         Some(v) => v,
-        None => spec.mm_per_px * f64::from(spec.width) / f64::from(bg.width),
+        None => spec.m_per_px() * f64::from(spec.width) / f64::from(bg.width),
     };
     let given = match &a.circles {
         Some(p) => Some(
@@ -264,7 +264,7 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
             skip,
         });
         match chosen {
-            Some(c) => fit.add_press(&prep.diff, w, h, c, a.ball_radius_mm, mm_per_px),
+            Some(c) => fit.add_press(&prep.diff, w, h, c, a.ball_radius_m, m_per_px),
             None if skip => {}
             None => crate::args::warn(format_args!(
                 "{key}: no press found (give its circle in --circles, or skip it)"
@@ -280,8 +280,8 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
         a.sensor,
         &a.serial,
         (bg.width, bg.height),
-        mm_per_px,
-        a.ball_radius_mm,
+        m_per_px,
+        a.ball_radius_m,
     )?;
     cal.save(&a.out)?;
     eprintln!(
@@ -290,7 +290,7 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
         cal.presses_used,
         cal.width,
         cal.height,
-        cal.mm_per_px,
+        cal.m_per_px * MM_PER_M,
         cal.fit_rms_slope
     );
     Ok(failed == 0)
@@ -314,7 +314,13 @@ fn save_png(frame: &Frame, path: &Path) -> anyhow::Result<()> {
 pub fn mock_presses(a: &MockPressesArgs) -> anyhow::Result<bool> {
     // The numbers were checked by their value parsers.
     let spec = a.sensor.spec();
-    let presses = random_presses(spec, a.count, a.ball_radius_mm, (0.3, 1.0), a.seed);
+    let presses = random_presses(
+        spec,
+        a.count,
+        a.ball_radius_m * MM_PER_M,
+        (0.3, 1.0),
+        a.seed,
+    );
     let noise = PressNoise {
         noise_dn: a.noise_dn,
         shading_dn: a.shading_dn,
@@ -332,9 +338,9 @@ pub fn mock_presses(a: &MockPressesArgs) -> anyhow::Result<bool> {
             "file": name,
             "x": p.press.center_px[0],
             "y": p.press.center_px[1],
-            "contact_radius_px": p.press.contact_radius_mm() / spec.mm_per_px,
-            "ball_radius_mm": p.press.radius_mm,
-            "approach_mm": p.press.approach_mm,
+            "contact_radius_px": p.press.contact_radius_mm() / MM_PER_M / spec.m_per_px(),
+            "ball_radius_m": p.press.radius_mm / MM_PER_M,
+            "approach_m": p.press.approach_mm / MM_PER_M,
         }));
     }
     std::fs::write(
@@ -347,7 +353,7 @@ pub fn mock_presses(a: &MockPressesArgs) -> anyhow::Result<bool> {
 /// A calibration from `n` mock presses of a 2 mm ball at noise 1 DN (what `eval depth` and
 /// `bench depth` use).
 fn mock_calibration(spec: SensorSpec, n: usize) -> anyhow::Result<DepthCalibration> {
-    let presses = random_presses(spec, n, EVAL_BALL_MM, (0.3, 1.0), 5);
+    let presses = random_presses(spec, n, EVAL_BALL_M * MM_PER_M, (0.3, 1.0), 5);
     let noise = PressNoise {
         noise_dn: 1.0,
         shading_dn: 0.0,
@@ -361,32 +367,34 @@ fn mock_calibration(spec: SensorSpec, n: usize) -> anyhow::Result<DepthCalibrati
     for p in &rendered {
         prepare(&mut prep, &p.frame, &bg)?;
         if let Some(c) = find_circle(&prep.diff, w, h) {
-            fit.add_press(&prep.diff, w, h, c, EVAL_BALL_MM, spec.mm_per_px);
+            fit.add_press(&prep.diff, w, h, c, EVAL_BALL_M, spec.m_per_px());
         }
     }
     Ok(fit.finish(
         spec.kind,
         "MOCK",
         (spec.width, spec.height),
-        spec.mm_per_px,
-        EVAL_BALL_MM,
+        spec.m_per_px(),
+        EVAL_BALL_M,
     )?)
 }
 
-const EVAL_BALL_MM: f64 = 2.0;
+/// The ball `eval depth` and `bench depth` press \[m].
+const EVAL_BALL_M: f64 = 0.002;
 
 /// One row of `eval depth`.
 #[derive(Debug, Serialize)]
 pub struct DepthRow {
-    pub approach_mm: f64,
+    /// The ball's approach into the gel \[m].
+    pub approach_m: f64,
     pub noise_dn: f64,
     pub shading_dn: f64,
     pub presses: usize,
-    /// RMS depth error over every pixel of the frames \[mm].
-    pub rmse_mm: f64,
-    /// Mean and largest |penetration - approach| \[mm].
-    pub penetration_err_mean_mm: f64,
-    pub penetration_err_max_mm: f64,
+    /// RMS depth error over every pixel of the frames \[m].
+    pub rmse_m: f64,
+    /// Mean and largest |penetration - approach| \[m].
+    pub penetration_err_mean_m: f64,
+    pub penetration_err_max_m: f64,
     /// Depth's contact area over the Hertz disc pi R d, and over the geometric one.
     pub area_over_hertz: f64,
     pub area_over_geometric: f64,
@@ -397,7 +405,7 @@ pub struct DepthRow {
 #[derive(Debug, Serialize)]
 pub struct DepthEval {
     pub sensor: String,
-    pub ball_radius_mm: f64,
+    pub ball_radius_m: f64,
     pub calibration_presses: u32,
     pub fit_rms_slope: f64,
     pub rows: Vec<DepthRow>,
@@ -408,18 +416,21 @@ impl DepthEval {
     pub fn text(&self) -> String {
         let mut s = format!(
             "depth on mock ball presses ({}, ball R {} mm, calibrated from {} presses, fit RMS slope {:.4})\n",
-            self.sensor, self.ball_radius_mm, self.calibration_presses, self.fit_rms_slope
+            self.sensor,
+            self.ball_radius_m * MM_PER_M,
+            self.calibration_presses,
+            self.fit_rms_slope
         );
         s += "approach mm | noise DN | shading DN | RMSE mm | pen. err mean / max mm | area / Hertz disc | area / geometric | detector area / Hertz\n";
         for r in &self.rows {
             s += &format!(
                 "{:>11.2} | {:>8.1} | {:>10.1} | {:>7.4} | {:>9.4} / {:.4} | {:>17.3} | {:>16.3} | {:>21.3}\n",
-                r.approach_mm,
+                r.approach_m * MM_PER_M,
                 r.noise_dn,
                 r.shading_dn,
-                r.rmse_mm,
-                r.penetration_err_mean_mm,
-                r.penetration_err_max_mm,
+                r.rmse_m * MM_PER_M,
+                r.penetration_err_mean_m * MM_PER_M,
+                r.penetration_err_max_m * MM_PER_M,
                 r.area_over_hertz,
                 r.area_over_geometric,
                 r.detector_area_over_hertz
@@ -432,14 +443,8 @@ impl DepthEval {
     }
 }
 
-/// Frame | estimated depth | true depth, one colour scale (0 to the true approach).
-fn depth_png(
-    frame: &Frame,
-    est: &[f32],
-    truth: &[f32],
-    scale_mm: f32,
-    path: &Path,
-) -> anyhow::Result<()> {
+/// Frame | estimated depth \[m] | the renderer's true depth \[mm], one colour scale (0 to 1 mm).
+fn depth_png(frame: &Frame, est_m: &[f32], truth_mm: &[f32], path: &Path) -> anyhow::Result<()> {
     let (w, h) = (frame.width as usize, frame.height as usize);
     let mut img = image::RgbImage::new((w * 3) as u32, h as u32);
     for y in 0..h {
@@ -450,12 +455,12 @@ fn depth_png(
             img.put_pixel(
                 (w + x) as u32,
                 y as u32,
-                image::Rgb(unitac_contact::overlay::ramp(est[i] / scale_mm)),
+                image::Rgb(unitac_contact::overlay::ramp(est_m[i] * MM_PER_M as f32)),
             );
             img.put_pixel(
                 (2 * w + x) as u32,
                 y as u32,
-                image::Rgb(unitac_contact::overlay::ramp(truth[i] / scale_mm)),
+                image::Rgb(unitac_contact::overlay::ramp(truth_mm[i])),
             );
         }
     }
@@ -474,14 +479,14 @@ pub fn eval_depth(out: Option<&Path>) -> anyhow::Result<DepthEval> {
     let mut rows = Vec::new();
     let mut pngs = Vec::new();
     let places = [[110.0, 95.0], [210.0, 140.0], [160.0, 120.0]];
-    for approach in [0.2, 0.4, 0.6, 0.8, 1.0] {
+    for approach in [0.2e-3, 0.4e-3, 0.6e-3, 0.8e-3, 1.0e-3] {
         for (noise_dn, shading_dn) in [(1.0, 0.0), (4.0, 0.0), (1.0, 20.0), (4.0, 20.0)] {
             let presses: Vec<BallPress> = places
                 .iter()
                 .map(|c| BallPress {
                     center_px: *c,
-                    radius_mm: EVAL_BALL_MM,
-                    approach_mm: approach,
+                    radius_mm: EVAL_BALL_M * MM_PER_M,
+                    approach_mm: approach * MM_PER_M,
                 })
                 .collect();
             let noise = PressNoise {
@@ -500,36 +505,39 @@ pub fn eval_depth(out: Option<&Path>) -> anyhow::Result<DepthEval> {
             let (mut ah, mut ag, mut dh) = (0f64, 0f64, 0f64);
             for (k, p) in rendered.iter().enumerate() {
                 let s = est.estimate(&p.frame)?;
-                for (a, b) in est.depth_mm().iter().zip(&p.depth_mm) {
-                    se += f64::from(a - b).powi(2);
+                for (a, b) in est.depth_m().iter().zip(&p.depth_mm) {
+                    se += (f64::from(*a) - f64::from(*b) / MM_PER_M).powi(2);
                     n += 1;
                 }
-                let pe = (f64::from(s.penetration_m) * 1e3 - approach).abs();
+                let pe = (f64::from(s.penetration_m) - approach).abs();
                 pe_sum += pe;
                 pe_max = pe_max.max(pe);
-                let hertz = std::f64::consts::PI * p.press.contact_radius_mm().powi(2);
-                let geo = std::f64::consts::PI * p.press.geometric_radius_mm().powi(2);
-                ah += s.area_m2 * 1e6 / hertz;
-                ag += s.area_m2 * 1e6 / geo;
+                let hertz = std::f64::consts::PI * (p.press.contact_radius_mm() / MM_PER_M).powi(2);
+                let geo = std::f64::consts::PI * (p.press.geometric_radius_mm() / MM_PER_M).powi(2);
+                ah += s.area_m2 / hertz;
+                ag += s.area_m2 / geo;
                 let m = det.measure(&p.frame).map_err(anyhow::Error::msg)?;
-                dh += f64::from(m.area_px) * spec.m2_per_px() * 1e6 / hertz;
+                dh += f64::from(m.area_px) * spec.m2_per_px() / hertz;
                 if let Some(d) = out {
                     if k == 0 && noise_dn == 4.0 && shading_dn == 20.0 {
-                        let path = d.join(format!("depth_{:.1}mm_noise4_shading20.png", approach));
-                        depth_png(&p.frame, est.depth_mm(), &p.depth_mm, 1.0, &path)?;
+                        let path = d.join(format!(
+                            "depth_{:.1}mm_noise4_shading20.png",
+                            approach * MM_PER_M
+                        ));
+                        depth_png(&p.frame, est.depth_m(), &p.depth_mm, &path)?;
                         pngs.push(path.display().to_string());
                     }
                 }
             }
             let m = rendered.len().max(1) as f64;
             rows.push(DepthRow {
-                approach_mm: approach,
+                approach_m: approach,
                 noise_dn,
                 shading_dn,
                 presses: rendered.len(),
-                rmse_mm: (se / n.max(1) as f64).sqrt(),
-                penetration_err_mean_mm: pe_sum / m,
-                penetration_err_max_mm: pe_max,
+                rmse_m: (se / n.max(1) as f64).sqrt(),
+                penetration_err_mean_m: pe_sum / m,
+                penetration_err_max_m: pe_max,
                 area_over_hertz: ah / m,
                 area_over_geometric: ag / m,
                 detector_area_over_hertz: dh / m,
@@ -538,7 +546,7 @@ pub fn eval_depth(out: Option<&Path>) -> anyhow::Result<DepthEval> {
     }
     Ok(DepthEval {
         sensor: spec.kind.to_string(),
-        ball_radius_mm: EVAL_BALL_MM,
+        ball_radius_m: EVAL_BALL_M,
         calibration_presses: cal.presses_used,
         fit_rms_slope: cal.fit_rms_slope,
         rows,
@@ -609,14 +617,14 @@ fn python_depth(
 ) -> anyhow::Result<(Timing, String)> {
     let dir = crate::bench::raw_frames_dir("bench-depth", frames, bg)?;
     cal.save(&dir.join("cal.json"))?;
-    let mm = cal.mm_per_px_at(bg.width, bg.height)?;
+    let m_per_px = cal.m_per_px_at(bg.width, bg.height)?;
     let args = [
         dir.join("frames.raw").into_os_string(),
         dir.join("bg.raw").into_os_string(),
         dir.join("cal.json").into_os_string(),
         bg.width.to_string().into(),
         bg.height.to_string().into(),
-        mm.to_string().into(),
+        m_per_px.to_string().into(),
         repeat.to_string().into(),
     ];
     let j = crate::bench::run_python_baseline("depth_baseline.py", &args);
@@ -636,7 +644,13 @@ pub fn bench_depth(n: usize, repeat: usize, with_python: bool) -> anyhow::Result
     let mut python = String::from("not run");
     for scale in [1u32, 2] {
         let spec = base.scaled(scale);
-        let presses = random_presses(spec, n.clamp(1, 200), EVAL_BALL_MM, (0.2, 1.0), 21);
+        let presses = random_presses(
+            spec,
+            n.clamp(1, 200),
+            EVAL_BALL_M * MM_PER_M,
+            (0.2, 1.0),
+            21,
+        );
         let noise = PressNoise {
             noise_dn: 1.0,
             shading_dn: 0.0,
@@ -740,8 +754,8 @@ pub fn overlay_png(
     source: &Path,
 ) -> anyhow::Result<()> {
     use unitac_contact::overlay::{DepthPanel, Overlay, draw};
-    let depth_mm: Option<Vec<f32>> = depth.map(|(d, unknown)| {
-        d.depth_mm()
+    let depth_m: Option<Vec<f32>> = depth.map(|(d, unknown)| {
+        d.depth_m()
             .iter()
             .enumerate()
             .map(|(i, v)| {
@@ -757,9 +771,9 @@ pub fn overlay_png(
         contact: mask,
         centroid: (centroid != [0.0, 0.0]).then_some(centroid),
         arrows,
-        depth: match (&depth_mm, depth) {
-            (Some(depth_mm), Some((d, _))) => Some(DepthPanel {
-                depth_mm,
+        depth: match (&depth_m, depth) {
+            (Some(depth_m), Some((d, _))) => Some(DepthPanel {
+                depth_m,
                 mask: d.mask(),
             }),
             _ => None,

@@ -401,7 +401,7 @@ impl std::fmt::Display for ConfigError {
 impl std::error::Error for ConfigError {}
 
 /// The command line's grammar: [`Cli`], with a negative number taken as the value of a flag
-/// that takes one (`--ball-radius-mm -1` is refused by the flag's range, not read as a flag).
+/// that takes one (`--ball-radius-m -1` is refused by the flag's range, not read as a flag).
 fn command() -> clap::Command {
     fn negatives(c: clap::Command) -> clap::Command {
         c.mut_args(|a| {

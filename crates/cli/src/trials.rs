@@ -92,12 +92,12 @@ pub struct TrialsArgs {
     /// must follow that layout. Without it, each scene's own bundle runs.
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..1000))]
     pub training_seed: Option<u32>,
-    /// Add uniform noise of up to this many mm to the arm height of every command the policy
+    /// Add uniform noise of up to this many metres to the arm height of every command the policy
     /// sends, drawn per tick from the trial's own stream: a policy whose arm does not hold its
     /// height still (the world's grasp geometry must not turn it into a collision).
-    #[arg(long, value_name = "MM", default_value_t = 0.0,
-          value_parser = crate::args::f64_in(0.0, unitac_trials::run::MAX_ARM_Z_NOISE_M * 1e3))]
-    pub arm_z_noise_mm: f64,
+    #[arg(long, value_name = "M", default_value_t = 0.0,
+          value_parser = crate::args::f64_in(0.0, unitac_trials::run::MAX_ARM_Z_NOISE_M))]
+    pub arm_z_noise_m: f64,
 }
 
 /// The training seed of a bundle path `<root>/seed<K>/<name>/manifest.json`, and its root and
@@ -238,8 +238,8 @@ struct Report<'a> {
     seed: u64,
     trials: u32,
     gripper: &'a str,
-    /// Arm height noise added to every command (`--arm-z-noise-mm`) \[mm].
-    arm_z_noise_mm: f64,
+    /// Arm height noise added to every command (`--arm-z-noise-m`) \[m].
+    arm_z_noise_m: f64,
     table: &'a [Row],
     /// The touch modes with each trial's touch values from the next trial (`--permute-touch`).
     #[serde(skip_serializing_if = "<[Row]>::is_empty")]
@@ -590,7 +590,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     let split = if a.train { Split::Train } else { Split::Unseen };
     let task = TaskConfig::new(kind, split);
     let opts = TrialOptions {
-        arm_z_noise_m: a.arm_z_noise_mm * 1e-3,
+        arm_z_noise_m: a.arm_z_noise_m,
         ..TrialOptions::for_task(kind)
     };
     let gripper = a.gripper;
@@ -694,7 +694,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             seed: a.seed,
             trials: a.trials,
             gripper: gripper.name(),
-            arm_z_noise_mm: a.arm_z_noise_mm,
+            arm_z_noise_m: a.arm_z_noise_m,
             table: &rows,
             touch_permuted: &permuted,
             sweep: &sweep,

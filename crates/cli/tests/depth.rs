@@ -49,7 +49,7 @@ fn calibrate_review_correct_and_refuse() {
     let bg = out.join("background.png");
     let cal = d.join("cal.json");
     let review = d.join("review");
-    let mut args = calibrate_depth_args("2", &bg, &cal);
+    let mut args = calibrate_depth_args("0.002", &bg, &cal);
     args.extend([
         "--serial",
         "MOCK-0001",
@@ -145,9 +145,9 @@ fn calibrate_review_correct_and_refuse() {
         let disc = std::f64::consts::PI * t["contact_radius_px"].as_f64().unwrap().powi(2);
         let ratio = v["depth"]["area_px"].as_f64().unwrap() / disc;
         assert!((0.75..1.25).contains(&ratio), "{v} vs disc {disc}");
-        let pen = v["depth"]["penetration_m"].as_f64().unwrap() * 1e3;
+        let pen = v["depth"]["penetration_m"].as_f64().unwrap();
         assert!(
-            (pen - t["approach_mm"].as_f64().unwrap()).abs() < 0.05,
+            (pen - t["approach_m"].as_f64().unwrap()).abs() < 0.05e-3,
             "{v} {t}"
         );
         let name = t["file"].as_str().unwrap().replace(".png", ".overlay.png");
@@ -199,10 +199,10 @@ fn eval_depth_meets_the_readme() {
     let rows = v["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 20);
     for r in rows {
-        let a = r["approach_mm"].as_f64().unwrap();
-        assert!(r["rmse_mm"].as_f64().unwrap() < 0.03, "{r}");
+        let a = r["approach_m"].as_f64().unwrap();
+        assert!(r["rmse_m"].as_f64().unwrap() < 0.03e-3, "{r}");
         assert!(
-            r["penetration_err_max_mm"].as_f64().unwrap() < 0.05 * a + 0.01,
+            r["penetration_err_max_m"].as_f64().unwrap() < 0.05 * a + 0.01e-3,
             "{r}"
         );
         let area = r["area_over_hertz"].as_f64().unwrap();
@@ -281,7 +281,7 @@ fn circles_beyond_the_image_are_refused_at_once() {
             .collect();
         std::fs::write(&circles, Value::Array(list).to_string()).unwrap();
         std::fs::remove_file(&cal).ok();
-        let mut args = calibrate_depth_args("2", &bg, &cal);
+        let mut args = calibrate_depth_args("0.002", &bg, &cal);
         args.extend(["--circles", circles.to_str().unwrap()]);
         if with_review {
             args.extend(["--review", review.to_str().unwrap()]);
@@ -318,19 +318,19 @@ fn degenerate_calibration_values_are_refused() {
         assert!(err.starts_with("unitac: ") && err.contains(needle), "{err}");
     };
     refused(
-        depth("2", &["--mm-per-px", "1e-9"]),
-        "--mm-per-px <MM_PER_PX>': 0.000000001 is outside 0.001 to 1 (inclusive)",
+        depth("0.002", &["--m-per-px", "1e-9"]),
+        "--m-per-px <M_PER_PX>': 0.000000001 is outside 0.000001 to 0.001 (inclusive)",
     );
     refused(
-        depth("2", &["--mm-per-px", "1e9"]),
-        "0.001 to 1 (inclusive)",
+        depth("0.002", &["--m-per-px", "1e9"]),
+        "0.000001 to 0.001 (inclusive)",
     );
-    for r in ["NaN", "0", "1e9", "0.0999", "100.5"] {
-        refused(depth(r, &[]), "0.1 to 100 (inclusive)");
+    for r in ["NaN", "0", "1e9", "0.0000999", "0.1005"] {
+        refused(depth(r, &[]), "0.0001 to 0.1 (inclusive)");
     }
     // The range's ends are ball radii: the run goes past the check (the fit itself may still
     // fail on presses of another ball, exit 1).
-    for r in ["0.1", "100"] {
+    for r in ["0.0001", "0.1"] {
         let (code, _, err) = depth(r, &[]);
         assert_ne!(code, Some(2), "{r}: {err}");
         assert!(!err.contains("ball-radius"), "{r}: {err}");
@@ -349,7 +349,7 @@ fn degenerate_calibration_values_are_refused() {
     refused(mock("--noise-dn", "NaN"), "0 to 64 (inclusive)");
     refused(mock("--shading-dn", "inf"), "0 to 255 (inclusive)");
     for r in ["NaN", "0", "1e9"] {
-        refused(mock("--ball-radius-mm", r), "0.5 to 10 (inclusive)");
+        refused(mock("--ball-radius-m", r), "0.0005 to 0.01 (inclusive)");
     }
     refused(mock("--count", "0"), "1 to 500 (inclusive)");
     assert!(!mock_out.exists(), "nothing written");

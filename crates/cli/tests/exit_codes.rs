@@ -44,7 +44,7 @@ const CASES: &[(&str, &[&str])] = &[
             "depth",
             "--sensor",
             "gelsight-mini",
-            "--ball-radius-mm",
+            "--ball-radius-m",
             "NaN",
             "--background",
             "{tmp}/bg.png",

@@ -153,7 +153,7 @@ fn depth_scene(dir: &Path) -> PathBuf {
     let presses = common::press_files(&mock);
     let cal = dir.join("cal.json");
     let bg = mock.join("background.png");
-    let mut args = common::calibrate_depth_args("2", &bg, &cal);
+    let mut args = common::calibrate_depth_args("0.002", &bg, &cal);
     args.extend(presses.iter().map(String::as_str));
     events(&args);
     let text = std::fs::read_to_string(root().join("launch/scenes/fabric_selection.yaml")).unwrap();

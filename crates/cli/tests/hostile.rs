@@ -634,7 +634,7 @@ fn numbers_out_of_range_are_refused_not_clamped() {
     );
     assert!(!ds.exists(), "nothing written");
     let (missing, cal) = (d.join("missing.png"), d.join("cal.json"));
-    let mut args = common::calibrate_depth_args("2", &missing, &cal);
+    let mut args = common::calibrate_depth_args("0.002", &missing, &cal);
     args.push(missing.to_str().unwrap());
     assert_one_line(&unitac(&args), 2, "--background");
     std::fs::remove_dir_all(&d).ok();

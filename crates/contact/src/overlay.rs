@@ -16,14 +16,14 @@ pub const DEPTH_OUTLINE: [u8; 3] = [255, 255, 255];
 pub const ARROW: [u8; 3] = [0, 255, 0];
 /// Colour of pixels of unknown depth on the depth panel.
 pub const UNKNOWN: [u8; 3] = [128, 128, 128];
-/// Depth at the top of the colour map \[mm].
-pub const DEPTH_SCALE_MM: f32 = 1.0;
+/// Depth at the top of the colour map \[m].
+pub const DEPTH_SCALE_M: f32 = 1e-3;
 
-/// The depth panel: depth per pixel \[mm, NaN = unknown] and its contact region, row-major at
+/// The depth panel: depth per pixel \[m, NaN = unknown] and its contact region, row-major at
 /// the frame's size.
 #[derive(Debug, Clone, Copy)]
 pub struct DepthPanel<'a> {
-    pub depth_mm: &'a [f32],
+    pub depth_m: &'a [f32],
     pub mask: &'a [bool],
 }
 
@@ -101,11 +101,11 @@ pub fn draw(frame: &Frame, o: &Overlay<'_>) -> Result<Frame, FrameError> {
             };
             put(x, y, c);
             if let Some(d) = o.depth {
-                let v = d.depth_mm.get(i).copied().unwrap_or(f32::NAN);
+                let v = d.depth_m.get(i).copied().unwrap_or(f32::NAN);
                 let c = if edge(d.mask, w, h, x, y) {
                     DEPTH_OUTLINE
                 } else if v.is_finite() {
-                    ramp(v / DEPTH_SCALE_MM)
+                    ramp(v / DEPTH_SCALE_M)
                 } else {
                     UNKNOWN
                 };
@@ -184,7 +184,7 @@ mod tests {
                 m[y * 20 + x] = true;
             }
         }
-        let mut depth = vec![0.5f32; 200];
+        let mut depth = vec![0.5e-3f32; 200];
         depth[0] = f32::NAN;
         let arrows = [([15.0, 2.0], [18.0, 2.0])];
         let o = Overlay {
@@ -192,7 +192,7 @@ mod tests {
             centroid: Some([8.0, 5.0]),
             arrows: &arrows,
             depth: Some(DepthPanel {
-                depth_mm: &depth,
+                depth_m: &depth,
                 mask: &m,
             }),
         };

@@ -178,14 +178,14 @@ impl ContactStage {
             cs.bbox_px = [x0, y0, x1, y1];
         }
         let depth_m = est
-            .depth_mm()
+            .depth_m()
             .iter()
             .enumerate()
             .map(|(i, v)| {
                 if d.unknown.get(i).copied().unwrap_or(false) {
                     f32::NAN
                 } else {
-                    v * 1e-3
+                    *v
                 }
             })
             .collect();
@@ -235,10 +235,10 @@ impl ContactStage {
         // With a calibration the depth panel is always there (the picture keeps its size), all
         // unknown until the first depth map.
         let n = f.width as usize * f.height as usize;
-        let depth_mm: Option<Vec<f32>> = self.depth.as_ref().map(|_| {
+        let depth_m: Option<Vec<f32>> = self.depth.as_ref().map(|_| {
             out.iter()
                 .find_map(|m| match m {
-                    Msg::Depth(d) => Some(d.depth_m.iter().map(|v| v * 1e3).collect()),
+                    Msg::Depth(d) => Some(d.depth_m.clone()),
                     _ => None,
                 })
                 .unwrap_or_else(|| vec![f32::NAN; n])
@@ -251,9 +251,9 @@ impl ContactStage {
             .filter(|_| has_depth)
             .map(DepthEstimator::mask)
             .unwrap_or(&[]);
-        let depth = depth_mm
+        let depth = depth_m
             .as_deref()
-            .map(|depth_mm| DepthPanel { depth_mm, mask });
+            .map(|depth_m| DepthPanel { depth_m, mask });
         let arrows = self
             .markers
             .as_ref()

@@ -40,7 +40,7 @@ fn calibrate(spec: SensorSpec, noise_dn: f64) -> (DepthCalibration, Vec<(Circle,
         let Some(c) = find_circle(&prep.diff, w, h) else {
             continue;
         };
-        fit.add_press(&prep.diff, w, h, c, BALL_MM, spec.mm_per_px);
+        fit.add_press(&prep.diff, w, h, c, BALL_MM * 1e-3, spec.m_per_px());
         found.push((c, p.press));
     }
     let cal = fit
@@ -48,8 +48,8 @@ fn calibrate(spec: SensorSpec, noise_dn: f64) -> (DepthCalibration, Vec<(Circle,
             spec.kind,
             "MOCK-0001",
             (spec.width, spec.height),
-            spec.mm_per_px,
-            BALL_MM,
+            spec.m_per_px(),
+            BALL_MM * 1e-3,
         )
         .unwrap();
     (cal, found)
@@ -78,8 +78,9 @@ fn evaluate(cal: &DepthCalibration, spec: SensorSpec, approach: f64, noise: Pres
     let (mut se, mut n, mut pen, mut area) = (0f64, 0usize, 0f64, 0f64);
     for p in &rendered {
         let s = est.estimate(&p.frame).unwrap();
-        for (a, b) in est.depth_mm().iter().zip(&p.depth_mm) {
-            se += f64::from(a - b).powi(2);
+        // The renderer's truth is in mm of gel.
+        for (a, b) in est.depth_m().iter().zip(&p.depth_mm) {
+            se += f64::from(a * 1e3 - b).powi(2);
             n += 1;
         }
         pen = f64::max(pen, (f64::from(s.penetration_m) * 1e3 - approach).abs());

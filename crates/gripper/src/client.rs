@@ -123,7 +123,7 @@ pub struct LinkStats {
     pub bad_replies: u64,
     pub dropped_bytes: u64,
     #[serde(skip)]
-    rtt_us: Vec<u32>,
+    rtt: Vec<Duration>,
     #[serde(skip)]
     rtt_next: usize,
 }
@@ -169,23 +169,22 @@ impl LinkStats {
     }
 
     fn record_rtt(&mut self, d: Duration) {
-        let us = d.as_micros().min(u128::from(u32::MAX)) as u32;
-        if self.rtt_us.len() < RTT_WINDOW {
-            self.rtt_us.push(us);
+        if self.rtt.len() < RTT_WINDOW {
+            self.rtt.push(d);
         } else {
-            self.rtt_us[self.rtt_next] = us;
+            self.rtt[self.rtt_next] = d;
         }
         self.rtt_next = (self.rtt_next + 1) % RTT_WINDOW;
     }
     /// Percentile `q` in [0, 1] of the recent round trips \[s] (None before the first).
     pub fn rtt_percentile(&self, q: f64) -> Option<f64> {
-        if self.rtt_us.is_empty() {
+        if self.rtt.is_empty() {
             return None;
         }
-        let mut v = self.rtt_us.clone();
+        let mut v = self.rtt.clone();
         v.sort_unstable();
         let i = ((v.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
-        v.get(i).map(|&us| f64::from(us) * 1e-6)
+        v.get(i).map(Duration::as_secs_f64)
     }
 }
 

@@ -261,7 +261,7 @@ pub fn build_stage(scene: &Scene, cfg: StageConfig) -> Result<Box<dyn Stage>, Sc
                             sensor.kind
                         )));
                     }
-                    cal.mm_per_px_at(sensor.width, sensor.height)
+                    cal.m_per_px_at(sensor.width, sensor.height)
                         .map_err(|e| bad(format!("depth calibration {}: {e}", path.display())))?;
                     Some(cal)
                 }
@@ -445,8 +445,8 @@ mod tests {
                 serial: String::new(),
                 width: w,
                 height: h,
-                mm_per_px: 0.0634,
-                ball_radius_mm: 2.0,
+                m_per_px: 6.34e-5,
+                ball_radius_m: 0.002,
                 presses_used: 30,
                 fit_rms_slope: 0.01,
                 model: GradientModel {

@@ -67,8 +67,8 @@ fn full_params() -> [serde_json::Map<String, Value>; 6] {
         serial: String::new(),
         width: 320,
         height: 240,
-        mm_per_px: 0.0634,
-        ball_radius_mm: 2.0,
+        m_per_px: 6.34e-5,
+        ball_radius_m: 0.002,
         presses_used: 30,
         fit_rms_slope: 0.01,
         model: unitac_contact::depth::GradientModel {

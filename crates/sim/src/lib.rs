@@ -25,7 +25,7 @@ pub mod task;
 pub mod world;
 
 pub use mock::{Drift, EPOCH, GroundTruth, MockConfig, MockSensor};
-pub use object::{BUMP_ASPECT, FLAT_FILLET, FoldEdge, Object, Shape};
+pub use object::{BUMP_ASPECT, FLAT_FILLET, FoldEdge, MM_PER_M, Object, Shape};
 pub use rng::{GaussianTable, NoiseStream, SplitMix64, normal_quantile, quantise_f32};
 pub use scenario::{Phase, Scenario, ScenarioError};
 pub use tangential::{MarkerTruth, Tangential};

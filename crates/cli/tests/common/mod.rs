@@ -54,7 +54,7 @@ pub fn unitac_within(args: &[&str], env: &[(&str, &str)], limit: Duration) -> Ou
 /// `background` to `out`: the arguments before the options a test adds and the press files
 /// (the radius is the sixth).
 pub fn calibrate_depth_args<'a>(
-    radius_mm: &'a str,
+    radius_m: &'a str,
     background: &'a Path,
     out: &'a Path,
 ) -> Vec<&'a str> {
@@ -63,8 +63,8 @@ pub fn calibrate_depth_args<'a>(
         "depth",
         "--sensor",
         "gelsight-mini",
-        "--ball-radius-mm",
-        radius_mm,
+        "--ball-radius-m",
+        radius_m,
         "--background",
         background.to_str().unwrap(),
         "--out",

@@ -10,7 +10,7 @@
 //! radius. Users review a PNG per press and pass corrected circles back (the CLI).
 //!
 //! The fit: pixels inside 0.9 contact radii take the ball's slope, `-(p - c) / sqrt(R^2 - r^2)`
-//! (exact sphere, mm per mm), and the gel at rest (no colour change, at every 4th pixel in each
+//! (exact sphere, depth per length), and the gel at rest (no colour change, at every 4th pixel in each
 //! direction, once per press) takes zero slope (not the press frame's pixels far from the
 //! contact: the skirt still slopes there, and taking it for zero taught the model to shrink
 //! small slopes, 5 % too little depth on mock presses); least squares on
@@ -214,18 +214,19 @@ impl Fit {
         self.atb[1] += v * f64::from(g[1]);
     }
 
-    /// Add one press: its prepared difference, its circle, the ball radius and mm per pixel.
+    /// Add one press: its prepared difference, its circle, the ball radius \[m] and metres per
+    /// pixel.
     pub fn add_press(
         &mut self,
         diff: &[f32],
         w: usize,
         h: usize,
         c: Circle,
-        ball_radius_mm: f64,
-        mm_per_px: f64,
+        ball_radius_m: f64,
+        m_per_px: f64,
     ) {
         let (iw, ih) = (1.0 / w as f32, 1.0 / h as f32);
-        let big_r2 = ball_radius_mm * ball_radius_mm;
+        let big_r2 = ball_radius_m * ball_radius_m;
         for y in 0..h {
             for x in 0..w {
                 let r = (x as f64 - c.x).hypot(y as f64 - c.y);
@@ -234,8 +235,9 @@ impl Fit {
                 }
                 let i = (y * w + x) * 3;
                 let f = features(&diff[i..i + 3], x as f32 * iw - 0.5, y as f32 * ih - 0.5);
-                let (dx, dy) = ((x as f64 - c.x) * mm_per_px, (y as f64 - c.y) * mm_per_px);
-                let z = (big_r2 - dx * dx - dy * dy).max(1e-6).sqrt();
+                let (dx, dy) = ((x as f64 - c.x) * m_per_px, (y as f64 - c.y) * m_per_px);
+                // Kept off zero at (1 um)^2, the old (1e-3 mm)^2.
+                let z = (big_r2 - dx * dx - dy * dy).max(1e-12).sqrt();
                 let g = [(-dx / z) as f32, (-dy / z) as f32];
                 self.add(&f, g);
                 self.inside.push((f, g));
@@ -257,8 +259,8 @@ impl Fit {
         sensor: SensorKind,
         serial: &str,
         (width, height): (u32, u32),
-        mm_per_px: f64,
-        ball_radius_mm: f64,
+        m_per_px: f64,
+        ball_radius_m: f64,
     ) -> Result<DepthCalibration, DepthError> {
         if self.presses < MIN_PRESSES {
             return Err(DepthError::TooFewPresses {
@@ -293,8 +295,8 @@ impl Fit {
             serial: serial.to_string(),
             width,
             height,
-            mm_per_px,
-            ball_radius_mm,
+            m_per_px,
+            ball_radius_m,
             presses_used: self.presses as u32,
             fit_rms_slope: rms,
             model,

@@ -7,8 +7,8 @@
 //! peak whose depth is at least `contact_level` (default 1/2) of the penetration. For a ball on a
 //! gel that follows Hertz (`unitac_sim::ballpress`), the surface at the contact edge lies at
 //! exactly half the approach, so the half-depth contour is the contact edge; the gel's skirt
-//! outside it is deformation, not contact. With a penetration under `min_penetration_mm` there
-//! is no contact.
+//! outside it is deformation, not contact. With a penetration under `min_penetration_m` there
+//! is no contact. Depth is in metres throughout.
 
 use super::model::{COLOUR_SCALE, DepthCalibration, DepthError, GradientModel};
 use super::poisson::PoissonSolver;
@@ -179,21 +179,20 @@ fn model_row(
 pub struct DepthParams {
     /// Share of the penetration at the contact edge.
     pub contact_level: f32,
-    /// Shallower presses are no contact \[mm].
-    pub min_penetration_mm: f32,
+    /// Shallower presses are no contact \[m].
+    pub min_penetration_m: f32,
 }
 
 impl Default for DepthParams {
     fn default() -> Self {
         Self {
             contact_level: 0.5,
-            min_penetration_mm: 0.03,
+            min_penetration_m: 3e-5,
         }
     }
 }
 
-/// The summary of one frame's depth (the map itself: [`DepthEstimator::depth_mm`]), in SI: the
-/// estimator works in the calibration's millimetres inside and converts here.
+/// The summary of one frame's depth (the map itself: [`DepthEstimator::depth_m`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DepthSummary {
     /// Deepest penetration \[m].
@@ -216,7 +215,7 @@ pub struct DepthEstimator {
     background: Frame,
     w: usize,
     h: usize,
-    mm_per_px: f64,
+    m_per_px: f64,
     prep: Prep,
     gx: Vec<f32>,
     gy: Vec<f32>,
@@ -241,9 +240,9 @@ impl DepthEstimator {
         background: Frame,
         params: DepthParams,
     ) -> Result<Self, DepthError> {
-        let mm_per_px = cal.mm_per_px_at(background.width, background.height)?;
+        let m_per_px = cal.m_per_px_at(background.width, background.height)?;
         let (w, h) = (background.width as usize, background.height as usize);
-        let step = mm_per_px as f32;
+        let step = m_per_px as f32;
         let step_model = GradientModel {
             gx: cal.model.gx.iter().map(|v| v * step).collect(),
             gy: cal.model.gy.iter().map(|v| v * step).collect(),
@@ -254,7 +253,7 @@ impl DepthEstimator {
             background,
             w,
             h,
-            mm_per_px,
+            m_per_px,
             prep: Prep::default(),
             gx: vec![0.0; w * h],
             gy: vec![0.0; w * h],
@@ -273,15 +272,15 @@ impl DepthEstimator {
     pub fn calibration(&self) -> &DepthCalibration {
         &self.cal
     }
-    /// The last frame's depth \[mm, positive into the gel], row-major.
-    pub fn depth_mm(&self) -> &[f32] {
+    /// The last frame's depth \[m, positive into the gel], row-major.
+    pub fn depth_m(&self) -> &[f32] {
         &self.depth
     }
     /// The last frame's contact region, row-major.
     pub fn mask(&self) -> &[bool] {
         &self.mask
     }
-    /// The last frame's depth change per pixel step (x, y) \[mm].
+    /// The last frame's depth change per pixel step (x, y) \[m].
     pub fn gradients(&self) -> (&[f32], &[f32]) {
         (&self.gx, &self.gy)
     }
@@ -375,14 +374,14 @@ impl DepthEstimator {
         let pen = (best / 9.0).max(0.0);
         self.mask.iter_mut().for_each(|m| *m = false);
         let mut summary = DepthSummary {
-            penetration_m: pen * 1e-3,
+            penetration_m: pen,
             contact: false,
             area_px: 0,
             area_m2: 0.0,
             centroid_px: [(at % w.max(1)) as f32, (at / w.max(1)) as f32],
-            m_per_px: self.mm_per_px * 1e-3,
+            m_per_px: self.m_per_px,
         };
-        if pen < self.params.min_penetration_mm {
+        if pen < self.params.min_penetration_m {
             return summary;
         }
         let level = self.params.contact_level * pen;

@@ -4,7 +4,7 @@
 //! Per pixel, 18 features of the prepared difference d = (dR, dG, dB) / 32 (`prep`) and the
 //! position (u, v) = (x / w - 1/2, y / h - 1/2): 1, d, the six products d_i d_j, u, v, u d, v d.
 //! Two coefficient vectors give the slopes (dh/dx, dh/dy) of the gel's depth h (positive into the
-//! gel, mm per mm). Why this and not a lookup table or a network: a table of colour -> gradient
+//! gel, depth per length). Why this and not a lookup table or a network: a table of colour -> gradient
 //! (gs_sdk's first method) needs its bins filled by presses, and 30-50 ball presses leave most of
 //! a 3-D colour table empty; an MLP (gs_sdk's current method) needs a training loop and an
 //! inference runtime per pixel. The quadratic in colour follows the gentle nonlinearity of a real
@@ -19,8 +19,9 @@ use unitac_core::frame::MAX_SIDE;
 pub const FEATURES: usize = 18;
 /// Scale of the colour difference in the features \[1/DN].
 pub const COLOUR_SCALE: f32 = 1.0 / 32.0;
-/// Version of the calibration file format.
-pub const FORMAT: u32 = 1;
+/// Version of the calibration file format written: 2 holds lengths in metres; format 1 (the same
+/// fields in millimetres, `mm_per_px` and `ball_radius_mm`) is still read and converted.
+pub const FORMAT: u32 = 2;
 /// Largest calibration file read \[bytes].
 pub const MAX_FILE_BYTES: u64 = 1 << 20;
 
@@ -87,12 +88,16 @@ pub enum DepthError {
 /// What [`DepthCalibration::check`] refuses in a calibration file.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum CalibrationInvalid {
-    #[error("format {0} (this build reads {FORMAT})")]
+    #[error("format {0} (this build reads 1 and {FORMAT})")]
     Format(u32),
     #[error("image size {w}x{h}")]
     ImageSize { w: u32, h: u32 },
-    #[error("mm_per_px {0}")]
-    MmPerPx(f64),
+    #[error("m_per_px {0} is outside (0, {MAX_M_PER_PX})")]
+    MPerPx(f64),
+    #[error("ball radius {0} m is outside (0, {MAX_BALL_RADIUS_M})")]
+    BallRadius(f64),
+    #[error("format {format} needs the fields {fields}")]
+    MissingFields { format: u32, fields: &'static str },
     #[error("the model has {gx} / {gy} coefficients, not {FEATURES}")]
     Coefficients { gx: usize, gy: usize },
     #[error("a model coefficient is not finite")]
@@ -100,6 +105,11 @@ pub enum CalibrationInvalid {
     #[error("serial of {0} bytes, more than {MAX_SERIAL_BYTES}")]
     Serial(usize),
 }
+
+/// Largest gel-surface length per pixel a calibration may hold \[m] (10 mm).
+pub const MAX_M_PER_PX: f64 = 0.01;
+/// Largest calibration ball radius \[m] (0.1 m).
+pub const MAX_BALL_RADIUS_M: f64 = 0.1;
 
 /// Longest sensor serial a calibration file may carry.
 pub const MAX_SERIAL_BYTES: usize = 128;
@@ -127,7 +137,9 @@ impl GradientModel {
 
 /// A sensor's depth calibration (`unitac calibrate depth`), stored as JSON.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "StoredCalibration")]
 pub struct DepthCalibration {
+    /// [`FORMAT`] once read (a format 1 file is converted on reading).
     pub format: u32,
     pub sensor: SensorKind,
     /// The sensor's serial ("" when unknown: then any sensor of the kind is accepted).
@@ -135,13 +147,78 @@ pub struct DepthCalibration {
     /// Image size the calibration was made at.
     pub width: u32,
     pub height: u32,
-    /// Gel millimetres per pixel at that size.
-    pub mm_per_px: f64,
-    pub ball_radius_mm: f64,
+    /// Gel-surface metres per pixel at that size.
+    pub m_per_px: f64,
+    /// Radius of the calibration ball \[m].
+    pub ball_radius_m: f64,
     pub presses_used: u32,
-    /// RMS slope error of the fit on the pixels inside the contacts (mm per mm).
+    /// RMS slope error of the fit on the pixels inside the contacts (depth per length).
     pub fit_rms_slope: f64,
     pub model: GradientModel,
+}
+
+/// A calibration file as written by either format: format 2 in metres, format 1 in millimetres.
+#[derive(Deserialize)]
+struct StoredCalibration {
+    format: u32,
+    sensor: SensorKind,
+    serial: String,
+    width: u32,
+    height: u32,
+    #[serde(default)]
+    m_per_px: Option<f64>,
+    #[serde(default)]
+    ball_radius_m: Option<f64>,
+    #[serde(default)]
+    mm_per_px: Option<f64>,
+    #[serde(default)]
+    ball_radius_mm: Option<f64>,
+    presses_used: u32,
+    fit_rms_slope: f64,
+    model: GradientModel,
+}
+
+impl TryFrom<StoredCalibration> for DepthCalibration {
+    type Error = CalibrationInvalid;
+
+    fn try_from(s: StoredCalibration) -> Result<Self, Self::Error> {
+        // The gradient model is a slope (depth per length): it needs no conversion.
+        let (m_per_px, ball_radius_m) = match (
+            s.format,
+            s.m_per_px,
+            s.ball_radius_m,
+            s.mm_per_px,
+            s.ball_radius_mm,
+        ) {
+            (FORMAT, Some(m), Some(r), None, None) => (m, r),
+            (FORMAT, ..) => {
+                return Err(CalibrationInvalid::MissingFields {
+                    format: FORMAT,
+                    fields: "m_per_px and ball_radius_m (and no mm fields)",
+                });
+            }
+            (1, None, None, Some(mm), Some(r_mm)) => (mm * 1e-3, r_mm * 1e-3),
+            (1, ..) => {
+                return Err(CalibrationInvalid::MissingFields {
+                    format: 1,
+                    fields: "mm_per_px and ball_radius_mm (and no m fields)",
+                });
+            }
+            (f, ..) => return Err(CalibrationInvalid::Format(f)),
+        };
+        Ok(Self {
+            format: FORMAT,
+            sensor: s.sensor,
+            serial: s.serial,
+            width: s.width,
+            height: s.height,
+            m_per_px,
+            ball_radius_m,
+            presses_used: s.presses_used,
+            fit_rms_slope: s.fit_rms_slope,
+            model: s.model,
+        })
+    }
 }
 
 impl DepthCalibration {
@@ -194,8 +271,14 @@ impl DepthCalibration {
                 h: self.height,
             });
         }
-        if !(self.mm_per_px.is_finite() && self.mm_per_px > 0.0 && self.mm_per_px < 10.0) {
-            return Err(CalibrationInvalid::MmPerPx(self.mm_per_px));
+        if !(self.m_per_px.is_finite() && self.m_per_px > 0.0 && self.m_per_px < MAX_M_PER_PX) {
+            return Err(CalibrationInvalid::MPerPx(self.m_per_px));
+        }
+        if !(self.ball_radius_m.is_finite()
+            && self.ball_radius_m > 0.0
+            && self.ball_radius_m < MAX_BALL_RADIUS_M)
+        {
+            return Err(CalibrationInvalid::BallRadius(self.ball_radius_m));
         }
         if self.model.gx.len() != FEATURES || self.model.gy.len() != FEATURES {
             return Err(CalibrationInvalid::Coefficients {
@@ -218,9 +301,9 @@ impl DepthCalibration {
         Ok(())
     }
 
-    /// Mm per pixel of a `w` x `h` frame of this sensor: the calibrated size scaled, when the
+    /// Metres per pixel of a `w` x `h` frame of this sensor: the calibrated size scaled, when the
     /// frame covers the same field of view (same aspect ratio); another aspect ratio is an error.
-    pub fn mm_per_px_at(&self, w: u32, h: u32) -> Result<f64, DepthError> {
+    pub fn m_per_px_at(&self, w: u32, h: u32) -> Result<f64, DepthError> {
         if w == 0
             || h == 0
             || u64::from(w) * u64::from(self.height) != u64::from(h) * u64::from(self.width)
@@ -232,7 +315,7 @@ impl DepthCalibration {
                 h,
             });
         }
-        Ok(self.mm_per_px * f64::from(self.width) / f64::from(w))
+        Ok(self.m_per_px * f64::from(self.width) / f64::from(w))
     }
 
     /// Refuse frames from another sensor (when both serials are known).
@@ -244,5 +327,75 @@ impl DepthCalibration {
             });
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn file(format: u32, lengths: &str) -> String {
+        let k = vec!["0.5"; FEATURES].join(", ");
+        format!(
+            r#"{{"format": {format}, "sensor": "gelsight-mini", "serial": "", "width": 320,
+                "height": 240, {lengths}, "presses_used": 30, "fit_rms_slope": 0.02,
+                "model": {{"gx": [{k}], "gy": [{k}]}}}}"#
+        )
+    }
+
+    #[test]
+    fn a_format_1_file_reads_in_metres_and_writes_back_as_format_2() {
+        let old = file(1, r#""mm_per_px": 0.0634, "ball_radius_mm": 2.0"#);
+        let cal: DepthCalibration = serde_json::from_str(&old).unwrap();
+        assert_eq!(cal.format, FORMAT);
+        assert!((cal.m_per_px - 6.34e-5).abs() < 1e-15, "{}", cal.m_per_px);
+        assert!((cal.ball_radius_m - 0.002).abs() < 1e-15);
+        assert_eq!(cal.model.gx, vec![0.5; FEATURES], "slopes are unitless");
+        cal.check().unwrap();
+        let text = serde_json::to_string(&cal).unwrap();
+        assert!(
+            text.contains("\"m_per_px\"") && !text.contains("mm_per_px"),
+            "{text}"
+        );
+        let again: DepthCalibration = serde_json::from_str(&text).unwrap();
+        assert_eq!(again, cal);
+        let new = file(2, r#""m_per_px": 6.34e-5, "ball_radius_m": 0.002"#);
+        let cal2: DepthCalibration = serde_json::from_str(&new).unwrap();
+        assert!((cal2.m_per_px - cal.m_per_px).abs() < 1e-15);
+    }
+
+    #[test]
+    fn mixed_missing_or_unknown_formats_are_refused() {
+        for (format, lengths, needle) in [
+            (
+                1,
+                r#""m_per_px": 6.34e-5, "ball_radius_m": 0.002"#,
+                "mm_per_px",
+            ),
+            (
+                2,
+                r#""mm_per_px": 0.0634, "ball_radius_mm": 2.0"#,
+                "m_per_px",
+            ),
+            (
+                2,
+                r#""m_per_px": 6.34e-5, "ball_radius_mm": 2.0"#,
+                "ball_radius_m",
+            ),
+            (
+                3,
+                r#""m_per_px": 6.34e-5, "ball_radius_m": 0.002"#,
+                "format 3",
+            ),
+        ] {
+            let err = serde_json::from_str::<DepthCalibration>(&file(format, lengths))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(needle), "{format} {lengths}: {err}");
+        }
+        // A format 1 file in mm read as if it were metres would be 1000x too coarse: refused.
+        let cal: DepthCalibration =
+            serde_json::from_str(&file(2, r#""m_per_px": 0.0634, "ball_radius_m": 2.0"#)).unwrap();
+        assert_eq!(cal.check(), Err(CalibrationInvalid::MPerPx(0.0634)));
     }
 }
