@@ -127,7 +127,7 @@ impl Script {
             decides,
             latent_len: p.latent_len,
             gel_indent_m_per_m2: p.gel_indent_m_per_m2,
-            objects: p.objects.clone(),
+            objects: p.limits.objects.clone(),
             visual_names: p.visual_names.clone(),
             in_contact: false,
             touching: String::new(),

@@ -14,7 +14,7 @@ use serde::Serialize;
 use unitac_contact::{ContactParams, ContactStage, SlipParams, SlipStage};
 use unitac_core::msg::SlipState;
 use unitac_core::{Chain, Msg, SensorKind, Stage};
-use unitac_sim::{MockConfig, MockSensor, Object, Scenario, Tangential};
+use unitac_sim::{MM_PER_M, MockConfig, MockSensor, Object, Scenario, Tangential};
 
 /// Gel depth of the sweep's press \[mm] (contact radius about 3.1 mm on the fabric below).
 pub const DEPTH_MM: f64 = 0.8;
@@ -59,9 +59,9 @@ pub struct Outcome {
     pub case: Case,
     pub valid: bool,
     pub markers: u32,
-    /// |measured - true| translation of the stuck centre \[mm] (the gel's, after the friction
+    /// |measured - true| translation of the stuck centre \[m] (the gel's, after the friction
     /// limit) and rotation \[rad]; NaN-free: 0 when invalid.
-    pub shear_err_mm: f64,
+    pub shear_err_m: f64,
     pub rotation_err_rad: f64,
     pub slip_score: f64,
     pub slip: bool,
@@ -71,8 +71,8 @@ pub struct Outcome {
 pub struct Summary {
     pub cases: usize,
     pub valid: usize,
-    /// Stuck sweep cases: translation error \[mm] mean / max, rotation error \[rad] mean / max.
-    pub stick_shear_err_mm: [f64; 2],
+    /// Stuck sweep cases: translation error \[m] mean / max, rotation error \[rad] mean / max.
+    pub stick_shear_err_m: [f64; 2],
     pub stick_rotation_err_rad: [f64; 2],
     /// Slip flag over the sweep (partial + gross are slip).
     pub precision: f64,
@@ -234,9 +234,9 @@ fn run_case(case: &Case, seed: u64) -> anyhow::Result<Outcome> {
         1.0
     };
     let truth = [full.shift_m[0] * k, full.shift_m[1] * k];
-    let (shear_err_mm, rotation_err_rad) = if s.valid {
+    let (shear_err_m, rotation_err_rad) = if s.valid {
         (
-            (s.shear_x_m - truth[0]).hypot(s.shear_y_m - truth[1]) * 1e3,
+            (s.shear_x_m - truth[0]).hypot(s.shear_y_m - truth[1]),
             (s.rotation_rad - full.rotation_rad).abs(),
         )
     } else {
@@ -246,7 +246,7 @@ fn run_case(case: &Case, seed: u64) -> anyhow::Result<Outcome> {
         case: case.clone(),
         valid: s.valid,
         markers: s.markers_tracked,
-        shear_err_mm,
+        shear_err_m,
         rotation_err_rad,
         slip_score: s.slip_score,
         slip: s.valid && s.slip,
@@ -272,7 +272,7 @@ pub fn eval_slip() -> anyhow::Result<SlipReport> {
         .iter()
         .filter(|o| o.case.class == Class::Stick && o.valid)
         .collect();
-    let shear: Vec<f64> = stick.iter().map(|o| o.shear_err_mm).collect();
+    let shear: Vec<f64> = stick.iter().map(|o| o.shear_err_m).collect();
     let rot: Vec<f64> = stick.iter().map(|o| o.rotation_err_rad).collect();
     let (mut tp, mut fp, mut fneg) = (0u32, 0u32, 0u32);
     for o in &sweep {
@@ -296,7 +296,7 @@ pub fn eval_slip() -> anyhow::Result<SlipReport> {
     let summary = Summary {
         cases: outcomes.len(),
         valid: outcomes.iter().filter(|o| o.valid).count(),
-        stick_shear_err_mm: mean_max(&shear),
+        stick_shear_err_m: mean_max(&shear),
         stick_rotation_err_rad: mean_max(&rot),
         precision: f64::from(tp) / f64::from((tp + fp).max(1)),
         recall: f64::from(tp) / f64::from((tp + fneg).max(1)),
@@ -317,8 +317,8 @@ impl SlipReport {
              mean slip_score {:.3} / {:.3} / {:.3}\n",
             s.cases,
             s.valid,
-            s.stick_shear_err_mm[0],
-            s.stick_shear_err_mm[1],
+            s.stick_shear_err_m[0] * MM_PER_M,
+            s.stick_shear_err_m[1] * MM_PER_M,
             s.stick_rotation_err_rad[0],
             s.stick_rotation_err_rad[1],
             s.precision,
@@ -345,7 +345,7 @@ impl SlipReport {
                 o.case.ramp_frames,
                 o.valid,
                 o.markers,
-                o.shear_err_mm,
+                o.shear_err_m * MM_PER_M,
                 o.rotation_err_rad,
                 o.slip_score,
                 o.slip,
@@ -367,12 +367,12 @@ mod tests {
         let r = eval_slip().unwrap();
         println!("{}", r.text());
         let s = &r.summary;
-        assert!(s.stick_shear_err_mm[1] < 0.05, "{s:?}");
+        assert!(s.stick_shear_err_m[1] < 0.05e-3, "{s:?}");
         assert!(s.stick_rotation_err_rad[1] < 0.01, "{s:?}");
         assert!(s.precision >= 0.9 && s.recall >= 0.9, "{s:?}");
         assert_eq!(s.flagged[0], 0.0, "{s:?}");
         for o in &r.outcomes {
-            assert!(o.shear_err_mm.is_finite() && o.slip_score.is_finite());
+            assert!(o.shear_err_m.is_finite() && o.slip_score.is_finite());
         }
     }
 }

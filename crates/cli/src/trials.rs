@@ -526,14 +526,16 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         // A serial gripper whose weakest grip is above the scene's force cap would break it.
         if let TrialGripper::Serial(model) = a.gripper {
             let limits = model.calibration().limits;
-            limits.check_force_bound(params.max_force_n).map_err(|e| {
-                config(format!(
-                    "--gripper {model} with scene {} (policy max_force_n = {} N): {e}; choose \
+            limits
+                .check_force_bound(params.limits.max_force_n)
+                .map_err(|e| {
+                    config(format!(
+                        "--gripper {model} with scene {} (policy max_force_n = {} N): {e}; choose \
                      a gripper whose force range reaches below the cap, or a scene whose \
                      max_force_n is at least {} N",
-                    scene.name, params.max_force_n, limits.min_force_n
-                ))
-            })?;
+                        scene.name, params.limits.max_force_n, limits.min_force_n
+                    ))
+                })?;
         }
         kinds.push(format!("{} ({})", scene.name, kind.name()));
         // The squeeze controller's VLA has two camera-only rules (vla_rule), and a fitted one.

@@ -44,7 +44,10 @@ fn help_pages_are_plain_text_and_name_every_target() {
             .map(|(_, t)| t.clone())
             .unwrap()
     };
-    assert!(page("calibrate depth").contains("Radius of the ball pressed into the gel, in mm"));
+    assert!(
+        page("calibrate depth")
+            .contains("Radius of the ball pressed into the gel, in m (a 4 mm ball: 0.002)")
+    );
     let bench = page("bench");
     let summary = bench.split("\n\n").next().unwrap();
     for target in [

@@ -146,7 +146,7 @@ fn policy_overrides_reach_the_typed_params() {
     )
     .unwrap();
     let (p, _, _) = policy_of(&stage_configs(&s).unwrap());
-    assert_eq!(p.max_force_n, 12.5);
+    assert_eq!(p.limits.max_force_n, 12.5);
     assert_eq!(p.safe_action, unitac_policy::safety::SafeAction::Open);
     assert_eq!(p.task, "squeeze the cup by 8 mm");
     for (k, v, want) in [

@@ -313,13 +313,13 @@ impl LearnedPolicy {
             }
         }
         let mut targets = Vec::new();
-        for t in std::iter::once("home").chain(params.objects.iter().map(String::as_str)) {
+        for t in std::iter::once("home").chain(params.limits.objects.iter().map(String::as_str)) {
             match at(&format!("{ARM_TARGET_PREFIX}{t}")) {
                 Some(i) => targets.push((t.to_string(), i)),
                 None => problems.push(format!("no score action '{ARM_TARGET_PREFIX}{t}'")),
             }
         }
-        let n_obj = params.objects.len();
+        let n_obj = params.limits.objects.len();
         let mut width = 0;
         for i in &onnx.manifest().inputs {
             let numel: usize = i
@@ -380,7 +380,7 @@ impl LearnedPolicy {
         Ok(Self {
             reads: Self::inputs_of(&onnx),
             onnx,
-            memory: Memory::new(&params.objects, width, params.approach_s),
+            memory: Memory::new(&params.limits.objects, width, params.approach_s),
             targets,
             commands,
             seen_latents: Vec::new(),

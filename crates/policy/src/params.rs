@@ -56,23 +56,14 @@ pub struct PolicyParams {
     /// when named, the command bounds below are held inside its stroke, strongest grip and
     /// fastest speed, and `stroke_m` is its stroke.
     pub gripper: String,
-    /// Bounds of every command (the scene's, inside the gripper's when `gripper` names one).
-    pub min_opening_m: f64,
-    pub max_opening_m: f64,
+    /// Bounds of every command, the scene's keys (`min_opening_m`, `max_force_n`, ...,
+    /// `objects`): [`Self::bounds`] holds them inside the gripper's when `gripper` names one.
+    #[serde(flatten)]
+    pub limits: Bounds,
     /// The gripper's full stroke \[m] (not a command bound: the scene's `max_opening_m` may be
     /// narrower): a GripperStatus reporting an opening outside [0, stroke_m] is an invalid
     /// input. The default is the widest shipped profile's; a named `gripper` replaces it.
     pub stroke_m: f64,
-    pub max_speed_m_s: f64,
-    pub max_force_n: f64,
-    pub max_step_m: f64,
-    pub max_force_step_n: f64,
-    pub min_z_m: f64,
-    pub max_z_m: f64,
-    pub max_lift_m: f64,
-    pub max_lift_step_m: f64,
-    /// The arm's horizontal workspace: |x| and |y| of a target at most this (table frame) \[m].
-    pub max_reach_m: f64,
     /// hold | open.
     pub safe_action: SafeAction,
     /// Force limit of the hold safe action \[N].
@@ -85,9 +76,6 @@ pub struct PolicyParams {
     pub reflex_force_step_n: f64,
     pub reflex_squeeze_m: f64,
     pub confirm_grasp: bool,
-    /// Objects the arm may go to (besides "home"); for a pick task the first two are touched as
-    /// A and B, in this order.
-    pub objects: Vec<String>,
     /// Values in `observation.tactile_latent` (0 for vla).
     pub latent_len: usize,
     /// Names read from the VisualObservation into `observation.visual`.
@@ -205,28 +193,17 @@ impl Default for PolicyParams {
             budget_comparison_s: 600.0,
             budget_visual_s: 0.5,
             gripper: String::new(),
-            min_opening_m: 0.0,
-            max_opening_m: 0.085,
+            limits: Bounds::default(),
             stroke_m: unitac_core::profile::SHIPPED_GRIPPERS
                 .iter()
                 .map(|p| p.stroke_m)
                 .fold(0.0, f64::max),
-            max_speed_m_s: 0.15,
-            max_force_n: 40.0,
-            max_step_m: 0.005,
-            max_force_step_n: 2.0,
-            min_z_m: 0.0,
-            max_z_m: 0.3,
-            max_lift_m: 0.2,
-            max_lift_step_m: 0.01,
-            max_reach_m: 1.0,
             safe_action: SafeAction::Hold,
             hold_force_n: 5.0,
             reflex: true,
             reflex_force_step_n: 1.0,
             reflex_squeeze_m: 0.0005,
             confirm_grasp: true,
-            objects: vec!["fabric_a".into(), "fabric_b".into()],
             latent_len: 0,
             visual_names: Vec::new(),
             approach_s: 0.5,
@@ -353,7 +330,7 @@ impl PolicyParams {
             ));
         }
         for (k, v) in [("touch_z_m", self.touch_z_m), ("grasp_z_m", self.grasp_z_m)] {
-            if !(v.is_finite() && v.abs() <= self.max_z_m.abs()) {
+            if !(v.is_finite() && v.abs() <= self.limits.max_z_m.abs()) {
                 bad.push(format!("{k} = {v} must be finite and within +-max_z_m"));
             }
         }
@@ -392,7 +369,7 @@ impl PolicyParams {
             ));
         }
         for (k, list) in [
-            ("objects", &self.objects),
+            ("objects", &self.limits.objects),
             ("visual_names", &self.visual_names),
         ] {
             if list.len() > MAX_NAMES {
@@ -404,10 +381,10 @@ impl PolicyParams {
         }
         match &task {
             Ok(Task::Pick { property, .. }) => {
-                if self.objects.len() < 2 {
+                if self.limits.objects.len() < 2 {
                     bad.push("a pick task needs two objects (A and B)".into());
                 } else if self.mode == Mode::Vla {
-                    for o in &self.objects[..2] {
+                    for o in &self.limits.objects[..2] {
                         let n = format!("{o}_{property}");
                         if !self.visual_names.contains(&n) {
                             bad.push(format!(
@@ -418,7 +395,7 @@ impl PolicyParams {
                 }
             }
             Ok(Task::Squeeze { .. }) => {
-                if !self.objects.iter().any(|o| o == "cup") {
+                if !self.limits.objects.iter().any(|o| o == "cup") {
                     bad.push("a squeeze task needs the object 'cup' in objects".into());
                 }
                 if self.mode == Mode::Vla && !self.visual_names.iter().any(|n| n == "cup_width_m") {
@@ -473,19 +450,12 @@ impl PolicyParams {
     pub fn bounds(&self) -> Bounds {
         let g = self.profile().ok().flatten();
         let inside = |v: f64, limit: Option<f64>| limit.map_or(v, |l| v.min(l));
+        let l = &self.limits;
         Bounds {
-            min_opening_m: self.min_opening_m,
-            max_opening_m: inside(self.max_opening_m, g.map(|p| p.stroke_m)),
-            max_speed_m_s: inside(self.max_speed_m_s, g.map(|p| p.speed_m_s[1])),
-            max_force_n: inside(self.max_force_n, g.map(|p| p.force_n[1])),
-            max_step_m: self.max_step_m,
-            max_force_step_n: self.max_force_step_n,
-            min_z_m: self.min_z_m,
-            max_z_m: self.max_z_m,
-            max_lift_m: self.max_lift_m,
-            max_lift_step_m: self.max_lift_step_m,
-            max_reach_m: self.max_reach_m,
-            objects: self.objects.clone(),
+            max_opening_m: inside(l.max_opening_m, g.map(|p| p.stroke_m)),
+            max_speed_m_s: inside(l.max_speed_m_s, g.map(|p| p.speed_m_s[1])),
+            max_force_n: inside(l.max_force_n, g.map(|p| p.force_n[1])),
+            ..l.clone()
         }
     }
 
@@ -571,6 +541,17 @@ mod tests {
                 .unwrap_err()
                 .to_string()
                 .contains("no_such_key")
+        );
+        // The bounds are the scene's flat keys, typed as strictly as the rest.
+        let p = parse("{max_reach_m: 0.5, objects: [cup], run_s: 9}").unwrap();
+        assert_eq!((p.limits.max_reach_m, p.run_s), (0.5, 9.0));
+        assert_eq!(p.limits.objects, vec!["cup".to_string()]);
+        assert_eq!(p.limits.max_force_n, Bounds::default().max_force_n);
+        assert!(
+            parse("{max_force_n: strong}")
+                .unwrap_err()
+                .to_string()
+                .contains("strong")
         );
         assert!(
             parse("{mode: vlx}")

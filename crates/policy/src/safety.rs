@@ -58,8 +58,10 @@ pub enum SafeAction {
     Open,
 }
 
-/// The limits (from the gripper's limits and the scene).
-#[derive(Debug, Clone, PartialEq)]
+/// The limits of every command: a scene's keys (flattened into `PolicyParams`), held inside a
+/// named gripper's profile by `PolicyParams::bounds`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Bounds {
     pub min_opening_m: f64,
     pub max_opening_m: f64,
@@ -74,10 +76,30 @@ pub struct Bounds {
     pub max_lift_m: f64,
     /// Largest change of the commanded lift per tick \[m].
     pub max_lift_step_m: f64,
-    /// |x| and |y| of an arm target at most this \[m].
+    /// The arm's horizontal workspace: |x| and |y| of a target at most this (table frame) \[m].
     pub max_reach_m: f64,
-    /// Arm targets besides "home".
+    /// Objects the arm may go to (besides "home"); for a pick task the first two are touched as
+    /// A and B, in this order.
     pub objects: Vec<String>,
+}
+
+impl Default for Bounds {
+    fn default() -> Self {
+        Self {
+            min_opening_m: 0.0,
+            max_opening_m: 0.085,
+            max_speed_m_s: 0.15,
+            max_force_n: 40.0,
+            max_step_m: 0.005,
+            max_force_step_n: 2.0,
+            min_z_m: 0.0,
+            max_z_m: 0.3,
+            max_lift_m: 0.2,
+            max_lift_step_m: 0.01,
+            max_reach_m: 1.0,
+            objects: vec!["fabric_a".into(), "fabric_b".into()],
+        }
+    }
 }
 
 impl Bounds {

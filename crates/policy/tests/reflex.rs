@@ -94,7 +94,7 @@ fn run(reflex: bool) -> Run {
          visual_names: [cup_x_m, cup_y_m, cup_width_m], reflex: {reflex}}}"
     ))
     .unwrap();
-    let max_force = p.max_force_n;
+    let max_force = p.limits.max_force_n;
     let mut stage = PolicyStage::new("reflex", p).unwrap();
     let mut w = World {
         opening_m: 0.085,

@@ -15,7 +15,10 @@ use unitac_policy::{Action, ArmAction, GripperAction, Policy, PolicyError, Polic
 
 fn bounds() -> Bounds {
     PolicyParams {
-        objects: vec!["cup".into()],
+        limits: Bounds {
+            objects: vec!["cup".into()],
+            ..Bounds::default()
+        },
         ..PolicyParams::default()
     }
     .bounds()
@@ -210,7 +213,10 @@ proptest! {
         let p = PolicyParams {
             mode: unitac_policy::Mode::VtlaReal,
             task: "squeeze the cup".into(),
-            objects: vec!["cup".into()],
+            limits: Bounds {
+                objects: vec!["cup".into()],
+                ..Bounds::default()
+            },
             latent_len: 2,
             ..PolicyParams::default()
         };

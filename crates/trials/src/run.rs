@@ -531,6 +531,7 @@ pub fn run_trial_swapped(
         .map(|o| o.name.as_str())
         .collect();
     let foreign: Vec<&str> = params
+        .limits
         .objects
         .iter()
         .map(String::as_str)

@@ -191,7 +191,7 @@ impl CupController {
                 }
                 if elapsed >= p.approach_s {
                     if self.mode == Mode::Vla {
-                        let w = self.seen.mean().map_or(p.max_opening_m, |m| m[2]);
+                        let w = self.seen.mean().map_or(p.limits.max_opening_m, |m| m[2]);
                         match p.vla_rule {
                             VlaRule::Position => {
                                 self.target_opening =
@@ -208,7 +208,7 @@ impl CupController {
             }
             Phase::Close => match self.mode {
                 Mode::Vla if !self.by_force() => {
-                    let target = self.target_opening.unwrap_or(p.max_opening_m);
+                    let target = self.target_opening.unwrap_or(p.limits.max_opening_m);
                     let tol = p.deformation_tolerance_m / 2.0;
                     // Arrived, or stopped on the cup short of the target (the gripper's own
                     // object detection: what a position-controlled close on a real gripper ends on).
@@ -265,7 +265,7 @@ impl CupController {
                 }
             }
             Phase::Squeeze => {
-                let (d0, a0) = self.d0.unwrap_or((p.max_opening_m, 0.0));
+                let (d0, a0) = self.d0.unwrap_or((p.limits.max_opening_m, 0.0));
                 if let (Some(c), Some(o)) = (contact, opening) {
                     let gel = p.gel_indent_m_per_m2 * (f64::from(c.area_m2) - a0).max(0.0);
                     self.compression = if c.in_contact { d0 - o - gel } else { 0.0 };
@@ -297,14 +297,14 @@ impl CupController {
         let p = &self.p;
         match self.by_force() {
             true => force(
-                p.min_opening_m,
+                p.limits.min_opening_m,
                 p.squeeze_speed_m_s,
                 self.force_n.unwrap_or(0.0),
             ),
             false => position(
-                self.target_opening.unwrap_or(p.max_opening_m),
+                self.target_opening.unwrap_or(p.limits.max_opening_m),
                 p.squeeze_speed_m_s,
-                self.force_n.unwrap_or(p.max_force_n),
+                self.force_n.unwrap_or(p.limits.max_force_n),
             ),
         }
     }
@@ -318,20 +318,20 @@ impl CupController {
             Phase::Approach => {
                 // Every mode opens to the camera's width plus the pads and a margin on the way,
                 // so that no mode spends its closing time on air.
-                let pre = self.seen.mean().map_or(p.max_opening_m, |m| {
-                    (m[2] + 2.0 * p.pad_m + p.pregrasp_margin_m).min(p.max_opening_m)
+                let pre = self.seen.mean().map_or(p.limits.max_opening_m, |m| {
+                    (m[2] + 2.0 * p.pad_m + p.pregrasp_margin_m).min(p.limits.max_opening_m)
                 });
                 action(
-                    position(pre, p.max_speed_m_s, p.touch_force_n),
+                    position(pre, p.limits.max_speed_m_s, p.touch_force_n),
                     at(0.0),
                     format!("approaching the cup, fingers at {pre:.4} m"),
                 )
             }
             Phase::Close => match self.mode {
                 Mode::Vla if !self.by_force() => {
-                    let t = self.target_opening.unwrap_or(p.max_opening_m);
+                    let t = self.target_opening.unwrap_or(p.limits.max_opening_m);
                     action(
-                        position(t, p.squeeze_speed_m_s, p.max_force_n),
+                        position(t, p.squeeze_speed_m_s, p.limits.max_force_n),
                         at(0.0),
                         format!(
                             "closing to {t:.4} m (camera width + pads - {:.4} m - {:.4} m)",
@@ -347,7 +347,7 @@ impl CupController {
                         None => "predicted stiffness".into(),
                     };
                     action(
-                        force(p.min_opening_m, p.squeeze_speed_m_s, f),
+                        force(p.limits.min_opening_m, p.squeeze_speed_m_s, f),
                         at(0.0),
                         format!(
                             "squeezing with {f:.2} N ({from} {:.1} N/m x {:.4} m)",
@@ -358,8 +358,10 @@ impl CupController {
                 }
                 Mode::VtlaReal => {
                     // Just inside the measured opening: the release after contact is one step.
-                    let o = obs.gripper().map_or(p.max_opening_m, |g| g.opening_m);
-                    let t = (o - p.probe_release_m).max(p.min_opening_m);
+                    let o = obs
+                        .gripper()
+                        .map_or(p.limits.max_opening_m, |g| g.opening_m);
+                    let t = (o - p.probe_release_m).max(p.limits.min_opening_m);
                     action(
                         position(t, p.touch_speed_m_s, p.touch_force_n),
                         at(0.0),
@@ -368,9 +370,9 @@ impl CupController {
                 }
             },
             Phase::Probe | Phase::AwaitLatent => {
-                let (d0, _) = self.d0.unwrap_or((p.max_opening_m, 0.0));
+                let (d0, _) = self.d0.unwrap_or((p.limits.max_opening_m, 0.0));
                 if self.t.phase == Phase::Probe && elapsed < p.probe_press_s {
-                    let t = (d0 - p.probe_press_m).max(p.min_opening_m);
+                    let t = (d0 - p.probe_press_m).max(p.limits.min_opening_m);
                     action(
                         position(t, p.touch_speed_m_s, p.touch_force_n),
                         at(0.0),
@@ -385,7 +387,7 @@ impl CupController {
                 }
             }
             Phase::Squeeze => {
-                let (d0, a0) = self.d0.unwrap_or((p.max_opening_m, 0.0));
+                let (d0, a0) = self.d0.unwrap_or((p.limits.max_opening_m, 0.0));
                 let area = obs.contact().map_or(a0, |c| f64::from(c.area_m2));
                 let gel = p.gel_indent_m_per_m2 * (area - a0).max(0.0);
                 let f = self.force_n.unwrap_or(p.touch_force_n);

@@ -148,7 +148,7 @@ impl FabricController {
         property: &'static str,
         more: bool,
     ) -> Result<Self, PolicyLoadError> {
-        let [a, b, ..] = p.objects.as_slice() else {
+        let [a, b, ..] = p.limits.objects.as_slice() else {
             return Err(PolicyLoadError::PickNeedsTwoObjects);
         };
         Ok(Self {
@@ -217,7 +217,7 @@ impl FabricController {
     /// lowest height allowed (None before any estimate).
     fn height(&self, i: usize, offset_m: f64) -> Option<f64> {
         let e = self.places.get(i)?.mean()?[2];
-        Some((e + offset_m).max(self.p.min_z_m))
+        Some((e + offset_m).max(self.p.limits.min_z_m))
     }
 
     /// Where over the table object `i` is, as the camera saw it on the way (the origin before
@@ -242,19 +242,20 @@ impl FabricController {
     fn touch_z(&self, i: usize) -> f64 {
         let missed = f64::from(self.missed.get(i).copied().unwrap_or(0));
         self.height(i, self.p.touch_z_m * (1.0 + missed))
-            .unwrap_or(self.p.max_z_m)
+            .unwrap_or(self.p.limits.max_z_m)
     }
 
     /// Height of the grasp on the chosen object: `grasp_z_m` below the fold's top as the touch
     /// felt it (vtla_real), else as the camera sees it.
     fn grasp_z(&self) -> f64 {
         let Some(i) = self.chosen.as_deref().and_then(|c| self.index(c)) else {
-            return self.p.max_z_m;
+            return self.p.limits.max_z_m;
         };
         if let Some(top) = self.felt_top.get(i).copied().flatten() {
-            return (top + self.p.grasp_z_m).clamp(self.p.min_z_m, self.p.max_z_m);
+            return (top + self.p.grasp_z_m).clamp(self.p.limits.min_z_m, self.p.limits.max_z_m);
         }
-        self.height(i, self.p.grasp_z_m).unwrap_or(self.p.max_z_m)
+        self.height(i, self.p.grasp_z_m)
+            .unwrap_or(self.p.limits.max_z_m)
     }
 
     /// Whether the grasp height comes from the touch.
@@ -331,7 +332,7 @@ impl FabricController {
                         self.t.go(Phase::Release(i));
                     }
                 } else if self.contact_at.is_none()
-                    && opening.is_some_and(|o| o <= p.min_opening_m + CLOSED_ON_NOTHING_M)
+                    && opening.is_some_and(|o| o <= p.limits.min_opening_m + CLOSED_ON_NOTHING_M)
                     && self.missed.get(i).is_some_and(|&m| m < TOUCH_RETRIES)
                 {
                     // Closed on nothing: above the fold. Open where the fingers are (closed
@@ -347,7 +348,8 @@ impl FabricController {
                 }
             }
             Phase::Reopen(i) => {
-                let open = opening.is_some_and(|o| o >= p.max_opening_m - p.max_step_m);
+                let open =
+                    opening.is_some_and(|o| o >= p.limits.max_opening_m - p.limits.max_step_m);
                 if open || elapsed >= p.approach_s {
                     if let Some(m) = self.missed.get_mut(i) {
                         *m += 1;
@@ -356,7 +358,8 @@ impl FabricController {
                 }
             }
             Phase::Release(i) => {
-                let open = opening.is_some_and(|o| o >= p.max_opening_m - p.max_step_m);
+                let open =
+                    opening.is_some_and(|o| o >= p.limits.max_opening_m - p.limits.max_step_m);
                 if in_contact == Some(false) && (open || elapsed >= p.approach_s) {
                     self.t.go(if i == 0 {
                         Phase::Approach(1)
@@ -435,17 +438,27 @@ impl FabricController {
     fn command(&mut self, obs: &Observation) -> Action {
         let p = &self.p;
         let elapsed = self.t.elapsed(obs.stamp);
-        let opening = obs.gripper().map_or(p.max_opening_m, |g| g.opening_m);
-        let open = position(p.max_opening_m, p.max_speed_m_s, p.touch_force_n);
+        let opening = obs
+            .gripper()
+            .map_or(p.limits.max_opening_m, |g| g.opening_m);
+        let open = position(
+            p.limits.max_opening_m,
+            p.limits.max_speed_m_s,
+            p.touch_force_n,
+        );
         let chosen = self.chosen.clone().unwrap_or_else(|| "home".into());
         let grasp_z = self.grasp_z();
         let at = self.chosen_place();
         let home = [0.0, 0.0];
-        let grip = force(p.min_opening_m, p.max_speed_m_s, p.grasp_force_n);
+        let grip = force(
+            p.limits.min_opening_m,
+            p.limits.max_speed_m_s,
+            p.grasp_force_n,
+        );
         match self.t.phase {
             Phase::Look => action(
                 open,
-                arm("home", home, p.max_z_m, 0.0),
+                arm("home", home, p.limits.max_z_m, 0.0),
                 "looking at both fabrics",
             ),
             Phase::Approach(i) => action(
@@ -458,7 +471,7 @@ impl FabricController {
                 let target = if self.contact_at.is_some() {
                     opening
                 } else {
-                    p.min_opening_m
+                    p.limits.min_opening_m
                 };
                 action(
                     position(target, p.touch_speed_m_s, p.touch_force_n),
@@ -484,7 +497,7 @@ impl FabricController {
             ),
             Phase::Compare => action(
                 open,
-                arm("home", home, p.max_z_m, 0.0),
+                arm("home", home, p.limits.max_z_m, 0.0),
                 format!("waiting for the {} comparison", self.property),
             ),
             Phase::ApproachGrasp => action(
