@@ -788,7 +788,48 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let result = match cli.cmd {
+    // `unitac contact` exits 2 when a file failed (after every other file was processed).
+    let contact = matches!(cli.cmd, Cmd::Contact { .. });
+    match dispatch(cli.cmd) {
+        Ok(true) => ExitCode::SUCCESS,
+        Ok(false) if contact => ExitCode::from(2),
+        Ok(false) => ExitCode::from(1),
+        Err(e) if e.downcast_ref::<ConfigError>().is_some() => {
+            eprintln!("unitac: {e}");
+            ExitCode::from(2)
+        }
+        Err(e) => {
+            eprintln!("unitac: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+/// A report on stdout: its JSON on one line with `--json`, else its text.
+fn emit_report<R: serde::Serialize>(
+    r: anyhow::Result<R>,
+    json: bool,
+    text: impl FnOnce(&R) -> String,
+) -> anyhow::Result<bool> {
+    let r = r?;
+    if json {
+        emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
+    } else {
+        emit(text(&r))?;
+    }
+    Ok(true)
+}
+
+/// One command: Ok(false) when it ran but something in it failed (exit 1; 2 for `contact`).
+/// The robot's commands here, the lab's in [`lab_command`].
+fn dispatch(cmd: Cmd) -> anyhow::Result<bool> {
+    match cmd {
+        Cmd::Eval { .. }
+        | Cmd::Report { .. }
+        | Cmd::Bench { .. }
+        | Cmd::Dataset { .. }
+        | Cmd::Demos { .. }
+        | Cmd::Trials(_) => lab_command(cmd),
         Cmd::Run {
             scene,
             sensor,
@@ -824,11 +865,7 @@ fn main() -> ExitCode {
                 overlay: overlay.as_deref(),
                 peel_skirt: !no_peel_skirt,
             };
-            match cmd_contact(sensor, &background, &frames, json, &extra) {
-                // Any failed file: exit 2, after every other file was processed.
-                Ok(false) => return ExitCode::from(2),
-                other => other,
-            }
+            cmd_contact(sensor, &background, &frames, json, &extra)
         }
         Cmd::Replay {
             bag,
@@ -858,50 +895,44 @@ fn main() -> ExitCode {
         Cmd::Bag {
             cmd: BagCmd::Repair { input, output },
         } => replay::cmd_repair(&input, &output),
-        Cmd::Eval {
-            what: EvalTarget::Contact,
-            json,
-            idle_minutes,
-            ..
-        } => eval::eval_contact(idle_minutes * 60.0).and_then(|r| {
-            if json {
-                emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
-            } else {
-                emit(r.text())?;
-            }
-            Ok(true)
-        }),
         Cmd::Calibrate {
             cmd: depth::CalibrateCmd::Depth(a),
         } => depth::calibrate_depth(&a),
         Cmd::Calibrate {
             cmd: depth::CalibrateCmd::MockPresses(a),
         } => depth::mock_presses(&a),
+        Cmd::Devices { json } => {
+            let root = std::env::var_os("UNITAC_SYSFS_ROOT")
+                .map(PathBuf::from)
+                .unwrap_or_else(|| PathBuf::from("/"));
+            emit_report(Ok(devices::devices(&root)), json, |r| r.text())
+        }
+        Cmd::Gripper(args) => gripper::run(args),
+        Cmd::Scenes { scene_dir } => match scene_dir {
+            Some(d) if !d.is_dir() => Err(args::usage(format!(
+                "--scene-dir {}: not a directory",
+                d.display()
+            ))),
+            scene_dir => emit(
+                unitac_pipeline::scene_names(scene_dir)
+                    .iter()
+                    .map(|n| format!("{n}\n"))
+                    .collect::<String>(),
+            )
+            .map(|()| true),
+        },
+    }
+}
+
+/// The lab's commands: evaluations, reports, benchmarks, datasets, demonstrations, trials.
+fn lab_command(cmd: Cmd) -> anyhow::Result<bool> {
+    match cmd {
         Cmd::Eval {
-            what: EvalTarget::Depth,
+            what,
             json,
             out,
-            ..
-        } => depth::eval_depth(out.as_deref()).and_then(|r| {
-            if json {
-                emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
-            } else {
-                emit(r.text())?;
-            }
-            Ok(true)
-        }),
-        Cmd::Eval {
-            what: EvalTarget::Slip,
-            json,
-            ..
-        } => slip_eval::eval_slip().and_then(|r| {
-            if json {
-                emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
-            } else {
-                emit(r.text())?;
-            }
-            Ok(true)
-        }),
+            idle_minutes,
+        } => cmd_eval(what, json, out, idle_minutes),
         Cmd::Report {
             what,
             json,
@@ -913,14 +944,9 @@ fn main() -> ExitCode {
                 None => PathBuf::from("report"),
             });
             match what {
-                ReportTarget::Sampler => sampler::report(&out, repeat).and_then(|r| {
-                    if json {
-                        emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
-                    } else {
-                        emit(r.text())?;
-                    }
-                    Ok(true)
-                }),
+                ReportTarget::Sampler => {
+                    emit_report(sampler::report(&out, repeat), json, |r| r.text())
+                }
                 ReportTarget::Sim => report_sim(json, &out),
             }
         }
@@ -932,41 +958,17 @@ fn main() -> ExitCode {
             no_python,
             ticks,
             policy,
-        } => {
-            let spinner = progress::spinner(&format!("bench {what:?}").to_lowercase());
-            let text = match what {
-                BenchTarget::Contact => bench::bench_contact(frames, repeat, !no_python)
-                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
-                BenchTarget::Depth => depth::bench_depth(frames, repeat, !no_python)
-                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
-                BenchTarget::Replay => bench::bench_replay(frames, repeat, !no_python)
-                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
-                BenchTarget::Sampler => {
-                    sampler::bench(repeat).and_then(|r| Ok((serde_json::to_string(&r)?, r.text())))
-                }
-                BenchTarget::Decode => decode_bench::bench_decode(frames, repeat, !no_python)
-                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
-                BenchTarget::Render => unitac_sim::bench::render_bench(repeat)
-                    .map_err(anyhow::Error::from)
-                    .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
-                BenchTarget::Policy => policy_bench::bench_policy(&policy_bench::Options {
-                    episodes: repeat,
-                    paced_ticks: ticks,
-                    python: !no_python,
-                    policy,
-                })
-                .and_then(|r| Ok((serde_json::to_string(&r)?, r.text()))),
-            };
-            spinner.finish_and_clear();
-            text.and_then(|(j, t)| {
-                if json {
-                    emit(format_args!("{j}\n"))?;
-                } else {
-                    emit(t)?;
-                }
-                Ok(true)
-            })
-        }
+        } => cmd_bench(
+            what,
+            json,
+            BenchSize {
+                frames,
+                repeat,
+                python: !no_python,
+                ticks,
+                policy,
+            },
+        ),
         Cmd::Dataset {
             what: DatasetTarget::Fabrics,
             out,
@@ -1008,48 +1010,77 @@ fn main() -> ExitCode {
             .and_then(emit)
             .map(|()| true)
         }
-        Cmd::Devices { json } => {
-            let root = std::env::var_os("UNITAC_SYSFS_ROOT")
-                .map(PathBuf::from)
-                .unwrap_or_else(|| PathBuf::from("/"));
-            let r = devices::devices(&root);
-            if json {
-                serde_json::to_string(&r)
-                    .map_err(anyhow::Error::from)
-                    .and_then(|j| emit(format_args!("{j}\n")))
-                    .map(|()| true)
-            } else {
-                emit(r.text()).map(|()| true)
-            }
-        }
-        Cmd::Gripper(args) => gripper::run(args),
         Cmd::Trials(args) => trials::run(args),
-        Cmd::Scenes { scene_dir } => match scene_dir {
-            Some(d) if !d.is_dir() => Err(args::usage(format!(
-                "--scene-dir {}: not a directory",
-                d.display()
-            ))),
-            scene_dir => emit(
-                unitac_pipeline::scene_names(scene_dir)
-                    .iter()
-                    .map(|n| format!("{n}\n"))
-                    .collect::<String>(),
-            )
-            .map(|()| true),
-        },
-    };
-    match result {
-        Ok(true) => ExitCode::SUCCESS,
-        Ok(false) => ExitCode::from(1),
-        Err(e) if e.downcast_ref::<ConfigError>().is_some() => {
-            eprintln!("unitac: {e}");
-            ExitCode::from(2)
-        }
-        Err(e) => {
-            eprintln!("unitac: {e:#}");
-            ExitCode::from(1)
-        }
+        other => Err(anyhow::anyhow!("not a lab command: {other:?}")),
     }
+}
+
+/// `unitac eval contact | depth | slip`.
+fn cmd_eval(
+    what: EvalTarget,
+    json: bool,
+    out: Option<PathBuf>,
+    idle_minutes: f64,
+) -> anyhow::Result<bool> {
+    match what {
+        EvalTarget::Contact => {
+            emit_report(eval::eval_contact(idle_minutes * 60.0), json, |r| r.text())
+        }
+        EvalTarget::Depth => emit_report(depth::eval_depth(out.as_deref()), json, |r| r.text()),
+        EvalTarget::Slip => emit_report(slip_eval::eval_slip(), json, |r| r.text()),
+    }
+}
+
+/// How much `unitac bench` measures.
+struct BenchSize {
+    frames: usize,
+    repeat: usize,
+    python: bool,
+    ticks: usize,
+    policy: Option<PathBuf>,
+}
+
+/// `unitac bench ...`: each target beside its baseline, its JSON or its table.
+fn cmd_bench(what: BenchTarget, json: bool, n: BenchSize) -> anyhow::Result<bool> {
+    fn both<R: serde::Serialize>(
+        r: anyhow::Result<R>,
+        text: impl FnOnce(&R) -> String,
+    ) -> anyhow::Result<(String, String)> {
+        let r = r?;
+        Ok((serde_json::to_string(&r)?, text(&r)))
+    }
+    let spinner = progress::spinner(&format!("bench {what:?}").to_lowercase());
+    let (frames, repeat, python) = (n.frames, n.repeat, n.python);
+    let text = match what {
+        BenchTarget::Contact => both(bench::bench_contact(frames, repeat, python), |r| r.text()),
+        BenchTarget::Depth => both(depth::bench_depth(frames, repeat, python), |r| r.text()),
+        BenchTarget::Replay => both(bench::bench_replay(frames, repeat, python), |r| r.text()),
+        BenchTarget::Sampler => both(sampler::bench(repeat), |r| r.text()),
+        BenchTarget::Decode => both(decode_bench::bench_decode(frames, repeat, python), |r| {
+            r.text()
+        }),
+        BenchTarget::Render => both(
+            unitac_sim::bench::render_bench(repeat).map_err(anyhow::Error::from),
+            |r| r.text(),
+        ),
+        BenchTarget::Policy => both(
+            policy_bench::bench_policy(&policy_bench::Options {
+                episodes: repeat,
+                paced_ticks: n.ticks,
+                python,
+                policy: n.policy,
+            }),
+            |r| r.text(),
+        ),
+    };
+    spinner.finish_and_clear();
+    let (j, t) = text?;
+    if json {
+        emit(format_args!("{j}\n"))?;
+    } else {
+        emit(t)?;
+    }
+    Ok(true)
 }
 
 #[cfg(test)]
