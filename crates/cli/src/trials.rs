@@ -506,13 +506,76 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     if a.calibrate_vla && (!a.train || modes != [Mode::Vla]) {
         return Err(config(calibrate_usage()));
     }
+    let (kind, scenes, squeeze_vla) = load_scenes(&a, &task_name, &modes)?;
+    if a.calibrate_vla && !squeeze_vla {
+        return Err(config(calibrate_usage()));
+    }
+    let split = if a.train { Split::Train } else { Split::Unseen };
+    let task = TaskConfig::new(kind, split);
+    let opts = TrialOptions {
+        arm_z_noise_m: a.arm_z_noise_m,
+        ..TrialOptions::for_task(kind)
+    };
+    let gripper = a.gripper;
+    let Runs {
+        records,
+        sweep,
+        permuted_records,
+        failures,
+    } = run_all(&a, &scenes, kind, &task, &opts, &modes)?;
+    let rows = table::table(kind, &outcomes(&records));
+    let permuted = if a.permute_touch {
+        table::table(kind, &outcomes(&permuted_records))
+    } else {
+        Vec::new()
+    };
+    if a.calibrate_vla {
+        return calibrate_vla(&a, &task, &records);
+    }
+    if let Some(dir) = &a.plot {
+        plot(dir, &a.scene, kind, &records)?;
+    }
+    if a.json {
+        json_report(&a, &task, &scenes, (&rows, &permuted), &sweep, &records)?;
+    } else {
+        let training_seed = a
+            .training_seed
+            .or_else(|| scenes.first().and_then(|(_, s)| scene_training_seed(s)));
+        crate::emit(text_report(
+            (&a, training_seed),
+            kind,
+            split,
+            gripper,
+            (&rows, &permuted),
+            &records,
+            &sweep,
+        ))?;
+    }
+    for line in failures.0.iter().chain(&failures.1) {
+        eprintln!("unitac: {line}");
+    }
+    // A policy that never acted ran no trial: the table above counts nothing it did.
+    Ok(failures.1.is_empty())
+}
+
+/// Each table column's scene.
+type ModeScenes = Vec<(Column, unitac_core::Scene)>;
+
+/// The scenes of each mode, loaded with their stages built once before any trial runs; the sim
+/// task their policy stages name (the same for every mode); and whether it is a squeeze with a
+/// VLA mode, whose force rule then runs beside its position rule (scripted scenes).
+fn load_scenes(
+    a: &TrialsArgs,
+    task_name: &str,
+    modes: &[Mode],
+) -> Result<(TaskKind, ModeScenes, bool)> {
     // Every scene loads (and its stages build once) before any trial runs; the sim task is the
     // one their policy stages name, the same for every mode.
     let mut scenes = Vec::new();
     let mut kinds = Vec::new();
     let mut squeeze_vla = false;
-    for m in &modes {
-        let name = unitac_pipeline::mode_scene(&task_name, *m);
+    for m in modes {
+        let name = unitac_pipeline::mode_scene(task_name, *m);
         let mut scene = unitac_pipeline::load_scene(&name, a.scene_dir.clone())
             .map_err(|e| config(e.to_string()))?;
         if a.policy == "learned"
@@ -557,7 +620,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             )));
         }
     };
-    let mut scenes: Vec<(Column, unitac_core::Scene)> = scenes
+    let mut scenes: ModeScenes = scenes
         .into_iter()
         .map(|(m, _, s)| (Column::of(m), s))
         .collect();
@@ -586,15 +649,28 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             );
         }
     }
-    if a.calibrate_vla && !squeeze_vla {
-        return Err(config(calibrate_usage()));
-    }
-    let split = if a.train { Split::Train } else { Split::Unseen };
-    let task = TaskConfig::new(kind, split);
-    let opts = TrialOptions {
-        arm_z_noise_m: a.arm_z_noise_m,
-        ..TrialOptions::for_task(kind)
-    };
+    Ok((kind, scenes, squeeze_vla))
+}
+
+/// Everything the trials ran: each mode's records, the sweep's tables, the touch-permuted
+/// records, and the policy's failures (warnings; runs where it never acted).
+struct Runs {
+    records: Records,
+    sweep: Vec<SweepRow>,
+    permuted_records: Records,
+    failures: (Vec<String>, Vec<String>),
+}
+
+/// The trials of every mode, then the sweep's variants, then the touch ablation (each touch mode
+/// again, trial i with trial i + 1's touch values), behind one progress bar.
+fn run_all(
+    a: &TrialsArgs,
+    scenes: &[(Column, unitac_core::Scene)],
+    kind: TaskKind,
+    task: &TaskConfig,
+    opts: &TrialOptions,
+    modes: &[Mode],
+) -> Result<Runs> {
     let gripper = a.gripper;
     let variants = if a.sweep {
         kind.sweep().into_iter().map(Variant::of).collect()
@@ -607,12 +683,11 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
             as u64;
     let bar = progress::bar(total, &format!("trials {}", a.scene));
     let mut records: Records = Vec::new();
-    for (m, scene) in &scenes {
+    for (m, scene) in scenes {
         bar.set_message(format!("trials {} {}", a.scene, m.as_str()));
-        let rs = run_trials(scene, &task, (a.seed, a.trials), &opts, gripper, &bar, None)?;
+        let rs = run_trials(scene, task, (a.seed, a.trials), opts, gripper, &bar, None)?;
         records.push((m.clone(), rs));
     }
-    let rows = table::table(kind, &outcomes(&records));
     // The policy's failures of every run: warnings, and runs where it never acted.
     let mut failures: (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
     let mut note = |what: String, rs: &[TrialRecord]| {
@@ -625,13 +700,13 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     }
     let mut sweep = Vec::new();
     for v in &variants {
-        let t = v.apply(&task);
+        let t = v.apply(task);
         let mut rs_all = Vec::new();
-        for (m, scene) in &scenes {
+        for (m, scene) in scenes {
             bar.set_message(format!("sweep {} {}", v.name, m.as_str()));
             rs_all.push((
                 m.clone(),
-                run_trials(scene, &t, (a.seed, a.trials), &opts, gripper, &bar, None)?,
+                run_trials(scene, &t, (a.seed, a.trials), opts, gripper, &bar, None)?,
             ));
         }
         for (m, rs) in &rs_all {
@@ -657,9 +732,9 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
                 m.clone(),
                 run_trials(
                     scene,
-                    &task,
+                    task,
                     (a.seed, a.trials),
-                    &opts,
+                    opts,
                     gripper,
                     &bar,
                     Some(&donors),
@@ -670,88 +745,75 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
     for (m, rs) in &permuted_records {
         note(format!("{} (touch permuted)", m.as_str()), rs);
     }
-    let permuted = if a.permute_touch {
-        table::table(kind, &outcomes(&permuted_records))
-    } else {
-        Vec::new()
-    };
     bar.finish_and_clear();
-    if a.calibrate_vla {
-        return calibrate_vla(&a, &task, &records);
-    }
-    if let Some(dir) = &a.plot {
-        plot(dir, &a.scene, kind, &records)?;
-    }
-    if a.json {
-        let report = Report {
-            task: &a.scene,
-            policy: &a.policy,
-            training_seed: (a.policy == "learned")
-                .then(|| {
-                    a.training_seed
-                        .or_else(|| scenes.first().and_then(|(_, s)| scene_training_seed(s)))
-                })
-                .flatten(),
-            split: task.split,
-            seed: a.seed,
-            trials: a.trials,
-            gripper: gripper.name(),
-            arm_z_noise_m: a.arm_z_noise_m,
-            table: &rows,
-            touch_permuted: &permuted,
-            sweep: &sweep,
-            noise_figures: task.noise_figures(),
-            modes: records
-                .iter()
-                .map(|(m, rs)| ModeReport {
-                    mode: m.as_str(),
-                    scene: rs.first().map_or("", |r| r.scene.as_str()),
-                    clamps: clamps(rs),
-                    policy_ticks: policy_ticks(rs),
-                    never_acted: never_acted(rs),
-                    stiffness: stiffness_summary(rs),
-                    trials: rs
-                        .iter()
-                        .map(|r| TrialLine {
-                            trial: r.trial,
-                            objects: &r.objects,
-                            end_phase: &r.end_phase,
-                            end_reason: &r.end_reason,
-                            phases: &r.phases,
-                            duration_s: r.duration_s,
-                            frames: r.frames,
-                            rejected: r.rejected,
-                            outcome: &r.outcome,
-                            clamped: &r.clamped,
-                            reflex: &r.reflex,
-                            policy_ticks: &r.policy_ticks,
-                            serial: r.serial.as_ref(),
-                            stiffness: r.stiffness.as_ref(),
-                        })
-                        .collect(),
-                })
-                .collect(),
-        };
-        crate::emit(format_args!("{}\n", serde_json::to_string(&report)?))?;
-    } else {
-        let training_seed = a
-            .training_seed
-            .or_else(|| scenes.first().and_then(|(_, s)| scene_training_seed(s)));
-        crate::emit(text_report(
-            (&a, training_seed),
-            kind,
-            split,
-            gripper,
-            (&rows, &permuted),
-            &records,
-            &sweep,
-        ))?;
-    }
-    for line in failures.0.iter().chain(&failures.1) {
-        eprintln!("unitac: {line}");
-    }
-    // A policy that never acted ran no trial: the table above counts nothing it did.
-    Ok(failures.1.is_empty())
+    Ok(Runs {
+        records,
+        sweep,
+        permuted_records,
+        failures,
+    })
+}
+
+/// `--json`: the report on one line.
+fn json_report(
+    a: &TrialsArgs,
+    task: &TaskConfig,
+    scenes: &[(Column, unitac_core::Scene)],
+    (rows, permuted): (&[Row], &[Row]),
+    sweep: &[SweepRow],
+    records: &Records,
+) -> Result<()> {
+    let report = Report {
+        task: &a.scene,
+        policy: &a.policy,
+        training_seed: (a.policy == "learned")
+            .then(|| {
+                a.training_seed
+                    .or_else(|| scenes.first().and_then(|(_, s)| scene_training_seed(s)))
+            })
+            .flatten(),
+        split: task.split,
+        seed: a.seed,
+        trials: a.trials,
+        gripper: a.gripper.name(),
+        arm_z_noise_m: a.arm_z_noise_m,
+        table: rows,
+        touch_permuted: permuted,
+        sweep,
+        noise_figures: task.noise_figures(),
+        modes: records
+            .iter()
+            .map(|(m, rs)| ModeReport {
+                mode: m.as_str(),
+                scene: rs.first().map_or("", |r| r.scene.as_str()),
+                clamps: clamps(rs),
+                policy_ticks: policy_ticks(rs),
+                never_acted: never_acted(rs),
+                stiffness: stiffness_summary(rs),
+                trials: rs
+                    .iter()
+                    .map(|r| TrialLine {
+                        trial: r.trial,
+                        objects: &r.objects,
+                        end_phase: &r.end_phase,
+                        end_reason: &r.end_reason,
+                        phases: &r.phases,
+                        duration_s: r.duration_s,
+                        frames: r.frames,
+                        rejected: r.rejected,
+                        outcome: &r.outcome,
+                        clamped: &r.clamped,
+                        reflex: &r.reflex,
+                        policy_ticks: &r.policy_ticks,
+                        serial: r.serial.as_ref(),
+                        stiffness: r.stiffness.as_ref(),
+                    })
+                    .collect(),
+            })
+            .collect(),
+    };
+    crate::emit(format_args!("{}\n", serde_json::to_string(&report)?))?;
+    Ok(())
 }
 
 /// The tables as text: the main one, which trials failed, the clamps, the sweep's.
