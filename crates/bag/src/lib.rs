@@ -25,7 +25,7 @@ pub use image::ImageError;
 pub use metadata::MetadataError;
 pub use read::{BagReader, McapError, RawMessage, ReadOptions, SqliteError, TopicInfo};
 pub use repair::{RepairReport, repair};
-pub use replay::{BagSource, ReplayOptions};
+pub use replay::{BagSource, ReplayError, ReplayOptions};
 pub use ros::{CompressedImage, Image, PointCloud2, PointField, RosMessage};
 pub use write::{BagWriter, Compression, UnknownCompression, WriteOptions};
 

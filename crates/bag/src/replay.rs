@@ -68,6 +68,26 @@ pub enum FrameError {
     TooLarge { len: u64, max: usize },
 }
 
+/// Why the bag source lost a frame or ended: the cause of its [`SourceError`].
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    #[error("{topic} at {log_time} ns: {error}")]
+    Frame {
+        topic: String,
+        log_time: i64,
+        error: FrameError,
+    },
+    #[error(
+        "{}: no image messages (sensor_msgs/Image or CompressedImage){}",
+        path.display(),
+        topic.as_deref().map(|t| format!(" on {t}")).unwrap_or_default()
+    )]
+    NoImages {
+        path: PathBuf,
+        topic: Option<String>,
+    },
+}
+
 /// A bag replayed as a stream of frames.
 #[derive(Debug)]
 pub struct BagSource {
@@ -293,22 +313,20 @@ impl Source for BagSource {
     }
     fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
         match self.next_image() {
-            Ok(Some(item)) => item.frame.map(Some).map_err(|e| {
-                SourceError::Frame(format!("{} at {} ns: {e}", item.topic.name, item.log_time))
+            Ok(Some(item)) => item.frame.map(Some).map_err(|error| {
+                SourceError::frame(ReplayError::Frame {
+                    topic: item.topic.name.clone(),
+                    log_time: item.log_time,
+                    error,
+                })
             }),
             // A bag that replays nothing is not a replay that ended well.
-            Ok(None) if self.st.seq == 0 => Err(SourceError::Fatal(format!(
-                "{}: no image messages (sensor_msgs/Image or CompressedImage){}",
-                self.path.display(),
-                self.st
-                    .opts
-                    .topic
-                    .as_deref()
-                    .map(|t| format!(" on {t}"))
-                    .unwrap_or_default()
-            ))),
+            Ok(None) if self.st.seq == 0 => Err(SourceError::fatal(ReplayError::NoImages {
+                path: self.path.clone(),
+                topic: self.st.opts.topic.clone(),
+            })),
             Ok(None) => Ok(None),
-            Err(e) => Err(SourceError::Fatal(e.to_string())),
+            Err(e) => Err(SourceError::fatal(e)),
         }
     }
     fn is_replay(&self) -> bool {

@@ -10,10 +10,11 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use unitac_bag::ros::Image;
 use unitac_bag::{
-    BagReader, BagSource, BagWriter, Compression, ReadOptions, ReplayOptions, WriteOptions,
+    BagReader, BagSource, BagWriter, Compression, ReadOptions, ReplayError, ReplayOptions,
+    WriteOptions,
 };
 use unitac_core::msg::{ContactEpisode, ContactState, Header};
-use unitac_core::{Frame, Msg, Source};
+use unitac_core::{Frame, Msg, Source, SourceError};
 
 fn image_of(f: &Frame) -> Image {
     let mut img = Image::rgb8(f);
@@ -164,6 +165,32 @@ fn start_and_loop_and_source() {
     }
     assert_eq!(got[30].data(), frames[0].data());
     assert_eq!(got[74].seq, 74);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_bag_without_images_ends_the_source_with_a_typed_cause() {
+    let dir = tmpdir("replay_no_images");
+    let path = dir.join("states.mcap");
+    let mut w = BagWriter::create(&path, WriteOptions::default()).unwrap();
+    let t = w.add_topic("/gs/header", "std_msgs/msg/Header").unwrap();
+    w.write(t, 1_000, &Header::new(unitac_core::Stamp(1_000), "gs"))
+        .unwrap();
+    w.finish().unwrap();
+    let mut s = BagSource::open(&path, ReplayOptions::default()).unwrap();
+    match s.next_frame() {
+        Err(SourceError::Fatal(cause)) => {
+            assert!(cause.to_string().contains("no image messages"), "{cause}");
+            match cause.downcast_ref::<ReplayError>() {
+                Some(ReplayError::NoImages { path: p, topic }) => {
+                    assert_eq!(p, &path);
+                    assert_eq!(topic, &None);
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+        other => panic!("{other:?}"),
+    }
     std::fs::remove_dir_all(&dir).ok();
 }
 

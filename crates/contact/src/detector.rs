@@ -12,6 +12,32 @@ use unitac_core::msg::{ContactState, Header};
 use unitac_core::sensor::Markers;
 use unitac_core::{Frame, Msg, SensorSpec, StageError};
 
+/// Why the detector refused a frame (the cause of its [`StageError::BadInput`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FrameRefused {
+    #[error(
+        "frame {seq} is {width}x{height}, the background is {bg_width}x{bg_height} (learned again \
+         after {after} frames in a row of a new size; {seen} so far)"
+    )]
+    SizeChanged {
+        seq: u64,
+        width: u32,
+        height: u32,
+        bg_width: u32,
+        bg_height: u32,
+        after: u32,
+        seen: u32,
+    },
+    #[error("background not learned yet")]
+    NoBackground,
+    #[error("frame {seq} is saturated ({percent:.0} % of the gel at 250 DN or more)")]
+    Saturated { seq: u64, percent: f32 },
+    #[error("frame {seq} is dark ({percent:.0} % of the gel at 5 DN or less)")]
+    Dark { seq: u64, percent: f32 },
+    #[error("frame {seq}: illumination gain {gain:.2} on channel {channel} is implausible")]
+    Gain { seq: u64, gain: f32, channel: usize },
+}
+
 /// Plausible range of the per-channel illumination gain against the background.
 const GAIN_RANGE: (f32, f32) = (0.2, 5.0);
 /// Every n-th grid cell is sampled for the gain and the saturation check (13 is prime, so the
@@ -253,11 +279,15 @@ impl ContactDetector {
             Some((s, n)) if s == (f.width, f.height) => n,
             _ => 0,
         };
-        StageError::BadInput(format!(
-            "frame {} is {}x{}, the background is {}x{} (learned again after {} frames in a row \
-             of a new size; {seen} so far)",
-            f.seq, f.width, f.height, g.width, g.height, self.p.new_size_frames
-        ))
+        StageError::bad_input(FrameRefused::SizeChanged {
+            seq: f.seq,
+            width: f.width,
+            height: f.height,
+            bg_width: g.width,
+            bg_height: g.height,
+            after: self.p.new_size_frames,
+            seen,
+        })
     }
 
     /// The grid of a frame of the background's size (or of any size before there is one); an
@@ -317,7 +347,7 @@ impl ContactDetector {
     pub fn measure(&mut self, f: &Frame) -> Result<Measurement, StageError> {
         let geo = self.geometry_of(f)?;
         let Some(Model::Ready { bg, markers }) = &self.model else {
-            return Err(StageError::BadInput("background not learned yet".into()));
+            return Err(StageError::bad_input(FrameRefused::NoBackground));
         };
         let k = self.size_scale(geo.width, geo.height);
         let s = &mut self.s;
@@ -347,18 +377,16 @@ impl ContactDetector {
         }
         let share = |n: usize| n as f32 / sampled.max(1) as f32;
         if share(sat) > self.p.max_bad_pixel_share {
-            return Err(StageError::BadInput(format!(
-                "frame {} is saturated ({:.0} % of the gel at 250 DN or more)",
-                f.seq,
-                100.0 * share(sat)
-            )));
+            return Err(StageError::bad_input(FrameRefused::Saturated {
+                seq: f.seq,
+                percent: 100.0 * share(sat),
+            }));
         }
         if share(dark) > self.p.max_bad_pixel_share {
-            return Err(StageError::BadInput(format!(
-                "frame {} is dark ({:.0} % of the gel at 5 DN or less)",
-                f.seq,
-                100.0 * share(dark)
-            )));
+            return Err(StageError::bad_input(FrameRefused::Dark {
+                seq: f.seq,
+                percent: 100.0 * share(dark),
+            }));
         }
         let mut gain = [1.0f32; 3];
         for (c, (g, r)) in gain.iter_mut().zip(s.ratios.iter_mut()).enumerate() {
@@ -367,10 +395,11 @@ impl ContactDetector {
                 *g = m;
             }
             if !(GAIN_RANGE.0..=GAIN_RANGE.1).contains(g) {
-                return Err(StageError::BadInput(format!(
-                    "frame {}: illumination gain {g:.2} on channel {c} is implausible",
-                    f.seq
-                )));
+                return Err(StageError::bad_input(FrameRefused::Gain {
+                    seq: f.seq,
+                    gain: *g,
+                    channel: c,
+                }));
             }
         }
 

@@ -44,7 +44,7 @@ mod stage;
 mod store;
 
 pub use background::{Background, BackgroundFileError, Learner};
-pub use detector::{ContactDetector, Measurement};
+pub use detector::{ContactDetector, FrameRefused, Measurement};
 pub use params::{ContactParams, MAX_CLIP_FRAMES, ParamsError};
 pub use slip::{MarkerField, SlipParams, SlipStage};
 pub use stage::ContactStage;

@@ -146,7 +146,7 @@ impl ContactStage {
             d.est = match self.det.background_frame(&f.sensor_id) {
                 Some(bg) => Some(
                     DepthEstimator::new(d.cal.clone(), bg, DepthParams::default())
-                        .map_err(|e| StageError::BadInput(e.to_string()))?,
+                        .map_err(StageError::bad_input)?,
                 ),
                 None => None,
             };
@@ -155,9 +155,7 @@ impl ContactStage {
         let Some(est) = d.est.as_mut() else {
             return Ok(());
         };
-        let s = est
-            .estimate(f)
-            .map_err(|e| StageError::BadInput(e.to_string()))?;
+        let s = est.estimate(f).map_err(StageError::bad_input)?;
         for m in out.iter_mut() {
             let Msg::ContactState(cs) = m else { continue };
             if !cs.in_contact || !s.contact {
@@ -265,7 +263,7 @@ impl ContactStage {
             arrows: &arrows,
             depth,
         };
-        draw(f, &o).map_err(|e| StageError::BadInput(e.to_string()))
+        draw(f, &o).map_err(StageError::bad_input)
     }
 }
 

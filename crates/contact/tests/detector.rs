@@ -1,9 +1,9 @@
 //! Contact detector behaviour on mock-sensor frames with ground truth.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use unitac_contact::{Background, ContactDetector, ContactParams, ContactStage};
+use unitac_contact::{Background, ContactDetector, ContactParams, ContactStage, FrameRefused};
 use unitac_core::msg::ContactEpisode;
-use unitac_core::{Frame, ManualClock, Msg, SensorKind, Stage, Stamp};
+use unitac_core::{Frame, ManualClock, Msg, SensorKind, Stage, StageError, Stamp};
 use unitac_sim::{Drift, MockConfig, MockSensor, Scenario};
 
 struct Run {
@@ -151,14 +151,32 @@ fn saturated_dark_and_wrong_size_frames_are_errors_and_leave_state_intact() {
     let white = Frame::new("s", 100, Stamp(1), 320, 240, vec![255; 320 * 240 * 3]).unwrap();
     let black = Frame::new("s", 101, Stamp(2), 320, 240, vec![0; 320 * 240 * 3]).unwrap();
     let small = Frame::new("s", 102, Stamp(3), 4, 4, vec![0; 48]).unwrap();
-    assert!(
-        det.step(&white)
-            .unwrap_err()
-            .to_string()
-            .contains("saturated")
-    );
-    assert!(det.step(&black).unwrap_err().to_string().contains("dark"));
-    assert!(det.step(&small).unwrap_err().to_string().contains("4x4"));
+    // Each refusal is a bad input whose cause is the detector's own typed error.
+    let refused = |e: StageError| match e {
+        StageError::BadInput(c) => c.downcast::<FrameRefused>().map(|b| *b).unwrap(),
+        other => panic!("{other}"),
+    };
+    assert!(matches!(
+        refused(det.step(&white).unwrap_err()),
+        FrameRefused::Saturated { seq: 100, percent } if percent > 99.0
+    ));
+    assert!(matches!(
+        refused(det.step(&black).unwrap_err()),
+        FrameRefused::Dark { seq: 101, .. }
+    ));
+    let e = det.step(&small).unwrap_err();
+    assert!(e.to_string().contains("4x4"), "{e}");
+    assert!(matches!(
+        refused(e),
+        FrameRefused::SizeChanged {
+            seq: 102,
+            width: 4,
+            height: 4,
+            bg_width: 320,
+            bg_height: 240,
+            ..
+        }
+    ));
     assert_eq!(det.background().unwrap(), &bg_before);
     let out = det.step(&sensor.next_with_truth().unwrap().0).unwrap();
     assert!(matches!(&out[0], Msg::ContactState(c) if !c.in_contact && c.area_px == 0.0));

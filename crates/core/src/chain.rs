@@ -361,7 +361,7 @@ mod tests {
         }
         fn process(&mut self, m: &Msg, c: &dyn Clock) -> Result<Vec<Msg>, StageError> {
             if text(m).starts_with("bad") {
-                return Err(StageError::BadInput(text(m).into()));
+                return Err(StageError::bad_input(text(m).to_string()));
             }
             Ok(vec![status(
                 &format!("{}({})@{}", self.0, text(m), c.now().0),

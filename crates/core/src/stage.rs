@@ -9,16 +9,24 @@ use crate::frame::{Frame, FrameError};
 use crate::msg::Msg;
 use thiserror::Error;
 
+/// What a stage or source error wraps: the typed error of the crate that found the fault, kept
+/// whole (a caller matches the variant, then `downcast_ref`s to that crate's type; `source()`
+/// walks its chain). A plain message converts too (`"...".into()`), for a fault no type names.
+pub type Cause = Box<dyn std::error::Error + Send + Sync + 'static>;
+
 /// A per-message failure. The runtime counts it, logs it once and goes on with the next message;
 /// the stage's state must be as it was before the bad input.
 #[derive(Debug, Error)]
 pub enum StageError {
+    /// The message breaks the stage's input contract (a frame of another size, an empty clip, a
+    /// setting out of range): the cause is the stage crate's own error.
     #[error("bad input: {0}")]
-    BadInput(String),
+    BadInput(Cause),
     #[error(transparent)]
     Frame(#[from] FrameError),
+    /// A model failed or gave what it must not (missing outputs, non-finite values).
     #[error("model: {0}")]
-    Model(String),
+    Model(Cause),
     /// State the stage keeps outside the process (e.g. a saved background) could not be read or
     /// written; `what` says which and what for.
     #[error("{what}: {source}")]
@@ -70,17 +78,47 @@ pub trait Stage: Send {
     }
 }
 
+impl StageError {
+    /// A bad input whose cause is `e` (typically `map_err(StageError::bad_input)`).
+    pub fn bad_input(e: impl Into<Cause>) -> Self {
+        StageError::BadInput(e.into())
+    }
+
+    /// A model failure whose cause is `e`.
+    pub fn model(e: impl Into<Cause>) -> Self {
+        StageError::Model(e.into())
+    }
+}
+
+/// A source's failure; each variant keeps the driver's or reader's own error as its [`Cause`].
 #[derive(Debug, Error)]
 pub enum SourceError {
     /// This frame is lost (corrupt buffer, decode error); the source goes on.
     #[error("frame dropped: {0}")]
-    Frame(String),
+    Frame(Cause),
     /// The device is gone; the source may come back (reconnect) or end.
     #[error("device unavailable: {0}")]
-    Unavailable(String),
+    Unavailable(Cause),
     /// Nothing more can come from this source.
     #[error("source failed: {0}")]
-    Fatal(String),
+    Fatal(Cause),
+}
+
+impl SourceError {
+    /// A lost frame whose cause is `e`.
+    pub fn frame(e: impl Into<Cause>) -> Self {
+        SourceError::Frame(e.into())
+    }
+
+    /// An unavailable device whose cause is `e`.
+    pub fn unavailable(e: impl Into<Cause>) -> Self {
+        SourceError::Unavailable(e.into())
+    }
+
+    /// A source that ended on `e`.
+    pub fn fatal(e: impl Into<Cause>) -> Self {
+        SourceError::Fatal(e.into())
+    }
 }
 
 /// Where frames come from: a V4L2 sensor, the mock sensor, a bag.

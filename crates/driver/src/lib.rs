@@ -30,7 +30,7 @@ pub mod v4l_backend;
 
 pub use calib::Calibration;
 pub use capture::{CaptureDevice, DeviceError, Mode};
-pub use stream::{Backend, SensorStream, StreamConfig, SystemDriverClock};
+pub use stream::{Backend, SensorStream, StreamConfig, StreamError, SystemDriverClock};
 pub use v4l_backend::V4lBackend;
 
 use std::path::Path;
@@ -44,12 +44,11 @@ pub fn open_v4l(
     calibration_dir: Option<&Path>,
 ) -> Result<SensorStream<V4lBackend, SystemDriverClock>, SourceError> {
     let found = discover::find_by_serial(root, serial)
-        .map_err(|e| SourceError::Unavailable(e.to_string()))?
+        .map_err(SourceError::unavailable)?
         .0;
     let kind: SensorKind = found.kind;
     let calibration = match calibration_dir {
-        Some(dir) => Calibration::load_for(dir, kind, serial)
-            .map_err(|e| SourceError::Fatal(e.to_string()))?,
+        Some(dir) => Calibration::load_for(dir, kind, serial).map_err(SourceError::fatal)?,
         None => Calibration::default_for(kind, serial),
     };
     SensorStream::open(

@@ -27,6 +27,31 @@ use serde::Serialize;
 use std::time::Duration;
 use unitac_core::{Frame, Source, SourceError, Stamp};
 
+/// The stream's own faults: the [`SourceError`] causes that the device's [`DeviceError`] and
+/// the decoder's [`DecodeError`] do not name by themselves.
+#[derive(Debug, thiserror::Error)]
+pub enum StreamError {
+    #[error("calibration: {0}")]
+    Calibration(DecodeError),
+    /// The device went away or stalled; the stream reconnects.
+    #[error("{name}: {why}")]
+    Lost { name: String, why: String },
+    #[error("{name}: still away after {attempts} attempts: {last}")]
+    StillAway {
+        name: String,
+        attempts: u32,
+        last: DeviceError,
+    },
+    #[error("streaming without a mode")]
+    NoMode,
+    #[error("buffer without a capture timestamp")]
+    NoTimestamp,
+    #[error("seq {seq}: {error}")]
+    Decode { seq: u64, error: DecodeError },
+    #[error("no fresh buffer after {0} tries")]
+    NoFreshBuffer(u32),
+}
+
 /// Opens devices by serial: the real one (V4L2 through sysfs discovery) or a fake.
 pub trait Backend: Send {
     /// Open the capture node of the sensor with this serial. `DeviceError::Gone` if it is not
@@ -225,7 +250,7 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
     /// not look like a loose cable). Later disappearances are reconnected.
     pub fn open(cfg: StreamConfig, backend: B, clock: C) -> Result<Self, SourceError> {
         let decoder = FrameDecoder::new(cfg.calibration.decode_config())
-            .map_err(|e| SourceError::Fatal(format!("calibration: {e}")))?;
+            .map_err(|e| SourceError::fatal(StreamError::Calibration(e)))?;
         let mut s = Self {
             name: format!("v4l:{}", cfg.serial),
             cfg,
@@ -249,8 +274,8 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
             lost_reported_at: None,
         };
         let dev = s.connect().map_err(|e| match e {
-            DeviceError::Gone(m) => SourceError::Unavailable(m),
-            other => SourceError::Fatal(other.to_string()),
+            e @ DeviceError::Gone(_) => SourceError::unavailable(e),
+            other => SourceError::fatal(other),
         })?;
         s.state = State::Streaming(dev);
         Ok(s)
@@ -288,14 +313,11 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
         &mut self,
         settings: crate::controls::CameraSettings,
     ) -> Result<Vec<ControlMismatch>, SourceError> {
-        settings
-            .validate()
-            .map_err(|e| SourceError::Fatal(e.to_string()))?;
+        settings.validate().map_err(SourceError::fatal)?;
         self.cfg.calibration.camera = settings;
         if let State::Streaming(dev) = &mut self.state {
             let plan = settings.plan(self.cfg.calibration.kind, self.firmware);
-            let bad = apply_and_verify(dev.as_mut(), &plan)
-                .map_err(|e| SourceError::Unavailable(e.to_string()))?;
+            let bad = apply_and_verify(dev.as_mut(), &plan).map_err(SourceError::unavailable)?;
             self.counters.control_mismatches += bad.len() as u64;
             self.last_mismatches = bad.clone();
             return Ok(bad);
@@ -368,7 +390,10 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
         self.counters.disconnects += 1;
         self.lost_reported_at = Some(self.clock.monotonic());
         tracing::warn!("{}: {why}; reconnecting", self.name);
-        SourceError::Unavailable(format!("{}: {why}", self.name))
+        SourceError::unavailable(StreamError::Lost {
+            name: self.name.clone(),
+            why: why.to_string(),
+        })
     }
 
     /// The device is open but silent: close it, reset its USB device, re-open by serial.
@@ -395,7 +420,10 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
         self.recovering_stall = true;
         self.counters.disconnects += 1;
         self.lost_reported_at = Some(self.clock.monotonic());
-        SourceError::Unavailable(format!("{}: {why}", self.name))
+        SourceError::unavailable(StreamError::Lost {
+            name: self.name.clone(),
+            why: why.to_string(),
+        })
     }
 
     /// One step while lost: wait for the next try (bounded by `report_every`), try to open.
@@ -431,11 +459,11 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
                     .is_none_or(|t| now.saturating_sub(t) >= self.cfg.report_every);
                 if due {
                     self.lost_reported_at = Some(now);
-                    Err(SourceError::Unavailable(format!(
-                        "{}: still away after {} attempts: {e}",
-                        self.name,
-                        attempt + 1
-                    )))
+                    Err(SourceError::unavailable(StreamError::StillAway {
+                        name: self.name.clone(),
+                        attempts: attempt.saturating_add(1),
+                        last: e,
+                    }))
                 } else {
                     Ok(())
                 }
@@ -448,7 +476,7 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
             return Ok(None);
         };
         let Some(mode) = self.mode else {
-            return Err(SourceError::Fatal("streaming without a mode".into()));
+            return Err(SourceError::fatal(StreamError::NoMode));
         };
         // Re-check the clock offset before dequeuing (cheap: two clock reads once a second).
         let mono = self.clock.monotonic();
@@ -471,9 +499,9 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
                         self.timeouts_in_a_row
                     )));
                 }
-                return Err(SourceError::Frame(format!("no frame within {d:?}")));
+                return Err(SourceError::frame(DeviceError::Timeout(d)));
             }
-            Err(e) => return Err(SourceError::Frame(e.to_string())),
+            Err(e) => return Err(SourceError::frame(e)),
         };
         self.timeouts_in_a_row = 0;
         self.last_buffer_at = self.clock.monotonic();
@@ -487,14 +515,12 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
         let (seq, _) = self.seq.feed(buf.sequence);
         let Some(stamp) = self.time.map(buf.timestamp) else {
             self.counters.no_timestamp += 1;
-            return Err(SourceError::Frame(
-                "buffer without a capture timestamp".into(),
-            ));
+            return Err(SourceError::frame(StreamError::NoTimestamp));
         };
         let rgb = self
             .decoder
             .decode(mode.format, mode.width, mode.height, buf.data)
-            .map_err(|e: DecodeError| SourceError::Frame(format!("seq {seq}: {e}")))?;
+            .map_err(|error| SourceError::frame(StreamError::Decode { seq, error }))?;
         let frame = Frame::new(
             self.cfg.serial.clone(),
             seq,
@@ -503,7 +529,7 @@ impl<B: Backend, C: DriverClock> SensorStream<B, C> {
             rgb.height,
             rgb.data,
         )
-        .map_err(|e| SourceError::Frame(e.to_string()))?;
+        .map_err(SourceError::frame)?;
         self.counters.frames += 1;
         Ok(Some(frame))
     }
@@ -518,7 +544,8 @@ impl<B: Backend, C: DriverClock> Source for SensorStream<B, C> {
     }
     fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
         // Bounded: stale buffers are at most queue_len + 1 per start.
-        for _ in 0..64 {
+        const TRIES: u32 = 64;
+        for _ in 0..TRIES {
             match self.state {
                 State::Lost { .. } => self.try_reconnect()?,
                 State::Streaming(_) => {
@@ -528,6 +555,6 @@ impl<B: Backend, C: DriverClock> Source for SensorStream<B, C> {
                 }
             }
         }
-        Err(SourceError::Frame("no fresh buffer after 64 tries".into()))
+        Err(SourceError::frame(StreamError::NoFreshBuffer(TRIES)))
     }
 }

@@ -15,7 +15,25 @@ pub use crate::compare::{CompareParams, CompareStage};
 pub const PROPERTIES: [&str; 3] = ["hardness", "roughness", "texture"];
 
 fn model_err(e: InferError) -> StageError {
-    StageError::Model(e.to_string())
+    StageError::model(e)
+}
+
+/// Why the encoder refused a clip ([`StageError::BadInput`]) or its models' answer
+/// ([`StageError::Model`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EncodeError {
+    #[error("episode clip without background")]
+    NoBackground,
+    #[error("empty clip")]
+    EmptyClip,
+    #[error("encoder: no output")]
+    NoEncoderOutput,
+    #[error("property head: missing outputs")]
+    MissingHeadOutputs,
+    #[error("property head returned {scores} scores and {stds} stds")]
+    HeadShape { scores: usize, stds: usize },
+    #[error("encoder or property head returned a non-finite value")]
+    NonFinite,
 }
 
 /// What the encoder and the property head said about one clip.
@@ -71,11 +89,11 @@ impl EncoderStage {
         let bg = clip
             .background
             .as_ref()
-            .ok_or_else(|| StageError::BadInput("episode clip without background".into()))?;
+            .ok_or(StageError::bad_input(EncodeError::NoBackground))?;
         let x = self
             .pre
             .clip(&clip.frames, clip.peak_index)
-            .ok_or_else(|| StageError::BadInput("empty clip".into()))?;
+            .ok_or_else(|| StageError::bad_input(EncodeError::EmptyClip))?;
         let mut b = Vec::new();
         self.pre.frame_into(bg, &mut b);
         let (t, s) = (i64::from(self.pre.clip_frames), i64::from(self.pre.size));
@@ -86,18 +104,17 @@ impl EncoderStage {
         let (tok_shape, tokens) = outs
             .into_iter()
             .next()
-            .ok_or_else(|| StageError::Model("encoder: no output".into()))?;
+            .ok_or_else(|| StageError::model(EncodeError::NoEncoderOutput))?;
         let heads = self.head.run(&[(&tok_shape, &tokens)]).map_err(model_err)?;
         let mut it = heads.into_iter();
         let (Some((_, scores)), Some((_, stds))) = (it.next(), it.next()) else {
-            return Err(StageError::Model("property head: missing outputs".into()));
+            return Err(StageError::model(EncodeError::MissingHeadOutputs));
         };
         if scores.len() != 3 || stds.len() != 3 {
-            return Err(StageError::Model(format!(
-                "property head returned {} scores and {} stds",
-                scores.len(),
-                stds.len()
-            )));
+            return Err(StageError::model(EncodeError::HeadShape {
+                scores: scores.len(),
+                stds: stds.len(),
+            }));
         }
         if tokens
             .iter()
@@ -105,9 +122,7 @@ impl EncoderStage {
             .chain(&stds)
             .any(|v| !v.is_finite())
         {
-            return Err(StageError::Model(
-                "encoder or property head returned a non-finite value".into(),
-            ));
+            return Err(StageError::model(EncodeError::NonFinite));
         }
         Ok(Encoded {
             tok_shape,

@@ -26,6 +26,16 @@ use std::time::Instant;
 use unitac_core::msg::{Header, LatentSource, TactileLatent, VisualObservation};
 use unitac_core::{Clock, Msg, Stage, StageError, Stamp};
 
+/// The sensor prior the stage holds does not fit the velocity model's sensor input (a
+/// [`StageError::Model`]: the bundle and the encoder disagree).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("sensor prior has {got} values, the velocity model's {input} takes {want}")]
+pub struct PriorWidth {
+    pub got: usize,
+    pub input: String,
+    pub want: usize,
+}
+
 /// Most objects one sampler stage predicts for.
 pub const MAX_OBJECTS: usize = 8;
 /// Most samples averaged per object.
@@ -112,18 +122,18 @@ pub fn conditions(
     for (c, &w) in spec.condition.iter().zip(dims) {
         match c.source {
             ConditionSource::Object => {
-                let v = object_condition(&c.fields, object, visual)
-                    .map_err(|e| StageError::BadInput(e.to_string()))?;
+                let v =
+                    object_condition(&c.fields, object, visual).map_err(StageError::bad_input)?;
                 prior.extend(std::iter::repeat_n(0.0, v.len()));
                 cond.extend(v);
             }
             ConditionSource::SensorTokens => {
                 if z_sen.len() != w {
-                    return Err(StageError::Model(format!(
-                        "sensor prior has {} values, the velocity model's {} takes {w}",
-                        z_sen.len(),
-                        c.input
-                    )));
+                    return Err(StageError::model(PriorWidth {
+                        got: z_sen.len(),
+                        input: c.input.clone(),
+                        want: w,
+                    }));
                 }
                 prior.extend_from_slice(z_sen);
                 cond.extend_from_slice(z_sen);
@@ -333,7 +343,7 @@ impl SamplerStage {
                     ..self.cfg.clone()
                 };
                 let s = sample(&mut self.velocity, &cfg, &guards, &prior, &cond)
-                    .map_err(|e| StageError::Model(e.to_string()))?;
+                    .map_err(StageError::model)?;
                 valid &= s.valid;
                 if report.is_empty() {
                     report = s.report;
@@ -381,10 +391,7 @@ impl Stage for SamplerStage {
     fn process(&mut self, input: &Msg, clock: &dyn Clock) -> Result<Vec<Msg>, StageError> {
         match input {
             Msg::Background(bg) => {
-                let z = self
-                    .prior
-                    .of(bg)
-                    .map_err(|e| StageError::Model(e.to_string()))?;
+                let z = self.prior.of(bg).map_err(StageError::model)?;
                 // A new background (the sensor changed): predict again.
                 self.predicted = false;
                 self.inputs.sensor = Some((z, bg.stamp, bg.sensor_id.clone()));

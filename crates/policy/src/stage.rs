@@ -483,7 +483,6 @@ impl Stage for PolicyStage {
     }
 
     fn set_input_lost(&mut self, name: &str, why: Option<String>) -> Result<(), StageError> {
-        PolicyStage::set_input_lost(self, name, why)
-            .map_err(|e| StageError::BadInput(e.to_string()))
+        PolicyStage::set_input_lost(self, name, why).map_err(StageError::bad_input)
     }
 }

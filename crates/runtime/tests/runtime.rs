@@ -37,7 +37,7 @@ impl Source for Burst {
         self.i += 1;
         std::thread::sleep(Duration::from_micros(500));
         if self.i % 10 == 0 {
-            return Err(SourceError::Frame("corrupt buffer".into()));
+            return Err(SourceError::frame("corrupt buffer"));
         }
         Ok(Some(
             Frame::new("burst", self.i, Stamp(self.i as i64), 1, 1, vec![0; 3]).unwrap(),
@@ -63,7 +63,7 @@ impl Stage for Slow {
         };
         std::thread::sleep(self.delay);
         if f.seq % 7 == 0 {
-            return Err(StageError::BadInput(format!("frame {}", f.seq)));
+            return Err(StageError::bad_input(format!("frame {}", f.seq)));
         }
         let _ = clock.now();
         Ok(vec![Msg::PolicyStatus(unitac_core::msg::PolicyStatus {

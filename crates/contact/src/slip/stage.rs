@@ -105,7 +105,7 @@ impl SlipStage {
         let now = match self.field.follow(f, &self.p) {
             Ok(Some(now)) => now.to_vec(),
             Ok(None) => return Ok(self.state(f, None, 0)),
-            Err(e) => return Err(StageError::BadInput(e.to_string())),
+            Err(e) => return Err(StageError::bad_input(e)),
         };
         let tracked = now.iter().flatten().count() as u32;
         self.frames_in_contact = self.frames_in_contact.saturating_add(1);
