@@ -11,16 +11,16 @@
 #      watch every trial, so every tick carries every mode's observations; each vtla_real fabric
 #      demonstration must hold the comparison at its decision, and the decisions must name both
 #      fabrics (checked here on the recorded demos.json);
-#   2. scripts/lerobot_dataset.py lays them out in .build/models/learned/datasets/<task>/<mode>
+#   2. python/unitac_tools/lerobot_dataset.py lays them out in .build/models/learned/datasets/<task>/<mode>
 #      (LeRobot v3.0);
-#   3. models/train_policy.py trains the 3 modes x 2 tasks once per training seed (0, 1, 2), each
+#   3. python/unitac_tools/train_policy.py trains the 3 modes x 2 tasks once per training seed (0, 1, 2), each
 #      mode on its own demonstrations, into .build/models/learned/seed<k>/<task>_<mode> (ONNX +
 #      manifest.json) and checks ONNX Runtime against its numpy forward.
 # UNITAC_DAGGER=1 (opt-in, not a setup step: its retrained policies did worse in closed loop,
 # crates/policy/README.md "DAgger") adds one round of DAgger per training seed: each first-round
 # policy drives the world on the training objects (`unitac demos --drive`, draw seed 4,
 # DAGGER_TRIALS trials), every tick labelled with that mode's expert's command there, laid out as LeRobot
-# datasets (.build/models/learned/dagger/seed<k>/<task>_<mode>), and models/train_policy.py
+# datasets (.build/models/learned/dagger/seed<k>/<task>_<mode>), and python/unitac_tools/train_policy.py
 # --dagger trains each seed's policies again on the demonstrations plus its own DAgger states.
 # Needs steps 5 and 6 of scripts/setup.sh (the reference and touch bundles the scenes load).
 # Skipped when its inputs did not change (a stamp of them in .build/models/learned/.stamp); when
@@ -46,8 +46,8 @@ log() { printf '[setup] %s\n' "$*" >&2; }
 # shellcheck source=scripts/stamps.sh
 source scripts/stamps.sh
 
-inputs=(scripts/learned_policies.sh scripts/stamps.sh scripts/lerobot_dataset.py models/train_policy.py
-  models/generate_reference.py models/unitac_schema.py schema/policy.json Cargo.lock crates/cli/src/demos.rs crates/cli/src/main.rs
+inputs=(scripts/learned_policies.sh scripts/stamps.sh python/unitac_tools/lerobot_dataset.py python/unitac_tools/train_policy.py
+  python/unitac_tools/generate_reference.py python/unitac_tools/schema.py schema/policy.json Cargo.lock crates/cli/src/demos.rs crates/cli/src/main.rs
   launch/scenes/*_learned_*.yaml
   launch/scenes/cup_deformation_vtla_real.yaml launch/scenes/cup_deformation_vtla_pred.yaml
   launch/scenes/fabric_selection_vtla_real.yaml launch/scenes/fabric_selection_vtla_pred.yaml
@@ -90,7 +90,7 @@ for task in "${TASKS[@]}"; do
     target/release/unitac demos --scene "${task}_vtla_real,${task}_vtla_pred" --mode "$mode" \
       --split train --seeds 1,2,3 --trials 20 --out "$OUT.tmp/demos/$task/$mode" >&2
     [ "$task" = fabric_selection ] && check_decisions "$OUT.tmp/demos/$task/$mode/demos.json" "$mode"
-    "$VENV/bin/python" scripts/lerobot_dataset.py --demos "$OUT.tmp/demos/$task/$mode/demos.json" \
+    "$VENV/bin/python" -m unitac_tools.lerobot_dataset --demos "$OUT.tmp/demos/$task/$mode/demos.json" \
       --out "$OUT.tmp/datasets/$task/$mode" >&2
   done
   cp -r "$OUT.tmp/datasets/$task/vla" "$OUT.tmp/datasets/$task/vtla_pred"
@@ -100,8 +100,8 @@ rm -rf "$OUT.tmp/demos"
 log "learned policies: demonstrations and datasets in $((SECONDS - start)) s"
 # The policies depend on the datasets, the trainer and the training seeds; DAgger's states also on
 # the closed loop, so with DAgger they are always trained again.
-data_key="$( (content_key "$OUT.tmp/datasets" models/train_policy.py models/generate_reference.py \
-  models/unitac_schema.py schema/policy.json "$VENV/.unitac-stamp"; echo "seeds ${SEEDS[*]} dagger $DAGGER") \
+data_key="$( (content_key "$OUT.tmp/datasets" python/unitac_tools/train_policy.py python/unitac_tools/generate_reference.py \
+  python/unitac_tools/schema.py schema/policy.json "$VENV/.unitac-stamp"; echo "seeds ${SEEDS[*]} dagger $DAGGER") \
   | sha256sum | cut -d' ' -f1)"
 if [ "$DAGGER" = 0 ] && stands "$OUT" "$data_key" \
   && [ -f "$OUT/seed${SEEDS[-1]}/${TASKS[-1]}_vtla_pred/manifest.json" ]; then
@@ -115,7 +115,7 @@ fi
 first="$OUT.tmp"
 [ "$DAGGER" = 1 ] && first="$OUT.tmp/round0"
 for seed in "${SEEDS[@]}"; do
-  "$VENV/bin/python" models/train_policy.py "${sets[@]}" --seed "$seed" --out "$first/seed$seed" >/dev/null
+  "$VENV/bin/python" -m unitac_tools.train_policy "${sets[@]}" --seed "$seed" --out "$first/seed$seed" >/dev/null
 done
 for seed in "${SEEDS[@]}"; do
   [ "$DAGGER" = 1 ] || break
@@ -126,15 +126,15 @@ for seed in "${SEEDS[@]}"; do
       target/release/unitac demos --scene "${task}_vtla_real,${task}_vtla_pred" --mode "$mode" \
         --split train --seeds "$DAGGER_SEED" --trials "$DAGGER_TRIALS" --drive "${task}_learned_$mode" \
         --drive-model "$OUT.tmp/round0/seed$seed/${task}_$mode/manifest.json" --out "$d.demos" >&2
-      "$VENV/bin/python" scripts/lerobot_dataset.py --demos "$d.demos/demos.json" --out "$d" >&2
+      "$VENV/bin/python" -m unitac_tools.lerobot_dataset --demos "$d.demos/demos.json" --out "$d" >&2
       rm -rf "$d.demos"
     done
   done
-  "$VENV/bin/python" models/train_policy.py "${sets[@]}" --seed "$seed" \
+  "$VENV/bin/python" -m unitac_tools.train_policy "${sets[@]}" --seed "$seed" \
     --dagger "$OUT.tmp/dagger/seed$seed" --out "$OUT.tmp/seed$seed" >/dev/null
 done
 rm -rf "$OUT.tmp/round0"
-"$VENV/bin/python" models/train_policy.py --check-onnx "$OUT.tmp/seed0" "${sets[@]}" >/dev/null
+"$VENV/bin/python" -m unitac_tools.train_policy --check-onnx "$OUT.tmp/seed0" "${sets[@]}" >/dev/null
 echo "$data_key" >"$OUT.tmp/.data-key"
 rm -rf "$OUT"
 mv "$OUT.tmp" "$OUT"

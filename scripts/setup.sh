@@ -15,20 +15,20 @@
 #      ros-controls/control_msgs, which no wheel carries) into .build/control_msgs/install and
 #      .build/jazzy/control_msgs/install
 #   5. the reference model bundle in .build/models/reference: `unitac dataset fabrics` renders
-#      mock presses through the real contact stage, models/generate_reference.py builds the ONNX
+#      mock presses through the real contact stage, python/unitac_tools/generate_reference.py builds the ONNX
 #      models and fits the property head on them (~1 min; only when its inputs changed)
 #   6. the touch projector in .build/models/touch: `unitac dataset touch` pairs what the camera and
 #      the sensor tell before contact with the encoder's latent of the touch (training and unseen
-#      objects, GelSight Mini and DIGIT), models/train_projector.py trains the rectified-flow
+#      objects, GelSight Mini and DIGIT), python/unitac_tools/train_projector.py trains the rectified-flow
 #      projector, evaluates it on the unseen objects (eval.json) and fits the pooled-latent
 #      stiffness readout (~5 min on 2 cores; only when its inputs changed)
 #   7. the reference policy in .build/models/policy: `unitac demos` records the scripted expert
 #      on training cups (and on unseen cups, scored only) through the vtla_real scene's tactile
-#      stages, scripts/fit_reference_policy.py fits the latent -> stiffness readout and exports
+#      stages, python/unitac_tools/fit_reference_policy.py fits the latent -> stiffness readout and exports
 #      it to ONNX (~1 min on 2 cores; only when its inputs changed)
 #   8. the learned policies and their LeRobot datasets in .build/models/learned
 #      (scripts/learned_policies.sh: expert demonstrations of both tasks on training objects,
-#      LeRobot v3.0 datasets, models/train_policy.py for 3 modes x 2 tasks x 3 training seeds)
+#      LeRobot v3.0 datasets, python/unitac_tools/train_policy.py for 3 modes x 2 tasks x 3 training seeds)
 # Each step keeps a stamp of its inputs and is skipped when they did not change, so a re-run with
 # nothing changed takes a couple of seconds. A model step whose sources changed makes its data
 # again and trains only if that data (or its trainer) differs from what its models were trained on
@@ -87,6 +87,18 @@ make_venv() {
 }
 make_venv "$VENV" scripts/requirements.txt
 make_venv "$VENV_JAZZY" scripts/requirements-jazzy.txt
+# The project's Python (python/: the unitac_tools package), editable in .venv: setup, the tests and
+# a user run its tools as `python -m unitac_tools.<module>` from this checkout (pyproject.toml
+# pins the setuptools that builds it; its own dependencies are requirements.txt's).
+install_tools() {
+  local key
+  key="$(hash_of python/pyproject.toml "$VENV/.unitac-stamp" <(declare -f install_tools; echo "$ROOT"))"
+  [ "$(cat "$VENV/.unitac-tools-stamp" 2>/dev/null)" != "$key" ] || return 0
+  log "venv: installing python/ (unitac_tools, editable) into .venv"
+  "$VENV/bin/python" -m pip install -q --disable-pip-version-check --no-deps -e python
+  echo "$key" >"$VENV/.unitac-tools-stamp"
+}
+install_tools
 
 # The venv and build outputs hold ROS package manifests of their own: a colcon workspace with
 # this repository in its src must not take them for packages to build.
@@ -154,7 +166,7 @@ source "$ROOT/scripts/env.sh"
 build_msgs "$BUILD"
 # --- 5. reference model bundle ----------------------------------------------------------------
 MODELS="$BUILD/models"
-models_inputs=(models/generate_reference.py models/unitac_schema.py Cargo.lock crates/cli/src/dataset.rs crates/infer/src/preprocess.rs
+models_inputs=(python/unitac_tools/generate_reference.py python/unitac_tools/schema.py Cargo.lock crates/cli/src/dataset.rs crates/infer/src/preprocess.rs
   $(find crates/sim/src crates/contact/src crates/core/src -name '*.rs' | sort))
 models_key="$(hash_of "${models_inputs[@]}" "$VENV/.unitac-stamp")"
 if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS/reference/manifest.json" ]; then
@@ -162,12 +174,12 @@ if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS
   cargo build --release --locked -q -p unitac-cli
   rm -rf "$MODELS/data" "$MODELS/reference.tmp"
   target/release/unitac dataset fabrics --out "$MODELS/data"
-  data_key="$(content_key "$MODELS/data" models/generate_reference.py models/unitac_schema.py crates/infer/src/preprocess.rs "$VENV/.unitac-stamp")"
+  data_key="$(content_key "$MODELS/data" python/unitac_tools/generate_reference.py python/unitac_tools/schema.py crates/infer/src/preprocess.rs "$VENV/.unitac-stamp")"
   if stands "$MODELS/reference" "$data_key" && [ -f "$MODELS/reference/manifest.json" ]; then
     log "models: the dataset is byte-identical to the reference bundle's: the bundle stands"
   else
     log "models: fitting the reference bundle"
-    "$VENV/bin/python" models/generate_reference.py "$MODELS/reference.tmp" --data "$MODELS/data" >"$MODELS/fit.json"
+    "$VENV/bin/python" -m unitac_tools.generate_reference "$MODELS/reference.tmp" --data "$MODELS/data" >"$MODELS/fit.json"
     echo "$data_key" >"$MODELS/reference.tmp/.data-key"
     rm -rf "$MODELS/reference"
     mv "$MODELS/reference.tmp" "$MODELS/reference"
@@ -177,11 +189,11 @@ if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS
 fi
 # --- 6. touch projector -----------------------------------------------------------------------
 # The camera's values and sensor prior of training objects before contact, with the encoder's
-# latent of their touch, on two sensors (`unitac dataset touch`); models/train_projector.py
+# latent of their touch, on two sensors (`unitac dataset touch`); python/unitac_tools/train_projector.py
 # trains the rectified-flow projector on the training split, evaluates it on the unseen split
 # and writes the bundle (encoder + projector + the pooled-latent stiffness readout).
 TOUCH="$MODELS/touch"
-touch_inputs=(models/train_projector.py Cargo.lock crates/cli/src/touch_dataset.rs crates/cli/src/dataset.rs
+touch_inputs=(python/unitac_tools/train_projector.py Cargo.lock crates/cli/src/touch_dataset.rs crates/cli/src/dataset.rs
   launch/scenes/cup_deformation_vtla_real.yaml objects/split.yaml
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
 touch_key="$(hash_of "${touch_inputs[@]}" "$MODELS/reference/manifest.json")"
@@ -195,14 +207,14 @@ if [ "$(cat "$TOUCH/.stamp" 2>/dev/null)" != "$touch_key" ] || [ ! -f "$TOUCH/ma
     target/release/unitac dataset touch --split unseen --seeds 101,102,103 --trials 20 --sensor "$s" \
       --out "$TOUCH.tmp/data/unseen-$s" >&2
   done
-  data_key="$(content_key "$TOUCH.tmp/data" models/train_projector.py models/generate_reference.py \
-    models/unitac_schema.py schema/policy.json "$MODELS/reference/manifest.json")"
+  data_key="$(content_key "$TOUCH.tmp/data" python/unitac_tools/train_projector.py python/unitac_tools/generate_reference.py \
+    python/unitac_tools/schema.py schema/policy.json "$MODELS/reference/manifest.json")"
   if stands "$TOUCH" "$data_key" && [ -f "$TOUCH/manifest.json" ]; then
     log "touch projector: the dataset is byte-identical to the projector's: it stands"
     rm -rf "$TOUCH.tmp"
   else
     log "touch projector: training (~3 min on 2 cores)"
-    "$VENV/bin/python" models/train_projector.py --train "$TOUCH.tmp"/data/train-*/touch.json \
+    "$VENV/bin/python" -m unitac_tools.train_projector --train "$TOUCH.tmp"/data/train-*/touch.json \
       --unseen "$TOUCH.tmp"/data/unseen-*/touch.json --reference "$MODELS/reference" --out "$TOUCH.tmp" >/dev/null
     echo "$data_key" >"$TOUCH.tmp/.data-key"
     rm -rf "$TOUCH.tmp/data" "$TOUCH"
@@ -212,7 +224,7 @@ if [ "$(cat "$TOUCH/.stamp" 2>/dev/null)" != "$touch_key" ] || [ ! -f "$TOUCH/ma
 fi
 # --- 7. reference policies --------------------------------------------------------------------
 POLICIES="$MODELS/policy"
-policy_inputs=(scripts/fit_reference_policy.py Cargo.lock launch/scenes/cup_deformation_vtla_real.yaml
+policy_inputs=(python/unitac_tools/fit_reference_policy.py Cargo.lock launch/scenes/cup_deformation_vtla_real.yaml
   crates/cli/src/demos.rs
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
 policy_key="$(hash_of "${policy_inputs[@]}" "$MODELS/reference/manifest.json")"
@@ -224,13 +236,13 @@ if [ "$(cat "$POLICIES/.stamp" 2>/dev/null)" != "$policy_key" ] || [ ! -f "$POLI
   demos="$POLICIES.tmp/demos"
   target/release/unitac demos --scene cup_deformation_vtla_real --split train --seeds 1,2,3 --trials 20 --out "$demos/train" >&2
   target/release/unitac demos --scene cup_deformation_vtla_real --split unseen --seeds 101,102 --trials 10 --out "$demos/unseen" >&2
-  data_key="$(content_key "$demos" scripts/fit_reference_policy.py models/unitac_schema.py schema/policy.json \
+  data_key="$(content_key "$demos" python/unitac_tools/fit_reference_policy.py python/unitac_tools/schema.py schema/policy.json \
     "$VENV/.unitac-stamp")"
   if stands "$POLICIES" "$data_key" && [ -f "$POLICIES/cup_stiffness_real/manifest.json" ]; then
     log "policies: the demonstrations are byte-identical to the readout's: it stands"
     rm -rf "$POLICIES.tmp"
   else
-    "$VENV/bin/python" scripts/fit_reference_policy.py --train "$demos/train/demos.json" \
+    "$VENV/bin/python" -m unitac_tools.fit_reference_policy --train "$demos/train/demos.json" \
       --eval "$demos/unseen/demos.json" --source real --name cup_stiffness_real \
       --out "$POLICIES.tmp/cup_stiffness_real" >/dev/null
     echo "$data_key" >"$POLICIES.tmp/.data-key"

@@ -1,5 +1,5 @@
 //! Generates `unitac_policy::schema` from schema/policy.json: the policies' data layout as
-//! constants (see the `schema` module docs). Python reads the same file (models/unitac_schema.py).
+//! constants (see the `schema` module docs). Python reads the same file (python/unitac_tools/schema.py).
 
 use serde_json::Value;
 use std::fmt::Write as _;

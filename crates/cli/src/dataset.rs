@@ -1,6 +1,6 @@
 //! `unitac dataset fabrics`: mock-sensor presses on fabrics with known properties, run through
 //! the real contact stage and the encoder's preprocessing, written for the reference bundle's
-//! fitting script (models/generate_reference.py).
+//! fitting script (python/unitac_tools/generate_reference.py).
 //!
 //! Output directory: `clips.f32` (N x T x 3 x S x S), `backgrounds.f32` (N x 3 x S x S),
 //! `labels.jsonl` (one object per sample: hardness, roughness, texture in 0..1, the physical

@@ -3,7 +3,7 @@
 //! scenes' task, with what a policy of every mode could observe (unitac_trials::demos), the
 //! frames going through each scene's own tactile stages (every stage before its policy stage; one
 //! chain per scene, the first one's contact state drives vtla_real's cup probe), written as
-//! `DIR/demos.json` for scripts/fit_reference_policy.py and scripts/lerobot_dataset.py. The
+//! `DIR/demos.json` for python/unitac_tools/fit_reference_policy.py and python/unitac_tools/lerobot_dataset.py. The
 //! expert decides from what M observes: vtla_real's demonstrations probe the cup and choose the
 //! fabric from the live comparison, vla's and vtla_pred's do neither (the camera's guesses).
 //!

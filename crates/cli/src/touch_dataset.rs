@@ -1,6 +1,6 @@
 //! `unitac dataset touch --split train|unseen --seeds 1,2 --trials N --sensor S --out DIR`: what
 //! is known about an object before it is touched, paired with what the touch encoder says when
-//! it is touched, for the touch projector (models/train_projector.py).
+//! it is touched, for the touch projector (python/unitac_tools/train_projector.py).
 //!
 //! For each (seed, trial) of the split: the cup task's cup and the fabric task's two fabrics, each
 //! one sample of

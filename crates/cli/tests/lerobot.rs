@@ -1,5 +1,5 @@
 //! Demonstrations in LeRobot's dataset layout v3.0: `unitac demos` records both tasks with every
-//! mode's observations, scripts/lerobot_dataset.py lays them out, and
+//! mode's observations, python/unitac_tools/lerobot_dataset.py lays them out, and
 //! tests/policy/check_lerobot_v3.py checks with pyarrow what LeRobot's v3 loader reads (the
 //! project's Python: `$UNITAC_VENV` or `.venv`). The checker itself must refuse a dataset the
 //! loader would refuse, and values outside a feature's bounds or categories. The writer refuses a
@@ -59,7 +59,7 @@ fn dataset(dir: &Path, scenes: &str, trials: &str) -> PathBuf {
     assert!(o.status.success(), "{}", text(&o));
     let out = dir.join("dataset");
     let o = Command::new(python())
-        .arg(root().join("scripts/lerobot_dataset.py"))
+        .args(["-m", "unitac_tools.lerobot_dataset"])
         .arg("--demos")
         .arg(demos.join("demos.json"))
         .arg("--out")
@@ -229,7 +229,7 @@ fn write_dataset(
     let path = dir.join("demos.json");
     std::fs::write(&path, text(demos.to_string())).unwrap();
     let o = Command::new(python())
-        .arg(root().join("scripts/lerobot_dataset.py"))
+        .args(["-m", "unitac_tools.lerobot_dataset"])
         .arg("--demos")
         .arg(&path)
         .arg("--out")
@@ -499,7 +499,7 @@ fn the_writer_replaces_only_a_dataset_or_an_empty_directory() {
     std::fs::write(notes.join("keep.txt"), "mine").unwrap();
     let run = |out: &Path| {
         Command::new(python())
-            .arg(root().join("scripts/lerobot_dataset.py"))
+            .args(["-m", "unitac_tools.lerobot_dataset"])
             .arg("--demos")
             .arg(dir.join("demos.json"))
             .arg("--out")

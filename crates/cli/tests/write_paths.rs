@@ -1,5 +1,5 @@
 //! Every place the product writes, renames or deletes a path (crates/*/src outside their test
-//! modules, scripts/*.py) is in the allow-list below with the reason its path is one the user
+//! modules, the Python tools in python/unitac_tools) is in the allow-list below with the reason its path is one the user
 //! handed in (an --out, a --port for the simulator), or a temporary the code made itself. A new
 //! write site fails this test until it is listed here with its reason, so it gets looked at: the
 //! rule is that no command touches a path it was not given (crates/cli/README.md, "Paths it
@@ -39,6 +39,7 @@ const PYTHON_CALLS: &[&str] = &[
     "os.mkdir(",
     "mkdtemp(",
     "onnx.save(",
+    "np.save",
     "write_table(",
     // open(path, mode) as f
     "\"w\") as",
@@ -233,57 +234,123 @@ const ALLOWED: &[(&str, &str, usize, &str)] = &[
         1,
         "the scratch directory of a generated policy when done (only that one)",
     ),
-    // Python helpers run by setup and the CLI.
+    // The Python tools (python/unitac_tools), run by setup and by a user.
     (
-        "scripts/fit_reference_policy.py",
+        "python/unitac_tools/generate_reference.py",
+        "os.makedirs(",
+        1,
+        "the OUT_DIR argument",
+    ),
+    (
+        "python/unitac_tools/generate_reference.py",
+        "onnx.save(",
+        1,
+        "save(): each model file inside OUT_DIR (or the path a test hands it)",
+    ),
+    (
+        "python/unitac_tools/generate_reference.py",
+        "\"w\") as",
+        1,
+        "manifest.json inside OUT_DIR",
+    ),
+    (
+        "python/unitac_tools/schema.py",
+        "\"w\") as",
+        1,
+        "write_policy_manifest: manifest.json inside the out_dir its caller was handed",
+    ),
+    (
+        "python/unitac_tools/train_policy.py",
+        "os.makedirs(",
+        1,
+        "each policy's directory inside --out",
+    ),
+    (
+        "python/unitac_tools/train_policy.py",
+        "np.save",
+        1,
+        "weights.npz inside each policy's directory in --out",
+    ),
+    (
+        "python/unitac_tools/train_policy.py",
+        "\"w\") as",
+        1,
+        "train.json inside --out",
+    ),
+    (
+        "python/unitac_tools/train_projector.py",
+        "os.makedirs(",
+        2,
+        "--out, and the stiffness readout's directory inside it",
+    ),
+    (
+        "python/unitac_tools/train_projector.py",
+        "onnx.save(",
+        2,
+        "velocity.onnx and the readout's policy.onnx inside --out",
+    ),
+    (
+        "python/unitac_tools/train_projector.py",
+        "shutil.copy",
+        1,
+        "the reference encoder copied into --out",
+    ),
+    (
+        "python/unitac_tools/train_projector.py",
+        "\"w\") as",
+        4,
+        "check.json, manifest.json, eval.json and the readout's latents.json inside --out",
+    ),
+    (
+        "python/unitac_tools/fit_reference_policy.py",
         "os.makedirs(",
         1,
         "the --out directory",
     ),
     (
-        "scripts/fit_reference_policy.py",
+        "python/unitac_tools/fit_reference_policy.py",
         "onnx.save(",
         1,
         "policy.onnx inside --out",
     ),
     (
-        "scripts/fit_reference_policy.py",
+        "python/unitac_tools/fit_reference_policy.py",
         "\"w\") as",
         1,
-        "fit.json inside --out (its manifest.json, in the same --out, is written by models/unitac_schema.py's write_policy_manifest)",
+        "fit.json inside --out (its manifest.json, in the same --out, is written by python/unitac_tools/schema.py's write_policy_manifest)",
     ),
     (
-        "scripts/lerobot_dataset.py",
+        "python/unitac_tools/lerobot_dataset.py",
         "os.makedirs(",
         2,
         "the --out's parent; directories inside its own mkdtemp",
     ),
     (
-        "scripts/lerobot_dataset.py",
+        "python/unitac_tools/lerobot_dataset.py",
         "write_table(",
         1,
         "a parquet file inside its own mkdtemp",
     ),
     (
-        "scripts/lerobot_dataset.py",
+        "python/unitac_tools/lerobot_dataset.py",
         "\"w\") as",
         1,
         "a JSON file inside its own mkdtemp",
     ),
     (
-        "scripts/lerobot_dataset.py",
+        "python/unitac_tools/lerobot_dataset.py",
         "mkdtemp(",
         2,
         "unique temporaries beside --out",
     ),
     (
-        "scripts/lerobot_dataset.py",
+        "python/unitac_tools/lerobot_dataset.py",
         "os.rename(",
         3,
         "--out (only an empty directory or a dataset) into its own mkdtemp and back, the temporary to --out",
     ),
     (
-        "scripts/lerobot_dataset.py",
+        "python/unitac_tools/lerobot_dataset.py",
         "shutil.rmtree(",
         2,
         "its own mkdtemp temporaries",
@@ -341,7 +408,7 @@ fn write_sites() -> BTreeMap<(String, String), usize> {
         files(&c.unwrap().path().join("src"), "rs", &mut rust);
     }
     let mut py = Vec::new();
-    for e in std::fs::read_dir(root.join("scripts")).unwrap() {
+    for e in std::fs::read_dir(root.join("python/unitac_tools")).unwrap() {
         let p = e.unwrap().path();
         if p.extension().is_some_and(|e| e == "py") {
             py.push(p);

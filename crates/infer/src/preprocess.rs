@@ -41,7 +41,7 @@ pub struct Preprocess {
 }
 
 impl Preprocess {
-    /// The reference bundle's preprocessing (models/generate_reference.py uses the same numbers
+    /// The reference bundle's preprocessing (python/unitac_tools/generate_reference.py uses the same numbers
     /// and checks them against the dataset it is fitted on).
     pub fn reference() -> Self {
         Self {

@@ -1,4 +1,4 @@
-//! [`LearnedPolicy`]: a policy learned from demonstrations (models/train_policy.py, on the
+//! [`LearnedPolicy`]: a policy learned from demonstrations (python/unitac_tools/train_policy.py, on the
 //! LeRobot datasets of `unitac demos`), exported to ONNX, behind the same observation, watchdog
 //! and safety layer as the scene controllers.
 //!

@@ -2,7 +2,7 @@
 //! force): the linear one of the params (`stiffness_bias_n_per_m + stiffness_weights . mean
 //! over the leading dimension`), or a fitted ONNX model the scene names (a policy bundle of
 //! [`crate::onnx`] with one input `observation.tactile_latent` of `latent_len` values and one
-//! action `cup.stiffness` in N/m; scripts/fit_reference_policy.py exports them). Either way the
+//! action `cup.stiffness` in N/m; python/unitac_tools/fit_reference_policy.py exports them). Either way the
 //! result is clamped to [`min_stiffness_n_per_m`, `max_stiffness_n_per_m`], and a reading that
 //! lay outside (the model's own bounds or the params' range) is reported as clipped: a reading at
 //! a bound says the latent lies where the readout cannot tell, never a stiffness.

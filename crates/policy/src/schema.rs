@@ -1,6 +1,6 @@
 //! The policies' data layout, written once in schema/policy.json and generated into constants
 //! here at build time (crates/policy/build.rs); the Python dataset writer and trainers read the
-//! same file (models/unitac_schema.py). A feature `id` in the file is the constant `ID` (its
+//! same file (python/unitac_tools/schema.py). A feature `id` in the file is the constant `ID` (its
 //! LeRobot key), `ID_NAMES`, `ID_UNITS` and `ID_LEN` where its values are fixed; the modes'
 //! stage inputs and learned features, the command actions, the stiffness readout and the
 //! manifest's fixed fields follow.

@@ -1,15 +1,14 @@
-//! The learned policies setup trains (scripts/learned_policies.sh: models/train_policy.py on the
-//! LeRobot datasets of the expert's demonstrations): the trainer's gradient against finite
-//! differences, every policy of the 3 modes x 2 tasks loads through the manifest checks, ONNX
-//! Runtime agrees with the trainer's numpy forward on the dataset's frames, and the Rust runtime
-//! agrees with the Python onnxruntime oracle (tests/policy/policy_oracle.py).
+//! The learned policies setup trains (scripts/learned_policies.sh: unitac_tools.train_policy on
+//! the LeRobot datasets of the expert's demonstrations): every policy of the 3 modes x 2 tasks
+//! loads through the manifest checks, and the Rust runtime agrees with the Python onnxruntime
+//! oracle (tests/policy/policy_oracle.py). The trainer's own checks (its gradient, ONNX Runtime
+//! against its numpy forward) are python/tests/test_train_policy.py's.
 //! The policies are looked up in `$UNITAC_LEARNED`, else `$UNITAC_MODELS/learned`, else
 //! `.build/models/learned`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
 use std::path::PathBuf;
-use std::process::Command;
 use unitac_policy::onnx::NamedInputs;
 
 const TASKS: [&str; 2] = ["cup_deformation", "fabric_selection"];
@@ -26,48 +25,6 @@ fn learned() -> PathBuf {
         .map(PathBuf::from)
         .unwrap_or_else(|| common::root().join(".build/models"))
         .join("learned")
-}
-
-fn trainer(args: &[&str]) -> (bool, String) {
-    let o = Command::new(common::python())
-        .arg(common::root().join("models/train_policy.py"))
-        .args(args)
-        .output()
-        .expect("run the project's Python (scripts/setup.sh makes .venv)");
-    (
-        o.status.success(),
-        format!(
-            "{}{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        ),
-    )
-}
-
-#[test]
-fn the_trainers_gradient_is_the_finite_differences_one() {
-    let (ok, out) = trainer(&["--check-gradients"]);
-    assert!(ok, "{out}");
-    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
-    assert!(
-        v["gradient_check_max_rel_error"].as_f64().unwrap() < 1e-6,
-        "{out}"
-    );
-}
-
-#[test]
-fn onnx_runtime_agrees_with_the_trainer_on_the_training_frames() {
-    let d = learned();
-    let seed0 = d.join("seed0");
-    let mut args = vec!["--check-onnx".to_string(), seed0.display().to_string()];
-    for t in TASKS {
-        args.push("--dataset".into());
-        args.push(d.join("datasets").join(t).display().to_string());
-    }
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let (ok, out) = trainer(&args);
-    assert!(ok, "{out}");
-    assert!(out.contains("onnx_vs_numpy_max_abs_diff"), "{out}");
 }
 
 #[test]

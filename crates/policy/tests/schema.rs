@@ -1,5 +1,5 @@
 //! schema/policy.json is the one definition of the policies' layout: the Rust stages that fill
-//! it and the Python side that reads it (models/unitac_schema.py, which the dataset writer and
+//! it and the Python side that reads it (python/unitac_tools/schema.py, which the dataset writer and
 //! the trainers import) both agree with it.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -14,7 +14,7 @@ use unitac_policy::{Action, ArmAction, GripperAction, Mode};
 
 fn python_view() -> Value {
     let out = Command::new(common::python())
-        .arg(common::root().join("models/unitac_schema.py"))
+        .args(["-m", "unitac_tools.schema"])
         .output()
         .unwrap();
     assert!(

@@ -1,7 +1,7 @@
 //! The fitted latent -> stiffness readouts as the controllers run them (`Readout`) against the
 //! Python onnxruntime oracle (tests/policy/policy_oracle.py) on the same latents: the real
-//! latent's model setup fitted on the expert's demonstrations (scripts/fit_reference_policy.py),
-//! the touch bundle's pooled-latent model (models/train_projector.py), and one fitted here on synthetic demonstrations with a known linear law, which
+//! latent's model setup fitted on the expert's demonstrations (python/unitac_tools/fit_reference_policy.py),
+//! the touch bundle's pooled-latent model (python/unitac_tools/train_projector.py), and one fitted here on synthetic demonstrations with a known linear law, which
 //! the fit must recover.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -167,7 +167,7 @@ fn fit_synthetic(name: &str) -> PathBuf {
     synthetic_demos(&train);
     let dir = tmp.join("model");
     let st = Command::new(common::python())
-        .arg(common::root().join("scripts/fit_reference_policy.py"))
+        .args(["-m", "unitac_tools.fit_reference_policy"])
         .args(["--train", train.to_str().unwrap(), "--source", "real"])
         .args(["--name", "synthetic", "--out", dir.to_str().unwrap()])
         .stdout(std::process::Stdio::null())

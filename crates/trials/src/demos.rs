@@ -2,8 +2,8 @@
 //! policy of every mode could observe (the tactile latents the scenes' stages make of the mock
 //! sensor's frames, the camera's estimate, the gripper's status) next to the expert's labels (the
 //! cup's true stiffness, the expert's setpoints). The reference policies are fitted on the cup's
-//! (scripts/fit_reference_policy.py), the learned policies on the per-tick record of both tasks
-//! ([`DemoTick`], written in LeRobot's layout by scripts/lerobot_dataset.py), on training objects
+//! (python/unitac_tools/fit_reference_policy.py), the learned policies on the per-tick record of both tasks
+//! ([`DemoTick`], written in LeRobot's layout by python/unitac_tools/lerobot_dataset.py), on training objects
 //! only.
 //!
 //! A demonstration is one mode's ([`DemoConfig::mode`]): the expert decides only from what that

@@ -1,6 +1,6 @@
 """Write `unitac demos` demonstrations (demos.json) as a LeRobot dataset, layout v3.0.
 
-usage: lerobot_dataset.py --demos DEMOS.json --out DIR [--robot-type NAME]
+usage: python -m unitac_tools.lerobot_dataset --demos DEMOS.json --out DIR [--robot-type NAME]
 
 Every value is checked before anything is written: each feature's values are numbers (the arm
 target an integer), finite and at most MAX_ABS in magnitude, each action value inside its
@@ -32,7 +32,7 @@ layout (LeRobot's v3.0, read by LeRobotDataset in lerobot 0.4.x):
     data/chunk-000/file-000.parquet       the features, timestamp, frame_index, episode_index,
                                           index, task_index
 
-Features: those of schema/policy.json (read through models/unitac_schema.py), float32: every
+Features: those of schema/policy.json (read through python/unitac_tools/schema.py), float32: every
 observation feature a mode's learned policy reads (observation.visual has the scene's names, the
 per-object latent slots objects x (P + 1): the pooled latent, then known), then action (the
 policy's command values; its info.json entry has `bounds`, {min, max} per value: the range the
@@ -51,8 +51,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models"))
-import unitac_schema as schema  # noqa: E402
+from . import schema
 
 CODEBASE_VERSION = "v3.0"
 CHUNKS_SIZE = 1000

@@ -1,7 +1,7 @@
 """Fit a reference policy's learned part on the scripted expert's demonstrations and export it to
 ONNX in the policy bundle format of crates/policy/src/onnx (manifest.json with LeRobot names).
 
-usage: fit_reference_policy.py --train DEMOS.json --source real|predicted --name NAME --out DIR
+usage: python -m unitac_tools.fit_reference_policy --train DEMOS.json --source real|predicted --name NAME --out DIR
                                [--eval DEMOS.json] [--touch N]
 
 The readout: the cup's stiffness k [N/m] (the demonstrations' label: grip force at the target
@@ -33,8 +33,7 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models"))
-import unitac_schema as schema  # noqa: E402
+from . import schema
 
 # The stiffness range [N/m] and the readout without a model: the policy params' defaults.
 K_MIN, K_MAX, PRIOR_K = schema.K_MIN, schema.K_MAX, schema.PRIOR_K
@@ -205,7 +204,7 @@ def main():
     desc = (f"cup stiffness from the {a.source} tactile latent: ridge of {target} "
             f"(lambda {lam:g}) on "
             f"{len(y)} expert demonstrations of training cups {folds} mm "
-            f"(scripts/fit_reference_policy.py)")
+            f"(python/unitac_tools/fit_reference_policy.py)")
     export(m, rows, dim, a.name, a.out, desc)
     with open(os.path.join(a.out, "fit.json"), "w") as f:
         json.dump(report, f, indent=1)
