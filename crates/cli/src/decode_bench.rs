@@ -222,6 +222,115 @@ fn time_yuv(order: Yuv422, buf: &[u8], repeat: usize) -> anyhow::Result<Timing> 
     Ok(timing(&mut wall, &mut cpu))
 }
 
+/// The floors a decoder cannot beat: the DC walk over the MCUs the crop needs (the crop's
+/// `crop_bottom` share of rows left out; no resize), and one pass reading every byte.
+fn floors(jpegs: &[Vec<u8>], repeat: usize, crop_bottom: f64) -> anyhow::Result<(Timing, Timing)> {
+    let mut dc = DcDecoder::new();
+    let roi = BlockRect {
+        x0: 0,
+        y0: 0,
+        x1: GS_W.div_ceil(8),
+        y1: ((1.0 - crop_bottom) * f64::from(GS_H.div_ceil(8))).ceil() as u32 + 2,
+    };
+    let floor_entropy = time_each(jpegs, repeat, |j| {
+        black_box(dc.decode(j, 8192, Some(roi))?);
+        Ok(())
+    })?;
+    let floor_byte_pass = time_each(jpegs, repeat, |j| {
+        black_box(j.iter().filter(|&&b| b == 0xFF).count());
+        Ok(())
+    })?;
+    Ok((floor_entropy, floor_byte_pass))
+}
+
+/// One 320x240 frame (DIGIT's size) in YUYV and the same in UYVY.
+fn yuv_frames() -> (Vec<u8>, Vec<u8>) {
+    let yuyv: Vec<u8> = (0..320 * 240 / 2)
+        .flat_map(|i: u32| [(16 + i % 200) as u8, 110, (20 + i % 190) as u8, 150])
+        .collect();
+    let uyvy: Vec<u8> = yuyv
+        .chunks_exact(4)
+        .flat_map(|q| [q[1], q[0], q[3], q[2]])
+        .collect();
+    (yuyv, uyvy)
+}
+
+/// What the Python baselines measured (`bench/decode_baseline.py`): a row per decoder, the YUYV
+/// and UYVY timings, the package versions and the mean absolute difference of OpenCV's output
+/// from ours.
+#[derive(Default)]
+struct PythonDecode {
+    rows: Vec<Row>,
+    yuv: Option<(Timing, Timing)>,
+    versions: String,
+    mad: Option<f64>,
+}
+
+/// The Python baselines on the same frames (written to a scratch directory, removed after).
+fn python_decode(
+    jpegs: &[Vec<u8>],
+    yuyv: &[u8],
+    (crop, tw, th): (f64, u32, u32),
+    repeat: usize,
+    rust_out: &[u8],
+) -> anyhow::Result<PythonDecode> {
+    let n = jpegs.len();
+    let dir = crate::scratch::new_dir("bench-decode")?;
+    for (i, j) in jpegs.iter().enumerate() {
+        std::fs::write(dir.join(format!("frame_{i}.jpg")), j)?;
+    }
+    std::fs::write(dir.join("yuyv.raw"), yuyv)?;
+    let args: Vec<std::ffi::OsString> = vec![
+        dir.clone().into_os_string(),
+        n.to_string().into(),
+        format!("{crop}").into(),
+        tw.to_string().into(),
+        th.to_string().into(),
+        "320".into(),
+        "240".into(),
+        repeat.to_string().into(),
+    ];
+    let j = crate::bench::run_python_baseline("decode_baseline.py", &args);
+    let py_out = std::fs::read(dir.join("py_out.raw")).ok();
+    std::fs::remove_dir_all(&dir).ok();
+    let j = j?;
+    let versions = format!(
+        "numpy {} opencv {} pillow {}",
+        j["numpy"], j["opencv"], j["pillow"]
+    );
+    let mut mad = None;
+    if let Some(p) = py_out.filter(|p| p.len() == rust_out.len()) {
+        let sum: f64 = p
+            .iter()
+            .zip(rust_out)
+            .map(|(&a, &b)| (f64::from(a) - f64::from(b)).abs())
+            .sum();
+        mad = Some(sum / p.len() as f64);
+    }
+    let mut rows = Vec::new();
+    for (k, name) in [
+        ("mjpeg", "OpenCV imdecode full + crop + resize (vendor SDK)"),
+        (
+            "reduced8",
+            "OpenCV imdecode REDUCED_COLOR_8 + crop + resize",
+        ),
+        (
+            "reduced4",
+            "OpenCV imdecode REDUCED_COLOR_4 + crop + resize",
+        ),
+        ("pillow_draft8", "Pillow draft 1/8 + crop + resize"),
+    ] {
+        rows.push(row(name, python_timing(&j[k])));
+    }
+    let yuv = Some((python_timing(&j["yuyv"]), python_timing(&j["uyvy"])));
+    Ok(PythonDecode {
+        rows,
+        yuv,
+        versions,
+        mad,
+    })
+}
+
 pub fn bench_decode(n: usize, repeat: usize, with_python: bool) -> anyhow::Result<DecodeBench> {
     let n = n.clamp(1, 8);
     let images: Vec<Vec<u8>> = (0..n).map(|i| gel_image(GS_W, GS_H, i)).collect();
@@ -275,85 +384,23 @@ pub fn bench_decode(n: usize, repeat: usize, with_python: bool) -> anyhow::Resul
     rows.push(row("zune-jpeg full size + crop + resize", t));
 
     // The floor: the DC walk over the MCUs the crop needs (no resize), and one read pass.
-    let mut dc = DcDecoder::new();
-    let roi = BlockRect {
-        x0: 0,
-        y0: 0,
-        x1: GS_W.div_ceil(8),
-        y1: ((1.0 - cfg.crop.bottom) * f64::from(GS_H.div_ceil(8))).ceil() as u32 + 2,
-    };
-    let floor_entropy = time_each(&jpegs, repeat, |j| {
-        black_box(dc.decode(j, 8192, Some(roi))?);
-        Ok(())
-    })?;
-    let floor_byte_pass = time_each(&jpegs, repeat, |j| {
-        black_box(j.iter().filter(|&&b| b == 0xFF).count());
-        Ok(())
-    })?;
+    let (floor_entropy, floor_byte_pass) = floors(&jpegs, repeat, cfg.crop.bottom)?;
 
     // YUYV / UYVY 320x240 (DIGIT).
-    let yuyv: Vec<u8> = (0..320 * 240 / 2)
-        .flat_map(|i: u32| [(16 + i % 200) as u8, 110, (20 + i % 190) as u8, 150])
-        .collect();
-    let uyvy: Vec<u8> = yuyv
-        .chunks_exact(4)
-        .flat_map(|q| [q[1], q[0], q[3], q[2]])
-        .collect();
+    let (yuyv, uyvy) = yuv_frames();
     let yuyv_rust = time_yuv(Yuv422::Yuyv, &yuyv, repeat)?;
     let uyvy_rust = time_yuv(Yuv422::Uyvy, &uyvy, repeat)?;
 
-    let mut py_rows = Vec::new();
-    let mut py_yuv = None;
-    let mut versions = String::new();
-    let mut mad = None;
-    if with_python {
-        let dir = crate::scratch::new_dir("bench-decode")?;
-        for (i, j) in jpegs.iter().enumerate() {
-            std::fs::write(dir.join(format!("frame_{i}.jpg")), j)?;
-        }
-        std::fs::write(dir.join("yuyv.raw"), &yuyv)?;
-        let args: Vec<std::ffi::OsString> = vec![
-            dir.clone().into_os_string(),
-            n.to_string().into(),
-            format!("{crop}").into(),
-            tw.to_string().into(),
-            th.to_string().into(),
-            "320".into(),
-            "240".into(),
-            repeat.to_string().into(),
-        ];
-        let j = crate::bench::run_python_baseline("decode_baseline.py", &args);
-        let py_out = std::fs::read(dir.join("py_out.raw")).ok();
-        std::fs::remove_dir_all(&dir).ok();
-        let j = j?;
-        versions = format!(
-            "numpy {} opencv {} pillow {}",
-            j["numpy"], j["opencv"], j["pillow"]
-        );
-        if let Some(p) = py_out.filter(|p| p.len() == rust_out.len()) {
-            let sum: f64 = p
-                .iter()
-                .zip(&rust_out)
-                .map(|(&a, &b)| (f64::from(a) - f64::from(b)).abs())
-                .sum();
-            mad = Some(sum / p.len() as f64);
-        }
-        for (k, name) in [
-            ("mjpeg", "OpenCV imdecode full + crop + resize (vendor SDK)"),
-            (
-                "reduced8",
-                "OpenCV imdecode REDUCED_COLOR_8 + crop + resize",
-            ),
-            (
-                "reduced4",
-                "OpenCV imdecode REDUCED_COLOR_4 + crop + resize",
-            ),
-            ("pillow_draft8", "Pillow draft 1/8 + crop + resize"),
-        ] {
-            py_rows.push(row(name, python_timing(&j[k])));
-        }
-        py_yuv = Some((python_timing(&j["yuyv"]), python_timing(&j["uyvy"])));
-    }
+    let PythonDecode {
+        rows: py_rows,
+        yuv: py_yuv,
+        versions,
+        mad,
+    } = if with_python {
+        python_decode(&jpegs, &yuyv, (crop, tw, th), repeat, &rust_out)?
+    } else {
+        PythonDecode::default()
+    };
     let share = rust.cpu_median_s * FPS;
     let vendor = py_rows.first().map(|r| Timing { ..r.t });
     let best = py_rows

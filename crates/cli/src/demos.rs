@@ -17,7 +17,7 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use unitac_pipeline::{StageConfig, build_stage, load_scene_without_policy_models, stage_configs};
-use unitac_policy::Mode;
+use unitac_policy::{Mode, PolicyParams};
 use unitac_sim::MockConfig;
 use unitac_sim::task::{Split, TaskKind};
 use unitac_trials::demos::{
@@ -52,6 +52,78 @@ struct DemoFile<'a> {
 pub struct Driver {
     pub scene: String,
     pub model: Option<PathBuf>,
+}
+
+/// The expert's settings from the first scene's policy parameters (its task, the `mode` given
+/// or the scene's, the probe's speed, force, release and timeouts).
+fn demo_config(p: &PolicyParams, kind: TaskKind, mode: Option<&str>) -> anyhow::Result<DemoConfig> {
+    let mode = match mode {
+        Some(m) => m
+            .parse::<Mode>()
+            .map_err(|e| anyhow::Error::new(ConfigError(e.to_string())))?,
+        None => p.mode,
+    };
+    Ok(DemoConfig {
+        task: kind,
+        mode,
+        touch_speed_m_s: p.touch_speed_m_s,
+        touch_force_n: p.touch_force_n,
+        probe_release_m: p.probe_release_m,
+        approach_s: p.approach_s,
+        timeout_s: p.contact_timeout_s,
+        ..DemoConfig::default()
+    })
+}
+
+/// The scene that drives the world (its policy bundle replaced by `d.model`), of the
+/// demonstrations' `task`, its stages built once so a bad bundle fails before any
+/// demonstration runs.
+fn driving_scene(d: Driver, task: Option<TaskKind>) -> anyhow::Result<unitac_core::Scene> {
+    let config = |msg: String| anyhow::Error::new(ConfigError(msg));
+    let mut scene =
+        unitac_pipeline::load_scene(&d.scene, None).map_err(|e| config(e.to_string()))?;
+    if let Some(m) = d.model {
+        scene.models.insert("policy".into(), m);
+    }
+    let (p, kind) = scene_task(&scene).map_err(|e| config(e.to_string()))?;
+    if Some(kind) != task {
+        return Err(config(format!(
+            "driving scene {}: its task is '{}', the demonstrations' is another",
+            scene.name, p.task
+        )));
+    }
+    // Built once here so a bad bundle fails before any demonstration runs.
+    unitac_pipeline::build_stages(&scene).map_err(|e| config(e.to_string()))?;
+    Ok(scene)
+}
+
+/// A recording scene's stages without its policy: what a demonstration observes (at least one).
+fn tactile_stages(scene: &unitac_core::Scene) -> anyhow::Result<Vec<StageConfig>> {
+    let config = |msg: String| anyhow::Error::new(ConfigError(msg));
+    let tactile: Vec<StageConfig> = stage_configs(scene)
+        .map_err(|e| config(e.to_string()))?
+        .into_iter()
+        .filter(|c| !matches!(c, StageConfig::Policy { .. }))
+        .collect();
+    if tactile.is_empty() {
+        return Err(config(format!(
+            "scene {} has no tactile stage: nothing a demonstration could observe",
+            scene.name
+        )));
+    }
+    Ok(tactile)
+}
+
+/// The mock sensor of the first scene's source (its kind, seed, rate and id).
+fn mock_sensor(src: &unitac_core::scene::SourceSpec) -> MockConfig {
+    let mut sensor = MockConfig::new(src.sensor, src.seed);
+    if let Some(fps) = src.fps {
+        sensor.fps = fps;
+    }
+    if let Some(id) = src.sensor_id.clone() {
+        sensor.sensor_id = id;
+    }
+    sensor
 }
 
 /// Record and write the demonstrations; a one-line summary comes back.
@@ -97,16 +169,7 @@ pub fn demos(
         task = Some(kind);
         if k == 0 {
             instruction.clone_from(&p.task);
-            cfg.task = kind;
-            cfg.mode = match mode {
-                Some(m) => m.parse::<Mode>().map_err(|e| config(e.to_string()))?,
-                None => p.mode,
-            };
-            cfg.touch_speed_m_s = p.touch_speed_m_s;
-            cfg.touch_force_n = p.touch_force_n;
-            cfg.probe_release_m = p.probe_release_m;
-            cfg.approach_s = p.approach_s;
-            cfg.timeout_s = p.contact_timeout_s;
+            cfg = demo_config(&p, kind, mode)?;
             action_bounds = p
                 .bounds()
                 .ranges()
@@ -114,50 +177,17 @@ pub fn demos(
                 .map(|(k, lo, hi)| (k, [lo, hi]))
                 .collect();
         }
-        let tactile: Vec<StageConfig> = stage_configs(&scene)
-            .map_err(|e| config(e.to_string()))?
-            .into_iter()
-            .filter(|c| !matches!(c, StageConfig::Policy { .. }))
-            .collect();
-        if tactile.is_empty() {
-            return Err(config(format!(
-                "scene {} has no tactile stage: nothing a demonstration could observe",
-                scene.name
-            )));
-        }
+        let tactile = tactile_stages(&scene)?;
         scenes.push((scene, tactile));
     }
     let Some((first, _)) = scenes.first() else {
         return Err(config("no scene".into()));
     };
     let driver = match driver {
-        Some(d) => {
-            let mut scene =
-                unitac_pipeline::load_scene(&d.scene, None).map_err(|e| config(e.to_string()))?;
-            if let Some(m) = d.model {
-                scene.models.insert("policy".into(), m);
-            }
-            let (p, kind) = scene_task(&scene).map_err(|e| config(e.to_string()))?;
-            if Some(kind) != task {
-                return Err(config(format!(
-                    "driving scene {}: its task is '{}', the demonstrations' is another",
-                    scene.name, p.task
-                )));
-            }
-            // Built once here so a bad bundle fails before any demonstration runs.
-            unitac_pipeline::build_stages(&scene).map_err(|e| config(e.to_string()))?;
-            Some(scene)
-        }
+        Some(d) => Some(driving_scene(d, task)?),
         None => None,
     };
-    let src = &first.source;
-    let mut sensor = MockConfig::new(src.sensor, src.seed);
-    if let Some(fps) = src.fps {
-        sensor.fps = fps;
-    }
-    if let Some(id) = src.sensor_id.clone() {
-        sensor.sensor_id = id;
-    }
+    let sensor = mock_sensor(&first.source);
     let bar = crate::progress::bar(n as u64, "demos");
     let mut demos = Vec::with_capacity(n);
     for &seed in seeds {
@@ -188,8 +218,6 @@ pub fn demos(
         }
     }
     bar.finish_and_clear();
-    let ok = demos.iter().filter(|d| d.success).count();
-    let with_latent = demos.iter().filter(|d| !d.latents.is_empty()).count();
     let joined = scenes
         .iter()
         .map(|(s, _)| s.name.as_str())
@@ -213,16 +241,23 @@ pub fn demos(
     let path = out.join("demos.json");
     let text = serde_json::to_string(&file)?;
     std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-    let objects = cfg.task.objects();
+    Ok(summary(&file, &path))
+}
+
+/// The one-line summary of a demonstration file written to `path`.
+fn summary(file: &DemoFile<'_>, path: &Path) -> String {
+    let ok = file.demos.iter().filter(|d| d.success).count();
+    let with_latent = file.demos.iter().filter(|d| !d.latents.is_empty()).count();
+    let objects = file.config.task.objects();
     let who = file
         .driver
         .map_or_else(|| "expert".to_string(), |d| format!("driver {d}"));
-    Ok(format!(
+    format!(
         "{} demonstrations of {} ({:?} {objects}) in {}: {with_latent} with a latent, {who} succeeded in {ok}, deciding as {} observes\n",
         file.demos.len(),
         file.scene,
-        split,
+        file.split,
         path.display(),
-        cfg.mode.as_str()
-    ))
+        file.config.mode.as_str()
+    )
 }

@@ -583,6 +583,79 @@ struct ContactExtras<'a> {
     peel_skirt: bool,
 }
 
+/// Each frame's overlay is named after its file: two files of one name would overwrite each
+/// other's.
+fn distinct_overlay_names(frames: &[PathBuf]) -> anyhow::Result<()> {
+    let mut named: std::collections::HashMap<String, &PathBuf> = Default::default();
+    for f in frames {
+        let name = depth::overlay_name(f);
+        match named.get(&name) {
+            Some(other) if *other != f => {
+                return Err(args::usage(format!(
+                    "--overlay: frames {} and {} would both write {name}; give frames of \
+                     distinct file names",
+                    other.display(),
+                    f.display()
+                )));
+            }
+            _ => {
+                named.insert(name, f);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One frame's line of `unitac contact`: JSON or text, with the depth stage's reading when a
+/// calibration was given.
+fn contact_line(
+    file: &str,
+    json: bool,
+    m: &unitac_contact::Measurement,
+    d: Option<&unitac_contact::depth::DepthSummary>,
+    noise_dn: [f32; 3],
+) -> String {
+    let contact = m.contact;
+    let dj = d.map(|d| {
+        serde_json::json!({
+            "contact": d.contact, "penetration_m": d.penetration_m,
+            "area_px": d.area_px, "area_m2": d.area_m2, "centroid": d.centroid_px,
+        })
+    });
+    if json {
+        let mut v = serde_json::json!({
+            "file": file, "contact": contact, "area_px": m.area_px,
+            "centroid": m.centroid, "bbox": m.bbox, "score": m.strength,
+            "noise_dn": noise_dn,
+        });
+        if let Some(dj) = dj {
+            v["depth"] = dj;
+        }
+        v.to_string()
+    } else {
+        let mut t = format!(
+            "{file}: contact {} area {:.0} px centroid ({:.1}, {:.1}) bbox {:?} score {:.2} noise {:?} DN",
+            if contact { "yes" } else { "no" },
+            m.area_px,
+            m.centroid[0],
+            m.centroid[1],
+            m.bbox,
+            m.strength,
+            noise_dn
+        );
+        if let Some(d) = d {
+            t += &format!(
+                "; depth: penetration {:.3} mm area {:.2} mm^2 centroid ({:.1}, {:.1})",
+                f64::from(d.penetration_m) * 1e3,
+                d.area_m2 * 1e6,
+                d.centroid_px[0],
+                d.centroid_px[1]
+            );
+        }
+        t
+    }
+}
+
 fn cmd_contact(
     sensor: unitac_core::SensorKind,
     background: &std::path::Path,
@@ -592,25 +665,7 @@ fn cmd_contact(
 ) -> anyhow::Result<bool> {
     use unitac_contact::{ContactDetector, ContactParams};
     if extra.overlay.is_some() {
-        // Each frame's overlay is named after its file: two files of one name would overwrite
-        // each other's.
-        let mut named: std::collections::HashMap<String, &PathBuf> = Default::default();
-        for f in frames {
-            let name = depth::overlay_name(f);
-            match named.get(&name) {
-                Some(other) if *other != f => {
-                    return Err(args::usage(format!(
-                        "--overlay: frames {} and {} would both write {name}; give frames of \
-                         distinct file names",
-                        other.display(),
-                        f.display()
-                    )));
-                }
-                _ => {
-                    named.insert(name, f);
-                }
-            }
-        }
+        distinct_overlay_names(frames)?;
     }
     let bg = images::read_frame(background, sensor.as_str(), 0, None)
         .map_err(|e| anyhow::Error::new(ConfigError(format!("background {e:#}"))))?;
@@ -686,47 +741,7 @@ fn cmd_contact(
                 Ok((m, d))
             });
         let line = match result {
-            Ok((m, d)) => {
-                let contact = m.contact;
-                let dj = d.map(|d| {
-                    serde_json::json!({
-                        "contact": d.contact, "penetration_m": d.penetration_m,
-                        "area_px": d.area_px, "area_m2": d.area_m2, "centroid": d.centroid_px,
-                    })
-                });
-                if json {
-                    let mut v = serde_json::json!({
-                        "file": file, "contact": contact, "area_px": m.area_px,
-                        "centroid": m.centroid, "bbox": m.bbox, "score": m.strength,
-                        "noise_dn": noise_dn(&m),
-                    });
-                    if let Some(dj) = dj {
-                        v["depth"] = dj;
-                    }
-                    v.to_string()
-                } else {
-                    let mut t = format!(
-                        "{file}: contact {} area {:.0} px centroid ({:.1}, {:.1}) bbox {:?} score {:.2} noise {:?} DN",
-                        if contact { "yes" } else { "no" },
-                        m.area_px,
-                        m.centroid[0],
-                        m.centroid[1],
-                        m.bbox,
-                        m.strength,
-                        noise_dn(&m)
-                    );
-                    if let Some(d) = d {
-                        t += &format!(
-                            "; depth: penetration {:.3} mm area {:.2} mm^2 centroid ({:.1}, {:.1})",
-                            f64::from(d.penetration_m) * 1e3,
-                            d.area_m2 * 1e6,
-                            d.centroid_px[0],
-                            d.centroid_px[1]
-                        );
-                    }
-                    t
-                }
-            }
+            Ok((m, d)) => contact_line(&file, json, &m, d.as_ref(), noise_dn(&m)),
             Err(e) => {
                 all_ok = false;
                 let msg = format!("{e:#}");

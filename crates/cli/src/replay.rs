@@ -8,9 +8,10 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use unitac_bag::replay::{ImageResult, OutputBag, replay};
+use unitac_bag::replay::{ImageResult, OutputBag, ReplayReport, replay};
 use unitac_bag::{BagError, BagSource, BagWriter, ReplayOptions, WriteOptions};
 use unitac_contact::{ContactParams, ContactStage};
+use unitac_core::msg::ContactEpisode;
 use unitac_core::{Chain, Msg, Pacer, SensorKind, Stage};
 
 #[derive(Debug)]
@@ -73,6 +74,108 @@ fn open_error(path: &Path, e: BagError) -> anyhow::Error {
     }
 }
 
+/// The stages a replay runs: the `--scene`'s, or the contact stage for `--sensor`.
+fn replay_stages(a: &Args) -> anyhow::Result<Vec<Box<dyn Stage>>> {
+    Ok(match &a.scene {
+        Some(name) => {
+            let scene =
+                unitac_pipeline::load_scene(name, None).map_err(|e| config(e.to_string()))?;
+            unitac_pipeline::build_stages(&scene).map_err(|e| config(e.to_string()))?
+        }
+        None => vec![Box::new(
+            ContactStage::new(ContactParams::default(), a.sensor.spec())
+                .map_err(|e| config(e.to_string()))?,
+        )],
+    })
+}
+
+/// The text summary of a replay: messages, errors, the episodes (at most
+/// [`MAX_LISTED_EPISODES`] listed), event counts and the bag written.
+fn write_summary(
+    w: &mut impl Write,
+    a: &Args,
+    report: &ReplayReport,
+    episodes: &[ContactEpisode],
+    episode_count: u64,
+    written: Option<&Path>,
+) -> std::io::Result<()> {
+    writeln!(
+        w,
+        "replayed {} image messages from {} ({}), {} errors",
+        report.images,
+        a.bag.display(),
+        report.topic.as_deref().unwrap_or("-"),
+        report.errors
+    )?;
+    for e in episodes {
+        writeln!(
+            w,
+            "  episode {} {:.3}-{:.3} s  {} frames  peak {:.0} px",
+            e.episode_id,
+            e.start.as_secs_f64(),
+            e.end.as_secs_f64(),
+            e.frame_count,
+            e.peak_area_px
+        )?;
+    }
+    if episode_count > episodes.len() as u64 {
+        writeln!(
+            w,
+            "  ... and {} more episodes",
+            episode_count - episodes.len() as u64
+        )?;
+    }
+    for (k, n) in &report.events {
+        writeln!(w, "  {k}: {n}")?;
+    }
+    if let Some(p) = written {
+        writeln!(w, "  wrote {}", p.display())?;
+    }
+    Ok(())
+}
+
+/// The replay's warnings and errors on stderr, and whether it succeeded: some images, and at
+/// most half of them failed.
+fn verdict(a: &Args, report: &ReplayReport, error_lines: u64, first_error: Option<String>) -> bool {
+    for t in &report.truncated_files {
+        eprintln!(
+            "unitac: warning: {} was cut short; replayed up to its last complete record",
+            t.display()
+        );
+    }
+    if report.images == 0 {
+        eprintln!(
+            "unitac: no image messages (sensor_msgs/Image or CompressedImage){} in {}",
+            a.topic
+                .as_deref()
+                .map(|t| format!(" on {t}"))
+                .unwrap_or_default(),
+            a.bag.display()
+        );
+        return false;
+    }
+    if report.errors > 0 {
+        if error_lines > MAX_ERROR_LINES {
+            eprintln!(
+                "unitac: ... {} more image errors",
+                error_lines - MAX_ERROR_LINES
+            );
+        }
+        eprintln!(
+            "unitac: {} of {} image messages failed{}",
+            report.errors,
+            report.images,
+            first_error
+                .map(|e| format!(" (first: {e})"))
+                .unwrap_or_default()
+        );
+        // A few rejected frames (a resolution change, a corrupt buffer) are reported above; a
+        // replay where most images failed produced nothing useful and exits 1.
+        return report.errors.saturating_mul(2) <= report.images;
+    }
+    true
+}
+
 pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
     let mut pacer = match (a.fast, a.rate) {
         (true, _) => Pacer::fast(),
@@ -91,18 +194,7 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
         },
     )
     .map_err(|e| open_error(&a.bag, e))?;
-    let stages: Vec<Box<dyn Stage>> = match &a.scene {
-        Some(name) => {
-            let scene =
-                unitac_pipeline::load_scene(name, None).map_err(|e| config(e.to_string()))?;
-            unitac_pipeline::build_stages(&scene).map_err(|e| config(e.to_string()))?
-        }
-        None => vec![Box::new(
-            ContactStage::new(ContactParams::default(), a.sensor.spec())
-                .map_err(|e| config(e.to_string()))?,
-        )],
-    };
-    let mut chain = Chain::new(stages);
+    let mut chain = Chain::new(replay_stages(&a)?);
     let mut out = match &a.out {
         Some(p) => Some(OutputBag::new(
             BagWriter::create(p, WriteOptions::default()).map_err(|e| config(e.to_string()))?,
@@ -183,76 +275,16 @@ pub fn cmd_replay(a: Args) -> anyhow::Result<bool> {
         None => None,
     };
     if !a.json && !a.events {
-        writeln!(
-            w,
-            "replayed {} image messages from {} ({}), {} errors",
-            report.images,
-            a.bag.display(),
-            report.topic.as_deref().unwrap_or("-"),
-            report.errors
+        write_summary(
+            &mut w,
+            &a,
+            &report,
+            &episodes,
+            episode_count,
+            written.as_deref(),
         )?;
-        for e in &episodes {
-            writeln!(
-                w,
-                "  episode {} {:.3}-{:.3} s  {} frames  peak {:.0} px",
-                e.episode_id,
-                e.start.as_secs_f64(),
-                e.end.as_secs_f64(),
-                e.frame_count,
-                e.peak_area_px
-            )?;
-        }
-        if episode_count > episodes.len() as u64 {
-            writeln!(
-                w,
-                "  ... and {} more episodes",
-                episode_count - episodes.len() as u64
-            )?;
-        }
-        for (k, n) in &report.events {
-            writeln!(w, "  {k}: {n}")?;
-        }
-        if let Some(p) = written {
-            writeln!(w, "  wrote {}", p.display())?;
-        }
     }
-    for t in &report.truncated_files {
-        eprintln!(
-            "unitac: warning: {} was cut short; replayed up to its last complete record",
-            t.display()
-        );
-    }
-    if report.images == 0 {
-        eprintln!(
-            "unitac: no image messages (sensor_msgs/Image or CompressedImage){} in {}",
-            a.topic
-                .as_deref()
-                .map(|t| format!(" on {t}"))
-                .unwrap_or_default(),
-            a.bag.display()
-        );
-        return Ok(false);
-    }
-    if report.errors > 0 {
-        if error_lines > MAX_ERROR_LINES {
-            eprintln!(
-                "unitac: ... {} more image errors",
-                error_lines - MAX_ERROR_LINES
-            );
-        }
-        eprintln!(
-            "unitac: {} of {} image messages failed{}",
-            report.errors,
-            report.images,
-            first_error
-                .map(|e| format!(" (first: {e})"))
-                .unwrap_or_default()
-        );
-        // A few rejected frames (a resolution change, a corrupt buffer) are reported above; a
-        // replay where most images failed produced nothing useful and exits 1.
-        return Ok(report.errors.saturating_mul(2) <= report.images);
-    }
-    Ok(true)
+    Ok(verdict(&a, &report, error_lines, first_error))
 }
 
 /// `unitac bag repair IN OUT`.

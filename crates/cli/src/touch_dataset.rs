@@ -100,6 +100,55 @@ pub fn background_of(mut sensor: MockSensor, kind: SensorKind) -> anyhow::Result
     bail!("the contact stage learnt no background")
 }
 
+/// The two fabrics of trial `seed`/`trial` of `split`: the camera's values, then the encoder's
+/// latent of a press of each on the mock sensor, with the sensor prior of its background.
+fn fabric_samples(
+    split: Split,
+    seed: u64,
+    trial: u32,
+    sensor: &MockConfig,
+    clip_frames: u32,
+    (encoder, prior): (&mut EncoderStage, &mut SensorPrior),
+) -> anyhow::Result<Vec<Sample>> {
+    let at = |what: &str| format!("seed {seed} trial {trial}: {what}");
+    let mut samples = Vec::new();
+    let world = TaskWorld::reset(&TaskConfig::fabric(split), seed, trial);
+    let visual = world.observe_visual(&mut trial_rng(seed ^ CAMERA_SALT, trial));
+    for (k, o) in world.spec().objects.iter().enumerate() {
+        let ObjectSpec::Fabric(f) = &o.spec else {
+            continue;
+        };
+        let depth = DEPTH_MM.0 + (DEPTH_MM.1 - DEPTH_MM.0) * f.fabric.hardness;
+        let mut cfg = demo_sensor(sensor, seed, trial).config().clone();
+        cfg.seed = cfg.seed.wrapping_add(1 + k as u64);
+        let s = MockSensor::new(cfg, press(&f.fabric.object(&o.name), depth));
+        let clip = first_clip(s, clip_frames * 2).with_context(|| at(&o.name))?;
+        let bg = clip
+            .background
+            .clone()
+            .with_context(|| at("clip without background"))?;
+        let e = encoder
+            .encode(&clip)
+            .map_err(|e| anyhow::anyhow!(at(&e.to_string())))?;
+        let w = e.tok_shape.last().copied().unwrap_or(1).max(1) as usize;
+        samples.push(Sample {
+            category: "fabric",
+            object: o.name.clone(),
+            seed,
+            trial,
+            visual: object_values(&visual, &o.name),
+            sensor_prior: prior.of(&bg)?,
+            latent: pooled(&e.tokens, w),
+            truth: serde_json::json!({
+                "type": f.fabric.name,
+                "roughness_ra_m": f.roughness_ra_m,
+                "hardness": f.fabric.hardness,
+            }),
+        });
+    }
+    Ok(samples)
+}
+
 pub fn touch(
     split: Split,
     seeds: &[u64],
@@ -178,40 +227,15 @@ pub fn touch(
                 }),
             });
             // The two fabrics: camera values, then a press of each.
-            let world = TaskWorld::reset(&TaskConfig::fabric(split), seed, trial);
-            let visual = world.observe_visual(&mut trial_rng(seed ^ CAMERA_SALT, trial));
-            for (k, o) in world.spec().objects.iter().enumerate() {
-                let ObjectSpec::Fabric(f) = &o.spec else {
-                    continue;
-                };
-                let depth = DEPTH_MM.0 + (DEPTH_MM.1 - DEPTH_MM.0) * f.fabric.hardness;
-                let mut cfg = demo_sensor(&sensor, seed, trial).config().clone();
-                cfg.seed = cfg.seed.wrapping_add(1 + k as u64);
-                let s = MockSensor::new(cfg, press(&f.fabric.object(&o.name), depth));
-                let clip = first_clip(s, pre.clip_frames * 2).with_context(|| at(&o.name))?;
-                let bg = clip
-                    .background
-                    .clone()
-                    .with_context(|| at("clip without background"))?;
-                let e = encoder
-                    .encode(&clip)
-                    .map_err(|e| anyhow::anyhow!(at(&e.to_string())))?;
-                let w = e.tok_shape.last().copied().unwrap_or(1).max(1) as usize;
-                samples.push(Sample {
-                    category: "fabric",
-                    object: o.name.clone(),
-                    seed,
-                    trial,
-                    visual: object_values(&visual, &o.name),
-                    sensor_prior: prior.of(&bg)?,
-                    latent: pooled(&e.tokens, w),
-                    truth: serde_json::json!({
-                        "type": f.fabric.name,
-                        "roughness_ra_m": f.roughness_ra_m,
-                        "hardness": f.fabric.hardness,
-                    }),
-                });
-            }
+            let fabrics = (&mut encoder, &mut prior);
+            samples.extend(fabric_samples(
+                split,
+                seed,
+                trial,
+                &sensor,
+                pre.clip_frames,
+                fabrics,
+            )?);
             bar.inc(1);
         }
     }

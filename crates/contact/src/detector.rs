@@ -120,6 +120,186 @@ pub struct ContactDetector {
     size_changes: u64,
 }
 
+impl Scratch {
+    /// Steps 5 and 6 of [`ContactDetector::measure`] on the packed mask of cells over the
+    /// threshold (`thr`, with the box radius `r`): morphology, the coherent components, the
+    /// contact region within them (in `region`). False: nothing was over the threshold.
+    fn contact_region(
+        &mut self,
+        p: &ContactParams,
+        geo: &Geometry,
+        k: f32,
+        (thr, r): (f32, u32),
+        markers: &[u8],
+    ) -> bool {
+        // 5. Morphology, then the coherent regions: components over the minimum size and not
+        // much smaller than the largest, so scattered specks never add up to a contact.
+        let cells = |px: u32| {
+            if px == 0 {
+                0
+            } else {
+                ((px as f32 * k / geo.stride as f32).round() as u32).max(1)
+            }
+        };
+        let any = !self.bits.is_empty();
+        if any {
+            self.bits
+                .open_close(cells(p.open_radius_px), cells(p.close_radius_px));
+        }
+        self.bits.to_bytes(&mut self.mask);
+        // Nothing over the threshold (most frames): no components to look for.
+        if any {
+            let min_cells = (p.min_component_px * k * k / geo.cell_px()).ceil() as usize;
+            keep_components(
+                &mut self.mask,
+                geo.gw,
+                geo.gh,
+                min_cells.max(1),
+                SHARE_OF_LARGEST,
+                &mut self.labels,
+                &mut self.stack,
+            );
+        }
+        // 6. The contact region within it: per component, the cells at or above `area_level` of
+        // its own peak residual (the skirt of a deep press left out), holes filled.
+        let close = cells(p.close_radius_px);
+        if any {
+            let inp = RegionInputs {
+                mask: &self.mask,
+                labels: &self.labels,
+                resid: &self.resid,
+                markers,
+                gw: geo.gw,
+                gh: geo.gh,
+            };
+            contact_region(
+                &inp,
+                thr,
+                p.area_level,
+                if p.peel_skirt {
+                    Peel::On { give_back: r }
+                } else {
+                    Peel::Off
+                },
+                close,
+                &mut self.region,
+                &mut self.region_s,
+            );
+        } else {
+            self.region.clear();
+            self.region.resize(geo.cells(), 0);
+        }
+        any
+    }
+}
+
+/// Frame quality and illumination gain on a sample of cells (every [`SAMPLE_STEP`]th): a
+/// frame with more than `max_bad` of them saturated or dark is refused; the gain per channel is
+/// the median ratio of frame to background over unmasked, unsaturated cells, refused outside
+/// [`GAIN_RANGE`].
+fn quality_gain(
+    grid: &[f32],
+    bg: &[f32],
+    markers: &[u8],
+    cells: usize,
+    ratios: &mut [Vec<u32>; 3],
+    max_bad: f32,
+    seq: u64,
+) -> Result<[f32; 3], StageError> {
+    let (mut sat, mut dark, mut sampled) = (0usize, 0usize, 0usize);
+    for r in ratios.iter_mut() {
+        r.clear();
+    }
+    for i in (0..cells).step_by(SAMPLE_STEP) {
+        let (g, b) = (&grid[i * 3..i * 3 + 3], &bg[i * 3..i * 3 + 3]);
+        sampled += 1;
+        if g.iter().any(|&v| v >= 250.0) {
+            sat += 1;
+        }
+        if g.iter().all(|&v| v <= 5.0) {
+            dark += 1;
+        }
+        if markers[i] == 0 {
+            for c in 0..3 {
+                if b[c] > 10.0 && g[c] < 250.0 {
+                    ratios[c].push((g[c] / b[c]).to_bits());
+                }
+            }
+        }
+    }
+    let share = |n: usize| n as f32 / sampled.max(1) as f32;
+    if share(sat) > max_bad {
+        return Err(StageError::bad_input(FrameRefused::Saturated {
+            seq,
+            percent: 100.0 * share(sat),
+        }));
+    }
+    if share(dark) > max_bad {
+        return Err(StageError::bad_input(FrameRefused::Dark {
+            seq,
+            percent: 100.0 * share(dark),
+        }));
+    }
+    let mut gain = [1.0f32; 3];
+    for (c, (g, r)) in gain.iter_mut().zip(ratios.iter_mut()).enumerate() {
+        let mid = r.len() / 2;
+        if let Some(m) = shading::nth_non_negative(r, mid) {
+            *g = m;
+        }
+        if !(GAIN_RANGE.0..=GAIN_RANGE.1).contains(g) {
+            return Err(StageError::bad_input(FrameRefused::Gain {
+                seq,
+                gain: *g,
+                channel: c,
+            }));
+        }
+    }
+    Ok(gain)
+}
+
+/// Cell sums over the contact region: count, coordinate sums, residual-to-threshold sum and
+/// bounding box (cells).
+struct Sums {
+    n: u64,
+    sx: f64,
+    sy: f64,
+    sr: f64,
+    bb: [u32; 4],
+}
+
+/// [`Sums`] of the set cells of `region` (rows of `gw` cells; `any`: something was over the
+/// threshold `thr`, else nothing is set).
+fn region_sums(region: &[u8], resid: &[f32], gw: usize, any: bool, thr: f32) -> Sums {
+    let (mut n, mut sx, mut sy, mut sr) = (0u64, 0f64, 0f64, 0f64);
+    let mut bb = [u32::MAX, u32::MAX, 0u32, 0u32];
+    // Row by row (cell order), past the empty rows.
+    let rows = region.chunks_exact(gw).zip(resid.chunks_exact(gw));
+    // (An OR over the row rather than `any`: a loop the compiler vectorises; no row is set
+    // when nothing was over the threshold.)
+    let set_rows = rows
+        .enumerate()
+        .filter(|(_, (m, _))| any && m.iter().fold(0u8, |a, &m| a | m) != 0);
+    let cells = set_rows.flat_map(|(gy, (m, res))| {
+        let set = m.iter().zip(res).enumerate().filter(|(_, (m, _))| **m != 0);
+        set.map(move |(gx, (_, &res))| (gx as u32, gy as u32, res))
+    });
+    for (gx, gy, res) in cells {
+        n += 1;
+        sx += f64::from(gx);
+        sy += f64::from(gy);
+        // Closing can add masked marker cells with no residual of their own: count them at
+        // the threshold.
+        sr += f64::from((res / thr).max(1.0));
+        bb = [
+            bb[0].min(gx),
+            bb[1].min(gy),
+            bb[2].max(gx + 1),
+            bb[3].max(gy + 1),
+        ];
+    }
+    Sums { n, sx, sy, sr, bb }
+}
+
 impl ContactDetector {
     pub fn new(p: ContactParams, spec: SensorSpec) -> Result<Self, ParamsError> {
         p.check()?;
@@ -354,54 +534,15 @@ impl ContactDetector {
         block_means(f, &geo, &mut s.grid, &mut s.block);
 
         // 1. Frame quality and illumination gain, on a sample of cells.
-        let (mut sat, mut dark, mut sampled) = (0usize, 0usize, 0usize);
-        for r in s.ratios.iter_mut() {
-            r.clear();
-        }
-        for i in (0..geo.cells()).step_by(SAMPLE_STEP) {
-            let (g, b) = (&s.grid[i * 3..i * 3 + 3], &bg.grid[i * 3..i * 3 + 3]);
-            sampled += 1;
-            if g.iter().any(|&v| v >= 250.0) {
-                sat += 1;
-            }
-            if g.iter().all(|&v| v <= 5.0) {
-                dark += 1;
-            }
-            if markers[i] == 0 {
-                for c in 0..3 {
-                    if b[c] > 10.0 && g[c] < 250.0 {
-                        s.ratios[c].push((g[c] / b[c]).to_bits());
-                    }
-                }
-            }
-        }
-        let share = |n: usize| n as f32 / sampled.max(1) as f32;
-        if share(sat) > self.p.max_bad_pixel_share {
-            return Err(StageError::bad_input(FrameRefused::Saturated {
-                seq: f.seq,
-                percent: 100.0 * share(sat),
-            }));
-        }
-        if share(dark) > self.p.max_bad_pixel_share {
-            return Err(StageError::bad_input(FrameRefused::Dark {
-                seq: f.seq,
-                percent: 100.0 * share(dark),
-            }));
-        }
-        let mut gain = [1.0f32; 3];
-        for (c, (g, r)) in gain.iter_mut().zip(s.ratios.iter_mut()).enumerate() {
-            let mid = r.len() / 2;
-            if let Some(m) = shading::nth_non_negative(r, mid) {
-                *g = m;
-            }
-            if !(GAIN_RANGE.0..=GAIN_RANGE.1).contains(g) {
-                return Err(StageError::bad_input(FrameRefused::Gain {
-                    seq: f.seq,
-                    gain: *g,
-                    channel: c,
-                }));
-            }
-        }
+        let gain = quality_gain(
+            &s.grid,
+            &bg.grid,
+            markers,
+            geo.cells(),
+            &mut s.ratios,
+            self.p.max_bad_pixel_share,
+            f.seq,
+        )?;
 
         // 2. Signed difference per channel; masked marker cells count as unchanged. Computed
         // where it is needed: at the fit's lattices, then once per cell in the threshold pass.
@@ -441,96 +582,12 @@ impl ContactDetector {
             &mut s.bits,
         );
 
-        // 5. Morphology, then the coherent regions: components over the minimum size and not
-        // much smaller than the largest, so scattered specks never add up to a contact.
+        // 5-6. Morphology, the coherent components, the contact region within them.
         let st = geo.stride;
-        let cells = |px: u32| {
-            if px == 0 {
-                0
-            } else {
-                ((px as f32 * k / st as f32).round() as u32).max(1)
-            }
-        };
-        let any = !s.bits.is_empty();
-        if any {
-            s.bits
-                .open_close(cells(self.p.open_radius_px), cells(self.p.close_radius_px));
-        }
-        s.bits.to_bytes(&mut s.mask);
-        // Nothing over the threshold (most frames): no components to look for.
-        if any {
-            let min_cells = (self.p.min_component_px * k * k / geo.cell_px()).ceil() as usize;
-            keep_components(
-                &mut s.mask,
-                geo.gw,
-                geo.gh,
-                min_cells.max(1),
-                SHARE_OF_LARGEST,
-                &mut s.labels,
-                &mut s.stack,
-            );
-        }
-        // 6. The contact region within it: per component, the cells at or above `area_level` of
-        // its own peak residual (the skirt of a deep press left out), holes filled.
-        let close = cells(self.p.close_radius_px);
-        if any {
-            let inp = RegionInputs {
-                mask: &s.mask,
-                labels: &s.labels,
-                resid: &s.resid,
-                markers,
-                gw: geo.gw,
-                gh: geo.gh,
-            };
-            contact_region(
-                &inp,
-                thr,
-                self.p.area_level,
-                if self.p.peel_skirt {
-                    Peel::On { give_back: r }
-                } else {
-                    Peel::Off
-                },
-                close,
-                &mut s.region,
-                &mut s.region_s,
-            );
-        } else {
-            s.region.clear();
-            s.region.resize(geo.cells(), 0);
-        }
+        let any = s.contact_region(&self.p, &geo, k, (thr, r), markers);
 
         // 7. Geometry of the contact region in input pixels.
-        let (mut n, mut sx, mut sy, mut sr) = (0u64, 0f64, 0f64, 0f64);
-        let mut bb = [u32::MAX, u32::MAX, 0u32, 0u32];
-        // Row by row (cell order), past the empty rows.
-        let rows = s
-            .region
-            .chunks_exact(geo.gw)
-            .zip(s.resid.chunks_exact(geo.gw));
-        // (An OR over the row rather than `any`: a loop the compiler vectorises; no row is set
-        // when nothing was over the threshold.)
-        let set_rows = rows
-            .enumerate()
-            .filter(|(_, (m, _))| any && m.iter().fold(0u8, |a, &m| a | m) != 0);
-        let cells = set_rows.flat_map(|(gy, (m, res))| {
-            let set = m.iter().zip(res).enumerate().filter(|(_, (m, _))| **m != 0);
-            set.map(move |(gx, (_, &res))| (gx as u32, gy as u32, res))
-        });
-        for (gx, gy, res) in cells {
-            n += 1;
-            sx += f64::from(gx);
-            sy += f64::from(gy);
-            // Closing can add masked marker cells with no residual of their own: count them at
-            // the threshold.
-            sr += f64::from((res / thr).max(1.0));
-            bb = [
-                bb[0].min(gx),
-                bb[1].min(gy),
-                bb[2].max(gx + 1),
-                bb[3].max(gy + 1),
-            ];
-        }
+        let Sums { n, sx, sy, sr, bb } = region_sums(&s.region, &s.resid, geo.gw, any, thr);
         let (noise, smoothing, rejected) = (fit.sigma, r, fit.rejected);
         if n == 0 {
             return Ok(Measurement {

@@ -525,6 +525,64 @@ pub struct DcDecoder {
     pub stats: DcStats,
 }
 
+/// A DQT segment: the DC quantiser (the first value) of each table it defines, into `q0`.
+fn parse_dqt(seg: &[u8], q0: &mut [i32; 4]) -> Result<(), DcError> {
+    let mut i = 0;
+    while i < seg.len() {
+        let pq = seg[i] >> 4;
+        let tq = usize::from(seg[i] & 15);
+        if tq > 3 {
+            return corrupt("DQT id");
+        }
+        let n = if pq == 0 { 64 } else { 128 };
+        let t = seg
+            .get(i + 1..i + 1 + n)
+            .ok_or_else(|| DcError::Corrupt("DQT".into()))?;
+        q0[tq] = if pq == 0 {
+            i32::from(t[0])
+        } else {
+            i32::from(t[0]) << 8 | i32::from(t[1])
+        };
+        i += 1 + n;
+    }
+    Ok(())
+}
+
+/// A baseline SOF segment: width, height (each within `max_side`) and the components (1 or 3,
+/// sampling 1 or 2 each way).
+fn parse_sof(seg: &[u8], max_side: u32) -> Result<(usize, usize, Vec<Comp>), DcError> {
+    if seg.first() != Some(&8) {
+        return Err(DcError::Unsupported("precision is not 8 bits".into()));
+    }
+    let height = u16_at(seg, 1)?;
+    let width = u16_at(seg, 3)?;
+    let nc = usize::from(*seg.get(5).unwrap_or(&0));
+    if width == 0 || height == 0 || width > max_side as usize || height > max_side as usize {
+        return corrupt("frame size");
+    }
+    if nc != 1 && nc != 3 {
+        return Err(DcError::Unsupported(format!("{nc} components")));
+    }
+    let mut comps = Vec::with_capacity(nc);
+    for c in 0..nc {
+        let s = seg
+            .get(6 + 3 * c..9 + 3 * c)
+            .ok_or_else(|| DcError::Corrupt("SOF".into()))?;
+        let (h, v) = (usize::from(s[1] >> 4), usize::from(s[1] & 15));
+        if !(1..=2).contains(&h) || !(1..=2).contains(&v) || s[2] > 3 {
+            return Err(DcError::Unsupported(format!("sampling {h}x{v}")));
+        }
+        comps.push(Comp {
+            id: s[0],
+            h,
+            v,
+            tq: usize::from(s[2]),
+            ..Comp::default()
+        });
+    }
+    Ok((width, height, comps))
+}
+
 impl DcDecoder {
     pub fn new() -> Self {
         Self::default()
@@ -709,26 +767,7 @@ impl DcDecoder {
                 .get(pos + 4..pos + 2 + len)
                 .ok_or_else(|| DcError::Corrupt("truncated segment".into()))?;
             match m {
-                0xDB => {
-                    let mut i = 0;
-                    while i < seg.len() {
-                        let pq = seg[i] >> 4;
-                        let tq = usize::from(seg[i] & 15);
-                        if tq > 3 {
-                            return corrupt("DQT id");
-                        }
-                        let n = if pq == 0 { 64 } else { 128 };
-                        let t = seg
-                            .get(i + 1..i + 1 + n)
-                            .ok_or_else(|| DcError::Corrupt("DQT".into()))?;
-                        q0[tq] = if pq == 0 {
-                            i32::from(t[0])
-                        } else {
-                            i32::from(t[0]) << 8 | i32::from(t[1])
-                        };
-                        i += 1 + n;
-                    }
-                }
+                0xDB => parse_dqt(seg, &mut q0)?,
                 0xC4 => {
                     let mut i = 0;
                     while i < seg.len() {
@@ -751,41 +790,7 @@ impl DcDecoder {
                         i += 17 + n;
                     }
                 }
-                0xC0 | 0xC1 => {
-                    if seg.first() != Some(&8) {
-                        return Err(DcError::Unsupported("precision is not 8 bits".into()));
-                    }
-                    height = u16_at(seg, 1)?;
-                    width = u16_at(seg, 3)?;
-                    let nc = usize::from(*seg.get(5).unwrap_or(&0));
-                    if width == 0
-                        || height == 0
-                        || width > max_side as usize
-                        || height > max_side as usize
-                    {
-                        return corrupt("frame size");
-                    }
-                    if nc != 1 && nc != 3 {
-                        return Err(DcError::Unsupported(format!("{nc} components")));
-                    }
-                    comps.clear();
-                    for c in 0..nc {
-                        let s = seg
-                            .get(6 + 3 * c..9 + 3 * c)
-                            .ok_or_else(|| DcError::Corrupt("SOF".into()))?;
-                        let (h, v) = (usize::from(s[1] >> 4), usize::from(s[1] & 15));
-                        if !(1..=2).contains(&h) || !(1..=2).contains(&v) || s[2] > 3 {
-                            return Err(DcError::Unsupported(format!("sampling {h}x{v}")));
-                        }
-                        comps.push(Comp {
-                            id: s[0],
-                            h,
-                            v,
-                            tq: usize::from(s[2]),
-                            ..Comp::default()
-                        });
-                    }
-                }
+                0xC0 | 0xC1 => (width, height, comps) = parse_sof(seg, max_side)?,
                 0xC2 | 0xC3 | 0xC5..=0xC7 | 0xC9..=0xCB | 0xCD..=0xCF => {
                     return Err(DcError::Unsupported(format!("SOF{}", m - 0xC0)));
                 }

@@ -162,6 +162,70 @@ pub struct SamplerStage {
     predicted: bool,
 }
 
+/// The velocity model's condition inputs and latent map checked against the stage: one declared
+/// source per condition input, in order; each object field set the right width and computable
+/// for every object the stage predicts for; offset and scale of the latent's width. The latent's
+/// shape comes back (the manifest's, or [1, d]). The error is one line for the bundle's.
+fn latent_shape(
+    spec: &ModelSpec,
+    cond_dims: &[usize],
+    d: usize,
+    objects: &[String],
+) -> Result<Vec<u32>, String> {
+    let inputs: Vec<&str> = spec
+        .inputs
+        .iter()
+        .skip(2)
+        .map(|t| t.name.as_str())
+        .collect();
+    let declared: Vec<&str> = spec.condition.iter().map(|c| c.input.as_str()).collect();
+    if inputs != declared {
+        return Err(format!(
+            "velocity: its condition inputs are {inputs:?}, the manifest's `condition` describes {declared:?} (a stage needs one source per input, in order)"
+        ));
+    }
+    for (c, &w) in spec.condition.iter().zip(cond_dims) {
+        if c.source == ConditionSource::Object && c.fields.len() != w {
+            return Err(format!(
+                "velocity: condition input {} has {w} values but {} fields",
+                c.input,
+                c.fields.len()
+            ));
+        }
+    }
+    for o in objects {
+        let probe = VisualObservation {
+            header: Header::new(Stamp(0), ""),
+            names: Vec::new(),
+            values: Vec::new(),
+        };
+        for c in spec
+            .condition
+            .iter()
+            .filter(|c| c.source == ConditionSource::Object)
+        {
+            object_condition(&c.fields, o, &probe).map_err(|e| e.to_string())?;
+        }
+    }
+    let affine_ok = |v: &[f32]| v.is_empty() || (v.len() == d && v.iter().all(|x| x.is_finite()));
+    if !affine_ok(&spec.latent_offset) || !affine_ok(&spec.latent_scale) {
+        return Err(format!(
+            "velocity: latent_offset and latent_scale need {d} finite values each (or none)"
+        ));
+    }
+    let shape = if spec.latent_shape.is_empty() {
+        vec![1, d as u32]
+    } else {
+        spec.latent_shape.clone()
+    };
+    if shape.iter().map(|&v| v as usize).product::<usize>() != d {
+        return Err(format!(
+            "velocity: latent_shape {shape:?} does not hold {d} values"
+        ));
+    }
+    Ok(shape)
+}
+
 impl SamplerStage {
     pub fn new(bundle_dir: &Path, p: SamplerParams) -> Result<Self, InferError> {
         let bad = |msg: String| InferError::Bundle {
@@ -203,59 +267,8 @@ impl SamplerStage {
         };
         let mut velocity = OnnxVelocity::new(vel)?;
         let d = velocity.dim();
-        let spec = velocity.spec().clone();
-        let inputs: Vec<&str> = spec
-            .inputs
-            .iter()
-            .skip(2)
-            .map(|t| t.name.as_str())
-            .collect();
-        let declared: Vec<&str> = spec.condition.iter().map(|c| c.input.as_str()).collect();
-        if inputs != declared {
-            return Err(bad(format!(
-                "velocity: its condition inputs are {inputs:?}, the manifest's `condition` describes {declared:?} (a stage needs one source per input, in order)"
-            )));
-        }
-        for (c, &w) in spec.condition.iter().zip(velocity.cond_dims()) {
-            if c.source == ConditionSource::Object && c.fields.len() != w {
-                return Err(bad(format!(
-                    "velocity: condition input {} has {w} values but {} fields",
-                    c.input,
-                    c.fields.len()
-                )));
-            }
-        }
-        for o in &p.objects {
-            let probe = VisualObservation {
-                header: Header::new(Stamp(0), ""),
-                names: Vec::new(),
-                values: Vec::new(),
-            };
-            for c in spec
-                .condition
-                .iter()
-                .filter(|c| c.source == ConditionSource::Object)
-            {
-                object_condition(&c.fields, o, &probe).map_err(|e| bad(e.to_string()))?;
-            }
-        }
-        let affine_ok =
-            |v: &[f32]| v.is_empty() || (v.len() == d && v.iter().all(|x| x.is_finite()));
-        if !affine_ok(&spec.latent_offset) || !affine_ok(&spec.latent_scale) {
-            return Err(bad(format!(
-                "velocity: latent_offset and latent_scale need {d} finite values each (or none)"
-            )));
-        }
-        let shape = if spec.latent_shape.is_empty() {
-            vec![1, d as u32]
-        } else {
-            spec.latent_shape.clone()
-        };
-        if shape.iter().map(|&v| v as usize).product::<usize>() != d {
-            return Err(bad(format!(
-                "velocity: latent_shape {shape:?} does not hold {d} values"
-            )));
-        }
+        let shape =
+            latent_shape(velocity.spec(), velocity.cond_dims(), d, &p.objects).map_err(bad)?;
         let mut cfg = SampleConfig {
             solver,
             steps: p.steps,

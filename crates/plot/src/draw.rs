@@ -126,6 +126,139 @@ fn clip(
     ))
 }
 
+/// The chart's cells (a stability map's), each filled inside its corners with a pixel of white
+/// between neighbours, and its mark at the centre; `x` and `y` are the axes' drawable ranges.
+fn draw_cells(
+    root: &Area,
+    chart: &Chart,
+    x: (f64, f64),
+    y: (f64, f64),
+    to_px: &dyn Fn((f64, f64)) -> (i32, i32),
+) -> Result<(), PlotError> {
+    for c in &chart.cells {
+        let corners = (
+            chart.x.to_plot(c.x.0),
+            chart.x.to_plot(c.x.1),
+            chart.y.to_plot(c.y.0),
+            chart.y.to_plot(c.y.1),
+        );
+        let (Some(x0), Some(x1), Some(y0), Some(y1)) = corners else {
+            continue;
+        };
+        let (x0, x1) = (x0.min(x1).max(x.0), x0.max(x1).min(x.1));
+        let (y0, y1) = (y0.min(y1).max(y.0), y0.max(y1).min(y.1));
+        if x0 >= x1 || y0 >= y1 {
+            continue;
+        }
+        let (a, b) = (to_px((x0, y1)), to_px((x1, y0)));
+        // One pixel of white between neighbouring cells.
+        root.draw(&Rectangle::new(
+            [(a.0 + 1, a.1 + 1), (b.0 - 1, b.1 - 1)],
+            colour(c.colour).filled(),
+        ))?;
+        if let Some(mark) = &c.mark {
+            let m = to_px((0.5 * (x0 + x1), 0.5 * (y0 + y1)));
+            root.draw(&Text::new(
+                mark.clone(),
+                m,
+                text_centre(TEXT_PX + 4.0, crate::BLACK),
+            ))?;
+        }
+    }
+    Ok(())
+}
+
+/// The chart's horizontal bands: a light fill between dashed edges, and the label at the right.
+fn draw_bands(
+    root: &Area,
+    chart: &Chart,
+    x: (f64, f64),
+    y: (f64, f64),
+    to_px: &dyn Fn((f64, f64)) -> (i32, i32),
+) -> Result<(), PlotError> {
+    for b in &chart.bands {
+        let (Some(y0), Some(y1)) = (chart.y.to_plot(b.y.0), chart.y.to_plot(b.y.1)) else {
+            continue;
+        };
+        let (y0, y1) = (y0.min(y1).max(y.0), y0.max(y1).min(y.1));
+        if y0 > y1 {
+            continue;
+        }
+        let (a, z) = (to_px((x.0, y1)), to_px((x.1, y0)));
+        let col = colour(b.colour);
+        root.draw(&Rectangle::new([a, z], col.mix(0.15).filled()))?;
+        for y in [a.1, z.1] {
+            root.draw(&DashedPathElement::new(
+                vec![(a.0, y), (z.0, y)],
+                8,
+                6,
+                col.stroke_width(2),
+            ))?;
+        }
+        if let Some(label) = &b.label {
+            root.draw(&Text::new(
+                label.clone(),
+                (z.0 - 6, a.1 + 12),
+                (FAMILY, LABEL_PX)
+                    .into_font()
+                    .color(&col)
+                    .pos(Pos::new(HPos::Right, VPos::Center)),
+            ))?;
+        }
+    }
+    Ok(())
+}
+
+/// The runs of a series cut at the data box, as pixel polylines: a run that leaves and comes
+/// back becomes two.
+fn polylines(
+    runs: &[Vec<(f64, f64)>],
+    data_box: ((f64, f64), (f64, f64)),
+    to_px: &dyn Fn((f64, f64)) -> (i32, i32),
+) -> Vec<Vec<(i32, i32)>> {
+    let mut lines: Vec<Vec<(i32, i32)>> = Vec::new();
+    for run in runs {
+        let mut open = false;
+        for w in run.windows(2) {
+            let Some((a, b)) = clip(w[0], w[1], data_box.0, data_box.1) else {
+                open = false;
+                continue;
+            };
+            match lines.last_mut() {
+                Some(line) if open && a == w[0] => line.push(to_px(b)),
+                _ => lines.push(vec![to_px(a), to_px(b)]),
+            }
+            open = b == w[1];
+        }
+    }
+    lines
+}
+
+/// The strip above the y axis's top (`hi`) where values beyond it are marked (at `strip_y`): a
+/// dashed edge and its label, right-aligned with a cross before it.
+fn overflow_strip(
+    root: &Area,
+    label: &str,
+    x: (f64, f64),
+    (hi, strip_y): (f64, f64),
+    to_px: &dyn Fn((f64, f64)) -> (i32, i32),
+) -> Result<(), PlotError> {
+    let (a, z) = (to_px((x.0, hi)), to_px((x.1, hi)));
+    root.draw(&DashedPathElement::new(
+        vec![a, z],
+        5,
+        4,
+        colour(GREY).stroke_width(1),
+    ))?;
+    let s = to_px((x.1, strip_y));
+    let text = text_left(LABEL_PX, GREY);
+    let w = i32::try_from(root.estimate_text_size(label, &text)?.0).unwrap_or(0);
+    let at = (s.0 - w - 10, s.1);
+    marker(root, (at.0 - 12, at.1), Marker::Cross, GREY)?;
+    root.draw(&Text::new(label.to_string(), at, text))?;
+    Ok(())
+}
+
 /// Draw `chart` into `area`; pixel-placed elements go onto `root` (absolute coordinates).
 pub(crate) fn chart(root: &Area, area: &Area, chart: &Chart) -> Result<PanelGeometry, PlotError> {
     let (xs, ys) = extents(chart);
@@ -179,83 +312,12 @@ pub(crate) fn chart(root: &Area, area: &Area, chart: &Chart) -> Result<PanelGeom
     let data_box = ((xl.lo, xl.end), (yl.lo, yl.hi));
     let to_px = |t: (f64, f64)| cc.backend_coord(&t);
 
-    for c in &chart.cells {
-        let corners = (
-            chart.x.to_plot(c.x.0),
-            chart.x.to_plot(c.x.1),
-            chart.y.to_plot(c.y.0),
-            chart.y.to_plot(c.y.1),
-        );
-        let (Some(x0), Some(x1), Some(y0), Some(y1)) = corners else {
-            continue;
-        };
-        let (x0, x1) = (x0.min(x1).max(xl.lo), x0.max(x1).min(xl.end));
-        let (y0, y1) = (y0.min(y1).max(yl.lo), y0.max(y1).min(yl.hi));
-        if x0 >= x1 || y0 >= y1 {
-            continue;
-        }
-        let (a, b) = (to_px((x0, y1)), to_px((x1, y0)));
-        // One pixel of white between neighbouring cells.
-        root.draw(&Rectangle::new(
-            [(a.0 + 1, a.1 + 1), (b.0 - 1, b.1 - 1)],
-            colour(c.colour).filled(),
-        ))?;
-        if let Some(mark) = &c.mark {
-            let m = to_px((0.5 * (x0 + x1), 0.5 * (y0 + y1)));
-            root.draw(&Text::new(
-                mark.clone(),
-                m,
-                text_centre(TEXT_PX + 4.0, crate::BLACK),
-            ))?;
-        }
-    }
-
-    for b in &chart.bands {
-        let (Some(y0), Some(y1)) = (chart.y.to_plot(b.y.0), chart.y.to_plot(b.y.1)) else {
-            continue;
-        };
-        let (y0, y1) = (y0.min(y1).max(yl.lo), y0.max(y1).min(yl.hi));
-        if y0 > y1 {
-            continue;
-        }
-        let (a, z) = (to_px((xl.lo, y1)), to_px((xl.end, y0)));
-        let col = colour(b.colour);
-        root.draw(&Rectangle::new([a, z], col.mix(0.15).filled()))?;
-        for y in [a.1, z.1] {
-            root.draw(&DashedPathElement::new(
-                vec![(a.0, y), (z.0, y)],
-                8,
-                6,
-                col.stroke_width(2),
-            ))?;
-        }
-        if let Some(label) = &b.label {
-            root.draw(&Text::new(
-                label.clone(),
-                (z.0 - 6, a.1 + 12),
-                (FAMILY, LABEL_PX)
-                    .into_font()
-                    .color(&col)
-                    .pos(Pos::new(HPos::Right, VPos::Center)),
-            ))?;
-        }
-    }
+    draw_cells(root, chart, (xl.lo, xl.end), (yl.lo, yl.hi), &to_px)?;
+    draw_bands(root, chart, (xl.lo, xl.end), (yl.lo, yl.hi), &to_px)?;
 
     let strip_y = 0.5 * (yl.hi + yl.end);
     if let Some(label) = &chart.overflow {
-        let (a, z) = (to_px((xl.lo, yl.hi)), to_px((xl.end, yl.hi)));
-        root.draw(&DashedPathElement::new(
-            vec![a, z],
-            5,
-            4,
-            colour(GREY).stroke_width(1),
-        ))?;
-        let s = to_px((xl.end, strip_y));
-        let text = text_left(LABEL_PX, GREY);
-        let w = i32::try_from(root.estimate_text_size(label, &text)?.0).unwrap_or(0);
-        let at = (s.0 - w - 10, s.1);
-        marker(root, (at.0 - 12, at.1), Marker::Cross, GREY)?;
-        root.draw(&Text::new(label.clone(), at, text))?;
+        overflow_strip(root, label, (xl.lo, xl.end), (yl.hi, strip_y), &to_px)?;
     }
 
     for s in &chart.series {
@@ -288,21 +350,7 @@ pub(crate) fn chart(root: &Area, area: &Area, chart: &Chart) -> Result<PanelGeom
         if s.stroke != Stroke::None {
             // Polylines inside the plot area: a run cut at the edges, drawn whole so that
             // dashes run on across its points.
-            let mut lines: Vec<Vec<(i32, i32)>> = Vec::new();
-            for run in &runs {
-                let mut open = false;
-                for w in run.windows(2) {
-                    let Some((a, b)) = clip(w[0], w[1], data_box.0, data_box.1) else {
-                        open = false;
-                        continue;
-                    };
-                    match lines.last_mut() {
-                        Some(line) if open && a == w[0] => line.push(to_px(b)),
-                        _ => lines.push(vec![to_px(a), to_px(b)]),
-                    }
-                    open = b == w[1];
-                }
-            }
+            let lines = polylines(&runs, data_box, &to_px);
             for line in lines {
                 if s.stroke == Stroke::Dashed {
                     root.draw(&DashedPathElement::new(line, 10, 6, style))?;

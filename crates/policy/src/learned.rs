@@ -32,6 +32,7 @@
 
 use crate::error::PolicyLoadError;
 use crate::observation::{Observation, input};
+use crate::onnx::manifest::InputSpec;
 use crate::onnx::{NamedInputs, OnnxPolicy, RunError, RuntimeConfig};
 use crate::params::PolicyParams;
 use crate::policy::{Action, ArmAction, GripperAction, Policy, PolicyError};
@@ -265,6 +266,68 @@ fn load_error(dir: &Path, problems: Vec<String>) -> PolicyLoadError {
     }
 }
 
+/// The model's inputs against the scene: each a feature a learned policy has, of the width the
+/// scene's layout gives (the camera's names in the scene's order; per-object latent slots of its
+/// objects). Problems go to `problems`; the per-object latent width comes back (0: none).
+fn check_inputs(inputs: &[InputSpec], params: &PolicyParams, problems: &mut Vec<String>) -> usize {
+    let n_obj = params.limits.objects.len();
+    let mut width = 0;
+    for i in inputs {
+        let numel: usize = i
+            .shape
+            .iter()
+            .skip(1)
+            .map(|d| match d {
+                unitac_infer::bundle::Dim::Fixed(n) => usize::try_from(*n).unwrap_or(0),
+                unitac_infer::bundle::Dim::Symbolic(_) => 0,
+            })
+            .product();
+        match i.name.as_str() {
+            STATE => {
+                let w = input("gripper").map_or(0, |s| (s.width)(&params.layout()));
+                if numel != w {
+                    problems.push(format!("{STATE} has {numel} values, the gripper's {w}"));
+                }
+            }
+            VISUAL => match &i.names {
+                Some(n) if *n == params.visual_names => {}
+                Some(n) => problems.push(format!(
+                    "{VISUAL} reads {n:?}, the scene's visual_names are {:?}",
+                    params.visual_names
+                )),
+                None => problems.push(format!("{VISUAL} states no names")),
+            },
+            LATCHED if numel != LATCHED_LEN => {
+                problems.push(format!("{LATCHED}: {numel} values, not {LATCHED_LEN}"));
+            }
+            ARM if numel != ARM_LEN => {
+                problems.push(format!("{ARM}: {numel} values, not {ARM_LEN}"));
+            }
+            CONTACT if numel != CONTACT_LEN => {
+                problems.push(format!("{CONTACT}: {numel} values, not {CONTACT_LEN}"));
+            }
+            COMPARISON if numel != COMPARISON_LEN => {
+                problems.push(format!(
+                    "{COMPARISON}: {numel} values, not {COMPARISON_LEN}"
+                ));
+            }
+            LATENT_REAL | LATENT_PRED => {
+                if n_obj == 0 || numel % n_obj != 0 || numel / n_obj < 2 {
+                    problems.push(format!(
+                        "{}: {numel} values are not {n_obj} objects x (latent + known)",
+                        i.name
+                    ));
+                } else {
+                    width = numel / n_obj - 1;
+                }
+            }
+            LATCHED | ARM | CONTACT | COMPARISON => {}
+            other => problems.push(format!("input '{other}' is not one a learned policy has")),
+        }
+    }
+    width
+}
+
 impl LearnedPolicy {
     /// The bundle in `dir` for the scene's `params`: every problem in one error (the model's
     /// own checks, then: the command actions, each ranging inside the scene's safety bounds, and
@@ -319,61 +382,7 @@ impl LearnedPolicy {
                 None => problems.push(format!("no score action '{ARM_TARGET_PREFIX}{t}'")),
             }
         }
-        let n_obj = params.limits.objects.len();
-        let mut width = 0;
-        for i in &onnx.manifest().inputs {
-            let numel: usize = i
-                .shape
-                .iter()
-                .skip(1)
-                .map(|d| match d {
-                    unitac_infer::bundle::Dim::Fixed(n) => usize::try_from(*n).unwrap_or(0),
-                    unitac_infer::bundle::Dim::Symbolic(_) => 0,
-                })
-                .product();
-            match i.name.as_str() {
-                STATE => {
-                    let w = input("gripper").map_or(0, |s| (s.width)(&params.layout()));
-                    if numel != w {
-                        problems.push(format!("{STATE} has {numel} values, the gripper's {w}"));
-                    }
-                }
-                VISUAL => match &i.names {
-                    Some(n) if *n == params.visual_names => {}
-                    Some(n) => problems.push(format!(
-                        "{VISUAL} reads {n:?}, the scene's visual_names are {:?}",
-                        params.visual_names
-                    )),
-                    None => problems.push(format!("{VISUAL} states no names")),
-                },
-                LATCHED if numel != LATCHED_LEN => {
-                    problems.push(format!("{LATCHED}: {numel} values, not {LATCHED_LEN}"));
-                }
-                ARM if numel != ARM_LEN => {
-                    problems.push(format!("{ARM}: {numel} values, not {ARM_LEN}"));
-                }
-                CONTACT if numel != CONTACT_LEN => {
-                    problems.push(format!("{CONTACT}: {numel} values, not {CONTACT_LEN}"));
-                }
-                COMPARISON if numel != COMPARISON_LEN => {
-                    problems.push(format!(
-                        "{COMPARISON}: {numel} values, not {COMPARISON_LEN}"
-                    ));
-                }
-                LATENT_REAL | LATENT_PRED => {
-                    if n_obj == 0 || numel % n_obj != 0 || numel / n_obj < 2 {
-                        problems.push(format!(
-                            "{}: {numel} values are not {n_obj} objects x (latent + known)",
-                            i.name
-                        ));
-                    } else {
-                        width = numel / n_obj - 1;
-                    }
-                }
-                LATCHED | ARM | CONTACT | COMPARISON => {}
-                other => problems.push(format!("input '{other}' is not one a learned policy has")),
-            }
-        }
+        let width = check_inputs(&onnx.manifest().inputs, params, &mut problems);
         if !problems.is_empty() {
             return Err(load_error(dir, problems));
         }

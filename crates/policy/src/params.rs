@@ -243,34 +243,9 @@ impl Default for PolicyParams {
 }
 
 impl PolicyParams {
-    /// The parsed task, the bounds and every range rule; all problems in one line.
-    pub fn check(&self) -> Result<Task, Problems> {
-        let mut bad = Vec::new();
-        let task = Task::parse(&self.task).map_err(|e| e.to_string());
-        if let Err(e) = &task {
-            bad.push(e.clone());
-        }
-        if let Err(e) = self.profile() {
-            bad.push(e.to_string());
-        }
-        if let Err(e) = self.bounds().check() {
-            bad.extend(e.0);
-        }
-        if !(self.control_rate_hz.is_finite()
-            && (MIN_CONTROL_RATE_HZ..=MAX_CONTROL_RATE_HZ).contains(&self.control_rate_hz))
-        {
-            bad.push(format!(
-                "control_rate_hz = {} is outside [{MIN_CONTROL_RATE_HZ}, {MAX_CONTROL_RATE_HZ}]",
-                self.control_rate_hz
-            ));
-        }
-        if let Some(b) = self.inference_budget_s
-            && !(b.is_finite() && (MIN_INFERENCE_BUDGET_S..=MAX_INFERENCE_BUDGET_S).contains(&b))
-        {
-            bad.push(format!(
-                "inference_budget_s = {b} is outside [{MIN_INFERENCE_BUDGET_S}, {MAX_INFERENCE_BUDGET_S}]"
-            ));
-        }
+    /// The numeric settings' rules (positive, non-negative, within their ranges), each broken
+    /// one a line in `bad`.
+    fn range_problems(&self, bad: &mut Vec<String>) {
         let positive = [
             ("budget_gripper_s", self.budget_gripper_s),
             ("budget_contact_s", self.budget_contact_s),
@@ -357,6 +332,37 @@ impl PolicyParams {
                 self.latent_len
             ));
         }
+    }
+
+    /// The parsed task, the bounds and every range rule; all problems in one line.
+    pub fn check(&self) -> Result<Task, Problems> {
+        let mut bad = Vec::new();
+        let task = Task::parse(&self.task);
+        if let Err(e) = &task {
+            bad.push(e.to_string());
+        }
+        if let Err(e) = self.profile() {
+            bad.push(e.to_string());
+        }
+        if let Err(e) = self.bounds().check() {
+            bad.extend(e.0);
+        }
+        if !(self.control_rate_hz.is_finite()
+            && (MIN_CONTROL_RATE_HZ..=MAX_CONTROL_RATE_HZ).contains(&self.control_rate_hz))
+        {
+            bad.push(format!(
+                "control_rate_hz = {} is outside [{MIN_CONTROL_RATE_HZ}, {MAX_CONTROL_RATE_HZ}]",
+                self.control_rate_hz
+            ));
+        }
+        if let Some(b) = self.inference_budget_s
+            && !(b.is_finite() && (MIN_INFERENCE_BUDGET_S..=MAX_INFERENCE_BUDGET_S).contains(&b))
+        {
+            bad.push(format!(
+                "inference_budget_s = {b} is outside [{MIN_INFERENCE_BUDGET_S}, {MAX_INFERENCE_BUDGET_S}]"
+            ));
+        }
+        self.range_problems(&mut bad);
         let uses_latent = self
             .mode
             .inputs(matches!(task, Ok(Task::Pick { .. })))

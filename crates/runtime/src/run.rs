@@ -61,6 +61,73 @@ fn stage_loop(stage: Box<dyn Stage>, input: &Edge, output: &Edge) -> RunnerStats
     runner.stats().clone()
 }
 
+/// How the source thread ended: frames pushed, errors, why it ended, and the stream's first
+/// stamp and span.
+struct SourceEnd {
+    frames: u64,
+    errors: u64,
+    ended: String,
+    stream_start: Stamp,
+    stream_s: f64,
+}
+
+/// The source thread: frames from `source` into `first_edge`, paced, until the source ends,
+/// `max_frames`, `stop`, or too many errors in a row; the edge is closed on the way out.
+fn source_loop(
+    source: &mut dyn Source,
+    first_edge: &Edge,
+    stop: &AtomicBool,
+    max_frames: Option<u64>,
+    pacer: &mut Pacer,
+) -> SourceEnd {
+    let _span = tracing::info_span!("source").entered();
+    let (mut frames, mut errors, mut in_a_row) = (0u64, 0u64, 0u32);
+    let (mut first, mut last) = (None::<Stamp>, Stamp::ZERO);
+    let ended = loop {
+        if stop.load(Ordering::SeqCst) {
+            break "stopped".to_string();
+        }
+        if max_frames.is_some_and(|m| frames >= m) {
+            break "max_frames".to_string();
+        }
+        match source.next_frame() {
+            Ok(Some(f)) => {
+                in_a_row = 0;
+                first.get_or_insert(f.stamp);
+                last = f.stamp;
+                pacer.wait(f.stamp, |d| {
+                    std::thread::sleep(d);
+                    !stop.load(Ordering::SeqCst)
+                });
+                frames += 1;
+                if !first_edge.push(Msg::Frame(f)) {
+                    break "stopped".to_string();
+                }
+            }
+            Ok(None) => break "source_end".to_string(),
+            Err(SourceError::Frame(e)) | Err(SourceError::Unavailable(e)) => {
+                errors += 1;
+                in_a_row += 1;
+                if errors <= 10 {
+                    tracing::warn!("source: {e}");
+                }
+                if in_a_row >= MAX_SOURCE_ERRORS_IN_A_ROW {
+                    break format!("source_failed: {in_a_row} errors in a row, last: {e}");
+                }
+            }
+            Err(SourceError::Fatal(e)) => break format!("source_failed: {e}"),
+        }
+    };
+    first_edge.close();
+    SourceEnd {
+        frames,
+        errors,
+        ended,
+        stream_start: first.unwrap_or(Stamp::ZERO),
+        stream_s: first.map_or(0.0, |f| last.secs_since(f)),
+    }
+}
+
 /// Run `stages` on `source` until the source ends, `max_frames` is reached or `stop` is set.
 /// `on_message` sees every message that leaves the last stage, in order, frames included (with
 /// a lossless `--fast` replay that is every frame of the source: `unitac run --out` records them).
@@ -111,52 +178,7 @@ pub fn run(
         Pacer::fast()
     };
     let source_thread = std::thread::spawn(move || {
-        let _span = tracing::info_span!("source").entered();
-        let (mut frames, mut errors, mut in_a_row) = (0u64, 0u64, 0u32);
-        let (mut first, mut last) = (None::<Stamp>, Stamp::ZERO);
-        let ended = loop {
-            if stop.load(Ordering::SeqCst) {
-                break "stopped".to_string();
-            }
-            if max_frames.is_some_and(|m| frames >= m) {
-                break "max_frames".to_string();
-            }
-            match source.next_frame() {
-                Ok(Some(f)) => {
-                    in_a_row = 0;
-                    first.get_or_insert(f.stamp);
-                    last = f.stamp;
-                    pacer.wait(f.stamp, |d| {
-                        std::thread::sleep(d);
-                        !stop.load(Ordering::SeqCst)
-                    });
-                    frames += 1;
-                    if !first_edge.push(Msg::Frame(f)) {
-                        break "stopped".to_string();
-                    }
-                }
-                Ok(None) => break "source_end".to_string(),
-                Err(SourceError::Frame(e)) | Err(SourceError::Unavailable(e)) => {
-                    errors += 1;
-                    in_a_row += 1;
-                    if errors <= 10 {
-                        tracing::warn!("source: {e}");
-                    }
-                    if in_a_row >= MAX_SOURCE_ERRORS_IN_A_ROW {
-                        break format!("source_failed: {in_a_row} errors in a row, last: {e}");
-                    }
-                }
-                Err(SourceError::Fatal(e)) => break format!("source_failed: {e}"),
-            }
-        };
-        first_edge.close();
-        (
-            frames,
-            errors,
-            ended,
-            first.unwrap_or(Stamp::ZERO),
-            first.map_or(0.0, |f| last.secs_since(f)),
-        )
+        source_loop(source.as_mut(), &first_edge, &stop, max_frames, &mut pacer)
     });
 
     // Collector: the end of the chain.
@@ -186,16 +208,19 @@ pub fn run(
             _ => {}
         }
     }
-    let (frames, source_errors, ended, stream_start, stream_s) =
-        source_thread.join().unwrap_or_else(|_| {
-            (
-                0,
-                0,
-                "source_failed: source thread panicked".into(),
-                Stamp::ZERO,
-                0.0,
-            )
-        });
+    let SourceEnd {
+        frames,
+        errors: source_errors,
+        ended,
+        stream_start,
+        stream_s,
+    } = source_thread.join().unwrap_or_else(|_| SourceEnd {
+        frames: 0,
+        errors: 0,
+        ended: "source_failed: source thread panicked".into(),
+        stream_start: Stamp::ZERO,
+        stream_s: 0.0,
+    });
     let stages = names
         .into_iter()
         .zip(handles)

@@ -251,6 +251,118 @@ pub fn report_steps(opts: &NumericsOptions) -> u64 {
     (opts.cups.len() + Method::ALL.len() * opts.map_stiffness.len()) as u64
 }
 
+/// The reference run of `cup` (semi-implicit Euler at the reference step) and its
+/// self-consistency against twice that step.
+fn reference_for(cup: &Cup, opts: &NumericsOptions) -> Reference {
+    let t0 = Instant::now();
+    let r = run_task(
+        cup,
+        Method::SemiImplicitEuler,
+        Substep::Off,
+        opts.ref_step_s,
+    );
+    let wall_s = t0.elapsed().as_secs_f64();
+    let r2 = run_task(
+        cup,
+        Method::SemiImplicitEuler,
+        Substep::Off,
+        2.0 * opts.ref_step_s,
+    );
+    let (be, bs) = end_state_bounds(cup);
+    Reference {
+        cup: cup.clone(),
+        task: Task::for_cup(cup),
+        final_deformation_m: r.final_deformation_m,
+        stop_deformation_m: r.stop_deformation_m,
+        peak_force_n: r.peak_force_n,
+        self_err_deformation_m: (r.final_deformation_m - r2.final_deformation_m).abs(),
+        self_err_stop_deformation_m: (r.stop_deformation_m - r2.stop_deformation_m).abs(),
+        self_err_force_n: (r.peak_force_n - r2.peak_force_n).abs(),
+        bound_explicit_s: be,
+        bound_semi_implicit_s: bs,
+        wall_s,
+    }
+}
+
+/// Every method at every step of `opts` on `cup` (and the world's default, sub-stepped), each
+/// against `reference`, timed best of three.
+fn accuracy_rows(cup: &Cup, opts: &NumericsOptions, reference: &Reference) -> Vec<AccuracyRow> {
+    let mut rows = Vec::new();
+    let mut runs: Vec<(Method, Substep, f64)> = Vec::new();
+    for m in Method::ALL {
+        for &h in &opts.steps_s {
+            runs.push((m, Substep::Off, h));
+        }
+    }
+    // The world's default: semi-implicit Euler, sub-stepped at half its bound.
+    for &h in &opts.steps_s {
+        if h >= DEFAULT_STEP_S {
+            runs.push((
+                Method::SemiImplicitEuler,
+                Substep::Stability { safety: 0.5 },
+                h,
+            ));
+        }
+    }
+    for (m, sub, h) in runs {
+        // Best of three timings (the machine is shared); the outcome is deterministic.
+        let t0 = Instant::now();
+        let o = run_task(cup, m, sub, h);
+        let mut wall_s = t0.elapsed().as_secs_f64();
+        for _ in 0..2 {
+            let t0 = Instant::now();
+            std::hint::black_box(run_task(cup, m, sub, h));
+            wall_s = wall_s.min(t0.elapsed().as_secs_f64());
+        }
+        let ed = (o.final_deformation_m - reference.final_deformation_m).abs();
+        let ef = (o.peak_force_n - reference.peak_force_n).abs();
+        rows.push(AccuracyRow {
+            cup: cup.label.clone(),
+            method: m,
+            substeps: matches!(sub, Substep::Stability { .. }),
+            step_s: h,
+            final_deformation_m: o.final_deformation_m,
+            stop_deformation_m: o.stop_deformation_m,
+            peak_force_n: o.peak_force_n,
+            err_deformation_m: ed,
+            err_stop_deformation_m: (o.stop_deformation_m - reference.stop_deformation_m).abs(),
+            err_force_n: ef,
+            rel_err: rel(o.final_deformation_m, reference.final_deformation_m)
+                .max(rel(o.stop_deformation_m, reference.stop_deformation_m))
+                .max(rel(o.peak_force_n, reference.peak_force_n)),
+            steps: o.steps,
+            wall_s,
+            stable: o.stable(),
+            diverged: o.diverged.clone(),
+        });
+    }
+    rows
+}
+
+/// One column of the stability map: method `m` on a cup of stiffness `k` at each step, the
+/// bound's prediction beside what the run did.
+fn stability_column(m: Method, k: f64, steps: &[f64]) -> Vec<StabilityCell> {
+    let mut cells = Vec::new();
+    let cup = Cup::new("map", 0.080, k);
+    let (be, bs) = end_state_bounds(&cup);
+    for &h in steps {
+        let o = run_task(&cup, m, Substep::Off, h);
+        let predicted_stable = match m {
+            Method::ExplicitEuler => h < be,
+            Method::SemiImplicitEuler => h < bs,
+            Method::BackwardEuler => true,
+        };
+        cells.push(StabilityCell {
+            method: m,
+            k_n_per_m: k,
+            step_s: h,
+            predicted_stable,
+            observed_stable: o.stable(),
+        });
+    }
+    cells
+}
+
 /// [`report`], calling `progress(done, total)` after each unit of [`report_steps`].
 pub fn report_with_progress(
     opts: &NumericsOptions,
@@ -261,82 +373,8 @@ pub fn report_with_progress(
     let mut references = Vec::new();
     let mut accuracy = Vec::new();
     for cup in &opts.cups {
-        let t0 = Instant::now();
-        let r = run_task(
-            cup,
-            Method::SemiImplicitEuler,
-            Substep::Off,
-            opts.ref_step_s,
-        );
-        let wall_s = t0.elapsed().as_secs_f64();
-        let r2 = run_task(
-            cup,
-            Method::SemiImplicitEuler,
-            Substep::Off,
-            2.0 * opts.ref_step_s,
-        );
-        let (be, bs) = end_state_bounds(cup);
-        let reference = Reference {
-            cup: cup.clone(),
-            task: Task::for_cup(cup),
-            final_deformation_m: r.final_deformation_m,
-            stop_deformation_m: r.stop_deformation_m,
-            peak_force_n: r.peak_force_n,
-            self_err_deformation_m: (r.final_deformation_m - r2.final_deformation_m).abs(),
-            self_err_stop_deformation_m: (r.stop_deformation_m - r2.stop_deformation_m).abs(),
-            self_err_force_n: (r.peak_force_n - r2.peak_force_n).abs(),
-            bound_explicit_s: be,
-            bound_semi_implicit_s: bs,
-            wall_s,
-        };
-        let mut runs: Vec<(Method, Substep, f64)> = Vec::new();
-        for m in Method::ALL {
-            for &h in &opts.steps_s {
-                runs.push((m, Substep::Off, h));
-            }
-        }
-        // The world's default: semi-implicit Euler, sub-stepped at half its bound.
-        for &h in &opts.steps_s {
-            if h >= DEFAULT_STEP_S {
-                runs.push((
-                    Method::SemiImplicitEuler,
-                    Substep::Stability { safety: 0.5 },
-                    h,
-                ));
-            }
-        }
-        for (m, sub, h) in runs {
-            // Best of three timings (the machine is shared); the outcome is deterministic.
-            let t0 = Instant::now();
-            let o = run_task(cup, m, sub, h);
-            let mut wall_s = t0.elapsed().as_secs_f64();
-            for _ in 0..2 {
-                let t0 = Instant::now();
-                std::hint::black_box(run_task(cup, m, sub, h));
-                wall_s = wall_s.min(t0.elapsed().as_secs_f64());
-            }
-            let ed = (o.final_deformation_m - reference.final_deformation_m).abs();
-            let ef = (o.peak_force_n - reference.peak_force_n).abs();
-            accuracy.push(AccuracyRow {
-                cup: cup.label.clone(),
-                method: m,
-                substeps: matches!(sub, Substep::Stability { .. }),
-                step_s: h,
-                final_deformation_m: o.final_deformation_m,
-                stop_deformation_m: o.stop_deformation_m,
-                peak_force_n: o.peak_force_n,
-                err_deformation_m: ed,
-                err_stop_deformation_m: (o.stop_deformation_m - reference.stop_deformation_m).abs(),
-                err_force_n: ef,
-                rel_err: rel(o.final_deformation_m, reference.final_deformation_m)
-                    .max(rel(o.stop_deformation_m, reference.stop_deformation_m))
-                    .max(rel(o.peak_force_n, reference.peak_force_n)),
-                steps: o.steps,
-                wall_s,
-                stable: o.stable(),
-                diverged: o.diverged.clone(),
-            });
-        }
+        let reference = reference_for(cup, opts);
+        accuracy.extend(accuracy_rows(cup, opts, &reference));
         references.push(reference);
         done += 1;
         progress(done, total);
@@ -344,23 +382,7 @@ pub fn report_with_progress(
     let mut stability = Vec::new();
     for m in Method::ALL {
         for &k in &opts.map_stiffness {
-            let cup = Cup::new("map", 0.080, k);
-            let (be, bs) = end_state_bounds(&cup);
-            for &h in &opts.map_steps {
-                let o = run_task(&cup, m, Substep::Off, h);
-                let predicted_stable = match m {
-                    Method::ExplicitEuler => h < be,
-                    Method::SemiImplicitEuler => h < bs,
-                    Method::BackwardEuler => true,
-                };
-                stability.push(StabilityCell {
-                    method: m,
-                    k_n_per_m: k,
-                    step_s: h,
-                    predicted_stable,
-                    observed_stable: o.stable(),
-                });
-            }
+            stability.extend(stability_column(m, k, &opts.map_steps));
             done += 1;
             progress(done, total);
         }

@@ -352,6 +352,129 @@ fn features(name: &str, msg: Option<Msg>, layout: &Layout, len: usize) -> Result
     Ok(out)
 }
 
+/// The recording settings within their ranges, and at most [`MAX_CHAINS`] chains.
+fn check_config(c: &DemoConfig, n_chains: usize) -> Result<(), DemoError> {
+    if !(c.dt_s.is_finite() && c.dt_s > 0.0 && c.dt_s <= task::MAX_STEP_S) {
+        return Err(DemoError::Config(format!("dt_s = {}", c.dt_s)));
+    }
+    for (k, v) in [
+        ("touch_speed_m_s", c.touch_speed_m_s),
+        ("touch_force_n", c.touch_force_n),
+        ("timeout_s", c.timeout_s),
+    ] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(DemoError::Config(format!("{k} = {v} must be > 0")));
+        }
+    }
+    let ok = c.probe_release_m.is_finite()
+        && c.probe_release_m >= 0.0
+        && c.run_s.is_none_or(|s| (0.0..=600.0).contains(&s))
+        && c.timeout_s <= 600.0
+        && (0.0..=60.0).contains(&c.approach_s);
+    if !ok {
+        return Err(DemoError::Config(
+            "probe_release_m must be >= 0; run_s in [0, 600] s; timeout_s at most 600 s; approach_s in [0, 60] s".into(),
+        ));
+    }
+    if !(1..=4096).contains(&c.pooled_len) {
+        return Err(DemoError::Config(format!(
+            "pooled_len = {} (1 to 4096)",
+            c.pooled_len
+        )));
+    }
+    if n_chains > MAX_CHAINS {
+        return Err(DemoError::Config(format!(
+            "{} chains of stages (at most {MAX_CHAINS})",
+            n_chains
+        )));
+    }
+    Ok(())
+}
+
+/// What the driver's chain said: an error stops the demonstration; its commands, once both
+/// came (a tick's status), drive the world.
+fn driven(
+    out: unitac_core::chain::ChainOutput,
+    stage_err: &dyn Fn(&unitac_core::chain::Rejection) -> DemoError,
+) -> Result<Driven, DemoError> {
+    if let Some(r) = out.errors.first() {
+        return Err(stage_err(r));
+    }
+    let mut gripper = None;
+    let mut arm = None;
+    let mut ended = false;
+    for m in out.produced {
+        match m {
+            Msg::GripperCommand(g) => gripper = Some(g),
+            Msg::ArmCommand(a) => arm = Some(a),
+            Msg::PolicyStatus(s) => ended = matches!(s.phase.as_str(), "done" | "failed"),
+            _ => {}
+        }
+    }
+    Ok(Driven {
+        command: gripper.zip(arm),
+        ended,
+    })
+}
+
+/// The command of `phase`: the expert's, or the probe's touch, press and release around the
+/// opening `d0` at contact (the approach holds the expert's first opening, narrowed to the
+/// camera's `seen_width` plus the pre-grasp, in `approach_grip`).
+fn phase_command(
+    phase: Phase,
+    expert: TaskCommand,
+    c: &DemoConfig,
+    (d0, seen_width): (f64, Option<f64>),
+    approach_grip: &mut Option<GripperSetpoint>,
+) -> TaskCommand {
+    match phase {
+        // Fingers at the expert's first opening (a cup: the camera's width + the pads + the
+        // pre-grasp margin, as the cup controller opens) until the probe or the squeeze: the
+        // expert's own closing starts on the arm's true arrival, which no policy observes.
+        Phase::Approach => TaskCommand {
+            gripper: *approach_grip.get_or_insert_with(|| {
+                let mut g = expert.gripper;
+                if let Some(w) = seen_width {
+                    g.opening_m = (w + c.pregrasp_m).min(g.opening_m);
+                }
+                g
+            }),
+            arm: expert.arm,
+        },
+        Phase::Expert => expert,
+        Phase::Touch => TaskCommand {
+            gripper: GripperSetpoint {
+                opening_m: 0.0,
+                speed_m_s: c.touch_speed_m_s,
+                force_n: c.touch_force_n,
+            },
+            arm: expert.arm.clone(),
+        },
+        Phase::Press => TaskCommand {
+            gripper: GripperSetpoint {
+                opening_m: d0 - c.probe_press_m,
+                speed_m_s: c.touch_speed_m_s,
+                force_n: c.touch_force_n,
+            },
+            arm: ArmSetpoint {
+                lift_m: 0.0,
+                ..expert.arm.clone()
+            },
+        },
+        Phase::Release => TaskCommand {
+            gripper: GripperSetpoint {
+                opening_m: d0 + c.probe_release_m,
+                speed_m_s: c.touch_speed_m_s,
+                force_n: c.touch_force_n,
+            },
+            arm: ArmSetpoint {
+                lift_m: 0.0,
+                ..expert.arm.clone()
+            },
+        },
+    }
+}
+
 /// Record trial `trial` of `seed` on a cup of `split`, the frames going through `stages` (fresh
 /// ones: they keep state per trial).
 pub fn record(
@@ -408,40 +531,7 @@ fn record_inner(
     driver: Option<Vec<Box<dyn Stage>>>,
     c: &DemoConfig,
 ) -> Result<Demo, DemoError> {
-    if !(c.dt_s.is_finite() && c.dt_s > 0.0 && c.dt_s <= task::MAX_STEP_S) {
-        return Err(DemoError::Config(format!("dt_s = {}", c.dt_s)));
-    }
-    for (k, v) in [
-        ("touch_speed_m_s", c.touch_speed_m_s),
-        ("touch_force_n", c.touch_force_n),
-        ("timeout_s", c.timeout_s),
-    ] {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(DemoError::Config(format!("{k} = {v} must be > 0")));
-        }
-    }
-    let ok = c.probe_release_m.is_finite()
-        && c.probe_release_m >= 0.0
-        && c.run_s.is_none_or(|s| (0.0..=600.0).contains(&s))
-        && c.timeout_s <= 600.0
-        && (0.0..=60.0).contains(&c.approach_s);
-    if !ok {
-        return Err(DemoError::Config(
-            "probe_release_m must be >= 0; run_s in [0, 600] s; timeout_s at most 600 s; approach_s in [0, 60] s".into(),
-        ));
-    }
-    if !(1..=4096).contains(&c.pooled_len) {
-        return Err(DemoError::Config(format!(
-            "pooled_len = {} (1 to 4096)",
-            c.pooled_len
-        )));
-    }
-    if chains.len() > MAX_CHAINS {
-        return Err(DemoError::Config(format!(
-            "{} chains of stages (at most {MAX_CHAINS})",
-            chains.len()
-        )));
-    }
+    check_config(c, chains.len())?;
     let cfg = TaskConfig::new(c.task, split);
     let world = TaskWorld::reset(&cfg, seed, trial);
     let spec = world.spec().clone();
@@ -508,28 +598,7 @@ fn record_inner(
         stage: r.stage.clone(),
         msg: r.error.clone(),
     };
-    // What the driver's chain said: an error stops the demonstration; its commands, once both
-    // came (a tick's status), drive the world.
-    let driven = |out: unitac_core::chain::ChainOutput| -> Result<Driven, DemoError> {
-        if let Some(r) = out.errors.first() {
-            return Err(stage_err(r));
-        }
-        let mut gripper = None;
-        let mut arm = None;
-        let mut ended = false;
-        for m in out.produced {
-            match m {
-                Msg::GripperCommand(g) => gripper = Some(g),
-                Msg::ArmCommand(a) => arm = Some(a),
-                Msg::PolicyStatus(s) => ended = matches!(s.phase.as_str(), "done" | "failed"),
-                _ => {}
-            }
-        }
-        Ok(Driven {
-            command: gripper.zip(arm),
-            ended,
-        })
-    };
+    let driven = |out| driven(out, &stage_err);
     let timeout = |what| DemoError::Timeout {
         seed,
         trial,
@@ -655,52 +724,7 @@ fn record_inner(
             phase = p;
             since = t;
         }
-        let cmd = match phase {
-            // Fingers at the expert's first opening (a cup: the camera's width + the pads + the
-            // pre-grasp margin, as the cup controller opens) until the probe or the squeeze: the
-            // expert's own closing starts on the arm's true arrival, which no policy observes.
-            Phase::Approach => TaskCommand {
-                gripper: *approach_grip.get_or_insert_with(|| {
-                    let mut g = expert.gripper;
-                    if let Some(w) = seen_width {
-                        g.opening_m = (w + c.pregrasp_m).min(g.opening_m);
-                    }
-                    g
-                }),
-                arm: expert.arm,
-            },
-            Phase::Expert => expert,
-            Phase::Touch => TaskCommand {
-                gripper: GripperSetpoint {
-                    opening_m: 0.0,
-                    speed_m_s: c.touch_speed_m_s,
-                    force_n: c.touch_force_n,
-                },
-                arm: expert.arm.clone(),
-            },
-            Phase::Press => TaskCommand {
-                gripper: GripperSetpoint {
-                    opening_m: d0 - c.probe_press_m,
-                    speed_m_s: c.touch_speed_m_s,
-                    force_n: c.touch_force_n,
-                },
-                arm: ArmSetpoint {
-                    lift_m: 0.0,
-                    ..expert.arm.clone()
-                },
-            },
-            Phase::Release => TaskCommand {
-                gripper: GripperSetpoint {
-                    opening_m: d0 + c.probe_release_m,
-                    speed_m_s: c.touch_speed_m_s,
-                    force_n: c.touch_force_n,
-                },
-                arm: ArmSetpoint {
-                    lift_m: 0.0,
-                    ..expert.arm.clone()
-                },
-            },
-        };
+        let cmd = phase_command(phase, expert, c, (d0, seen_width), &mut approach_grip);
         if ticks.len() >= MAX_TICKS {
             return Err(DemoError::Config(format!(
                 "more than {MAX_TICKS} ticks in one demonstration"

@@ -269,6 +269,46 @@ fn send_paced(
     Ok(start + char_time * bytes.len() as u32)
 }
 
+/// `reply` to `slave` as the injected faults make it, each one-shot fault used up (None: no
+/// reply at all), and the delay before it.
+fn faulted_reply(
+    faults: &mut Faults,
+    reply: &Response,
+    slave: u8,
+    function: u8,
+) -> Option<(Vec<u8>, Duration)> {
+    if faults.mute {
+        return None;
+    }
+    if faults.no_reply > 0 {
+        faults.no_reply -= 1;
+        return None;
+    }
+    let mut to = slave;
+    if faults.wrong_slave > 0 {
+        faults.wrong_slave -= 1;
+        to = slave.wrapping_add(1);
+    }
+    let mut bytes = reply.encode(to, function);
+    if faults.corrupt_crc > 0 {
+        faults.corrupt_crc -= 1;
+        if let Some(b) = bytes.last_mut() {
+            *b ^= 0xA5;
+        }
+    }
+    if faults.half_frame > 0 {
+        faults.half_frame -= 1;
+        bytes.truncate(bytes.len() / 2);
+    }
+    if faults.garbage_before > 0 {
+        faults.garbage_before -= 1;
+        let mut g = vec![0xFF, 0x00, 0x17, slave, 0x99, 0x42, slave, 0x04];
+        g.append(&mut bytes);
+        bytes = g;
+    }
+    Some((bytes, faults.delay))
+}
+
 fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<Shared>) {
     let char_time = Duration::from_secs_f64(10.0 / f64::from(cfg.baud.max(1)));
     let silence = char_time.mul_f64(3.5);
@@ -356,38 +396,10 @@ fn serve(cfg: DeviceConfig, mut regs: Box<dyn Registers>, pty: Pty, shared: Arc<
             // Counted before the reply leaves: a driver that has the reply sees it counted.
             *lock(&shared.snap) = regs.snapshot();
             let Some(reply) = reply else { continue };
-            let mut faults = lock(&shared.faults);
-            if faults.mute {
+            let faulted = faulted_reply(&mut lock(&shared.faults), &reply, cfg.slave, function);
+            let Some((bytes, delay)) = faulted else {
                 continue;
-            }
-            if faults.no_reply > 0 {
-                faults.no_reply -= 1;
-                continue;
-            }
-            let mut slave = cfg.slave;
-            if faults.wrong_slave > 0 {
-                faults.wrong_slave -= 1;
-                slave = cfg.slave.wrapping_add(1);
-            }
-            let mut bytes = reply.encode(slave, function);
-            if faults.corrupt_crc > 0 {
-                faults.corrupt_crc -= 1;
-                if let Some(b) = bytes.last_mut() {
-                    *b ^= 0xA5;
-                }
-            }
-            if faults.half_frame > 0 {
-                faults.half_frame -= 1;
-                bytes.truncate(bytes.len() / 2);
-            }
-            if faults.garbage_before > 0 {
-                faults.garbage_before -= 1;
-                let mut g = vec![0xFF, 0x00, 0x17, cfg.slave, 0x99, 0x42, cfg.slave, 0x04];
-                g.append(&mut bytes);
-                bytes = g;
-            }
-            let delay = faults.delay;
-            drop(faults);
+            };
             let start = if cfg.paced {
                 let rx_start = now.max(last_tx_end + silence);
                 rx_start + char_time * adu_len as u32 + silence + delay

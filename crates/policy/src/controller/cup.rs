@@ -160,6 +160,52 @@ impl CupController {
         self.fail(e)
     }
 
+    /// Approach: the camera's cup (its mean over the approach) and, in VTLA-pred, the predicted
+    /// stiffness; at the end of the approach VLA sets its target from the camera's width.
+    fn approach(
+        &mut self,
+        obs: &Observation,
+        p: &PolicyParams,
+        elapsed: f64,
+        now: Stamp,
+    ) -> Result<(), PolicyError> {
+        let v = obs
+            .visual()
+            .ok_or_else(|| PolicyError::Failed("no fresh visual observation".into()))?;
+        let read = |n: &str| v.get(n).filter(|x| x.is_finite());
+        let (Some(x), Some(y), Some(w)) = (read("cup_x_m"), read("cup_y_m"), read("cup_width_m"))
+        else {
+            return Err(self.fail(PolicyError::Failed(
+                "the camera gives no cup_x_m / cup_y_m / cup_width_m (list them in \
+                 visual_names)"
+                    .into(),
+            )));
+        };
+        self.seen.add(v.header.stamp, [x, y, w]);
+        if self.mode == Mode::VtlaPred {
+            let l = obs
+                .latent()
+                .ok_or_else(|| PolicyError::Failed("no fresh predicted latent".into()))?;
+            self.force_n = Some(self.stiffness(p, l, now)? * self.d);
+        }
+        if elapsed >= p.approach_s {
+            if self.mode == Mode::Vla {
+                let w = self.seen.mean().map_or(p.limits.max_opening_m, |m| m[2]);
+                match p.vla_rule {
+                    VlaRule::Position => {
+                        self.target_opening = Some(w + 2.0 * p.pad_m - self.d - p.vla_offset_m);
+                    }
+                    VlaRule::Force => {
+                        self.force_n = Some(self.camera_stiffness(w) * self.d);
+                        self.camera_width = Some(w);
+                    }
+                }
+            }
+            self.t.go(Phase::Close);
+        }
+        Ok(())
+    }
+
     fn step(&mut self, obs: &Observation) -> Result<(), PolicyError> {
         let now = obs.stamp;
         let elapsed = self.t.elapsed(now);
@@ -168,44 +214,7 @@ impl CupController {
         let opening = g.map(|g| g.opening_m);
         let contact = obs.contact();
         match self.t.phase {
-            Phase::Approach => {
-                let v = obs
-                    .visual()
-                    .ok_or_else(|| PolicyError::Failed("no fresh visual observation".into()))?;
-                let read = |n: &str| v.get(n).filter(|x| x.is_finite());
-                let (Some(x), Some(y), Some(w)) =
-                    (read("cup_x_m"), read("cup_y_m"), read("cup_width_m"))
-                else {
-                    return Err(self.fail(PolicyError::Failed(
-                        "the camera gives no cup_x_m / cup_y_m / cup_width_m (list them in \
-                         visual_names)"
-                            .into(),
-                    )));
-                };
-                self.seen.add(v.header.stamp, [x, y, w]);
-                if self.mode == Mode::VtlaPred {
-                    let l = obs
-                        .latent()
-                        .ok_or_else(|| PolicyError::Failed("no fresh predicted latent".into()))?;
-                    self.force_n = Some(self.stiffness(&p, l, now)? * self.d);
-                }
-                if elapsed >= p.approach_s {
-                    if self.mode == Mode::Vla {
-                        let w = self.seen.mean().map_or(p.limits.max_opening_m, |m| m[2]);
-                        match p.vla_rule {
-                            VlaRule::Position => {
-                                self.target_opening =
-                                    Some(w + 2.0 * p.pad_m - self.d - p.vla_offset_m);
-                            }
-                            VlaRule::Force => {
-                                self.force_n = Some(self.camera_stiffness(w) * self.d);
-                                self.camera_width = Some(w);
-                            }
-                        }
-                    }
-                    self.t.go(Phase::Close);
-                }
-            }
+            Phase::Approach => self.approach(obs, &p, elapsed, now)?,
             Phase::Close => match self.mode {
                 Mode::Vla if !self.by_force() => {
                     let target = self.target_opening.unwrap_or(p.limits.max_opening_m);

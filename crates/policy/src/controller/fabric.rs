@@ -274,6 +274,77 @@ impl FabricController {
         }
     }
 
+    /// Pressing object `i`: hold the contact for the touch, reopen after closing on nothing
+    /// (above the fold), or time out.
+    fn press(&mut self, obs: &Observation, i: usize, elapsed: f64) -> Result<(), PolicyError> {
+        let now = obs.stamp;
+        let opening = obs.gripper().map(|g| g.opening_m);
+        let in_contact = obs.contact().map(|c| c.in_contact);
+        let p = &self.p;
+        if in_contact == Some(true) {
+            // The latest contact of the touch shows where the fold's top is (the press
+            // is deepest at the end of the hold); the fingertips are at the touch height.
+            let above = obs.contact().and_then(fold_above_centre_m);
+            let z = self.touch_z(i);
+            if let Some(slot) = self.felt_top.get_mut(i) {
+                *slot = above.map(|a| z + a);
+            }
+            let at = *self.contact_at.get_or_insert(now);
+            if now.secs_since(at) >= p.touch_hold_s {
+                self.t.go(Phase::Release(i));
+            }
+        } else if self.contact_at.is_none()
+            && opening.is_some_and(|o| o <= p.limits.min_opening_m + CLOSED_ON_NOTHING_M)
+            && self.missed.get(i).is_some_and(|&m| m < TOUCH_RETRIES)
+        {
+            // Closed on nothing: above the fold. Open where the fingers are (closed
+            // fingers lowered onto the fold would come down on it), then touch again
+            // lower.
+            self.t.go(Phase::Reopen(i));
+        } else if elapsed >= p.contact_timeout_s {
+            let e = PolicyError::Timeout(format!(
+                "no contact on {} within {} s",
+                self.objects[i], p.contact_timeout_s
+            ));
+            return Err(self.fail(e));
+        }
+        Ok(())
+    }
+
+    /// Waiting for the comparison of the two touches (newer than the second): the smoother or
+    /// rougher one, as the task asks, is chosen; a tie fails.
+    fn compare(&mut self, obs: &Observation, elapsed: f64) -> Result<(), PolicyError> {
+        let p = &self.p;
+        let after = self.second_touch_at.unwrap_or(Stamp::ZERO);
+        let labels = |a: &str, b: &str| {
+            (a == self.objects[0] && b == self.objects[1])
+                || (a == self.objects[1] && b == self.objects[0])
+        };
+        let found = obs.comparison().filter(|c| {
+            c.header.stamp >= after && c.property == self.property && labels(&c.label_a, &c.label_b)
+        });
+        if let Some(c) = found {
+            let more_label = match c.winner {
+                Winner::A => &c.label_a,
+                Winner::B => &c.label_b,
+                Winner::Tie => {
+                    let e = PolicyError::Failed(format!("the comparison is a tie: {}", c.sentence));
+                    return Err(self.fail(e));
+                }
+            };
+            let i = self.pick(more_label == &self.objects[0]);
+            self.chosen = Some(self.objects[i].clone());
+            self.t.go(Phase::ApproachGrasp);
+        } else if elapsed >= p.compare_timeout_s {
+            let e = PolicyError::Timeout(format!(
+                "no {} comparison of {} and {} within {} s",
+                self.property, self.objects[0], self.objects[1], p.compare_timeout_s
+            ));
+            return Err(self.fail(e));
+        }
+        Ok(())
+    }
+
     /// Advance the phase on what `obs` shows; Err: the controller failed.
     fn step(&mut self, obs: &Observation) -> Result<(), PolicyError> {
         let now = obs.stamp;
@@ -318,35 +389,7 @@ impl FabricController {
                     self.t.go(Phase::Press(i));
                 }
             }
-            Phase::Press(i) => {
-                if in_contact == Some(true) {
-                    // The latest contact of the touch shows where the fold's top is (the press
-                    // is deepest at the end of the hold); the fingertips are at the touch height.
-                    let above = obs.contact().and_then(fold_above_centre_m);
-                    let z = self.touch_z(i);
-                    if let Some(slot) = self.felt_top.get_mut(i) {
-                        *slot = above.map(|a| z + a);
-                    }
-                    let at = *self.contact_at.get_or_insert(now);
-                    if now.secs_since(at) >= p.touch_hold_s {
-                        self.t.go(Phase::Release(i));
-                    }
-                } else if self.contact_at.is_none()
-                    && opening.is_some_and(|o| o <= p.limits.min_opening_m + CLOSED_ON_NOTHING_M)
-                    && self.missed.get(i).is_some_and(|&m| m < TOUCH_RETRIES)
-                {
-                    // Closed on nothing: above the fold. Open where the fingers are (closed
-                    // fingers lowered onto the fold would come down on it), then touch again
-                    // lower.
-                    self.t.go(Phase::Reopen(i));
-                } else if elapsed >= p.contact_timeout_s {
-                    let e = PolicyError::Timeout(format!(
-                        "no contact on {} within {} s",
-                        self.objects[i], p.contact_timeout_s
-                    ));
-                    return Err(self.fail(e));
-                }
-            }
+            Phase::Press(i) => self.press(obs, i, elapsed)?,
             Phase::Reopen(i) => {
                 let open =
                     opening.is_some_and(|o| o >= p.limits.max_opening_m - p.limits.max_step_m);
@@ -368,40 +411,7 @@ impl FabricController {
                     });
                 }
             }
-            Phase::Compare => {
-                let after = self.second_touch_at.unwrap_or(Stamp::ZERO);
-                let labels = |a: &str, b: &str| {
-                    (a == self.objects[0] && b == self.objects[1])
-                        || (a == self.objects[1] && b == self.objects[0])
-                };
-                let found = obs.comparison().filter(|c| {
-                    c.header.stamp >= after
-                        && c.property == self.property
-                        && labels(&c.label_a, &c.label_b)
-                });
-                if let Some(c) = found {
-                    let more_label = match c.winner {
-                        Winner::A => &c.label_a,
-                        Winner::B => &c.label_b,
-                        Winner::Tie => {
-                            let e = PolicyError::Failed(format!(
-                                "the comparison is a tie: {}",
-                                c.sentence
-                            ));
-                            return Err(self.fail(e));
-                        }
-                    };
-                    let i = self.pick(more_label == &self.objects[0]);
-                    self.chosen = Some(self.objects[i].clone());
-                    self.t.go(Phase::ApproachGrasp);
-                } else if elapsed >= p.compare_timeout_s {
-                    let e = PolicyError::Timeout(format!(
-                        "no {} comparison of {} and {} within {} s",
-                        self.property, self.objects[0], self.objects[1], p.compare_timeout_s
-                    ));
-                    return Err(self.fail(e));
-                }
-            }
+            Phase::Compare => self.compare(obs, elapsed)?,
             Phase::ApproachGrasp => {
                 if elapsed >= p.approach_s {
                     self.t.go(Phase::Grasp);

@@ -549,13 +549,27 @@ impl TaskWorld {
         }
     }
 
+    /// One substep of `h` seconds: the arm, the gripper, the objects' vertical motion, then
+    /// drops and leaving.
     fn substep(
         &mut self,
         cmd: &TaskCommand,
         target: Option<usize>,
         h: f64,
     ) -> Result<(), WorldError> {
-        // 1. The arm, and what comes between the fingers on its way.
+        self.move_arm(cmd, target, h)?;
+        self.drive_gripper(cmd, h)?;
+        self.move_objects(h);
+        self.drops_and_leaving()
+    }
+
+    /// The arm, and what comes between the fingers on its way.
+    fn move_arm(
+        &mut self,
+        cmd: &TaskCommand,
+        target: Option<usize>,
+        h: f64,
+    ) -> Result<(), WorldError> {
         let goal = match target {
             None => self.cfg.arm.home_m,
             Some(_) => [
@@ -587,8 +601,11 @@ impl TaskWorld {
         } else {
             cand
         };
+        Ok(())
+    }
 
-        // 2. The gripper: its bounds, then free fingers or the squeeze world.
+    /// The gripper: its bounds, then free fingers or the squeeze world.
+    fn drive_gripper(&mut self, cmd: &TaskCommand, h: f64) -> Result<(), WorldError> {
         let lim = self.cfg.gripper;
         let g = &cmd.gripper;
         let open_m = g.opening_m.min(lim.max_opening_m);
@@ -613,8 +630,11 @@ impl TaskWorld {
                 self.substeps += last.substeps;
             }
         }
+        Ok(())
+    }
 
-        // 3. Every object's vertical motion; the one between the fingers feels the grip.
+    /// Every object's vertical motion; the one between the fingers feels the grip.
+    fn move_objects(&mut self, h: f64) {
         let (held, grip_n) = match &self.fingers {
             Fingers::Around { obj, last, .. } => (Some(*obj), last.force_n),
             Fingers::Free { .. } => (None, 0.0),
@@ -652,11 +672,13 @@ impl TaskWorld {
                 }
             }
         }
+    }
 
-        // 4. Drops and leaving: an object slips out of the pinch or past the rim. Fingers that do
-        //    not touch it slide freely along it: they leave it only where geometry says
-        //    ([`TaskWorld::around_at`]), and while around it the grip they will close on (the
-        //    cup's chord, the fabric's layers, the height) follows where they are.
+    /// Drops and leaving: an object slips out of the pinch or past the rim. Fingers that do not
+    /// touch it slide freely along it: they leave it only where geometry says
+    /// ([`TaskWorld::around_at`]), and while around it the grip they will close on (the cup's
+    /// chord, the fabric's layers, the height) follows where they are.
+    fn drops_and_leaving(&mut self) -> Result<(), WorldError> {
         let pos = self.arm.position_m;
         if let Fingers::Around {
             obj,
