@@ -37,7 +37,9 @@ use unitac_core::chain::Chain;
 use unitac_core::msg::{ArmCommand, GripperCommand, PolicyStatus};
 use unitac_core::{Msg, Scene};
 use unitac_policy::PolicyParams;
-use unitac_sim::task::{Hidden, TaskConfig, TaskKind, TaskOutcome, TaskWorld, trial_rng};
+use unitac_sim::task::{
+    Hidden, TaskConfig, TaskKind, TaskOutcome, TaskTruth, TaskWorld, trial_rng,
+};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
 /// Salts of the sensor's seed and the camera's noise stream (apart from the trial's own draw).
@@ -461,6 +463,45 @@ struct TickOutput {
     status: Option<PolicyStatus>,
 }
 
+impl TickOutput {
+    /// What the chain made of a tick's gripper status: the commands and the policy's status
+    /// (each into `digest` when given); a slip state updates `slip`.
+    fn of(produced: Vec<Msg>, mut digest: Option<&mut Fnv>, slip: &mut Option<bool>) -> Self {
+        let mut tick = TickOutput::default();
+        for m in produced {
+            if let Some(d) = digest.as_deref_mut() {
+                d.msg(&m);
+            }
+            match m {
+                Msg::GripperCommand(c) => tick.gripper = Some(c),
+                Msg::ArmCommand(a) => tick.arm = Some(a),
+                Msg::PolicyStatus(s) => tick.status = Some(s),
+                Msg::SlipState(s) => *slip = Some(s.slip),
+                _ => {}
+            }
+        }
+        tick
+    }
+
+    /// The gripper and arm commands and the status, or the tick at `t` is an error naming the
+    /// first one missing (with the chain's `rejections`).
+    fn commands(
+        self,
+        t: f64,
+        rejections: Vec<String>,
+    ) -> Result<(GripperCommand, ArmCommand, PolicyStatus), TrialError> {
+        let missing = |what| TrialError::NoCommand {
+            t_s: t,
+            missing: what,
+            rejections: rejections.clone(),
+        };
+        let g = self.gripper.ok_or_else(|| missing("GripperCommand"))?;
+        let a = self.arm.ok_or_else(|| missing("ArmCommand"))?;
+        let status = self.status.ok_or_else(|| missing("PolicyStatus"))?;
+        Ok((g, a, status))
+    }
+}
+
 /// Run trial `trial` of `seed` of `scene` on the task `task` with the scene's stages (built
 /// from the scene, fresh), the in-process gripper. Errors: the scene cannot drive a trial, the
 /// policy left a tick unanswered, or a command the bridge or the world refuses.
@@ -495,35 +536,13 @@ pub fn run_trial_on(
     )
 }
 
-/// [`run_trial_on`] with the touch values of another trial ([`TouchSwap`]; the default swaps
-/// nothing).
-pub fn run_trial_swapped(
+/// Every object the policy names is one of the task world's.
+fn check_objects(
     scene: &Scene,
+    params: &PolicyParams,
     task: &TaskConfig,
-    seed: u64,
-    trial: u32,
-    opts: &TrialOptions,
-    gripper: TrialGripper,
-    mut swap: TouchSwap,
-) -> Result<TrialRecord, TrialError> {
-    opts.check()?;
-    // The policy stage's place: what the stages before it send it passes through `swap`.
-    let policy_at = scene
-        .stages
-        .iter()
-        .position(|s| s.kind == "policy")
-        .unwrap_or(scene.stages.len());
-    let (scene, params, task) = crate::scene::for_gripper(scene, task, gripper)?;
-    let (scene, task) = (&scene, &task);
-    let stages = unitac_pipeline::build_stages(scene).map_err(|e| TrialError::Scene {
-        scene: scene.name.clone(),
-        msg: e.to_string(),
-    })?;
-    let dt = 1.0 / params.control_rate_hz;
-    let mut world = TaskWorld::reset(task, seed, trial);
-    if let Some(h) = opts.hidden {
-        world.perturb(h);
-    }
+    world: &TaskWorld,
+) -> Result<(), TrialError> {
     let names: Vec<&str> = world
         .spec()
         .objects
@@ -547,6 +566,187 @@ pub fn run_trial_swapped(
             ),
         });
     }
+    Ok(())
+}
+
+impl TrialRecord {
+    /// A record of trial (`seed`, `trial`) of `scene` before its first tick.
+    fn new(
+        scene: &Scene,
+        params: &PolicyParams,
+        (seed, trial): (u64, u32),
+        world: &WorldStepper,
+        gripper: TrialGripper,
+    ) -> Self {
+        TrialRecord {
+            scene: scene.name.clone(),
+            mode: params.mode.as_str().to_string(),
+            seed,
+            trial,
+            objects: describe(world.world()),
+            control_rate_hz: params.control_rate_hz,
+            duration_s: 0.0,
+            frames: 0,
+            end_phase: String::new(),
+            end_reason: String::new(),
+            phases: Vec::new(),
+            outcome: world.outcome(),
+            rejections: Vec::new(),
+            rejected: 0,
+            trace: Vec::new(),
+            gripper: gripper.name().to_string(),
+            serial: None,
+            ticks: 0,
+            clamped: Default::default(),
+            reflex: Default::default(),
+            policy_ticks: Default::default(),
+            stiffness: None,
+            io: Vec::new(),
+            messages: Vec::new(),
+            touch: Vec::new(),
+        }
+    }
+
+    /// The chain's rejections: counted, the first [`KEPT_REJECTIONS`] kept.
+    fn keep(&mut self, errors: Vec<unitac_core::chain::Rejection>) {
+        for e in errors {
+            self.rejected += 1;
+            if self.rejections.len() < KEPT_REJECTIONS {
+                self.rejections.push(e.to_string());
+            }
+        }
+    }
+
+    /// A policy tick's status: its phase counted, its clamps, the stiffness it read (against
+    /// the world's cup) and its reflexes.
+    fn note_status(&mut self, status: &PolicyStatus, world: &TaskWorld) {
+        self.ticks += 1;
+        self.policy_ticks.count(status);
+        for c in &status.clamped {
+            *self.clamped.entry(c.clone()).or_default() += 1;
+        }
+        if let Some(k) = unitac_policy::controller::cup::stiffness_in(&status.message) {
+            self.stiffness = Some(StiffnessReading {
+                read_n_per_m: k,
+                true_n_per_m: true_cup(world).0,
+                true_diameter_m: true_cup(world).1,
+                clipped_ticks: self.clamped.get("readout.stiffness").copied().unwrap_or(0),
+                camera_width_m: unitac_policy::controller::cup::camera_width_in(&status.message),
+            });
+        }
+        if let Some(r) = status.message.strip_prefix("reflex: ") {
+            let kind = if r.starts_with("slip") {
+                "slip"
+            } else if r.starts_with("grasp not confirmed") {
+                "grasp not confirmed"
+            } else {
+                "other"
+            };
+            *self.reflex.entry(kind.to_string()).or_default() += 1;
+        }
+    }
+
+    /// The tick's trace row at `t`, and its phase when it changed (the first [`KEPT_PHASES`]).
+    fn note_tick(
+        &mut self,
+        t: f64,
+        truth: &TaskTruth,
+        slip_detected: Option<bool>,
+        status: &PolicyStatus,
+    ) {
+        let held = truth.objects.iter().find(|o| o.held);
+        self.trace.push(TraceRow {
+            t_s: t,
+            opening_m: truth.gripper.opening_m,
+            force_n: truth.gripper.force_n,
+            deformation_m: truth.contact.deformation_m,
+            slip_m: truth.contact.slip_total_m,
+            slip_detected,
+            lift_m: held.map_or(0.0, |o| o.position_m[2]),
+            phase: status.phase.clone(),
+            safety_ok: status.safety_ok,
+            reason: status.message.clone(),
+        });
+        if (self.phases.is_empty() || self.end_phase != status.phase)
+            && self.phases.len() < KEPT_PHASES
+        {
+            self.phases
+                .push(format!("{t:.3} {}: {}", status.phase, status.message));
+        }
+    }
+}
+
+/// The chain's inputs in a trial, the policy stage's (at `policy_at`) passing through `swap`.
+struct Feed<'a> {
+    opts: &'a TrialOptions,
+    policy_at: usize,
+    swap: TouchSwap,
+}
+
+impl Feed<'_> {
+    /// One input through the chain, with what the options keep of it: its digest
+    /// (`record_io`), it and what the chain made of it (`keep_messages`; frames are not kept).
+    fn run(
+        &mut self,
+        chain: &mut Chain,
+        record: &mut TrialRecord,
+        digest: &mut Fnv,
+        m: Msg,
+    ) -> unitac_core::chain::ChainOutput {
+        if self.opts.record_io {
+            digest.msg(&m);
+        }
+        let kept = self.opts.keep_messages && !m.is_frame();
+        if kept {
+            record.messages.push(ChainMessage {
+                input: true,
+                msg: m.clone(),
+            });
+        }
+        let swap = &mut self.swap;
+        let out = chain.run_mapped(m, self.policy_at, &mut |x| swap.apply(x));
+        if self.opts.keep_messages {
+            record
+                .messages
+                .extend(out.produced.iter().map(|m| ChainMessage {
+                    input: false,
+                    msg: m.clone(),
+                }));
+        }
+        out
+    }
+}
+
+/// [`run_trial_on`] with the touch values of another trial ([`TouchSwap`]; the default swaps
+/// nothing).
+pub fn run_trial_swapped(
+    scene: &Scene,
+    task: &TaskConfig,
+    seed: u64,
+    trial: u32,
+    opts: &TrialOptions,
+    gripper: TrialGripper,
+    swap: TouchSwap,
+) -> Result<TrialRecord, TrialError> {
+    opts.check()?;
+    // The policy stage's place: what the stages before it send it passes through `swap`.
+    let policy_at = scene
+        .stages
+        .iter()
+        .position(|s| s.kind == "policy")
+        .unwrap_or(scene.stages.len());
+    let (scene, params, task) = crate::scene::for_gripper(scene, task, gripper)?;
+    let (scene, task) = (&scene, &task);
+    let stages = unitac_pipeline::build_stages(scene).map_err(|e| TrialError::Scene {
+        scene: scene.name.clone(),
+        msg: e.to_string(),
+    })?;
+    let dt = 1.0 / params.control_rate_hz;
+    let mut world = TaskWorld::reset(task, seed, trial);
+    if let Some(h) = opts.hidden {
+        world.perturb(h);
+    }
+    check_objects(scene, &params, task, &world)?;
     let step_error = move |t_s: f64| {
         move |source: StepError| TrialError::Step {
             t_s,
@@ -564,68 +764,15 @@ pub fn run_trial_swapped(
     )
     .map_err(step_error(0.0))?;
     let mut chain = Chain::new(stages);
-    let mut record = TrialRecord {
-        scene: scene.name.clone(),
-        mode: params.mode.as_str().to_string(),
-        seed,
-        trial,
-        objects: describe(world.world()),
-        control_rate_hz: params.control_rate_hz,
-        duration_s: 0.0,
-        frames: 0,
-        end_phase: String::new(),
-        end_reason: String::new(),
-        phases: Vec::new(),
-        outcome: world.outcome(),
-        rejections: Vec::new(),
-        rejected: 0,
-        trace: Vec::new(),
-        gripper: gripper.name().to_string(),
-        serial: None,
-        ticks: 0,
-        clamped: Default::default(),
-        reflex: Default::default(),
-        policy_ticks: Default::default(),
-        stiffness: None,
-        io: Vec::new(),
-        messages: Vec::new(),
-        touch: Vec::new(),
-    };
+    let mut record = TrialRecord::new(scene, &params, (seed, trial), &world, gripper);
     let mut slip_detected = None;
     let mut ended_at: Option<f64> = None;
     let mut z_noise = trial_rng(seed ^ ARM_Z_NOISE_SALT, trial);
     let ticks = (opts.max_s / dt).ceil() as u64;
-    let keep = |record: &mut TrialRecord, errors: Vec<unitac_core::chain::Rejection>| {
-        for e in errors {
-            record.rejected += 1;
-            if record.rejections.len() < KEPT_REJECTIONS {
-                record.rejections.push(e.to_string());
-            }
-        }
-    };
-    // One input through the chain, with what the options keep of it: its digest (`record_io`),
-    // it and what the chain made of it (`keep_messages`; frames are not kept).
-    let mut feed = |chain: &mut Chain, record: &mut TrialRecord, digest: &mut Fnv, m: Msg| {
-        if opts.record_io {
-            digest.msg(&m);
-        }
-        let kept = opts.keep_messages && !m.is_frame();
-        if kept {
-            record.messages.push(ChainMessage {
-                input: true,
-                msg: m.clone(),
-            });
-        }
-        let out = chain.run_mapped(m, policy_at, &mut |x| swap.apply(x));
-        if opts.keep_messages {
-            record
-                .messages
-                .extend(out.produced.iter().map(|m| ChainMessage {
-                    input: false,
-                    msg: m.clone(),
-                }));
-        }
-        out
+    let mut feed = Feed {
+        opts,
+        policy_at,
+        swap,
     };
     for _ in 0..ticks {
         let t = world.time();
@@ -634,71 +781,26 @@ pub fn run_trial_swapped(
         let touching = opts.record_io && world.world().truth().contact.penetration_m > 0.0;
         for (frame, _) in world.frames() {
             record.frames += 1;
-            let out = feed(&mut chain, &mut record, &mut inputs, Msg::Frame(frame));
+            let out = feed.run(&mut chain, &mut record, &mut inputs, Msg::Frame(frame));
             for m in &out.produced {
                 if let Msg::SlipState(s) = m {
                     slip_detected = Some(s.slip);
                 }
             }
-            keep(&mut record, out.errors);
+            record.keep(out.errors);
         }
         let visual = Msg::VisualObservation(visual_message(&world.visual()));
-        let out = feed(&mut chain, &mut record, &mut inputs, visual);
-        keep(&mut record, out.errors);
+        let out = feed.run(&mut chain, &mut record, &mut inputs, visual);
+        record.keep(out.errors);
         let truth = world.world().truth();
         let status = Msg::GripperStatus(world.status().map_err(step_error(t))?);
-        let out = feed(&mut chain, &mut record, &mut inputs, status);
-        let mut tick = TickOutput::default();
-        for m in out.produced {
-            if opts.record_io {
-                outputs.msg(&m);
-            }
-            match m {
-                Msg::GripperCommand(c) => tick.gripper = Some(c),
-                Msg::ArmCommand(a) => tick.arm = Some(a),
-                Msg::PolicyStatus(s) => tick.status = Some(s),
-                Msg::SlipState(s) => slip_detected = Some(s.slip),
-                _ => {}
-            }
-        }
+        let out = feed.run(&mut chain, &mut record, &mut inputs, status);
+        let digest = opts.record_io.then_some(&mut outputs);
+        let tick = TickOutput::of(out.produced, digest, &mut slip_detected);
         let rejections: Vec<String> = out.errors.iter().map(|e| e.to_string()).collect();
-        keep(&mut record, out.errors);
-        let missing = |what| TrialError::NoCommand {
-            t_s: t,
-            missing: what,
-            rejections: rejections.clone(),
-        };
-        let g = tick.gripper.ok_or_else(|| missing("GripperCommand"))?;
-        let a = tick.arm.ok_or_else(|| missing("ArmCommand"))?;
-        let status = tick.status.ok_or_else(|| missing("PolicyStatus"))?;
-        record.ticks += 1;
-        record.policy_ticks.count(&status);
-        for c in &status.clamped {
-            *record.clamped.entry(c.clone()).or_default() += 1;
-        }
-        if let Some(k) = unitac_policy::controller::cup::stiffness_in(&status.message) {
-            record.stiffness = Some(StiffnessReading {
-                read_n_per_m: k,
-                true_n_per_m: true_cup(world.world()).0,
-                true_diameter_m: true_cup(world.world()).1,
-                clipped_ticks: record
-                    .clamped
-                    .get("readout.stiffness")
-                    .copied()
-                    .unwrap_or(0),
-                camera_width_m: unitac_policy::controller::cup::camera_width_in(&status.message),
-            });
-        }
-        if let Some(r) = status.message.strip_prefix("reflex: ") {
-            let kind = if r.starts_with("slip") {
-                "slip"
-            } else if r.starts_with("grasp not confirmed") {
-                "grasp not confirmed"
-            } else {
-                "other"
-            };
-            *record.reflex.entry(kind.to_string()).or_default() += 1;
-        }
+        record.keep(out.errors);
+        let (g, a, status) = tick.commands(t, rejections)?;
+        record.note_status(&status, world.world());
         if opts.record_io {
             record.io.push(TickIo {
                 inputs: inputs.0,
@@ -710,26 +812,7 @@ pub fn run_trial_swapped(
         if opts.arm_z_noise_m > 0.0 {
             cmd.arm.z_m += opts.arm_z_noise_m * (2.0 * z_noise.uniform() - 1.0);
         }
-        let held = truth.objects.iter().find(|o| o.held);
-        record.trace.push(TraceRow {
-            t_s: t,
-            opening_m: truth.gripper.opening_m,
-            force_n: truth.gripper.force_n,
-            deformation_m: truth.contact.deformation_m,
-            slip_m: truth.contact.slip_total_m,
-            slip_detected,
-            lift_m: held.map_or(0.0, |o| o.position_m[2]),
-            phase: status.phase.clone(),
-            safety_ok: status.safety_ok,
-            reason: status.message.clone(),
-        });
-        if (record.phases.is_empty() || record.end_phase != status.phase)
-            && record.phases.len() < KEPT_PHASES
-        {
-            record
-                .phases
-                .push(format!("{t:.3} {}: {}", status.phase, status.message));
-        }
+        record.note_tick(t, &truth, slip_detected, &status);
         // The scene controllers announce their choice by going to approach_grasp, aimed at it.
         if status.phase == DECISION_PHASE {
             world.world_mut().decide(&a.target);
@@ -746,7 +829,7 @@ pub fn run_trial_swapped(
     }
     record.serial = world.report();
     record.duration_s = world.time();
-    record.touch = std::mem::take(&mut swap.own);
+    record.touch = std::mem::take(&mut feed.swap.own);
     record.outcome = world.outcome();
     Ok(record)
 }
