@@ -65,13 +65,15 @@ use serde::Serialize;
 use thiserror::Error;
 use unitac_core::Stage;
 use unitac_core::chain::Chain;
-use unitac_core::msg::{ArmCommand, ContactState, GripperCommand, LatentSource, Msg};
+use unitac_core::msg::{
+    ArmCommand, ContactState, GripperCommand, GripperStatus, LatentSource, Msg, VisualObservation,
+};
 use unitac_policy::Mode;
 use unitac_policy::learned::Memory;
 use unitac_policy::observation::{Layout, input};
 use unitac_sim::task::{
-    self, ArmSetpoint, GripperSetpoint, Split, TaskCommand, TaskConfig, TaskKind, TaskWorld,
-    expert_command, trial_rng,
+    self, ArmSetpoint, GripperSetpoint, Split, TaskCommand, TaskConfig, TaskKind, TaskTruth,
+    TaskWorld, TrialSpec, expert_command, trial_rng,
 };
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
@@ -532,17 +534,7 @@ fn record_inner(
     c: &DemoConfig,
 ) -> Result<Demo, DemoError> {
     check_config(c, chains.len())?;
-    let cfg = TaskConfig::new(c.task, split);
-    let world = TaskWorld::reset(&cfg, seed, trial);
-    let spec = world.spec().clone();
-    let objects: Vec<String> = spec.objects.iter().map(|o| o.name.clone()).collect();
-    let cup = spec.cup().cloned();
-    let world_err = |e: StepError| DemoError::World {
-        seed,
-        trial,
-        msg: e.to_string(),
-    };
-    let obs_err = |msg: String| DemoError::Observation { seed, trial, msg };
+    let (x, world) = Ctx::new(c, split, (seed, trial), driver.is_some());
     let mut world = WorldStepper::new(
         world,
         demo_sensor(sensor, seed, trial),
@@ -551,7 +543,7 @@ fn record_inner(
         (seed, trial),
         c.dt_s,
     )
-    .map_err(world_err)?;
+    .map_err(|e| x.world_err(e))?;
     let mut chains: Vec<Chain> = chains.into_iter().map(Chain::new).collect();
     let mut driver = driver.map(Chain::new);
     let visual = world.visual();
@@ -562,49 +554,17 @@ fn record_inner(
     let layout = Layout {
         latent_len: 0,
         visual_names: visual_msg.names.clone(),
-        stroke_m: Some(cfg.gripper.max_opening_m),
+        stroke_m: Some(x.cfg.gripper.max_opening_m),
     };
-    let width = c.pooled_len;
-
-    let mut phase = if c.task.probe_first() {
-        Phase::Approach
-    } else {
-        Phase::Expert
-    };
-    let run_s = c.run_s.unwrap_or_else(|| c.task.demo_s());
-    let mut since = 0.0;
-    // The probe touch is vtla_real's: its trigger, the contact state, is in its observation.
-    let probe = c.mode == Mode::VtlaReal;
-    // The fabric decision, when it was made, and since when the expert has waited for it.
-    let mut chosen: Option<String> = None;
-    let mut decided_s = f64::NAN;
-    let mut waiting_since: Option<f64> = None;
     let mut seen = Seen {
         contact: None,
         latents: Vec::new(),
-        memory: Memory::new(&objects, width, c.approach_s),
+        memory: Memory::new(&x.objects, c.pooled_len, c.approach_s),
         bad: None,
     };
-    let mut at_contact = (f64::NAN, f64::NAN, f32::NAN);
-    let mut d0 = cfg.gripper.max_opening_m;
-    let mut last_cmd: Option<TaskCommand> = None;
-    let mut approach_grip: Option<GripperSetpoint> = None;
-    // The arm target the world was last sent.
-    let mut applied_target = String::new();
+    let mut expert = Expert::new(c, x.cfg.gripper.max_opening_m);
     let mut ticks = Vec::new();
-    let stage_err = |r: &unitac_core::chain::Rejection| DemoError::Stage {
-        seed,
-        trial,
-        stage: r.stage.clone(),
-        msg: r.error.clone(),
-    };
-    let driven = |out| driven(out, &stage_err);
-    let timeout = |what| DemoError::Timeout {
-        seed,
-        trial,
-        what,
-        timeout_s: c.timeout_s,
-    };
+    let stage_err = |r: &unitac_core::chain::Rejection| x.stage_err(r);
     loop {
         let t = world.time();
         // The camera's estimate first, as in a trial (the sampler's object-level condition).
@@ -614,105 +574,400 @@ fn record_inner(
             world.visual()
         };
         let camera = visual_message(&seen_visual);
-        for (k, chain) in chains.iter_mut().enumerate() {
-            let out = chain.run(Msg::VisualObservation(camera.clone()));
-            if let Some(r) = out.errors.first() {
-                return Err(stage_err(r));
-            }
-            seen.keep(out.produced, k, t, &layout);
-        }
-        for (frame, _truth) in world.frames() {
-            if let Some(d) = driver.as_mut() {
-                driven(d.run(Msg::Frame(frame.clone())))?;
-            }
-            for (k, chain) in chains.iter_mut().enumerate() {
-                let out = chain.run(Msg::Frame(frame.clone()));
-                if let Some(r) = out.errors.first() {
-                    return Err(stage_err(r));
-                }
-                seen.keep(out.produced, k, t, &layout);
-            }
-        }
-        if let Some(msg) = seen.bad.take() {
-            return Err(obs_err(msg));
-        }
-        let status = world.status().map_err(world_err)?;
+        let feed = (chains.as_mut_slice(), driver.as_mut(), &mut seen);
+        observe(&x, &mut world, feed, &camera, &layout)?;
+        let status = world.status().map_err(|e| x.world_err(e))?;
         // The driver's tick: the camera, then the gripper's status, as a trial feeds them.
         let driven_cmd = match driver.as_mut() {
             Some(d) => {
-                driven(d.run(Msg::VisualObservation(camera.clone())))?;
-                Some(driven(d.run(Msg::GripperStatus(status.clone())))?)
+                driven(d.run(Msg::VisualObservation(camera.clone())), &stage_err)?;
+                Some(driven(
+                    d.run(Msg::GripperStatus(status.clone())),
+                    &stage_err,
+                )?)
             }
             None => None,
         };
         seen.memory
             .gripper(status.object_detected, status.opening_m);
         let visual = features("visual", Some(Msg::VisualObservation(camera)), &layout, 0)
-            .map_err(obs_err)?;
+            .map_err(|m| x.obs_err(m))?;
         let visual = seen.memory.visual(&visual);
         let truth = world.world().truth();
-        if c.task.decides() && chosen.is_none() && c.task.awaits_decision(&truth, &spec, &cfg) {
-            let from = *waiting_since.get_or_insert(t);
-            // The camera's guesses as this mode's policy reads them: the mean so far.
-            let camera = |name: &str| {
-                let i = seen_visual.names.iter().position(|n| n == name)?;
-                visual.get(i).map(|v| f64::from(*v))
-            };
-            let sight = || c.task.camera_choice(&spec, &camera).map(str::to_string);
-            chosen = match c.mode {
-                // [A rougher, B rougher, tie, ..]: grasp the smoother; a tie leaves the camera.
-                Mode::VtlaReal => match seen.memory.comparison.as_deref() {
-                    Some([a, ..]) if *a > 0.5 => objects.get(1).cloned(),
-                    Some([_, b, ..]) if *b > 0.5 => objects.first().cloned(),
-                    Some(_) => sight(),
-                    None => None,
-                },
-                Mode::Vla | Mode::VtlaPred => sight(),
-            };
-            if chosen.is_some() {
-                decided_s = t;
-            } else if t - from > c.timeout_s {
-                if driver.is_some() {
-                    break;
-                }
-                return Err(timeout("no property comparison after both touches"));
-            }
+        let comparison = seen.memory.comparison.as_deref();
+        if let Flow::End = expert.decide(&x, &truth, comparison, &seen_visual.names, &visual, t)? {
+            break;
         }
-        let expert = expert_command(&truth, &spec, &cfg, chosen.as_deref());
+        let to_do = expert_command(&truth, &x.spec, &x.cfg, expert.chosen.as_deref());
         let arm = seen.memory.arm(t);
-        let in_contact = seen.contact.as_ref().is_some_and(|s| s.in_contact);
-        let elapsed = t - since;
-        let next = match phase {
+        if let Flow::End = expert.advance(&x, &truth, &to_do, &arm, seen.contact.as_ref(), t)? {
+            break;
+        }
+        let at = (expert.d0, seen_width);
+        let cmd = phase_command(expert.phase, to_do, c, at, &mut expert.approach_grip);
+        if ticks.len() >= MAX_TICKS {
+            return Err(DemoError::Config(format!(
+                "more than {MAX_TICKS} ticks in one demonstration"
+            )));
+        }
+        let slices = (visual, arm);
+        let tick = demo_tick(t, status, slices, &seen.memory, &cmd, &x.objects, &layout);
+        ticks.push(tick.map_err(|m| x.obs_err(m))?);
+        let Some(applied) = x.applied(&mut world, driven_cmd, &cmd, t)? else {
+            break;
+        };
+        seen.memory.commanded(applied.arm.target.name(), t);
+        expert.applied_target = applied.arm.target.name().to_string();
+        world.step(Some(applied)).map_err(|e| x.world_err(e))?;
+        if expert.phase == Phase::Expert {
+            expert.last_cmd = Some(cmd);
+        }
+    }
+    finish(&x, world.time(), &mut chains, &mut seen, &layout)?;
+    Ok(expert.demo(
+        &x,
+        &world,
+        (visual_msg.names, visual.values),
+        seen.latents,
+        ticks,
+    ))
+}
+
+/// A step of the recording loop: go on, or the demonstration ends here (its ticks kept).
+enum Flow {
+    Go,
+    End,
+}
+
+/// One demonstration's fixed context: its settings, task, objects and where it comes from.
+struct Ctx<'a> {
+    c: &'a DemoConfig,
+    cfg: TaskConfig,
+    spec: TrialSpec,
+    objects: Vec<String>,
+    split: Split,
+    seed: u64,
+    trial: u32,
+    /// A driver's chain moves the world (DAgger): where the expert would time out, the
+    /// demonstration ends instead.
+    driven: bool,
+    probe: bool,
+    run_s: f64,
+}
+
+impl<'a> Ctx<'a> {
+    /// The context of trial (`seed`, `trial`) of `c.task` on objects of `split`, and its world.
+    fn new(
+        c: &'a DemoConfig,
+        split: Split,
+        (seed, trial): (u64, u32),
+        driven: bool,
+    ) -> (Self, TaskWorld) {
+        let cfg = TaskConfig::new(c.task, split);
+        let world = TaskWorld::reset(&cfg, seed, trial);
+        let spec = world.spec().clone();
+        let x = Ctx {
+            c,
+            objects: spec.objects.iter().map(|o| o.name.clone()).collect(),
+            spec,
+            cfg,
+            split,
+            seed,
+            trial,
+            driven,
+            // The probe touch is vtla_real's: its trigger, the contact state, is in its
+            // observation.
+            probe: c.mode == Mode::VtlaReal,
+            run_s: c.run_s.unwrap_or_else(|| c.task.demo_s()),
+        };
+        (x, world)
+    }
+
+    fn world_err(&self, e: StepError) -> DemoError {
+        DemoError::World {
+            seed: self.seed,
+            trial: self.trial,
+            msg: e.to_string(),
+        }
+    }
+
+    fn obs_err(&self, msg: String) -> DemoError {
+        DemoError::Observation {
+            seed: self.seed,
+            trial: self.trial,
+            msg,
+        }
+    }
+
+    fn stage_err(&self, r: &unitac_core::chain::Rejection) -> DemoError {
+        DemoError::Stage {
+            seed: self.seed,
+            trial: self.trial,
+            stage: r.stage.clone(),
+            msg: r.error.clone(),
+        }
+    }
+
+    fn timeout(&self, what: &'static str) -> DemoError {
+        DemoError::Timeout {
+            seed: self.seed,
+            trial: self.trial,
+            what,
+            timeout_s: self.c.timeout_s,
+        }
+    }
+
+    /// The command the world takes at `t`: the driver's when one drives (None: its policy
+    /// ended), else the expert's `cmd`.
+    fn applied(
+        &self,
+        world: &mut WorldStepper,
+        driven: Option<Driven>,
+        cmd: &TaskCommand,
+        t: f64,
+    ) -> Result<Option<TaskCommand>, DemoError> {
+        Ok(Some(match driven {
+            Some(Driven { ended: true, .. }) => return Ok(None),
+            Some(Driven {
+                command: Some((g, a)),
+                ..
+            }) => world.command(&g, &a).map_err(|e| self.world_err(e))?,
+            Some(Driven { command: None, .. }) => {
+                return Err(DemoError::Stage {
+                    seed: self.seed,
+                    trial: self.trial,
+                    stage: "policy".into(),
+                    msg: format!("t = {t:.3} s: the driver gave no command for the gripper status"),
+                });
+            }
+            None => cmd.clone(),
+        }))
+    }
+}
+
+/// The tick's observations through the chains (and the driver's, whose commands wait for the
+/// gripper's status): the camera's estimate, then each frame; what the chains make of them goes
+/// into `seen`, and a message the policy's inputs cannot read ends the demonstration.
+fn observe(
+    x: &Ctx,
+    world: &mut WorldStepper,
+    (chains, mut driver, seen): (&mut [Chain], Option<&mut Chain>, &mut Seen),
+    camera: &VisualObservation,
+    layout: &Layout,
+) -> Result<(), DemoError> {
+    let t = world.time();
+    let stage_err = |r: &unitac_core::chain::Rejection| x.stage_err(r);
+    for (k, chain) in chains.iter_mut().enumerate() {
+        let out = chain.run(Msg::VisualObservation(camera.clone()));
+        if let Some(r) = out.errors.first() {
+            return Err(stage_err(r));
+        }
+        seen.keep(out.produced, k, t, layout);
+    }
+    for (frame, _truth) in world.frames() {
+        if let Some(d) = driver.as_deref_mut() {
+            driven(d.run(Msg::Frame(frame.clone())), &stage_err)?;
+        }
+        for (k, chain) in chains.iter_mut().enumerate() {
+            let out = chain.run(Msg::Frame(frame.clone()));
+            if let Some(r) = out.errors.first() {
+                return Err(stage_err(r));
+            }
+            seen.keep(out.produced, k, t, layout);
+        }
+    }
+    match seen.bad.take() {
+        Some(msg) => Err(x.obs_err(msg)),
+        None => Ok(()),
+    }
+}
+
+/// The chains' pending output at the end (an open episode's), into `seen`.
+fn finish(
+    x: &Ctx,
+    t: f64,
+    chains: &mut [Chain],
+    seen: &mut Seen,
+    layout: &Layout,
+) -> Result<(), DemoError> {
+    for (k, chain) in chains.iter_mut().enumerate() {
+        let out = chain.finish();
+        if let Some(r) = out.errors.first() {
+            return Err(x.stage_err(r));
+        }
+        seen.keep(out.produced, k, t, layout);
+    }
+    Ok(())
+}
+
+/// The recorded tick at `t`: the observation slices as a learned policy reads them (`memory`,
+/// the camera's `visual` and the `arm`), the gripper's `status`, and the command `cmd` as the
+/// action (its arm target as an index: 0 home, then the objects).
+fn demo_tick(
+    t: f64,
+    status: GripperStatus,
+    (visual, arm): (Vec<f32>, Vec<f32>),
+    memory: &Memory,
+    cmd: &TaskCommand,
+    objects: &[String],
+    layout: &Layout,
+) -> Result<DemoTick, String> {
+    let [
+        (_, latched),
+        (_, contact),
+        (_, latent_real),
+        (_, latent_pred),
+        (_, comparison),
+    ] = memory.features();
+    Ok(DemoTick {
+        t_s: t,
+        state: features("gripper", Some(Msg::GripperStatus(status)), layout, 0)?,
+        visual,
+        contact,
+        latched,
+        arm,
+        latent_real,
+        latent_pred,
+        comparison,
+        action: action_values(cmd),
+        arm_target: match cmd.arm.target.name() {
+            "home" => 0,
+            name => objects
+                .iter()
+                .position(|o| o == name)
+                .map_or(0, |k| k as u32 + 1),
+        },
+    })
+}
+
+/// The expert's state through one demonstration: its phase and since when, the fabric decision
+/// (when it was made, since when it was awaited), the probe's contact (opening `d0`, force,
+/// area), the approach's grip, the last expert command and the arm target last applied.
+struct Expert {
+    phase: Phase,
+    since: f64,
+    chosen: Option<String>,
+    decided_s: f64,
+    waiting_since: Option<f64>,
+    at_contact: (f64, f64, f32),
+    d0: f64,
+    last_cmd: Option<TaskCommand>,
+    approach_grip: Option<GripperSetpoint>,
+    applied_target: String,
+}
+
+impl Expert {
+    fn new(c: &DemoConfig, max_opening_m: f64) -> Self {
+        Expert {
+            phase: if c.task.probe_first() {
+                Phase::Approach
+            } else {
+                Phase::Expert
+            },
+            since: 0.0,
+            chosen: None,
+            decided_s: f64::NAN,
+            waiting_since: None,
+            at_contact: (f64::NAN, f64::NAN, f32::NAN),
+            d0: max_opening_m,
+            last_cmd: None,
+            approach_grip: None,
+            applied_target: String::new(),
+        }
+    }
+
+    /// The fabric decision, once the task awaits it: from the live comparison (VTLA-real:
+    /// [A rougher, B rougher, tie, ..], the smoother grasped; a tie leaves the camera) or the
+    /// camera's guesses as the mode's policy reads them (`visual`, the mean so far, named by
+    /// `names`). No decision within the timeout fails the demonstration (ends it, when driven).
+    fn decide(
+        &mut self,
+        x: &Ctx,
+        truth: &TaskTruth,
+        comparison: Option<&[f32]>,
+        names: &[String],
+        visual: &[f32],
+        t: f64,
+    ) -> Result<Flow, DemoError> {
+        let c = x.c;
+        if !(c.task.decides()
+            && self.chosen.is_none()
+            && c.task.awaits_decision(truth, &x.spec, &x.cfg))
+        {
+            return Ok(Flow::Go);
+        }
+        let from = *self.waiting_since.get_or_insert(t);
+        let camera = |name: &str| {
+            let i = names.iter().position(|n| n == name)?;
+            visual.get(i).map(|v| f64::from(*v))
+        };
+        let sight = || c.task.camera_choice(&x.spec, &camera).map(str::to_string);
+        self.chosen = match c.mode {
+            Mode::VtlaReal => match comparison {
+                Some([a, ..]) if *a > 0.5 => x.objects.get(1).cloned(),
+                Some([_, b, ..]) if *b > 0.5 => x.objects.first().cloned(),
+                Some(_) => sight(),
+                None => None,
+            },
+            Mode::Vla | Mode::VtlaPred => sight(),
+        };
+        if self.chosen.is_some() {
+            self.decided_s = t;
+        } else if t - from > c.timeout_s {
+            if x.driven {
+                return Ok(Flow::End);
+            }
+            return Err(x.timeout("no property comparison after both touches"));
+        }
+        Ok(Flow::Go)
+    }
+
+    /// The phase after this tick's observations (`arm`: the arm slice; `contact`: the first
+    /// chain's latest contact state), the expert about to command `to_do`. The probe's phases
+    /// time out (or end a driven demonstration); the expert's ends after `run_s`.
+    fn advance(
+        &mut self,
+        x: &Ctx,
+        truth: &TaskTruth,
+        to_do: &TaskCommand,
+        arm: &[f32],
+        contact: Option<&ContactState>,
+        t: f64,
+    ) -> Result<Flow, DemoError> {
+        let c = x.c;
+        let in_contact = contact.is_some_and(|s| s.in_contact);
+        let elapsed = t - self.since;
+        let next = match self.phase {
             // Arrived where the expert sends the arm (a driver may have sent it elsewhere).
             Phase::Approach
                 if truth.arm.arrived
-                    && applied_target == expert.arm.target.name()
+                    && self.applied_target == to_do.arm.target.name()
                     && elapsed > c.dt_s
                     && arm[1] > 0.5 =>
             {
-                Some(if probe { Phase::Touch } else { Phase::Expert })
+                Some(if x.probe { Phase::Touch } else { Phase::Expert })
             }
             Phase::Touch if in_contact => {
-                d0 = truth.gripper.opening_m;
-                at_contact = (
-                    d0,
+                self.d0 = truth.gripper.opening_m;
+                self.at_contact = (
+                    self.d0,
                     truth.gripper.force_n,
-                    seen.contact.as_ref().map_or(f32::NAN, |s| s.area_m2),
+                    contact.map_or(f32::NAN, |s| s.area_m2),
                 );
                 Some(Phase::Press)
             }
             Phase::Press if elapsed >= c.probe_press_s => Some(Phase::Release),
             Phase::Release if !in_contact => Some(Phase::Expert),
-            Phase::Expert if elapsed >= run_s => break,
+            Phase::Expert if elapsed >= x.run_s => return Ok(Flow::End),
             Phase::Approach | Phase::Touch | Phase::Press | Phase::Release
-                if elapsed > c.timeout_s && driver.is_some() =>
+                if elapsed > c.timeout_s && x.driven =>
             {
-                break;
+                return Ok(Flow::End);
             }
             Phase::Approach | Phase::Touch | Phase::Press | Phase::Release
                 if elapsed > c.timeout_s =>
             {
-                return Err(timeout(match phase {
+                return Err(x.timeout(match self.phase {
                     Phase::Approach => "the arm did not reach the cup",
                     Phase::Touch => "no contact with the cup",
                     _ => "the probe contact did not end",
@@ -721,103 +976,53 @@ fn record_inner(
             _ => None,
         };
         if let Some(p) = next {
-            phase = p;
-            since = t;
+            self.phase = p;
+            self.since = t;
         }
-        let cmd = phase_command(phase, expert, c, (d0, seen_width), &mut approach_grip);
-        if ticks.len() >= MAX_TICKS {
-            return Err(DemoError::Config(format!(
-                "more than {MAX_TICKS} ticks in one demonstration"
-            )));
-        }
-        let [
-            (_, latched),
-            (_, contact),
-            (_, latent_real),
-            (_, latent_pred),
-            (_, comparison),
-        ] = seen.memory.features();
-        ticks.push(DemoTick {
-            t_s: t,
-            state: features("gripper", Some(Msg::GripperStatus(status)), &layout, 0)
-                .map_err(obs_err)?,
-            visual,
-            contact,
-            latched,
-            arm,
-            latent_real,
-            latent_pred,
-            comparison,
-            action: action_values(&cmd),
-            arm_target: match cmd.arm.target.name() {
-                "home" => 0,
-                name => objects
-                    .iter()
-                    .position(|o| o == name)
-                    .map_or(0, |k| k as u32 + 1),
-            },
-        });
-        let applied = match driven_cmd {
-            Some(Driven { ended: true, .. }) => break,
-            Some(Driven {
-                command: Some((g, a)),
-                ..
-            }) => world.command(&g, &a).map_err(world_err)?,
-            Some(Driven { command: None, .. }) => {
-                return Err(DemoError::Stage {
-                    seed,
-                    trial,
-                    stage: "policy".into(),
-                    msg: format!("t = {t:.3} s: the driver gave no command for the gripper status"),
-                });
-            }
-            None => cmd.clone(),
+        Ok(Flow::Go)
+    }
+
+    /// The demonstration once the world stopped: the camera's first view (`visual`: names and
+    /// values), the latents, the ticks, the probe's contact, the cup's truth and the outcome.
+    fn demo(
+        self,
+        x: &Ctx,
+        world: &WorldStepper,
+        (visual_names, visual_values): (Vec<String>, Vec<f64>),
+        latents: Vec<LatentRecord>,
+        ticks: Vec<DemoTick>,
+    ) -> Demo {
+        let truth = world.world().truth();
+        let outcome = world.outcome();
+        let deformation_m = match &outcome {
+            task::TaskOutcome::Cup(o) => o.deformation_m,
+            _ => f64::NAN,
         };
-        seen.memory.commanded(applied.arm.target.name(), t);
-        applied_target = applied.arm.target.name().to_string();
-        world.step(Some(applied)).map_err(world_err)?;
-        if phase == Phase::Expert {
-            last_cmd = Some(cmd);
+        let cup = x.spec.cup();
+        let d = x.cfg.cup_criteria.target_deformation_m;
+        Demo {
+            task: x.c.task,
+            seed: x.seed,
+            trial: x.trial,
+            split: x.split,
+            objects: x.objects.clone(),
+            visual_names,
+            visual_values,
+            contact_opening_m: self.at_contact.0,
+            contact_force_n: self.at_contact.1,
+            contact_area_m2: self.at_contact.2,
+            latents,
+            diameter_m: cup.map_or(f64::NAN, |c| c.diameter_m),
+            stiffness_n_per_m: cup.map_or(f64::NAN, |c| c.stiffness_n_per_m(d)),
+            expert_opening_m: self.last_cmd.map_or(f64::NAN, |c| c.gripper.opening_m),
+            expert_force_n: truth.gripper.force_n,
+            deformation_m,
+            success: outcome.overall(),
+            chosen: self.chosen.unwrap_or_default(),
+            decided_s: self.decided_s,
+            ticks,
         }
     }
-    for (k, chain) in chains.iter_mut().enumerate() {
-        let out = chain.finish();
-        if let Some(r) = out.errors.first() {
-            return Err(stage_err(r));
-        }
-        let t = world.time();
-        seen.keep(out.produced, k, t, &layout);
-    }
-    let truth = world.world().truth();
-    let outcome = world.outcome();
-    let deformation_m = match &outcome {
-        task::TaskOutcome::Cup(o) => o.deformation_m,
-        _ => f64::NAN,
-    };
-    let success = outcome.overall();
-    let d = cfg.cup_criteria.target_deformation_m;
-    Ok(Demo {
-        task: c.task,
-        seed,
-        trial,
-        split,
-        objects,
-        visual_names: visual_msg.names,
-        visual_values: visual.values,
-        contact_opening_m: at_contact.0,
-        contact_force_n: at_contact.1,
-        contact_area_m2: at_contact.2,
-        latents: seen.latents,
-        diameter_m: cup.as_ref().map_or(f64::NAN, |c| c.diameter_m),
-        stiffness_n_per_m: cup.as_ref().map_or(f64::NAN, |c| c.stiffness_n_per_m(d)),
-        expert_opening_m: last_cmd.map_or(f64::NAN, |c| c.gripper.opening_m),
-        expert_force_n: truth.gripper.force_n,
-        deformation_m,
-        success,
-        chosen: chosen.unwrap_or_default(),
-        decided_s,
-        ticks,
-    })
 }
 
 /// A world command as the policy's action values ([`unitac_policy::Action::values`]' order and names).
