@@ -27,7 +27,6 @@ cup.stiffness in N/m bounded to [20, 5000] (the policy params' stiffness range).
 import argparse
 import json
 import os
-import sys
 
 import numpy as np
 import onnx

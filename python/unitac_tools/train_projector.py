@@ -61,8 +61,9 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-# The bundle helpers (file hash, declared inputs/outputs, manifest entries, initialisers).
-from .generate_reference import entry, gradient_check_error, init, sha256
+# The bundle helpers (manifest entries with their declared inputs/outputs, initialisers, the
+# gradient check).
+from .generate_reference import entry, gradient_check_error, init
 # The policies' layout (the stiffness readout's input, action and range; the manifest writer).
 from . import schema
 
