@@ -22,7 +22,8 @@
 # DAGGER_TRIALS trials), every tick labelled with that mode's expert's command there, laid out as LeRobot
 # datasets (.build/models/learned/dagger/seed<k>/<task>_<mode>), and python/unitac_tools/train_policy.py
 # --dagger trains each seed's policies again on the demonstrations plus its own DAgger states.
-# Needs steps 5 and 6 of scripts/setup.sh (the reference and touch bundles the scenes load).
+# Needs the stages run and touch of scripts/setup.sh (the reference and touch bundles the scenes
+# load) and python (pyarrow); `scripts/setup.sh learned` runs it with them.
 # Skipped when its inputs did not change (a stamp of them in .build/models/learned/.stamp); when
 # they did, the demonstrations are recorded again and the policies trained only if the datasets
 # or the trainer differ from those they were trained on (scripts/stamps.sh).
@@ -57,7 +58,7 @@ if [ "$(cat "$OUT/.stamp" 2>/dev/null)" = "$key" ] \
   && [ -f "$OUT/seed${SEEDS[-1]}/${TASKS[-1]}_vtla_pred/manifest.json" ]; then
   exit 0
 fi
-log "learned policies: demonstrations of both tasks on training objects, LeRobot datasets, training"
+log "learned policies: demonstrations of both tasks on training objects (~13 min), LeRobot datasets, training (~5 min)"
 start=$SECONDS
 cargo build --release --locked -q -p unitac-cli
 rm -rf "$OUT.tmp"
