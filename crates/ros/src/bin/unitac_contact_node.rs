@@ -82,6 +82,179 @@ fn drain<T>(
     }
 }
 
+/// The image subscription, by `image_transport`.
+enum Input {
+    Raw(Sub<r2r::sensor_msgs::msg::Image>),
+    Compressed(Sub<r2r::sensor_msgs::msg::CompressedImage>),
+}
+
+/// A subscription's message stream.
+type Sub<T> = futures::stream::BoxStream<'static, T>;
+
+impl Input {
+    fn new(node: &mut r2r::Node, transport: &str, qos: QosProfile) -> anyhow::Result<Self> {
+        Ok(match transport {
+            "raw" => Self::Raw(Box::pin(node.subscribe("image", qos)?)),
+            "compressed" => Self::Compressed(Box::pin(node.subscribe("image/compressed", qos)?)),
+            other => anyhow::bail!("image_transport must be raw or compressed, got '{other}'"),
+        })
+    }
+
+    /// Everything queued, converted; images are numbered from `seq` on in arrival order, as a
+    /// bag replay numbers them.
+    fn drain(&mut self, seq: &mut u64, sensor_id: &str) -> Vec<Received> {
+        let id = |frame_id: &str| sensor_id_of(Some(sensor_id), frame_id, "sensor");
+        let mut next = || {
+            let n = *seq;
+            *seq += 1;
+            n
+        };
+        let mut inputs = Vec::new();
+        match self {
+            Self::Raw(sub) => drain(sub, &mut inputs, |m| Received {
+                stamp: checked_stamp(&m.header.stamp),
+                frame: image::to_frame(m, &id(&m.header.frame_id), next()),
+            }),
+            Self::Compressed(sub) => drain(sub, &mut inputs, |m| Received {
+                stamp: checked_stamp(&m.header.stamp),
+                frame: image::compressed_to_frame(m, &id(&m.header.frame_id), next()),
+            }),
+        }
+        inputs
+    }
+}
+
+/// The node's publishers: the states, episodes, clips, slip and the latched background, and
+/// only the topics the scene makes of depth and the overlay (a subscriber of `depth` on a scene
+/// without depth sees no publisher rather than a silent one).
+struct Outputs {
+    state: r2r::Publisher<r2r::unitac_msgs::msg::ContactState>,
+    episode: r2r::Publisher<r2r::unitac_msgs::msg::ContactEpisode>,
+    clip: r2r::Publisher<r2r::unitac_msgs::msg::ContactClip>,
+    slip: r2r::Publisher<r2r::unitac_msgs::msg::SlipState>,
+    background: r2r::Publisher<r2r::sensor_msgs::msg::Image>,
+    depth: Option<(
+        r2r::Publisher<r2r::sensor_msgs::msg::Image>,
+        r2r::Publisher<r2r::sensor_msgs::msg::PointCloud2>,
+    )>,
+    overlay: Option<r2r::Publisher<r2r::sensor_msgs::msg::Image>>,
+}
+
+impl Outputs {
+    fn new(node: &mut r2r::Node, with_depth: bool, with_overlay: bool) -> anyhow::Result<Self> {
+        let reliable = QosProfile::default;
+        Ok(Self {
+            state: node.create_publisher("contact_state", reliable())?,
+            episode: node.create_publisher("contact_episode", reliable())?,
+            clip: node.create_publisher("contact_clip", reliable())?,
+            slip: node.create_publisher("slip_state", reliable())?,
+            // Latched: an inference node started later still gets the sensor prior.
+            background: node.create_publisher(
+                "background",
+                QosProfile::default().keep_last(1).transient_local(),
+            )?,
+            depth: if with_depth {
+                Some((
+                    node.create_publisher("depth", reliable())?,
+                    node.create_publisher("points", reliable())?,
+                ))
+            } else {
+                None
+            },
+            overlay: with_overlay
+                .then(|| node.create_publisher("contact_overlay", reliable()))
+                .transpose()?,
+        })
+    }
+
+    /// Publish what the chain produced; `in_contact` follows the contact states.
+    fn publish(&self, out: Vec<Msg>, in_contact: &mut bool, counters: &mut diagnostics::Counters) {
+        for m in out {
+            let r = match m {
+                Msg::ContactState(c) => {
+                    *in_contact = c.in_contact;
+                    self.state.publish(&convert::contact_state(&c))
+                }
+                Msg::ContactEpisode(e) => self.episode.publish(&convert::contact_episode(&e)),
+                Msg::ContactClip(c) => self.clip.publish(&convert::contact_clip(&c)),
+                Msg::Background(f) => self.background.publish(&image::from_frame(&f)),
+                Msg::SlipState(s) => self.slip.publish(&convert::slip_state(&s)),
+                Msg::Depth(d) => {
+                    let Some((pd, pp)) = &self.depth else {
+                        continue;
+                    };
+                    counters.published(pd.publish(&image::depth(&d)));
+                    pp.publish(&image::points(&d))
+                }
+                Msg::ContactOverlay(f) => match &self.overlay {
+                    Some(po) => po.publish(&image::from_frame(&f)),
+                    None => continue,
+                },
+                _ => continue,
+            };
+            counters.published(r);
+        }
+    }
+}
+
+/// What the scene's contact stage emits beyond the states: depth (a depth calibration), the
+/// overlay.
+fn contact_extras(scene: &unitac_core::Scene) -> anyhow::Result<(bool, bool)> {
+    Ok(unitac_pipeline::stage_configs(scene)?
+        .iter()
+        .find_map(|c| match c {
+            unitac_pipeline::StageConfig::Contact { params, .. } => {
+                Some((params.depth_calibration.is_some(), params.overlay))
+            }
+            _ => None,
+        })
+        .unwrap_or((false, false)))
+}
+
+/// The node's state between frames.
+struct Node {
+    chain: Chain,
+    outputs: Outputs,
+    counters: diagnostics::Counters,
+    drops: DropCounter,
+    in_contact: bool,
+}
+
+impl Node {
+    /// One received image through the chain. Each frame is counted once: in, and then either
+    /// processed, or an error (a bad stamp, an undecodable image, a frame the stage rejects).
+    /// Only stamp gaps between frames that arrived count as drops.
+    fn process(&mut self, r: Received, base: &NodeBase<Params>) {
+        self.counters.frames_in += 1;
+        let t0 = Instant::now();
+        let frame = match (r.stamp, r.frame) {
+            (Ok(stamp), Ok(f)) => {
+                self.counters.dropped += self.drops.observe(stamp.0);
+                f
+            }
+            (Err(e), _) => {
+                self.drops.arrived_without_stamp();
+                self.counters.error(e.to_string());
+                return;
+            }
+            (Ok(stamp), Err(e)) => {
+                self.drops.observe(stamp.0);
+                self.counters.error(e.to_string());
+                return;
+            }
+        };
+        let captured = frame.stamp;
+        let out = self.chain.run(Msg::Frame(frame));
+        for e in out.errors {
+            self.counters.error(e.to_string());
+        }
+        self.outputs
+            .publish(out.produced, &mut self.in_contact, &mut self.counters);
+        self.counters.latency(base.age_s(captured));
+        self.counters.busy_s += t0.elapsed().as_secs_f64();
+    }
+}
+
 fn run() -> anyhow::Result<()> {
     // Stage kinds this node runs (launch/stage_nodes.yaml).
     let stages = unitac_ros::node_stages("unitac_contact_node")?;
@@ -94,167 +267,41 @@ fn run() -> anyhow::Result<()> {
         stages,
         base.stage_overrides(),
     )?;
-    // What the contact stage emits beyond the states: depth (a depth calibration), the overlay.
-    let (with_depth, with_overlay) = unitac_pipeline::stage_configs(&scene)?
-        .iter()
-        .find_map(|c| match c {
-            unitac_pipeline::StageConfig::Contact { params, .. } => {
-                Some((params.depth_calibration.is_some(), params.overlay))
-            }
-            _ => None,
-        })
-        .unwrap_or((false, false));
-    let mut chain = Chain::new(stages);
+    let (with_depth, with_overlay) = contact_extras(&scene)?;
     let sensor_id = p.sensor_id;
-
     let image_qos = unitac_ros::image::image_qos(&p.image_qos)?;
-    let node = &mut base.node;
-    // One of the two subscriptions, by `image_transport`.
-    let (mut raw, mut compressed) = match p.image_transport.as_str() {
-        "raw" => (
-            Some(node.subscribe::<r2r::sensor_msgs::msg::Image>("image", image_qos.clone())?),
-            None,
-        ),
-        "compressed" => (
-            None,
-            Some(node.subscribe::<r2r::sensor_msgs::msg::CompressedImage>(
-                "image/compressed",
-                image_qos.clone(),
-            )?),
-        ),
-        other => anyhow::bail!("image_transport must be raw or compressed, got '{other}'"),
+    let mut input = Input::new(&mut base.node, &p.image_transport, image_qos)?;
+    let mut node = Node {
+        chain: Chain::new(stages),
+        outputs: Outputs::new(&mut base.node, with_depth, with_overlay)?,
+        counters: diagnostics::Counters::default(),
+        drops: DropCounter::default(),
+        in_contact: false,
     };
-    let reliable = QosProfile::default;
-    let pub_state =
-        node.create_publisher::<r2r::unitac_msgs::msg::ContactState>("contact_state", reliable())?;
-    let pub_ep = node
-        .create_publisher::<r2r::unitac_msgs::msg::ContactEpisode>("contact_episode", reliable())?;
-    let pub_clip =
-        node.create_publisher::<r2r::unitac_msgs::msg::ContactClip>("contact_clip", reliable())?;
-    let pub_slip =
-        node.create_publisher::<r2r::unitac_msgs::msg::SlipState>("slip_state", reliable())?;
-    // Latched: an inference node started later still gets the sensor prior.
-    let pub_bg = node.create_publisher::<r2r::sensor_msgs::msg::Image>(
-        "background",
-        QosProfile::default().keep_last(1).transient_local(),
-    )?;
-    // Only the topics the scene makes: a subscriber of `depth` on a scene without depth sees no
-    // publisher rather than a silent one.
-    let pub_depth = with_depth
-        .then(|| node.create_publisher::<r2r::sensor_msgs::msg::Image>("depth", reliable()))
-        .transpose()?;
-    let pub_points = with_depth
-        .then(|| node.create_publisher::<r2r::sensor_msgs::msg::PointCloud2>("points", reliable()))
-        .transpose()?;
-    let pub_overlay = with_overlay
-        .then(|| {
-            node.create_publisher::<r2r::sensor_msgs::msg::Image>("contact_overlay", reliable())
-        })
-        .transpose()?;
     let mut diag = diagnostics::Updater::new(
-        &format!("unitac_contact: {}", node.fully_qualified_name()?),
+        &format!("unitac_contact: {}", base.node.fully_qualified_name()?),
         &sensor_id,
     );
-    let mut counters = diagnostics::Counters::default();
-    let mut drops = DropCounter::default();
-    let (mut seq, mut in_contact) = (0u64, false);
-    let publish = |out: Vec<Msg>, in_contact: &mut bool, counters: &mut diagnostics::Counters| {
-        for m in out {
-            let r = match m {
-                Msg::ContactState(c) => {
-                    *in_contact = c.in_contact;
-                    pub_state.publish(&convert::contact_state(&c))
-                }
-                Msg::ContactEpisode(e) => pub_ep.publish(&convert::contact_episode(&e)),
-                Msg::ContactClip(c) => pub_clip.publish(&convert::contact_clip(&c)),
-                Msg::Background(f) => pub_bg.publish(&image::from_frame(&f)),
-                Msg::SlipState(s) => pub_slip.publish(&convert::slip_state(&s)),
-                Msg::Depth(d) => {
-                    let (Some(pd), Some(pp)) = (&pub_depth, &pub_points) else {
-                        continue;
-                    };
-                    counters.published(pd.publish(&image::depth(&d)));
-                    pp.publish(&image::points(&d))
-                }
-                Msg::ContactOverlay(f) => match &pub_overlay {
-                    Some(po) => po.publish(&image::from_frame(&f)),
-                    None => continue,
-                },
-                _ => continue,
-            };
-            counters.published(r);
-        }
-    };
+    let mut seq = 0u64;
     while !base.stopped() {
         base.spin(Duration::from_millis(5));
         // Drain everything queued (r2r's subscription buffer is small and drops silently; the
-        // stamp gaps below count what was lost anyway).
-        let mut inputs = Vec::new();
-        let id = |frame_id: &str| sensor_id_of(Some(&sensor_id), frame_id, "sensor");
-        if let Some(sub) = raw.as_mut() {
-            drain(sub, &mut inputs, |m| {
-                // Images are numbered from 0 in arrival order, as a bag replay numbers them.
-                let n = seq;
-                seq += 1;
-                Received {
-                    stamp: checked_stamp(&m.header.stamp),
-                    frame: image::to_frame(m, &id(&m.header.frame_id), n),
-                }
-            });
+        // stamp gaps count what was lost anyway).
+        for r in input.drain(&mut seq, &sensor_id) {
+            node.process(r, &base);
         }
-        if let Some(sub) = compressed.as_mut() {
-            drain(sub, &mut inputs, |m| {
-                // Images are numbered from 0 in arrival order, as a bag replay numbers them.
-                let n = seq;
-                seq += 1;
-                Received {
-                    stamp: checked_stamp(&m.header.stamp),
-                    frame: image::compressed_to_frame(m, &id(&m.header.frame_id), n),
-                }
-            });
-        }
-        for r in inputs {
-            // Each frame is counted once: in, and then either processed, or an error (a bad
-            // stamp, an undecodable image, a frame the stage rejects). Only stamp gaps between
-            // frames that arrived count as drops.
-            counters.frames_in += 1;
-            let t0 = Instant::now();
-            let frame = match (r.stamp, r.frame) {
-                (Ok(stamp), Ok(f)) => {
-                    counters.dropped += drops.observe(stamp.0);
-                    f
-                }
-                (Err(e), _) => {
-                    drops.arrived_without_stamp();
-                    counters.error(e.to_string());
-                    continue;
-                }
-                (Ok(stamp), Err(e)) => {
-                    drops.observe(stamp.0);
-                    counters.error(e.to_string());
-                    continue;
-                }
-            };
-            let captured = frame.stamp;
-            let out = chain.run(Msg::Frame(frame));
-            for e in out.errors {
-                counters.error(e.to_string());
-            }
-            publish(out.produced, &mut in_contact, &mut counters);
-            counters.latency(base.age_s(captured));
-            counters.busy_s += t0.elapsed().as_secs_f64();
-        }
-        let extra = [("in_contact", in_contact.to_string())];
-        if let Some(a) = diag.tick(&mut counters, base.now(), &extra) {
+        let extra = [("in_contact", node.in_contact.to_string())];
+        if let Some(a) = diag.tick(&mut node.counters, base.now(), &extra) {
             base.publish_diagnostics(&a)?;
         }
     }
     // Flush an open episode and save the background (background_dir).
-    let end = chain.finish();
+    let end = node.chain.finish();
     for e in &end.errors {
         eprintln!("unitac_contact_node: finishing: {e}");
     }
-    publish(end.produced, &mut in_contact, &mut counters);
+    node.outputs
+        .publish(end.produced, &mut node.in_contact, &mut node.counters);
     base.spin(Duration::from_millis(50));
     Ok(())
 }

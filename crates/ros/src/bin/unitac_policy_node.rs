@@ -471,15 +471,9 @@ fn qualified(namespace: &str, topic: &str) -> String {
     format!("{}/{topic}", namespace.trim_end_matches('/'))
 }
 
-async fn run_async() -> anyhow::Result<()> {
-    let AsyncNode {
-        mut node,
-        params: p,
-        overrides,
-        param_handler,
-        clock,
-        diagnostics: pub_diag,
-    } = AsyncNode::<Params>::new("unitac_policy", STAGES)?;
+/// The node's own parameters checked: the gripper's input and output, the tool orientation
+/// (returned).
+fn check_params(p: &Params) -> anyhow::Result<[f64; 3]> {
     if !matches!(p.gripper_input.as_str(), "gripper_status" | "joint_states") {
         anyhow::bail!(
             "gripper_input must be gripper_status or joint_states, got '{}'",
@@ -496,33 +490,158 @@ async fn run_async() -> anyhow::Result<()> {
     if tool_rpy.iter().any(|v| !v.is_finite()) {
         anyhow::bail!("tool_roll, tool_pitch and tool_yaw must be finite, got {tool_rpy:?}");
     }
+    Ok(tool_rpy)
+}
+
+/// The gripper's output by `gripper_output`: the GripperCommand topic, or an action client whose
+/// goals' events come back on `events`.
+fn gripper_out(
+    node: &mut r2r::Node,
+    p: &Params,
+    namespace: &str,
+    events: mpsc::UnboundedSender<ActionEvent>,
+) -> anyhow::Result<GripperOut> {
+    if p.gripper_output != "action" {
+        return Ok(GripperOut::Topic(
+            node.create_publisher("gripper_command", QosProfile::default())?,
+        ));
+    }
+    let name = if p.gripper_action.starts_with('/') {
+        p.gripper_action.clone()
+    } else {
+        qualified(namespace, &p.gripper_action)
+    };
+    let client = node.create_action_client::<GripperAction>(&name)?;
+    Ok(GripperOut::Action {
+        client,
+        link: ActionLink::new(Resend::default()),
+        events,
+        goals: FuturesUnordered::new(),
+        name,
+    })
+}
+
+/// The control loop's state: the chain, the outputs, the graph watch and the counts.
+struct Policy {
+    chain: Chain,
+    pubs: Publishers,
+    producers: Producers,
+    clock: Arc<Mutex<r2r::Clock>>,
+    counters: diagnostics::Counters,
+    watchdog_ticks: u64,
+    last_status: String,
+    /// Every tick by what it sent (the policy's action, or the safe action and why).
+    ticks: unitac_policy::TickCounts,
+}
+
+impl Policy {
+    /// The producers and the action server as they are now, so a loss shows in this tick.
+    fn check_graph(&mut self) {
+        if let Err(e) = self.producers.check(&mut self.chain) {
+            self.counters.error(format!("graph: {e:#}"));
+        }
+        check_server(&self.producers, &mut self.pubs, &mut self.counters);
+    }
+
+    /// An input message (a gripper state is a tick) through the chain.
+    fn message(&mut self, m: Incoming) {
+        self.counters.frames_in += 1;
+        let t0 = Instant::now();
+        let m = match m {
+            Ok(Msg::GripperStatus(g)) => {
+                self.check_graph();
+                Msg::GripperStatus(self.pubs.gripper_state(g))
+            }
+            Ok(m) => m,
+            Err(e) => {
+                self.counters.error(format!("{e:#}"));
+                return;
+            }
+        };
+        let stamp = m.stamp();
+        let out = self.chain.run(m);
+        for e in &out.errors {
+            self.counters.error(e.error.clone());
+        }
+        if !out.produced.is_empty() {
+            self.counters.latency(age_s(&self.clock, stamp));
+        }
+        count_ticks(&out.produced, &mut self.ticks);
+        self.pubs
+            .publish(out.produced, &mut self.counters, &mut self.last_status);
+        self.counters.busy_s += t0.elapsed().as_secs_f64();
+    }
+
+    /// The control interval: the chain's timer hook (the watchdog) at the node's clock.
+    fn control(&mut self) {
+        self.check_graph();
+        let now = convert::stamp(&ros_now(&self.clock));
+        let out = self.chain.timer(now);
+        for e in &out.errors {
+            self.counters.error(e.error.clone());
+        }
+        if !out.produced.is_empty() {
+            self.watchdog_ticks += 1;
+            count_ticks(&out.produced, &mut self.ticks);
+            self.pubs
+                .publish(out.produced, &mut self.counters, &mut self.last_status);
+        }
+    }
+
+    /// The diagnostics, when one is due.
+    fn diagnostics(
+        &mut self,
+        diag: &mut diagnostics::Updater,
+        pub_diag: &r2r::Publisher<r2r::diagnostic_msgs::msg::DiagnosticArray>,
+    ) {
+        let mut extra = vec![
+            ("status", self.last_status.clone()),
+            ("watchdog_ticks", self.watchdog_ticks.to_string()),
+        ];
+        extra.extend(diagnostics::policy_ticks(&self.ticks));
+        // A policy that fails (an error, over its time limit, refused) is a warning.
+        self.counters.warnings = self.ticks.failed();
+        if let GripperOut::Action { link, name, .. } = &self.pubs.gripper {
+            extra.push(("gripper_action", name.clone()));
+            extra.push(("gripper_goals_sent", link.goals_sent().to_string()));
+            extra.push((
+                "gripper_action_fault",
+                link.fault().unwrap_or("none").to_string(),
+            ));
+        }
+        if let Some(a) = diag.tick(&mut self.counters, ros_now(&self.clock), &extra) {
+            if let Err(e) = pub_diag.publish(&a) {
+                self.counters.error(format!("diagnostics: {e}"));
+            }
+        }
+    }
+}
+
+/// A tokio interval that delays (control) or skips (diagnostics) missed ticks.
+fn interval(period: Duration, missed: tokio::time::MissedTickBehavior) -> tokio::time::Interval {
+    let mut i = tokio::time::interval(period);
+    i.set_missed_tick_behavior(missed);
+    i
+}
+
+async fn run_async() -> anyhow::Result<()> {
+    let AsyncNode {
+        mut node,
+        params: p,
+        overrides,
+        param_handler,
+        clock,
+        diagnostics: pub_diag,
+    } = AsyncNode::<Params>::new("unitac_policy", STAGES)?;
+    let tool_rpy = check_params(&p)?;
     let (scene, stage) = build(&p, &overrides)?;
     let inputs = stage.inputs();
-    // The stage through the one chain driver (its clock rule, its timer hook: the watchdog).
-    let mut chain = Chain::new(vec![Box::new(stage)]);
     let mut incoming = subscribe(&mut node, &inputs, &p)?;
     let reliable = QosProfile::default;
     let namespace = node.namespace()?;
     let (events_tx, mut events) = mpsc::unbounded::<ActionEvent>();
-    let gripper = if p.gripper_output == "action" {
-        let name = if p.gripper_action.starts_with('/') {
-            p.gripper_action.clone()
-        } else {
-            qualified(&namespace, &p.gripper_action)
-        };
-        let client = node.create_action_client::<GripperAction>(&name)?;
-        GripperOut::Action {
-            client,
-            link: ActionLink::new(Resend::default()),
-            events: events_tx,
-            goals: FuturesUnordered::new(),
-            name,
-        }
-    } else {
-        GripperOut::Topic(node.create_publisher("gripper_command", reliable())?)
-    };
-    let mut pubs = Publishers {
-        gripper,
+    let pubs = Publishers {
+        gripper: gripper_out(&mut node, &p, &namespace, events_tx)?,
         arm: node.create_publisher("arm_command", reliable())?,
         pose: node.create_publisher("arm_pose", reliable())?,
         status: node.create_publisher("policy_status", reliable())?,
@@ -535,12 +654,22 @@ async fn run_async() -> anyhow::Result<()> {
         &scene,
     );
     let node = Arc::new(Mutex::new(node));
-    let producers = Producers {
-        node: node.clone(),
-        topics: inputs
-            .iter()
-            .map(|i| (*i, qualified(&namespace, topic_of(i, &p))))
-            .collect(),
+    let mut policy = Policy {
+        // The stage through the one chain driver (its clock rule, its timer hook: the watchdog).
+        chain: Chain::new(vec![Box::new(stage)]),
+        pubs,
+        producers: Producers {
+            node: node.clone(),
+            topics: inputs
+                .iter()
+                .map(|i| (*i, qualified(&namespace, topic_of(i, &p))))
+                .collect(),
+        },
+        clock,
+        counters: diagnostics::Counters::default(),
+        watchdog_ticks: 0,
+        last_status: String::new(),
+        ticks: unitac_policy::TickCounts::default(),
     };
     tokio::spawn(param_handler);
     let stop = Arc::new(AtomicBool::new(false));
@@ -548,91 +677,24 @@ async fn run_async() -> anyhow::Result<()> {
 
     let mut sigint = signal(SignalKind::interrupt())?;
     let mut sigterm = signal(SignalKind::terminate())?;
-    let period = chain
+    let period = policy
+        .chain
         .timer_period_ns()
         .and_then(|ns| u64::try_from(ns).ok())
         .map_or(Duration::from_millis(33), Duration::from_nanos);
-    let mut control = tokio::time::interval(period);
-    control.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let mut diag_timer = tokio::time::interval(Duration::from_millis(200));
-    diag_timer.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    let mut counters = diagnostics::Counters::default();
-    let (mut watchdog_ticks, mut last_status) = (0u64, String::new());
-    // Every tick by what it sent (the policy's action, or the safe action and why).
-    let mut ticks = unitac_policy::TickCounts::default();
+    use tokio::time::MissedTickBehavior::{Delay, Skip};
+    let mut control = interval(period, Delay);
+    let mut diag_timer = interval(Duration::from_millis(200), Skip);
     loop {
         tokio::select! {
             m = incoming.next() => {
                 let Some(m) = m else { break };
-                counters.frames_in += 1;
-                let t0 = Instant::now();
-                let m = match m {
-                    Ok(m) => m,
-                    Err(e) => {
-                        counters.error(format!("{e:#}"));
-                        continue;
-                    }
-                };
-                let m = match m {
-                    Msg::GripperStatus(g) => {
-                        // A tick: the producers as they are now, so a loss shows in this tick.
-                        if let Err(e) = producers.check(&mut chain) {
-                            counters.error(format!("graph: {e:#}"));
-                        }
-                        check_server(&producers, &mut pubs, &mut counters);
-                        Msg::GripperStatus(pubs.gripper_state(g))
-                    }
-                    m => m,
-                };
-                let stamp = m.stamp();
-                let out = chain.run(m);
-                for e in &out.errors {
-                    counters.error(e.error.clone());
-                }
-                if !out.produced.is_empty() {
-                    counters.latency(age_s(&clock, stamp));
-                }
-                count_ticks(&out.produced, &mut ticks);
-                pubs.publish(out.produced, &mut counters, &mut last_status);
-                counters.busy_s += t0.elapsed().as_secs_f64();
+                policy.message(m);
             }
-            Some(e) = events.next() => pubs.action_event(e),
-            Some(()) = next_goal(&mut pubs) => {}
-            _ = control.tick() => {
-                if let Err(e) = producers.check(&mut chain) {
-                    counters.error(format!("graph: {e:#}"));
-                }
-                check_server(&producers, &mut pubs, &mut counters);
-                let now = convert::stamp(&ros_now(&clock));
-                let out = chain.timer(now);
-                for e in &out.errors {
-                    counters.error(e.error.clone());
-                }
-                if !out.produced.is_empty() {
-                    watchdog_ticks += 1;
-                    count_ticks(&out.produced, &mut ticks);
-                    pubs.publish(out.produced, &mut counters, &mut last_status);
-                }
-            }
-            _ = diag_timer.tick() => {
-                let mut extra = vec![
-                    ("status", last_status.clone()),
-                    ("watchdog_ticks", watchdog_ticks.to_string()),
-                ];
-                extra.extend(diagnostics::policy_ticks(&ticks));
-                // A policy that fails (an error, over its time limit, refused) is a warning.
-                counters.warnings = ticks.failed();
-                if let GripperOut::Action { link, name, .. } = &pubs.gripper {
-                    extra.push(("gripper_action", name.clone()));
-                    extra.push(("gripper_goals_sent", link.goals_sent().to_string()));
-                    extra.push(("gripper_action_fault", link.fault().unwrap_or("none").to_string()));
-                }
-                if let Some(a) = diag.tick(&mut counters, ros_now(&clock), &extra) {
-                    if let Err(e) = pub_diag.publish(&a) {
-                        counters.error(format!("diagnostics: {e}"));
-                    }
-                }
-            }
+            Some(e) = events.next() => policy.pubs.action_event(e),
+            Some(()) = next_goal(&mut policy.pubs) => {}
+            _ = control.tick() => policy.control(),
+            _ = diag_timer.tick() => policy.diagnostics(&mut diag, &pub_diag),
             _ = sigint.recv() => break,
             _ = sigterm.recv() => break,
         }

@@ -148,13 +148,182 @@ fn resolve(mut p: Params) -> anyhow::Result<Params> {
     Ok(p)
 }
 
-fn run() -> anyhow::Result<()> {
-    let mut base = NodeBase::<Params>::new("unitac_sim", &[])?;
-    let p = resolve(base.params()?)?;
-    eprintln!(
-        "unitac_sim: the {} task at {} Hz for {} s of sim time",
-        p.task, p.control_rate_hz, p.duration_s
-    );
+/// The node's publishers and subscriptions.
+struct Io {
+    clock: r2r::Publisher<r2r::rosgraph_msgs::msg::Clock>,
+    image: r2r::Publisher<r2r::sensor_msgs::msg::Image>,
+    status: r2r::Publisher<r2r::unitac_msgs::msg::GripperStatus>,
+    joint: r2r::Publisher<r2r::sensor_msgs::msg::JointState>,
+    visual: r2r::Publisher<r2r::unitac_msgs::msg::VisualObservation>,
+    outcome: r2r::Publisher<r2r::std_msgs::msg::String>,
+    cmd: Sub<r2r::unitac_msgs::msg::GripperCommand>,
+    arm: Sub<r2r::unitac_msgs::msg::ArmCommand>,
+    contact: Sub<r2r::unitac_msgs::msg::ContactState>,
+    background: Sub<r2r::sensor_msgs::msg::Image>,
+}
+
+/// A subscription's message stream.
+type Sub<T> = futures::stream::BoxStream<'static, T>;
+
+impl Io {
+    fn new(node: &mut r2r::Node) -> anyhow::Result<Self> {
+        let reliable = || QosProfile::default().keep_last(10);
+        Ok(Self {
+            clock: node.create_publisher("/clock", QosProfile::default())?,
+            image: node.create_publisher("image_raw", QosProfile::default())?,
+            status: node.create_publisher("gripper_status", reliable())?,
+            joint: node.create_publisher("joint_states", reliable())?,
+            visual: node.create_publisher("visual_observation", reliable())?,
+            outcome: node.create_publisher(
+                "sim/outcome",
+                QosProfile::default().keep_last(1).transient_local(),
+            )?,
+            cmd: Box::pin(node.subscribe("gripper_command", reliable())?),
+            arm: Box::pin(node.subscribe("arm_command", reliable())?),
+            contact: Box::pin(
+                node.subscribe("contact_state", QosProfile::default().keep_last(100))?,
+            ),
+            background: Box::pin(node.subscribe(
+                "background",
+                QosProfile::default().keep_last(1).transient_local(),
+            )?),
+        })
+    }
+
+    /// Wait (up to 60 s) until the subscriptions the parameters ask for matched; false when
+    /// the node was stopped first.
+    fn wait_subscribers(&self, base: &mut NodeBase<Params>, p: &Params) -> anyhow::Result<bool> {
+        let wanted = usize::try_from(p.wait_subscribers).unwrap_or(0);
+        let wanted_images = usize::try_from(p.wait_image_subscribers).unwrap_or(0);
+        let wanted_joints = usize::try_from(p.wait_joint_subscribers).unwrap_or(0);
+        if wanted + wanted_images + wanted_joints == 0 {
+            return Ok(true);
+        }
+        let count = |n: Result<usize, r2r::Error>| n.unwrap_or(0);
+        let matched = || {
+            count(self.status.get_inter_process_subscription_count()) >= wanted
+                && count(self.image.get_inter_process_subscription_count()) >= wanted_images
+                && count(self.joint.get_inter_process_subscription_count()) >= wanted_joints
+        };
+        if base.spin_until(Duration::from_secs(60), matched) {
+            return Ok(true);
+        }
+        if base.stopped() {
+            return Ok(false);
+        }
+        anyhow::bail!(
+            "fewer than {wanted} subscribers on gripper_status, {wanted_images} on image_raw or {wanted_joints} on joint_states within 60 s"
+        )
+    }
+}
+
+/// Lock-step with the contact node: its background learned, the newest ContactState seen, and
+/// the steps that went on without their contact.
+#[derive(Default)]
+struct ContactSync {
+    learned: bool,
+    seen: Stamp,
+    timeouts: u64,
+}
+
+impl ContactSync {
+    /// Once the background is learned, wait (up to `timeout`) for the ContactState of the
+    /// frame stamped `want`.
+    fn wait(&mut self, base: &mut NodeBase<Params>, io: &mut Io, want: Stamp, timeout: Duration) {
+        let waited = Instant::now();
+        loop {
+            base.spin(Duration::from_millis(1));
+            while let Some(Some(_)) = io.background.next().now_or_never() {
+                self.learned = true;
+            }
+            while let Some(Some(c)) = io.contact.next().now_or_never() {
+                self.seen = self.seen.max(convert::stamp(&c.header.stamp));
+            }
+            if !self.learned || self.seen >= want || base.stopped() {
+                return;
+            }
+            if waited.elapsed() >= timeout {
+                self.timeouts += 1;
+                return;
+            }
+        }
+    }
+}
+
+/// How the gripper is commanded: stamped commands, one per step (the policy's), or a held
+/// setpoint (a gripper controller's).
+struct Gripper {
+    held_mode: bool,
+    held: GripperCommand,
+}
+
+impl Gripper {
+    fn new(p: &Params, sim: &WorldStepper) -> anyhow::Result<Self> {
+        let held_mode = match p.gripper_commands.as_str() {
+            "stamped" => false,
+            "held" => true,
+            other => anyhow::bail!("gripper_commands must be stamped or held, got '{other}'"),
+        };
+        // Held mode: the setpoint until a controller sends one is to stay where the fingers are
+        // (a stop holds with the command's force: the gripper's maximum, as before any command).
+        let limits = sim.world().config().gripper;
+        let held = GripperCommand {
+            header: unitac_core::msg::Header::new(Stamp::ZERO, ""),
+            mode: GripperMode::Stop,
+            position_m: 0.0,
+            speed_m_s: limits.max_speed_m_s,
+            force_n: limits.max_force_n,
+            reason: "no setpoint yet".into(),
+        };
+        Ok(Self { held_mode, held })
+    }
+
+    /// Wait (up to `timeout`) for the commands stamped `now` (older ones are dropped; a newer
+    /// one cannot exist); true when they all came. In held mode the step's gripper command is
+    /// the held setpoint.
+    fn collect(
+        &mut self,
+        base: &mut NodeBase<Params>,
+        io: &mut Io,
+        now: Stamp,
+        timeout: Duration,
+        counters: &mut diagnostics::Counters,
+        pending: &mut Pending,
+    ) -> bool {
+        let waited = Instant::now();
+        let mut answered = false;
+        while !base.stopped() && waited.elapsed() < timeout {
+            base.spin(Duration::from_millis(1));
+            while let Some(Some(c)) = io.cmd.next().now_or_never() {
+                match convert::gripper_command_from(&c) {
+                    Ok(c) if self.held_mode => self.held = c,
+                    c => take(&mut pending.gripper, c, now, counters),
+                }
+            }
+            while let Some(Some(a)) = io.arm.next().now_or_never() {
+                take(
+                    &mut pending.arm,
+                    convert::arm_command_from(&a),
+                    now,
+                    counters,
+                );
+            }
+            if (self.held_mode || pending.gripper.is_some()) && pending.arm.is_some() {
+                answered = true;
+                break;
+            }
+        }
+        if self.held_mode {
+            let mut c = self.held.clone();
+            c.header.stamp = now;
+            pending.gripper = Some(c);
+        }
+        answered
+    }
+}
+
+/// The world stepper for the node's parameters.
+fn stepper(p: &Params) -> anyhow::Result<WorldStepper> {
     let sensor: SensorKind = p.sensor.parse()?;
     let spec = SimSpec {
         task: p.task.clone(),
@@ -166,134 +335,64 @@ fn run() -> anyhow::Result<()> {
         sensor,
         sensor_id: p.sensor_id.clone(),
     };
-    let mut sim = WorldStepper::for_spec(&spec)?;
-    let held_mode = match p.gripper_commands.as_str() {
-        "stamped" => false,
-        "held" => true,
-        other => anyhow::bail!("gripper_commands must be stamped or held, got '{other}'"),
-    };
-    // Held mode: the setpoint until a controller sends one is to stay where the fingers are
-    // (a stop holds with the command's force: the gripper's maximum, as before any command).
-    let limits = sim.world().config().gripper;
-    let mut held = GripperCommand {
-        header: unitac_core::msg::Header::new(Stamp::ZERO, ""),
-        mode: GripperMode::Stop,
-        position_m: 0.0,
-        speed_m_s: limits.max_speed_m_s,
-        force_n: limits.max_force_n,
-        reason: "no setpoint yet".into(),
-    };
     if !(p.command_timeout_s.is_finite() && p.command_timeout_s > 0.0) {
         anyhow::bail!("command_timeout_s must be > 0, got {}", p.command_timeout_s);
     }
     if !(p.max_rate.is_finite() && p.max_rate >= 0.0) {
         anyhow::bail!("max_rate must be >= 0, got {}", p.max_rate);
     }
-    let node = &mut base.node;
-    let reliable = || QosProfile::default().keep_last(10);
-    let pub_clock =
-        node.create_publisher::<r2r::rosgraph_msgs::msg::Clock>("/clock", QosProfile::default())?;
-    let pub_image =
-        node.create_publisher::<r2r::sensor_msgs::msg::Image>("image_raw", QosProfile::default())?;
-    let pub_status = node
-        .create_publisher::<r2r::unitac_msgs::msg::GripperStatus>("gripper_status", reliable())?;
-    let pub_joint =
-        node.create_publisher::<r2r::sensor_msgs::msg::JointState>("joint_states", reliable())?;
-    let pub_visual = node.create_publisher::<r2r::unitac_msgs::msg::VisualObservation>(
-        "visual_observation",
-        reliable(),
-    )?;
-    let pub_outcome = node.create_publisher::<r2r::std_msgs::msg::String>(
-        "sim/outcome",
-        QosProfile::default().keep_last(1).transient_local(),
-    )?;
-    let mut sub_cmd =
-        node.subscribe::<r2r::unitac_msgs::msg::GripperCommand>("gripper_command", reliable())?;
-    let mut sub_arm =
-        node.subscribe::<r2r::unitac_msgs::msg::ArmCommand>("arm_command", reliable())?;
-    let mut sub_contact = node.subscribe::<r2r::unitac_msgs::msg::ContactState>(
-        "contact_state",
-        QosProfile::default().keep_last(100),
-    )?;
-    let mut sub_background = node.subscribe::<r2r::sensor_msgs::msg::Image>(
-        "background",
-        QosProfile::default().keep_last(1).transient_local(),
-    )?;
-    let (mut learned, mut contact_seen, mut contact_timeouts) = (false, Stamp::ZERO, 0u64);
+    Ok(WorldStepper::for_spec(&spec)?)
+}
+
+/// Over-ROS tick timing (a benchmark's figures, reported with the outcome): GripperStatus
+/// published -> both commands for it received [s], and when they arrived [s].
+#[derive(Default)]
+struct TickTimes {
+    round_trip_s: Vec<f64>,
+    answered_s: Vec<f64>,
+}
+
+fn run() -> anyhow::Result<()> {
+    let mut base = NodeBase::<Params>::new("unitac_sim", &[])?;
+    let p = resolve(base.params()?)?;
+    eprintln!(
+        "unitac_sim: the {} task at {} Hz for {} s of sim time",
+        p.task, p.control_rate_hz, p.duration_s
+    );
+    let mut sim = stepper(&p)?;
+    let mut gripper = Gripper::new(&p, &sim)?;
+    let mut io = Io::new(&mut base.node)?;
+    let mut sync = ContactSync::default();
     let timeout = Duration::from_secs_f64(p.command_timeout_s);
     let mut diag = diagnostics::Updater::new(
-        &format!("unitac_sim: {}", node.fully_qualified_name()?),
+        &format!("unitac_sim: {}", base.node.fully_qualified_name()?),
         &format!("{} {} seed {} trial {}", p.task, p.split, p.seed, p.trial),
     );
     let mut counters = diagnostics::Counters::default();
-
-    let wanted = usize::try_from(p.wait_subscribers).unwrap_or(0);
-    let wanted_images = usize::try_from(p.wait_image_subscribers).unwrap_or(0);
-    let wanted_joints = usize::try_from(p.wait_joint_subscribers).unwrap_or(0);
-    if wanted + wanted_images + wanted_joints > 0 {
-        let matched = || {
-            pub_status
-                .get_inter_process_subscription_count()
-                .unwrap_or(0)
-                >= wanted
-                && pub_image
-                    .get_inter_process_subscription_count()
-                    .unwrap_or(0)
-                    >= wanted_images
-                && pub_joint
-                    .get_inter_process_subscription_count()
-                    .unwrap_or(0)
-                    >= wanted_joints
-        };
-        if !base.spin_until(Duration::from_secs(60), matched) {
-            if base.stopped() {
-                return Ok(());
-            }
-            anyhow::bail!(
-                "fewer than {wanted} subscribers on gripper_status, {wanted_images} on image_raw or {wanted_joints} on joint_states within 60 s"
-            );
-        }
+    if !io.wait_subscribers(&mut base, &p)? {
+        return Ok(());
     }
     let start = Instant::now();
     // The one pacer (as the sensor node's and the runtime's sources): step t is due t / max_rate
     // after the first; 0 = unpaced.
     let mut pacer = unitac_core::Pacer::new((p.max_rate > 0.0).then_some(p.max_rate))?;
     let mut steps = 0u64;
-    let mut pending = Pending::default();
-    // Over-ROS tick timing (a benchmark's figures, reported with the outcome): GripperStatus
-    // published -> both commands for it received [us], and when they arrived [s].
-    let mut round_trip_s: Vec<f64> = Vec::new();
-    let mut answered_s: Vec<f64> = Vec::new();
+    let mut times = TickTimes::default();
     while !base.stopped() && !sim.done() {
         let t0 = Instant::now();
         let o = sim.observe()?;
         let now = convert::time(o.stamp);
-        counters
-            .published(pub_clock.publish(&r2r::rosgraph_msgs::msg::Clock { clock: now.clone() }));
+        counters.published(
+            io.clock
+                .publish(&r2r::rosgraph_msgs::msg::Clock { clock: now.clone() }),
+        );
         for f in &o.frames {
-            counters.published(pub_image.publish(&image::from_frame(f)));
+            counters.published(io.image.publish(&image::from_frame(f)));
         }
         // Busy: rendering and publishing, not the waits.
         counters.busy_s += t0.elapsed().as_secs_f64();
         if let (true, Some(last)) = (p.sync_contact, o.frames.last()) {
-            let want = last.stamp;
-            let waited = Instant::now();
-            let mut caught_up = |base: &mut NodeBase<Params>| {
-                base.spin(Duration::from_millis(1));
-                while let Some(Some(_)) = sub_background.next().now_or_never() {
-                    learned = true;
-                }
-                while let Some(Some(c)) = sub_contact.next().now_or_never() {
-                    contact_seen = contact_seen.max(convert::stamp(&c.header.stamp));
-                }
-                !learned || contact_seen >= want
-            };
-            while !caught_up(&mut base) && !base.stopped() {
-                if waited.elapsed() >= timeout {
-                    contact_timeouts += 1;
-                    break;
-                }
-            }
+            sync.wait(&mut base, &mut io, last.stamp, timeout);
         }
         // Pace: at most max_rate sim seconds per wall second. The wait is here, between the
         // frames and the tick, so the contact states have that long to reach the policy too
@@ -303,48 +402,26 @@ fn run() -> anyhow::Result<()> {
             !base.stopped()
         });
         let t1 = Instant::now();
-        counters.published(pub_visual.publish(&convert::visual_observation(&o.visual)));
-        counters.published(pub_joint.publish(&convert::joint_state(&o.gripper, &p.joint_name)));
-        counters.published(pub_status.publish(&convert::gripper_status(&o.gripper)));
+        counters.published(io.visual.publish(&convert::visual_observation(&o.visual)));
+        counters.published(
+            io.joint
+                .publish(&convert::joint_state(&o.gripper, &p.joint_name)),
+        );
+        counters.published(io.status.publish(&convert::gripper_status(&o.gripper)));
         let sent = Instant::now();
         counters.busy_s += t1.elapsed().as_secs_f64();
-        // Wait for the commands stamped now (older ones are dropped; a newer one cannot exist).
-        let waited = Instant::now();
-        let mut got = |pending: &mut Pending, base: &mut NodeBase<Params>| {
-            base.spin(Duration::from_millis(1));
-            while let Some(Some(c)) = sub_cmd.next().now_or_never() {
-                match convert::gripper_command_from(&c) {
-                    Ok(c) if held_mode => held = c,
-                    c => take(&mut pending.gripper, c, o.stamp, &mut counters),
-                }
-            }
-            while let Some(Some(a)) = sub_arm.next().now_or_never() {
-                take(
-                    &mut pending.arm,
-                    convert::arm_command_from(&a),
-                    o.stamp,
-                    &mut counters,
-                );
-            }
-            (held_mode || pending.gripper.is_some()) && pending.arm.is_some()
-        };
-        let mut answered = false;
-        while !base.stopped() && waited.elapsed() < timeout {
-            if got(&mut pending, &mut base) {
-                answered = true;
-                break;
-            }
+        let mut cmds = Pending::default();
+        if gripper.collect(
+            &mut base,
+            &mut io,
+            o.stamp,
+            timeout,
+            &mut counters,
+            &mut cmds,
+        ) {
+            times.round_trip_s.push(sent.elapsed().as_secs_f64());
+            times.answered_s.push(start.elapsed().as_secs_f64());
         }
-        if answered {
-            round_trip_s.push(sent.elapsed().as_secs_f64());
-            answered_s.push(start.elapsed().as_secs_f64());
-        }
-        if held_mode {
-            let mut c = held.clone();
-            c.header.stamp = o.stamp;
-            pending.gripper = Some(c);
-        }
-        let cmds = std::mem::take(&mut pending);
         let r = match (&cmds.gripper, &cmds.arm) {
             (Some(g), Some(a)) => sim.step_commands(Some((g, a))),
             _ => sim.step(None),
@@ -361,13 +438,33 @@ fn run() -> anyhow::Result<()> {
             ("sim_time_s", format!("{:.3}", sim.time())),
             ("steps", steps.to_string()),
             ("repeated_steps", sim.repeated().to_string()),
-            ("contact_timeouts", contact_timeouts.to_string()),
+            ("contact_timeouts", sync.timeouts.to_string()),
         ];
         if let Some(a) = diag.tick(&mut counters, now, &extra) {
             base.publish_diagnostics(&a)?;
         }
     }
-    let outcome = serde_json::json!({
+    let outcome = outcome(&p, &sim, steps, sync.timeouts, times);
+    println!("{outcome}");
+    io.outcome.publish(&r2r::std_msgs::msg::String {
+        data: outcome.to_string(),
+    })?;
+    // Serve the latched outcome until stopped.
+    while !base.stopped() {
+        base.spin(Duration::from_millis(50));
+    }
+    Ok(())
+}
+
+/// The trial's outcome line: the world's outcome with the node's counts and tick timing.
+fn outcome(
+    p: &Params,
+    sim: &WorldStepper,
+    steps: u64,
+    contact_timeouts: u64,
+    times: TickTimes,
+) -> serde_json::Value {
+    serde_json::json!({
         "task": p.task,
         "split": p.split,
         "seed": p.seed,
@@ -378,19 +475,10 @@ fn run() -> anyhow::Result<()> {
         "contact_timeouts": contact_timeouts,
         "outcome": sim.outcome(),
         // Status published -> its two commands received (DDS both ways + the policy's tick).
-        "tick_round_trip": unitac_core::tail(round_trip_s),
+        "tick_round_trip": unitac_core::tail(times.round_trip_s),
         // Wall periods between answered ticks (paced by max_rate; a benchmark figure).
-        "command_period": unitac_core::period_jitter(&answered_s, 1.0 / p.control_rate_hz),
-    });
-    println!("{outcome}");
-    pub_outcome.publish(&r2r::std_msgs::msg::String {
-        data: outcome.to_string(),
-    })?;
-    // Serve the latched outcome until stopped.
-    while !base.stopped() {
-        base.spin(Duration::from_millis(50));
-    }
-    Ok(())
+        "command_period": unitac_core::period_jitter(&times.answered_s, 1.0 / p.control_rate_hz),
+    })
 }
 
 /// Keep a command if it is stamped `now`; a bad one is counted as an error.
