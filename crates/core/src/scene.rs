@@ -43,11 +43,13 @@ pub enum SceneError {
         kind: String,
         model: String,
     },
-    #[error("{path}: model '{model}': file not found: {file}")]
+    #[error("{path}: model '{model}': file not found: {file}{hint}")]
     MissingModel {
         path: PathBuf,
         model: String,
         file: PathBuf,
+        /// What makes the file, when the loader knows (empty, or text that starts with a space).
+        hint: String,
     },
     #[error("{path}: bad value for {field}: {msg}")]
     BadValue {
@@ -364,6 +366,7 @@ impl Scene {
                         path: p(),
                         model: m.clone(),
                         file: resolved,
+                        hint: String::new(),
                     });
                 }
                 models.insert(m.clone(), resolved);

@@ -31,16 +31,48 @@ pub use v4l::open_v4l;
 
 pub use scenes::{mode_scene, scene_names, split_mode, tasks};
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use unitac_core::scene::SceneContext;
 use unitac_core::{Scene, SceneError};
 
 /// A scene by name (looked up in [`scene_dirs`], `extra_dir` first) or by path, loaded and checked
 /// (including each policy stage's mode against the scene's stages, [`check_modes`]).
 pub fn load_scene(name: &str, extra_dir: Option<PathBuf>) -> Result<Scene, SceneError> {
     let path = unitac_core::scene::resolve(name, &scene_dirs(extra_dir))?;
-    let scene = Scene::load(&path, &scene_context())?;
+    let ctx = scene_context();
+    let scene = Scene::load(&path, &ctx).map_err(|e| generated_hint(e, &ctx, &path))?;
     check_modes(&scene)?;
     Ok(scene)
+}
+
+/// A missing model in the generated model directory (`${UNITAC_MODELS}`) says what makes it: in a
+/// checkout, the setup stages this scene's models need.
+fn generated_hint(e: SceneError, ctx: &SceneContext, scene: &Path) -> SceneError {
+    match e {
+        SceneError::MissingModel {
+            path,
+            model,
+            file,
+            hint,
+        } if hint.is_empty()
+            && ctx
+                .vars
+                .get("UNITAC_MODELS")
+                .is_some_and(|d| file.starts_with(d)) =>
+        {
+            let hint = format!(
+                " (a generated model: in a checkout, `bash scripts/setup.sh scene:{}` makes what this scene names)",
+                scene.display()
+            );
+            SceneError::MissingModel {
+                path,
+                model,
+                file,
+                hint,
+            }
+        }
+        e => e,
+    }
 }
 
 /// Each stage's effective configuration, one line per stage (`kind: {typed params}`), exactly as

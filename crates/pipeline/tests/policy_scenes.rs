@@ -54,7 +54,7 @@ fn every_shipped_task_and_mode_loads_only_what_its_mode_uses() {
         assert_eq!(p.mode, mode, "{name}");
         assert_eq!(scene, name);
         // The cup's tactile modes read the stiffness from a fitted model (the real latent's:
-        // scripts/setup.sh step 7; the pooled predicted latent's: the touch bundle's, step 6),
+        // `scripts/setup.sh policy`; the pooled predicted latent's: the touch bundle's, stage touch),
         // the others have nothing learned to load.
         let want = match (task, mode) {
             ("cup_deformation", Mode::VtlaReal) => Some("cup_stiffness_real"),

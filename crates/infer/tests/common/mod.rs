@@ -7,7 +7,7 @@ pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// The reference bundle made by scripts/setup.sh. Its absence is a failure, not a skip.
+/// The reference bundle made by `scripts/setup.sh run`. Its absence is a failure, not a skip.
 pub fn reference() -> PathBuf {
     let models = std::env::var_os("UNITAC_MODELS")
         .map(PathBuf::from)
@@ -15,18 +15,18 @@ pub fn reference() -> PathBuf {
     let dir = models.join("reference");
     assert!(
         dir.join("manifest.json").is_file(),
-        "{} is missing: run scripts/setup.sh",
+        "{} is missing: `bash scripts/setup.sh run` makes it (~6 min on first use)",
         dir.display()
     );
     dir
 }
 
-/// The touch projector bundle made by scripts/setup.sh (step 6). Its absence is a failure.
+/// The touch projector bundle made by `scripts/setup.sh touch`. Its absence is a failure.
 pub fn touch() -> PathBuf {
     let dir = reference().parent().unwrap().join("touch");
     assert!(
         dir.join("manifest.json").is_file(),
-        "{} is missing: run scripts/setup.sh",
+        "{} is missing: `bash scripts/setup.sh touch` makes it (~5 min on first use)",
         dir.display()
     );
     dir
