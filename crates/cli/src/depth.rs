@@ -13,11 +13,12 @@ use unitac_contact::depth::{
 };
 use unitac_contact::{ContactDetector, ContactParams};
 use unitac_core::{Frame, SensorKind, SensorSpec, Timing, timing};
+use unitac_sim::MM_PER_M;
 use unitac_sim::ballpress::{BallPress, PressNoise, random_presses, render_presses};
-use unitac_sim::{MM_PER_M, MockConfig};
 
-use crate::args::{f64_in, int_in, usage};
 use crate::images::read_frame;
+use unitac_cli::args::{f64_in, int_in, usage};
+use unitac_cli::mock::calibration_gel;
 
 /// Most press images one calibration reads.
 const MAX_PRESSES: usize = 500;
@@ -266,7 +267,7 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
         match chosen {
             Some(c) => fit.add_press(&prep.diff, w, h, c, a.ball_radius_m, m_per_px),
             None if skip => {}
-            None => crate::args::warn(format_args!(
+            None => unitac_cli::args::warn(format_args!(
                 "{key}: no press found (give its circle in --circles, or skip it)"
             )),
         }
@@ -296,13 +297,6 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
     Ok(failed == 0)
 }
 
-fn mock_cfg(sensor: SensorKind) -> MockConfig {
-    let mut c = MockConfig::new(sensor, 11);
-    // Calibration gels are marker-free (gs_sdk's calibration does the same).
-    c.markers = false;
-    c
-}
-
 fn save_png(frame: &Frame, path: &Path) -> anyhow::Result<()> {
     image::RgbImage::from_raw(frame.width, frame.height, frame.data().to_vec())
         .context("image buffer")?
@@ -326,8 +320,8 @@ pub fn mock_presses(a: &MockPressesArgs) -> anyhow::Result<bool> {
         shading_dn: a.shading_dn,
         seed: a.seed,
     };
-    let (bg, rendered) =
-        render_presses(&mock_cfg(a.sensor), spec, &presses, noise).context("rendering presses")?;
+    let (bg, rendered) = render_presses(&calibration_gel(a.sensor), spec, &presses, noise)
+        .context("rendering presses")?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}", a.out.display()))?;
     save_png(&bg, &a.out.join("background.png"))?;
     let mut truth = Vec::new();
@@ -359,8 +353,8 @@ fn mock_calibration(spec: SensorSpec, n: usize) -> anyhow::Result<DepthCalibrati
         shading_dn: 0.0,
         seed: 9,
     };
-    let (bg, rendered) =
-        render_presses(&mock_cfg(spec.kind), spec, &presses, noise).context("rendering presses")?;
+    let (bg, rendered) = render_presses(&calibration_gel(spec.kind), spec, &presses, noise)
+        .context("rendering presses")?;
     let (w, h) = (spec.width as usize, spec.height as usize);
     let mut prep = Prep::default();
     let mut fit = Fit::default();
@@ -494,7 +488,7 @@ pub fn eval_depth(out: Option<&Path>) -> anyhow::Result<DepthEval> {
                 shading_dn,
                 seed: 77,
             };
-            let (bg, rendered) = render_presses(&mock_cfg(spec.kind), spec, &presses, noise)
+            let (bg, rendered) = render_presses(&calibration_gel(spec.kind), spec, &presses, noise)
                 .context("rendering presses")?;
             let mut est = DepthEstimator::new(cal.clone(), bg.clone(), DepthParams::default())?;
             let mut det =
@@ -656,7 +650,7 @@ pub fn bench_depth(n: usize, repeat: usize, with_python: bool) -> anyhow::Result
             shading_dn: 0.0,
             seed: 4,
         };
-        let (bg, rendered) = render_presses(&mock_cfg(spec.kind), spec, &presses, noise)
+        let (bg, rendered) = render_presses(&calibration_gel(spec.kind), spec, &presses, noise)
             .context("rendering presses")?;
         let frames: Vec<Frame> = rendered.into_iter().map(|p| p.frame).collect();
         let mut est = DepthEstimator::new(cal.clone(), bg.clone(), DepthParams::default())?;

@@ -5,7 +5,6 @@
 //! full); 2 bad usage or configuration (unknown scene, unknown stage, missing model, bad value,
 //! a file or bag that cannot be opened). The reason is one line on stderr.
 
-mod args;
 mod bench;
 mod dataset;
 mod decode_bench;
@@ -31,6 +30,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use unitac_cli::{ConfigError, args, emit, emit_report};
 use unitac_core::Msg;
 use unitac_core::scene::SensorArg;
 use unitac_runtime::RunOptions;
@@ -390,86 +390,9 @@ enum ReportTarget {
     Sim,
 }
 
-/// Error that maps to exit code 2 (usage / configuration).
-#[derive(Debug)]
-struct ConfigError(String);
-impl std::fmt::Display for ConfigError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-impl std::error::Error for ConfigError {}
-
-/// The command line's grammar: [`Cli`], with a negative number taken as the value of a flag
-/// that takes one (`--ball-radius-m -1` is refused by the flag's range, not read as a flag).
+/// The command line's grammar: [`Cli`] ([`unitac_cli::command`]).
 fn command() -> clap::Command {
-    fn negatives(c: clap::Command) -> clap::Command {
-        c.mut_args(|a| {
-            if a.get_action().takes_values() {
-                a.allow_negative_numbers(true)
-            } else {
-                a
-            }
-        })
-        .mut_subcommands(negatives)
-    }
-    negatives(<Cli as clap::CommandFactory>::command())
-}
-
-/// A clap error as the one stderr line of exit 2: `unitac: ` and clap's message (its paragraphs
-/// joined), without the usage and the `--help` hint; a missing subcommand names the ones there
-/// are.
-fn clap_error_line(e: &clap::Error) -> String {
-    let text = e.render().to_string();
-    // The command's path: the leading arguments that name subcommands (`unitac calibrate depth`).
-    let mut cmd = String::from("unitac");
-    let mut at = command();
-    for a in std::env::args_os().skip(1) {
-        let Some(sub) = a.to_str().and_then(|a| at.find_subcommand(a)).cloned() else {
-            break;
-        };
-        cmd = format!("{cmd} {}", sub.get_name());
-        at = sub;
-    }
-    if e.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-        let commands: Vec<&str> = text
-            .split("\n\n")
-            .find_map(|p| p.strip_prefix("Commands:"))
-            .unwrap_or("")
-            .lines()
-            .filter_map(|l| l.split_whitespace().next())
-            .filter(|c| *c != "help")
-            .collect();
-        return format!(
-            "unitac: {cmd} needs a subcommand: {} (see {cmd} --help)",
-            commands.join(", ")
-        );
-    }
-    let parts: Vec<String> = text
-        .split("\n\n")
-        .map(str::trim)
-        .filter(|p| !p.is_empty() && !p.starts_with("Usage:") && !p.starts_with("For more"))
-        .map(|p| {
-            let p = p.strip_prefix("error: ").unwrap_or(p);
-            p.split_whitespace().collect::<Vec<_>>().join(" ")
-        })
-        .collect();
-    let what = parts.join("; ");
-    let what = if what.is_empty() {
-        "bad usage".into()
-    } else {
-        what
-    };
-    format!("unitac: {what} (see {cmd} --help)")
-}
-
-/// Write to stdout and flush: a closed pipe (`| head`) or a full disk is an error (exit 1, one
-/// line), never a panic as `print!` would give.
-fn emit(text: impl std::fmt::Display) -> anyhow::Result<()> {
-    let mut o = std::io::stdout().lock();
-    write!(o, "{text}")
-        .and_then(|()| o.flush())
-        .context("writing to stdout")
+    unitac_cli::command::<Cli>()
 }
 
 /// When `main` began: `unitac run` reports how long it took to have its stages built.
@@ -781,58 +704,18 @@ fn report_sim(json: bool, out: &std::path::Path) -> anyhow::Result<bool> {
 
 fn main() -> ExitCode {
     STARTED.get_or_init(std::time::Instant::now);
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
-        )
-        .with_writer(std::io::stderr)
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .init();
-    let parsed = command()
-        .try_get_matches()
-        .and_then(|mut m| <Cli as clap::FromArgMatches>::from_arg_matches_mut(&mut m));
-    let cli = match parsed {
+    unitac_cli::init_logging();
+    let cli: Cli = match unitac_cli::parse(command()) {
         Ok(c) => c,
-        // Help and version: on stdout, exit 0.
-        Err(e) if !e.use_stderr() => {
-            let _ = e.print();
-            return ExitCode::SUCCESS;
-        }
-        Err(e) => {
-            eprintln!("{}", clap_error_line(&e));
-            return ExitCode::from(2);
-        }
+        Err(code) => return code,
     };
     // `unitac contact` exits 2 when a file failed (after every other file was processed).
-    let contact = matches!(cli.cmd, Cmd::Contact { .. });
-    match dispatch(cli.cmd) {
-        Ok(true) => ExitCode::SUCCESS,
-        Ok(false) if contact => ExitCode::from(2),
-        Ok(false) => ExitCode::from(1),
-        Err(e) if e.downcast_ref::<ConfigError>().is_some() => {
-            eprintln!("unitac: {e}");
-            ExitCode::from(2)
-        }
-        Err(e) => {
-            eprintln!("unitac: {e:#}");
-            ExitCode::from(1)
-        }
-    }
-}
-
-/// A report on stdout: its JSON on one line with `--json`, else its text.
-fn emit_report<R: serde::Serialize>(
-    r: anyhow::Result<R>,
-    json: bool,
-    text: impl FnOnce(&R) -> String,
-) -> anyhow::Result<bool> {
-    let r = r?;
-    if json {
-        emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
+    let failed = if matches!(cli.cmd, Cmd::Contact { .. }) {
+        2
     } else {
-        emit(text(&r))?;
-    }
-    Ok(true)
+        1
+    };
+    unitac_cli::exit_code(dispatch(cli.cmd), failed)
 }
 
 /// One command: Ok(false) when it ran but something in it failed (exit 1; 2 for `contact`).
@@ -1101,63 +984,19 @@ fn cmd_bench(what: BenchTarget, json: bool, n: BenchSize) -> anyhow::Result<bool
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// `unitac a b` for `path` ["a", "b"].
-    fn name(path: &[&str]) -> String {
-        std::iter::once("unitac")
-            .chain(path.iter().copied())
-            .collect::<Vec<_>>()
-            .join(" ")
-    }
-
-    /// Every command below `cmd` (itself first), with its path.
-    fn commands<'a>(
-        cmd: &'a clap::Command,
-        path: Vec<&'a str>,
-        out: &mut Vec<(Vec<&'a str>, &'a clap::Command)>,
-    ) {
-        out.push((path.clone(), cmd));
-        for sub in cmd.get_subcommands() {
-            let mut p = path.clone();
-            p.push(sub.get_name());
-            commands(sub, p, out);
-        }
-    }
+    use unitac_cli::grammar;
 
     /// Every subcommand, option and positional of every `--help` page has a description, and so
     /// has every value of a subcommand's target (`eval contact|slip|depth`, ...).
     #[test]
     fn every_command_and_argument_has_a_description() {
         let cli = command();
-        let mut all = Vec::new();
-        commands(&cli, Vec::new(), &mut all);
-        let mut missing = Vec::new();
-        for (path, cmd) in &all {
-            if cmd.get_about().is_none() {
-                missing.push(name(path));
-            }
-            for a in cmd.get_arguments() {
-                let id = a.get_id().as_str();
-                if id == "help" || id == "version" {
-                    continue;
-                }
-                let shown = match a.get_long() {
-                    Some(l) => format!("--{l}"),
-                    None => format!("<{}>", id.to_uppercase()),
-                };
-                if a.get_help().is_none() && a.get_long_help().is_none() {
-                    missing.push(format!("{} {shown}", name(path)));
-                }
-                if a.is_positional() && id == "what" {
-                    for v in a.get_possible_values() {
-                        if v.get_help().is_none() {
-                            missing.push(format!("{} {}", name(path), v.get_name()));
-                        }
-                    }
-                }
-            }
-        }
-        assert!(all.len() > 15, "{} commands", all.len());
+        assert!(
+            grammar::count(&cli) > 15,
+            "{} commands",
+            grammar::count(&cli)
+        );
+        let missing = grammar::undescribed(&cli);
         assert!(missing.is_empty(), "no description: {missing:#?}");
     }
 
@@ -1165,44 +1004,14 @@ mod tests {
     /// summary, as `<command> <target>`.
     #[test]
     fn summaries_name_every_target() {
-        let cli = command();
-        let mut all = Vec::new();
-        commands(&cli, Vec::new(), &mut all);
-        let mut missing = Vec::new();
-        for (path, cmd) in &all {
-            let about = cmd.get_about().map(|s| s.to_string()).unwrap_or_default();
-            let Some(last) = path.last() else { continue };
-            for a in cmd
-                .get_arguments()
-                .filter(|a| a.is_positional() && a.get_id() == "what")
-            {
-                for v in a.get_possible_values() {
-                    let want = format!("{last} {}", v.get_name());
-                    if !about.contains(&want) {
-                        missing.push(want);
-                    }
-                }
-            }
-        }
+        let missing = grammar::targets_not_in_summaries(&command());
         assert!(missing.is_empty(), "not in the summary: {missing:?}");
     }
 
     /// Help texts are plain text: no markdown escapes (`\[mm]`) printed literally.
     #[test]
     fn help_texts_have_no_escapes() {
-        let cli = command();
-        let mut all = Vec::new();
-        commands(&cli, Vec::new(), &mut all);
-        for (path, cmd) in &all {
-            let mut texts: Vec<String> = cmd.get_about().iter().map(|s| s.to_string()).collect();
-            texts.extend(cmd.get_long_about().map(|s| s.to_string()));
-            for a in cmd.get_arguments() {
-                texts.extend(a.get_help().map(|s| s.to_string()));
-                texts.extend(a.get_long_help().map(|s| s.to_string()));
-            }
-            for t in texts {
-                assert!(!t.contains('\\'), "{}: {t}", name(path));
-            }
-        }
+        let found = grammar::escaped_texts(&command());
+        assert!(found.is_empty(), "{found:#?}");
     }
 }
