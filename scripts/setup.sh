@@ -14,15 +14,15 @@
 #      .build/jazzy/msgs/install (Jazzy); msg/control_msgs (the GripperCommand action of
 #      ros-controls/control_msgs, which no wheel carries) into .build/control_msgs/install and
 #      .build/jazzy/control_msgs/install
-#   5. the reference model bundle in .build/models/reference: `unitac dataset fabrics` renders
+#   5. the reference model bundle in .build/models/reference: `unitac-lab dataset fabrics` renders
 #      mock presses through the real contact stage, python/unitac_tools/generate_reference.py builds the ONNX
 #      models and fits the property head on them (~1 min; only when its inputs changed)
-#   6. the touch projector in .build/models/touch: `unitac dataset touch` pairs what the camera and
+#   6. the touch projector in .build/models/touch: `unitac-lab dataset touch` pairs what the camera and
 #      the sensor tell before contact with the encoder's latent of the touch (training and unseen
 #      objects, GelSight Mini and DIGIT), python/unitac_tools/train_projector.py trains the rectified-flow
 #      projector, evaluates it on the unseen objects (eval.json) and fits the pooled-latent
 #      stiffness readout (~5 min on 2 cores; only when its inputs changed)
-#   7. the reference policy in .build/models/policy: `unitac demos` records the scripted expert
+#   7. the reference policy in .build/models/policy: `unitac-lab demos` records the scripted expert
 #      on training cups (and on unseen cups, scored only) through the vtla_real scene's tactile
 #      stages, python/unitac_tools/fit_reference_policy.py fits the latent -> stiffness readout and exports
 #      it to ONNX (~1 min on 2 cores; only when its inputs changed)
@@ -166,14 +166,14 @@ source "$ROOT/scripts/env.sh"
 build_msgs "$BUILD"
 # --- 5. reference model bundle ----------------------------------------------------------------
 MODELS="$BUILD/models"
-models_inputs=(python/unitac_tools/generate_reference.py python/unitac_tools/schema.py Cargo.lock crates/cli/src/dataset.rs crates/infer/src/preprocess.rs
+models_inputs=(python/unitac_tools/generate_reference.py python/unitac_tools/schema.py Cargo.lock crates/lab/src/dataset.rs crates/infer/src/preprocess.rs
   $(find crates/sim/src crates/contact/src crates/core/src -name '*.rs' | sort))
 models_key="$(hash_of "${models_inputs[@]}" "$VENV/.unitac-stamp")"
 if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS/reference/manifest.json" ]; then
   log "models: the reference bundle's dataset from the mock sensor"
-  cargo build --release --locked -q -p unitac-cli
+  cargo build --release --locked -q -p unitac-lab
   rm -rf "$MODELS/data" "$MODELS/reference.tmp"
-  target/release/unitac dataset fabrics --out "$MODELS/data"
+  target/release/unitac-lab dataset fabrics --out "$MODELS/data"
   data_key="$(content_key "$MODELS/data" python/unitac_tools/generate_reference.py python/unitac_tools/schema.py crates/infer/src/preprocess.rs "$VENV/.unitac-stamp")"
   if stands "$MODELS/reference" "$data_key" && [ -f "$MODELS/reference/manifest.json" ]; then
     log "models: the dataset is byte-identical to the reference bundle's: the bundle stands"
@@ -189,22 +189,22 @@ if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS
 fi
 # --- 6. touch projector -----------------------------------------------------------------------
 # The camera's values and sensor prior of training objects before contact, with the encoder's
-# latent of their touch, on two sensors (`unitac dataset touch`); python/unitac_tools/train_projector.py
+# latent of their touch, on two sensors (`unitac-lab dataset touch`); python/unitac_tools/train_projector.py
 # trains the rectified-flow projector on the training split, evaluates it on the unseen split
 # and writes the bundle (encoder + projector + the pooled-latent stiffness readout).
 TOUCH="$MODELS/touch"
-touch_inputs=(python/unitac_tools/train_projector.py Cargo.lock crates/cli/src/touch_dataset.rs crates/cli/src/dataset.rs
+touch_inputs=(python/unitac_tools/train_projector.py Cargo.lock crates/lab/src/touch_dataset.rs crates/lab/src/dataset.rs
   launch/scenes/cup_deformation_vtla_real.yaml objects/split.yaml
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
 touch_key="$(hash_of "${touch_inputs[@]}" "$MODELS/reference/manifest.json")"
 if [ "$(cat "$TOUCH/.stamp" 2>/dev/null)" != "$touch_key" ] || [ ! -f "$TOUCH/manifest.json" ]; then
   log "touch projector: touch dataset of training and unseen objects (~2 min on 2 cores)"
-  cargo build --release --locked -q -p unitac-cli
+  cargo build --release --locked -q -p unitac-lab
   rm -rf "$TOUCH.tmp" && mkdir -p "$TOUCH.tmp/data"
   for s in gelsight-mini digit; do
-    target/release/unitac dataset touch --split train --seeds 1,2,3 --trials 20 --sensor "$s" \
+    target/release/unitac-lab dataset touch --split train --seeds 1,2,3 --trials 20 --sensor "$s" \
       --out "$TOUCH.tmp/data/train-$s" >&2
-    target/release/unitac dataset touch --split unseen --seeds 101,102,103 --trials 20 --sensor "$s" \
+    target/release/unitac-lab dataset touch --split unseen --seeds 101,102,103 --trials 20 --sensor "$s" \
       --out "$TOUCH.tmp/data/unseen-$s" >&2
   done
   data_key="$(content_key "$TOUCH.tmp/data" python/unitac_tools/train_projector.py python/unitac_tools/generate_reference.py \
@@ -225,17 +225,17 @@ fi
 # --- 7. reference policies --------------------------------------------------------------------
 POLICIES="$MODELS/policy"
 policy_inputs=(python/unitac_tools/fit_reference_policy.py Cargo.lock launch/scenes/cup_deformation_vtla_real.yaml
-  crates/cli/src/demos.rs
+  crates/lab/src/demos.rs
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
 policy_key="$(hash_of "${policy_inputs[@]}" "$MODELS/reference/manifest.json")"
 if [ "$(cat "$POLICIES/.stamp" 2>/dev/null)" != "$policy_key" ] || [ ! -f "$POLICIES/cup_stiffness_real/manifest.json" ]; then
   log "policies: expert demonstrations on training cups, fitting the stiffness readout"
-  cargo build --release --locked -q -p unitac-cli
+  cargo build --release --locked -q -p unitac-lab
   rm -rf "$POLICIES.tmp"
   mkdir -p "$POLICIES.tmp"
   demos="$POLICIES.tmp/demos"
-  target/release/unitac demos --scene cup_deformation_vtla_real --split train --seeds 1,2,3 --trials 20 --out "$demos/train" >&2
-  target/release/unitac demos --scene cup_deformation_vtla_real --split unseen --seeds 101,102 --trials 10 --out "$demos/unseen" >&2
+  target/release/unitac-lab demos --scene cup_deformation_vtla_real --split train --seeds 1,2,3 --trials 20 --out "$demos/train" >&2
+  target/release/unitac-lab demos --scene cup_deformation_vtla_real --split unseen --seeds 101,102 --trials 10 --out "$demos/unseen" >&2
   data_key="$(content_key "$demos" python/unitac_tools/fit_reference_policy.py python/unitac_tools/schema.py schema/policy.json \
     "$VENV/.unitac-stamp")"
   if stands "$POLICIES" "$data_key" && [ -f "$POLICIES/cup_stiffness_real/manifest.json" ]; then

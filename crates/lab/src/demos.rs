@@ -1,4 +1,4 @@
-//! `unitac demos --scene S[,S2] [--mode M] --split train|unseen --seeds 1,2 --trials N --out DIR`:
+//! `unitac-lab demos --scene S[,S2] [--mode M] --split train|unseen --seeds 1,2 --trials N --out DIR`:
 //! the scripted expert's demonstrations for mode M (default: the first scene's mode) of the
 //! scenes' task, with what a policy of every mode could observe (unitac_trials::demos), the
 //! frames going through each scene's own tactile stages (every stage before its policy stage; one

@@ -1,4 +1,4 @@
-//! `unitac bench policy`: the policy stage's control tick (observation -> command), embedded.
+//! `unitac-lab bench policy`: the policy stage's control tick (observation -> command), embedded.
 //!
 //! For each scene x mode (`launch/scenes/<task>_<mode>.yaml`, `unitac_pipeline::tasks`) the scene's own policy stage
 //! is built from the scene file and ticked through `unitac_core::chain` at the control rate, as

@@ -1,4 +1,4 @@
-//! `unitac dataset fabrics`: mock-sensor presses on fabrics with known properties, run through
+//! `unitac-lab dataset fabrics`: mock-sensor presses on fabrics with known properties, run through
 //! the real contact stage and the encoder's preprocessing, written for the reference bundle's
 //! fitting script (python/unitac_tools/generate_reference.py).
 //!

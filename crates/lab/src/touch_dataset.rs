@@ -1,4 +1,4 @@
-//! `unitac dataset touch --split train|unseen --seeds 1,2 --trials N --sensor S --out DIR`: what
+//! `unitac-lab dataset touch --split train|unseen --seeds 1,2 --trials N --sensor S --out DIR`: what
 //! is known about an object before it is touched, paired with what the touch encoder says when
 //! it is touched, for the touch projector (python/unitac_tools/train_projector.py).
 //!

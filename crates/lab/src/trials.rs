@@ -1,4 +1,4 @@
-//! `unitac trials`: the paper's closed-loop grasp trials in the sim world, one scene file per mode
+//! `unitac-lab trials`: the paper's closed-loop grasp trials in the sim world, one scene file per mode
 //! (`<scene>_<mode>.yaml`), N trials each, the success table beside the paper's.
 //!
 //! The loop is unitac-trials' (`run_trial_on`, with the gripper `--gripper` names); here: arguments, the stages built fresh per trial
@@ -552,7 +552,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         ))?;
     }
     for line in failures.0.iter().chain(&failures.1) {
-        eprintln!("unitac: {line}");
+        eprintln!("{}: {line}", unitac_cli::program());
     }
     // A policy that never acted ran no trial: the table above counts nothing it did.
     Ok(failures.1.is_empty())
