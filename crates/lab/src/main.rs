@@ -16,9 +16,11 @@ mod depth;
 mod eval;
 mod policy_bench;
 mod progress;
+mod render_bench;
 mod report_sim;
 mod sampler;
 mod scratch;
+mod sim_charts;
 mod slip_eval;
 mod touch_dataset;
 mod trials;
@@ -386,7 +388,7 @@ fn cmd_bench(what: BenchTarget, json: bool, n: BenchSize) -> anyhow::Result<bool
             r.text()
         }),
         BenchTarget::Render => both(
-            unitac_sim::bench::render_bench(repeat).map_err(anyhow::Error::from),
+            render_bench::render_bench(repeat).map_err(anyhow::Error::from),
             |r| r.text(),
         ),
         BenchTarget::Policy => both(

@@ -1,6 +1,6 @@
 //! `unitac-lab report sim`: the simulator's numerics report (unitac_sim::numerics: its
 //! integrators on soft, stiff and extreme cups, the stability map), its tables or JSON, and its
-//! PNG plots.
+//! PNG plots ([`crate::sim_charts`]).
 
 use crate::progress;
 use unitac_cli::{ConfigError, emit};
@@ -14,7 +14,7 @@ pub fn report_sim(json: bool, out: &std::path::Path) -> anyhow::Result<bool> {
     let bar = progress::bar(report_steps(&opts), "integrator study");
     let r = report_with_progress(&opts, &mut |done, _| bar.set_position(done));
     bar.finish_and_clear();
-    let files = r.write_plots(out)?;
+    let files = crate::sim_charts::write_plots(&r, out)?;
     if json {
         let mut v = serde_json::to_value(&r)?;
         v["plots"] = serde_json::json!(files);
