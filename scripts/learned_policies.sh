@@ -47,7 +47,7 @@ log() { printf '[setup] %s\n' "$*" >&2; }
 source scripts/stamps.sh
 
 inputs=(scripts/learned_policies.sh scripts/stamps.sh python/unitac_tools/lerobot_dataset.py python/unitac_tools/train_policy.py
-  python/unitac_tools/generate_reference.py python/unitac_tools/schema.py schema/policy.json Cargo.lock crates/cli/src/demos.rs crates/cli/src/main.rs
+  python/unitac_tools/generate_reference.py python/unitac_tools/schema.py schema/policy.json Cargo.lock crates/lab/src/demos.rs crates/lab/src/main.rs
   launch/scenes/*_learned_*.yaml
   launch/scenes/cup_deformation_vtla_real.yaml launch/scenes/cup_deformation_vtla_pred.yaml
   launch/scenes/fabric_selection_vtla_real.yaml launch/scenes/fabric_selection_vtla_pred.yaml

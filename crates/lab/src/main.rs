@@ -343,7 +343,7 @@ fn dispatch(cmd: Cmd) -> anyhow::Result<bool> {
     }
 }
 
-/// `unitac eval contact | depth | slip`.
+/// `unitac-lab eval contact | depth | slip`.
 fn cmd_eval(
     what: EvalTarget,
     json: bool,
@@ -359,7 +359,7 @@ fn cmd_eval(
     }
 }
 
-/// How much `unitac bench` measures.
+/// How much `unitac-lab bench` measures.
 struct BenchSize {
     frames: usize,
     repeat: usize,
@@ -368,7 +368,7 @@ struct BenchSize {
     policy: Option<PathBuf>,
 }
 
-/// `unitac bench ...`: each target beside its baseline, its JSON or its table.
+/// `unitac-lab bench ...`: each target beside its baseline, its JSON or its table.
 fn cmd_bench(what: BenchTarget, json: bool, n: BenchSize) -> anyhow::Result<bool> {
     fn both<R: serde::Serialize>(
         r: anyhow::Result<R>,
