@@ -1,4 +1,4 @@
-"""Python baseline for `unitac bench contact`: the contact pipeline of the GelSight SDK (gs_sdk),
+"""Python baseline for `unitac-lab bench contact`: the contact pipeline of the GelSight SDK (gs_sdk),
 as users run it today, timed per frame on the same frames as the Rust detector.
 
 Pipeline (gs_sdk): per-pixel colour-difference norm ||I - B||_2 over the 3 channels > 15,

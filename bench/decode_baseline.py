@@ -1,4 +1,4 @@
-"""Python baseline for `unitac bench decode`: the GelSight Mini frame pipeline of the vendor SDK
+"""Python baseline for `unitac-lab bench decode`: the GelSight Mini frame pipeline of the vendor SDK
 (gsrobotics), as users run it today, timed per frame on the same JPEGs as the Rust decoder.
 
 Pipelines, each ending in the same crop (the fraction per side of the Rust side) and resize to the

@@ -1,4 +1,4 @@
-"""Python baseline for `unitac bench depth`: depth from one image the way a GelSight user runs
+"""Python baseline for `unitac-lab bench depth`: depth from one image the way a GelSight user runs
 it with gs_sdk (github.com/joehjhuang/gs_sdk, `Reconstructor.get_surface_info`): a per-pixel
 model from colour and position to surface gradient, then `poisson_dct_neumaan`, a Neumann
 Poisson solve by scipy.fftpack's orthonormal DCT-II / DCT-III in float64, row pass, transpose,

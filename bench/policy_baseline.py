@@ -1,4 +1,4 @@
-"""Python baseline for `unitac bench policy`: the same ONNX policy run per control tick the way a
+"""Python baseline for `unitac-lab bench policy`: the same ONNX policy run per control tick the way a
 LeRobot user runs an exported policy in Python, and a Python control loop paced with time.sleep.
 
 Per tick (LeRobot's select_action with an action queue): when the queue is empty, normalise the

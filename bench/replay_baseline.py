@@ -1,4 +1,4 @@
-"""Python baseline for `unitac bench replay`: read an rgb8 MCAP bag with rosbags, deserialize each
+"""Python baseline for `unitac-lab bench replay`: read an rgb8 MCAP bag with rosbags, deserialize each
 sensor_msgs/Image, turn it into a numpy array and run the GelSight SDK contact pipeline on it (the
 same detect() as bench/contact_baseline.py: colour-difference norm > 15, dilate 7x7, erode
 15x15, area and centroid), against the bag's first frame as background. This is what a lab script

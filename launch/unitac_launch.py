@@ -74,7 +74,7 @@ ARGUMENTS = {
     "split": ("train", "Sim source: train | unseen objects (objects/split.yaml: cups by diameter range, fabrics by type)"),
     "seed": ("1", "Sim source: the trial draw's seed"),
     "trial": ("0", "Sim source: the trial index"),
-    "duration_s": ("", "Sim source: sim time of the trial [s] (empty: the task's trial length, as `unitac trials` runs it)"),
+    "duration_s": ("", "Sim source: sim time of the trial [s] (empty: the task's trial length, as `unitac-lab trials` runs it)"),
     "max_rate": ("1.0", "Sim source: at most this many sim seconds per wall second (0: as fast as the loop runs)"),
     "gripper": ("", "Gripper: " + " | ".join(SERIAL_GRIPPERS) + " (the serial gripper node) | sim "
                     "(the sim node's gripper) | action (a ros2_control gripper controller through "

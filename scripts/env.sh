@@ -1,5 +1,6 @@
 # Environment for building and running the workspace (sourced by scripts/run, scripts/test,
-# scripts/unitac and scripts/setup.sh; never needed by hand). Paths are derived from the repo root.
+# scripts/unitac, scripts/unitac-lab and scripts/setup.sh; never needed by hand). Paths are
+# derived from the repo root.
 # The four ROS-from-PyPI workarounds live here and in setup.sh (../shared/notes/ros2-from-pypi.md).
 #
 # UNITAC_ROS selects the ROS 2 environment (both set up by scripts/setup.sh):

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Setup step: the learned VLA / VTLA-real / VTLA-pred policies of both tasks in
 # .build/models/learned, and the demonstrations they are trained on as LeRobot v3.0 datasets.
-#   1. `unitac demos --mode M` records the scripted expert on the TRAINING objects of each task
+#   1. `unitac-lab demos --mode M` records the scripted expert on the TRAINING objects of each task
 #      (seeds 1,2,3 x 20 trials) deciding from what mode M observes: vtla_real's demonstrations
 #      probe the cup before the squeeze and grasp the fabric the live comparison names; vla's
 #      grasp the fabric the camera's roughness guesses name, with no probe. vtla_pred observes
@@ -18,7 +18,7 @@
 #      manifest.json) and checks ONNX Runtime against its numpy forward.
 # UNITAC_DAGGER=1 (opt-in, not a setup step: its retrained policies did worse in closed loop,
 # crates/policy/README.md "DAgger") adds one round of DAgger per training seed: each first-round
-# policy drives the world on the training objects (`unitac demos --drive`, draw seed 4,
+# policy drives the world on the training objects (`unitac-lab demos --drive`, draw seed 4,
 # DAGGER_TRIALS trials), every tick labelled with that mode's expert's command there, laid out as LeRobot
 # datasets (.build/models/learned/dagger/seed<k>/<task>_<mode>), and python/unitac_tools/train_policy.py
 # --dagger trains each seed's policies again on the demonstrations plus its own DAgger states.
@@ -48,7 +48,7 @@ log() { printf '[setup] %s\n' "$*" >&2; }
 source scripts/stamps.sh
 
 inputs=(scripts/learned_policies.sh scripts/stamps.sh python/unitac_tools/lerobot_dataset.py python/unitac_tools/train_policy.py
-  python/unitac_tools/generate_reference.py python/unitac_tools/schema.py schema/policy.json Cargo.lock crates/cli/src/demos.rs crates/cli/src/main.rs
+  python/unitac_tools/generate_reference.py python/unitac_tools/schema.py schema/policy.json Cargo.lock crates/lab/src/demos.rs crates/lab/src/main.rs
   launch/scenes/*_learned_*.yaml
   launch/scenes/cup_deformation_vtla_real.yaml launch/scenes/cup_deformation_vtla_pred.yaml
   launch/scenes/fabric_selection_vtla_real.yaml launch/scenes/fabric_selection_vtla_pred.yaml
@@ -60,7 +60,7 @@ if [ "$(cat "$OUT/.stamp" 2>/dev/null)" = "$key" ] \
 fi
 log "learned policies: demonstrations of both tasks on training objects (~13 min), LeRobot datasets, training (~5 min)"
 start=$SECONDS
-cargo build --release --locked -q -p unitac-cli
+cargo build --release --locked -q -p unitac-lab
 rm -rf "$OUT.tmp"
 mkdir -p "$OUT.tmp"
 # Every vtla_real fabric demonstration decided once the comparison was in its observation, and
@@ -88,7 +88,7 @@ PY
 sets=()
 for task in "${TASKS[@]}"; do
   for mode in vtla_real vla; do
-    target/release/unitac demos --scene "${task}_vtla_real,${task}_vtla_pred" --mode "$mode" \
+    target/release/unitac-lab demos --scene "${task}_vtla_real,${task}_vtla_pred" --mode "$mode" \
       --split train --seeds 1,2,3 --trials 20 --out "$OUT.tmp/demos/$task/$mode" >&2
     [ "$task" = fabric_selection ] && check_decisions "$OUT.tmp/demos/$task/$mode/demos.json" "$mode"
     "$VENV/bin/python" -m unitac_tools.lerobot_dataset --demos "$OUT.tmp/demos/$task/$mode/demos.json" \
@@ -124,7 +124,7 @@ for seed in "${SEEDS[@]}"; do
   for task in "${TASKS[@]}"; do
     for mode in "${MODES[@]}"; do
       d="$OUT.tmp/dagger/seed$seed/${task}_$mode"
-      target/release/unitac demos --scene "${task}_vtla_real,${task}_vtla_pred" --mode "$mode" \
+      target/release/unitac-lab demos --scene "${task}_vtla_real,${task}_vtla_pred" --mode "$mode" \
         --split train --seeds "$DAGGER_SEED" --trials "$DAGGER_TRIALS" --drive "${task}_learned_$mode" \
         --drive-model "$OUT.tmp/round0/seed$seed/${task}_$mode/manifest.json" --out "$d.demos" >&2
       "$VENV/bin/python" -m unitac_tools.lerobot_dataset --demos "$d.demos/demos.json" --out "$d" >&2

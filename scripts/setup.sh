@@ -9,15 +9,15 @@
 #            packages of scripts/requirements-run.txt (ONNX Runtime, whose shared library the Rust
 #            code loads; onnx, numpy: ~30 s, ~150 MB), the project's Python tools (python/, the
 #            unitac_tools package, editable), and the reference model bundle in
-#            .build/models/reference (`unitac dataset fabrics` renders mock presses through the
+#            .build/models/reference (`unitac-lab dataset fabrics` renders mock presses through the
 #            real contact stage, unitac_tools.generate_reference builds the ONNX models and fits
 #            the property head on them: ~1 min after the release build)
-#   touch    + the touch projector in .build/models/touch (`unitac dataset touch` pairs what the
+#   touch    + the touch projector in .build/models/touch (`unitac-lab dataset touch` pairs what the
 #            camera and the sensor tell before contact with the encoder's latent of the touch,
 #            training and unseen objects, GelSight Mini and DIGIT; unitac_tools.train_projector
 #            trains the rectified-flow projector, evaluates it on the unseen objects (eval.json)
 #            and fits the pooled-latent stiffness readout: ~5 min)
-#   policy   + the reference policy in .build/models/policy (`unitac demos` records the scripted
+#   policy   + the reference policy in .build/models/policy (`unitac-lab demos` records the scripted
 #            expert on training cups, and on unseen cups, scored only, through the vtla_real
 #            scene's tactile stages; unitac_tools.fit_reference_policy fits the latent ->
 #            stiffness readout and exports it to ONNX: ~2 min)
@@ -151,15 +151,17 @@ venv_current() {
   shift 2
   [ "$(cat "$venv/$stamp" 2>/dev/null)" = "$(venv_key "$@")" ]
 }
-# release_build: the `unitac` binary the model steps run (the first build takes minutes).
+# release_build: the `unitac` binary and the lab's `unitac-lab`, whose datasets and demonstrations
+# the model steps record (the first build takes minutes).
 release_build() {
-  [ -x target/release/unitac ] || log "cargo: building unitac (release, first build: ~4.5 min on 2 cores)"
-  cargo build --release --locked -q -p unitac-cli
+  [ -x target/release/unitac-lab ] \
+    || log "cargo: building unitac and unitac-lab (release, first build: ~5 min on 2 cores)"
+  cargo build --release --locked -q -p unitac-cli -p unitac-lab
 }
 # The main job's part of .venv: what the model steps read (their keys name this stamp). On a first
 # run the release build, which needs no Python, goes on beside the install.
 build_pid=""
-if ! venv_current "$VENV" .unitac-run-stamp scripts/requirements-run.txt && [ ! -x target/release/unitac ]; then
+if ! venv_current "$VENV" .unitac-run-stamp scripts/requirements-run.txt && [ ! -x target/release/unitac-lab ]; then
   (
     export UNITAC_ROS=kilted
     # shellcheck source=scripts/env.sh
@@ -256,14 +258,14 @@ fi
 if [ -n "$build_pid" ]; then wait "$build_pid"; fi
 
 # --- reference model bundle -------------------------------------------------------------------
-models_inputs=(python/unitac_tools/generate_reference.py python/unitac_tools/schema.py Cargo.lock crates/cli/src/dataset.rs crates/infer/src/preprocess.rs
+models_inputs=(python/unitac_tools/generate_reference.py python/unitac_tools/schema.py Cargo.lock crates/lab/src/dataset.rs crates/infer/src/preprocess.rs
   $(find crates/sim/src crates/contact/src crates/core/src -name '*.rs' | sort))
 models_key="$(hash_of "${models_inputs[@]}" "$VENV/.unitac-run-stamp")"
 if [ "$(cat "$MODELS/.stamp" 2>/dev/null)" != "$models_key" ] || [ ! -f "$MODELS/reference/manifest.json" ]; then
   release_build
   log "models: the reference bundle's dataset from the mock sensor, then fitting (~1 min)"
   rm -rf "$MODELS/data" "$MODELS/reference.tmp"
-  target/release/unitac dataset fabrics --out "$MODELS/data"
+  target/release/unitac-lab dataset fabrics --out "$MODELS/data"
   data_key="$(content_key "$MODELS/data" python/unitac_tools/generate_reference.py python/unitac_tools/schema.py crates/infer/src/preprocess.rs "$VENV/.unitac-run-stamp")"
   if stands "$MODELS/reference" "$data_key" && [ -f "$MODELS/reference/manifest.json" ]; then
     log "models: the dataset is byte-identical to the reference bundle's: the bundle stands"
@@ -279,11 +281,11 @@ fi
 
 # --- touch projector --------------------------------------------------------------------------
 # The camera's values and sensor prior of training objects before contact, with the encoder's
-# latent of their touch, on two sensors (`unitac dataset touch`); unitac_tools.train_projector
+# latent of their touch, on two sensors (`unitac-lab dataset touch`); unitac_tools.train_projector
 # trains the rectified-flow projector on the training split, evaluates it on the unseen split
 # and writes the bundle (encoder + projector + the pooled-latent stiffness readout).
 TOUCH="$MODELS/touch"
-touch_inputs=(python/unitac_tools/train_projector.py Cargo.lock crates/cli/src/touch_dataset.rs crates/cli/src/dataset.rs
+touch_inputs=(python/unitac_tools/train_projector.py Cargo.lock crates/lab/src/touch_dataset.rs crates/lab/src/dataset.rs
   launch/scenes/cup_deformation_vtla_real.yaml objects/split.yaml
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
 touch_key="$(hash_of "${touch_inputs[@]}" "$MODELS/reference/manifest.json")"
@@ -292,9 +294,9 @@ if has touch && { [ "$(cat "$TOUCH/.stamp" 2>/dev/null)" != "$touch_key" ] || [ 
   log "touch projector: touch dataset of training and unseen objects (~2 min), then training (~3 min)"
   rm -rf "$TOUCH.tmp" && mkdir -p "$TOUCH.tmp/data"
   for s in gelsight-mini digit; do
-    target/release/unitac dataset touch --split train --seeds 1,2,3 --trials 20 --sensor "$s" \
+    target/release/unitac-lab dataset touch --split train --seeds 1,2,3 --trials 20 --sensor "$s" \
       --out "$TOUCH.tmp/data/train-$s" >&2
-    target/release/unitac dataset touch --split unseen --seeds 101,102,103 --trials 20 --sensor "$s" \
+    target/release/unitac-lab dataset touch --split unseen --seeds 101,102,103 --trials 20 --sensor "$s" \
       --out "$TOUCH.tmp/data/unseen-$s" >&2
   done
   data_key="$(content_key "$TOUCH.tmp/data" python/unitac_tools/train_projector.py python/unitac_tools/generate_reference.py \
@@ -315,7 +317,7 @@ fi
 # --- reference policy -------------------------------------------------------------------------
 POLICIES="$MODELS/policy"
 policy_inputs=(python/unitac_tools/fit_reference_policy.py Cargo.lock launch/scenes/cup_deformation_vtla_real.yaml
-  crates/cli/src/demos.rs
+  crates/lab/src/demos.rs
   $(find crates/sim/src crates/contact/src crates/core/src crates/infer/src crates/trials/src crates/pipeline/src crates/policy/src -name '*.rs' | sort))
 policy_key="$(hash_of "${policy_inputs[@]}" "$MODELS/reference/manifest.json")"
 if has policy && { [ "$(cat "$POLICIES/.stamp" 2>/dev/null)" != "$policy_key" ] || [ ! -f "$POLICIES/cup_stiffness_real/manifest.json" ]; }; then
@@ -324,8 +326,8 @@ if has policy && { [ "$(cat "$POLICIES/.stamp" 2>/dev/null)" != "$policy_key" ] 
   rm -rf "$POLICIES.tmp"
   mkdir -p "$POLICIES.tmp"
   demos="$POLICIES.tmp/demos"
-  target/release/unitac demos --scene cup_deformation_vtla_real --split train --seeds 1,2,3 --trials 20 --out "$demos/train" >&2
-  target/release/unitac demos --scene cup_deformation_vtla_real --split unseen --seeds 101,102 --trials 10 --out "$demos/unseen" >&2
+  target/release/unitac-lab demos --scene cup_deformation_vtla_real --split train --seeds 1,2,3 --trials 20 --out "$demos/train" >&2
+  target/release/unitac-lab demos --scene cup_deformation_vtla_real --split unseen --seeds 101,102 --trials 10 --out "$demos/unseen" >&2
   data_key="$(content_key "$demos" python/unitac_tools/fit_reference_policy.py python/unitac_tools/schema.py schema/policy.json \
     "$VENV/.unitac-run-stamp")"
   if stands "$POLICIES" "$data_key" && [ -f "$POLICIES/cup_stiffness_real/manifest.json" ]; then

@@ -9,7 +9,7 @@ not public): small ONNX models that run through the same code path as a real exp
   properties.onnx        property head: mean and mean-square of the tokens -> hardness, roughness,
                          texture scores (0..1) and their one-sigma uncertainty. Weights FITTED by
                          ridge regression on mock-sensor presses with known properties
-                         (`unitac dataset fabrics`), uncertainty from held-out residuals.
+                         (`unitac-lab dataset fabrics`), uncertainty from held-out residuals.
   velocity_gaussian.onnx the exact rectified-flow velocity of a Gaussian target N(mu, sigma^2 I)
                          whose cond rows encode [mu (D), log sigma]: a model with an exact solution,
                          so sampler error can be measured exactly (../shared notes: flow sampler).

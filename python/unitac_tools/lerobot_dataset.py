@@ -1,4 +1,4 @@
-"""Write `unitac demos` demonstrations (demos.json) as a LeRobot dataset, layout v3.0.
+"""Write `unitac-lab demos` demonstrations (demos.json) as a LeRobot dataset, layout v3.0.
 
 usage: python -m unitac_tools.lerobot_dataset --demos DEMOS.json --out DIR [--robot-type NAME]
 
@@ -491,7 +491,7 @@ class Parser(argparse.ArgumentParser):
 
 def main(argv=None):
     ap = Parser(description=__doc__.split("\n")[0])
-    ap.add_argument("--demos", required=True, help="demos.json of `unitac demos`")
+    ap.add_argument("--demos", required=True, help="demos.json of `unitac-lab demos`")
     ap.add_argument("--out", required=True, help="the dataset's root directory")
     ap.add_argument("--robot-type", default="unitac_sim_two_finger")
     try:

@@ -37,7 +37,7 @@ the constants below. The final fit uses every training episode.
 
 DAgger (--dagger DIR): the policy of mode M for task T is fitted on T's demonstrations plus the
 LeRobot dataset DIR/T_M, if there is one: the states that mode's first-round policy visited,
-each labelled with the expert's command there (`unitac demos --drive`, scripts/learned_policies.sh).
+each labelled with the expert's command there (`unitac-lab demos --drive`, scripts/learned_policies.sh).
 
 Export (onnx.helper, opset 20): one input per feature ("observation.state", ...), [batch, n],
 normalisation mean_std in the manifest; Concat -> Gemm -> Tanh -> Gemm -> Tanh -> Gemm -> Max,

@@ -7,7 +7,7 @@ the sampler stage runs (manifest `condition` names each input's source).
 usage: python -m unitac_tools.train_projector --train T1.json [T2.json ...] --unseen U1.json [U2.json ...]
                           --reference REF_BUNDLE --out DIR [--steps N] [--seed S]
 
-Data: `unitac dataset touch` files (touch.json), one per split and sensor. The latent is [2, 48]:
+Data: `unitac-lab dataset touch` files (touch.json), one per split and sensor. The latent is [2, 48]:
 the encoder's token mean and token mean of squares (96 values).
 
 Model (numpy, trained here; ONNX built with onnx.helper): inputs x [b, 96] (the standardised

@@ -1,4 +1,4 @@
-//! Argument checks shared by every subcommand, and the forms of `unitac`'s stderr lines.
+//! Argument checks shared by every subcommand, and the forms of the stderr lines.
 //!
 //! Numbers: each numeric flag takes one of the value parsers here (`#[arg(value_parser =
 //! args::f64_in(0.0, 600.0))]`), so clap refuses a value outside the range before any work (exit
@@ -6,7 +6,8 @@
 //! applies, from the same two bounds: the message and the check cannot disagree.
 //!
 //! Lines on stderr: an error is `unitac: <what>` (the run ends with it, exit 1 or 2); a warning
-//! on a run that goes on is `unitac: warning: <what>` ([`warn`]).
+//! on a run that goes on is `unitac: warning: <what>` ([`warn`]); `unitac-lab: ...` from the
+//! lab's binary ([`crate::program`]).
 
 use std::fmt::Display;
 use std::str::FromStr;
@@ -75,7 +76,7 @@ where
 /// A warning on a run that goes on: one line, `unitac: warning: <what>`, distinct from the
 /// error line `unitac: <what>` that ends a run.
 pub fn warn(what: impl Display) {
-    eprintln!("unitac: warning: {what}");
+    eprintln!("{}: warning: {what}", crate::program());
 }
 
 /// An error that ends the run with exit 2 (bad usage or configuration, found before any work).

@@ -2,11 +2,11 @@
 //!
 //! `--port sim` runs the action against a simulated device on a pseudo-terminal instead.
 
-use crate::ConfigError;
-use crate::args::{f64_above, f64_in};
 use anyhow::{Context, bail};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
+use unitac_cli::ConfigError;
+use unitac_cli::args::{f64_above, f64_in};
 use unitac_gripper::bench::{self, BenchResult, Cycle};
 use unitac_gripper::client::{CameBack, ClientConfig, RtuClient};
 use unitac_gripper::{

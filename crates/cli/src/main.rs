@@ -1,28 +1,18 @@
-//! `unitac`: the command line of the UniTac robot stack (embedded runtime, no ROS).
+//! `unitac`: the command line of the UniTac robot stack (embedded runtime, no ROS): the robot's
+//! commands (run, contact, replay, bag, calibrate, devices, gripper, scenes). The lab's
+//! evaluations, benchmarks, reports, datasets, demonstrations and trials are `unitac-lab`'s
+//! (crates/lab).
 //!
 //! Exit codes (the table in crates/cli/README.md): 0 success; 1 the run failed or produced
 //! errors (the source died, a bag is corrupt past its start, images failed, stdout closed or
 //! full); 2 bad usage or configuration (unknown scene, unknown stage, missing model, bad value,
 //! a file or bag that cannot be opened). The reason is one line on stderr.
 
-mod args;
-mod bench;
-mod dataset;
-mod decode_bench;
-mod demos;
 mod depth;
 mod devices;
-mod eval;
 mod gripper;
 mod images;
-mod policy_bench;
-mod progress;
 mod replay;
-mod sampler;
-mod scratch;
-mod slip_eval;
-mod touch_dataset;
-mod trials;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
@@ -31,6 +21,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use unitac_cli::{ConfigError, args, emit, emit_report};
 use unitac_core::Msg;
 use unitac_core::scene::SensorArg;
 use unitac_runtime::RunOptions;
@@ -165,116 +156,6 @@ enum Cmd {
         #[command(subcommand)]
         cmd: depth::CalibrateCmd,
     },
-    /// Measure quality against ground truth (mock sensor): `eval contact`, `eval slip`,
-    /// `eval depth`.
-    Eval {
-        /// What to evaluate.
-        what: EvalTarget,
-        /// Print the report as one JSON object instead of tables.
-        #[arg(long)]
-        json: bool,
-        /// `eval depth`: directory for PNGs of frame, estimated and true depth.
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// `eval contact`: minutes of simulated idle time for the false-episode count.
-        #[arg(long, default_value_t = 10.0, value_parser = args::f64_in(0.0, 600.0))]
-        idle_minutes: f64,
-    },
-    /// Benchmarks, side by side with the Python a user would otherwise run where there is one:
-    /// `bench contact`, `bench replay`, `bench sampler`, `bench render` (mock sensor frames),
-    /// `bench decode` (camera JPEG and YUYV decoding), `bench depth` (depth from one image),
-    /// `bench policy` (the policy's control tick and a paced loop's period, per scene and mode).
-    Bench {
-        /// What to time.
-        what: BenchTarget,
-        /// Print the timings as one JSON object instead of text.
-        #[arg(long)]
-        json: bool,
-        /// Distinct frames (`bench decode`: the first 8 of them, generated JPEGs; `bench depth`:
-        /// the first 200, ball presses).
-        #[arg(long, default_value_t = 140, value_parser = args::int_in(1usize, 10_000))]
-        frames: usize,
-        /// Passes over the frames (`bench policy`: episodes per scene and mode).
-        #[arg(long, default_value_t = 5, value_parser = args::int_in(1usize, 1000))]
-        repeat: usize,
-        /// Skip the Python baseline.
-        #[arg(long)]
-        no_python: bool,
-        /// `bench policy`: ticks of the real-time paced loop per scene (0: none).
-        #[arg(long, default_value_t = 300)]
-        ticks: usize,
-        /// `bench policy`: an ONNX policy directory (default: the test MLP, generated).
-        #[arg(long)]
-        policy: Option<PathBuf>,
-    },
-    /// Error against run time, with tables and PNG plots: `report sampler` (flow sampler),
-    /// `report sim` (the simulator's integrators on soft, stiff and extreme cups, stability map).
-    Report {
-        /// What to report on.
-        what: ReportTarget,
-        /// Print the report as one JSON object instead of tables.
-        #[arg(long)]
-        json: bool,
-        /// Directory for the PNG plots (default: $UNITAC_ROOT/.build/report or ./report).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// `report sampler`: timed repetitions per configuration (median).
-        #[arg(long, default_value_t = 5, value_parser = args::int_in(1usize, 1000))]
-        repeat: usize,
-    },
-    /// Write a training set: `dataset fabrics --out DIR` (mock presses on fabrics with known
-    /// properties, for the property head: --train, --test, --seed) or `dataset touch --split S
-    /// --seeds 1,2 --trials N --sensor K --out DIR` (the camera's values and the sensor prior of
-    /// cups and fabrics before contact, with the encoder's latent of their touch, for the touch
-    /// projector).
-    Dataset {
-        /// Which training set.
-        what: DatasetTarget,
-        /// Directory to write the set into (created if missing).
-        #[arg(long)]
-        out: PathBuf,
-        /// `dataset fabrics`: training samples (train + test: 1 to 100000).
-        #[arg(long, default_value_t = 240, value_parser = args::int_in(0usize, dataset::MAX_SAMPLES))]
-        train: usize,
-        /// `dataset fabrics`: test samples, drawn after the training ones.
-        #[arg(long, default_value_t = 120, value_parser = args::int_in(0usize, dataset::MAX_SAMPLES))]
-        test: usize,
-        /// `dataset fabrics`: seed of the fabric draws and the mock sensor's noise.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        #[command(flatten)]
-        set: TrialSet,
-        /// `dataset touch`: sensor kind: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS.
-        #[arg(long, default_value = "gelsight-mini")]
-        sensor: unitac_core::SensorKind,
-    },
-    /// Demonstrations of the scripted expert with what a policy of every mode could observe,
-    /// through each scene's tactile stages (scenes of one task, comma-separated):
-    /// `demos --scene S[,S2] --split train --seeds 1,2,3 --trials 10 --out DIR`.
-    Demos {
-        /// Scenes of one task, comma separated (the first one's contact state drives the cup's
-        /// probe, its safety bounds are recorded).
-        #[arg(long, value_delimiter = ',', required = true)]
-        scene: Vec<String>,
-        #[command(flatten)]
-        set: TrialSet,
-        /// Directory for demos.json (created if missing).
-        #[arg(long)]
-        out: PathBuf,
-        /// DAgger: a learned scene of the same task drives the world (its stages, as in a
-        /// trial), each tick labelled with the expert's command there.
-        #[arg(long)]
-        drive: Option<String>,
-        /// The policy bundle (its manifest.json) the driving scene runs instead of the one it
-        /// names.
-        #[arg(long, requires = "drive")]
-        drive_model: Option<PathBuf>,
-        /// Whose demonstrations: vla | vtla_real | vtla_pred (the expert decides from what that
-        /// mode observes: vtla_real probes the cup and chooses the fabric by touch, vla and
-        /// vtla_pred do neither). Default: the first scene's mode.
-        #[arg(long)]
-        mode: Option<String>,
-    },
     /// List the tactile sensors on the USB bus: model, serial, firmware, V4L2 node, modes.
     Devices {
         /// Print the devices as one JSON object instead of text.
@@ -284,12 +165,10 @@ enum Cmd {
     /// Bring-up of a serial gripper: `gripper --port P --model M
     /// activate|open|close|status|bench|simulate` (simulate: serve a simulated one at P).
     Gripper(gripper::GripperArgs),
-    /// Closed-loop grasp trials in the sim world: each mode's scene
-    /// (`<scene>_<mode>.yaml`) N times, the success table beside the paper's (`--json`, `--plot DIR`).
-    Trials(trials::TrialsArgs),
     /// List the scenes: every `<name>.yaml` in the scene directories (`--scene-dir`,
     /// `$UNITAC_SCENES`, `$UNITAC_ROOT/launch/scenes`, `./launch/scenes`, the source tree's), one
-    /// name a line, sorted. The one list the tests, the scripts and `trials` take scenes from.
+    /// name a line, sorted. The one list the tests, the scripts and `unitac-lab trials` take
+    /// scenes from.
     Scenes {
         /// Extra directory to look for scenes in (searched first).
         #[arg(long)]
@@ -309,167 +188,9 @@ enum BagCmd {
     },
 }
 
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-enum EvalTarget {
-    /// The contact detector against the mock sensor's truth: a press-depth sweep, false
-    /// episodes over idle minutes, the contact area on ball presses.
-    Contact,
-    /// The slip stage's shear, rotation and slip flag against the renderer's tangential truth.
-    Slip,
-    /// Depth from one image on mock ball presses against their exact depth: RMSE, penetration
-    /// error, contact area against the Hertz and geometric discs, at several depths, noise and
-    /// shading levels.
-    Depth,
-}
-
-/// Which trials of the task worlds: the split's objects, seeds and trials per seed.
-#[derive(clap::Args, Debug)]
-struct TrialSet {
-    /// Which objects of objects/split.yaml the trials draw.
-    #[arg(long, value_enum, default_value = "train")]
-    split: DemoSplit,
-    /// Seeds of the trial draws, comma separated.
-    #[arg(long, value_delimiter = ',', default_value = "1")]
-    seeds: Vec<u64>,
-    /// Trials per seed.
-    #[arg(long, default_value_t = 10, value_parser = args::int_in(1u32, 100_000))]
-    trials: u32,
-}
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-enum DemoSplit {
-    /// The training objects of objects/split.yaml.
-    Train,
-    /// The unseen objects of objects/split.yaml.
-    Unseen,
-}
-
-impl From<DemoSplit> for unitac_sim::task::Split {
-    fn from(s: DemoSplit) -> Self {
-        match s {
-            DemoSplit::Train => unitac_sim::task::Split::Train,
-            DemoSplit::Unseen => unitac_sim::task::Split::Unseen,
-        }
-    }
-}
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-enum DatasetTarget {
-    /// Mock presses on fabrics with known properties, for the property head.
-    Fabrics,
-    /// The camera's values and the sensor prior before contact, with the encoder's latent of
-    /// the touch, for the touch projector.
-    Touch,
-}
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-enum BenchTarget {
-    /// The contact detector per frame vs Python (numpy + OpenCV, as in the GelSight SDK).
-    Contact,
-    /// A bag's images read and through the contact stage, vs Python.
-    Replay,
-    /// The flow sampler's models per call and batched.
-    Sampler,
-    /// The mock sensor's renderer per frame.
-    Render,
-    /// GelSight Mini MJPEG 3280x2464 -> 320x240 and YUYV 320x240 -> RGB, vs OpenCV.
-    Decode,
-    /// The policy tick per scene and mode (--repeat episodes each), with an ONNX policy's act,
-    /// and a loop paced at the control rate (--ticks), vs Python onnxruntime.
-    Policy,
-    /// Depth from one image per frame (320x240, 640x480) vs gs_sdk's path a GelSight user
-    /// runs (numpy + scipy), the read-pass floor, and the share of one core at 25 fps.
-    Depth,
-}
-
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-enum ReportTarget {
-    /// The flow sampler: error against run time per step count.
-    Sampler,
-    /// The simulator's integrators: error, stability map (tables and PNG plots).
-    Sim,
-}
-
-/// Error that maps to exit code 2 (usage / configuration).
-#[derive(Debug)]
-struct ConfigError(String);
-impl std::fmt::Display for ConfigError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-impl std::error::Error for ConfigError {}
-
-/// The command line's grammar: [`Cli`], with a negative number taken as the value of a flag
-/// that takes one (`--ball-radius-m -1` is refused by the flag's range, not read as a flag).
+/// The command line's grammar: [`Cli`] ([`unitac_cli::command`]).
 fn command() -> clap::Command {
-    fn negatives(c: clap::Command) -> clap::Command {
-        c.mut_args(|a| {
-            if a.get_action().takes_values() {
-                a.allow_negative_numbers(true)
-            } else {
-                a
-            }
-        })
-        .mut_subcommands(negatives)
-    }
-    negatives(<Cli as clap::CommandFactory>::command())
-}
-
-/// A clap error as the one stderr line of exit 2: `unitac: ` and clap's message (its paragraphs
-/// joined), without the usage and the `--help` hint; a missing subcommand names the ones there
-/// are.
-fn clap_error_line(e: &clap::Error) -> String {
-    let text = e.render().to_string();
-    // The command's path: the leading arguments that name subcommands (`unitac calibrate depth`).
-    let mut cmd = String::from("unitac");
-    let mut at = command();
-    for a in std::env::args_os().skip(1) {
-        let Some(sub) = a.to_str().and_then(|a| at.find_subcommand(a)).cloned() else {
-            break;
-        };
-        cmd = format!("{cmd} {}", sub.get_name());
-        at = sub;
-    }
-    if e.kind() == clap::error::ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
-        let commands: Vec<&str> = text
-            .split("\n\n")
-            .find_map(|p| p.strip_prefix("Commands:"))
-            .unwrap_or("")
-            .lines()
-            .filter_map(|l| l.split_whitespace().next())
-            .filter(|c| *c != "help")
-            .collect();
-        return format!(
-            "unitac: {cmd} needs a subcommand: {} (see {cmd} --help)",
-            commands.join(", ")
-        );
-    }
-    let parts: Vec<String> = text
-        .split("\n\n")
-        .map(str::trim)
-        .filter(|p| !p.is_empty() && !p.starts_with("Usage:") && !p.starts_with("For more"))
-        .map(|p| {
-            let p = p.strip_prefix("error: ").unwrap_or(p);
-            p.split_whitespace().collect::<Vec<_>>().join(" ")
-        })
-        .collect();
-    let what = parts.join("; ");
-    let what = if what.is_empty() {
-        "bad usage".into()
-    } else {
-        what
-    };
-    format!("unitac: {what} (see {cmd} --help)")
-}
-
-/// Write to stdout and flush: a closed pipe (`| head`) or a full disk is an error (exit 1, one
-/// line), never a panic as `print!` would give.
-fn emit(text: impl std::fmt::Display) -> anyhow::Result<()> {
-    let mut o = std::io::stdout().lock();
-    write!(o, "{text}")
-        .and_then(|()| o.flush())
-        .context("writing to stdout")
+    unitac_cli::command::<Cli>()
 }
 
 /// When `main` began: `unitac run` reports how long it took to have its stages built.
@@ -757,94 +478,25 @@ fn cmd_contact(
     Ok(all_ok)
 }
 
-fn report_sim(json: bool, out: &std::path::Path) -> anyhow::Result<bool> {
-    use unitac_sim::numerics::{NumericsOptions, report_steps, report_with_progress};
-    std::fs::create_dir_all(out)
-        .map_err(|e| anyhow::Error::new(ConfigError(format!("--out {}: {e}", out.display()))))?;
-    let opts = NumericsOptions::default();
-    let bar = progress::bar(report_steps(&opts), "integrator study");
-    let r = report_with_progress(&opts, &mut |done, _| bar.set_position(done));
-    bar.finish_and_clear();
-    let files = r.write_plots(out)?;
-    if json {
-        let mut v = serde_json::to_value(&r)?;
-        v["plots"] = serde_json::json!(files);
-        emit(format_args!("{v}\n"))?;
-    } else {
-        emit(r.text())?;
-        for f in &files {
-            emit(format_args!("wrote {}\n", f.display()))?;
-        }
-    }
-    Ok(true)
-}
-
 fn main() -> ExitCode {
     STARTED.get_or_init(std::time::Instant::now);
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
-        )
-        .with_writer(std::io::stderr)
-        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
-        .init();
-    let parsed = command()
-        .try_get_matches()
-        .and_then(|mut m| <Cli as clap::FromArgMatches>::from_arg_matches_mut(&mut m));
-    let cli = match parsed {
+    unitac_cli::init_logging();
+    let cli: Cli = match unitac_cli::parse(command()) {
         Ok(c) => c,
-        // Help and version: on stdout, exit 0.
-        Err(e) if !e.use_stderr() => {
-            let _ = e.print();
-            return ExitCode::SUCCESS;
-        }
-        Err(e) => {
-            eprintln!("{}", clap_error_line(&e));
-            return ExitCode::from(2);
-        }
+        Err(code) => return code,
     };
     // `unitac contact` exits 2 when a file failed (after every other file was processed).
-    let contact = matches!(cli.cmd, Cmd::Contact { .. });
-    match dispatch(cli.cmd) {
-        Ok(true) => ExitCode::SUCCESS,
-        Ok(false) if contact => ExitCode::from(2),
-        Ok(false) => ExitCode::from(1),
-        Err(e) if e.downcast_ref::<ConfigError>().is_some() => {
-            eprintln!("unitac: {e}");
-            ExitCode::from(2)
-        }
-        Err(e) => {
-            eprintln!("unitac: {e:#}");
-            ExitCode::from(1)
-        }
-    }
-}
-
-/// A report on stdout: its JSON on one line with `--json`, else its text.
-fn emit_report<R: serde::Serialize>(
-    r: anyhow::Result<R>,
-    json: bool,
-    text: impl FnOnce(&R) -> String,
-) -> anyhow::Result<bool> {
-    let r = r?;
-    if json {
-        emit(format_args!("{}\n", serde_json::to_string(&r)?))?;
+    let failed = if matches!(cli.cmd, Cmd::Contact { .. }) {
+        2
     } else {
-        emit(text(&r))?;
-    }
-    Ok(true)
+        1
+    };
+    unitac_cli::exit_code(dispatch(cli.cmd), failed)
 }
 
 /// One command: Ok(false) when it ran but something in it failed (exit 1; 2 for `contact`).
-/// The robot's commands here, the lab's in [`lab_command`].
 fn dispatch(cmd: Cmd) -> anyhow::Result<bool> {
     match cmd {
-        Cmd::Eval { .. }
-        | Cmd::Report { .. }
-        | Cmd::Bench { .. }
-        | Cmd::Dataset { .. }
-        | Cmd::Demos { .. }
-        | Cmd::Trials(_) => lab_command(cmd),
         Cmd::Run {
             scene,
             sensor,
@@ -939,225 +591,22 @@ fn dispatch(cmd: Cmd) -> anyhow::Result<bool> {
     }
 }
 
-/// The lab's commands: evaluations, reports, benchmarks, datasets, demonstrations, trials.
-fn lab_command(cmd: Cmd) -> anyhow::Result<bool> {
-    match cmd {
-        Cmd::Eval {
-            what,
-            json,
-            out,
-            idle_minutes,
-        } => cmd_eval(what, json, out, idle_minutes),
-        Cmd::Report {
-            what,
-            json,
-            out,
-            repeat,
-        } => {
-            let out = out.unwrap_or_else(|| match std::env::var_os("UNITAC_ROOT") {
-                Some(r) => PathBuf::from(r).join(".build/report"),
-                None => PathBuf::from("report"),
-            });
-            match what {
-                ReportTarget::Sampler => {
-                    emit_report(sampler::report(&out, repeat), json, |r| r.text())
-                }
-                ReportTarget::Sim => report_sim(json, &out),
-            }
-        }
-        Cmd::Bench {
-            what,
-            json,
-            frames,
-            repeat,
-            no_python,
-            ticks,
-            policy,
-        } => cmd_bench(
-            what,
-            json,
-            BenchSize {
-                frames,
-                repeat,
-                python: !no_python,
-                ticks,
-                policy,
-            },
-        ),
-        Cmd::Dataset {
-            what: DatasetTarget::Fabrics,
-            out,
-            train,
-            test,
-            seed,
-            ..
-        } => dataset::fabrics(&out, train, test, seed).map(|()| true),
-        Cmd::Dataset {
-            what: DatasetTarget::Touch,
-            out,
-            set,
-            sensor,
-            ..
-        } => touch_dataset::touch(set.split.into(), &set.seeds, set.trials, sensor, &out)
-            .and_then(emit)
-            .map(|()| true),
-        Cmd::Demos {
-            scene,
-            set,
-            out,
-            drive,
-            drive_model,
-            mode,
-        } => {
-            let driver = drive.map(|scene| demos::Driver {
-                scene,
-                model: drive_model,
-            });
-            demos::demos(
-                &scene,
-                set.split.into(),
-                &set.seeds,
-                set.trials,
-                &out,
-                driver,
-                mode.as_deref(),
-            )
-            .and_then(emit)
-            .map(|()| true)
-        }
-        Cmd::Trials(args) => trials::run(args),
-        other => Err(anyhow::anyhow!("not a lab command: {other:?}")),
-    }
-}
-
-/// `unitac eval contact | depth | slip`.
-fn cmd_eval(
-    what: EvalTarget,
-    json: bool,
-    out: Option<PathBuf>,
-    idle_minutes: f64,
-) -> anyhow::Result<bool> {
-    match what {
-        EvalTarget::Contact => {
-            emit_report(eval::eval_contact(idle_minutes * 60.0), json, |r| r.text())
-        }
-        EvalTarget::Depth => emit_report(depth::eval_depth(out.as_deref()), json, |r| r.text()),
-        EvalTarget::Slip => emit_report(slip_eval::eval_slip(), json, |r| r.text()),
-    }
-}
-
-/// How much `unitac bench` measures.
-struct BenchSize {
-    frames: usize,
-    repeat: usize,
-    python: bool,
-    ticks: usize,
-    policy: Option<PathBuf>,
-}
-
-/// `unitac bench ...`: each target beside its baseline, its JSON or its table.
-fn cmd_bench(what: BenchTarget, json: bool, n: BenchSize) -> anyhow::Result<bool> {
-    fn both<R: serde::Serialize>(
-        r: anyhow::Result<R>,
-        text: impl FnOnce(&R) -> String,
-    ) -> anyhow::Result<(String, String)> {
-        let r = r?;
-        Ok((serde_json::to_string(&r)?, text(&r)))
-    }
-    let spinner = progress::spinner(&format!("bench {what:?}").to_lowercase());
-    let (frames, repeat, python) = (n.frames, n.repeat, n.python);
-    let text = match what {
-        BenchTarget::Contact => both(bench::bench_contact(frames, repeat, python), |r| r.text()),
-        BenchTarget::Depth => both(depth::bench_depth(frames, repeat, python), |r| r.text()),
-        BenchTarget::Replay => both(bench::bench_replay(frames, repeat, python), |r| r.text()),
-        BenchTarget::Sampler => both(sampler::bench(repeat), |r| r.text()),
-        BenchTarget::Decode => both(decode_bench::bench_decode(frames, repeat, python), |r| {
-            r.text()
-        }),
-        BenchTarget::Render => both(
-            unitac_sim::bench::render_bench(repeat).map_err(anyhow::Error::from),
-            |r| r.text(),
-        ),
-        BenchTarget::Policy => both(
-            policy_bench::bench_policy(&policy_bench::Options {
-                episodes: repeat,
-                paced_ticks: n.ticks,
-                python,
-                policy: n.policy,
-            }),
-            |r| r.text(),
-        ),
-    };
-    spinner.finish_and_clear();
-    let (j, t) = text?;
-    if json {
-        emit(format_args!("{j}\n"))?;
-    } else {
-        emit(t)?;
-    }
-    Ok(true)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// `unitac a b` for `path` ["a", "b"].
-    fn name(path: &[&str]) -> String {
-        std::iter::once("unitac")
-            .chain(path.iter().copied())
-            .collect::<Vec<_>>()
-            .join(" ")
-    }
-
-    /// Every command below `cmd` (itself first), with its path.
-    fn commands<'a>(
-        cmd: &'a clap::Command,
-        path: Vec<&'a str>,
-        out: &mut Vec<(Vec<&'a str>, &'a clap::Command)>,
-    ) {
-        out.push((path.clone(), cmd));
-        for sub in cmd.get_subcommands() {
-            let mut p = path.clone();
-            p.push(sub.get_name());
-            commands(sub, p, out);
-        }
-    }
+    use unitac_cli::grammar;
 
     /// Every subcommand, option and positional of every `--help` page has a description, and so
     /// has every value of a subcommand's target (`eval contact|slip|depth`, ...).
     #[test]
     fn every_command_and_argument_has_a_description() {
         let cli = command();
-        let mut all = Vec::new();
-        commands(&cli, Vec::new(), &mut all);
-        let mut missing = Vec::new();
-        for (path, cmd) in &all {
-            if cmd.get_about().is_none() {
-                missing.push(name(path));
-            }
-            for a in cmd.get_arguments() {
-                let id = a.get_id().as_str();
-                if id == "help" || id == "version" {
-                    continue;
-                }
-                let shown = match a.get_long() {
-                    Some(l) => format!("--{l}"),
-                    None => format!("<{}>", id.to_uppercase()),
-                };
-                if a.get_help().is_none() && a.get_long_help().is_none() {
-                    missing.push(format!("{} {shown}", name(path)));
-                }
-                if a.is_positional() && id == "what" {
-                    for v in a.get_possible_values() {
-                        if v.get_help().is_none() {
-                            missing.push(format!("{} {}", name(path), v.get_name()));
-                        }
-                    }
-                }
-            }
-        }
-        assert!(all.len() > 15, "{} commands", all.len());
+        assert!(
+            grammar::count(&cli) > 10,
+            "{} commands",
+            grammar::count(&cli)
+        );
+        let missing = grammar::undescribed(&cli);
         assert!(missing.is_empty(), "no description: {missing:#?}");
     }
 
@@ -1165,44 +614,14 @@ mod tests {
     /// summary, as `<command> <target>`.
     #[test]
     fn summaries_name_every_target() {
-        let cli = command();
-        let mut all = Vec::new();
-        commands(&cli, Vec::new(), &mut all);
-        let mut missing = Vec::new();
-        for (path, cmd) in &all {
-            let about = cmd.get_about().map(|s| s.to_string()).unwrap_or_default();
-            let Some(last) = path.last() else { continue };
-            for a in cmd
-                .get_arguments()
-                .filter(|a| a.is_positional() && a.get_id() == "what")
-            {
-                for v in a.get_possible_values() {
-                    let want = format!("{last} {}", v.get_name());
-                    if !about.contains(&want) {
-                        missing.push(want);
-                    }
-                }
-            }
-        }
+        let missing = grammar::targets_not_in_summaries(&command());
         assert!(missing.is_empty(), "not in the summary: {missing:?}");
     }
 
     /// Help texts are plain text: no markdown escapes (`\[mm]`) printed literally.
     #[test]
     fn help_texts_have_no_escapes() {
-        let cli = command();
-        let mut all = Vec::new();
-        commands(&cli, Vec::new(), &mut all);
-        for (path, cmd) in &all {
-            let mut texts: Vec<String> = cmd.get_about().iter().map(|s| s.to_string()).collect();
-            texts.extend(cmd.get_long_about().map(|s| s.to_string()));
-            for a in cmd.get_arguments() {
-                texts.extend(a.get_help().map(|s| s.to_string()));
-                texts.extend(a.get_long_help().map(|s| s.to_string()));
-            }
-            for t in texts {
-                assert!(!t.contains('\\'), "{}: {t}", name(path));
-            }
-        }
+        let found = grammar::escaped_texts(&command());
+        assert!(found.is_empty(), "{found:#?}");
     }
 }

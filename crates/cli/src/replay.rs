@@ -2,7 +2,6 @@
 //! image message (or per event), and `unitac bag repair`. The logic is
 //! unitac_bag::{replay, repair}; this file parses flags and formats lines.
 
-use crate::ConfigError;
 use anyhow::Context;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -10,6 +9,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use unitac_bag::replay::{ImageResult, OutputBag, ReplayReport, replay};
 use unitac_bag::{BagError, BagSource, BagWriter, ReplayOptions, WriteOptions};
+use unitac_cli::ConfigError;
 use unitac_contact::{ContactParams, ContactStage};
 use unitac_core::msg::ContactEpisode;
 use unitac_core::{Chain, Msg, Pacer, SensorKind, Stage};

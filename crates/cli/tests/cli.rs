@@ -225,68 +225,6 @@ fn ctrl_c_stops_a_real_time_run_cleanly() {
     );
 }
 
-#[test]
-fn report_sim_writes_tables_and_plots() {
-    let dir = tmpdir("report-sim");
-    let out = dir.join("figs");
-    let o = unitac(&["report", "sim", "--json", "--out", out.to_str().unwrap()]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    // Three cups x (three methods x nine steps + three sub-stepped runs).
-    assert_eq!(j["accuracy"].as_array().unwrap().len(), 3 * (3 * 9 + 3));
-    assert_eq!(j["references"].as_array().unwrap().len(), 3);
-    assert_eq!(j["map_disagreements"], 0);
-    for f in j["plots"].as_array().unwrap() {
-        let p = PathBuf::from(f.as_str().unwrap());
-        assert!(std::fs::metadata(&p).unwrap().len() > 10_000, "{p:?}");
-    }
-    // An unusable --out is a configuration error (exit 2).
-    let file = dir.join("a-file");
-    std::fs::write(&file, b"x").unwrap();
-    let o = unitac(&["report", "sim", "--out", file.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    std::fs::remove_dir_all(&dir).ok();
-}
-
-#[test]
-fn demos_writes_the_demonstrations_and_refuses_scenes_without_touch() {
-    let dir = tmpdir("demos");
-    let out = dir.join("d");
-    let o = unitac(&[
-        "demos",
-        "--scene",
-        "cup_deformation_vtla_real",
-        "--seeds",
-        "3",
-        "--trials",
-        "2",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let s = String::from_utf8_lossy(&o.stdout);
-    assert!(
-        s.starts_with("2 demonstrations of cup_deformation_vtla_real (Train cups)"),
-        "{s}"
-    );
-    let j: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("demos.json")).unwrap()).unwrap();
-    let demos = j["demos"].as_array().unwrap();
-    assert_eq!(demos.len(), 2);
-    assert_eq!(demos[0]["latents"][0]["source"], "real");
-    assert_eq!(demos[0]["latents"][0]["touch"], 1);
-    // No tactile stage, or scenes of two tasks: a configuration error, one line, exit 2.
-    for scene in [
-        "cup_deformation_vla",
-        "cup_deformation_vtla_real,fabric_selection_vtla_real",
-    ] {
-        let o = unitac(&["demos", "--scene", scene, "--out", out.to_str().unwrap()]);
-        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-        assert_eq!(stderr(&o).trim_end().lines().count(), 1, "{}", stderr(&o));
-    }
-    std::fs::remove_dir_all(&dir).ok();
-}
-
 /// A flat grey RGB PNG of `w` x `h` at `level`.
 fn flat_png(path: &std::path::Path, w: u32, h: u32, level: u8) {
     image::RgbImage::from_pixel(w, h, image::Rgb([level; 3]))

@@ -1,12 +1,16 @@
 //! A scene is a file: copies of shipped scenes under new names in a further scene directory (so
 //! the tree is not touched) appear, with no other edit, in `unitac scenes`, in the golden list
-//! (when a golden is committed for them) and pass its comparison, in scripts/bench-footprint's
-//! list, and as a task of `unitac trials`. The launch side: crates/ros/tests/launch.rs.
+//! (when a golden is committed for them) and pass its comparison, and in
+//! scripts/bench-footprint's list. As a task of `unitac-lab trials`: crates/lab/tests/scenes.rs;
+//! the launch side: crates/ros/tests/launch.rs.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use unitac_core::golden::{diff, parse_lines};
+
+mod common;
+use common::shared::copy_scene;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -28,14 +32,6 @@ fn lines(o: &Output) -> Vec<String> {
         .lines()
         .map(str::to_string)
         .collect()
-}
-
-/// `launch/scenes/<from>.yaml` as `<dir>/<to>.yaml`, its `scene:` renamed.
-fn copy_scene(dir: &Path, from: &str, to: &str) {
-    let text = std::fs::read_to_string(root().join(format!("launch/scenes/{from}.yaml"))).unwrap();
-    let renamed = text.replace(&format!("scene: {from}\n"), &format!("scene: {to}\n"));
-    assert_ne!(renamed, text, "{from}");
-    std::fs::write(dir.join(format!("{to}.yaml")), renamed).unwrap();
 }
 
 #[test]
@@ -98,20 +94,30 @@ fn a_scene_file_added_is_a_scene_everywhere_with_no_other_edit() {
     bench.push("bench/scenes/all_stages.yaml".into());
     assert_eq!(lines(&o), bench);
 
-    // `unitac trials`: the copy's task, in the one mode it has a scene for (and, a cup VLA
-    // scene, its force rule's column beside it, from the same scene).
-    let o = unitac(
-        &["trials", "--scene", "cup_copy", "--trials", "1", "--json"],
-        Some(&scenes),
-    );
-    let j: serde_json::Value = serde_json::from_str(&lines(&o).join("\n")).unwrap();
-    assert_eq!(j["task"], "cup_copy");
-    let modes = j["modes"].as_array().unwrap();
-    assert_eq!(modes.len(), 2, "{j}");
-    assert_eq!(modes[0]["mode"], "vla");
-    assert_eq!(modes[0]["scene"], "cup_copy_vla");
-    assert_eq!(modes[1]["mode"], "vla_force");
-    assert_eq!(modes[1]["scene"], "cup_copy_vla");
-    assert!(modes[0]["trials"][0]["outcome"]["cup"].is_object(), "{j}");
     std::fs::remove_dir_all(&tmp).ok();
+}
+
+/// The footprint benchmark's all-stages scene (scripts/bench-footprint) really loads every stage
+/// kind a scene can name.
+#[test]
+fn the_all_stages_scene_loads_every_stage_kind() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let path = root.join("bench/scenes/all_stages.yaml");
+    let scene = unitac_pipeline::load_scene(path.to_str().unwrap(), None).unwrap();
+    let cfgs = unitac_pipeline::stage_configs(&scene).unwrap();
+    let kinds: Vec<&str> = cfgs.iter().map(|c| c.kind()).collect();
+    for k in unitac_pipeline::KNOWN_STAGES {
+        assert!(
+            kinds.contains(k),
+            "all_stages.yaml lacks a {k} stage: {kinds:?}"
+        );
+    }
+    // Every model the scene names is used by a stage.
+    let named: Vec<&String> = scene.models.keys().collect();
+    for m in named {
+        assert!(
+            scene.stages.iter().any(|s| s.models.contains(m)),
+            "model {m} is loaded by no stage"
+        );
+    }
 }

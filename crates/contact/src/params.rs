@@ -39,7 +39,7 @@ pub struct ContactParams {
     /// residual keeps rising, below the component's robust peak, are the gel sloping back to
     /// rest outside the contact, not contact (`flank.rs`). The region then ends at the press's
     /// ridge, where the gel's slope peaks and a ball leaves it, whatever the skirt's width:
-    /// ball presses read 0.96-1.46x their Hertz disc on every skirt of `unitac eval contact`,
+    /// ball presses read 0.96-1.46x their Hertz disc on every skirt of `unitac-lab eval contact`,
     /// where the half-level contour alone reads 1.1-2.5x. On a noisy frame the region is grown
     /// back by the box mean's radius after the peel. False: the half-level contour.
     pub peel_skirt: bool,

@@ -21,7 +21,7 @@
 //! value at 1.13 contact radii). The skirt holds many cells of low residual, so a lower quantile
 //! (the 75th) is pulled down by it and the half-level contour moves out onto the skirt: on the
 //! mock's Hertz ball presses that read 2-3.7x the contact disc, as real gels read 1.8-3.0x. At
-//! the 90th percentile the same presses read 1.1-2.5x the Hertz disc, by skirt (`unitac eval
+//! the 90th percentile the same presses read 1.1-2.5x the Hertz disc, by skirt (`unitac-lab eval
 //! contact`, the half-level rows); higher (the 95th) lets the moved marker dots of a gel whose
 //! dots are not masked set the level (the generic profile on GelSight frames: 0.2x).
 

@@ -1,7 +1,7 @@
 //! The slip stage behind the contact stage on mock GelSight Mini frames: a stuck pull reads as
 //! shear without slip, slipping gel is flagged, and bad input (DIGIT, a frame of another size, a
 //! gel without dots) is an error or an invalid state, never NaN. The accuracy sweep is
-//! `unitac eval slip`.
+//! `unitac-lab eval slip`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use unitac_contact::{ContactParams, ContactStage, ParamsError, SlipParams, SlipStage};

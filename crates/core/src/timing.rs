@@ -1,8 +1,8 @@
 //! The one summary every benchmark reports: order statistics of timed samples.
 //!
 //! Benchmarks time their own loops (they know what is warm-up and what is measured) and hand the
-//! samples here, so `unitac bench ...` and `unitac report ...` state the same statistics under
-//! the same names. Nothing here reads a clock.
+//! samples here, so `unitac-lab bench ...` and `unitac-lab report ...` state the same statistics
+//! under the same names. Nothing here reads a clock.
 
 use serde::Serialize;
 

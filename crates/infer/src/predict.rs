@@ -77,9 +77,9 @@ impl Default for SamplerParams {
     }
 }
 /// Solver and steps for a budget, from the measured cost of one guided model call. Rule from the
-/// error-vs-time table (`unitac report sampler`): a second-order solver is more accurate per unit
-/// time from 4 steps on as long as s h <= 4 sigma_min; below that, Euler with as many steps as
-/// fit. None if not even the stability bound fits.
+/// error-vs-time table (`unitac-lab report sampler`): a second-order solver is more accurate per
+/// unit time from 4 steps on as long as s h <= 4 sigma_min; below that, Euler with as many steps
+/// as fit. None if not even the stability bound fits.
 pub fn choose_for_budget(
     budget_s: f64,
     call_s: f64,

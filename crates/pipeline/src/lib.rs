@@ -86,7 +86,7 @@ pub fn effective_params(scene: &Scene) -> Result<Vec<String>, SceneError> {
 
 /// A scene as [`load_scene`] loads it, except that the policy stages' own `models:` (the fitted
 /// readouts) are neither named nor loaded; their params stay. For recording the demonstrations
-/// those models are fitted on (`unitac demos`), before they exist.
+/// those models are fitted on (`unitac-lab demos`), before they exist.
 pub fn load_scene_without_policy_models(
     name: &str,
     extra_dir: Option<PathBuf>,

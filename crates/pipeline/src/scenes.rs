@@ -1,11 +1,11 @@
 //! The one list of scenes and of the tasks run in each mode, discovered from the scene
 //! directories ([`scene_dirs`]): a YAML file added under `launch/scenes` is a scene everywhere
-//! (`unitac scenes`, `unitac trials`, `unitac bench policy`, the golden tests, the scripts), with
-//! no other edit.
+//! (`unitac scenes`, `unitac-lab trials`, `unitac-lab bench policy`, the golden tests, the
+//! scripts), with no other edit.
 //!
 //! A closed-loop scene is named `<task>_<mode>` with a mode of [`Mode::ALL`]
-//! (`cup_deformation_vtla_real`); `<task>` is what `unitac trials --scene` takes, and runs each of
-//! its modes.
+//! (`cup_deformation_vtla_real`); `<task>` is what `unitac-lab trials --scene` takes, and runs each
+//! of its modes.
 
 use crate::registry::scene_dirs;
 use std::collections::BTreeMap;

@@ -1,11 +1,12 @@
 //! The report row of the policy tick benchmark, one format for every transport.
 //!
-//! `unitac bench policy` (embedded: the policy stage ticked through `unitac_core::chain`) prints
-//! these rows with transport `embedded`, and the Python baseline's rows with transport `python`;
-//! a benchmark of the ROS policy node (GripperStatus published -> GripperCommand received over
-//! DDS) prints the same rows with transport `ros`, so the tables line up. Statistics come from
-//! `unitac_core::tail` (per-tick latency) and `unitac_core::period_jitter` (a paced loop's
-//! achieved period), so every transport states the same order statistics under the same names.
+//! `unitac-lab bench policy` (embedded: the policy stage ticked through `unitac_core::chain`)
+//! prints these rows with transport `embedded`, and the Python baseline's rows with transport
+//! `python`; a benchmark of the ROS policy node (GripperStatus published -> GripperCommand
+//! received over DDS) prints the same rows with transport `ros`, so the tables line up. Statistics
+//! come from `unitac_core::tail` (per-tick latency) and `unitac_core::period_jitter` (a paced
+//! loop's achieved period), so every transport states the same order statistics under the same
+//! names.
 
 use serde::Serialize;
 use unitac_core::{PeriodJitter, Tail};

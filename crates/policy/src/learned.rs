@@ -1,5 +1,5 @@
 //! [`LearnedPolicy`]: a policy learned from demonstrations (python/unitac_tools/train_policy.py, on the
-//! LeRobot datasets of `unitac demos`), exported to ONNX, behind the same observation, watchdog
+//! LeRobot datasets of `unitac-lab demos`), exported to ONNX, behind the same observation, watchdog
 //! and safety layer as the scene controllers.
 //!
 //! Every tick the ONNX policy's output is the setpoint: the gripper's position, speed and force

@@ -133,13 +133,13 @@ pub struct PolicyParams {
     /// surfaces meet at 2 x this (the gripper's geometry, known to every mode).
     pub pad_m: f64,
     /// Cup, vla: the closing rule's offset \[m] (the gels' own give at the squeeze), calibrated
-    /// on the training cups alone (`unitac trials --scene cup_deformation --modes vla --train
+    /// on the training cups alone (`unitac-lab trials --scene cup_deformation --modes vla --train
     /// --calibrate-vla`).
     pub vla_offset_m: f64,
     /// Cup, vla: which camera-only rule squeezes the cup: `position` (close to the camera's
     /// width + pads - d - `vla_offset_m`) or `force` (squeeze with F = k(W) d, the stiffness from
     /// the camera's width W by `vla_stiffness_at_80mm_n_per_m` x (W / 80 mm)^`vla_stiffness_exponent`,
-    /// both fitted on the training cups alone: `unitac trials --scene cup_deformation --modes
+    /// both fitted on the training cups alone: `unitac-lab trials --scene cup_deformation --modes
     /// vla --train --calibrate-vla`). The force rule is vtla_pred's squeeze with the camera's
     /// stiffness in place of the predicted touch's.
     pub vla_rule: VlaRule,

@@ -61,10 +61,10 @@ impl Counters {
     }
 }
 
-/// The policy's control ticks by what they sent, as diagnostic values (the counts `unitac trials
-/// --json` reports as `policy_ticks`): every tick, the policy's action, and the safe action by
-/// why (the watchdog, a policy error, an inference over its time limit, a refused action, the
-/// controller's `failed` phase), and the first failure's reason.
+/// The policy's control ticks by what they sent, as diagnostic values (the counts
+/// `unitac-lab trials --json` reports as `policy_ticks`): every tick, the policy's action, and the
+/// safe action by why (the watchdog, a policy error, an inference over its time limit, a refused
+/// action, the controller's `failed` phase), and the first failure's reason.
 pub fn policy_ticks(c: &unitac_policy::TickCounts) -> Vec<(&'static str, String)> {
     vec![
         ("ticks", c.ticks.to_string()),

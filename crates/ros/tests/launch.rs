@@ -255,7 +255,7 @@ fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
 /// The parameters the launch plan gives each node are ones the node accepts (names and types:
 /// r2r refuses a float where an integer is declared): every planned node starts with them and
 /// shuts down cleanly on SIGINT. The sim node takes its task, control rate and trial length from
-/// the scene's policy stage and `unitac trials`' trial length.
+/// the scene's policy stage and `unitac-lab trials`' trial length.
 #[test]
 fn planned_parameters_are_accepted_by_the_nodes() {
     let (j, bin_dir) = check_launch();

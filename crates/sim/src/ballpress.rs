@@ -56,7 +56,7 @@ const FEM_TABLE_STEP_MM: f64 = 0.01;
 /// comes back to rest within about its thickness (a GelSight Mini's gel is about 4 mm thick: the
 /// FEATS project's finite-element mesh of it, github.com/feats-ai/feats,
 /// src/calculix/obj/gelsight_mini). The default is the finite-element response of a GelSight
-/// gel; gels differ (GelSight Mini, DIGIT and older GelSights), so `unitac eval contact`
+/// gel; gels differ (GelSight Mini, DIGIT and older GelSights), so `unitac-lab eval contact`
 /// measures the contact region across these skirts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Skirt {

@@ -8,11 +8,10 @@
 //! - [`world`]: the gripper / gel / cup model and its integrators.
 //! - [`task`]: the closed-loop task worlds (cup deformation, fabric selection) and the scripted
 //!   expert.
-//! - [`numerics`], [`bench`](mod@bench): the integrator study (its charts drawn with unitac-plot),
-//!   the renderer benchmark.
+//! - [`numerics`]: the integrator study (its tables; the charts and the renderer benchmark are
+//!   `unitac-lab`'s).
 
 pub mod ballpress;
-pub mod bench;
 pub mod degrade;
 pub mod mock;
 pub mod numerics;

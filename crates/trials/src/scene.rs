@@ -50,7 +50,7 @@ fn with_policy_param(scene: &Scene, key: &str, value: &str) -> Scene {
 }
 
 /// `scene` with its policy stage's `vla_rule` set to `rule` (the cup VLA scene's other
-/// camera-only rule, run as a baseline column by `unitac trials`).
+/// camera-only rule, run as a baseline column by `unitac-lab trials`).
 pub fn with_vla_rule(scene: &Scene, rule: unitac_policy::VlaRule) -> Scene {
     with_policy_param(scene, "vla_rule", rule.as_str())
 }

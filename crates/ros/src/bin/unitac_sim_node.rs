@@ -47,7 +47,8 @@ struct Params {
     /// Control rate = sim steps per sim second (0: the scene's; without a scene, the policy's
     /// default)
     control_rate_hz: f64,
-    /// Sim time of the trial, in seconds (0: the task's trial length, as `unitac trials` runs it)
+    /// Sim time of the trial, in seconds (0: the task's trial length, as `unitac-lab trials` runs
+    /// it)
     duration_s: f64,
     /// Mock tactile sensor: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS, and its id (frame_id
     /// `<sensor_id>_optical_frame`)

@@ -32,7 +32,7 @@ pub struct CupVariation {
     /// Placement on the table (x, y) around `centre_m` \[m], each uniform in +-`spread_m`.
     pub centre_m: [f64; 2],
     pub spread_m: [f64; 2],
-    /// Sweeps (`unitac trials --sweep`): every drawn stiffness times this, every drawn diameter
+    /// Sweeps (`unitac-lab trials --sweep`): every drawn stiffness times this, every drawn diameter
     /// plus this \[m]. 1 and 0 for the split as committed.
     pub stiffness_scale: f64,
     pub size_offset_m: f64,

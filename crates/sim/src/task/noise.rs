@@ -1,7 +1,7 @@
 //! Every noise and measurement figure of a task world, with what its source is: a datasheet
 //! (or other published figure), a measurement of ours, or a modelling choice. A modelling choice
 //! is a value we picked because nothing here measures it; the camera's are swept x0.5 / x1 / x2
-//! by `unitac trials --sweep`, so no table rests on one value of them.
+//! by `unitac-lab trials --sweep`, so no table rests on one value of them.
 
 use serde::Serialize;
 
@@ -30,7 +30,7 @@ pub struct NoiseFigure {
     pub source: &'static str,
 }
 
-const CAMERA: &str = "not measured: a table camera's error of a few mm; swept x0.5 / x1 / x2 by `unitac trials --sweep`";
+const CAMERA: &str = "not measured: a table camera's error of a few mm; swept x0.5 / x1 / x2 by `unitac-lab trials --sweep`";
 
 impl TaskConfig {
     /// Every noise and measurement figure of this world with its source.

@@ -1,8 +1,8 @@
 //! The committed object split (`objects/split.yaml`, turned into [`SPLIT`] by the build script):
 //! which cups and fabrics a trial of the training split or of the unseen split draws. Training
 //! and unseen objects differ by range (cups: diameter) and by type (fabrics). Every training and
-//! evaluation step reads this one file: the task worlds, `unitac trials`, `unitac demos` and the
-//! fits that setup runs on demonstrations.
+//! evaluation step reads this one file: the task worlds, `unitac-lab trials`, `unitac-lab demos`
+//! and the fits that setup runs on demonstrations.
 
 use serde::Serialize;
 

@@ -1,4 +1,4 @@
-//! `unitac bench contact`: per-frame time of the contact detector, side by side in one run with
+//! `unitac-lab bench contact`: per-frame time of the contact detector, side by side in one run with
 //! the Python pipeline users run today (numpy + OpenCV, as in the GelSight SDK), on the same
 //! frames, plus the floor: one read pass over the frame.
 
@@ -12,7 +12,7 @@ use unitac_contact::{ContactDetector, ContactParams};
 use unitac_core::{Frame, SensorKind, Timing, timing};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
-/// One frame size of `unitac bench contact`.
+/// One frame size of `unitac-lab bench contact`.
 #[derive(Debug, Serialize)]
 pub struct ContactBench {
     pub frame: String,
@@ -26,7 +26,7 @@ pub struct ContactBench {
     pub over_floor: f64,
 }
 
-/// `unitac bench contact`: 320x240 and 640x480 in one run.
+/// `unitac-lab bench contact`: 320x240 and 640x480 in one run.
 #[derive(Debug, Serialize)]
 pub struct ContactBenches {
     pub sizes: Vec<ContactBench>,
@@ -245,7 +245,7 @@ impl ContactBenches {
 }
 
 // ---------------------------------------------------------------------------------------------
-// `unitac bench replay`
+// `unitac-lab bench replay`
 
 #[derive(Debug, Serialize)]
 pub struct ReplayBench {

@@ -1,12 +1,11 @@
-//! `unitac bench policy` runs end to end with tiny counts and reports every row (a smoke test:
-//! no timing is judged here), and the footprint benchmark's all-stages scene really loads every
-//! stage kind a scene can name.
+//! `unitac-lab bench policy` runs end to end with tiny counts and reports every row (a smoke test:
+//! no timing is judged here).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::process::Command;
 
 mod common;
-use common::unitac_within;
+use common::unitac_lab_within;
 
 /// Every scene per task and mode (`<task>_<mode>` in the scene directories, the list
 /// `unitac_pipeline::tasks` finds), so a scene added there and left out of the bench fails here.
@@ -21,7 +20,7 @@ fn scenes() -> Vec<String> {
 
 #[test]
 fn bench_policy_prints_a_row_per_scene_mode_and_pass_and_the_python_rows() {
-    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac-lab"))
         .args(["bench", "policy", "--repeat", "1", "--ticks", "3", "--json"])
         .output()
         .unwrap();
@@ -73,7 +72,7 @@ fn bench_policy_prints_a_row_per_scene_mode_and_pass_and_the_python_rows() {
     assert!(j["python_over_rust"]["p50"].as_f64().is_some(), "{j}");
 
     // The text table: a line per row.
-    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac-lab"))
         .args(bench_policy_args("0"))
         .output()
         .unwrap();
@@ -91,30 +90,7 @@ fn bench_policy_prints_a_row_per_scene_mode_and_pass_and_the_python_rows() {
     assert!(!text.contains("python "), "{text}");
 }
 
-#[test]
-fn the_all_stages_scene_loads_every_stage_kind() {
-    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let path = root.join("bench/scenes/all_stages.yaml");
-    let scene = unitac_pipeline::load_scene(path.to_str().unwrap(), None).unwrap();
-    let cfgs = unitac_pipeline::stage_configs(&scene).unwrap();
-    let kinds: Vec<&str> = cfgs.iter().map(|c| c.kind()).collect();
-    for k in unitac_pipeline::KNOWN_STAGES {
-        assert!(
-            kinds.contains(k),
-            "all_stages.yaml lacks a {k} stage: {kinds:?}"
-        );
-    }
-    // Every model the scene names is used by a stage.
-    let named: Vec<&String> = scene.models.keys().collect();
-    for m in named {
-        assert!(
-            scene.stages.iter().any(|s| s.models.contains(m)),
-            "model {m} is loaded by no stage"
-        );
-    }
-}
-
-/// `unitac bench policy` of one repeat, `ticks` ticks and no Python rows.
+/// `unitac-lab bench policy` of one repeat, `ticks` ticks and no Python rows.
 fn bench_policy_args(ticks: &str) -> Vec<&str> {
     vec![
         "bench",
@@ -134,15 +110,15 @@ fn a_bad_bundle_and_a_tick_count_out_of_range_are_exit_2_before_any_work() {
     std::fs::write(dir.join("manifest.json"), "{\"policy\": 1}").unwrap();
     let mut args = bench_policy_args("0");
     args.extend(["--policy", dir.to_str().unwrap()]);
-    let o = unitac_within(&args, &[], std::time::Duration::from_secs(120));
+    let o = unitac_lab_within(&args, &[], std::time::Duration::from_secs(120));
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.starts_with("unitac: --policy "), "{err}");
+    assert!(err.starts_with("unitac-lab: --policy "), "{err}");
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(o.stdout.is_empty());
     let _ = std::fs::remove_dir_all(&dir);
 
-    let o = unitac_within(
+    let o = unitac_lab_within(
         &bench_policy_args("4294967295"),
         &[],
         std::time::Duration::from_secs(60),
@@ -151,7 +127,7 @@ fn a_bad_bundle_and_a_tick_count_out_of_range_are_exit_2_before_any_work() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert_eq!(
         err.trim(),
-        "unitac: --ticks 4294967295 is outside 0..=100000",
+        "unitac-lab: --ticks 4294967295 is outside 0..=100000",
         "{err}"
     );
 }

@@ -1,4 +1,4 @@
-//! `unitac demos --scene S[,S2] [--mode M] --split train|unseen --seeds 1,2 --trials N --out DIR`:
+//! `unitac-lab demos --scene S[,S2] [--mode M] --split train|unseen --seeds 1,2 --trials N --out DIR`:
 //! the scripted expert's demonstrations for mode M (default: the first scene's mode) of the
 //! scenes' task, with what a policy of every mode could observe (unitac_trials::demos), the
 //! frames going through each scene's own tactile stages (every stage before its policy stage; one
@@ -11,11 +11,11 @@
 //! drives the world through its own stages as in a trial, and every tick is labelled with the
 //! expert's command there (unitac_trials::demos::record_driven).
 
-use crate::ConfigError;
 use anyhow::Context;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use unitac_cli::ConfigError;
 use unitac_pipeline::{StageConfig, build_stage, load_scene_without_policy_models, stage_configs};
 use unitac_policy::{Mode, PolicyParams};
 use unitac_sim::MockConfig;

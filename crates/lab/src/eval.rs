@@ -1,4 +1,4 @@
-//! `unitac eval contact`: detection quality against the mock sensor's ground truth.
+//! `unitac-lab eval contact`: detection quality against the mock sensor's ground truth.
 //!
 //! Press-depth sweep from barely touching to deep, on GelSight Mini and DIGIT renders with noise
 //! (1 DN) and illumination drift (LED warm-up + wander), at 25 fps. A frame is a positive when the

@@ -15,7 +15,7 @@ const ARGS: [&str; 6] = ["dataset", "fabrics", "--train", "3", "--test", "1"];
 #[test]
 fn dataset_is_quiet_when_piped() {
     let dir = out_dir("piped");
-    let out = Command::new(env!("CARGO_BIN_EXE_unitac"))
+    let out = Command::new(env!("CARGO_BIN_EXE_unitac-lab"))
         .args(ARGS)
         .arg("--out")
         .arg(&dir)
@@ -35,7 +35,7 @@ fn dataset_shows_a_bar_on_a_terminal() {
     let dir = out_dir("tty");
     let cmd = format!(
         "'{}' {} --out '{}'",
-        env!("CARGO_BIN_EXE_unitac"),
+        env!("CARGO_BIN_EXE_unitac-lab"),
         ARGS.join(" "),
         dir.display()
     );

@@ -1,4 +1,4 @@
-//! `unitac bench policy`: the policy stage's control tick (observation -> command), embedded.
+//! `unitac-lab bench policy`: the policy stage's control tick (observation -> command), embedded.
 //!
 //! For each scene x mode (`launch/scenes/<task>_<mode>.yaml`, `unitac_pipeline::tasks`) the scene's own policy stage
 //! is built from the scene file and ticked through `unitac_core::chain` at the control rate, as
@@ -505,7 +505,7 @@ fn load_onnx(dir: Option<&Path>) -> anyhow::Result<(OnnxPolicy, String, Option<P
             .collect();
         let msg = format!("--policy {}: {}", dir.display(), text.join(" "));
         match generated {
-            None => anyhow::Error::new(crate::ConfigError(msg)),
+            None => anyhow::Error::new(unitac_cli::ConfigError(msg)),
             Some(_) => anyhow::anyhow!(msg),
         }
     })?;
@@ -583,7 +583,7 @@ pub const MAX_PACED_TICKS: usize = 100_000;
 
 pub fn bench_policy(opts: &Options) -> anyhow::Result<PolicyBench> {
     if opts.paced_ticks > MAX_PACED_TICKS {
-        return Err(anyhow::Error::new(crate::ConfigError(format!(
+        return Err(anyhow::Error::new(unitac_cli::ConfigError(format!(
             "--ticks {} is outside 0..={MAX_PACED_TICKS}",
             opts.paced_ticks
         ))));

@@ -1,4 +1,4 @@
-//! `unitac report sampler` and `unitac bench sampler`: error against run time of the flow
+//! `unitac-lab report sampler` and `unitac-lab bench sampler`: error against run time of the flow
 //! sampler (Euler / midpoint / Heun x steps x guidance) on two velocity models: the reference
 //! bundle's analytic Gaussian (error against the exact solution) and the trained touch projector
 //! (the touch bundle's, error against a 1024-step Heun reference) on an unseen cup's condition

@@ -1,4 +1,4 @@
-//! `unitac dataset fabrics`: mock-sensor presses on fabrics with known properties, run through
+//! `unitac-lab dataset fabrics`: mock-sensor presses on fabrics with known properties, run through
 //! the real contact stage and the encoder's preprocessing, written for the reference bundle's
 //! fitting script (python/unitac_tools/generate_reference.py).
 //!
@@ -120,12 +120,12 @@ pub const MAX_SAMPLES: usize = 100_000;
 pub fn fabrics(out: &Path, train: usize, test: usize, seed: u64) -> anyhow::Result<()> {
     let n = train.saturating_add(test);
     if n == 0 || n > MAX_SAMPLES {
-        return Err(crate::args::usage(format!(
+        return Err(unitac_cli::args::usage(format!(
             "--train {train} + --test {test} is {n}; 1 to {MAX_SAMPLES} (inclusive)"
         )));
     }
     std::fs::create_dir_all(out)
-        .map_err(|e| crate::args::usage(format!("--out {}: {e}", out.display())))?;
+        .map_err(|e| unitac_cli::args::usage(format!("--out {}: {e}", out.display())))?;
     let pre = Preprocess::reference();
     let mut clips = std::io::BufWriter::new(std::fs::File::create(out.join("clips.f32"))?);
     let mut bgs = std::io::BufWriter::new(std::fs::File::create(out.join("backgrounds.f32"))?);

@@ -1,4 +1,4 @@
-//! `unitac dataset touch --split train|unseen --seeds 1,2 --trials N --sensor S --out DIR`: what
+//! `unitac-lab dataset touch --split train|unseen --seeds 1,2 --trials N --sensor S --out DIR`: what
 //! is known about an object before it is touched, paired with what the touch encoder says when
 //! it is touched, for the touch projector (python/unitac_tools/train_projector.py).
 //!
@@ -20,12 +20,12 @@
 //! their hardness (as `dataset fabrics`), through the contact stage and the encoder. Written as
 //! `DIR/touch.json`. Same arguments, same bytes.
 
-use crate::ConfigError;
 use crate::dataset::{first_clip, press};
 use anyhow::{Context, bail};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use unitac_cli::ConfigError;
 use unitac_contact::{ContactParams, ContactStage};
 use unitac_core::{Chain, Frame, Msg, SensorKind};
 use unitac_infer::Bundle;

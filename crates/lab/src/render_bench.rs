@@ -1,11 +1,12 @@
-//! `unitac bench render`: time to render one mock frame, on one core.
+//! `unitac-lab bench render`: time to render one mock frame (unitac_sim's mock sensor), on one
+//! core.
 
 use serde::Serialize;
 use std::hint::black_box;
 use std::time::Instant;
 use unitac_core::{FrameError, SensorKind, SensorSpec, Timing, timing};
 
-use crate::{MockConfig, MockSensor, Scenario};
+use unitac_sim::{MockConfig, MockSensor, Scenario};
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RenderRow {

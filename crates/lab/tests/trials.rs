@@ -1,14 +1,14 @@
-//! `unitac trials`: the table has every criterion for every mode, beside the paper's, and each
+//! `unitac-lab trials`: the table has every criterion for every mode, beside the paper's, and each
 //! trial's outcome; bad arguments are exit 2.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
-use common::unitac;
+use common::unitac_lab;
 
 #[test]
 fn one_cup_trial_per_mode_gives_every_row_and_each_outcome() {
     let dir = std::env::temp_dir().join(format!("unitac-cli-trials-{}", std::process::id()));
-    let o = unitac(&[
+    let o = unitac_lab(&[
         "trials",
         "--scene",
         "cup_deformation",
@@ -80,7 +80,7 @@ fn one_cup_trial_per_mode_gives_every_row_and_each_outcome() {
 
 #[test]
 fn the_text_table_names_each_criterion_and_bad_arguments_are_exit_2() {
-    let o = unitac(&[
+    let o = unitac_lab(&[
         "trials",
         "--scene",
         "cup_deformation",
@@ -114,7 +114,7 @@ fn the_text_table_names_each_criterion_and_bad_arguments_are_exit_2() {
             "robotiq_2f85",
         ],
     ] {
-        let o = unitac(bad);
+        let o = unitac_lab(bad);
         assert_eq!(
             o.status.code(),
             Some(2),
@@ -127,7 +127,7 @@ fn the_text_table_names_each_criterion_and_bad_arguments_are_exit_2() {
 
 #[test]
 fn a_serial_gripper_trial_reports_its_wire_in_the_json() {
-    let o = unitac(&[
+    let o = unitac_lab(&[
         "trials",
         "--scene",
         "cup_deformation",
@@ -153,7 +153,7 @@ fn a_serial_gripper_trial_reports_its_wire_in_the_json() {
     );
     assert!(s["last_raw_position"].is_u64(), "{t}");
     // The in-process gripper has no wire to report.
-    let o = unitac(&[
+    let o = unitac_lab(&[
         "trials",
         "--scene",
         "cup_deformation",
@@ -172,7 +172,7 @@ fn a_serial_gripper_trial_reports_its_wire_in_the_json() {
 fn the_sweep_the_clamps_and_the_noise_sources_are_in_the_json() {
     // The cup VLA (no model to load): the sweep's six variations of the world, each a table of
     // the same shape; per mode the ticks and clamps; every noise figure with its source.
-    let o = unitac(&[
+    let o = unitac_lab(&[
         "trials",
         "--scene",
         "cup_deformation",
@@ -227,7 +227,7 @@ fn the_sweep_the_clamps_and_the_noise_sources_are_in_the_json() {
 
 #[test]
 fn the_vla_rule_is_calibrated_on_training_cups_only() {
-    let o = unitac(&[
+    let o = unitac_lab(&[
         "trials",
         "--scene",
         "cup_deformation",
@@ -268,7 +268,7 @@ fn the_vla_rule_is_calibrated_on_training_cups_only() {
             "--calibrate-vla",
         ][..],
     ] {
-        assert_eq!(unitac(args).status.code(), Some(2), "{args:?}");
+        assert_eq!(unitac_lab(args).status.code(), Some(2), "{args:?}");
     }
 }
 
@@ -322,12 +322,12 @@ fn learned_scene(dir: &std::path::Path, task: &str, bundle: &std::path::Path, ex
     std::fs::write(dir.join(format!("{task}_learned_vla.yaml")), out).unwrap();
 }
 
-/// `unitac args` (warnings and errors logged), killed after `limit`.
-fn unitac_within(args: &[&str], limit: std::time::Duration) -> std::process::Output {
-    common::unitac_within(args, &[("RUST_LOG", "warn")], limit)
+/// `unitac-lab args` (warnings and errors logged), killed after `limit`.
+fn unitac_lab_within(args: &[&str], limit: std::time::Duration) -> std::process::Output {
+    common::unitac_lab_within(args, &[("RUST_LOG", "warn")], limit)
 }
 
-/// `unitac trials` of one training trial of the learned policy in `scene`, found in the scene
+/// `unitac-lab trials` of one training trial of the learned policy in `scene`, found in the scene
 /// directory `dir`.
 fn learned_trial_args<'a>(scene: &'a str, dir: &'a std::path::Path) -> Vec<&'a str> {
     vec![
@@ -359,7 +359,7 @@ fn a_learned_policy_that_fails_on_every_tick_is_counted_warned_and_exit_1() {
     let args = learned_trial_args("stubnan", &d);
     let mut json_args = args.clone();
     json_args.push("--json");
-    let o = unitac_within(&json_args, std::time::Duration::from_secs(300));
+    let o = unitac_lab_within(&json_args, std::time::Duration::from_secs(300));
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -374,18 +374,18 @@ fn a_learned_policy_that_fails_on_every_tick_is_counted_warned_and_exit_1() {
     assert_eq!(m["trials"][0]["policy_ticks"], *t);
     assert!(
         err.contains(&format!(
-            "unitac: warning: vla: the policy gave no usable action on {ticks} of {ticks} ticks \
+            "unitac-lab: warning: vla: the policy gave no usable action on {ticks} of {ticks} ticks \
              (policy error {ticks}, inference over budget 0, action refused 0) in 1 trial(s); first: \
              policy: learned policy: "
         )),
         "{err}"
     );
     assert!(
-        err.contains("unitac: vla: the policy never acted in trial(s) 0"),
+        err.contains("unitac-lab: vla: the policy never acted in trial(s) 0"),
         "{err}"
     );
     // The text table says it too.
-    let o = unitac_within(&args, std::time::Duration::from_secs(300));
+    let o = unitac_lab_within(&args, std::time::Duration::from_secs(300));
     assert_eq!(o.status.code(), Some(1));
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(
@@ -413,7 +413,7 @@ fn a_learned_policy_over_its_inference_budget_does_not_hang_the_trial() {
     );
     let mut args = learned_trial_args("stubloop", &d);
     args.push("--json");
-    let o = unitac_within(&args, std::time::Duration::from_secs(240));
+    let o = unitac_lab_within(&args, std::time::Duration::from_secs(240));
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -442,7 +442,7 @@ fn training_seed_moves_only_a_bundle_in_the_seed_layout() {
     learned_scene(&d, "stubseed", &d.join("custom/stub/manifest.json"), "");
     let mut base = learned_trial_args("stubseed", &d);
     base.push("--json");
-    let o = unitac_within(&base, std::time::Duration::from_secs(300));
+    let o = unitac_lab_within(&base, std::time::Duration::from_secs(300));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -452,11 +452,11 @@ fn training_seed_moves_only_a_bundle_in_the_seed_layout() {
     // Asked for a training seed, a bundle outside the layout is refused, not rewritten.
     let mut args = base.clone();
     args.extend(["--training-seed", "0"]);
-    let o = unitac_within(&args, std::time::Duration::from_secs(300));
+    let o = unitac_lab_within(&args, std::time::Duration::from_secs(300));
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(
-        err.starts_with("unitac: stubseed_learned_vla: --training-seed 0: the policy bundle ")
+        err.starts_with("unitac-lab: stubseed_learned_vla: --training-seed 0: the policy bundle ")
             && err.contains("is not at <root>/seed<K>/<name>/manifest.json"),
         "{err}"
     );

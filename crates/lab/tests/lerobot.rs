@@ -1,4 +1,4 @@
-//! Demonstrations in LeRobot's dataset layout v3.0: `unitac demos` records both tasks with every
+//! Demonstrations in LeRobot's dataset layout v3.0: `unitac-lab demos` records both tasks with every
 //! mode's observations, python/unitac_tools/lerobot_dataset.py lays them out, and
 //! tests/policy/check_lerobot_v3.py checks with pyarrow what LeRobot's v3 loader reads (the
 //! project's Python: `$UNITAC_VENV` or `.venv`). The checker itself must refuse a dataset the
@@ -47,7 +47,7 @@ fn py(script: &str, args: &[&Path]) -> Output {
 /// Record `trials` demonstrations of the two scenes' task and lay them out in `dir/dataset`.
 fn dataset(dir: &Path, scenes: &str, trials: &str) -> PathBuf {
     let demos = dir.join("demos");
-    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac-lab"))
         .args([
             "demos", "--scene", scenes, "--seeds", "2", "--trials", trials,
         ])
@@ -173,7 +173,7 @@ fn the_checker_refuses_what_the_loader_would_refuse() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// A small demos.json of the cup task in the layout `unitac demos` writes: one demonstration of
+/// A small demos.json of the cup task in the layout `unitac-lab demos` writes: one demonstration of
 /// three ticks, one object, pooled latents 2 wide, every value inside its bounds.
 fn small_demos() -> serde_json::Value {
     // The command actions as the recorder names them (one list, unitac_trials::demos).

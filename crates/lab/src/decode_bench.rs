@@ -1,4 +1,4 @@
-//! `unitac bench decode`: GelSight Mini MJPEG 3280x2464 -> 320x240 RGB per frame, side by side in
+//! `unitac-lab bench decode`: GelSight Mini MJPEG 3280x2464 -> 320x240 RGB per frame, side by side in
 //! one run with the vendor SDK's OpenCV pipeline (full-size imdecode, crop, resize; one thread),
 //! and with the fastest paths a Python user has (OpenCV IMREAD_REDUCED_COLOR_8 / _4, Pillow
 //! draft 1/8: libjpeg-turbo's scaled decode), on the same JPEGs; the Rust alternatives

@@ -1,4 +1,4 @@
-//! `unitac eval slip`: the slip stage's shear, rotation and slip flag against the mock sensor's
+//! `unitac-lab eval slip`: the slip stage's shear, rotation and slip flag against the mock sensor's
 //! tangential truth.
 //!
 //! Every case is one touch on a GelSight Mini render (noise 1 DN, 25 fps) through the real chain

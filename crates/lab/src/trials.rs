@@ -1,10 +1,9 @@
-//! `unitac trials`: the paper's closed-loop grasp trials in the sim world, one scene file per mode
+//! `unitac-lab trials`: the paper's closed-loop grasp trials in the sim world, one scene file per mode
 //! (`<scene>_<mode>.yaml`), N trials each, the success table beside the paper's.
 //!
 //! The loop is unitac-trials' (`run_trial_on`, with the gripper `--gripper` names); here: arguments, the stages built fresh per trial
 //! from the scene (unitac-pipeline), the progress bar, the table, JSON and the plots.
 
-use crate::ConfigError;
 use crate::progress;
 use anyhow::{Context, Result};
 use clap::builder::{PossibleValuesParser, TypedValueParser};
@@ -13,6 +12,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU32, Ordering};
+use unitac_cli::ConfigError;
 use unitac_plot::{Axis, Band, Chart, Figure, PALETTE, Series, Stroke};
 use unitac_policy::{Mode, TickCounts};
 use unitac_sim::task::{PlotKind, Split, Sweep, TaskConfig, TaskKind, TaskOutcome};
@@ -96,7 +96,7 @@ pub struct TrialsArgs {
     /// sends, drawn per tick from the trial's own stream: a policy whose arm does not hold its
     /// height still (the world's grasp geometry must not turn it into a collision).
     #[arg(long, value_name = "M", default_value_t = 0.0,
-          value_parser = crate::args::f64_in(0.0, unitac_trials::run::MAX_ARM_Z_NOISE_M))]
+          value_parser = unitac_cli::args::f64_in(0.0, unitac_trials::run::MAX_ARM_Z_NOISE_M))]
     pub arm_z_noise_m: f64,
 }
 
@@ -541,7 +541,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         let training_seed = a
             .training_seed
             .or_else(|| scenes.first().and_then(|(_, s)| scene_training_seed(s)));
-        crate::emit(text_report(
+        unitac_cli::emit(text_report(
             (&a, training_seed),
             kind,
             split,
@@ -552,7 +552,7 @@ pub fn run(a: TrialsArgs) -> Result<bool> {
         ))?;
     }
     for line in failures.0.iter().chain(&failures.1) {
-        eprintln!("unitac: {line}");
+        eprintln!("{}: {line}", unitac_cli::program());
     }
     // A policy that never acted ran no trial: the table above counts nothing it did.
     Ok(failures.1.is_empty())
@@ -812,7 +812,7 @@ fn json_report(
             })
             .collect(),
     };
-    crate::emit(format_args!("{}\n", serde_json::to_string(&report)?))?;
+    unitac_cli::emit(format_args!("{}\n", serde_json::to_string(&report)?))?;
     Ok(())
 }
 
@@ -920,14 +920,14 @@ fn calibrate_vla(a: &TrialsArgs, task: &TaskConfig, records: &Records) -> Result
     let mean = errs.iter().sum::<f64>() / errs.len() as f64;
     let sd = (errs.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / errs.len() as f64).sqrt();
     let new = old - mean;
-    crate::emit(format!(
+    unitac_cli::emit(format!(
         "{} of {} training cups gripped: deformation error mean {mean:+.5} m, sd {sd:.5} m with \
          vla_offset_m {old:.5}\nvla_offset_m: {new:.5}\n",
         errs.len(),
         rs.len(),
     ))?;
     if let Some((_, rs)) = records.iter().find(|(c, _)| c.name == VLA_FORCE) {
-        crate::emit(calibrate_force_law(rs)?)?;
+        unitac_cli::emit(calibrate_force_law(rs)?)?;
     }
     Ok(true)
 }
