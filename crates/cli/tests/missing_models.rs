@@ -11,7 +11,8 @@ use std::time::Duration;
 fn run_without_models(scene: &str) -> String {
     let empty = std::env::temp_dir().join(format!("unitac-no-models-{}", std::process::id()));
     std::fs::create_dir_all(&empty).unwrap();
-    let out = common::unitac_within(
+    let out = common::shared::run_within(
+        env!("CARGO_BIN_EXE_unitac"),
         &["run", "--scene", scene, "--fast", "--max-frames", "1"],
         &[("UNITAC_MODELS", empty.to_str().unwrap())],
         Duration::from_secs(60),
@@ -52,7 +53,8 @@ fn a_missing_model_outside_the_generated_directory_gets_no_setup_hint() {
          stages:\n  - kind: contact\n  - kind: encoder\n    models: [reference]\n",
     )
     .unwrap();
-    let out = common::unitac_within(
+    let out = common::shared::run_within(
+        env!("CARGO_BIN_EXE_unitac"),
         &["run", "--scene", scene.to_str().unwrap(), "--fast"],
         &[],
         Duration::from_secs(60),
