@@ -346,7 +346,7 @@ fn stepper(p: &Params) -> anyhow::Result<WorldStepper> {
 }
 
 /// Over-ROS tick timing (a benchmark's figures, reported with the outcome): GripperStatus
-/// published -> both commands for it received [s], and when they arrived [s].
+/// published -> both commands for it received, and when they arrived (seconds).
 #[derive(Default)]
 struct TickTimes {
     round_trip_s: Vec<f64>,
