@@ -85,15 +85,24 @@ print(f"[setup] {mode} fabric decisions: " + ", ".join(
     f"{c} {sum(d['chosen'] == c for d in demos)}" for c in sorted(chosen)), file=sys.stderr)
 PY
 }
+# record TASK MODE: one mode's demonstrations of one task, checked, laid out as a LeRobot dataset.
+record() {
+  local task="$1" mode="$2" d="$OUT.tmp/demos/$1/$2"
+  target/release/unitac-lab demos --scene "${task}_vtla_real,${task}_vtla_pred" --mode "$mode" \
+    --split train --seeds 1,2,3 --trials 20 --out "$d" >&2
+  if [ "$task" = fabric_selection ]; then check_decisions "$d/demos.json" "$mode"; fi
+  "$VENV/bin/python" -m unitac_tools.lerobot_dataset --demos "$d/demos.json" \
+    --out "$OUT.tmp/datasets/$task/$mode" >&2
+}
 sets=()
 for task in "${TASKS[@]}"; do
+  # The recorder runs on one core: a task's two modes side by side (each writes its own files).
+  pids=()
   for mode in vtla_real vla; do
-    target/release/unitac-lab demos --scene "${task}_vtla_real,${task}_vtla_pred" --mode "$mode" \
-      --split train --seeds 1,2,3 --trials 20 --out "$OUT.tmp/demos/$task/$mode" >&2
-    [ "$task" = fabric_selection ] && check_decisions "$OUT.tmp/demos/$task/$mode/demos.json" "$mode"
-    "$VENV/bin/python" -m unitac_tools.lerobot_dataset --demos "$OUT.tmp/demos/$task/$mode/demos.json" \
-      --out "$OUT.tmp/datasets/$task/$mode" >&2
+    record "$task" "$mode" &
+    pids+=($!)
   done
+  for p in "${pids[@]}"; do wait "$p"; done
   cp -r "$OUT.tmp/datasets/$task/vla" "$OUT.tmp/datasets/$task/vtla_pred"
   sets+=(--dataset "$OUT.tmp/datasets/$task")
 done
