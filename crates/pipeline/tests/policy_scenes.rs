@@ -312,3 +312,35 @@ fn a_learned_policy_loads_only_a_bundle_that_fits_the_scene() {
         "{e}"
     );
 }
+
+/// A policy waits only for what its scene makes: for every shipped scene with a policy stage
+/// (scripted and learned), each input the built stage awaits at start comes from outside (the
+/// gripper, the camera) or from a stage of that scene, so a transport watching the producers
+/// never holds for a topic nothing in the scene publishes. (A learned VTLA-real cup policy's
+/// model has a comparison slot, which stays zero: the cup scene has no compare stage.)
+#[test]
+fn a_policy_awaits_only_inputs_its_scene_produces() {
+    let mut checked = 0;
+    for name in unitac_pipeline::scene_names(None) {
+        let s = load_scene(&name, None).unwrap();
+        let kinds: Vec<&str> = s.stages.iter().map(|st| st.kind.as_str()).collect();
+        if !kinds.contains(&"policy") {
+            continue;
+        }
+        let stages = unitac_pipeline::build_stages(&s).unwrap();
+        let policy = stages.last().unwrap();
+        let awaited = policy.awaited_inputs();
+        assert!(awaited.contains(&"gripper"), "{name}: {awaited:?}");
+        for input in awaited {
+            let spec = unitac_policy::observation::input(input).unwrap();
+            if let Some(producer) = spec.produced_by {
+                assert!(
+                    kinds.contains(&producer),
+                    "{name}: awaits {input}, made by a {producer} stage it does not have"
+                );
+            }
+        }
+        checked += 1;
+    }
+    assert_eq!(checked, 12);
+}

@@ -244,6 +244,10 @@ pub struct LearnedPolicy {
     onnx: OnnxPolicy,
     /// The stage inputs its features come from.
     reads: Vec<&'static str>,
+    /// Of those, the ones the scene's mode reads for its task (schema `modes`): the inputs whose
+    /// producers the transport watches. A feature the mode does not read for the task (a cup
+    /// scene's comparison slot) stays zero and has no producer to wait for.
+    awaited: Vec<&'static str>,
     memory: Memory,
     /// "home", then the scene's objects; the score action of each.
     targets: Vec<(String, usize)>,
@@ -386,8 +390,19 @@ impl LearnedPolicy {
         if !problems.is_empty() {
             return Err(load_error(dir, problems));
         }
+        let reads = Self::inputs_of(&onnx);
+        let mode_reads = params
+            .check()
+            .map(|task| params.mode.inputs(task.is_pick()))
+            .unwrap_or_default();
+        let awaited = reads
+            .iter()
+            .copied()
+            .filter(|r| mode_reads.contains(r))
+            .collect();
         Ok(Self {
-            reads: Self::inputs_of(&onnx),
+            reads,
+            awaited,
             onnx,
             memory: Memory::new(&params.limits.objects, width, params.approach_s),
             targets,
@@ -481,7 +496,7 @@ impl Policy for LearnedPolicy {
     }
 
     fn awaited(&self) -> Vec<&'static str> {
-        self.reads()
+        self.awaited.clone()
     }
 
     fn act(&mut self, obs: &Observation) -> Result<Vec<Action>, PolicyError> {
