@@ -2,7 +2,8 @@
 an rclpy node running the GelSight SDK's (gs_sdk) contact pipeline on each image: the same
 detector as bench/contact_baseline.py, background = mean of the first 10 frames (as our node
 learns it), ContactState out with the image's header. Same topics and QoS as
-unitac_contact_node (image best-effort in, contact_state reliable out), single thread.
+our contact node (unitac_stage_node with stages:=contact,slip: image best-effort in,
+contact_state reliable out), single thread.
 
 usage: ros_contact_baseline.py --ros-args -r __ns:=/bench
 """

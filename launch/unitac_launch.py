@@ -68,7 +68,8 @@ ARGUMENTS = {
     "image_transport": ("raw", "Images the contact node reads: raw (image_raw) | compressed (image_raw/compressed; JPEG/PNG bags and cameras)"),
     "use_sim_time": ("auto", "Nodes take time from /clock: true | false | auto (true for the bag source)"),
     "namespace": ("", "Namespace of every node"),
-    "inference": ("true", "Run the inference node for the scene's encoder/compare/sampler stages (true | false)"),
+    "inference": ("true", "Run the inference group's node (the scene's encoder/compare/sampler stages; "
+                           "stage_graph.yaml) (true | false)"),
     "sensor": ("true", "Run the sensor node (false when images come from elsewhere)"),
     "params_file": ("", "Extra --params-file YAML applied to every node"),
     "split": ("train", "Sim source: train | unseen objects (objects/split.yaml: cups by diameter range, fabrics by type)"),
@@ -101,16 +102,30 @@ ARGUMENTS = {
 # Every value of the gripper argument.
 GRIPPERS = SERIAL_GRIPPERS + ("sim", "action", "none")
 
-# Stage kind -> the node that runs it (one node per executable: the contact node runs the slip
-# stage too, after its contact stage). Nodes read their stages' parameters from the scene file
-# themselves, through the same registry and typed structs as `unitac run`; nothing is copied here,
-# so nothing can be dropped. Override a stage parameter with `<stage>.<key>` in params_file.
-# The map is stage_nodes.yaml beside this file, which the node binaries read too.
-with open(os.path.join(HERE, "stage_nodes.yaml")) as _f:
-    _NODE_STAGES = yaml.safe_load(_f)
-# These run in one inference node.
-INFERENCE_STAGES = set(_NODE_STAGES["unitac_inference_node"])
-STAGE_NODES = {k: exe for exe, kinds in _NODE_STAGES.items() for k in kinds if k not in INFERENCE_STAGES}
+# The stage graph (stage_graph.yaml beside this file, which the nodes and the scene check read
+# too): each stage kind's group; the stages of a scene in one group run in one node, the generic
+# `unitac_stage_node` unless the group names an executable of its own. Nodes read their stages'
+# parameters from the scene file themselves, through the same registry and typed structs as
+# `unitac run`; nothing is copied here, so nothing can be dropped. Override a stage parameter
+# with `<stage>.<key>` in params_file.
+with open(os.path.join(HERE, "stage_graph.yaml")) as _f:
+    GRAPH = yaml.safe_load(_f)
+STAGE_NODE = "unitac_stage_node"
+
+
+def node_groups(kinds):
+    """The scene's stage kinds (in scene order) by the group that runs them, groups in order of
+    their first stage: [(group, [kinds])]; kinds the graph does not know go to group None."""
+    groups = []
+    for k in kinds:
+        g = GRAPH["stages"].get(k, {}).get("group")
+        for name, members in groups:
+            if name == g:
+                members.append(k)
+                break
+        else:
+            groups.append((g, [k]))
+    return groups
 
 
 def scene_dirs():
@@ -258,18 +273,14 @@ def plan(scene_name, args=None):
         else:
             nodes.append({"executable": "unitac_sensor_node", "name": "unitac_sensor", "namespace": a["namespace"],
                           "parameters": [p] + extra, "remappings": []})
-    inference = False
-    for st in scene.get("stages", []):
-        k = st["kind"]
-        if k in INFERENCE_STAGES:
-            inference = inference or a["inference"] == "true"
+    for group, members in node_groups(kinds):
+        if group is None:
+            skipped.extend((k, "no ROS node for this stage kind") for k in members)
             continue
-        if k not in STAGE_NODES:
-            skipped.append((k, "no ROS node for this stage kind"))
+        if group == "inference" and a["inference"] != "true":
             continue
-        if any(n["executable"] == STAGE_NODES[k] for n in nodes):
-            continue  # that node runs this stage as well
-        if k == "policy":
+        exe = GRAPH["groups"][group].get("executable") or STAGE_NODE
+        if exe == "unitac_policy_node":
             p, remaps = {"scene": scene_path, "arm_frame": a["arm_frame"]}, []
             if gripper in SERIAL_GRIPPERS:
                 # The safety layer's bounds inside the model's profile (stroke, grip, speed).
@@ -279,19 +290,18 @@ def plan(scene_name, args=None):
                 p.update({"gripper_input": "joint_states", "gripper_output": "action",
                           "gripper_action": a["gripper_action"], "joint_name": a["gripper_joint"]})
                 remaps = [("joint_states", a["joint_states"])]
-            nodes.append({"executable": STAGE_NODES[k], "name": "unitac_policy", "namespace": a["namespace"],
+            nodes.append({"executable": exe, "name": "unitac_policy", "namespace": a["namespace"],
                           "parameters": [p] + timing + extra, "remappings": remaps})
             continue
-        params = {"scene": scene_path, "image_transport": a["image_transport"], **sensor_kind}
-        if source != "bag":
-            params["sensor_id"] = a["sensor_id"]  # bag: the frame_id the bag recorded
-        nodes.append({"executable": STAGE_NODES[k], "name": "unitac_" + k, "namespace": a["namespace"],
-                      "parameters": [params] + timing + extra,
-                      "remappings": [("image", "image_raw"), ("image/compressed", "image_raw/compressed")]})
-    if inference:
-        nodes.append({"executable": "unitac_inference_node", "name": "unitac_inference",
-                      "namespace": a["namespace"], "parameters": [{"scene": scene_path}] + timing + extra,
-                      "remappings": []})
+        params, remaps = {"scene": scene_path, "stages": ",".join(members)}, []
+        if any("frame" in GRAPH["stages"][k].get("needs", []) for k in members):
+            # The group reads the camera's images.
+            params.update({"image_transport": a["image_transport"], **sensor_kind})
+            if source != "bag":
+                params["sensor_id"] = a["sensor_id"]  # bag: the frame_id the bag recorded
+            remaps = [("image", "image_raw"), ("image/compressed", "image_raw/compressed")]
+        nodes.append({"executable": exe, "name": "unitac_" + group, "namespace": a["namespace"],
+                      "parameters": [params] + timing + extra, "remappings": remaps})
     if a["tf"] == "true":
         if not a["sensor_parent"]:
             raise ValueError("tf:=true needs sensor_parent:=<the robot link the sensor is mounted on>")

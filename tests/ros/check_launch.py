@@ -72,6 +72,14 @@ def urdf_frames(urdf_dir, kind, sensor_id, parent, xyz, rpy):
             for j in ET.fromstring(doc.toxml()).findall("joint")]
 
 
+def node_id(n):
+    """How a summary names a planned node: ours by node name (one executable, the generic stage
+    node, runs under several), another package's by executable."""
+    import unitac_launch
+
+    return n["name"] if n["package"] == unitac_launch.PACKAGE else n["executable"]
+
+
 def transforms(nodes):
     """The static_transform_publisher nodes' transforms, read back from their arguments."""
     out = []
@@ -105,9 +113,9 @@ def node_problems(f, p):
 
 
 def parameters(p):
-    """Our nodes' parameters in a plan, merged per executable."""
+    """Our nodes' parameters in a plan, merged per node name."""
     import unitac_launch
-    return {n["executable"]: {k: v for d in n["parameters"] if isinstance(d, dict) for k, v in d.items()}
+    return {n["name"]: {k: v for d in n["parameters"] if isinstance(d, dict) for k, v in d.items()}
             for n in p["nodes"] if n["package"] == unitac_launch.PACKAGE}
 
 
@@ -171,9 +179,10 @@ def main():
                 out["problems"].append(f"{f}: with {args} the description starts {started}, the plan is {planned}")
             ours = [n for n in p["nodes"] if n["package"] == unitac_launch.PACKAGE]
             plans[json.dumps(args)] = {
-                "nodes": [n["executable"] for n in p["nodes"]], "skipped": p["skipped"],
+                "nodes": [node_id(n) for n in p["nodes"]], "skipped": p["skipped"],
                 "parameters": parameters(p),
-                "remappings": {n["executable"]: [list(r) for r in n["remappings"]] for n in ours},
+                "executables": {n["name"]: n["executable"] for n in ours},
+                "remappings": {n["name"]: [list(r) for r in n["remappings"]] for n in ours},
                 "transforms": transforms(p["nodes"])}
             if args == TF_ARGS:
                 sensor_id = {**declared, **args}["sensor_id"]
@@ -207,8 +216,10 @@ def main():
                                           "remappings", "arguments"]} for n in p["nodes"]]
             if started != planned:
                 out["problems"].append(f"{generic}: scene:={scene} with {args} starts {started}, the plan is {planned}")
-            plans[json.dumps(args)] = {"nodes": [n["executable"] for n in p["nodes"]], "skipped": p["skipped"],
-                                       "parameters": parameters(p)}
+            plans[json.dumps(args)] = {"nodes": [node_id(n) for n in p["nodes"]], "skipped": p["skipped"],
+                                       "parameters": parameters(p),
+                                       "executables": {n["name"]: n["executable"] for n in p["nodes"]
+                                                       if n["package"] == unitac_launch.PACKAGE}}
         out["scenes"][scene] = plans
     try:
         unitac_launch.plan("fabric_selection", {"noise_k": "4"})

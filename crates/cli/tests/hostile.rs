@@ -225,7 +225,7 @@ fn bad_configuration_is_one_line_exit_2() {
         &format!(
             "{SRC}{models}stages:\n  - {{kind: encoder, models: [unitac]}}\n  - {{kind: contact}}\n"
         ),
-        "encoder consumes the output of a contact stage, which must come before it",
+        "encoder needs contact_clip, which a contact stage makes: it must come before it",
     );
     for (name, params, needle) in [
         ("nan", "guidance: .nan", "guidance must be in [0, 100]"),

@@ -8,6 +8,7 @@ pub mod chain;
 pub mod clock;
 pub mod frame;
 pub mod golden;
+pub mod graph;
 pub mod msg;
 pub mod pace;
 pub mod pixel;

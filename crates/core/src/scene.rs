@@ -190,9 +190,10 @@ pub struct SceneContext {
     pub known_stages: Vec<String>,
     /// `${NAME}` prefixes allowed in model paths (e.g. `UNITAC_MODELS` -> the model directory).
     pub vars: BTreeMap<String, PathBuf>,
-    /// Stage kind -> the kind whose output it consumes, which must come earlier in the list
-    /// (e.g. `encoder` -> `contact`: an encoder before the contact stage never sees a clip).
-    pub needs: BTreeMap<String, String>,
+    /// What each stage kind consumes and produces: a stage's needed inputs must come from
+    /// outside or from a stage earlier in the list (an encoder before the contact stage never
+    /// sees a clip). Empty: no order is checked.
+    pub graph: crate::graph::StageGraph,
 }
 
 /// Find `name` (a path, or a scene name looked up as `<dir>/<name>.yaml`).
@@ -325,18 +326,9 @@ impl Scene {
             _ => {}
         }
 
-        for (index, st) in file.stages.iter().enumerate() {
-            if let Some(need) = ctx.needs.get(&st.kind) {
-                if !file.stages[..index].iter().any(|s| &s.kind == need) {
-                    return Err(bad(
-                        &format!("stages[{}]", index + 1),
-                        format!(
-                            "{} consumes the output of a {need} stage, which must come before it",
-                            st.kind
-                        ),
-                    ));
-                }
-            }
+        let kinds: Vec<&str> = file.stages.iter().map(|s| s.kind.as_str()).collect();
+        if let Err((index, e)) = ctx.graph.check_order(&kinds) {
+            return Err(bad(&format!("stages[{}]", index + 1), e.to_string()));
         }
 
         let base = path.parent().unwrap_or(Path::new("."));
@@ -539,7 +531,7 @@ mod tests {
         // An encoder before the contact stage never sees a clip.
         let mut c = ctx();
         c.known_stages.push("encoder".into());
-        c.needs.insert("encoder".into(), "contact".into());
+        c.graph = crate::graph::StageGraph::shipped().unwrap();
         let t = "scene: d\nsource: {kind: mock}\nstages:\n  - kind: encoder\n  - kind: contact\n";
         let e = Scene::parse(t, Path::new("x.yaml"), &c).unwrap_err();
         assert!(

@@ -4,6 +4,7 @@ use serde::de::DeserializeOwned;
 use std::path::PathBuf;
 use unitac_bag::{BagSource, ReplayOptions};
 use unitac_contact::{ContactParams, ContactStage, SlipParams, SlipStage};
+use unitac_core::graph::StageGraph;
 use unitac_core::scene::{SceneContext, SceneError, SensorArg, SourceKind, StageSpec};
 use unitac_core::{Scene, Source, Stage};
 
@@ -36,10 +37,7 @@ pub fn scene_dirs(extra: Option<PathBuf>) -> Vec<PathBuf> {
 pub fn scene_context() -> SceneContext {
     let mut ctx = SceneContext {
         known_stages: KNOWN_STAGES.iter().map(|s| s.to_string()).collect(),
-        needs: STAGE_NEEDS
-            .iter()
-            .map(|(a, b)| (a.to_string(), b.to_string()))
-            .collect(),
+        graph: graph().clone(),
         ..Default::default()
     };
     let models = std::env::var_os("UNITAC_MODELS")
@@ -56,14 +54,12 @@ pub fn scene_context() -> SceneContext {
 
 /// Stage kinds a scene may name.
 pub const KNOWN_STAGES: &[&str] = &["contact", "slip", "encoder", "compare", "sampler", "policy"];
-/// Stage kind -> the kind it takes its input from (clips, backgrounds and contact states come
-/// from contact, properties from encoder); the scene must list that one first.
-pub const STAGE_NEEDS: &[(&str, &str)] = &[
-    ("slip", "contact"),
-    ("encoder", "contact"),
-    ("sampler", "contact"),
-    ("compare", "encoder"),
-];
+/// The shipped stage graph (launch/stage_graph.yaml, compiled in; a test checks that it
+/// parses and declares exactly [`KNOWN_STAGES`]).
+pub fn graph() -> &'static StageGraph {
+    static GRAPH: std::sync::OnceLock<StageGraph> = std::sync::OnceLock::new();
+    GRAPH.get_or_init(|| StageGraph::shipped().unwrap_or_default())
+}
 
 fn params<T: DeserializeOwned + Default>(
     scene: &Scene,
@@ -230,10 +226,12 @@ pub fn check_modes(scene: &Scene) -> Result<(), SceneError> {
         let index = i + 1;
         let p: PolicyParams = params(scene, index, st)?;
         let before: Vec<&str> = scene.stages[..i].iter().map(|s| s.kind.as_str()).collect();
-        unitac_policy::check_scene(&p, &before, STAGE_NEEDS).map_err(|e| SceneError::BadValue {
-            path: scene.path.clone(),
-            field: format!("stages[{index}].params (policy)"),
-            msg: e.to_string(),
+        unitac_policy::check_scene(&p, &before, &graph().stage_needs()).map_err(|e| {
+            SceneError::BadValue {
+                path: scene.path.clone(),
+                field: format!("stages[{index}].params (policy)"),
+                msg: e.to_string(),
+            }
         })?;
     }
     Ok(())

@@ -34,36 +34,7 @@ pub mod diagnostics;
 pub mod drops;
 pub mod image;
 pub mod node;
-
-/// Which node runs each stage kind: launch/stage_nodes.yaml (the launch planner reads the same
-/// file), node executable -> stage kinds, in the file's order.
-const STAGE_NODES: &str = include_str!("../../../launch/stage_nodes.yaml");
-
-/// The stage kinds the node `exe` runs (launch/stage_nodes.yaml).
-pub fn node_stages(exe: &str) -> anyhow::Result<&'static [&'static str]> {
-    type Map = Vec<(String, Vec<&'static str>)>;
-    static MAP: std::sync::OnceLock<Result<Map, String>> = std::sync::OnceLock::new();
-    let map = MAP
-        .get_or_init(|| {
-            let m: std::collections::BTreeMap<String, Vec<String>> =
-                serde_yaml::from_str(STAGE_NODES).map_err(|e| e.to_string())?;
-            Ok(m.into_iter()
-                .map(|(k, v)| {
-                    let kinds = v
-                        .into_iter()
-                        .map(|s| &*Box::leak(s.into_boxed_str()))
-                        .collect();
-                    (k, kinds)
-                })
-                .collect())
-        })
-        .as_ref()
-        .map_err(|e| anyhow::anyhow!("launch/stage_nodes.yaml: {e}"))?;
-    map.iter()
-        .find(|(k, _)| k == exe)
-        .map(|(_, v)| v.as_slice())
-        .ok_or_else(|| anyhow::anyhow!("launch/stage_nodes.yaml names no stages for {exe}"))
-}
+pub mod topics;
 
 /// The stages of `scene` (a name or a path) whose kind is in `kinds`, built by the same registry
 /// `unitac run` uses, from the scene's params with the node's `<stage>.<key>` overrides applied.

@@ -53,7 +53,8 @@ fn unitac_ok(args: &[&str]) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
-fn node(bin: &str, ns: &str, params: &[String]) -> Child {
+/// `bin` in namespace `ns` reading `image_raw`, with `role` (ROS arguments) and `params`.
+fn node(bin: &str, role: &[&str], ns: &str, params: &[String]) -> Child {
     let mut c = Command::new(bin);
     c.args([
         "--ros-args",
@@ -62,6 +63,7 @@ fn node(bin: &str, ns: &str, params: &[String]) -> Child {
         "-r",
         "image:=image_raw",
     ]);
+    c.args(role);
     for p in params {
         c.args(["-p", p]);
     }
@@ -224,7 +226,8 @@ fn depth_and_points_reach_rclpy_and_every_transport_gives_the_same_bytes() {
     let ns = format!("/d{}", std::process::id());
     let scene_p = format!("scene:={scene_s}");
     let contact = node(
-        env!("CARGO_BIN_EXE_unitac_contact_node"),
+        common::STAGE_NODE,
+        &common::CONTACT,
         &ns,
         &[
             scene_p.clone(),
@@ -234,11 +237,15 @@ fn depth_and_points_reach_rclpy_and_every_transport_gives_the_same_bytes() {
     );
     // A second contact node on the same images with the overlay on.
     let overlay_ns = format!("{ns}/overlay");
-    let overlay = Command::new(env!("CARGO_BIN_EXE_unitac_contact_node"))
+    let overlay = Command::new(common::STAGE_NODE)
         .args([
             "--ros-args",
             "-r",
             &format!("__ns:={overlay_ns}"),
+            "-r",
+            "__node:=unitac_contact",
+            "-p",
+            "stages:=contact,slip",
             "-r",
             &format!("image:={ns}/image_raw"),
             "-p",
@@ -277,6 +284,7 @@ fn depth_and_points_reach_rclpy_and_every_transport_gives_the_same_bytes() {
     assert_eq!(ready.trim(), "ready");
     let sensor = node(
         env!("CARGO_BIN_EXE_unitac_sensor_node"),
+        &[],
         &ns,
         &[
             scene_p,

@@ -37,7 +37,9 @@ fn unitac() -> PathBuf {
     p
 }
 
-fn node(bin: &str, ns: &str, params: &[String]) -> Child {
+/// `bin` in namespace `ns` reading `image_raw`, with `role` (ROS arguments: `common::CONTACT`,
+/// `common::INFERENCE`) and `params`.
+fn node(bin: &str, role: &[&str], ns: &str, params: &[String]) -> Child {
     let mut c = Command::new(bin);
     c.args([
         "--ros-args",
@@ -46,6 +48,7 @@ fn node(bin: &str, ns: &str, params: &[String]) -> Child {
         "-r",
         "image:=image_raw",
     ]);
+    c.args(role);
     for p in params {
         c.args(["-p", p]);
     }
@@ -112,12 +115,14 @@ fn check_scene(scene: &str) {
     let scene_p = format!("scene:={scene}");
     let sim = "use_sim_time:=true".to_string();
     let contact = node(
-        env!("CARGO_BIN_EXE_unitac_contact_node"),
+        common::STAGE_NODE,
+        &common::CONTACT,
         &ns,
         &[scene_p.clone(), sim.clone(), "image_qos:=reliable".into()],
     );
     let inference = node(
-        env!("CARGO_BIN_EXE_unitac_inference_node"),
+        common::STAGE_NODE,
+        &common::INFERENCE,
         &ns,
         &[scene_p.clone(), sim],
     );
@@ -142,6 +147,7 @@ fn check_scene(scene: &str) {
     assert_eq!(ready.trim(), "ready");
     let sensor = node(
         env!("CARGO_BIN_EXE_unitac_sensor_node"),
+        &[],
         &ns,
         &[
             scene_p,

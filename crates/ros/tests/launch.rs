@@ -17,7 +17,7 @@ fn check_launch_with(scenes: Option<&std::path::Path>) -> (serde_json::Value, Pa
         .map(PathBuf::from)
         .unwrap_or_else(|| root.join(".venv"))
         .join("bin/python");
-    let bin_dir = PathBuf::from(env!("CARGO_BIN_EXE_unitac_contact_node"))
+    let bin_dir = PathBuf::from(env!("CARGO_BIN_EXE_unitac_stage_node"))
         .parent()
         .unwrap()
         .to_path_buf();
@@ -73,24 +73,20 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
         // The cup scene's stages are the contact stage alone (its predicted touch needs a camera:
         // cup_deformation_vtla_pred), so no inference node is planned for it.
         let all = if file == "cup_deformation" {
-            serde_json::json!(["unitac_sensor_node", "unitac_contact_node"])
+            serde_json::json!(["unitac_sensor", "unitac_contact"])
         } else {
-            serde_json::json!([
-                "unitac_sensor_node",
-                "unitac_contact_node",
-                "unitac_inference_node"
-            ])
+            serde_json::json!(["unitac_sensor", "unitac_contact", "unitac_inference"])
         };
         let bag = r#"{"source": "bag", "bag": "recorded.mcap"}"#;
         assert_eq!(nodes(bag), all, "{file}: {f}");
-        assert_eq!(params(bag, "unitac_sensor_node")["source"], "bag");
-        assert_eq!(params(bag, "unitac_sensor_node")["bag"], "recorded.mcap");
+        assert_eq!(params(bag, "unitac_sensor")["source"], "bag");
+        assert_eq!(params(bag, "unitac_sensor")["bag"], "recorded.mcap");
         // Under a bag, every node but the one publishing /clock runs on bag time.
-        assert!(params(bag, "unitac_sensor_node")["use_sim_time"].is_null());
+        assert!(params(bag, "unitac_sensor")["use_sim_time"].is_null());
         let stage_nodes: &[&str] = if file == "cup_deformation" {
-            &["unitac_contact_node"]
+            &["unitac_contact"]
         } else {
-            &["unitac_contact_node", "unitac_inference_node"]
+            &["unitac_contact", "unitac_inference"]
         };
         for exe in stage_nodes {
             assert_eq!(params(bag, exe)["use_sim_time"], true, "{file} {exe}");
@@ -111,10 +107,10 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
             continue;
         }
         assert_eq!(nodes("{}"), all, "{file}: {f}");
-        assert!(params("{}", "unitac_contact_node")["use_sim_time"].is_null());
+        assert!(params("{}", "unitac_contact")["use_sim_time"].is_null());
         assert_eq!(
             nodes(r#"{"inference": "false"}"#),
-            serde_json::json!(["unitac_sensor_node", "unitac_contact_node"])
+            serde_json::json!(["unitac_sensor", "unitac_contact"])
         );
         assert_eq!(
             nodes(r#"{"sensor": "false"}"#),
@@ -122,13 +118,20 @@ fn launch_files_are_consistent_with_scenes_and_executables() {
         );
         let v4l = r#"{"source": "v4l"}"#;
         assert_eq!(nodes(v4l), all);
-        assert_eq!(params(v4l, "unitac_sensor_node")["source"], "v4l");
+        assert_eq!(params(v4l, "unitac_sensor")["source"], "v4l");
     }
     // Stage parameters are not copied (and so cannot be dropped): the contact node gets the
     // scene file and reads its stage from there, as `unitac run` does.
-    let c = &j["files"]["fabric_selection"]["plans"]["{}"]["parameters"]["unitac_contact_node"];
+    let c = &j["files"]["fabric_selection"]["plans"]["{}"]["parameters"]["unitac_contact"];
     let keys: Vec<&str> = c.as_object().unwrap().keys().map(String::as_str).collect();
-    assert_eq!(keys, ["image_transport", "scene", "sensor_id"], "{c}");
+    assert_eq!(
+        keys,
+        ["image_transport", "scene", "sensor_id", "stages"],
+        "{c}"
+    );
+    assert_eq!(c["stages"], "contact");
+    let i = &j["files"]["fabric_selection"]["plans"]["{}"]["parameters"]["unitac_inference"];
+    assert_eq!(i["stages"], "encoder,compare");
     assert!(
         c["scene"]
             .as_str()
@@ -175,10 +178,10 @@ fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
         "{bad}"
     );
     let touch = serde_json::json!([
-        "unitac_sim_node",
-        "unitac_contact_node",
-        "unitac_policy_node",
-        "unitac_inference_node"
+        "unitac_sim",
+        "unitac_contact",
+        "unitac_inference",
+        "unitac_policy"
     ]);
     let tasks = unitac_pipeline::tasks(None);
     assert!(tasks.len() >= 2, "{tasks:?}");
@@ -195,14 +198,14 @@ fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
                 // No touch: no contact or inference node, and the sim waits for no image reader.
                 assert_eq!(
                     plan["nodes"],
-                    serde_json::json!(["unitac_sim_node", "unitac_policy_node"]),
+                    serde_json::json!(["unitac_sim", "unitac_policy"]),
                     "{file}"
                 );
             } else {
                 assert_eq!(plan["nodes"], touch, "{file}");
             }
             let params = &plan["parameters"];
-            let sim = &params["unitac_sim_node"];
+            let sim = &params["unitac_sim"];
             // The sim node reads its task, control rate and trial length from the scene (the
             // same file as the policy node); none of them is copied into the plan.
             assert!(
@@ -219,12 +222,12 @@ fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
             assert_eq!(sim["wait_image_subscribers"], i32::from(mode != "vla"));
             assert!(sim["use_sim_time"].is_null(), "the sim publishes /clock");
             for (exe, p) in params.as_object().unwrap() {
-                if exe != "unitac_sim_node" {
+                if exe != "unitac_sim" {
                     assert_eq!(p["use_sim_time"], true, "{file} {exe}");
                 }
             }
             assert!(
-                params["unitac_policy_node"]["scene"]
+                params["unitac_policy"]["scene"]
                     .as_str()
                     .unwrap()
                     .ends_with(&format!("scenes/{file}.yaml"))
@@ -232,20 +235,17 @@ fn closed_loop_files_start_the_sim_and_the_modes_nodes() {
             // With a real sensor instead, the same scene plans the sensor node, and no gripper
             // node unless one is named (the arm stack owns it).
             let v4l = &f["plans"][r#"{"source": "v4l"}"#]["nodes"];
-            assert_eq!(v4l[0], "unitac_sensor_node", "{file}");
-            assert!(!v4l.to_string().contains("unitac_gripper_node"), "{file}");
+            assert_eq!(v4l[0], "unitac_sensor", "{file}");
+            assert!(!v4l.to_string().contains("unitac_gripper"), "{file}");
             // gripper:=robotiq_2f85 adds the serial gripper node with its model and port.
             let g = &f["plans"][r#"{"source": "v4l", "gripper": "robotiq_2f85", "gripper_port": "/dev/ttyGRIP"}"#];
-            assert!(
-                g["nodes"].to_string().contains("unitac_gripper_node"),
-                "{file}"
-            );
-            let gp = &g["parameters"]["unitac_gripper_node"];
+            assert!(g["nodes"].to_string().contains("unitac_gripper"), "{file}");
+            let gp = &g["parameters"]["unitac_gripper"];
             assert_eq!(gp["model"], "robotiq_2f85");
             assert_eq!(gp["port"], "/dev/ttyGRIP");
             // and holds the policy's safety bounds inside that model's profile.
             assert_eq!(
-                g["parameters"]["unitac_policy_node"]["policy.gripper"], "robotiq_2f85",
+                g["parameters"]["unitac_policy"]["policy.gripper"], "robotiq_2f85",
                 "{file}"
             );
         }
@@ -268,17 +268,20 @@ fn planned_parameters_are_accepted_by_the_nodes() {
         let params = j["files"][file]["plans"]["{}"]["parameters"]
             .as_object()
             .unwrap();
-        for (exe, p) in params {
+        let exes = &j["files"][file]["plans"]["{}"]["executables"];
+        for (name, p) in params {
+            let exe = exes[name].as_str().unwrap();
             let mut yaml = String::from("/**:\n  ros__parameters:\n");
             for (k, v) in p.as_object().unwrap() {
                 yaml.push_str(&format!("    {k}: {v}\n"));
             }
             let path = std::env::temp_dir()
-                .join(format!("unitac-{}-{file}-{exe}.yaml", std::process::id()));
+                .join(format!("unitac-{}-{file}-{name}.yaml", std::process::id()));
             std::fs::write(&path, &yaml).unwrap();
             let ns = format!("__ns:=/plan{}_{file}", std::process::id());
+            let node_name = format!("__node:={name}");
             let mut c = Command::new(bin_dir.join(exe))
-                .args(["--ros-args", "-r", &ns, "--params-file"])
+                .args(["--ros-args", "-r", &ns, "-r", &node_name, "--params-file"])
                 .arg(&path)
                 .stdout(std::process::Stdio::null())
                 .stderr(std::process::Stdio::piped())
@@ -294,10 +297,10 @@ fn planned_parameters_are_accepted_by_the_nodes() {
             let stderr = String::from_utf8_lossy(&out.stderr);
             assert!(
                 early.is_none() && out.status.success(),
-                "{file}: {exe} with\n{yaml}exited {:?}: {stderr}",
+                "{file}: {name} ({exe}) with\n{yaml}exited {:?}: {stderr}",
                 out.status,
             );
-            if exe == "unitac_sim_node" {
+            if name == "unitac_sim" {
                 let cup = unitac_trials::TrialOptions::for_task(unitac_sim::task::TaskKind::CUP);
                 let want = format!(
                     "the cup_deformation task at {} Hz for {} s of sim time",
@@ -364,18 +367,18 @@ fn robot_file_starts_our_nodes_on_the_robots_controllers() {
     assert!(e.contains("unknown launch argument(s) serial"), "{e}");
 
     let ours = serde_json::json!([
-        "unitac_sensor_node",
-        "unitac_contact_node",
-        "unitac_policy_node",
-        "unitac_inference_node"
+        "unitac_sensor",
+        "unitac_contact",
+        "unitac_inference",
+        "unitac_policy"
     ]);
     let plan = &f["plans"][r#"{"sensor_serial": "GS0001"}"#];
     assert_eq!(plan["nodes"], ours, "{plan}");
     let params = &plan["parameters"];
-    let sensor = &params["unitac_sensor_node"];
+    let sensor = &params["unitac_sensor"];
     assert_eq!(sensor["source"], "v4l", "{sensor}");
     assert_eq!(sensor["serial"], "GS0001", "{sensor}");
-    let policy = &params["unitac_policy_node"];
+    let policy = &params["unitac_policy"];
     assert_eq!(policy["gripper_input"], "joint_states", "{policy}");
     assert_eq!(policy["gripper_output"], "action", "{policy}");
     assert_eq!(
@@ -385,7 +388,7 @@ fn robot_file_starts_our_nodes_on_the_robots_controllers() {
     assert_eq!(policy["joint_name"], "gripper_finger_opening", "{policy}");
     assert_eq!(policy["arm_frame"], "base_link", "{policy}");
     assert_eq!(
-        plan["remappings"]["unitac_policy_node"],
+        plan["remappings"]["unitac_policy"],
         serde_json::json!([["joint_states", "/joint_states"]])
     );
     // Real time: nothing here publishes /clock.
@@ -395,7 +398,7 @@ fn robot_file_starts_our_nodes_on_the_robots_controllers() {
     // No serial given: the only sensor of its kind connected. tf:=false (the default): the
     // robot's URDF holds the sensor, so no transforms.
     assert_eq!(f["plans"]["{}"]["nodes"], ours);
-    assert!(f["plans"]["{}"]["parameters"]["unitac_sensor_node"]["serial"].is_null());
+    assert!(f["plans"]["{}"]["parameters"]["unitac_sensor"]["serial"].is_null());
     assert_eq!(plan["transforms"], serde_json::json!([]));
 
     // tf:=true: sensor_parent -> <sensor_id>_link at the mount, then the GelSight Mini macro's
@@ -404,22 +407,19 @@ fn robot_file_starts_our_nodes_on_the_robots_controllers() {
     assert_eq!(
         tf["nodes"],
         serde_json::json!([
-            "unitac_sensor_node",
-            "unitac_contact_node",
-            "unitac_policy_node",
-            "unitac_inference_node",
+            "unitac_sensor",
+            "unitac_contact",
+            "unitac_inference",
+            "unitac_policy",
             "static_transform_publisher",
             "static_transform_publisher"
         ]),
         "{tf}"
     );
-    let sensor_id = tf["parameters"]["unitac_sensor_node"]["sensor_id"]
+    let sensor_id = tf["parameters"]["unitac_sensor"]["sensor_id"]
         .as_str()
         .unwrap();
-    assert_eq!(
-        tf["parameters"]["unitac_contact_node"]["sensor_id"],
-        sensor_id
-    );
+    assert_eq!(tf["parameters"]["unitac_contact"]["sensor_id"], sensor_id);
     let t = &tf["transforms"];
     assert_eq!(t[0]["frame_id"], "right_fingertip", "{t}");
     assert_eq!(t[0]["child_frame_id"], format!("{sensor_id}_link"), "{t}");
@@ -491,16 +491,12 @@ fn a_scene_file_added_is_launched_by_name_with_no_other_edit() {
     let slip = &scenes["fabric_slip_copy"]["{}"];
     assert_eq!(
         slip["nodes"],
-        serde_json::json!([
-            "unitac_sensor_node",
-            "unitac_contact_node",
-            "unitac_inference_node"
-        ]),
+        serde_json::json!(["unitac_sensor", "unitac_contact", "unitac_inference"]),
         "{slip}"
     );
     assert_eq!(slip["skipped"], serde_json::json!([]), "{slip}");
     assert!(
-        slip["parameters"]["unitac_contact_node"]["scene"]
+        slip["parameters"]["unitac_contact"]["scene"]
             .as_str()
             .unwrap()
             .ends_with("fabric_slip_copy.yaml")
@@ -510,14 +506,14 @@ fn a_scene_file_added_is_launched_by_name_with_no_other_edit() {
     assert_eq!(
         sim["nodes"],
         serde_json::json!([
-            "unitac_sim_node",
-            "unitac_contact_node",
-            "unitac_policy_node",
-            "unitac_inference_node"
+            "unitac_sim",
+            "unitac_contact",
+            "unitac_inference",
+            "unitac_policy"
         ]),
         "{sim}"
     );
-    for exe in ["unitac_sim_node", "unitac_policy_node"] {
+    for exe in ["unitac_sim", "unitac_policy"] {
         assert!(
             sim["parameters"][exe]["scene"]
                 .as_str()
@@ -538,4 +534,117 @@ fn a_scene_file_added_is_launched_by_name_with_no_other_edit() {
         .map(|m| m.name())
         .collect();
     assert_eq!(j["serial_grippers"], serde_json::json!(models));
+}
+
+/// The launch plan is computed from the scene and the stage graph: for every shipped scene, the
+/// stage nodes it plans run exactly the scene's stages that the generic node runs, each in the
+/// node of its graph group (`unitac_<group>`), in the scene's order; the policy stage runs in
+/// its own node. Each planned stage node starts with its planned parameters, builds exactly
+/// those stages (its effective-params lines) and stops cleanly on SIGINT.
+#[test]
+fn every_scene_plans_its_stages_by_the_graphs_groups() {
+    let (j, bin_dir) = check_launch();
+    let mut started = 0;
+    let graph = unitac_pipeline::registry::graph();
+    let scenes = j["scenes"].as_object().unwrap();
+    assert!(scenes.len() >= 14, "{}", scenes.len());
+    for (name, plans) in scenes {
+        let scene = unitac_pipeline::load_scene(name, None).unwrap();
+        let plan = &plans["{}"];
+        let mut want = std::collections::BTreeMap::<String, Vec<&str>>::new();
+        for st in &scene.stages {
+            let group = &graph.stage(&st.kind).unwrap().group;
+            if graph.groups[group].executable.is_none() {
+                want.entry(format!("unitac_{group}"))
+                    .or_default()
+                    .push(st.kind.as_str());
+            }
+        }
+        let mut got = std::collections::BTreeMap::<String, Vec<&str>>::new();
+        for (node, p) in plan["parameters"].as_object().unwrap() {
+            if let Some(s) = p["stages"].as_str() {
+                got.insert(node.clone(), s.split(',').collect());
+            }
+        }
+        assert_eq!(got, want, "{name}: {plan}");
+        for (node, stages) in &got {
+            let exe = plan["executables"][node].as_str().unwrap();
+            let kinds = start_planned(&bin_dir.join(exe), name, node, &plan["parameters"][node]);
+            assert_eq!(&kinds, stages, "{name}: {node}");
+            started += 1;
+        }
+        let has_policy = scene.stages.iter().any(|s| s.kind == "policy");
+        assert_eq!(
+            plan["nodes"]
+                .as_array()
+                .unwrap()
+                .contains(&serde_json::json!("unitac_policy")),
+            has_policy,
+            "{name}"
+        );
+    }
+    assert!(started >= 19, "{started}");
+}
+
+/// Start `exe` as node `node` with `params` (a plan's, as a params file), wait for its
+/// effective-params lines, stop it with SIGINT: the stage kinds it built, in order.
+fn start_planned(
+    exe: &std::path::Path,
+    scene: &str,
+    node: &str,
+    params: &serde_json::Value,
+) -> Vec<String> {
+    use std::io::BufRead;
+    let mut yaml = String::from("/**:\n  ros__parameters:\n");
+    for (k, v) in params.as_object().unwrap() {
+        yaml.push_str(&format!("    {k}: {v}\n"));
+    }
+    let path = std::env::temp_dir().join(format!(
+        "unitac-{}-graph-{scene}-{node}.yaml",
+        std::process::id()
+    ));
+    std::fs::write(&path, &yaml).unwrap();
+    let mut c = Command::new(exe)
+        .args(["--ros-args", "-r"])
+        .arg(format!("__ns:=/graph{}_{scene}", std::process::id()))
+        .args(["-r", &format!("__node:={node}"), "--params-file"])
+        .arg(&path)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let want = params["stages"].as_str().unwrap().split(',').count();
+    let err = c.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+            if tx.send(l).is_err() {
+                break;
+            }
+        }
+    });
+    let (mut kinds, mut log) = (Vec::new(), String::new());
+    while kinds.len() < want {
+        let Ok(l) = rx.recv_timeout(std::time::Duration::from_secs(30)) else {
+            break;
+        };
+        log.push_str(&l);
+        log.push('\n');
+        if let Some((_, rest)) = l.split_once(": effective params: ") {
+            kinds.push(rest.split(':').next().unwrap().to_string());
+        }
+    }
+    // Subscribed and spinning, then asked to stop.
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    let early = c.try_wait().unwrap();
+    Command::new("kill")
+        .args(["-INT", &c.id().to_string()])
+        .status()
+        .unwrap();
+    let status = c.wait().unwrap();
+    assert!(
+        early.is_none() && status.success(),
+        "{scene}: {node} with\n{yaml}exited {status:?}: {log}"
+    );
+    kinds
 }

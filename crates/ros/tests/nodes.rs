@@ -17,9 +17,20 @@ fn serial() -> std::sync::MutexGuard<'static, ()> {
     SERIAL.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// The stage node as the launch plan's contact node in `ns`, with a params file.
+fn contact_node(ns: &str, params: Option<&str>) -> Child {
+    node_as(common::STAGE_NODE, &common::CONTACT, ns, params)
+}
+
 fn node(bin: &str, ns: &str, params: Option<&str>) -> Child {
+    node_as(bin, &[], ns, params)
+}
+
+/// `bin` in `ns` with `role` (ROS arguments) and a params file.
+fn node_as(bin: &str, role: &[&str], ns: &str, params: Option<&str>) -> Child {
     let mut c = Command::new(bin);
     c.args(["--ros-args", "-r", &format!("__ns:={ns}")]);
+    c.args(role);
     if let Some(p) = params {
         c.args(["--params-file", p]);
     }
@@ -80,7 +91,7 @@ fn contact_node_answers_every_image_with_a_contact_state() {
         "contact",
         "/**:\n  ros__parameters:\n    sensor_kind: generic\n    contact.enter_area_px: 100.0\n    contact.exit_area_px: 50.0\n",
     );
-    let c = node(env!("CARGO_BIN_EXE_unitac_contact_node"), &n, p.to_str());
+    let c = contact_node(&n, p.to_str());
     let got = peer(&["images", &n, "40"]);
     stop(c);
     let states = got["states"].as_array().unwrap();
@@ -134,7 +145,7 @@ fn bad_stamps_and_encodings_count_once_as_errors() {
         "faults",
         "/**:\n  ros__parameters:\n    sensor_kind: generic\n    contact.enter_area_px: 100.0\n    contact.exit_area_px: 50.0\n",
     );
-    let c = node(env!("CARGO_BIN_EXE_unitac_contact_node"), &n, p.to_str());
+    let c = contact_node(&n, p.to_str());
     let faults = r#"{"negative_sec": [5], "big_nanosec": [6], "bad_encoding": [30]}"#;
     let got = peer(&["images", &n, "40", faults]);
     stop(c);
@@ -162,7 +173,7 @@ fn parameters_from_a_yaml_file_take_effect() {
         "params",
         "/**:\n  ros__parameters:\n    sensor_kind: generic\n    contact.enter_area_px: 100000.0\n    contact.exit_area_px: 50.0\n",
     );
-    let c = node(env!("CARGO_BIN_EXE_unitac_contact_node"), &n, p.to_str());
+    let c = contact_node(&n, p.to_str());
     let got = peer(&["images", &n, "40"]);
     stop(c);
     let states = got["states"].as_array().unwrap();
@@ -180,11 +191,15 @@ fn sensor_and_contact_nodes_find_the_fabric_episodes() {
         "cnode",
         "/**:\n  ros__parameters:\n    scene: fabric_selection\n",
     );
-    let contact = Command::new(env!("CARGO_BIN_EXE_unitac_contact_node"))
+    let contact = Command::new(common::STAGE_NODE)
         .args([
             "--ros-args",
             "-r",
             &format!("__ns:={n}"),
+            "-r",
+            "__node:=unitac_contact",
+            "-p",
+            "stages:=contact,slip",
             "-r",
             "image:=image_raw",
             "--params-file",
@@ -351,7 +366,11 @@ fn fabric_contact_node(ns: &str, extra: &[&str]) -> Child {
         extra,
     ]
     .concat();
-    spawn(env!("CARGO_BIN_EXE_unitac_contact_node"), ns, &args)
+    spawn(
+        common::STAGE_NODE,
+        ns,
+        &[&common::CONTACT[..], &args].concat(),
+    )
 }
 
 /// Sensor (with `sensor_params`), contact and inference nodes for the fabric scene in `ns`, the
@@ -359,9 +378,14 @@ fn fabric_contact_node(ns: &str, extra: &[&str]) -> Child {
 fn run_fabric_nodes(ns: &str, sensor_params: &std::path::Path, extra: &[&str]) -> Value {
     let contact = fabric_contact_node(ns, extra);
     let inference = spawn(
-        env!("CARGO_BIN_EXE_unitac_inference_node"),
+        common::STAGE_NODE,
         ns,
-        &[&["-p", "scene:=fabric_selection"][..], extra].concat(),
+        &[
+            &common::INFERENCE[..],
+            &["-p", "scene:=fabric_selection"],
+            extra,
+        ]
+        .concat(),
     );
     let l = listener(
         ns,
@@ -652,9 +676,13 @@ fn a_late_inference_node_gets_the_latched_background_and_predicts_a_latent() {
     // 10 learning frames take 0.4 s at 25 fps: by 3 s the background went out long ago.
     std::thread::sleep(Duration::from_secs(3));
     let inference = spawn(
-        env!("CARGO_BIN_EXE_unitac_inference_node"),
+        common::STAGE_NODE,
         &n,
-        &["-p", "scene:=cup_deformation_vtla_pred"],
+        &[
+            &common::INFERENCE[..],
+            &["-p", "scene:=cup_deformation_vtla_pred"],
+        ]
+        .concat(),
     );
     let got = finish(l);
     stop(sensor);

@@ -5,6 +5,8 @@
 //! `unitac_pipeline::effective_params`, which is what this test compares against.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use serde_json::{Value, json};
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
@@ -170,19 +172,20 @@ fn ros_yaml(v: &Value) -> String {
 /// Start `exe` with `params` (a ros__parameters body); the effective-params lines it prints (it
 /// is stopped once it printed `want` of them or exited), its exit status if it exited, and stderr.
 fn node_lines(
-    exe: &str,
+    role: &[&str],
     name: &str,
     params: &str,
     want: usize,
 ) -> (Vec<String>, Option<i32>, String) {
     let file = tmp(&format!("{name}.params.yaml"));
     std::fs::write(&file, format!("/**:\n  ros__parameters:\n{params}")).unwrap();
-    let mut c = Command::new(exe)
+    let mut c = Command::new(common::STAGE_NODE)
         .args([
             "--ros-args",
             "-r",
             &format!("__ns:=/p{}_{name}", std::process::id()),
         ])
+        .args(role)
         .arg("--params-file")
         .arg(&file)
         .stdout(Stdio::null())
@@ -231,8 +234,9 @@ fn node_lines(
     (lines, status, all)
 }
 
-const CONTACT: &str = env!("CARGO_BIN_EXE_unitac_contact_node");
-const INFERENCE: &str = env!("CARGO_BIN_EXE_unitac_inference_node");
+/// The stage node as the launch plan runs it for the contact and the inference group.
+const CONTACT: &[&str] = &common::CONTACT;
+const INFERENCE: &[&str] = &common::INFERENCE;
 
 #[test]
 fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
@@ -310,7 +314,7 @@ fn every_key_reaches_the_stages_from_the_scene_file_and_from_ros_parameters() {
 
 #[test]
 fn unknown_and_mistyped_parameters_stop_a_node_with_one_line() {
-    for (exe, name, params, expect) in [
+    for (role, name, params, expect) in [
         (CONTACT, "u1", "    contact.no_such_key: 1\n", "no_such_key"),
         (CONTACT, "u2", "    contact.noise_k: \"loud\"\n", "noise_k"),
         (
@@ -323,7 +327,7 @@ fn unknown_and_mistyped_parameters_stop_a_node_with_one_line() {
             CONTACT,
             "u4",
             "    sampler.steps: 4\n",
-            "unknown parameter 'sampler.steps'",
+            "'sampler' is not a stage this node runs (contact, slip)",
         ),
         (
             INFERENCE,
@@ -338,7 +342,7 @@ fn unknown_and_mistyped_parameters_stop_a_node_with_one_line() {
             "provider",
         ),
     ] {
-        let (_, status, log) = node_lines(exe, name, params, usize::MAX);
+        let (_, status, log) = node_lines(role, name, params, usize::MAX);
         assert_eq!(status, Some(1), "{name}: {log}");
         let errors: Vec<&str> = log
             .lines()

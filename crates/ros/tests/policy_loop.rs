@@ -334,10 +334,15 @@ fn a_killed_inference_node_holds_the_policy_and_the_trial_resumes_when_it_return
     std::thread::sleep(Duration::from_secs(1));
     l.freeze_sim(true);
     let held_until = obs.mark();
+    let scene = format!("scene:={SCENE}");
     l.inference = Some(node(
-        env!("CARGO_BIN_EXE_unitac_inference_node"),
+        common::STAGE_NODE,
         &n,
-        &["-p", &format!("scene:={SCENE}"), "-p", "use_sim_time:=true"],
+        &[
+            &common::INFERENCE[..],
+            &["-p", &scene, "-p", "use_sim_time:=true"],
+        ]
+        .concat(),
     ));
     obs.ask("publishers tactile_latent 1", "publishers ", 30);
     // The probe's clip must reach the new node: it listens before the sim goes on. The observer

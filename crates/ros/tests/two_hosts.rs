@@ -107,14 +107,18 @@ fn inference_on_a_second_host_answers_the_robots_episodes_and_only_clips_cross()
 
     // Clips only: contact on the robot, inference on the gpu host.
     let contact = node(
-        h.exec("robot", env!("CARGO_BIN_EXE_unitac_contact_node")),
+        h.exec("robot", common::STAGE_NODE),
         &ns,
-        &["-r", "image:=image_raw", "-p", "scene:=fabric_selection"],
+        &[
+            &common::CONTACT[..],
+            &["-r", "image:=image_raw", "-p", "scene:=fabric_selection"],
+        ]
+        .concat(),
     );
     let inference = node(
-        h.exec("gpu", env!("CARGO_BIN_EXE_unitac_inference_node")),
+        h.exec("gpu", common::STAGE_NODE),
         &ns,
-        &["-p", "scene:=fabric_selection"],
+        &[&common::INFERENCE[..], &["-p", "scene:=fabric_selection"]].concat(),
     );
     // The observer waits until the gpu host's comparison publisher is discovered on the robot.
     let opts = serde_json::json!({"until": {"comparisons": 1, "episodes": 2},

@@ -250,9 +250,13 @@ impl Loop {
         let contact = node(
             at,
             "robot",
-            env!("CARGO_BIN_EXE_unitac_contact_node"),
+            super::STAGE_NODE,
             ns,
             &[
+                super::CONTACT[0],
+                super::CONTACT[1],
+                super::CONTACT[2],
+                super::CONTACT[3],
                 "-r",
                 "image:=image_raw",
                 "-p",
@@ -264,9 +268,13 @@ impl Loop {
         let inference = node(
             at,
             "gpu",
-            env!("CARGO_BIN_EXE_unitac_inference_node"),
+            super::STAGE_NODE,
             ns,
-            &["-p", &scene, sim_time[0], sim_time[1]],
+            &[
+                &super::INFERENCE[..],
+                &["-p", &scene, sim_time[0], sim_time[1]],
+            ]
+            .concat(),
         );
         let mut policy_args = vec!["-p", &scene, sim_time[0], sim_time[1]];
         // Through the action: the policy reads the sim's joint states (as from a robot's

@@ -8,6 +8,18 @@ use std::path::PathBuf;
 use std::process::{Child, Command};
 use std::time::{Duration, Instant};
 
+/// The generic stage node.
+pub const STAGE_NODE: &str = env!("CARGO_BIN_EXE_unitac_stage_node");
+/// ROS arguments that make the stage node the launch plan's node for a scene's contact group.
+pub const CONTACT: [&str; 4] = ["-r", "__node:=unitac_contact", "-p", "stages:=contact,slip"];
+/// ROS arguments that make the stage node the launch plan's node for a scene's inference group.
+pub const INFERENCE: [&str; 4] = [
+    "-r",
+    "__node:=unitac_inference",
+    "-p",
+    "stages:=encoder,compare,sampler",
+];
+
 pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
