@@ -2,8 +2,23 @@
 //! exist (built here) for every scene they offer; arguments leave nodes out.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::Command;
+
+/// A plan's parameters for node `name` as a params file (in the temp dir, named by `tag`): its
+/// path and text.
+fn params_file(tag: &str, name: &str, params: &serde_json::Value) -> (PathBuf, String) {
+    let mut yaml = String::from("/**:\n  ros__parameters:\n");
+    for (k, v) in params.as_object().unwrap() {
+        yaml.push_str(&format!("    {k}: {v}\n"));
+    }
+    let path =
+        std::env::temp_dir().join(format!("unitac-{}-{tag}-{name}.yaml", std::process::id()));
+    std::fs::write(&path, &yaml).unwrap();
+    (path, yaml)
+}
 
 fn check_launch() -> (serde_json::Value, PathBuf) {
     check_launch_with(None)
@@ -271,13 +286,7 @@ fn planned_parameters_are_accepted_by_the_nodes() {
         let exes = &j["files"][file]["plans"]["{}"]["executables"];
         for (name, p) in params {
             let exe = exes[name].as_str().unwrap();
-            let mut yaml = String::from("/**:\n  ros__parameters:\n");
-            for (k, v) in p.as_object().unwrap() {
-                yaml.push_str(&format!("    {k}: {v}\n"));
-            }
-            let path = std::env::temp_dir()
-                .join(format!("unitac-{}-{file}-{name}.yaml", std::process::id()));
-            std::fs::write(&path, &yaml).unwrap();
+            let (path, yaml) = params_file(file, name, p);
             let ns = format!("__ns:=/plan{}_{file}", std::process::id());
             let node_name = format!("__node:={name}");
             let mut c = Command::new(bin_dir.join(exe))
@@ -594,16 +603,7 @@ fn start_planned(
     node: &str,
     params: &serde_json::Value,
 ) -> Vec<String> {
-    use std::io::BufRead;
-    let mut yaml = String::from("/**:\n  ros__parameters:\n");
-    for (k, v) in params.as_object().unwrap() {
-        yaml.push_str(&format!("    {k}: {v}\n"));
-    }
-    let path = std::env::temp_dir().join(format!(
-        "unitac-{}-graph-{scene}-{node}.yaml",
-        std::process::id()
-    ));
-    std::fs::write(&path, &yaml).unwrap();
+    let (path, yaml) = params_file(&format!("graph-{scene}"), node, params);
     let mut c = Command::new(exe)
         .args(["--ros-args", "-r"])
         .arg(format!("__ns:=/graph{}_{scene}", std::process::id()))
@@ -614,15 +614,7 @@ fn start_planned(
         .spawn()
         .unwrap();
     let want = params["stages"].as_str().unwrap().split(',').count();
-    let err = c.stderr.take().unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
-            if tx.send(l).is_err() {
-                break;
-            }
-        }
-    });
+    let rx = common::stderr_lines(&mut c);
     let (mut kinds, mut log) = (Vec::new(), String::new());
     while kinds.len() < want {
         let Ok(l) = rx.recv_timeout(std::time::Duration::from_secs(30)) else {

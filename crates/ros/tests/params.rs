@@ -8,7 +8,6 @@
 mod common;
 
 use serde_json::{Value, json};
-use std::io::BufRead;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -192,15 +191,7 @@ fn node_lines(
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let err = c.stderr.take().unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
-            if tx.send(l).is_err() {
-                break;
-            }
-        }
-    });
+    let rx = common::stderr_lines(&mut c);
     let (mut lines, mut all) = (Vec::new(), String::new());
     while let Ok(l) = rx.recv_timeout(Duration::from_secs(30)) {
         all.push_str(&l);

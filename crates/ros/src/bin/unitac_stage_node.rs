@@ -338,13 +338,9 @@ fn topics_of(
             .iter()
             .filter_map(|s| graph.stage(s))
             .any(|io| io.makes.iter().any(|m| m == k));
-        let Some(kind) = always
-            .then_some(k)
-            .or_else(|| optional.iter().copied().find(|o| *o == k))
-        else {
-            continue;
-        };
-        outputs.push((kind.to_string(), topics::publisher(&mut base.node, kind)?));
+        if always || optional.contains(&k) {
+            outputs.push((k.to_string(), topics::publisher(&mut base.node, k)?));
+        }
     }
     Ok((inputs, outputs))
 }

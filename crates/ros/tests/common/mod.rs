@@ -32,6 +32,21 @@ pub fn python() -> PathBuf {
         .join("bin/python")
 }
 
+/// The lines `c` writes to its piped stderr, as they come (a reader thread per child).
+pub fn stderr_lines(c: &mut Child) -> std::sync::mpsc::Receiver<String> {
+    use std::io::BufRead;
+    let err = c.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+            if tx.send(l).is_err() {
+                break;
+            }
+        }
+    });
+    rx
+}
+
 /// SIGINT, then up to 5 s to exit cleanly, then SIGKILL.
 pub fn stop(mut c: Child) {
     stop_mut(&mut c);
