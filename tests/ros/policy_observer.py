@@ -3,11 +3,11 @@
   policy_observer.py NS SECONDS
 
 Records NS/policy_status, NS/gripper_command, /clock, NS/sim/outcome, NS/contact_state (stamp and
-in_contact) and NS/tactile_latent (stamps, transient-local like the policy's subscription), NS/contact_episode
-(end stamps: each episode's clip goes to the inference node);
-subscribes to NS/gripper_status and NS/image_raw too (counting them), so the sim's wait for
-subscribers waits for it as well. Talks to the test on
-stdin/stdout, one line each:
+in_contact), NS/tactile_latent (stamps, transient-local like the policy's subscription),
+NS/contact_episode (end stamps: each episode's clip goes to the inference node) and
+NS/gripper_status (stamps: the policy's ticks as sent); counts NS/gripper_status and NS/image_raw,
+so the sim's wait for subscribers waits for it as well. Talks to the test on stdin/stdout, one
+line each:
   out: "ready"             once the policy node's PolicyStatus and ArmCommand publishers
                            are matched (start the sim after this)
   out: "phase NAME T_NS"   the first PolicyStatus of each phase (T_NS its stamp)
@@ -52,7 +52,7 @@ def main():
     lock = threading.Lock()
     got = {"status": [], "commands": [], "outcome": None, "mark_ns": None, "clock_ns": 0,
            "clocks": 0, "contact": [], "latents": [],
-           "episodes": []}
+           "episodes": [], "gripper_stamps": []}
     holds = {"want": None}
     phases = set()
 
@@ -126,8 +126,12 @@ def main():
                 counts[key] += 1
         return cb
 
-    node.create_subscription(GripperStatus, ns + "/gripper_status", count("gripper_status"),
-                             reliable)
+    def on_gripper(m):
+        with lock:
+            counts["gripper_status"] += 1
+            got["gripper_stamps"].append(stamp_ns(m.header.stamp))
+
+    node.create_subscription(GripperStatus, ns + "/gripper_status", on_gripper, reliable)
     node.create_subscription(Image, ns + "/image_raw", count("images"), 10)
     got["counts"] = counts
 

@@ -277,7 +277,20 @@ fn when_the_gpu_host_goes_away_the_policy_holds_and_inference_resumes_on_its_ret
         .iter()
         .find(|s| stamp(s) > down)
         .expect("a tick after the link went down");
-    assert!(stamp(first) - down <= PERIOD_NS + 1, "{first}, down {down}");
+    // What the robot saw around the mark, for a failure to say which tick went missing where.
+    let near = |v: &Vec<Value>| -> Vec<i64> {
+        v.iter()
+            .map(|s| s.as_i64().unwrap_or_else(|| stamp(s)) - down)
+            .filter(|d| d.abs() <= 3 * PERIOD_NS)
+            .collect()
+    };
+    assert!(
+        stamp(first) - down <= PERIOD_NS + 1,
+        "{first}, down {down}; relative to it: statuses {:?}, commands {:?}, gripper states {:?}",
+        near(st),
+        near(got["commands"].as_array().unwrap()),
+        near(got["gripper_stamps"].as_array().unwrap()),
+    );
     let outage: Vec<&Value> = st
         .iter()
         .filter(|s| stamp(s) > down && stamp(s) <= up)

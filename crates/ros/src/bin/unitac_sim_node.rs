@@ -11,13 +11,13 @@
 //! effort = force), the status last (it is the policy's tick; with `sync_contact`, once the
 //! contact node's background is learned, only after the ContactState of the step's last frame
 //! came, so the policy sees the contact of its own time as the embedded loop does). It then
-//! waits for the
-//! GripperCommand (`gripper_command`) and ArmCommand (`arm_command`) stamped t; after
-//! `command_timeout_s` of wall time without them it steps with the last command and counts it
-//! (`repeated_steps`). With `gripper_commands: held` the gripper is a controller's: a
-//! GripperCommand on `gripper_command` is a setpoint held until the next one, whatever its stamp
-//! (what a ros2_control gripper controller behind its action server sends), and each step waits
-//! for the ArmCommand only. At the end (`duration_s` of sim time) it publishes the world's outcome
+//! waits for the GripperCommand (`gripper_command`) and ArmCommand (`arm_command`) stamped t;
+//! after `command_timeout_s` of waiting without them (the wall time this process ran: a stall of
+//! the process does not count) it steps with the last command and counts it (`repeated_steps`).
+//! With `gripper_commands: held` the gripper is a controller's: a GripperCommand on
+//! `gripper_command` is a setpoint held until the next one, whatever its stamp (what a
+//! ros2_control gripper controller behind its action server sends), and each step waits for the
+//! ArmCommand only. At the end (`duration_s` of sim time) it publishes the world's outcome
 //! once, as one JSON object on `sim/outcome` (std_msgs/String, transient-local), prints the same
 //! line on stdout, and keeps serving until stopped. The other nodes run with `use_sim_time`.
 
@@ -54,8 +54,8 @@ struct Params {
     /// `<sensor_id>_optical_frame`)
     sensor: String,
     sensor_id: String,
-    /// Wall time to wait for the commands of a step before stepping with the last ones, in
-    /// seconds
+    /// Wall time to wait for the commands of a step before stepping with the last ones (time
+    /// this process ran), in seconds
     command_timeout_s: f64,
     /// At most this many sim seconds per wall second (0: as fast as the loop runs)
     max_rate: f64,
@@ -231,7 +231,7 @@ impl ContactSync {
     /// Once the background is learned, wait (up to `timeout`) for the ContactState of the
     /// frame stamped `want`.
     fn wait(&mut self, base: &mut NodeBase<Params>, io: &mut Io, want: Stamp, timeout: Duration) {
-        let waited = Instant::now();
+        let mut waited = Waited::new(timeout);
         loop {
             base.spin(Duration::from_millis(1));
             while let Some(Some(_)) = io.background.next().now_or_never() {
@@ -243,11 +243,42 @@ impl ContactSync {
             if !self.learned || self.seen >= want || base.stopped() {
                 return;
             }
-            if waited.elapsed() >= timeout {
+            if waited.over() {
                 self.timeouts += 1;
                 return;
             }
         }
+    }
+}
+
+/// A wait's time budget, counted in the time this process ran while waiting: each pass of a
+/// wait loop adds its wall time up to [`Waited::MAX_PASS`], so a stall of the whole process
+/// (stopped by a debugger or SIGSTOP, a paused VM) does not use the budget up while what it
+/// waits for sits unread in its queue; a peer that stays silent still ends the wait on time.
+struct Waited {
+    budget: Duration,
+    spent: Duration,
+    last: Instant,
+}
+
+impl Waited {
+    /// The most one pass of a wait loop (a 1 ms spin and the draining) counts.
+    const MAX_PASS: Duration = Duration::from_millis(50);
+
+    fn new(budget: Duration) -> Self {
+        Self {
+            budget,
+            spent: Duration::ZERO,
+            last: Instant::now(),
+        }
+    }
+
+    /// Whether the budget is spent, counting the pass since the last call.
+    fn over(&mut self) -> bool {
+        let now = Instant::now();
+        self.spent += now.duration_since(self.last).min(Self::MAX_PASS);
+        self.last = now;
+        self.spent >= self.budget
     }
 }
 
@@ -291,9 +322,9 @@ impl Gripper {
         counters: &mut diagnostics::Counters,
         pending: &mut Pending,
     ) -> bool {
-        let waited = Instant::now();
+        let mut waited = Waited::new(timeout);
         let mut answered = false;
-        while !base.stopped() && waited.elapsed() < timeout {
+        while !base.stopped() && !waited.over() {
             base.spin(Duration::from_millis(1));
             while let Some(Some(c)) = io.cmd.next().now_or_never() {
                 match convert::gripper_command_from(&c) {
@@ -514,4 +545,32 @@ impl Stamped for ArmCommand {
 
 fn main() -> std::process::ExitCode {
     unitac_ros::node::main_of("unitac_sim_node", run)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use super::Waited;
+    use std::time::Duration;
+
+    #[test]
+    fn a_stall_of_the_process_uses_at_most_one_pass_of_a_wait() {
+        let mut w = Waited::new(Duration::from_millis(200));
+        // A stop of the whole process (SIGSTOP) looks like one long pass.
+        std::thread::sleep(Duration::from_millis(400));
+        assert!(!w.over());
+        std::thread::sleep(Duration::from_millis(400));
+        assert!(!w.over(), "two stalls count two passes at most (100 ms)");
+    }
+
+    #[test]
+    fn a_silent_peer_still_ends_the_wait() {
+        let mut w = Waited::new(Duration::from_millis(60));
+        // Each pass sleeps at least 5 ms, so the 60 ms are spent by the 12th at the latest.
+        let passes = (1..=12).find(|_| {
+            std::thread::sleep(Duration::from_millis(5));
+            w.over()
+        });
+        assert!(passes.is_some());
+    }
 }
