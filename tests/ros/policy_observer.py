@@ -24,6 +24,9 @@ line each:
   in:  "joint_states N"    publish N sensor_msgs/JointState on NS/joint_states at 30 Hz (system
                            time stamps, opening 0.07 m, effort 1.5 N), then stop; answer
                            "published T_NS" with the last stamp
+  in:  "pause 1" | "pause 0"  publish std_msgs/Bool on NS/sim/pause (the sim holds sim time
+                           between steps, spinning on); answer "paused T_NS" once /clock has
+                           not moved for 0.5 s (T_NS the last), or "resumed"
   in:  "end"               (or SECONDS passed, or stdin closed) print the summary as one JSON line
                            and exit
 """
@@ -36,7 +39,7 @@ import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Image, JointState
-from std_msgs.msg import String
+from std_msgs.msg import Bool, String
 from unitac_msgs.msg import (ContactEpisode, ContactState, GripperCommand, GripperStatus,
                              PolicyStatus, TactileLatent)
 
@@ -137,6 +140,24 @@ def main():
 
     end = threading.Event()
     joint_pub = node.create_publisher(JointState, ns + "/joint_states", reliable)
+    pause_pub = node.create_publisher(Bool, ns + "/sim/pause", QoSProfile(depth=10))
+
+    def pause(on):
+        pause_pub.publish(Bool(data=on))
+        if not on:
+            say("resumed")
+            return
+        # Held once sim time stands still (a step under way finishes first).
+        last, since = None, time.monotonic()
+        while True:
+            time.sleep(0.05)
+            with lock:
+                now = got["clock_ns"]
+            if now != last:
+                last, since = now, time.monotonic()
+            elif time.monotonic() - since >= 0.5:
+                say(f"paused {now}")
+                return
 
     def publish_joint_states(n):
         last = 0
@@ -171,6 +192,8 @@ def main():
             elif cmd.startswith("joint_states "):
                 threading.Thread(target=publish_joint_states, args=(int(cmd.split()[1]),),
                                  daemon=True).start()
+            elif cmd in ("pause 1", "pause 0"):
+                pause(cmd == "pause 1")
             elif cmd == "end":
                 break
         end.set()

@@ -195,63 +195,34 @@ fn inference_on_a_second_host_answers_the_robots_episodes_and_only_clips_cross()
     );
 }
 
-/// launch/dds/fastdds_two_hosts.xml with a 120 s lease, written to a temp file.
-fn frozen_sim_profile(id: &str) -> std::path::PathBuf {
-    let xml = std::fs::read_to_string(root().join("launch/dds/fastdds_two_hosts.xml")).unwrap();
-    let lease = "<leaseDuration>\n              <sec>2</sec>";
-    assert_eq!(
-        xml.matches(lease).count(),
-        1,
-        "the profile's lease is not where it was"
-    );
-    let p = std::env::temp_dir().join(format!("unitac_frozen_sim_{id}.xml"));
-    std::fs::write(
-        &p,
-        xml.replace(lease, "<leaseDuration>\n              <sec>120</sec>"),
-    )
-    .unwrap();
-    p
-}
-
 #[test]
 fn when_the_gpu_host_goes_away_the_policy_holds_and_inference_resumes_on_its_return() {
     let _one = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
     let h = Hosts::up("b");
-    // The sim, which this test freezes (SIGSTOP) for 2 s and more while the link goes down or
-    // comes back, announces a lease longer than its freezes: the product profile with 120 s
-    // instead of 2 s. A frozen process announces nothing, so with 2 s the robot's other nodes
-    // dropped the sim and had to rediscover it, and one run of eight seen never got its outcome.
-    // A real sim or robot driver is never frozen; every other node has the product's profile.
-    let frozen = frozen_sim_profile(&h.id);
-    let at = |host: &str, program: &str| {
-        let mut c = h.exec(host, program);
-        if program == env!("CARGO_BIN_EXE_unitac_sim_node") {
-            c.env("FASTDDS_DEFAULT_PROFILES_FILE", &frozen);
-        }
-        c
-    };
+    let at = |host: &str, program: &str| h.exec(host, program);
     let n = format!("/fo{}", std::process::id());
     let mut obs = Observer::start(&at, &n, 150);
     let l = Loop::start(&at, &n, 14.0, &obs);
     // Closing on the cup: the probe's latent is awaited, so its producer on the gpu host must be
-    // alive. The link goes down with sim time frozen; the mark is the last tick before the robot's
-    // graph lost the gpu host (the participant lease, 2 s).
+    // alive. The link goes down with the sim paused (sim time held, its node spinning on: a
+    // stopped process would outlive the other nodes' 2 s leases in its own view); the mark is
+    // the last tick before the robot's graph lost the gpu host (the participant lease, 2 s).
     obs.wait_for(|s| s.starts_with("phase close"), 90);
-    l.freeze_sim(true);
+    obs.pause_sim(true);
     h.link(false);
     obs.ask("publishers tactile_latent 0", "publishers ", 20);
     let down = obs.mark();
-    l.freeze_sim(false);
-    // A second of sim time without the gpu host, then it returns (sim time frozen again until
+    obs.pause_sim(false);
+    // A second of sim time without the gpu host, then it returns (the sim paused again until
     // the robot's graph has its publisher back).
     let held = obs.ask("holds 30", "held ", 90);
     let held: i64 = held["held ".len()..].parse().unwrap();
-    l.freeze_sim(true);
+    obs.pause_sim(true);
     let b0 = h.veth_bytes();
     h.link(true);
     obs.ask("publishers tactile_latent 1", "publishers ", 30);
     let up = obs.mark();
-    l.freeze_sim(false);
+    obs.pause_sim(false);
     obs.wait_or_dump(|s| s == "outcome", 90);
     let returned_bytes = h.veth_bytes() - b0;
     let got = obs.finish();

@@ -20,6 +20,8 @@
 //! ArmCommand only. At the end (`duration_s` of sim time) it publishes the world's outcome
 //! once, as one JSON object on `sim/outcome` (std_msgs/String, transient-local), prints the same
 //! line on stdout, and keeps serving until stopped. The other nodes run with `use_sim_time`.
+//! `sim/pause` (std_msgs/Bool) holds sim time between two steps while true, the node spinning on
+//! (its pacing starts over when it goes on).
 
 use futures::{FutureExt, StreamExt};
 use r2r::{QosProfile, RosParams};
@@ -161,6 +163,7 @@ struct Io {
     arm: Sub<r2r::unitac_msgs::msg::ArmCommand>,
     contact: Sub<r2r::unitac_msgs::msg::ContactState>,
     background: Sub<r2r::sensor_msgs::msg::Image>,
+    pause: Sub<r2r::std_msgs::msg::Bool>,
 }
 
 /// A subscription's message stream.
@@ -188,6 +191,7 @@ impl Io {
                 "background",
                 QosProfile::default().keep_last(1).transient_local(),
             )?),
+            pause: Box::pin(node.subscribe("sim/pause", reliable())?),
         })
     }
 
@@ -279,6 +283,33 @@ impl Waited {
         self.spent += now.duration_since(self.last).min(Self::MAX_PASS);
         self.last = now;
         self.spent >= self.budget
+    }
+}
+
+/// Sim time held between steps on request (`sim/pause`, std_msgs/Bool: true holds, false goes
+/// on), as a simulator's pause: the node keeps spinning, so its DDS participant stays alive and
+/// announced, where a stopped process (SIGSTOP) lets the other participants' leases run out in
+/// its own view and drops what it publishes next until it has found them again.
+#[derive(Default)]
+struct Pause {
+    paused: bool,
+}
+
+impl Pause {
+    /// Before a step: while paused, spin; true when it held (the pacer then starts over, so the
+    /// steps after a pause are paced again rather than run to catch up).
+    fn hold(&mut self, base: &mut NodeBase<Params>, io: &mut Io) -> bool {
+        let mut held = false;
+        loop {
+            while let Some(Some(m)) = io.pause.next().now_or_never() {
+                self.paused = m.data;
+            }
+            if !self.paused || base.stopped() {
+                return held;
+            }
+            held = true;
+            base.spin(Duration::from_millis(5));
+        }
     }
 }
 
@@ -410,7 +441,11 @@ fn run() -> anyhow::Result<()> {
     let mut pacer = unitac_core::Pacer::new((p.max_rate > 0.0).then_some(p.max_rate))?;
     let mut steps = 0u64;
     let mut times = TickTimes::default();
+    let mut pause = Pause::default();
     while !base.stopped() && !sim.done() {
+        if pause.hold(&mut base, &mut io) {
+            pacer.restart();
+        }
         let t0 = Instant::now();
         let o = sim.observe()?;
         let now = convert::time(o.stamp);

@@ -148,6 +148,19 @@ impl Observer {
         self.wait_for(|l| l.starts_with(answer), seconds)
     }
 
+    /// Pause the sim (`sim/pause`: sim time held between steps, the sim's node spinning on, so
+    /// its DDS participant stays alive) or let it go on; pausing returns once sim time stands
+    /// still. Where [`Loop::freeze_sim`] would stop the sim's process for longer than the other
+    /// participants' leases (2 s in the two-host profile), the sim would drop them in its own
+    /// view on resuming, and what it publishes until it has found them again is lost.
+    pub fn pause_sim(&mut self, paused: bool) {
+        if paused {
+            self.ask("pause 1", "paused ", 30);
+        } else {
+            self.ask("pause 0", "resumed", 10);
+        }
+    }
+
     /// Record the latest PolicyStatus stamp as the mark and return it.
     pub fn mark(&mut self) -> i64 {
         let marked = self.ask("mark", "marked ", 10);
