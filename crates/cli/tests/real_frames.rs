@@ -1,0 +1,116 @@
+//! `unitac contact` on the repository's real frames (tests/real/*/: real sensors' ball presses,
+//! each set with its source, licence and the contact circles annotated here): every press, one
+//! by one, reads within x1.5 of its annotated disc with its centroid within 0.6 radii, and the
+//! background alone is no contact. The same command a user runs on their own frames.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Largest area ratio (either way) of a press to its annotated disc.
+const AREA_FACTOR: f64 = 1.5;
+/// Farthest centroid from the annotated centre, in annotated radii.
+const CENTROID_RADII: f64 = 0.6;
+
+fn sets() -> Vec<PathBuf> {
+    let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/real");
+    let mut sets: Vec<PathBuf> = std::fs::read_dir(&real)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.join("annotations.json").is_file())
+        .collect();
+    sets.sort();
+    sets
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// `unitac contact --json` on `frames` of `set`: one object per frame.
+fn contact(set: &Path, sensor: &str, frames: &[String]) -> Vec<Value> {
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .current_dir(set)
+        .args([
+            "contact",
+            "--sensor",
+            sensor,
+            "--background",
+            "background.png",
+        ])
+        .arg("--json")
+        .args(frames)
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn every_real_press_reads_near_its_annotated_disc() {
+    let sets = sets();
+    assert!(!sets.is_empty(), "no real-frame set under tests/real");
+    let mut failed = Vec::new();
+    for set in &sets {
+        let source = json(&set.join("source.json"));
+        let sensor = source["sensor"].as_str().unwrap();
+        let presses = json(&set.join("annotations.json"))["presses"]
+            .as_array()
+            .unwrap()
+            .clone();
+        assert!(!presses.is_empty());
+        let files: Vec<String> = presses
+            .iter()
+            .map(|p| p["file"].as_str().unwrap().to_string())
+            .collect();
+        let lines = contact(set, sensor, &files);
+        assert_eq!(lines.len(), presses.len());
+        let name = set.file_name().unwrap().to_string_lossy();
+        let mut ratios = Vec::new();
+        for (p, l) in presses.iter().zip(&lines) {
+            let (x, y, r) = (
+                p["x"].as_f64().unwrap(),
+                p["y"].as_f64().unwrap(),
+                p["r"].as_f64().unwrap(),
+            );
+            let area = l["area_px"].as_f64().unwrap();
+            let ratio = area / (std::f64::consts::PI * r * r);
+            let c = l["centroid"].as_array().unwrap();
+            let off = (c[0].as_f64().unwrap() - x).hypot(c[1].as_f64().unwrap() - y) / r;
+            let line = format!(
+                "{name}/{}: area x{ratio:.2} of the disc, centroid {off:.2} r off",
+                p["file"].as_str().unwrap()
+            );
+            println!("{line}");
+            ratios.push(ratio);
+            let in_area = (1.0 / AREA_FACTOR..=AREA_FACTOR).contains(&ratio);
+            if l["contact"] != true || !in_area || off > CENTROID_RADII {
+                failed.push(line);
+            }
+        }
+        ratios.sort_by(f64::total_cmp);
+        println!(
+            "{name}: {} presses, area / disc median {:.2} (range {:.2}-{:.2})",
+            ratios.len(),
+            ratios[ratios.len() / 2],
+            ratios[0],
+            ratios[ratios.len() - 1]
+        );
+        // The gel at rest is no contact.
+        let bg = contact(set, sensor, &["background.png".to_string()]);
+        if bg[0]["contact"] != false {
+            failed.push(format!("{name}/background.png: {}", bg[0]));
+        }
+    }
+    assert!(failed.is_empty(), "{failed:#?}");
+}
