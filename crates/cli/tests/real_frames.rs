@@ -114,3 +114,107 @@ fn every_real_press_reads_near_its_annotated_disc() {
     }
     assert!(failed.is_empty(), "{failed:#?}");
 }
+
+/// `unitac calibrate depth` on each set's training presses (the source's split) finds every
+/// press that does not touch the frame's border, near its annotated circle; the calibration's
+/// depth contour then reads the set's test presses within x1.5 of their discs.
+#[test]
+fn a_calibration_from_real_presses_finds_their_circles_and_reads_the_others() {
+    for set in sets() {
+        let source = json(&set.join("source.json"));
+        let sensor = source["sensor"].as_str().unwrap();
+        let name = set.file_name().unwrap().to_string_lossy().into_owned();
+        let ball_m = source["indenter"]["diameter_mm"].as_f64().unwrap() * 0.5e-3;
+        let list = |k: &str| -> Vec<String> {
+            source["split"][k]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_str().unwrap().to_string())
+                .collect()
+        };
+        let (train, test) = (list("train"), list("test"));
+        let tmp = std::env::temp_dir().join(format!("unitac-real-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&tmp).unwrap();
+        let (cal, review) = (tmp.join("cal.json"), tmp.join("review"));
+        let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+            .current_dir(&set)
+            .args(["calibrate", "depth", "--sensor", sensor, "--background"])
+            .args(["background.png", "--ball-radius-m", &ball_m.to_string()])
+            .arg("--out")
+            .arg(&cal)
+            .arg("--review")
+            .arg(&review)
+            .args(&train)
+            .output()
+            .unwrap();
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let ann: Vec<Value> = json(&set.join("annotations.json"))["presses"]
+            .as_array()
+            .unwrap()
+            .clone();
+        let annotated = |f: &str| ann.iter().find(|p| p["file"] == f).unwrap().clone();
+        let size = source["size"].as_array().unwrap();
+        let (w, h) = (size[0].as_f64().unwrap(), size[1].as_f64().unwrap());
+        let mut bad = Vec::new();
+        for c in json(&review.join("circles.json")).as_array().unwrap() {
+            let f = c["file"].as_str().unwrap();
+            let a = annotated(f);
+            let g = |v: &Value, k: &str| v[k].as_f64().unwrap();
+            let (x, y, r) = (g(&a, "x"), g(&a, "y"), g(&a, "r"));
+            let inside = x - r >= 0.0 && y - r >= 0.0 && x + r <= w && y + r <= h;
+            if !inside {
+                continue;
+            }
+            let off = (g(c, "x") - x).hypot(g(c, "y") - y);
+            let line = format!(
+                "{name}/{f}: found {} r {:.1} vs {r:.1}, centre {off:.1} px off",
+                c["found"],
+                g(c, "r")
+            );
+            println!("{line}");
+            if c["found"] != true || (g(c, "r") - r).abs() > 2.0 || off > 0.15 * r {
+                bad.push(line);
+            }
+        }
+        let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+            .current_dir(&set)
+            .args([
+                "contact",
+                "--sensor",
+                sensor,
+                "--background",
+                "background.png",
+                "--json",
+            ])
+            .arg("--depth-calibration")
+            .arg(&cal)
+            .args(&test)
+            .output()
+            .unwrap();
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        for l in String::from_utf8(o.stdout).unwrap().lines() {
+            let v: Value = serde_json::from_str(l).unwrap();
+            let f = v["file"].as_str().unwrap();
+            let r = annotated(f)["r"].as_f64().unwrap();
+            let ratio = v["depth"]["area_px"].as_f64().unwrap() / (std::f64::consts::PI * r * r);
+            let line = format!("{name}/{f}: depth's area x{ratio:.2} of the disc");
+            println!("{line}");
+            if !(1.0 / AREA_FACTOR..=AREA_FACTOR).contains(&ratio) {
+                bad.push(line);
+            }
+        }
+        std::fs::remove_dir_all(&tmp).ok();
+        assert!(bad.is_empty(), "{bad:#?}");
+    }
+}
