@@ -5,6 +5,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use serde_json::Value;
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -28,19 +29,11 @@ fn json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-/// `unitac contact --json` on `frames` of `set`: one object per frame.
-fn contact(set: &Path, sensor: &str, frames: &[String]) -> Vec<Value> {
+/// `unitac ARGS...` run in `set`, which must exit 0: its stdout.
+fn unitac(set: &Path, args: &[&OsStr]) -> String {
     let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
         .current_dir(set)
-        .args([
-            "contact",
-            "--sensor",
-            sensor,
-            "--background",
-            "background.png",
-        ])
-        .arg("--json")
-        .args(frames)
+        .args(args)
         .output()
         .unwrap();
     assert_eq!(
@@ -49,8 +42,20 @@ fn contact(set: &Path, sensor: &str, frames: &[String]) -> Vec<Value> {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    String::from_utf8(o.stdout)
-        .unwrap()
+    String::from_utf8(o.stdout).unwrap()
+}
+
+fn os<'a>(args: &[&'a str]) -> Vec<&'a OsStr> {
+    args.iter().map(|a| OsStr::new(*a)).collect()
+}
+
+/// `unitac contact --json` on `frames` of `set` (with `extra` flags): one object per frame.
+fn contact(set: &Path, sensor: &str, extra: &[&OsStr], frames: &[String]) -> Vec<Value> {
+    let mut args = os(&["contact", "--json", "--sensor", sensor]);
+    args.extend(os(&["--background", "background.png"]));
+    args.extend_from_slice(extra);
+    args.extend(frames.iter().map(OsStr::new));
+    unitac(set, &args)
         .lines()
         .map(|l| serde_json::from_str(l).unwrap())
         .collect()
@@ -73,7 +78,7 @@ fn every_real_press_reads_near_its_annotated_disc() {
             .iter()
             .map(|p| p["file"].as_str().unwrap().to_string())
             .collect();
-        let lines = contact(set, sensor, &files);
+        let lines = contact(set, sensor, &[], &files);
         assert_eq!(lines.len(), presses.len());
         let name = set.file_name().unwrap().to_string_lossy();
         let mut ratios = Vec::new();
@@ -107,7 +112,7 @@ fn every_real_press_reads_near_its_annotated_disc() {
             ratios[ratios.len() - 1]
         );
         // The gel at rest is no contact.
-        let bg = contact(set, sensor, &["background.png".to_string()]);
+        let bg = contact(set, sensor, &[], &["background.png".to_string()]);
         if bg[0]["contact"] != false {
             failed.push(format!("{name}/background.png: {}", bg[0]));
         }
@@ -137,23 +142,18 @@ fn a_calibration_from_real_presses_finds_their_circles_and_reads_the_others() {
         let tmp = std::env::temp_dir().join(format!("unitac-real-{}-{name}", std::process::id()));
         std::fs::create_dir_all(&tmp).unwrap();
         let (cal, review) = (tmp.join("cal.json"), tmp.join("review"));
-        let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
-            .current_dir(&set)
-            .args(["calibrate", "depth", "--sensor", sensor, "--background"])
-            .args(["background.png", "--ball-radius-m", &ball_m.to_string()])
-            .arg("--out")
-            .arg(&cal)
-            .arg("--review")
-            .arg(&review)
-            .args(&train)
-            .output()
-            .unwrap();
-        assert_eq!(
-            o.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        let ball = ball_m.to_string();
+        let mut args = os(&["calibrate", "depth", "--sensor", sensor]);
+        args.extend(os(&[
+            "--background",
+            "background.png",
+            "--ball-radius-m",
+            &ball,
+        ]));
+        args.extend([OsStr::new("--out"), cal.as_os_str()]);
+        args.extend([OsStr::new("--review"), review.as_os_str()]);
+        args.extend(train.iter().map(OsStr::new));
+        unitac(&set, &args);
         let ann: Vec<Value> = json(&set.join("annotations.json"))["presses"]
             .as_array()
             .unwrap()
@@ -182,29 +182,8 @@ fn a_calibration_from_real_presses_finds_their_circles_and_reads_the_others() {
                 bad.push(line);
             }
         }
-        let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
-            .current_dir(&set)
-            .args([
-                "contact",
-                "--sensor",
-                sensor,
-                "--background",
-                "background.png",
-                "--json",
-            ])
-            .arg("--depth-calibration")
-            .arg(&cal)
-            .args(&test)
-            .output()
-            .unwrap();
-        assert_eq!(
-            o.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        for l in String::from_utf8(o.stdout).unwrap().lines() {
-            let v: Value = serde_json::from_str(l).unwrap();
+        let depth = [OsStr::new("--depth-calibration"), cal.as_os_str()];
+        for v in contact(&set, sensor, &depth, &test) {
             let f = v["file"].as_str().unwrap();
             let r = annotated(f)["r"].as_f64().unwrap();
             let ratio = v["depth"]["area_px"].as_f64().unwrap() / (std::f64::consts::PI * r * r);
