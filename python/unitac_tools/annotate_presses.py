@@ -11,10 +11,13 @@ difference marks the contact edge, whatever the light's direction on that ray. A
 to those edge points (72 rays, outliers rejected) is the annotation.
 
   python -m unitac_tools.annotate_presses SET_DIR [--review PNG]
+  python -m unitac_tools.annotate_presses SET_DIR --overlays DIR --sheet PNG NN.png...
 
 SET_DIR holds background.png, the presses NN.png and source.json (the set's provenance and, where
 the source labelled its presses, their circles). It writes SET_DIR/annotations.json: per press
-the circle (x, y, r in pixels), how many rays agreed, and the source's circle beside it.
+the circle (x, y, r in pixels), how many rays agreed, and the source's circle beside it. With
+--overlays it draws instead the annotated circles onto `unitac contact --overlay`'s pictures
+(scripts/real-frames).
 """
 import argparse
 import glob
@@ -124,11 +127,46 @@ def review(set_dir, entries, path):
     sheet.save(path)
 
 
+def overlay_sheet(set_dir, overlay_dir, files, path):
+    """`unitac contact --overlay`'s pictures of `files` (in `overlay_dir`: the frame with the
+    contact region's outline in red and its centroid), each with its annotated circle drawn in
+    green, 3 a row."""
+    with open(os.path.join(set_dir, "annotations.json")) as f:
+        circles = {c["file"]: c for c in json.load(f)["presses"]}
+    tiles = []
+    for name in files:
+        c = circles[name]
+        stem = os.path.splitext(name)[0]
+        t = Image.open(os.path.join(overlay_dir, f"{stem}.overlay.png")).convert("RGB")
+        d = ImageDraw.Draw(t)
+        d.ellipse([c["x"] - c["r"], c["y"] - c["r"], c["x"] + c["r"], c["y"] + c["r"]],
+                  outline=(0, 255, 0))
+        d.text((4, 4), name, fill=(255, 255, 0))
+        tiles.append(t)
+    tw, th = tiles[0].size
+    rows = (len(tiles) + 2) // 3
+    sheet = Image.new("RGB", (3 * tw, rows * th))
+    for i, t in enumerate(tiles):
+        sheet.paste(t, ((i % 3) * tw, (i // 3) * th))
+    sheet.save(path)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("set_dir")
     ap.add_argument("--review", help="write the review sheet (PNG) here")
+    ap.add_argument("--overlays", help="instead: the directory of `unitac contact --overlay`'s "
+                    "pictures of the set's presses, drawn with their annotated circles into "
+                    "--sheet")
+    ap.add_argument("--sheet", help="with --overlays: the PNG to write")
+    ap.add_argument("files", nargs="*", help="with --overlays: the presses to draw (NN.png)")
     a = ap.parse_args()
+    if a.overlays:
+        if not a.sheet or not a.files:
+            ap.error("--overlays needs --sheet and the presses to draw")
+        overlay_sheet(a.set_dir, a.overlays, a.files, a.sheet)
+        print(f"{a.sheet}: {len(a.files)} presses")
+        return
     with open(os.path.join(a.set_dir, "source.json")) as f:
         source = json.load(f)
     labels = {c["file"]: c for c in source.get("labels", [])}
