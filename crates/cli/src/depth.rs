@@ -13,7 +13,7 @@ use unitac_core::{Frame, SensorKind};
 use unitac_sim::MM_PER_M;
 use unitac_sim::ballpress::{PressNoise, random_presses, render_presses};
 
-use crate::images::read_frame;
+use crate::images::{distinct_names, output_files, read_frame};
 use unitac_cli::args::{f64_in, int_in, usage};
 use unitac_cli::mock::calibration_gel;
 
@@ -117,12 +117,6 @@ struct CircleEntry {
     skip: bool,
 }
 
-fn file_key(p: &Path) -> String {
-    p.file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default()
-}
-
 /// The circles of `path` for presses of `width` x `height`: each one not skipped has its centre
 /// in the image and a radius above 0 and at most half the image's shorter side (a larger circle
 /// cannot lie in the image).
@@ -214,12 +208,17 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
         std::fs::create_dir_all(dir)
             .map_err(|e| usage(format!("--review {}: {e}", dir.display())))?;
     }
+    // A press's key in circles.json and its review file: its file name, or its path where
+    // several presses share one (a calibration set laid out as `N/gelsight.png`).
+    let keys = distinct_names(&a.presses);
+    let review_files =
+        output_files(&keys, "review.png").map_err(|e| usage(format!("--review: {e:#}")))?;
     let mut prep = Prep::default();
     let mut fit = Fit::default();
     let mut entries = Vec::new();
     let mut failed = 0usize;
-    for (k, path) in a.presses.iter().enumerate() {
-        let key = file_key(path);
+    for (k, (path, key)) in a.presses.iter().zip(&keys).enumerate() {
+        let review_file = &review_files[k];
         let frame = match read_frame(path, "calibration", k as u64, Some((bg.width, bg.height))) {
             Ok(f) => f,
             Err(e) => {
@@ -232,7 +231,7 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
         let found = find_circle(&prep.diff, w, h);
         let chosen = match given
             .as_ref()
-            .and_then(|g| g.iter().find(|c| c.file == key))
+            .and_then(|g| g.iter().find(|c| &c.file == key))
         {
             Some(c) if c.skip => None,
             Some(c) => Some(Circle {
@@ -243,15 +242,11 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
             None => found,
         };
         if let Some(dir) = &a.review {
-            let stem = path
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| format!("press_{k}"));
-            review_png(&frame, chosen, &dir.join(format!("{stem}.review.png")))?;
+            review_png(&frame, chosen, &dir.join(review_file))?;
         }
         let skip = given
             .as_ref()
-            .and_then(|g| g.iter().find(|c| c.file == key))
+            .and_then(|g| g.iter().find(|c| &c.file == key))
             .is_some_and(|c| c.skip);
         entries.push(CircleEntry {
             file: key.clone(),
@@ -363,17 +358,7 @@ pub fn contact_depth(
     )?)
 }
 
-/// The overlay file of frame `source`: `<its file stem>.overlay.png`.
-pub fn overlay_name(source: &Path) -> String {
-    let stem = source
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "frame".into());
-    format!("{stem}.overlay.png")
-}
-
-/// `<frame stem>.overlay.png` in `dir`: the picture of `unitac_contact::overlay` (the contact
-/// stage's `contact_overlay` is the same one): the frame with the contact region's outline and
+/// The overlay file `path`: the picture of `unitac_contact::overlay` (the contact stage's `contact_overlay` is the same one): the frame with the contact region's outline and
 /// centroid, the markers' displacements (rest, now) as arrows, and with a depth estimator,
 /// beside it the depth colour map with the depth's contact outline (the depth unknown under the
 /// `unknown` pixels, the marker dots).
@@ -383,8 +368,7 @@ pub fn overlay_png(
     centroid: [f32; 2],
     arrows: &[([f32; 2], [f32; 2])],
     depth: Option<(&DepthEstimator, &[bool])>,
-    dir: &Path,
-    source: &Path,
+    path: &Path,
 ) -> anyhow::Result<()> {
     use unitac_contact::overlay::{DepthPanel, Overlay, draw};
     let depth_m: Option<Vec<f32>> = depth.map(|(d, unknown)| {
@@ -415,7 +399,6 @@ pub fn overlay_png(
     let img = draw(frame, &o)?;
     let img = image::RgbImage::from_raw(img.width, img.height, img.data().to_vec())
         .context("overlay buffer")?;
-    let path = dir.join(overlay_name(source));
     img.save(&path)
         .with_context(|| format!("{}", path.display()))
 }

@@ -94,7 +94,8 @@ enum Cmd {
         depth_calibration: Option<PathBuf>,
         /// Write `<frame>.overlay.png` per frame into this directory: the frame with the contact
         /// outline and centroid, and beside it the depth colour map (with --depth-calibration).
-        /// Two frames of the same file name (from different directories) are refused.
+        /// Frames of one file name in several directories are told apart by their path
+        /// (`0/gelsight.png` -> `0_gelsight.overlay.png`).
         #[arg(long)]
         overlay: Option<PathBuf>,
         /// Keep the skirt's flank: the contact region at the residual's half-level contour alone
@@ -304,29 +305,6 @@ struct ContactExtras<'a> {
     peel_skirt: bool,
 }
 
-/// Each frame's overlay is named after its file: two files of one name would overwrite each
-/// other's.
-fn distinct_overlay_names(frames: &[PathBuf]) -> anyhow::Result<()> {
-    let mut named: std::collections::HashMap<String, &PathBuf> = Default::default();
-    for f in frames {
-        let name = depth::overlay_name(f);
-        match named.get(&name) {
-            Some(other) if *other != f => {
-                return Err(args::usage(format!(
-                    "--overlay: frames {} and {} would both write {name}; give frames of \
-                     distinct file names",
-                    other.display(),
-                    f.display()
-                )));
-            }
-            _ => {
-                named.insert(name, f);
-            }
-        }
-    }
-    Ok(())
-}
-
 /// One frame's line of `unitac contact`: JSON or text, with the depth stage's reading when a
 /// calibration was given.
 fn contact_line(
@@ -385,9 +363,12 @@ fn cmd_contact(
     extra: &ContactExtras<'_>,
 ) -> anyhow::Result<bool> {
     use unitac_contact::{ContactDetector, ContactParams};
-    if extra.overlay.is_some() {
-        distinct_overlay_names(frames)?;
-    }
+    // Each frame's overlay file is named after it (`images::output_file`).
+    let overlay_files = match extra.overlay {
+        Some(_) => images::output_files(&images::distinct_names(frames), "overlay.png")
+            .map_err(|e| args::usage(format!("--overlay: {e:#}")))?,
+        None => vec![String::new(); frames.len()],
+    };
     let bg = images::read_frame(background, sensor.as_str(), 0, None)
         .map_err(|e| anyhow::Error::new(ConfigError(format!("background {e:#}"))))?;
     let params = ContactParams {
@@ -430,7 +411,7 @@ fn cmd_contact(
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
     let mut all_ok = true;
-    for (i, path) in frames.iter().enumerate() {
+    for (i, (path, overlay_file)) in frames.iter().zip(&overlay_files).enumerate() {
         let file = path.display().to_string();
         let result =
             images::read_frame(path, sensor.as_str(), i as u64 + 1, Some(size)).and_then(|f| {
@@ -457,7 +438,8 @@ fn cmd_contact(
                         }
                         _ => Vec::new(),
                     };
-                    depth::overlay_png(&f, &det.mask_px(), m.centroid, &arrows, d, dir, path)?;
+                    let file = dir.join(overlay_file);
+                    depth::overlay_png(&f, &det.mask_px(), m.centroid, &arrows, d, &file)?;
                 }
                 Ok((m, d))
             });

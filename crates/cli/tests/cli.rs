@@ -232,10 +232,11 @@ fn flat_png(path: &std::path::Path, w: u32, h: u32, level: u8) {
         .unwrap();
 }
 
-/// Two frames of one file name in different directories would write one overlay file: refused
-/// before any work, naming both (not one overlay silently overwriting the other).
+/// Frames of one file name in different folders get overlays named by their folders too (a
+/// calibration set laid out as `N/gelsight.png`); names that would still write one file are
+/// refused before any work, naming both (not one overlay silently overwriting the other).
 #[test]
-fn overlays_of_frames_with_one_name_are_refused() {
+fn overlays_of_frames_with_one_name_are_told_apart_by_their_folders() {
     let d = tmpdir("overlay-names");
     std::fs::create_dir_all(d.join("a")).unwrap();
     std::fs::create_dir_all(d.join("b")).unwrap();
@@ -263,20 +264,34 @@ fn overlays_of_frames_with_one_name_are_refused() {
             .output()
             .unwrap()
     };
+    // Two files of one name in two folders: each overlay named by its folder too.
     let o = run(args(&[&a, &b]));
-    let e = stderr(&o);
-    assert_eq!(o.status.code(), Some(2), "{e}");
-    let last = e.trim_end().lines().last().unwrap_or("");
-    assert!(last.starts_with("unitac: --overlay"), "{e}");
-    assert!(
-        last.contains("a/f.png") && last.contains("b/f.png") && last.contains("f.overlay.png"),
-        "{e}"
-    );
-    assert!(!ov.join("f.overlay.png").exists(), "nothing written");
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(ov.join("a_f.overlay.png").is_file() && ov.join("b_f.overlay.png").is_file());
+    assert!(!ov.join("f.overlay.png").exists());
     // One file given twice writes one overlay, the same picture: not refused.
     let o = run(args(&[&a, &a]));
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(ov.join("f.overlay.png").is_file());
+    // Two names that would write one file are refused before anything is written.
+    std::fs::remove_dir_all(&ov).unwrap();
+    let clash: Vec<PathBuf> = ["x_y/f.png", "z/f.png", "x/y_f.png", "w/y_f.png"]
+        .iter()
+        .map(|f| d.join(f))
+        .collect();
+    for f in &clash {
+        std::fs::create_dir_all(f.parent().unwrap()).unwrap();
+        flat_png(f, 320, 240, 128);
+    }
+    let o = run(args(&clash.iter().collect::<Vec<_>>()));
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    let last = e.trim_end().lines().last().unwrap_or("");
+    assert!(
+        last.starts_with("unitac: --overlay") && last.contains("x_y_f.overlay.png"),
+        "{e}"
+    );
+    assert!(!ov.join("x_y_f.overlay.png").exists(), "nothing written");
     std::fs::remove_dir_all(&d).ok();
 }
 

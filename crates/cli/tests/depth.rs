@@ -215,6 +215,61 @@ fn unitac_limited(args: &[&str], limit: std::time::Duration) -> (Option<i32>, St
     }
 }
 
+/// A calibration set laid out as `N/gelsight.png` (gs_sdk's): each press keeps its own review
+/// file and its own entry in circles.json (by its folder), and an edited circles.json finds each
+/// press again; before, every press wrote `gelsight.review.png` over the last one.
+#[test]
+fn presses_of_one_file_name_in_numbered_folders_are_reviewed_apart() {
+    let d = dir("folders");
+    let (bg, files) = mock(&d, "4");
+    let mut nested = Vec::new();
+    for (k, f) in files.iter().enumerate() {
+        let to = d.join(format!("set/{k}/gelsight.png"));
+        std::fs::create_dir_all(to.parent().unwrap()).unwrap();
+        std::fs::copy(f, &to).unwrap();
+        nested.push(to.to_str().unwrap().to_string());
+    }
+    let (cal, review) = (d.join("cal.json"), d.join("review"));
+    let mut args = calibrate_depth_args("0.002", &bg, &cal);
+    args.extend(["--review", review.to_str().unwrap()]);
+    args.extend(nested.iter().map(String::as_str));
+    let (code, _, err) = unitac(&args);
+    assert_eq!(code, Some(0), "{err}");
+    let circles = json(&review.join("circles.json"));
+    let keys: Vec<&str> = circles
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["file"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        keys,
+        [
+            "0/gelsight.png",
+            "1/gelsight.png",
+            "2/gelsight.png",
+            "3/gelsight.png"
+        ]
+    );
+    for k in 0..4 {
+        assert!(review.join(format!("{k}_gelsight.review.png")).is_file());
+    }
+    // Skipping the press of folder 2 by its key leaves the other three.
+    let mut edited = circles.clone();
+    edited[2]["skip"] = Value::Bool(true);
+    let edited_path = d.join("circles.json");
+    std::fs::write(&edited_path, edited.to_string()).unwrap();
+    let cal2 = d.join("cal2.json");
+    let mut args2 = calibrate_depth_args("0.002", &bg, &cal2);
+    args2.extend(["--circles", edited_path.to_str().unwrap()]);
+    args2.extend(nested.iter().map(String::as_str));
+    let (code, _, err) = unitac(&args2);
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(json(&cal)["presses_used"], 4);
+    assert_eq!(json(&cal2)["presses_used"], 3);
+    std::fs::remove_dir_all(&d).ok();
+}
+
 /// Mock presses (`count`) in `d/mock`: the background and the press files.
 fn mock(d: &Path, count: &str) -> (PathBuf, Vec<String>) {
     let out = d.join("mock");

@@ -5,9 +5,10 @@
 //! the three channels, `|d - mean(d)|`, follows the gel's slope (the lights come from three
 //! sides); it rises towards the contact edge and falls off outside it (a ball's slope is largest
 //! at the edge of the contact). The press is the largest connected region over 5x the frame's
-//! median of that magnitude (at least 6 DN); its magnitude-weighted centroid is the centre, and
-//! the radius where the mean magnitude over a one-pixel ring around it peaks is the contact
-//! radius. Users review a PNG per press and pass corrected circles back (the CLI).
+//! median of that magnitude (at least 6 DN); from its magnitude-weighted centroid, each of 72
+//! rays finds the edge where the magnitude peaks along it, and a circle fitted to those points
+//! (outliers dropped, then again from the fitted centre) is the contact circle. Users review a PNG
+//! per press and pass corrected circles back (the CLI).
 //!
 //! The fit: pixels inside 0.9 contact radii take the ball's slope, `-(p - c) / sqrt(R^2 - r^2)`
 //! (exact sphere, depth per length), and the gel at rest (no colour change, at every 4th pixel in each
@@ -89,48 +90,22 @@ pub fn find_circle(diff: &[f32], w: usize, h: usize) -> Option<Circle> {
         sx += wt * (i % w) as f64;
         sy += wt * (i / w) as f64;
     }
-    let (mut cx, mut cy) = (sx / sw, sy / sw);
+    let (cx, cy) = (sx / sw, sy / sw);
     for (i, _) in label.iter().enumerate().filter(|(_, l)| **l == best.1) {
         reach = f64::max(reach, ((i % w) as f64 - cx).hypot((i / w) as f64 - cy));
     }
-    let mut r = radial_peak(&m, w, h, cx, cy, reach);
-    // Refine: the centroid of the magnitude over a quarter of its peak within 1.5 radii, then
-    // the ring again (a threshold region left asymmetric by shading or noise moves the first
-    // centroid by a pixel or two).
+    // The edge: on each ray from the centre, where the magnitude peaks; a circle fitted to those
+    // points, outliers rejected, then again from the fitted centre (the component's centroid
+    // leans to the lights' side by a pixel or more).
+    let lim = (1.5 * reach + 4.0).min(0.5 * w.min(h) as f64);
+    let mut c = Circle {
+        x: cx,
+        y: cy,
+        r: 0.0,
+    };
     for _ in 0..3 {
-        let lim = 1.5 * r + 2.0;
-        let (x0, x1) = (
-            (cx - lim).max(0.0) as usize,
-            ((cx + lim) as usize + 1).min(w),
-        );
-        let (y0, y1) = (
-            (cy - lim).max(0.0) as usize,
-            ((cy + lim) as usize + 1).min(h),
-        );
-        let mut peak = 0f32;
-        for y in y0..y1 {
-            for x in x0..x1 {
-                peak = peak.max(m[y * w + x]);
-            }
-        }
-        let (mut sw, mut sx, mut sy) = (0f64, 0f64, 0f64);
-        for y in y0..y1 {
-            for x in x0..x1 {
-                let v = m[y * w + x] - 0.25 * peak;
-                if v > 0.0 && (x as f64 - cx).hypot(y as f64 - cy) <= lim {
-                    sw += f64::from(v);
-                    sx += f64::from(v) * x as f64;
-                    sy += f64::from(v) * y as f64;
-                }
-            }
-        }
-        if sw <= 0.0 {
-            break;
-        }
-        (cx, cy) = (sx / sw, sy / sw);
-        r = radial_peak(&m, w, h, cx, cy, lim);
+        c = ray_circle(&m, w, h, c.x, c.y, lim)?;
     }
-    let c = Circle { x: cx, y: cy, r };
     if c.r < 2.0
         || c.x - c.r < 0.0
         || c.y - c.r < 0.0
@@ -142,48 +117,92 @@ pub fn find_circle(diff: &[f32], w: usize, h: usize) -> Option<Circle> {
     Some(c)
 }
 
-/// The radius (sub-pixel) where the mean of `m` over one-pixel rings around (cx, cy) peaks,
-/// out to `reach`.
-fn radial_peak(m: &[f32], w: usize, h: usize, cx: f64, cy: f64, reach: f64) -> f64 {
-    let bins = (reach.ceil() as usize + 2).min(w.max(h));
-    let mut sum = vec![0f64; bins];
-    let mut cnt = vec![0u32; bins];
-    let (x0, x1) = (
-        (cx - reach - 2.0).max(0.0) as usize,
-        ((cx + reach + 2.0) as usize).min(w),
-    );
-    let (y0, y1) = (
-        (cy - reach - 2.0).max(0.0) as usize,
-        ((cy + reach + 2.0) as usize).min(h),
-    );
-    for y in y0..y1 {
-        for x in x0..x1 {
-            let b = (x as f64 - cx).hypot(y as f64 - cy).round() as usize;
-            if b < bins {
-                sum[b] += f64::from(m[y * w + x]);
-                cnt[b] += 1;
+/// Rays from a press's centre along which its edge is sought.
+const RAYS: usize = 72;
+/// Fewest rays with an edge that make a circle.
+const MIN_RAYS: usize = 12;
+
+/// The circle through the points where `m` peaks along each of [`RAYS`] rays from (cx, cy), out to
+/// `reach` (a ray's peak at its end or the frame's edge is no edge): least squares (Kasa's
+/// algebraic fit), three times, each dropping the points further from the circle than 2 px or
+/// 2.5 times the median distance. Per ray, not the mean over rings: the lights make one side of
+/// a press brighter than the other, and a ring's mean then peaks inside the edge on the dim side.
+fn ray_circle(m: &[f32], w: usize, h: usize, cx: f64, cy: f64, reach: f64) -> Option<Circle> {
+    let mut pts: Vec<(f64, f64)> = Vec::with_capacity(RAYS);
+    let steps = ((reach - 2.0) / 0.5).max(0.0) as usize;
+    let mut ray: Vec<(f32, f64, f64)> = Vec::with_capacity(steps);
+    for k in 0..RAYS {
+        let t = std::f64::consts::TAU * k as f64 / RAYS as f64;
+        ray.clear();
+        for s in 0..steps {
+            let r = 2.0 + 0.5 * s as f64;
+            let (x, y) = (cx + r * t.cos(), cy + r * t.sin());
+            let (xi, yi) = (x.round(), y.round());
+            if xi < 0.0 || yi < 0.0 || xi >= w as f64 || yi >= h as f64 {
+                break;
             }
+            ray.push((m[yi as usize * w + xi as usize], x, y));
+        }
+        let peak = ray
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.0.total_cmp(&b.1.0))
+            .map(|(i, p)| (i, p.1, p.2));
+        // A peak at the ray's end (its reach or the frame's edge) is no edge.
+        if let Some((_, x, y)) = peak.filter(|(i, _, _)| *i + 1 < ray.len() && ray.len() >= 8) {
+            pts.push((x, y));
         }
     }
-    let prof: Vec<f64> = sum
-        .iter()
-        .zip(&cnt)
-        .map(|(s, &c)| if c > 0 { s / f64::from(c) } else { 0.0 })
-        .collect();
-    let (k, _) =
-        prof.iter().enumerate().skip(1).fold(
-            (1, f64::MIN),
-            |acc, (i, &v)| if v > acc.1 { (i, v) } else { acc },
-        );
-    // Parabolic refinement of the peak.
-    if k + 1 < prof.len() {
-        let (a, b, c) = (prof[k - 1], prof[k], prof[k + 1]);
-        let den = a - 2.0 * b + c;
-        if den < 0.0 {
-            return k as f64 + (0.5 * (a - c) / den).clamp(-0.5, 0.5);
+    let mut keep = vec![true; pts.len()];
+    let mut c = None;
+    for _ in 0..3 {
+        let kept: Vec<(f64, f64)> = pts
+            .iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(p, _)| *p)
+            .collect();
+        if kept.len() < MIN_RAYS {
+            return None;
         }
+        let fit = fit_circle(&kept)?;
+        let dist: Vec<f64> = pts
+            .iter()
+            .map(|p| ((p.0 - fit.x).hypot(p.1 - fit.y) - fit.r).abs())
+            .collect();
+        let mut kd: Vec<f64> = dist
+            .iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(d, _)| *d)
+            .collect();
+        let mid = kd.len() / 2;
+        let med = *kd.select_nth_unstable_by(mid, f64::total_cmp).1;
+        let tol = (2.5 * med).max(2.0);
+        keep = dist.iter().map(|d| *d < tol).collect();
+        c = Some(fit);
     }
-    k as f64
+    c
+}
+
+/// Least-squares circle through `pts` (Kasa: x^2 + y^2 = 2 a x + 2 b y + c, linear in a, b, c);
+/// None when they are collinear or the fit is not a circle.
+fn fit_circle(pts: &[(f64, f64)]) -> Option<Circle> {
+    let mut ata = SMatrix::<f64, 3, 3>::zeros();
+    let mut atb = SVector::<f64, 3>::zeros();
+    for &(x, y) in pts {
+        let row = SVector::<f64, 3>::new(2.0 * x, 2.0 * y, 1.0);
+        ata += row * row.transpose();
+        atb += row * (x * x + y * y);
+    }
+    let sol = ata.lu().solve(&atb)?;
+    let (a, b) = (sol[0], sol[1]);
+    let r2 = sol[2] + a * a + b * b;
+    (r2 > 0.0 && r2.is_finite()).then(|| Circle {
+        x: a,
+        y: b,
+        r: r2.sqrt(),
+    })
 }
 
 /// Normal equations of the gradient fit, accumulated press by press.

@@ -1,0 +1,199 @@
+//! `unitac contact` on the repository's real frames (tests/real/*/: real sensors' ball presses,
+//! each set with its source, licence and the contact circles annotated here): every press, one
+//! by one, reads within x1.5 of its annotated disc with its centroid within 0.6 radii, and the
+//! background alone is no contact. The same command a user runs on their own frames.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use serde_json::Value;
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Largest area ratio (either way) of a press to its annotated disc.
+const AREA_FACTOR: f64 = 1.5;
+/// Farthest centroid from the annotated centre, in annotated radii.
+const CENTROID_RADII: f64 = 0.6;
+
+fn sets() -> Vec<PathBuf> {
+    let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/real");
+    let mut sets: Vec<PathBuf> = std::fs::read_dir(&real)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.join("annotations.json").is_file())
+        .collect();
+    sets.sort();
+    sets
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// `unitac ARGS...` run in `set`, which must exit 0: its stdout.
+fn unitac(set: &Path, args: &[&OsStr]) -> String {
+    let o = Command::new(env!("CARGO_BIN_EXE_unitac"))
+        .current_dir(set)
+        .args(args)
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8(o.stdout).unwrap()
+}
+
+fn os<'a>(args: &[&'a str]) -> Vec<&'a OsStr> {
+    args.iter().map(|a| OsStr::new(*a)).collect()
+}
+
+/// `unitac contact --json` on `frames` of `set` (with `extra` flags): one object per frame.
+fn contact(set: &Path, sensor: &str, extra: &[&OsStr], frames: &[String]) -> Vec<Value> {
+    let mut args = os(&["contact", "--json", "--sensor", sensor]);
+    args.extend(os(&["--background", "background.png"]));
+    args.extend_from_slice(extra);
+    args.extend(frames.iter().map(OsStr::new));
+    unitac(set, &args)
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn every_real_press_reads_near_its_annotated_disc() {
+    let sets = sets();
+    assert!(!sets.is_empty(), "no real-frame set under tests/real");
+    let mut failed = Vec::new();
+    for set in &sets {
+        let source = json(&set.join("source.json"));
+        let sensor = source["sensor"].as_str().unwrap();
+        let presses = json(&set.join("annotations.json"))["presses"]
+            .as_array()
+            .unwrap()
+            .clone();
+        assert!(!presses.is_empty());
+        let files: Vec<String> = presses
+            .iter()
+            .map(|p| p["file"].as_str().unwrap().to_string())
+            .collect();
+        let lines = contact(set, sensor, &[], &files);
+        assert_eq!(lines.len(), presses.len());
+        let name = set.file_name().unwrap().to_string_lossy();
+        let mut ratios = Vec::new();
+        for (p, l) in presses.iter().zip(&lines) {
+            let (x, y, r) = (
+                p["x"].as_f64().unwrap(),
+                p["y"].as_f64().unwrap(),
+                p["r"].as_f64().unwrap(),
+            );
+            let area = l["area_px"].as_f64().unwrap();
+            let ratio = area / (std::f64::consts::PI * r * r);
+            let c = l["centroid"].as_array().unwrap();
+            let off = (c[0].as_f64().unwrap() - x).hypot(c[1].as_f64().unwrap() - y) / r;
+            let line = format!(
+                "{name}/{}: area x{ratio:.2} of the disc, centroid {off:.2} r off",
+                p["file"].as_str().unwrap()
+            );
+            println!("{line}");
+            ratios.push(ratio);
+            let in_area = (1.0 / AREA_FACTOR..=AREA_FACTOR).contains(&ratio);
+            if l["contact"] != true || !in_area || off > CENTROID_RADII {
+                failed.push(line);
+            }
+        }
+        ratios.sort_by(f64::total_cmp);
+        println!(
+            "{name}: {} presses, area / disc median {:.2} (range {:.2}-{:.2})",
+            ratios.len(),
+            ratios[ratios.len() / 2],
+            ratios[0],
+            ratios[ratios.len() - 1]
+        );
+        // The gel at rest is no contact.
+        let bg = contact(set, sensor, &[], &["background.png".to_string()]);
+        if bg[0]["contact"] != false {
+            failed.push(format!("{name}/background.png: {}", bg[0]));
+        }
+    }
+    assert!(failed.is_empty(), "{failed:#?}");
+}
+
+/// `unitac calibrate depth` on each set's training presses (the source's split) finds every
+/// press that does not touch the frame's border, near its annotated circle; the calibration's
+/// depth contour then reads the set's test presses within x1.5 of their discs.
+#[test]
+fn a_calibration_from_real_presses_finds_their_circles_and_reads_the_others() {
+    for set in sets() {
+        let source = json(&set.join("source.json"));
+        let sensor = source["sensor"].as_str().unwrap();
+        let name = set.file_name().unwrap().to_string_lossy().into_owned();
+        let ball_m = source["indenter"]["diameter_mm"].as_f64().unwrap() * 0.5e-3;
+        let list = |k: &str| -> Vec<String> {
+            source["split"][k]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_str().unwrap().to_string())
+                .collect()
+        };
+        let (train, test) = (list("train"), list("test"));
+        let tmp = std::env::temp_dir().join(format!("unitac-real-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&tmp).unwrap();
+        let (cal, review) = (tmp.join("cal.json"), tmp.join("review"));
+        let ball = ball_m.to_string();
+        let mut args = os(&["calibrate", "depth", "--sensor", sensor]);
+        args.extend(os(&[
+            "--background",
+            "background.png",
+            "--ball-radius-m",
+            &ball,
+        ]));
+        args.extend([OsStr::new("--out"), cal.as_os_str()]);
+        args.extend([OsStr::new("--review"), review.as_os_str()]);
+        args.extend(train.iter().map(OsStr::new));
+        unitac(&set, &args);
+        let ann: Vec<Value> = json(&set.join("annotations.json"))["presses"]
+            .as_array()
+            .unwrap()
+            .clone();
+        let annotated = |f: &str| ann.iter().find(|p| p["file"] == f).unwrap().clone();
+        let size = source["size"].as_array().unwrap();
+        let (w, h) = (size[0].as_f64().unwrap(), size[1].as_f64().unwrap());
+        let mut bad = Vec::new();
+        for c in json(&review.join("circles.json")).as_array().unwrap() {
+            let f = c["file"].as_str().unwrap();
+            let a = annotated(f);
+            let g = |v: &Value, k: &str| v[k].as_f64().unwrap();
+            let (x, y, r) = (g(&a, "x"), g(&a, "y"), g(&a, "r"));
+            let inside = x - r >= 0.0 && y - r >= 0.0 && x + r <= w && y + r <= h;
+            if !inside {
+                continue;
+            }
+            let off = (g(c, "x") - x).hypot(g(c, "y") - y);
+            let line = format!(
+                "{name}/{f}: found {} r {:.1} vs {r:.1}, centre {off:.1} px off",
+                c["found"],
+                g(c, "r")
+            );
+            println!("{line}");
+            if c["found"] != true || (g(c, "r") - r).abs() > 2.0 || off > 0.15 * r {
+                bad.push(line);
+            }
+        }
+        let depth = [OsStr::new("--depth-calibration"), cal.as_os_str()];
+        for v in contact(&set, sensor, &depth, &test) {
+            let f = v["file"].as_str().unwrap();
+            let r = annotated(f)["r"].as_f64().unwrap();
+            let ratio = v["depth"]["area_px"].as_f64().unwrap() / (std::f64::consts::PI * r * r);
+            let line = format!("{name}/{f}: depth's area x{ratio:.2} of the disc");
+            println!("{line}");
+            if !(1.0 / AREA_FACTOR..=AREA_FACTOR).contains(&ratio) {
+                bad.push(line);
+            }
+        }
+        std::fs::remove_dir_all(&tmp).ok();
+        assert!(bad.is_empty(), "{bad:#?}");
+    }
+}
