@@ -249,6 +249,12 @@ const ALLOWED: &[(&str, &str, usize, &str)] = &[
     ),
     // The Python tools (python/unitac_tools), run by setup and by a user.
     (
+        "python/unitac_tools/annotate_presses.py",
+        "\"w\") as",
+        1,
+        "annotations.json inside SET_DIR, the real-frame set the user names",
+    ),
+    (
         "python/unitac_tools/generate_reference.py",
         "os.makedirs(",
         1,
