@@ -101,6 +101,21 @@ def annotate(frame, background):
             "rays_kept": int(kept.sum()), "rays": int(len(pts))}
 
 
+def save_sheet(tiles, path):
+    """The tiles (one size), 3 a row, to `path`: a JPEG at quality 92 where the path says so (a
+    quarter of the PNG's bytes, for a picture committed beside a README; 256 colours lost the
+    gel's shading), else a PNG."""
+    tw, th = tiles[0].size
+    rows = (len(tiles) + 2) // 3
+    sheet = Image.new("RGB", (3 * tw, rows * th))
+    for i, t in enumerate(tiles):
+        sheet.paste(t, ((i % 3) * tw, (i // 3) * th))
+    if path.lower().endswith((".jpg", ".jpeg")):
+        sheet.save(path, quality=92)
+    else:
+        sheet.save(path)
+
+
 def review(set_dir, entries, path):
     """One tile per press: the frame and its difference (x3 around grey), the annotation in red
     and the source's circle in green; 3 presses a row."""
@@ -119,12 +134,7 @@ def review(set_dir, entries, path):
                                c["x"] + c["r"] + off, c["y"] + c["r"]], outline=colour)
         d.text((4, 4), e["file"], fill=(255, 255, 0))
         tiles.append(t)
-    tw, th = tiles[0].size
-    rows = (len(tiles) + 2) // 3
-    sheet = Image.new("RGB", (3 * tw, rows * th))
-    for i, t in enumerate(tiles):
-        sheet.paste(t, ((i % 3) * tw, (i // 3) * th))
-    sheet.save(path)
+    save_sheet(tiles, path)
 
 
 def overlay_sheet(set_dir, overlay_dir, files, path):
@@ -143,17 +153,7 @@ def overlay_sheet(set_dir, overlay_dir, files, path):
                   outline=(0, 255, 0))
         d.text((4, 4), name, fill=(255, 255, 0))
         tiles.append(t)
-    tw, th = tiles[0].size
-    rows = (len(tiles) + 2) // 3
-    sheet = Image.new("RGB", (3 * tw, rows * th))
-    for i, t in enumerate(tiles):
-        sheet.paste(t, ((i % 3) * tw, (i // 3) * th))
-    # A JPEG at quality 92 where the path says so: a quarter of the PNG's bytes, for a picture
-    # that is committed beside a README (256 colours lost the gel's shading).
-    if path.lower().endswith((".jpg", ".jpeg")):
-        sheet.save(path, quality=92)
-    else:
-        sheet.save(path)
+    save_sheet(tiles, path)
 
 
 def main():
