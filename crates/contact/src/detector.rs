@@ -108,7 +108,7 @@ enum Model {
 pub struct ContactDetector {
     p: ContactParams,
     spec: SensorSpec,
-    mask_markers: bool,
+    markers: MarkerRule,
     geo: Option<Geometry>,
     model: Option<Model>,
     s: Scratch,
@@ -303,13 +303,15 @@ fn region_sums(region: &[u8], resid: &[f32], gw: usize, any: bool, thr: f32) -> 
 impl ContactDetector {
     pub fn new(p: ContactParams, spec: SensorSpec) -> Result<Self, ParamsError> {
         p.check()?;
-        let mask_markers = p
-            .mask_markers
-            .unwrap_or(spec.kind.markers() == Markers::Yes);
+        let markers = match (p.mask_markers, spec.kind.markers()) {
+            (Some(true), _) | (None, Markers::Yes) => MarkerRule::Mask,
+            (Some(false), _) | (None, Markers::No) => MarkerRule::Off,
+            (None, Markers::Unknown) => MarkerRule::Detect,
+        };
         Ok(Self {
             p,
             spec,
-            mask_markers,
+            markers,
             geo: None,
             model: None,
             s: Scratch::default(),
@@ -402,10 +404,10 @@ impl ContactDetector {
     pub fn set_background(&mut self, bg: Background) {
         self.geo = Some(bg.geo);
         self.pending_size = None;
-        let markers = if self.mask_markers {
-            marker_cells(&bg)
-        } else {
-            vec![0; bg.geo.cells()]
+        let markers = match self.markers {
+            MarkerRule::Mask => marker_cells(&bg),
+            MarkerRule::Detect => dot_cells(&bg),
+            MarkerRule::Off => vec![0; bg.geo.cells()],
         };
         self.model = Some(Model::Ready { bg, markers });
     }
@@ -742,10 +744,42 @@ fn background_of(model: &Option<Model>) -> Option<&Background> {
     }
 }
 
-/// Marker dots: background cells much darker than the gel around them, dilated by one cell
-/// (markers move a little with the gel).
-fn marker_cells(bg: &Background) -> Vec<u8> {
+/// Which background cells are left out as marker dots.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum MarkerRule {
+    /// Every dark cell (`marker_cells`): a kind with markers, or a scene that says so.
+    Mask,
+    /// Only a pattern of small dark spots, where the background has one (`dot_cells`): a kind
+    /// that may or may not have markers (`generic`).
+    Detect,
+    Off,
+}
+
+/// Fewest dark spots that make a background a marker gel's (a printed grid has 40-100+).
+const MIN_DOTS: usize = 20;
+/// Largest dark spot taken for a dot, as a share of the grid's cells (a dot of 0.5 mm is 4-25
+/// cells on the ~160 x 120 grid; a vignetted corner is hundreds).
+const MAX_DOT_SHARE: usize = 400;
+
+/// Marker dots of a gel not known to have them: the dark cells of `marker_cells` that form
+/// small spots, when there are at least [`MIN_DOTS`] of them, dilated by one cell; else none
+/// (a dark corner or a few specks are no marker grid, and leaving them out would hide gel).
+fn dot_cells(bg: &Background) -> Vec<u8> {
     let g = bg.geo;
+    let dark = dark_cells(bg);
+    let max_dot = (g.cells() / MAX_DOT_SHARE).max(4);
+    let (mut labels, mut stack) = (Vec::new(), Vec::new());
+    let sizes = crate::grid::label_components(&dark, g.gw, g.gh, &mut labels, &mut stack);
+    let is_dot = |l: u32| l != 0 && sizes[l as usize] <= max_dot;
+    if sizes.iter().skip(1).filter(|&&n| n <= max_dot).count() < MIN_DOTS {
+        return vec![0; g.cells()];
+    }
+    let dots: Vec<u8> = labels.iter().map(|&l| u8::from(is_dot(l))).collect();
+    dilate1(&dots, g.gw, g.gh)
+}
+
+/// Background cells darker than 0.7 of the median cell (1 = dark).
+fn dark_cells(bg: &Background) -> Vec<u8> {
     let lum: Vec<f32> = bg
         .grid
         .chunks_exact(3)
@@ -758,16 +792,28 @@ fn marker_cells(bg: &Background) -> Vec<u8> {
     } else {
         *sorted.select_nth_unstable_by(mid, f32::total_cmp).1
     };
-    let mut m: Vec<u8> = lum.iter().map(|&l| u8::from(l < 0.7 * median)).collect();
+    lum.iter().map(|&l| u8::from(l < 0.7 * median)).collect()
+}
+
+/// Marker dots: background cells much darker than the gel around them, dilated by one cell
+/// (markers move a little with the gel).
+fn marker_cells(bg: &Background) -> Vec<u8> {
+    let g = bg.geo;
+    let m = dark_cells(bg);
     // Only small dark spots are markers; a mask covering much of the gel means it is not a marker
     // gel (or the background is odd): then mask nothing.
     if m.iter().filter(|&&v| v != 0).count() * 5 > m.len() {
         return vec![0; g.cells()];
     }
-    let mut out = m.clone();
-    for y in 0..g.gh {
-        for x in 0..g.gw {
-            if m[y * g.gw + x] == 0 {
+    dilate1(&m, g.gw, g.gh)
+}
+
+/// `m` (gw x gh, 1 = set) grown by one cell in all eight directions.
+fn dilate1(m: &[u8], gw: usize, gh: usize) -> Vec<u8> {
+    let mut out = m.to_vec();
+    for y in 0..gh {
+        for x in 0..gw {
+            if m[y * gw + x] == 0 {
                 continue;
             }
             for (dx, dy) in [
@@ -781,12 +827,11 @@ fn marker_cells(bg: &Background) -> Vec<u8> {
                 (1, -1),
             ] {
                 let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                if nx >= 0 && ny >= 0 && (nx as usize) < g.gw && (ny as usize) < g.gh {
-                    out[ny as usize * g.gw + nx as usize] = 1;
+                if nx >= 0 && ny >= 0 && (nx as usize) < gw && (ny as usize) < gh {
+                    out[ny as usize * gw + nx as usize] = 1;
                 }
             }
         }
     }
-    m.clear();
     out
 }

@@ -395,6 +395,37 @@ pub fn keep_components(
     labels: &mut Vec<u32>,
     stack: &mut Vec<(usize, usize)>,
 ) -> usize {
+    let sizes = label_components(mask, gw, gh, labels, stack);
+    let largest = sizes.iter().copied().max().unwrap_or(0);
+    let min_cells = min_cells.max((share_of_largest * largest as f32).ceil() as usize);
+    let kept = sizes.iter().skip(1).filter(|&&n| n >= min_cells).sum();
+    // Only when a component is dropped is the mask walked (past the empty cells, eight at a
+    // time).
+    if sizes.iter().skip(1).any(|&n| n < min_cells) {
+        for (m, l) in mask.chunks_mut(8).zip(labels.chunks(8)) {
+            if m.iter().fold(0u8, |a, &v| a | v) == 0 {
+                continue;
+            }
+            for (m, &l) in m.iter_mut().zip(l) {
+                if *m != 0 && sizes[l as usize] < min_cells {
+                    *m = 0;
+                }
+            }
+        }
+    }
+    kept
+}
+
+/// Label the 4-connected components of `mask` (gw x gh, non-zero = set) into `labels` (0 for
+/// unset cells, 1.. per component); returns each label's size in cells (index 0: none).
+/// `stack` is a scratch buffer.
+pub fn label_components(
+    mask: &[u8],
+    gw: usize,
+    gh: usize,
+    labels: &mut Vec<u32>,
+    stack: &mut Vec<(usize, usize)>,
+) -> Vec<usize> {
     labels.clear();
     labels.resize(mask.len(), 0);
     let mut sizes: Vec<usize> = vec![0];
@@ -449,24 +480,7 @@ pub fn keep_components(
         }
         sizes.push(n);
     }
-    let largest = sizes.iter().copied().max().unwrap_or(0);
-    let min_cells = min_cells.max((share_of_largest * largest as f32).ceil() as usize);
-    let kept = sizes.iter().skip(1).filter(|&&n| n >= min_cells).sum();
-    // Only when a component is dropped is the mask walked (past the empty cells, eight at a
-    // time).
-    if sizes.iter().skip(1).any(|&n| n < min_cells) {
-        for (m, l) in mask.chunks_mut(8).zip(labels.chunks(8)) {
-            if m.iter().fold(0u8, |a, &v| a | v) == 0 {
-                continue;
-            }
-            for (m, &l) in m.iter_mut().zip(l) {
-                if *m != 0 && sizes[l as usize] < min_cells {
-                    *m = 0;
-                }
-            }
-        }
-    }
-    kept
+    sizes
 }
 
 #[cfg(test)]

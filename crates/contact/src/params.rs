@@ -49,8 +49,9 @@ pub struct ContactParams {
     pub exit_debounce_frames: u32,
     /// Background EMA weight per no-contact frame (cells in the current mask are never updated).
     pub ema_alpha: f32,
-    /// Ignore the gel's marker dots (dark spots of the background). None = by sensor kind
-    /// (on for GelSight Mini).
+    /// Ignore the gel's marker dots (dark spots of the background). None = by sensor kind: on for
+    /// a kind with markers (GelSight Mini), off for one without, and for one whose markers are
+    /// unknown (`generic`) the dots the background shows as a grid of small dark spots.
     pub mask_markers: Option<bool>,
     /// Frames whose share of saturated (>= 250) or dark (<= 5) pixels exceeds this are rejected.
     pub max_bad_pixel_share: f32,

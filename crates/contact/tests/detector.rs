@@ -358,6 +358,57 @@ fn markers_are_masked_on_gelsight() {
     );
 }
 
+/// A gel not known to have markers (`generic`): the dots are found from the background where it
+/// shows a grid of them, and nothing is masked on a gel without them, whose dark vignetted corners
+/// are no dots.
+#[test]
+fn a_generic_gel_masks_the_dots_its_background_shows_and_nothing_else() {
+    let masked = |render_kind: SensorKind, detect_kind: SensorKind| {
+        let s = MockSensor::new(
+            MockConfig::new(render_kind, 21),
+            Scenario::fabric_selection(),
+        );
+        let mut det = ContactDetector::new(ContactParams::default(), detect_kind.spec()).unwrap();
+        det.set_background_frame(&s.render(0).0);
+        det.marker_mask_px().iter().filter(|m| **m).count()
+    };
+    let (mini, generic) = (SensorKind::GELSIGHT_MINI, SensorKind::GENERIC);
+    // GelSight Mini's own rule masks its dots; the generic rule finds the same grid.
+    let (own, found) = (masked(mini, mini), masked(mini, generic));
+    assert!(
+        own > 0 && found > own / 2 && found <= own,
+        "own {own}, found {found}"
+    );
+    // A gel without dots: the generic rule masks nothing.
+    assert_eq!(masked(generic, generic), 0);
+    // A vignette dark enough to pass the dark-cell test in its corners is still no grid.
+    let mut f = MockSensor::new(MockConfig::new(generic, 21), Scenario::fabric_selection())
+        .render(0)
+        .0;
+    let (w, h) = (f.width as usize, f.height as usize);
+    for (i, px) in f.data_mut().chunks_exact_mut(3).enumerate() {
+        let (x, y) = (
+            (i % w) as f32 / w as f32 - 0.5,
+            (i / w) as f32 / h as f32 - 0.5,
+        );
+        if x.hypot(y) > 0.55 {
+            px.iter_mut().for_each(|v| *v /= 3);
+        }
+    }
+    let count = |p: ContactParams| {
+        let mut det = ContactDetector::new(p, generic.spec()).unwrap();
+        det.set_background_frame(&f);
+        det.marker_mask_px().iter().filter(|m| **m).count()
+    };
+    assert_eq!(count(ContactParams::default()), 0);
+    // (The corners are dark cells: a scene that says the gel has markers masks them.)
+    let say_yes = ContactParams {
+        mask_markers: Some(true),
+        ..Default::default()
+    };
+    assert!(count(say_yes) > w * h / 50);
+}
+
 #[test]
 fn bad_params_are_rejected() {
     let spec = SensorKind::DIGIT.spec();
