@@ -24,6 +24,9 @@ pub struct ContactBench {
     pub floor: Timing,
     /// Rust median over the floor median: how far from "just reading the frame".
     pub over_floor: f64,
+    /// The sensor's frame rate, and the share of one core the detector's mean time takes at it.
+    pub fps: f64,
+    pub core_share: f64,
 }
 
 /// `unitac-lab bench contact`: 320x240 and 640x480 in one run.
@@ -175,6 +178,7 @@ fn bench_contact_at(
         (None, String::new())
     };
     let ratio = python.as_ref().map(|p| p.median_s / rust.median_s);
+    let fps = SensorKind::GELSIGHT_MINI.spec().fps;
     Ok((
         ContactBench {
             frame: format!(
@@ -183,6 +187,8 @@ fn bench_contact_at(
             ),
             frames_timed: frames.len() * repeat,
             over_floor: rust.median_s / floor.median_s.max(1e-9),
+            fps,
+            core_share: rust.mean_s * fps,
             rust,
             python,
             ratio_median: ratio,
@@ -239,6 +245,11 @@ impl ContactBenches {
             if let Some(r) = b.ratio_median {
                 s += &format!("  speed-up (median): {r:.1}x\n");
             }
+            s += &format!(
+                "  at {} fps: {:.2} % of one core (mean time x frame rate)\n",
+                b.fps,
+                b.core_share * 100.0
+            );
         }
         s
     }
