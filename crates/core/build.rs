@@ -102,9 +102,21 @@ fn sensors(dir: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
             _ => "Unknown",
         };
         let led = if p.led == "digit" { "Digit" } else { "None" };
+        let gel = opt(p.gel.as_ref().map(|g| {
+            format!(
+                "Gel {{ thickness_mm: {:?}, hardness: {:?}, source: {:?} }}",
+                g.thickness_mm, g.hardness, g.source
+            )
+        }));
+        let photometric = opt(p.photometric.as_ref().map(|m| {
+            format!(
+                "Photometric {{ slope_per_dn: {:?}, ball_radius_m: {:?}, source: {:?} }}",
+                m.slope_per_dn, m.ball_radius_m, m.source
+            )
+        }));
         let name = p.name.to_ascii_uppercase().replace('-', "_");
         code.push_str(&format!(
-            "    /// sensors/{}.yaml: {}\n    pub const {name}: SensorKind = SensorKind(&SensorProfile {{ name: {:?}, description: {:?}, native: {:?}, size: {:?}, fps: {:?}, mm_per_px: {:?}, markers: Markers::{markers}, crop: {:?}, max_upscale: {:?}, camera: CameraDefaults {{ exposure: {:?}, white_balance_k: {:?}, gain: {:?}, led: {:?} }}, led: LedControl::{led}, usb: {usb}, mock_light: [{}], urdf: {:?} }});\n",
+            "    /// sensors/{}.yaml: {}\n    pub const {name}: SensorKind = SensorKind(&SensorProfile {{ name: {:?}, description: {:?}, native: {:?}, size: {:?}, fps: {:?}, mm_per_px: {:?}, markers: Markers::{markers}, crop: {:?}, max_upscale: {:?}, camera: CameraDefaults {{ exposure: {:?}, white_balance_k: {:?}, gain: {:?}, led: {:?} }}, led: LedControl::{led}, usb: {usb}, mock_light: [{}], urdf: {:?}, photometric: {photometric}, gel: {gel}, lights: {:?} }});\n",
             p.name,
             p.description,
             p.name,
@@ -121,6 +133,7 @@ fn sensors(dir: &std::path::Path) -> Result<(), Box<dyn std::error::Error>> {
             c.led,
             light.join(", "),
             p.urdf,
+            p.lights,
         ));
         consts.push(format!("SensorKind::{name}"));
     }

@@ -28,6 +28,8 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 RAYS = 72
+# Half-width of the neighbourhood a marker dot is darker than, px (dots are 5-15 px across).
+MARKER_WINDOW = 15
 # Rays run from 2 px out to this share of the image's shorter side.
 MAX_RADIUS_SHARE = 0.35
 
@@ -36,19 +38,32 @@ def read_rgb(path):
     return np.asarray(Image.open(path).convert("RGB"), dtype=np.float64)
 
 
-def box3(a):
-    """3 x 3 box mean with edge padding."""
-    p = np.pad(a, 1, mode="edge")
-    h, w = a.shape
-    return sum(p[i:i + h, j:j + w] for i in range(3) for j in range(3)) / 9.0
-
-
 def difference(frame, background):
     """|frame - background| over the channels, less the frame's global offset (the median
     difference per channel: an exposure or white-balance drift), 3 x 3 box mean."""
     d = frame - background
     d -= np.median(d.reshape(-1, 3), axis=0)
-    return box3(np.sqrt((d ** 2).sum(-1)))
+    return box_mean(np.sqrt((d ** 2).sum(-1)), 1)
+
+
+def box_mean(a, radius):
+    """Box mean of radius `radius` (a (2 radius + 1) square), edges padded."""
+    k = 2 * radius + 1
+    p = np.pad(a, radius, mode="edge")
+    c = np.pad(p.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    h, w = a.shape
+    return (c[k:k + h, k:k + w] - c[:h, k:k + w] - c[k:k + h, :w] + c[:h, :w]) / (k * k)
+
+
+def marker_mask(frame, background):
+    """The printed marker dots of a gel that has them: pixels darker than 0.7 of their
+    neighbourhood's mean in the frame or in the background (a dot moves with the gel), grown by
+    2 px so that the 3 x 3 mean of the difference leaves no trace of them."""
+    dark = np.zeros(frame.shape[:2], bool)
+    for im in (frame, background):
+        lum = im.mean(-1)
+        dark |= lum < 0.7 * box_mean(lum, MARKER_WINDOW)
+    return box_mean(dark.astype(np.float64), 2) > 0
 
 
 def fit_circle(points):
@@ -74,17 +89,22 @@ def edge_points(mag, cx, cy):
             continue
         xs, ys = x[inside], y[inside]
         v = mag[np.round(ys).astype(int), np.round(xs).astype(int)]
-        k = int(np.argmax(v))
+        if np.isnan(v).all():
+            continue
+        k = int(np.nanargmax(v))
         if k < len(v) - 1:
             pts.append((xs[k], ys[k]))
     return np.array(pts)
 
 
-def annotate(frame, background):
-    """The press's contact circle: {x, y, r, rays_kept, rays}."""
+def annotate(frame, background, markers=False):
+    """The press's contact circle: {x, y, r, rays_kept, rays}. With `markers`, the marker dots
+    (`marker_mask`) are left out: a moved dot's difference is the largest of any."""
     mag = difference(frame, background)
+    if markers:
+        mag[marker_mask(frame, background)] = np.nan
     # Start at the centroid of the strongest difference.
-    ys, xs = np.nonzero(mag > 0.5 * np.percentile(mag, 99))
+    ys, xs = np.nonzero(mag > 0.5 * np.nanpercentile(mag, 99))
     wts = mag[ys, xs]
     cx, cy = (xs * wts).sum() / wts.sum(), (ys * wts).sum() / wts.sum()
     r, kept, pts = 0.0, np.zeros(0, bool), np.zeros((0, 2))
@@ -139,18 +159,22 @@ def review(set_dir, entries, path):
 
 def overlay_sheet(set_dir, overlay_dir, files, path):
     """`unitac contact --overlay`'s pictures of `files` (in `overlay_dir`: the frame with the
-    contact region's outline in red and its centroid), each with its annotated circle drawn in
-    green, 3 a row."""
+    contact region's outline in red and its centroid, and beside it the depth map with the
+    depth's contact outline where there is a depth model), each with its annotated circle drawn
+    in green on every panel, 3 a row."""
     with open(os.path.join(set_dir, "annotations.json")) as f:
         circles = {c["file"]: c for c in json.load(f)["presses"]}
+    with Image.open(os.path.join(set_dir, "background.png")) as bg:
+        panel = bg.width
     tiles = []
     for name in files:
         c = circles[name]
         stem = os.path.splitext(name)[0]
         t = Image.open(os.path.join(overlay_dir, f"{stem}.overlay.png")).convert("RGB")
         d = ImageDraw.Draw(t)
-        d.ellipse([c["x"] - c["r"], c["y"] - c["r"], c["x"] + c["r"], c["y"] + c["r"]],
-                  outline=(0, 255, 0))
+        for off in range(0, t.width - panel + 1, panel):
+            d.ellipse([c["x"] - c["r"] + off, c["y"] - c["r"], c["x"] + c["r"] + off,
+                       c["y"] + c["r"]], outline=(0, 255, 0))
         d.text((4, 4), name, fill=(255, 255, 0))
         tiles.append(t)
     save_sheet(tiles, path)
@@ -179,7 +203,7 @@ def main():
     entries = []
     for path in sorted(glob.glob(os.path.join(a.set_dir, "[0-9]*.png"))):
         name = os.path.basename(path)
-        e = {"file": name, **annotate(read_rgb(path), bg)}
+        e = {"file": name, **annotate(read_rgb(path), bg, bool(source.get("markers")))}
         if name in labels:
             e["source"] = {k: labels[name][k] for k in ("x", "y", "r")}
         entries.append(e)

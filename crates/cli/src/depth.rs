@@ -7,7 +7,7 @@ use anyhow::{Context, bail};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use unitac_contact::depth::{
-    Circle, DepthCalibration, DepthEstimator, DepthParams, Fit, Prep, find_circle, prepare,
+    Circle, DepthCalibration, DepthEstimator, DepthParams, Fit, Prep, Terms, find_circle, prepare,
 };
 use unitac_core::{Frame, SensorKind};
 use unitac_sim::MM_PER_M;
@@ -42,7 +42,7 @@ pub enum CalibrateCmd {
 
 #[derive(clap::Args, Debug)]
 pub struct CalibrateDepthArgs {
-    /// Sensor kind: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS.
+    /// Sensor kind: a profile of sensors/ (gelsight-mini, digit, generic, ...) or of $UNITAC_SENSORS.
     #[arg(long)]
     sensor: SensorKind,
     /// Radius of the ball pressed into the gel, in m (a 4 mm ball: 0.002).
@@ -72,11 +72,16 @@ pub struct CalibrateDepthArgs {
     /// Directory for one PNG per press with its circle drawn, and circles.json.
     #[arg(long)]
     review: Option<PathBuf>,
+    /// Fit the colour change's three linear terms alone (no position or products): a model
+    /// that carries to other units of the kind, for a sensor profile's `photometric` (printed
+    /// as the profile's line).
+    #[arg(long)]
+    linear: bool,
 }
 
 #[derive(clap::Args, Debug)]
 pub struct MockPressesArgs {
-    /// Sensor kind: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS (the frames' size and mm per pixel).
+    /// Sensor kind: a profile of sensors/ (gelsight-mini, digit, generic, ...) or of $UNITAC_SENSORS (the frames' size and mm per pixel).
     #[arg(long, default_value = "gelsight-mini")]
     sensor: SensorKind,
     /// Radius of the pressed ball, in m.
@@ -269,7 +274,9 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
         std::fs::write(&p, serde_json::to_string_pretty(&entries)? + "\n")
             .with_context(|| format!("{}", p.display()))?;
     }
+    let terms = if a.linear { Terms::Linear } else { Terms::All };
     let cal = fit.finish(
+        terms,
         a.sensor,
         &a.serial,
         (bg.width, bg.height),
@@ -286,6 +293,15 @@ pub fn calibrate_depth(a: &CalibrateDepthArgs) -> anyhow::Result<bool> {
         cal.m_per_px * MM_PER_M,
         cal.fit_rms_slope
     );
+    if let Some(s) = cal.model.slope_per_dn().filter(|_| a.linear) {
+        // Four significant digits: the fit's own spread between press sets is larger.
+        let row = |r: [f32; 3]| r.map(|k| format!("{k:.3e}")).join(", ");
+        println!(
+            "photometric: {{slope_per_dn: [[{}], [{}]]}}",
+            row(s[0]),
+            row(s[1])
+        );
+    }
     Ok(failed == 0)
 }
 
@@ -356,6 +372,22 @@ pub fn contact_depth(
         bg.clone(),
         DepthParams::default(),
     )?)
+}
+
+/// Depth for `unitac contact` without a calibration: the sensor kind's default photometric model,
+/// where it has one and the frames are of its aspect ratio (else none, with a warning for the
+/// size).
+pub fn kind_depth(sensor: SensorKind, bg: &Frame) -> Option<DepthEstimator> {
+    let cal = DepthCalibration::kind_default(sensor)?;
+    match DepthEstimator::new(cal, bg.clone(), DepthParams::default()) {
+        Ok(est) => Some(est),
+        Err(e) => {
+            unitac_cli::args::warn(format_args!(
+                "no depth from the {sensor} profile's photometric model: {e}"
+            ));
+            None
+        }
+    }
 }
 
 /// The overlay file `path`: the picture of `unitac_contact::overlay` (the contact stage's `contact_overlay` is the same one): the frame with the contact region's outline and

@@ -76,7 +76,7 @@ enum Cmd {
     /// --json). Coordinates are in the input image's pixels. A bad file gets an error line and the
     /// others still run; exit code 2 if any file failed.
     Contact {
-        /// Sensor kind: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS (sets marker masking and mm per pixel).
+        /// Sensor kind: a profile of sensors/ (gelsight-mini, digit, generic, ...) or of $UNITAC_SENSORS (sets marker masking and mm per pixel).
         #[arg(long)]
         sensor: unitac_core::SensorKind,
         /// Image of the gel without contact.
@@ -88,12 +88,14 @@ enum Cmd {
         /// One JSON object per frame instead of a text line.
         #[arg(long)]
         json: bool,
-        /// A depth calibration (`unitac calibrate depth`) of this sensor: each line also gets
-        /// the gel's depth: penetration, and the contact region's area and centroid from depth.
+        /// A depth calibration (`unitac calibrate depth`) of this sensor. Each line also gets the
+        /// gel's depth (penetration, and the contact region's area and centroid from depth) from
+        /// it, or without it from the sensor kind's default photometric model (its profile's
+        /// `photometric`, fitted on real presses of other units) where the kind has one.
         #[arg(long)]
         depth_calibration: Option<PathBuf>,
         /// Write `<frame>.overlay.png` per frame into this directory: the frame with the contact
-        /// outline and centroid, and beside it the depth colour map (with --depth-calibration).
+        /// outline and centroid, and beside it the depth colour map (with a depth model).
         /// Frames of one file name in several directories are told apart by their path
         /// (`0/gelsight.png` -> `0_gelsight.overlay.png`).
         #[arg(long)]
@@ -133,7 +135,7 @@ enum Cmd {
         /// One JSON line per image message instead of the text summary.
         #[arg(long)]
         json: bool,
-        /// Sensor kind of the bag's images: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS (without --scene).
+        /// Sensor kind of the bag's images: a profile of sensors/ (gelsight-mini, digit, generic, ...) or of $UNITAC_SENSORS (without --scene).
         #[arg(long, default_value = "gelsight-mini")]
         sensor: unitac_core::SensorKind,
         /// Run this scene's stages (name or path; its sensor kind) instead of the default contact
@@ -311,14 +313,15 @@ fn contact_line(
     file: &str,
     json: bool,
     m: &unitac_contact::Measurement,
-    d: Option<&unitac_contact::depth::DepthSummary>,
+    d: Option<(&unitac_contact::depth::DepthSummary, &str)>,
     noise_dn: [f32; 3],
 ) -> String {
     let contact = m.contact;
-    let dj = d.map(|d| {
+    let dj = d.map(|(d, model)| {
         serde_json::json!({
             "contact": d.contact, "penetration_m": d.penetration_m,
             "area_px": d.area_px, "area_m2": d.area_m2, "centroid": d.centroid_px,
+            "model": model,
         })
     });
     if json {
@@ -342,7 +345,7 @@ fn contact_line(
             m.strength,
             noise_dn
         );
-        if let Some(d) = d {
+        if let Some((d, _)) = d {
             t += &format!(
                 "; depth: penetration {:.3} mm area {:.2} mm^2 centroid ({:.1}, {:.1})",
                 f64::from(d.penetration_m) * 1e3,
@@ -385,13 +388,16 @@ fn cmd_contact(
             .map(|s| (s * stride / std::f32::consts::SQRT_2 * 100.0).round() / 100.0)
     };
     let size = (bg.width, bg.height);
-    let mut depth =
-        match extra.depth_calibration {
-            Some(p) => Some(depth::contact_depth(p, sensor, &bg).map_err(|e| {
+    // The depth and what it comes from: the unit's calibration, or the kind's default.
+    let (mut depth, depth_model) = match extra.depth_calibration {
+        Some(p) => (
+            Some(depth::contact_depth(p, sensor, &bg).map_err(|e| {
                 anyhow::Error::new(ConfigError(format!("--depth-calibration {e:#}")))
             })?),
-            None => None,
-        };
+            "calibration",
+        ),
+        None => (depth::kind_depth(sensor, &bg), "kind default"),
+    };
     if let Some(d) = extra.overlay {
         std::fs::create_dir_all(d).map_err(|e| {
             anyhow::Error::new(ConfigError(format!("--overlay {}: {e}", d.display())))
@@ -444,7 +450,13 @@ fn cmd_contact(
                 Ok((m, d))
             });
         let line = match result {
-            Ok((m, d)) => contact_line(&file, json, &m, d.as_ref(), noise_dn(&m)),
+            Ok((m, d)) => contact_line(
+                &file,
+                json,
+                &m,
+                d.as_ref().map(|d| (d, depth_model)),
+                noise_dn(&m),
+            ),
             Err(e) => {
                 all_ok = false;
                 let msg = format!("{e:#}");

@@ -544,3 +544,42 @@ fn ball_presses_read_near_the_hertz_disc_and_larger_without_the_peel() {
         assert!(off < 0.2 * r, "{t} {p}");
     }
 }
+
+/// Without a calibration, depth comes from the kind's default photometric model where it has one
+/// (GelSight Mini: `depth.model` says so), not for a kind without one (DIGIT), and frames of
+/// another aspect ratio than the model's get a warning and no depth, the contact line as ever.
+#[test]
+fn depth_without_a_calibration_comes_from_the_kinds_model_where_it_has_one() {
+    let d = dir().join("kind-depth");
+    std::fs::create_dir_all(&d).unwrap();
+    let s = MockSensor::new(
+        MockConfig::new(SensorKind::GELSIGHT_MINI, 3),
+        Scenario::fabric_selection(),
+    );
+    let (bg, press) = (d.join("bg.png"), d.join("press.png"));
+    save_rgb(&bg, &s.render(0).0);
+    save_rgb(&press, &s.render(40).0);
+    let (code, lines, _) = contact_json("gelsight-mini", &bg, &[&press]);
+    assert_eq!(code, Some(0));
+    assert_eq!(lines[0]["depth"]["model"], "kind default", "{}", lines[0]);
+    let (code, lines, _) = contact_json("digit", &bg, &[&press]);
+    assert_eq!(code, Some(0));
+    assert!(lines[0].get("depth").is_none(), "{}", lines[0]);
+    // A portrait frame (the GelSight Mini model is for 4:3 landscape).
+    let turn = |src: &Path, dst: &Path| {
+        let img = image::open(src).unwrap().rotate90();
+        img.save(dst).unwrap();
+    };
+    let (bg_t, press_t) = (d.join("bg_t.png"), d.join("press_t.png"));
+    turn(&bg, &bg_t);
+    turn(&press, &press_t);
+    let (code, lines, err) = contact_json("gelsight-mini", &bg_t, &[&press_t]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(lines[0].get("depth").is_none(), "{}", lines[0]);
+    assert!(lines[0]["area_px"].as_f64().unwrap() > 0.0, "{}", lines[0]);
+    assert!(
+        err.contains("no depth from the gelsight-mini profile's photometric model"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&d).ok();
+}

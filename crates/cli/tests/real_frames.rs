@@ -61,6 +61,94 @@ fn contact(set: &Path, sensor: &str, extra: &[&OsStr], frames: &[String]) -> Vec
         .collect()
 }
 
+/// The annotated presses of `set`.
+fn presses(set: &Path) -> Vec<Value> {
+    json(&set.join("annotations.json"))["presses"]
+        .as_array()
+        .unwrap()
+        .clone()
+}
+
+/// The files of `presses`.
+fn files(presses: &[Value]) -> Vec<String> {
+    presses
+        .iter()
+        .map(|p| p["file"].as_str().unwrap().to_string())
+        .collect()
+}
+
+/// The presses of the source's `split` part `k` (train, test).
+fn split(source: &Value, k: &str) -> Vec<String> {
+    source["split"][k]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap().to_string())
+        .collect()
+}
+
+/// Each press's `reading` (a contact line, or its `depth`) against its annotated disc: printed
+/// one line each (`what` names the area) and a summary headed `heading`; the presses off by more
+/// than x1.5 in area or 0.6 radii in centroid, or read as no contact, are pushed to `bad`.
+fn judge<'a>(
+    name: &str,
+    what: &str,
+    heading: &str,
+    presses: &[Value],
+    readings: impl Iterator<Item = &'a Value>,
+    bad: &mut Vec<String>,
+) {
+    let mut ratios = Vec::new();
+    for (p, l) in presses.iter().zip(readings) {
+        let g = |v: &Value, k: &str| v[k].as_f64().unwrap();
+        let (x, y, r) = (g(p, "x"), g(p, "y"), g(p, "r"));
+        let ratio = g(l, "area_px") / (std::f64::consts::PI * r * r);
+        let c = l["centroid"].as_array().unwrap();
+        let off = (c[0].as_f64().unwrap() - x).hypot(c[1].as_f64().unwrap() - y) / r;
+        let line = format!(
+            "{name}/{}: {what}area x{ratio:.2} of the disc, centroid {off:.2} r off",
+            p["file"].as_str().unwrap()
+        );
+        println!("{line}");
+        ratios.push(ratio);
+        let in_area = (1.0 / AREA_FACTOR..=AREA_FACTOR).contains(&ratio);
+        if l["contact"] != true || !in_area || off > CENTROID_RADII {
+            bad.push(line);
+        }
+    }
+    ratios.sort_by(f64::total_cmp);
+    println!(
+        "{name}: {heading}, area / disc median {:.2} (range {:.2}-{:.2})",
+        ratios[ratios.len() / 2],
+        ratios[0],
+        ratios[ratios.len() - 1]
+    );
+}
+
+/// `unitac calibrate depth --sensor S --background background.png --ball-radius-m R --out OUT`
+/// with `extra` flags on `presses` of `set`: its stdout.
+fn calibrate(
+    set: &Path,
+    sensor: &str,
+    ball_m: f64,
+    out: &Path,
+    extra: &[&OsStr],
+    presses: &[String],
+) -> String {
+    let ball = ball_m.to_string();
+    let mut args = os(&["calibrate", "depth", "--sensor", sensor]);
+    args.extend(os(&[
+        "--background",
+        "background.png",
+        "--ball-radius-m",
+        &ball,
+    ]));
+    args.extend([OsStr::new("--out"), out.as_os_str()]);
+    args.extend_from_slice(extra);
+    args.extend(presses.iter().map(OsStr::new));
+    unitac(set, &args)
+}
+
 #[test]
 fn every_real_press_reads_near_its_annotated_disc() {
     let sets = sets();
@@ -69,48 +157,13 @@ fn every_real_press_reads_near_its_annotated_disc() {
     for set in &sets {
         let source = json(&set.join("source.json"));
         let sensor = source["sensor"].as_str().unwrap();
-        let presses = json(&set.join("annotations.json"))["presses"]
-            .as_array()
-            .unwrap()
-            .clone();
+        let presses = presses(set);
         assert!(!presses.is_empty());
-        let files: Vec<String> = presses
-            .iter()
-            .map(|p| p["file"].as_str().unwrap().to_string())
-            .collect();
-        let lines = contact(set, sensor, &[], &files);
+        let lines = contact(set, sensor, &[], &files(&presses));
         assert_eq!(lines.len(), presses.len());
         let name = set.file_name().unwrap().to_string_lossy();
-        let mut ratios = Vec::new();
-        for (p, l) in presses.iter().zip(&lines) {
-            let (x, y, r) = (
-                p["x"].as_f64().unwrap(),
-                p["y"].as_f64().unwrap(),
-                p["r"].as_f64().unwrap(),
-            );
-            let area = l["area_px"].as_f64().unwrap();
-            let ratio = area / (std::f64::consts::PI * r * r);
-            let c = l["centroid"].as_array().unwrap();
-            let off = (c[0].as_f64().unwrap() - x).hypot(c[1].as_f64().unwrap() - y) / r;
-            let line = format!(
-                "{name}/{}: area x{ratio:.2} of the disc, centroid {off:.2} r off",
-                p["file"].as_str().unwrap()
-            );
-            println!("{line}");
-            ratios.push(ratio);
-            let in_area = (1.0 / AREA_FACTOR..=AREA_FACTOR).contains(&ratio);
-            if l["contact"] != true || !in_area || off > CENTROID_RADII {
-                failed.push(line);
-            }
-        }
-        ratios.sort_by(f64::total_cmp);
-        println!(
-            "{name}: {} presses, area / disc median {:.2} (range {:.2}-{:.2})",
-            ratios.len(),
-            ratios[ratios.len() / 2],
-            ratios[0],
-            ratios[ratios.len() - 1]
-        );
+        let heading = format!("{} presses", presses.len());
+        judge(&name, "", &heading, &presses, lines.iter(), &mut failed);
         // The gel at rest is no contact.
         let bg = contact(set, sensor, &[], &["background.png".to_string()]);
         if bg[0]["contact"] != false {
@@ -130,34 +183,13 @@ fn a_calibration_from_real_presses_finds_their_circles_and_reads_the_others() {
         let sensor = source["sensor"].as_str().unwrap();
         let name = set.file_name().unwrap().to_string_lossy().into_owned();
         let ball_m = source["indenter"]["diameter_mm"].as_f64().unwrap() * 0.5e-3;
-        let list = |k: &str| -> Vec<String> {
-            source["split"][k]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|v| v.as_str().unwrap().to_string())
-                .collect()
-        };
-        let (train, test) = (list("train"), list("test"));
+        let (train, test) = (split(&source, "train"), split(&source, "test"));
         let tmp = std::env::temp_dir().join(format!("unitac-real-{}-{name}", std::process::id()));
         std::fs::create_dir_all(&tmp).unwrap();
         let (cal, review) = (tmp.join("cal.json"), tmp.join("review"));
-        let ball = ball_m.to_string();
-        let mut args = os(&["calibrate", "depth", "--sensor", sensor]);
-        args.extend(os(&[
-            "--background",
-            "background.png",
-            "--ball-radius-m",
-            &ball,
-        ]));
-        args.extend([OsStr::new("--out"), cal.as_os_str()]);
-        args.extend([OsStr::new("--review"), review.as_os_str()]);
-        args.extend(train.iter().map(OsStr::new));
-        unitac(&set, &args);
-        let ann: Vec<Value> = json(&set.join("annotations.json"))["presses"]
-            .as_array()
-            .unwrap()
-            .clone();
+        let review_flag = [OsStr::new("--review"), review.as_os_str()];
+        calibrate(&set, sensor, ball_m, &cal, &review_flag, &train);
+        let ann = presses(&set);
         let annotated = |f: &str| ann.iter().find(|p| p["file"] == f).unwrap().clone();
         let size = source["size"].as_array().unwrap();
         let (w, h) = (size[0].as_f64().unwrap(), size[1].as_f64().unwrap());
@@ -196,4 +228,77 @@ fn a_calibration_from_real_presses_finds_their_circles_and_reads_the_others() {
         std::fs::remove_dir_all(&tmp).ok();
         assert!(bad.is_empty(), "{bad:#?}");
     }
+}
+
+/// Before a unit is calibrated: the sensor kind's default photometric model (its profile's
+/// `photometric`), which `unitac contact` uses when no calibration is named, reads every press of
+/// every set of a kind that has one from depth within x1.5 of its annotated disc, with its
+/// centroid within 0.6 radii, and the background alone as no contact. The model itself is what
+/// `unitac calibrate depth --linear` fits on the training presses of the set its source names.
+#[test]
+fn the_kinds_default_photometric_model_reads_every_press_from_depth() {
+    let mut checked = 0;
+    for set in sets() {
+        let source = json(&set.join("source.json"));
+        let sensor = source["sensor"].as_str().unwrap();
+        let kind: unitac_core::SensorKind = sensor.parse().unwrap();
+        let Some(model) = kind.profile().photometric else {
+            continue;
+        };
+        checked += 1;
+        let name = set.file_name().unwrap().to_string_lossy().into_owned();
+        let presses = presses(&set);
+        let mut files = files(&presses);
+        files.push("background.png".into());
+        let lines = contact(&set, sensor, &[], &files);
+        for l in &lines {
+            assert_eq!(l["depth"]["model"], "kind default", "{l}");
+        }
+        let mut bad = Vec::new();
+        let depths = lines.iter().map(|l| &l["depth"]);
+        let heading = "depth from the kind's model";
+        judge(&name, "depth's ", heading, &presses, depths, &mut bad);
+        let bg = &lines[lines.len() - 1]["depth"];
+        if bg["contact"] != false {
+            bad.push(format!("{name}/background.png: depth {bg}"));
+        }
+        if model.source.contains(&format!("tests/real/{name}")) {
+            let tmp =
+                std::env::temp_dir().join(format!("unitac-kind-{}-{name}", std::process::id()));
+            std::fs::create_dir_all(&tmp).unwrap();
+            let linear = [OsStr::new("--linear")];
+            let train = split(&source, "train");
+            let out = calibrate(
+                &set,
+                sensor,
+                model.ball_radius_m,
+                &tmp.join("cal.json"),
+                &linear,
+                &train,
+            );
+            std::fs::remove_dir_all(&tmp).ok();
+            let fitted: Vec<f32> = out
+                .trim()
+                .trim_start_matches("photometric: {slope_per_dn: ")
+                .trim_end_matches('}')
+                .split(|c: char| "[], ".contains(c))
+                .filter(|s| !s.is_empty())
+                .map(|s| s.parse().unwrap())
+                .collect();
+            let shipped: Vec<f32> = model.slope_per_dn.iter().flatten().copied().collect();
+            assert_eq!(fitted.len(), 6, "{out}");
+            for (f, s) in fitted.iter().zip(&shipped) {
+                // Printed to four significant digits.
+                assert!(
+                    (f - s).abs() <= 2e-6,
+                    "fitted {fitted:?}, profile {shipped:?}"
+                );
+            }
+        }
+        assert!(bad.is_empty(), "{bad:#?}");
+    }
+    assert!(
+        checked > 0,
+        "no real-frame set of a kind with a photometric model"
+    );
 }

@@ -77,7 +77,9 @@ fn a_sensor_profile_file_is_a_sensor_kind_with_no_code_edit() {
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
-        err.contains("unknown sensor kind 'test-cam' (known: digit, gelsight-mini, generic)"),
+        err.contains(
+            "unknown sensor kind 'test-cam' (known: digit, gelsight-2017, gelsight-mini, generic)"
+        ),
         "{err}"
     );
     assert_eq!(err.trim().lines().count(), 1, "{err}");
@@ -99,5 +101,37 @@ fn a_sensor_profile_file_is_a_sensor_kind_with_no_code_edit() {
         err.contains("test-cam.yaml") && err.contains("fps = -1"),
         "{err}"
     );
+    std::fs::remove_dir_all(&tmp).unwrap();
+}
+
+/// Every shipped kind, whatever its size and scale, finds the fabric scene's two touches on its
+/// mock sensor, and reads their peak contact at the same physical area (the press is the same
+/// world's): within 10 % of GelSight Mini's.
+#[test]
+fn every_shipped_kind_reads_the_same_touches_at_the_same_physical_area() {
+    let tmp = std::env::temp_dir().join(format!("unitac-cli-kinds-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let areas = |kind: &str| -> Vec<f64> {
+        let o = run(&scene(&tmp, kind), None);
+        let (labels, _) = episodes(&o);
+        assert_eq!(labels, ["fabric_a", "fabric_b"], "{kind}");
+        let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        j["episodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e["peak_area_m2"].as_f64().unwrap())
+            .collect()
+    };
+    let mini = areas("gelsight-mini");
+    for kind in unitac_core::SensorKind::SHIPPED {
+        let a = areas(kind.as_str());
+        for (x, m) in a.iter().zip(&mini) {
+            assert!(
+                (x / m - 1.0).abs() < 0.1,
+                "{kind}: {a:?} against GelSight Mini's {mini:?}"
+            );
+        }
+    }
     std::fs::remove_dir_all(&tmp).unwrap();
 }

@@ -3,8 +3,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use unitac_contact::depth::{
-    Circle, DepthCalibration, DepthError, DepthEstimator, DepthParams, Fit, Prep, find_circle,
-    prepare,
+    Circle, DepthCalibration, DepthError, DepthEstimator, DepthParams, Fit, Prep, Terms,
+    find_circle, prepare,
 };
 use unitac_core::{SensorKind, SensorSpec};
 use unitac_sim::MockConfig;
@@ -45,6 +45,7 @@ fn calibrate(spec: SensorSpec, noise_dn: f64) -> (DepthCalibration, Vec<(Circle,
     }
     let cal = fit
         .finish(
+            Terms::All,
             spec.kind,
             "MOCK-0001",
             (spec.width, spec.height),

@@ -38,6 +38,43 @@ pub struct RawSensor {
     /// The URDF macro (urdf/<urdf>.urdf.xacro, macro `<urdf>`) of its frames.
     #[serde(default)]
     pub urdf: Option<String>,
+    /// The kind's default photometric model, for a unit not yet calibrated (none: no real
+    /// presses of the kind were measured).
+    #[serde(default)]
+    pub photometric: Option<RawPhotometric>,
+    /// The gel, where its figures are published.
+    #[serde(default)]
+    pub gel: Option<RawGel>,
+    /// How the gel is lit, in words, with the source.
+    #[serde(default)]
+    pub lights: Option<String>,
+}
+
+/// A gel's published figures.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawGel {
+    /// Thickness of the elastomer \[mm].
+    #[serde(default)]
+    pub thickness_mm: Option<f64>,
+    /// Durometer, with its scale ("Shore 00-55", "Shore 10A").
+    #[serde(default)]
+    pub hardness: Option<String>,
+    /// Where the figures are published.
+    pub source: String,
+}
+
+/// A linear photometric model: the gel's slope from its colour change.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawPhotometric {
+    /// dh/dx and dh/dy (depth per length, h into the gel) per DN of the shading-corrected colour
+    /// change (dR, dG, dB), as `unitac calibrate depth --linear` prints it.
+    pub slope_per_dn: [[f32; 3]; 2],
+    /// Radius of the ball of those presses \[m].
+    pub ball_radius_m: f64,
+    /// Which presses it was fitted on, and how.
+    pub source: String,
 }
 
 #[derive(Debug, Clone, PartialEq, Default, Deserialize)]
@@ -87,6 +124,14 @@ pub const MARKERS: [&str; 3] = ["yes", "no", "unknown"];
 pub const LEDS: [&str; 2] = ["none", "digit"];
 pub const LIGHT_TERMS: [&str; 5] = ["u", "v", "1-u", "1-v", "v(1-u)"];
 pub const SERIAL_FROM: [&str; 2] = ["usb_serial", "product_last_word"];
+/// Largest slope per DN of colour change a photometric model may state (one DN tilting the gel
+/// by 45 degrees).
+pub const MAX_SLOPE_PER_DN: f32 = 1.0;
+
+/// Whether `s` is 1 to `max` bytes.
+fn sized(s: &str, max: usize) -> bool {
+    !s.is_empty() && s.len() <= max
+}
 
 fn ident(s: &str, extra: char) -> bool {
     !s.is_empty()
@@ -171,7 +216,7 @@ impl RawSensor {
             if u.serial
                 .pattern
                 .as_ref()
-                .is_some_and(|s| s.is_empty() || s.len() > MAX_NAME)
+                .is_some_and(|s| !sized(s, MAX_NAME))
             {
                 p.push(format!("usb.serial.pattern is not 1 to {MAX_NAME} bytes"));
             }
@@ -194,6 +239,47 @@ impl RawSensor {
                     "mock_light[{i}] = [{base}, {gain}, {term:?}]: finite base and gain, a term of {LIGHT_TERMS:?}"
                 ));
             }
+        }
+        if let Some(m) = &self.photometric {
+            let s = m.slope_per_dn;
+            if !s
+                .iter()
+                .flatten()
+                .all(|k| k.is_finite() && k.abs() < MAX_SLOPE_PER_DN)
+            {
+                p.push(format!(
+                    "photometric.slope_per_dn = {s:?}: finite, each below {MAX_SLOPE_PER_DN} in size"
+                ));
+            }
+            if s.iter().all(|row| row.iter().all(|k| *k == 0.0)) {
+                p.push("photometric.slope_per_dn is all zero".into());
+            }
+            if !(m.ball_radius_m.is_finite() && m.ball_radius_m > 0.0 && m.ball_radius_m < 0.1) {
+                p.push(format!(
+                    "photometric.ball_radius_m = {} is not in (0, 0.1)",
+                    m.ball_radius_m
+                ));
+            }
+            if !sized(&m.source, MAX_TEXT) {
+                p.push(format!("photometric.source is not 1 to {MAX_TEXT} bytes"));
+            }
+        }
+        if let Some(g) = &self.gel {
+            if let Some(t) = g
+                .thickness_mm
+                .filter(|t| !(t.is_finite() && *t > 0.0 && *t < 50.0))
+            {
+                p.push(format!("gel.thickness_mm = {t} is not in (0, 50)"));
+            }
+            if g.hardness.as_ref().is_some_and(|h| !sized(h, MAX_NAME)) {
+                p.push(format!("gel.hardness is not 1 to {MAX_NAME} bytes"));
+            }
+            if !sized(&g.source, MAX_TEXT) {
+                p.push(format!("gel.source is not 1 to {MAX_TEXT} bytes"));
+            }
+        }
+        if self.lights.as_ref().is_some_and(|l| !sized(l, MAX_TEXT)) {
+            p.push(format!("lights is not 1 to {MAX_TEXT} bytes"));
         }
         if self.urdf.as_ref().is_some_and(|u| !ident(u, '_')) {
             p.push(format!(

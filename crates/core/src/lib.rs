@@ -26,7 +26,7 @@ pub use frame::{Frame, FrameError, optical_frame_id, sensor_id_of};
 pub use msg::Msg;
 pub use pace::Pacer;
 pub use scene::{Scene, SceneError};
-pub use sensor::{SensorKind, SensorSpec, UnknownSensorKind};
+pub use sensor::{Gel, Photometric, SensorKind, SensorSpec, UnknownSensorKind};
 pub use setpoint::GripperSetpoint;
 pub use stage::{Source, SourceError, Stage, StageError};
 pub use timing::{PeriodJitter, Tail, Timing, period_jitter, tail, timing};

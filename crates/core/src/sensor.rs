@@ -48,6 +48,36 @@ pub struct SensorProfile {
     pub mock_light: [LightChannel; 3],
     /// Its URDF macro (`urdf/<urdf>.urdf.xacro`).
     pub urdf: Option<&'static str>,
+    /// Its default photometric model, for a unit not yet calibrated.
+    pub photometric: Option<Photometric>,
+    /// The gel's published figures.
+    pub gel: Option<Gel>,
+    /// How the gel is lit, in words, with the source.
+    pub lights: Option<&'static str>,
+}
+
+/// A gel's published figures.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gel {
+    /// Thickness of the elastomer \[mm].
+    pub thickness_mm: Option<f64>,
+    /// Durometer, with its scale ("Shore 00-55").
+    pub hardness: Option<&'static str>,
+    /// Where the figures are published.
+    pub source: &'static str,
+}
+
+/// A linear photometric model: the gel's slope from its colour change (the contact stage's depth
+/// before a unit has its own calibration).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Photometric {
+    /// dh/dx and dh/dy (depth per length, h into the gel) per DN of the shading-corrected colour
+    /// change (dR, dG, dB).
+    pub slope_per_dn: [[f32; 3]; 2],
+    /// Radius of the ball of the presses it was fitted on \[m].
+    pub ball_radius_m: f64,
+    /// Which presses it was fitted on, and how.
+    pub source: &'static str,
 }
 
 /// The camera settings a kind opens with.
@@ -327,6 +357,17 @@ impl SensorProfile {
             }),
             mock_light: [light(r0), light(r1), light(r2)],
             urdf: r.urdf.map(leak),
+            photometric: r.photometric.map(|m| Photometric {
+                slope_per_dn: m.slope_per_dn,
+                ball_radius_m: m.ball_radius_m,
+                source: leak(m.source),
+            }),
+            gel: r.gel.map(|g| Gel {
+                thickness_mm: g.thickness_mm,
+                hardness: g.hardness.map(leak),
+                source: leak(g.source),
+            }),
+            lights: r.lights.map(leak),
         })
     }
 }
@@ -457,7 +498,7 @@ mod tests {
         }
         assert_eq!(
             "kinect".parse::<SensorKind>().unwrap_err().to_string(),
-            "unknown sensor kind 'kinect' (known: digit, gelsight-mini, generic)"
+            "unknown sensor kind 'kinect' (known: digit, gelsight-2017, gelsight-mini, generic)"
         );
     }
 
@@ -465,7 +506,9 @@ mod tests {
     fn a_broken_profile_names_every_problem() {
         let text = "{name: x, description: d, native: [0, 1], size: [320, 240], fps: .nan, \
                     mm_per_px: 0.05, markers: maybe, crop: 0.6, max_upscale: 1, led: rgb, \
-                    mock_light: [[1, 2, u], [1, 2, w], [1, 2, v]]}";
+                    mock_light: [[1, 2, u], [1, 2, w], [1, 2, v]], \
+                    photometric: {slope_per_dn: [[0, 0, 0], [0, 0, 0]], ball_radius_m: 2, \
+                    source: ''}, gel: {thickness_mm: -1, hardness: '', source: s}, lights: ''}";
         let e = SensorProfile::parse(text, Path::new("/p/y.yaml"))
             .unwrap_err()
             .to_string();
@@ -478,9 +521,52 @@ mod tests {
             "crop = 0.6",
             "led \"rgb\"",
             "mock_light[1]",
+            "photometric.slope_per_dn is all zero",
+            "photometric.ball_radius_m = 2",
+            "photometric.source is not 1 to",
+            "gel.thickness_mm = -1 is not",
+            "gel.hardness is not",
+            "lights is not",
         ] {
             assert!(e.contains(want), "{want}: {e}");
         }
+    }
+
+    #[test]
+    fn a_photometric_model_is_read_and_bounded() {
+        let head = "{name: y, description: d, native: [320, 240], size: [320, 240], fps: 30, \
+                    mm_per_px: 0.05, markers: no, crop: 0, max_upscale: 1, led: none, \
+                    mock_light: [[1, 2, u], [1, 2, v], [1, 2, u]]";
+        let with = |slopes: &str| {
+            format!(
+                "{head}, photometric: {{slope_per_dn: {slopes}, ball_radius_m: 0.002, source: s}}}}"
+            )
+        };
+        let p = SensorProfile::parse(
+            &with("[[1e-3, 0, -1e-3], [0, 2e-3, 0]]"),
+            Path::new("y.yaml"),
+        )
+        .unwrap();
+        let m = p.photometric.unwrap();
+        assert_eq!(m.slope_per_dn, [[1e-3, 0.0, -1e-3], [0.0, 2e-3, 0.0]]);
+        assert_eq!((m.ball_radius_m, m.source), (0.002, "s"));
+        let e = SensorProfile::parse(&with("[[1e-3, .nan, 0], [0, 5, 0]]"), Path::new("y.yaml"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("photometric.slope_per_dn"), "{e}");
+        let none = SensorProfile::parse(&format!("{head}}}"), Path::new("y.yaml")).unwrap();
+        assert_eq!(none.photometric, None);
+        // GelSight Mini's gel as its vendor publishes it.
+        let gel = SensorKind::GELSIGHT_MINI.profile().gel.unwrap();
+        assert_eq!(
+            (gel.thickness_mm, gel.hardness),
+            (Some(4.25), Some("Shore 00-55"))
+        );
+        // The shipped kinds: GelSight Mini has one (fitted on real presses), the others none.
+        assert!(SensorKind::GELSIGHT_MINI.profile().photometric.is_some());
+        assert!(SensorKind::DIGIT.profile().photometric.is_none());
+        assert!(SensorKind::GENERIC.profile().photometric.is_none());
+        assert!(SensorKind::GELSIGHT_2017.profile().photometric.is_none());
     }
 
     #[test]

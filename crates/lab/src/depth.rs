@@ -10,7 +10,7 @@ use std::time::Instant;
 use unitac_cli::args::usage;
 use unitac_cli::mock::calibration_gel;
 use unitac_contact::depth::{
-    DepthCalibration, DepthEstimator, DepthParams, Fit, Prep, find_circle, prepare,
+    DepthCalibration, DepthEstimator, DepthParams, Fit, Prep, Terms, find_circle, prepare,
 };
 use unitac_contact::{ContactDetector, ContactParams};
 use unitac_core::{Frame, SensorKind, SensorSpec, Timing, timing};
@@ -38,6 +38,7 @@ fn mock_calibration(spec: SensorSpec, n: usize) -> anyhow::Result<DepthCalibrati
         }
     }
     Ok(fit.finish(
+        Terms::All,
         spec.kind,
         "MOCK",
         (spec.width, spec.height),

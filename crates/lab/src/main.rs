@@ -122,7 +122,7 @@ enum Cmd {
         seed: u64,
         #[command(flatten)]
         set: TrialSet,
-        /// `dataset touch`: sensor kind: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS.
+        /// `dataset touch`: sensor kind: a profile of sensors/ (gelsight-mini, digit, generic, ...) or of $UNITAC_SENSORS.
         #[arg(long, default_value = "gelsight-mini")]
         sensor: unitac_core::SensorKind,
     },

@@ -17,7 +17,9 @@
 //! small slopes, 5 % too little depth on mock presses); least squares on
 //! the normal equations (f64), a ridge of 1e-9 of the trace.
 
-use super::model::{DepthCalibration, DepthError, FEATURES, FORMAT, GradientModel, features};
+use super::model::{
+    DepthCalibration, DepthError, FEATURES, FORMAT, GradientModel, LINEAR_TERMS, features,
+};
 use super::prep::Prep;
 use nalgebra::{SMatrix, SVector};
 use unitac_core::{Frame, SensorKind};
@@ -205,6 +207,17 @@ fn fit_circle(pts: &[(f64, f64)]) -> Option<Circle> {
     })
 }
 
+/// Which of the model's [`features`] a fit uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Terms {
+    /// All of them: colour, its products and position, for one unit's gel and lighting.
+    All,
+    /// The colour change's three linear terms alone (no offset, products or position): a model
+    /// that carries to other units of the kind, a sensor profile's default
+    /// (`GradientModel::slope_per_dn`).
+    Linear,
+}
+
 /// Normal equations of the gradient fit, accumulated press by press.
 #[derive(Debug, Clone)]
 pub struct Fit {
@@ -272,9 +285,10 @@ impl Fit {
         self.presses += 1;
     }
 
-    /// Solve for the model and make the calibration file's contents.
+    /// Solve for the model over `terms` and make the calibration file's contents.
     pub fn finish(
         &self,
+        terms: Terms,
         sensor: SensorKind,
         serial: &str,
         (width, height): (u32, u32),
@@ -287,14 +301,27 @@ impl Fit {
                 got: self.presses,
             });
         }
+        // The terms left out of the fit are kept at zero: their rows and columns of the normal
+        // equations become the identity's.
+        let fitted = |i: usize| terms == Terms::All || LINEAR_TERMS.contains(&i);
         let mut a = self.ata;
+        let (mut bx, mut by) = (self.atb[0], self.atb[1]);
+        for i in (0..FEATURES).filter(|&i| !fitted(i)) {
+            for j in 0..FEATURES {
+                a[(i, j)] = 0.0;
+                a[(j, i)] = 0.0;
+            }
+            a[(i, i)] = 1.0;
+            bx[i] = 0.0;
+            by[i] = 0.0;
+        }
         let ridge = 1e-9 * a.trace().max(1e-12);
         for i in 0..FEATURES {
             a[(i, i)] += ridge;
         }
         let ch = a.cholesky().ok_or(DepthError::Singular)?;
-        let kx = ch.solve(&self.atb[0]);
-        let ky = ch.solve(&self.atb[1]);
+        let kx = ch.solve(&bx);
+        let ky = ch.solve(&by);
         let model = GradientModel {
             gx: kx.iter().map(|&v| v as f32).collect(),
             gy: ky.iter().map(|&v| v as f32).collect(),

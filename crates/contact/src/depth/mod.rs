@@ -15,7 +15,7 @@ pub mod model;
 pub mod poisson;
 mod prep;
 
-pub use calib::{Circle, Fit, find_circle, prepare};
+pub use calib::{Circle, Fit, Terms, find_circle, prepare};
 pub use estimate::{DepthEstimator, DepthParams, DepthSummary};
 pub use model::{CalibrationInvalid, DepthCalibration, DepthError, GradientModel};
 pub use poisson::PoissonSolver;

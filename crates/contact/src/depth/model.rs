@@ -17,6 +17,8 @@ use unitac_core::SensorKind;
 use unitac_core::frame::MAX_SIDE;
 
 pub const FEATURES: usize = 18;
+/// The features of the colour change's linear terms, dR, dG, dB (a linear model's only ones).
+pub const LINEAR_TERMS: std::ops::Range<usize> = 1..4;
 /// Scale of the colour difference in the features \[1/DN].
 pub const COLOUR_SCALE: f32 = 1.0 / 32.0;
 /// Version of the calibration file format written: 2 holds lengths in metres; format 1 (the same
@@ -123,6 +125,34 @@ pub struct GradientModel {
 }
 
 impl GradientModel {
+    /// The linear model of `slope_per_dn`: dh/dx and dh/dy (depth per length) per DN of the
+    /// shading-corrected colour change (dR, dG, dB), all other terms zero.
+    pub fn linear(slope_per_dn: [[f32; 3]; 2]) -> Self {
+        let row = |s: [f32; 3]| {
+            let mut v = vec![0.0; FEATURES];
+            v[LINEAR_TERMS].copy_from_slice(&s.map(|k| k / COLOUR_SCALE));
+            v
+        };
+        Self {
+            gx: row(slope_per_dn[0]),
+            gy: row(slope_per_dn[1]),
+        }
+    }
+
+    /// The slopes per DN of a linear model ([`linear`](Self::linear)); `None` when any other
+    /// term is not zero.
+    pub fn slope_per_dn(&self) -> Option<[[f32; 3]; 2]> {
+        let linear = |v: &[f32]| {
+            let others_zero = v
+                .iter()
+                .enumerate()
+                .all(|(i, k)| LINEAR_TERMS.contains(&i) || *k == 0.0);
+            let s: [f32; 3] = v.get(LINEAR_TERMS)?.try_into().ok()?;
+            (v.len() == FEATURES && others_zero).then(|| s.map(|k| k * COLOUR_SCALE))
+        };
+        Some([linear(&self.gx)?, linear(&self.gy)?])
+    }
+
     #[inline]
     pub fn eval(&self, f: &[f32; FEATURES]) -> (f32, f32) {
         let mut a = 0.0;
@@ -318,6 +348,27 @@ impl DepthCalibration {
         Ok(self.m_per_px * f64::from(self.width) / f64::from(w))
     }
 
+    /// The sensor kind's default (its profile's `photometric`, a linear model fitted on real
+    /// presses of other units): depth before a unit has its own calibration. None for a kind
+    /// without one.
+    pub fn kind_default(kind: SensorKind) -> Option<Self> {
+        let p = kind.profile();
+        let m = p.photometric?;
+        let spec = kind.spec();
+        Some(Self {
+            format: FORMAT,
+            sensor: kind,
+            serial: String::new(),
+            width: spec.width,
+            height: spec.height,
+            m_per_px: spec.m_per_px(),
+            ball_radius_m: m.ball_radius_m,
+            presses_used: 0,
+            fit_rms_slope: 0.0,
+            model: GradientModel::linear(m.slope_per_dn),
+        })
+    }
+
     /// Refuse frames from another sensor (when both serials are known).
     pub fn check_serial(&self, serial: &str) -> Result<(), DepthError> {
         if !self.serial.is_empty() && !serial.is_empty() && self.serial != serial {
@@ -397,5 +448,34 @@ mod tests {
         let cal: DepthCalibration =
             serde_json::from_str(&file(2, r#""m_per_px": 0.0634, "ball_radius_m": 2.0"#)).unwrap();
         assert_eq!(cal.check(), Err(CalibrationInvalid::MPerPx(0.0634)));
+    }
+
+    #[test]
+    fn a_linear_model_reads_its_slopes_back_and_a_full_one_has_none() {
+        let s = [
+            [9.26e-4, -9.156e-3, 2.14e-3],
+            [4.791e-3, 1.538e-3, -4.753e-3],
+        ];
+        let m = GradientModel::linear(s);
+        assert_eq!(m.slope_per_dn(), Some(s));
+        // A colour change of 10 DN in green alone: the slopes are 10 x its column.
+        let (gx, gy) = m.eval(&features(&[0.0, 10.0, 0.0], 0.3, -0.2));
+        assert!((gx - 10.0 * s[0][1]).abs() < 1e-7 && (gy - 10.0 * s[1][1]).abs() < 1e-7);
+        let mut full = m.clone();
+        full.gx[10] = 1e-3;
+        assert_eq!(full.slope_per_dn(), None);
+    }
+
+    #[test]
+    fn a_kinds_default_is_its_profiles_model_at_its_size() {
+        let k = SensorKind::GELSIGHT_MINI;
+        let cal = DepthCalibration::kind_default(k).unwrap();
+        cal.check().unwrap();
+        let p = k.profile().photometric.unwrap();
+        assert_eq!(cal.model.slope_per_dn(), Some(p.slope_per_dn));
+        assert_eq!((cal.width, cal.height), (320, 240));
+        assert_eq!(cal.m_per_px, k.spec().m_per_px());
+        assert_eq!(cal.serial, "", "any unit of the kind");
+        assert!(DepthCalibration::kind_default(SensorKind::DIGIT).is_none());
     }
 }

@@ -29,7 +29,7 @@ struct Params {
     scene: String,
     /// mock | v4l | bag (empty: the scene's source)
     source: String,
-    /// gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS (empty: the scene's sensor)
+    /// a profile of sensors/ (gelsight-mini, digit, generic, ...) or of $UNITAC_SENSORS (empty: the scene's sensor)
     sensor_kind: String,
     /// Sensor id: frame_id is `<sensor_id>_optical_frame` (empty: the scene's, else mock_KIND
     /// for the mock sensor, the serial for a live one)

@@ -52,7 +52,7 @@ struct Params {
     /// Sim time of the trial, in seconds (0: the task's trial length, as `unitac-lab trials` runs
     /// it)
     duration_s: f64,
-    /// Mock tactile sensor: gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS, and its id (frame_id
+    /// Mock tactile sensor: a profile of sensors/ (gelsight-mini, digit, generic, ...) or of $UNITAC_SENSORS, and its id (frame_id
     /// `<sensor_id>_optical_frame`)
     sensor: String,
     sensor_id: String,

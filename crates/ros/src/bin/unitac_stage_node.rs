@@ -33,7 +33,7 @@ struct Params {
     stages: String,
     /// Sensor id used in messages (default: the image's frame_id without "_optical_frame")
     sensor_id: String,
-    /// gelsight-mini | digit | generic (sensors/), or a profile of $UNITAC_SENSORS (empty: the scene's sensor)
+    /// a profile of sensors/ (gelsight-mini, digit, generic, ...) or of $UNITAC_SENSORS (empty: the scene's sensor)
     sensor_kind: String,
     /// raw: sensor_msgs/Image on `image`; compressed: sensor_msgs/CompressedImage (jpeg, png) on
     /// `image/compressed`, as image_transport names it
