@@ -7,7 +7,7 @@ use anyhow::{Context, bail};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use unitac_contact::depth::{
-    Circle, DepthCalibration, DepthEstimator, DepthParams, Fit, Prep, Terms, find_circle, prepare,
+    Circle, DepthCalibration, DepthEstimator, Fit, Prep, Terms, find_circle, prepare,
 };
 use unitac_core::{Frame, SensorKind};
 use unitac_sim::MM_PER_M;
@@ -353,12 +353,12 @@ pub fn mock_presses(a: &MockPressesArgs) -> anyhow::Result<bool> {
 }
 
 /// `unitac contact --depth-calibration`: the calibration, checked against the sensor kind and
-/// the background's size, and its estimator on that background.
-pub fn contact_depth(
+/// the background's size.
+pub fn contact_calibration(
     path: &Path,
     sensor: SensorKind,
     bg: &Frame,
-) -> anyhow::Result<DepthEstimator> {
+) -> anyhow::Result<DepthCalibration> {
     let cal = DepthCalibration::load(path)?;
     if cal.sensor != sensor {
         bail!(
@@ -367,27 +367,8 @@ pub fn contact_depth(
             cal.sensor
         );
     }
-    Ok(DepthEstimator::new(
-        cal,
-        bg.clone(),
-        DepthParams::default(),
-    )?)
-}
-
-/// Depth for `unitac contact` without a calibration: the sensor kind's default photometric model,
-/// where it has one and the frames are of its aspect ratio (else none, with a warning for the
-/// size).
-pub fn kind_depth(sensor: SensorKind, bg: &Frame) -> Option<DepthEstimator> {
-    let cal = DepthCalibration::kind_default(sensor)?;
-    match DepthEstimator::new(cal, bg.clone(), DepthParams::default()) {
-        Ok(est) => Some(est),
-        Err(e) => {
-            unitac_cli::args::warn(format_args!(
-                "no depth from the {sensor} profile's photometric model: {e}"
-            ));
-            None
-        }
-    }
+    cal.m_per_px_at(bg.width, bg.height)?;
+    Ok(cal)
 }
 
 /// The overlay file `path`: the picture of `unitac_contact::overlay` (the contact stage's `contact_overlay` is the same one): the frame with the contact region's outline and

@@ -88,20 +88,26 @@ enum Cmd {
         /// One JSON object per frame instead of a text line.
         #[arg(long)]
         json: bool,
-        /// A depth calibration (`unitac calibrate depth`) of this sensor. Each line also gets the
-        /// gel's depth (penetration, and the contact region's area and centroid from depth) from
-        /// it, or without it from the sensor kind's default photometric model (its profile's
-        /// `photometric`, fitted on real presses of other units) where the kind has one.
+        /// A depth calibration (`unitac calibrate depth`) of this sensor: the gel's depth from it
+        /// rather than from the sensor kind's default photometric model (its profile's
+        /// `photometric`, fitted on real presses of other units). With a model each line has the
+        /// depth (penetration, and the half-depth contour's area and centroid), and the contact
+        /// region is that contour (`--region`).
         #[arg(long)]
         depth_calibration: Option<PathBuf>,
+        /// Where the contact region comes from (the contact stage's `region`): auto (the depth's
+        /// half-depth contour with --depth-calibration, else the colour residual), depth (from
+        /// the calibration or the sensor kind's default photometric model), or residual.
+        #[arg(long, default_value = "auto")]
+        region: unitac_contact::RegionRule,
         /// Write `<frame>.overlay.png` per frame into this directory: the frame with the contact
         /// outline and centroid, and beside it the depth colour map (with a depth model).
         /// Frames of one file name in several directories are told apart by their path
         /// (`0/gelsight.png` -> `0_gelsight.overlay.png`).
         #[arg(long)]
         overlay: Option<PathBuf>,
-        /// Keep the skirt's flank: the contact region at the residual's half-level contour alone
-        /// (the contact stage's `peel_skirt: false`), not ended at the press's ridge.
+        /// Keep the skirt's flank: the residual's region at its half-level contour alone (the
+        /// contact stage's `peel_skirt: false`), not ended at the press's ridge.
         #[arg(long)]
         no_peel_skirt: bool,
     },
@@ -305,10 +311,11 @@ struct ContactExtras<'a> {
     depth_calibration: Option<&'a std::path::Path>,
     overlay: Option<&'a std::path::Path>,
     peel_skirt: bool,
+    region: unitac_contact::RegionRule,
 }
 
-/// One frame's line of `unitac contact`: JSON or text, with the depth stage's reading when a
-/// calibration was given.
+/// One frame's line of `unitac contact`: JSON or text, with the depth's reading where there is
+/// a photometric model (`model`: "calibration" or "kind default").
 fn contact_line(
     file: &str,
     json: bool,
@@ -317,6 +324,7 @@ fn contact_line(
     noise_dn: [f32; 3],
 ) -> String {
     let contact = m.contact;
+    let region = if m.from_depth { "depth" } else { "residual" };
     let dj = d.map(|(d, model)| {
         serde_json::json!({
             "contact": d.contact, "penetration_m": d.penetration_m,
@@ -328,7 +336,7 @@ fn contact_line(
         let mut v = serde_json::json!({
             "file": file, "contact": contact, "area_px": m.area_px,
             "centroid": m.centroid, "bbox": m.bbox, "score": m.strength,
-            "noise_dn": noise_dn,
+            "region": region, "noise_dn": noise_dn,
         });
         if let Some(dj) = dj {
             v["depth"] = dj;
@@ -336,7 +344,7 @@ fn contact_line(
         v.to_string()
     } else {
         let mut t = format!(
-            "{file}: contact {} area {:.0} px centroid ({:.1}, {:.1}) bbox {:?} score {:.2} noise {:?} DN",
+            "{file}: contact {} area {:.0} px ({region}) centroid ({:.1}, {:.1}) bbox {:?} score {:.2} noise {:?} DN",
             if contact { "yes" } else { "no" },
             m.area_px,
             m.centroid[0],
@@ -376,11 +384,24 @@ fn cmd_contact(
         .map_err(|e| anyhow::Error::new(ConfigError(format!("background {e:#}"))))?;
     let params = ContactParams {
         peel_skirt: extra.peel_skirt,
+        region: extra.region,
         ..ContactParams::default()
     };
     let mut det = ContactDetector::new(params, sensor.spec())
         .map_err(|e| anyhow::Error::new(ConfigError(e.to_string())))?;
+    // The depth of every frame, from the unit's calibration or the kind's default.
+    if let Some(p) = extra.depth_calibration {
+        let cal = depth::contact_calibration(p, sensor, &bg)
+            .map_err(|e| anyhow::Error::new(ConfigError(format!("--depth-calibration {e:#}"))))?;
+        det.set_depth_calibration(cal, true);
+    }
+    det.estimate_depth_every_frame(true);
     det.set_background_frame(&bg);
+    // (A background the model does not fit was warned about by the detector: no depth.)
+    let depth_model = match det.depth_is_kind_default() {
+        Some(true) => "kind default",
+        _ => "calibration",
+    };
     // Camera noise per channel [DN] from the difference of two single frames, per pixel.
     let stride = det.geometry_for(bg.width, bg.height).stride as f32;
     let noise_dn = |m: &unitac_contact::Measurement| {
@@ -388,16 +409,6 @@ fn cmd_contact(
             .map(|s| (s * stride / std::f32::consts::SQRT_2 * 100.0).round() / 100.0)
     };
     let size = (bg.width, bg.height);
-    // The depth and what it comes from: the unit's calibration, or the kind's default.
-    let (mut depth, depth_model) = match extra.depth_calibration {
-        Some(p) => (
-            Some(depth::contact_depth(p, sensor, &bg).map_err(|e| {
-                anyhow::Error::new(ConfigError(format!("--depth-calibration {e:#}")))
-            })?),
-            "calibration",
-        ),
-        None => (depth::kind_depth(sensor, &bg), "kind default"),
-    };
     if let Some(d) = extra.overlay {
         std::fs::create_dir_all(d).map_err(|e| {
             anyhow::Error::new(ConfigError(format!("--overlay {}: {e}", d.display())))
@@ -424,16 +435,10 @@ fn cmd_contact(
                 let m = det
                     .measure(&f)
                     .map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
-                let d = match depth.as_mut() {
-                    Some(est) => Some(
-                        est.estimate(&f)
-                            .map_err(|e| anyhow::anyhow!("{file}: {e}"))?,
-                    ),
-                    None => None,
-                };
+                let d = det.depth().and_then(|(_, s)| s);
                 if let Some(dir) = extra.overlay {
                     let unknown = det.marker_mask_px();
-                    let d = depth.as_ref().map(|e| (e, unknown.as_slice()));
+                    let d = det.depth().map(|(e, _)| (e, unknown.as_slice()));
                     let arrows = match markers.as_mut() {
                         Some(field) if m.contact => {
                             field.reset();
@@ -518,6 +523,7 @@ fn dispatch(cmd: Cmd) -> anyhow::Result<bool> {
             frames,
             json,
             depth_calibration,
+            region,
             overlay,
             no_peel_skirt,
         } => {
@@ -525,6 +531,7 @@ fn dispatch(cmd: Cmd) -> anyhow::Result<bool> {
                 depth_calibration: depth_calibration.as_deref(),
                 overlay: overlay.as_deref(),
                 peel_skirt: !no_peel_skirt,
+                region,
             };
             cmd_contact(sensor, &background, &frames, json, &extra)
         }

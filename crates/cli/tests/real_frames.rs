@@ -218,6 +218,8 @@ fn a_calibration_from_real_presses_finds_their_circles_and_reads_the_others() {
         for v in contact(&set, sensor, &depth, &test) {
             let f = v["file"].as_str().unwrap();
             let r = annotated(f)["r"].as_f64().unwrap();
+            // With a calibration the region is the depth's (`--region auto`).
+            assert_eq!(v["region"], "depth", "{v}");
             let ratio = v["depth"]["area_px"].as_f64().unwrap() / (std::f64::consts::PI * r * r);
             let line = format!("{name}/{f}: depth's area x{ratio:.2} of the disc");
             println!("{line}");
@@ -233,7 +235,8 @@ fn a_calibration_from_real_presses_finds_their_circles_and_reads_the_others() {
 /// Before a unit is calibrated: the sensor kind's default photometric model (its profile's
 /// `photometric`), which `unitac contact` uses when no calibration is named, reads every press of
 /// every set of a kind that has one from depth within x1.5 of its annotated disc, with its
-/// centroid within 0.6 radii, and the background alone as no contact. The model itself is what
+/// centroid within 0.6 radii, and the background alone as no contact; so does the contact region
+/// with `--region depth`, which is that depth's. The model itself is what
 /// `unitac calibrate depth --linear` fits on the training presses of the set its source names.
 #[test]
 fn the_kinds_default_photometric_model_reads_every_press_from_depth() {
@@ -253,6 +256,7 @@ fn the_kinds_default_photometric_model_reads_every_press_from_depth() {
         let lines = contact(&set, sensor, &[], &files);
         for l in &lines {
             assert_eq!(l["depth"]["model"], "kind default", "{l}");
+            assert_eq!(l["region"], "residual", "{l}");
         }
         let mut bad = Vec::new();
         let depths = lines.iter().map(|l| &l["depth"]);
@@ -261,6 +265,21 @@ fn the_kinds_default_photometric_model_reads_every_press_from_depth() {
         let bg = &lines[lines.len() - 1]["depth"];
         if bg["contact"] != false {
             bad.push(format!("{name}/background.png: depth {bg}"));
+        }
+        // `--region depth`: the contact region is that depth's, where the residual finds the
+        // press.
+        let lines = contact(&set, sensor, &os(&["--region", "depth"]), &files);
+        for l in &lines {
+            assert_eq!(l["region"], "depth", "{l}");
+            if l["contact"] == true {
+                assert_eq!(l["area_px"].as_f64(), l["depth"]["area_px"].as_f64(), "{l}");
+            }
+        }
+        let heading = "the region from the kind's model";
+        judge(&name, "", heading, &presses, lines.iter(), &mut bad);
+        let bg = &lines[lines.len() - 1];
+        if bg["contact"] != false {
+            bad.push(format!("{name}/background.png: {bg}"));
         }
         if model.source.contains(&format!("tests/real/{name}")) {
             let tmp =

@@ -2,9 +2,11 @@
 //! centroid, bounding box and strength, then the episode state machine.
 
 use crate::background::{Background, Learner};
+use crate::depth::{DepthCalibration, DepthEstimator, DepthSummary};
+use crate::depth_region::DepthRegion;
 use crate::episodes::Episodes;
 use crate::grid::{BitMask, BlockScratch, Geometry, block_means, keep_components};
-use crate::params::{ContactParams, ParamsError};
+use crate::params::{ContactParams, ParamsError, RegionRule};
 use crate::region::{Peel, RegionInputs, RegionScratch, contact_region};
 use crate::residual::{self, Inputs, ResidualScratch, residual_mask};
 use crate::shading::{self, ShadingScratch};
@@ -36,6 +38,10 @@ pub enum FrameRefused {
     Dark { seq: u64, percent: f32 },
     #[error("frame {seq}: illumination gain {gain:.2} on channel {channel} is implausible")]
     Gain { seq: u64, gain: f32, channel: usize },
+    #[error("frame {seq}: region: depth, and {why}")]
+    NoDepth { seq: u64, why: String },
+    #[error("frame {seq}: depth: {why}")]
+    Depth { seq: u64, why: String },
 }
 
 /// Plausible range of the per-channel illumination gain against the background.
@@ -75,6 +81,8 @@ pub struct Measurement {
     /// Whether the area reaches `enter_area_px` (scaled to the frame size): what a single frame
     /// says, before hysteresis and debounce.
     pub contact: bool,
+    /// The region (area, centroid, bbox, `mask_px`) is the gel's depth's, not the residual's.
+    pub from_depth: bool,
 }
 
 #[derive(Debug, Default)]
@@ -118,6 +126,11 @@ pub struct ContactDetector {
     pending_size: Option<((u32, u32), u32)>,
     /// How often the background was learned again for a new frame size.
     size_changes: u64,
+    /// The photometric model and its estimator (`region: auto` with a model, `depth`, or a
+    /// depth calibration given).
+    depth: Option<DepthRegion>,
+    /// The last measured frame's region is the depth's (`mask_px` reads the estimator's).
+    last_from_depth: bool,
 }
 
 impl Scratch {
@@ -308,6 +321,16 @@ impl ContactDetector {
             (Some(false), _) | (None, Markers::No) => MarkerRule::Off,
             (None, Markers::Unknown) => MarkerRule::Detect,
         };
+        // The kind's default model, also with `region: residual` (a depth to report).
+        let depth = match (p.region, DepthCalibration::kind_default(spec.kind)) {
+            (_, Some(cal)) => Some(DepthRegion::new(cal, true)),
+            (RegionRule::Residual | RegionRule::Auto, None) => None,
+            (RegionRule::Depth, None) => {
+                return Err(ParamsError::NoDepthModel {
+                    sensor: spec.kind.to_string(),
+                });
+            }
+        };
         Ok(Self {
             p,
             spec,
@@ -319,7 +342,61 @@ impl ContactDetector {
             idle_frames: 0,
             pending_size: None,
             size_changes: 0,
+            depth,
+            last_from_depth: false,
         })
+    }
+
+    /// Depth from a unit's calibration instead of the kind's default (its sensor and aspect
+    /// ratio checked by the caller): the region's, unless `region: residual`, and the depth of
+    /// every frame with `every_frame` (a published depth map).
+    pub fn set_depth_calibration(&mut self, cal: DepthCalibration, every_frame: bool) {
+        let mut d = DepthRegion::new(cal, false);
+        d.every_frame = every_frame;
+        if let Some(Model::Ready { bg, .. }) = &self.model {
+            d.on_background(bg);
+        }
+        self.depth = Some(d);
+    }
+
+    /// Estimate the depth of every measured frame (for a picture or a report), not only of
+    /// frames with a deformation; no effect without a photometric model.
+    pub fn estimate_depth_every_frame(&mut self, on: bool) {
+        if let Some(d) = self.depth.as_mut() {
+            d.every_frame = on;
+        }
+    }
+
+    /// The depth's estimator on the current background (None without a model, before the
+    /// first estimate on the background, or at a frame size the model does not fit), and the
+    /// last measured frame's depth when it was estimated.
+    pub fn depth(&self) -> Option<(&DepthEstimator, Option<DepthSummary>)> {
+        let d = self.depth.as_ref()?;
+        Some((d.estimator()?, d.last))
+    }
+
+    /// Whether the depth model is the sensor kind's default (true) or a unit's calibration
+    /// (false); None without one.
+    pub fn depth_is_kind_default(&self) -> Option<bool> {
+        self.depth.as_ref().map(|d| d.kind_default)
+    }
+
+    /// Why the current background has no depth though there is a model (its frames are not of
+    /// the model's aspect ratio).
+    pub fn depth_unusable(&self) -> Option<&str> {
+        self.depth.as_ref()?.unusable.as_deref()
+    }
+
+    /// Whether the region is taken from depth on this background.
+    fn region_from_depth(&self) -> bool {
+        let Some(d) = self.depth.as_ref().filter(|d| d.ready()) else {
+            return false;
+        };
+        match self.p.region {
+            RegionRule::Residual => false,
+            RegionRule::Auto => !d.kind_default,
+            RegionRule::Depth => true,
+        }
     }
 
     pub fn params(&self) -> &ContactParams {
@@ -350,6 +427,13 @@ impl ContactDetector {
     /// a stride are never set.
     pub fn mask_px(&self) -> Vec<bool> {
         let Some(g) = self.geo else { return Vec::new() };
+        if self.last_from_depth {
+            let n = g.width as usize * g.height as usize;
+            return match self.depth.as_ref().and_then(DepthRegion::estimator) {
+                Some(e) if e.mask().len() == n => e.mask().to_vec(),
+                _ => vec![false; n],
+            };
+        }
         if self.s.region.len() != g.cells() {
             return Vec::new();
         }
@@ -397,6 +481,9 @@ impl ContactDetector {
     /// changed). Episode numbering goes on.
     pub fn recapture(&mut self) {
         self.model = None;
+        if let Some(d) = self.depth.as_mut() {
+            d.clear();
+        }
         self.episodes.reset();
     }
 
@@ -409,6 +496,9 @@ impl ContactDetector {
             MarkerRule::Detect => dot_cells(&bg),
             MarkerRule::Off => vec![0; bg.geo.cells()],
         };
+        if let Some(d) = self.depth.as_mut() {
+            d.on_background(&bg);
+        }
         self.model = Some(Model::Ready { bg, markers });
     }
 
@@ -528,9 +618,17 @@ impl ContactDetector {
     /// buffers aside). The mask of contact cells is left in the scratch buffer.
     pub fn measure(&mut self, f: &Frame) -> Result<Measurement, StageError> {
         let geo = self.geometry_of(f)?;
+        let from_depth = self.region_from_depth();
         let Some(Model::Ready { bg, markers }) = &self.model else {
             return Err(StageError::bad_input(FrameRefused::NoBackground));
         };
+        if self.p.region == RegionRule::Depth && !from_depth {
+            let why = self.depth.as_ref().and_then(|d| d.unusable.clone());
+            return Err(StageError::bad_input(FrameRefused::NoDepth {
+                seq: f.seq,
+                why: why.unwrap_or_else(|| "the depth has no estimator".into()),
+            }));
+        }
         let k = self.size_scale(geo.width, geo.height);
         let s = &mut self.s;
         block_means(f, &geo, &mut s.grid, &mut s.block);
@@ -588,26 +686,59 @@ impl ContactDetector {
         let st = geo.stride;
         let any = s.contact_region(&self.p, &geo, k, (thr, r), markers);
 
-        // 7. Geometry of the contact region in input pixels.
+        // 7. Geometry of the contact region in input pixels: the residual's region, or with a
+        // photometric model the depth's where the residual found a deformation.
         let Sums { n, sx, sy, sr, bb } = region_sums(&s.region, &s.resid, geo.gw, any, thr);
         let (noise, smoothing, rejected) = (fit.sigma, r, fit.rejected);
+        let depth_area = match self.depth.as_mut() {
+            Some(d) => {
+                let (mask, region) = (&s.mask, &s.region);
+                let inside = |i: usize| mask.get(i).is_some_and(|&m| m != 0) || region[i] != 0;
+                d.measure(f, (from_depth && any && n > 0, any && n > 0), &geo, inside)
+                    .map_err(|e| {
+                        StageError::bad_input(FrameRefused::Depth {
+                            seq: f.seq,
+                            why: e.to_string(),
+                        })
+                    })?
+            }
+            None => None,
+        };
+        self.last_from_depth = from_depth;
+        let empty = Measurement {
+            area_px: 0.0,
+            centroid: [0.0; 2],
+            bbox: [0; 4],
+            strength: 0.0,
+            gain,
+            threshold: thr,
+            noise,
+            smoothing,
+            rejected,
+            contact: false,
+            from_depth,
+        };
         if n == 0 {
-            return Ok(Measurement {
-                area_px: 0.0,
-                centroid: [0.0; 2],
-                bbox: [0; 4],
-                strength: 0.0,
-                gain,
-                threshold: thr,
-                noise,
-                smoothing,
-                rejected,
-                contact: false,
+            return Ok(empty);
+        }
+        let nf = n as f64;
+        let mean_ratio = (sr / nf) as f32;
+        let strength = 1.0 - (-(mean_ratio - 1.0) / 3.0).exp();
+        let enter = self.p.enter_area_px * k * k;
+        if from_depth {
+            return Ok(match depth_area {
+                Some(a) => Measurement {
+                    area_px: a.area_px as f32,
+                    centroid: a.centroid,
+                    bbox: a.bbox,
+                    strength,
+                    contact: a.area_px as f32 >= enter,
+                    ..empty
+                },
+                None => empty,
             });
         }
         let half = (st as f64 - 1.0) / 2.0;
-        let nf = n as f64;
-        let mean_ratio = (sr / nf) as f32;
         let area_px = n as f32 * geo.cell_px();
         Ok(Measurement {
             area_px,
@@ -621,13 +752,9 @@ impl ContactDetector {
                 (bb[2] * st).min(geo.width),
                 (bb[3] * st).min(geo.height),
             ],
-            strength: 1.0 - (-(mean_ratio - 1.0) / 3.0).exp(),
-            gain,
-            threshold: thr,
-            noise,
-            smoothing,
-            rejected,
-            contact: area_px >= self.p.enter_area_px * k * k,
+            strength,
+            contact: area_px >= enter,
+            ..empty
         })
     }
 

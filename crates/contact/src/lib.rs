@@ -16,7 +16,8 @@
 //!    from the contact region inside that deformation mask: per component the cells at or above
 //!    `area_level` (half) of its own robust peak residual, grown, closed, holes filled, and the
 //!    skirt's flank outside the press's ridge peeled off (`peel_skirt`), so the gel's skirt
-//!    around a press is not contact;
+//!    around a press is not contact; or, by the `region` param, the gel's half-depth contour
+//!    from a photometric model where the residual finds a deformation (`depth_region`);
 //! 6. hysteresis (enter / exit area) and debounce (k frames) into contact episodes
 //!    ([`episodes`](crate::ContactStage)), with a bounded clip of the episode's frames;
 //! 7. the background follows slow changes by an EMA only while there is no contact, and only in
@@ -30,6 +31,7 @@
 
 pub mod background;
 pub mod depth;
+mod depth_region;
 mod detector;
 mod episodes;
 mod flank;
@@ -45,7 +47,7 @@ mod store;
 
 pub use background::{Background, BackgroundFileError, Learner};
 pub use detector::{ContactDetector, FrameRefused, Measurement};
-pub use params::{ContactParams, MAX_CLIP_FRAMES, ParamsError};
+pub use params::{ContactParams, MAX_CLIP_FRAMES, ParamsError, RegionRule};
 pub use slip::{MarkerField, SlipParams, SlipStage};
 pub use stage::ContactStage;
 pub use store::{BackgroundStore, DirStore};

@@ -43,6 +43,12 @@ pub struct ContactParams {
     /// where the half-level contour alone reads 1.1-2.5x. On a noisy frame the region is grown
     /// back by the box mean's radius after the peel. False: the half-level contour.
     pub peel_skirt: bool,
+    /// Where the contact region comes from: `auto` (default) the gel's depth (its half-depth
+    /// contour, `crate::depth_region`) with a `depth_calibration`, else the colour residual
+    /// (`area_level`, `peel_skirt`); `depth` the depth from the calibration or else the sensor
+    /// kind's default photometric model (GelSight Mini's), refused for a kind without one;
+    /// `residual` the residual whatever the model.
+    pub region: RegionRule,
     /// Consecutive frames needed to enter contact ...
     pub debounce_frames: u32,
     /// ... and to leave it (the exit area is already a hysteresis band below the enter area).
@@ -94,6 +100,7 @@ impl Default for ContactParams {
             close_radius_px: 4,
             area_level: 0.5,
             peel_skirt: true,
+            region: RegionRule::Auto,
             debounce_frames: 2,
             exit_debounce_frames: 1,
             ema_alpha: 0.02,
@@ -106,6 +113,42 @@ impl Default for ContactParams {
             episode_labels: Vec::new(),
             depth_calibration: None,
             overlay: false,
+        }
+    }
+}
+
+/// Where the contact region comes from ([`ContactParams::region`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RegionRule {
+    /// Depth with a unit's depth calibration, else the residual.
+    #[default]
+    Auto,
+    /// Depth from the unit's calibration or the kind's default model.
+    Depth,
+    /// The colour residual's region (`area_level`, `peel_skirt`).
+    Residual,
+}
+
+impl RegionRule {
+    pub const NAMES: [&'static str; 3] = ["auto", "depth", "residual"];
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::Depth => "depth",
+            Self::Residual => "residual",
+        }
+    }
+}
+
+impl std::str::FromStr for RegionRule {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "auto" => Ok(Self::Auto),
+            "depth" => Ok(Self::Depth),
+            "residual" => Ok(Self::Residual),
+            _ => Err(format!("{s:?} is not one of {}", Self::NAMES.join(", "))),
         }
     }
 }
@@ -126,6 +169,11 @@ pub enum ParamsError {
     AreaBand { enter: f32, exit: f32 },
     #[error("background_dir {} is not a directory", .0.display())]
     NotADirectory(std::path::PathBuf),
+    #[error(
+        "region: depth needs a photometric model: a depth_calibration, and the {sensor} profile \
+         has no default one (sensors/*.yaml `photometric`)"
+    )]
+    NoDepthModel { sensor: String },
     #[error("the slip stage tracks marker dots and a {sensor} gel has none")]
     NoMarkers { sensor: String },
 }

@@ -2,7 +2,7 @@
 //! ContactClip) on release, and the background announced downstream when it is learned.
 //! Saved backgrounds come from an injected [`BackgroundStore`]: the stage does no file I/O.
 
-use crate::depth::{DepthCalibration, DepthEstimator, DepthParams};
+use crate::depth::DepthCalibration;
 use crate::detector::ContactDetector;
 use crate::overlay::{DepthPanel, Overlay, draw};
 use crate::params::{ContactParams, ParamsError};
@@ -24,23 +24,11 @@ pub struct ContactStage {
     store_asked: bool,
     /// Why the saved background was not used (asked once, on the first frame).
     store_error: Option<String>,
-    /// Depth from the gel's shading (`with_depth`): the contact's area, centroid and box come
-    /// from the depth's contact region.
-    depth: Option<DepthUse>,
+    /// Publish every frame's depth map (`with_depth`: a unit's depth calibration given).
+    publish_depth: bool,
     /// With the overlay on a marker gel: the markers followed while in contact, drawn as arrows
     /// from rest (found and tracked as the slip stage does, with its default parameters).
     markers: Option<(MarkerField, SlipParams)>,
-}
-
-/// The depth calibration and its estimator on the current background.
-#[derive(Debug)]
-struct DepthUse {
-    cal: DepthCalibration,
-    est: Option<DepthEstimator>,
-    /// Pixels of unknown depth (the background's marker dots), at the estimator's size.
-    unknown: Vec<bool>,
-    /// A background announced since the estimator was made.
-    new_background: bool,
 }
 
 impl ContactStage {
@@ -63,31 +51,29 @@ impl ContactStage {
         let slip = SlipParams::default();
         let markers = (p.overlay && slip.check_for(spec.kind).is_ok())
             .then(|| (MarkerField::default(), slip));
+        let mut det = ContactDetector::new(p, spec)?;
+        // The overlay's depth panel: every frame's depth, where there is a model.
+        det.estimate_depth_every_frame(det.params().overlay);
         Ok(Self {
-            det: ContactDetector::new(p, spec)?,
+            det,
             sensor_id: String::new(),
             announced: false,
             store,
             store_asked: false,
             store_error: None,
-            depth: None,
+            publish_depth: false,
             markers,
         })
     }
 
-    /// Take the contact's area (px, mm^2), centroid and bounding box from the gel's depth
-    /// (crate::depth): the half-depth contour of the press, not the colour residual's, which on
-    /// a real gel takes in the skirt around a press. Entering and leaving contact (hysteresis,
-    /// episodes) stay the detector's. The calibration must be for this sensor's aspect ratio
-    /// (checked when the scene is loaded); the estimator follows each new background. Every
-    /// frame after the background is known also gets its depth map ([`Msg::Depth`]).
+    /// Depth from a unit's calibration (`unitac calibrate depth`) instead of the sensor kind's
+    /// default photometric model: the contact region's (its half-depth contour, unless
+    /// `region: residual`), and every frame after the background is known gets its depth map
+    /// ([`Msg::Depth`]). The calibration must be for this sensor's aspect ratio (checked when
+    /// the scene is loaded); the estimator follows each new background.
     pub fn with_depth(mut self, cal: DepthCalibration) -> Self {
-        self.depth = Some(DepthUse {
-            cal,
-            est: None,
-            unknown: Vec::new(),
-            new_background: false,
-        });
+        self.det.set_depth_calibration(cal, true);
+        self.publish_depth = true;
         self
     }
     pub fn detector(&self) -> &ContactDetector {
@@ -119,74 +105,19 @@ impl ContactStage {
 
 impl ContactStage {
     /// With a depth calibration: the depth of every frame with a ContactState (once the
-    /// background is known), as a [`Msg::Depth`] after that ContactState, whose area, centroid and box it replaces
-    /// while in contact. The depth is unknown (NaN) under the masked marker dots, where the
-    /// gel's colour is the dots' and not its shading.
-    fn apply_depth(
-        &mut self,
-        f: &Frame,
-        out: &mut Vec<Msg>,
-        new_background: bool,
-    ) -> Result<(), StageError> {
-        let Some(d) = self.depth.as_mut() else {
-            return Ok(());
-        };
-        // A new background is taken at the next frame with a state (frames that learn the
-        // background have no state, and no depth either).
-        d.new_background |= new_background;
+    /// background is known), as a [`Msg::Depth`] after that ContactState. The depth is unknown
+    /// (NaN) under the masked marker dots, where the gel's colour is the dots' and not its
+    /// shading.
+    fn publish_depth(&self, f: &Frame, out: &mut Vec<Msg>) {
         if !out.iter().any(|m| matches!(m, Msg::ContactState(_))) {
-            return Ok(());
+            return;
         }
-        let stale = d
-            .est
-            .as_ref()
-            .is_none_or(|e| d.new_background || e.size() != (f.width as usize, f.height as usize));
-        if stale {
-            d.new_background = false;
-            d.est = match self.det.background_frame(&f.sensor_id) {
-                Some(bg) => Some(
-                    DepthEstimator::new(d.cal.clone(), bg, DepthParams::default())
-                        .map_err(StageError::bad_input)?,
-                ),
-                None => None,
-            };
-            d.unknown = self.det.marker_mask_px();
-        }
-        let Some(est) = d.est.as_mut() else {
-            return Ok(());
+        let Some(depth_m) = self.depth_map() else {
+            return;
         };
-        let s = est.estimate(f).map_err(StageError::bad_input)?;
-        for m in out.iter_mut() {
-            let Msg::ContactState(cs) = m else { continue };
-            if !cs.in_contact || !s.contact {
-                continue;
-            }
-            let (w, mask) = (est.size().0, est.mask());
-            let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0u32, 0u32);
-            for (i, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
-                let (x, y) = ((i % w) as u32, (i / w) as u32);
-                x0 = x0.min(x);
-                y0 = y0.min(y);
-                x1 = x1.max(x + 1);
-                y1 = y1.max(y + 1);
-            }
-            cs.area_px = s.area_px as f32;
-            cs.area_m2 = s.area_m2 as f32;
-            cs.centroid_px = s.centroid_px;
-            cs.bbox_px = [x0, y0, x1, y1];
-        }
-        let depth_m = est
-            .depth_m()
-            .iter()
-            .enumerate()
-            .map(|(i, v)| {
-                if d.unknown.get(i).copied().unwrap_or(false) {
-                    f32::NAN
-                } else {
-                    *v
-                }
-            })
-            .collect();
+        let Some((_, Some(s))) = self.det.depth() else {
+            return;
+        };
         out.push(Msg::Depth(DepthMap {
             header: Header::optical(f.stamp, &f.sensor_id),
             width: f.width,
@@ -194,7 +125,28 @@ impl ContactStage {
             pixel_m: s.m_per_px,
             depth_m,
         }));
-        Ok(())
+    }
+
+    /// The last frame's depth map, NaN under the masked marker dots; None when it was not
+    /// estimated.
+    fn depth_map(&self) -> Option<Vec<f32>> {
+        let (est, Some(_)) = self.det.depth()? else {
+            return None;
+        };
+        let unknown = self.det.marker_mask_px();
+        Some(
+            est.depth_m()
+                .iter()
+                .enumerate()
+                .map(|(i, v)| {
+                    if unknown.get(i).copied().unwrap_or(false) {
+                        f32::NAN
+                    } else {
+                        *v
+                    }
+                })
+                .collect(),
+        )
     }
 
     /// The overlay's marker field: learned from each background announced, followed on frames
@@ -230,25 +182,15 @@ impl ContactStage {
             Msg::ContactState(c) if c.in_contact => Some(c.centroid_px),
             _ => None,
         });
-        // With a calibration the depth panel is always there (the picture keeps its size), all
+        // With a depth model the depth panel is always there (the picture keeps its size), all
         // unknown until the first depth map.
         let n = f.width as usize * f.height as usize;
-        let depth_m: Option<Vec<f32>> = self.depth.as_ref().map(|_| {
-            out.iter()
-                .find_map(|m| match m {
-                    Msg::Depth(d) => Some(d.depth_m.clone()),
-                    _ => None,
-                })
-                .unwrap_or_else(|| vec![f32::NAN; n])
-        });
-        let has_depth = out.iter().any(|m| matches!(m, Msg::Depth(_)));
-        let mask = self
-            .depth
-            .as_ref()
-            .and_then(|d| d.est.as_ref())
-            .filter(|_| has_depth)
-            .map(DepthEstimator::mask)
-            .unwrap_or(&[]);
+        let estimated = self.det.depth().filter(|(_, s)| s.is_some());
+        let depth_m: Option<Vec<f32>> = self
+            .det
+            .depth_is_kind_default()
+            .map(|_| self.depth_map().unwrap_or_else(|| vec![f32::NAN; n]));
+        let mask = estimated.map_or(&[][..], |(e, _)| e.mask());
         let depth = depth_m
             .as_deref()
             .map(|depth_m| DepthPanel { depth_m, mask });
@@ -280,16 +222,14 @@ impl Stage for ContactStage {
                     self.load_saved_background(f);
                 }
                 let mut out = self.det.step(f)?;
-                let mut new_background = false;
                 if self.det.is_learned() != self.announced {
                     self.announced = self.det.is_learned();
                     if let Some(bg) = self.det.background_frame(&f.sensor_id) {
                         out.insert(0, Msg::Background(bg));
-                        new_background = true;
                     }
                 }
-                if self.depth.is_some() {
-                    self.apply_depth(f, &mut out, new_background)?;
+                if self.publish_depth {
+                    self.publish_depth(f, &mut out);
                 }
                 if self.det.params().overlay {
                     self.follow_markers(f, &out);

@@ -82,7 +82,7 @@ fn full_params() -> [serde_json::Map<String, Value>; 6] {
     let contact = non_default(
         serde_json::to_value(ContactParams::default()).unwrap(),
         json!({"mask_markers": true, "background_dir": bg, "episode_labels": ["x", "y"],
-               "clip_frames": 6, "depth_calibration": cal}),
+               "clip_frames": 6, "depth_calibration": cal, "region": "depth"}),
     );
     let slip = non_default(
         serde_json::to_value(SlipParams::default()).unwrap(),
