@@ -8,7 +8,7 @@ use std::hint::black_box;
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::Instant;
-use unitac_contact::{ContactDetector, ContactParams};
+use unitac_contact::{ContactDetector, ContactParams, RegionRule};
 use unitac_core::{Frame, SensorKind, Timing, timing};
 use unitac_sim::{MockConfig, MockSensor, Scenario};
 
@@ -27,6 +27,15 @@ pub struct ContactBench {
     /// The sensor's frame rate, and the share of one core the detector's mean time takes at it.
     pub fps: f64,
     pub core_share: f64,
+    /// The same detector with `region: depth` (the region from the GelSight Mini profile's
+    /// default photometric model, a Poisson solve on each frame with a deformation), timed on
+    /// the same frames in the same loop; its share of one core at `fps`, and the Python
+    /// baseline's median over its median.
+    pub depth_region: Timing,
+    pub depth_core_share: f64,
+    pub depth_ratio_median: Option<f64>,
+    /// Frames with a deformation (where the depth is estimated) among those timed.
+    pub deformed_frames: usize,
 }
 
 /// `unitac-lab bench contact`: 320x240 and 640x480 in one run.
@@ -149,20 +158,34 @@ fn bench_contact_at(
 ) -> anyhow::Result<(ContactBench, String)> {
     let frames = frames_at(n.max(20), scale)?;
     let bg = frames.first().context("no frames")?.clone();
-    let mut det = ContactDetector::new(ContactParams::default(), SensorKind::GELSIGHT_MINI.spec())
-        .map_err(anyhow::Error::msg)?;
+    let spec = SensorKind::GELSIGHT_MINI.spec();
+    let mut det =
+        ContactDetector::new(ContactParams::default(), spec).map_err(anyhow::Error::msg)?;
+    let depth_params = ContactParams {
+        region: RegionRule::Depth,
+        ..ContactParams::default()
+    };
+    let mut det_depth = ContactDetector::new(depth_params, spec).map_err(anyhow::Error::msg)?;
     det.set_background_frame(&bg);
+    det_depth.set_background_frame(&bg);
     // Warm-up, then time each step (detection, hysteresis, episodes, background update).
     for f in frames.iter().take(10) {
         let _ = black_box(det.step(f));
+        let _ = black_box(det_depth.step(f));
     }
     let mut rust = Vec::with_capacity(frames.len() * repeat);
+    let mut depth = Vec::with_capacity(frames.len() * repeat);
     let mut floor = Vec::with_capacity(frames.len() * repeat);
+    let mut deformed_frames = 0;
     for _ in 0..repeat {
         for f in &frames {
             let t0 = Instant::now();
             let _ = black_box(det.step(black_box(f)));
             rust.push(t0.elapsed().as_secs_f64());
+            let t0 = Instant::now();
+            let _ = black_box(det_depth.step(black_box(f)));
+            depth.push(t0.elapsed().as_secs_f64());
+            deformed_frames += usize::from(det_depth.depth().is_some_and(|(_, s)| s.is_some()));
             let t0 = Instant::now();
             let s: u64 = black_box(f.data()).iter().map(|&b| u64::from(b)).sum();
             black_box(s);
@@ -170,6 +193,7 @@ fn bench_contact_at(
         }
     }
     let rust = timing(rust);
+    let depth = timing(depth);
     let floor = timing(floor);
     let (python, versions) = if with_python {
         let (t, v) = python_baseline(&frames, &bg, repeat)?;
@@ -189,6 +213,10 @@ fn bench_contact_at(
             over_floor: rust.median_s / floor.median_s.max(1e-9),
             fps,
             core_share: rust.mean_s * fps,
+            depth_core_share: depth.mean_s * fps,
+            depth_ratio_median: python.as_ref().map(|p| p.median_s / depth.median_s),
+            deformed_frames,
+            depth_region: depth,
             rust,
             python,
             ratio_median: ratio,
@@ -250,6 +278,18 @@ impl ContactBenches {
                 b.fps,
                 b.core_share * 100.0
             );
+            s += &format!(
+                "  region: depth (the kind's photometric model; depth on {} of {} frames) median {:>8.1} us  mean {:>8.1} us  {:.2} % of one core",
+                b.deformed_frames,
+                b.frames_timed,
+                b.depth_region.median_s * 1e6,
+                b.depth_region.mean_s * 1e6,
+                b.depth_core_share * 100.0
+            );
+            if let Some(r) = b.depth_ratio_median {
+                s += &format!("  speed-up (median): {r:.1}x");
+            }
+            s += "\n";
         }
         s
     }
