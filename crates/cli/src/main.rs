@@ -97,7 +97,9 @@ enum Cmd {
         depth_calibration: Option<PathBuf>,
         /// Where the contact region comes from (the contact stage's `region`): auto (the depth's
         /// half-depth contour with --depth-calibration, else the colour residual), depth (from
-        /// the calibration or the sensor kind's default photometric model), or residual.
+        /// the calibration, else the sensor kind's default photometric model, else a linear model
+        /// fitted on each frame's press: `depth.model` self-calibrated, no penetration), or
+        /// residual.
         #[arg(long, default_value = "auto")]
         region: unitac_contact::RegionRule,
         /// Write `<frame>.overlay.png` per frame into this directory: the frame with the contact
@@ -398,10 +400,7 @@ fn cmd_contact(
     det.estimate_depth_every_frame(true);
     det.set_background_frame(&bg);
     // (A background the model does not fit was warned about by the detector: no depth.)
-    let depth_model = match det.depth_is_kind_default() {
-        Some(true) => "kind default",
-        _ => "calibration",
-    };
+    let depth_model = det.depth_model().unwrap_or_default();
     // Camera noise per channel [DN] from the difference of two single frames, per pixel.
     let stride = det.geometry_for(bg.width, bg.height).stride as f32;
     let noise_dn = |m: &unitac_contact::Measurement| {

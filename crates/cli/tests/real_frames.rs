@@ -321,3 +321,32 @@ fn the_kinds_default_photometric_model_reads_every_press_from_depth() {
         "no real-frame set of a kind with a photometric model"
     );
 }
+
+/// A gel the stack has no model of: every set read as `generic` with `--region depth`, whose
+/// depth comes from a linear model fitted on each press itself (up to scale: no penetration),
+/// reads every press within x1.5 of its annotated disc, centroid within 0.6 radii, and the
+/// background as no contact (with no depth: no press to fit on).
+#[test]
+fn a_self_calibrated_depth_reads_every_press_of_a_gel_without_a_model() {
+    let mut bad = Vec::new();
+    for set in sets() {
+        let name = set.file_name().unwrap().to_string_lossy().into_owned();
+        let presses = presses(&set);
+        let mut files = files(&presses);
+        files.push("background.png".into());
+        let lines = contact(&set, "generic", &os(&["--region", "depth"]), &files);
+        // (The gel at rest has no press to fit a model on: no depth.)
+        for l in &lines[..lines.len() - 1] {
+            assert_eq!(l["region"], "depth", "{l}");
+            assert_eq!(l["depth"]["model"], "self-calibrated", "{l}");
+            assert!(l["depth"]["penetration_m"].is_null(), "{l}");
+        }
+        let heading = "generic, self-calibrated depth";
+        judge(&name, "", heading, &presses, lines.iter(), &mut bad);
+        let bg = &lines[lines.len() - 1];
+        if bg["contact"] != false {
+            bad.push(format!("{name}/background.png: {bg}"));
+        }
+    }
+    assert!(bad.is_empty(), "{bad:#?}");
+}

@@ -1,6 +1,7 @@
 //! The contact region from the gel's depth (the detector's `region: auto | depth`): the
-//! half-depth contour of the press ([`crate::depth`]) from a photometric model, the unit's depth
-//! calibration or else the sensor kind's default (its profile's `photometric`).
+//! half-depth contour of the press ([`crate::depth`]) from a photometric model: the unit's depth
+//! calibration, else the sensor kind's default (its profile's `photometric`), else one fitted on
+//! each frame itself ([`crate::depth::selfcal`]: up to scale, which the contour does not need).
 //!
 //! Why depth and not the colour residual: the residual follows the gel's slope, and where its
 //! contour lies depends on how fast the skirt around a press falls back to rest, which differs
@@ -17,9 +18,32 @@
 //! drift that integrates to a bump) is no contact.
 
 use crate::background::Background;
-use crate::depth::{DepthCalibration, DepthError, DepthEstimator, DepthParams, DepthSummary};
+use crate::depth::{
+    DepthCalibration, DepthError, DepthEstimator, DepthParams, DepthSummary, Prep, prepare, selfcal,
+};
 use crate::grid::Geometry;
 use unitac_core::Frame;
+
+/// Where a detector's photometric model comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelSource {
+    /// The unit's depth calibration (`unitac calibrate depth`).
+    Calibration,
+    /// The sensor kind's profile (`photometric`).
+    KindDefault,
+    /// Fitted on each frame itself (`depth::selfcal`), up to scale: no penetration in metres.
+    SelfCalibrated,
+}
+
+impl ModelSource {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Calibration => "calibration",
+            Self::KindDefault => "kind default",
+            Self::SelfCalibrated => "self-calibrated",
+        }
+    }
+}
 
 /// Share of the depth region that must lie in the residual's deformation for it to count.
 const MIN_INSIDE: f64 = 0.5;
@@ -29,8 +53,9 @@ const MIN_INSIDE: f64 = 0.5;
 #[derive(Debug)]
 pub(crate) struct DepthRegion {
     cal: DepthCalibration,
-    /// The model is the sensor kind's default, not a unit's calibration.
-    pub kind_default: bool,
+    pub source: ModelSource,
+    /// The self-calibration's prepared difference.
+    prep: Prep,
     /// The current background, until the estimator is made from it.
     background: Option<Frame>,
     est: Option<DepthEstimator>,
@@ -52,10 +77,11 @@ pub(crate) struct DepthArea {
 }
 
 impl DepthRegion {
-    pub fn new(cal: DepthCalibration, kind_default: bool) -> Self {
+    pub fn new(cal: DepthCalibration, source: ModelSource) -> Self {
         Self {
             cal,
-            kind_default,
+            source,
+            prep: Prep::default(),
             background: None,
             est: None,
             unusable: None,
@@ -69,11 +95,18 @@ impl DepthRegion {
     pub fn on_background(&mut self, bg: &Background) {
         self.clear();
         self.unusable = None;
-        if let Err(e) = self.cal.m_per_px_at(bg.geo.width, bg.geo.height) {
-            let model = if self.kind_default {
-                "profile's photometric model"
-            } else {
-                "depth calibration"
+        let (w, h) = (bg.geo.width, bg.geo.height);
+        if self.source == ModelSource::SelfCalibrated && w > 0 && h > 0 {
+            // A model fitted on the frames fits frames of any shape: the placeholder takes the
+            // background's, the kind's scale per pixel scaled to its width.
+            let m_per_px = self.cal.m_per_px * f64::from(self.cal.width) / f64::from(w);
+            (self.cal.width, self.cal.height, self.cal.m_per_px) = (w, h, m_per_px);
+        }
+        if let Err(e) = self.cal.m_per_px_at(w, h) {
+            let model = match self.source {
+                ModelSource::Calibration => "depth calibration",
+                ModelSource::KindDefault => "profile's photometric model",
+                ModelSource::SelfCalibrated => "frames (self-calibrated)",
             };
             tracing::warn!(
                 "contact: no depth from the {} {model}: {e}",
@@ -104,32 +137,67 @@ impl DepthRegion {
 
     /// The depth of `f` when `wanted` or every frame is estimated; then, when `deformed` (the
     /// residual found a deformation), the depth's contact region if it lies in the deformation
-    /// (`in_deformation(cell index)` on the grid `geo`). Ok(None): no contact by depth.
+    /// (`in_deformation(cell index)` on the grid `geo`; `marker(cell index)`: a masked marker
+    /// dot, left out of a self-calibration). Ok(None): no contact by depth.
     pub fn measure(
         &mut self,
         f: &Frame,
         (wanted, deformed): (bool, bool),
         geo: &Geometry,
         in_deformation: impl Fn(usize) -> bool,
+        marker: impl Fn(usize) -> bool,
     ) -> Result<Option<DepthArea>, DepthError> {
         self.last = None;
         if !(wanted || self.every_frame) {
             return Ok(None);
         }
+        let self_calibrated = self.source == ModelSource::SelfCalibrated;
         if self.est.is_none() {
             let Some(bg) = self.background.take() else {
                 return Ok(None);
             };
-            self.est = Some(DepthEstimator::new(
-                self.cal.clone(),
-                bg,
-                DepthParams::default(),
-            )?);
+            // Self-calibrated depth has no scale: any penetration counts.
+            let params = if self_calibrated {
+                DepthParams {
+                    min_penetration_m: f32::MIN_POSITIVE,
+                    ..DepthParams::default()
+                }
+            } else {
+                DepthParams::default()
+            };
+            self.est = Some(DepthEstimator::new(self.cal.clone(), bg, params)?);
         }
         let Some(est) = self.est.as_mut() else {
             return Ok(None);
         };
-        let s = est.estimate(f)?;
+        if self_calibrated {
+            // The model from this frame's press: over the deformation (its skirt included,
+            // which the fit needs) grown by one cell, less the masked marker dots (a moved dot's
+            // colour change is the dot's, not the gel's slope).
+            prepare(&mut self.prep, f, est.background())?;
+            let (w, h) = est.size();
+            let st = geo.stride as usize;
+            let cell = |gx: usize, gy: usize| {
+                (gx.saturating_sub(1)..=(gx + 1).min(geo.gw - 1)).any(|x| {
+                    (gy.saturating_sub(1)..=(gy + 1).min(geo.gh - 1))
+                        .any(|y| in_deformation(y * geo.gw + x))
+                })
+            };
+            let mask: Vec<bool> = (0..w * h)
+                .map(|i| {
+                    let (gx, gy) = ((i % w) / st, (i / w) / st);
+                    gx < geo.gw && gy < geo.gh && cell(gx, gy) && !marker(gy * geo.gw + gx)
+                })
+                .collect();
+            match selfcal::fit(&self.prep.diff, w, h, &mask) {
+                Some(k) => est.set_linear_model(k),
+                None => return Ok(None),
+            }
+        }
+        let mut s = est.estimate(f)?;
+        if self_calibrated {
+            s.penetration_m = f32::NAN;
+        }
         self.last = Some(s);
         if !(deformed && s.contact) {
             return Ok(None);

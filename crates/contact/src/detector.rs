@@ -3,7 +3,7 @@
 
 use crate::background::{Background, Learner};
 use crate::depth::{DepthCalibration, DepthEstimator, DepthSummary};
-use crate::depth_region::DepthRegion;
+use crate::depth_region::{DepthRegion, ModelSource};
 use crate::episodes::Episodes;
 use crate::grid::{BitMask, BlockScratch, Geometry, block_means, keep_components};
 use crate::params::{ContactParams, ParamsError, RegionRule};
@@ -321,15 +321,15 @@ impl ContactDetector {
             (Some(false), _) | (None, Markers::No) => MarkerRule::Off,
             (None, Markers::Unknown) => MarkerRule::Detect,
         };
-        // The kind's default model, also with `region: residual` (a depth to report).
+        // The kind's default model, also with `region: residual` (a depth to report); with
+        // `region: depth` on a kind without one, a model fitted on each frame.
         let depth = match (p.region, DepthCalibration::kind_default(spec.kind)) {
-            (_, Some(cal)) => Some(DepthRegion::new(cal, true)),
+            (_, Some(cal)) => Some(DepthRegion::new(cal, ModelSource::KindDefault)),
             (RegionRule::Residual | RegionRule::Auto, None) => None,
-            (RegionRule::Depth, None) => {
-                return Err(ParamsError::NoDepthModel {
-                    sensor: spec.kind.to_string(),
-                });
-            }
+            (RegionRule::Depth, None) => Some(DepthRegion::new(
+                DepthCalibration::self_calibrated(spec.kind),
+                ModelSource::SelfCalibrated,
+            )),
         };
         Ok(Self {
             p,
@@ -351,7 +351,7 @@ impl ContactDetector {
     /// ratio checked by the caller): the region's, unless `region: residual`, and the depth of
     /// every frame with `every_frame` (a published depth map).
     pub fn set_depth_calibration(&mut self, cal: DepthCalibration, every_frame: bool) {
-        let mut d = DepthRegion::new(cal, false);
+        let mut d = DepthRegion::new(cal, ModelSource::Calibration);
         d.every_frame = every_frame;
         if let Some(Model::Ready { bg, .. }) = &self.model {
             d.on_background(bg);
@@ -375,10 +375,11 @@ impl ContactDetector {
         Some((d.estimator()?, d.last))
     }
 
-    /// Whether the depth model is the sensor kind's default (true) or a unit's calibration
-    /// (false); None without one.
-    pub fn depth_is_kind_default(&self) -> Option<bool> {
-        self.depth.as_ref().map(|d| d.kind_default)
+    /// Where the depth's model comes from: "calibration" (a unit's), "kind default" (the
+    /// profile's) or "self-calibrated" (fitted on each frame, up to scale: no penetration); None
+    /// without depth.
+    pub fn depth_model(&self) -> Option<&'static str> {
+        self.depth.as_ref().map(|d| d.source.as_str())
     }
 
     /// Why the current background has no depth though there is a model (its frames are not of
@@ -394,7 +395,7 @@ impl ContactDetector {
         };
         match self.p.region {
             RegionRule::Residual => false,
-            RegionRule::Auto => !d.kind_default,
+            RegionRule::Auto => d.source == ModelSource::Calibration,
             RegionRule::Depth => true,
         }
     }
@@ -694,13 +695,14 @@ impl ContactDetector {
             Some(d) => {
                 let (mask, region) = (&s.mask, &s.region);
                 let inside = |i: usize| mask.get(i).is_some_and(|&m| m != 0) || region[i] != 0;
-                d.measure(f, (from_depth && any && n > 0, any && n > 0), &geo, inside)
-                    .map_err(|e| {
-                        StageError::bad_input(FrameRefused::Depth {
-                            seq: f.seq,
-                            why: e.to_string(),
-                        })
-                    })?
+                let marker = |i: usize| markers.get(i).is_some_and(|&m| m != 0);
+                let wanted = (from_depth && any && n > 0, any && n > 0);
+                d.measure(f, wanted, &geo, inside, marker).map_err(|e| {
+                    StageError::bad_input(FrameRefused::Depth {
+                        seq: f.seq,
+                        why: e.to_string(),
+                    })
+                })?
             }
             None => None,
         };

@@ -45,9 +45,9 @@ pub struct ContactParams {
     pub peel_skirt: bool,
     /// Where the contact region comes from: `auto` (default) the gel's depth (its half-depth
     /// contour, `crate::depth_region`) with a `depth_calibration`, else the colour residual
-    /// (`area_level`, `peel_skirt`); `depth` the depth from the calibration or else the sensor
-    /// kind's default photometric model (GelSight Mini's), refused for a kind without one;
-    /// `residual` the residual whatever the model.
+    /// (`area_level`, `peel_skirt`); `depth` the depth from the calibration, else the sensor
+    /// kind's default photometric model (GelSight Mini's), else a linear model fitted on each
+    /// frame's press itself (`depth::selfcal`); `residual` the residual whatever the model.
     pub region: RegionRule,
     /// Consecutive frames needed to enter contact ...
     pub debounce_frames: u32,
@@ -124,7 +124,7 @@ pub enum RegionRule {
     /// Depth with a unit's depth calibration, else the residual.
     #[default]
     Auto,
-    /// Depth from the unit's calibration or the kind's default model.
+    /// Depth from the unit's calibration, the kind's default model, or one fitted on the frame.
     Depth,
     /// The colour residual's region (`area_level`, `peel_skirt`).
     Residual,
@@ -169,11 +169,6 @@ pub enum ParamsError {
     AreaBand { enter: f32, exit: f32 },
     #[error("background_dir {} is not a directory", .0.display())]
     NotADirectory(std::path::PathBuf),
-    #[error(
-        "region: depth needs a photometric model: a depth_calibration, and the {sensor} profile \
-         has no default one (sensors/*.yaml `photometric`)"
-    )]
-    NoDepthModel { sensor: String },
     #[error("the slip stage tracks marker dots and a {sensor} gel has none")]
     NoMarkers { sensor: String },
 }

@@ -188,7 +188,7 @@ impl ContactStage {
         let estimated = self.det.depth().filter(|(_, s)| s.is_some());
         let depth_m: Option<Vec<f32>> = self
             .det
-            .depth_is_kind_default()
+            .depth_model()
             .map(|_| self.depth_map().unwrap_or_else(|| vec![f32::NAN; n]));
         let mask = estimated.map_or(&[][..], |(e, _)| e.mask());
         let depth = depth_m

@@ -3,7 +3,7 @@
 //! (unitac_sim::ballpress) and the GelSight Mini profile's default photometric model.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use unitac_contact::{ContactDetector, ContactParams, ParamsError, RegionRule};
+use unitac_contact::{ContactDetector, ContactParams, RegionRule};
 use unitac_core::{Frame, SensorKind};
 use unitac_sim::MockConfig;
 use unitac_sim::ballpress::{BallPress, PressNoise, render_presses};
@@ -36,11 +36,15 @@ fn presses(approach_mm: &[f64]) -> (Frame, Vec<(Frame, BallPress)>) {
 }
 
 fn detector(region: RegionRule, bg: &Frame) -> ContactDetector {
+    detector_of(SensorKind::GELSIGHT_MINI, region, bg)
+}
+
+fn detector_of(kind: SensorKind, region: RegionRule, bg: &Frame) -> ContactDetector {
     let p = ContactParams {
         region,
         ..ContactParams::default()
     };
-    let mut det = ContactDetector::new(p, SensorKind::GELSIGHT_MINI.spec()).unwrap();
+    let mut det = ContactDetector::new(p, kind.spec()).unwrap();
     det.set_background_frame(bg);
     det
 }
@@ -110,21 +114,21 @@ fn depth_is_estimated_only_on_deformed_frames_unless_asked_for_every_frame() {
     }
 }
 
-/// A kind without a photometric model cannot take its region from depth: a clear error when the
-/// detector is made; `auto` there is the residual.
+/// A kind without a photometric model (DIGIT) takes its depth region from a model fitted on each
+/// frame (`depth::selfcal`, up to scale: no penetration in metres); `auto` there is the residual,
+/// with no depth at all.
 #[test]
-fn region_depth_on_a_kind_without_a_model_is_refused() {
+fn region_depth_on_a_kind_without_a_model_fits_one_on_each_frame() {
     let p = ContactParams {
         region: RegionRule::Depth,
         ..ContactParams::default()
     };
-    let err = ContactDetector::new(p, SensorKind::DIGIT.spec()).unwrap_err();
-    assert!(matches!(err, ParamsError::NoDepthModel { .. }), "{err}");
-    assert!(err.to_string().contains("digit"), "{err}");
+    let det = ContactDetector::new(p, SensorKind::DIGIT.spec()).unwrap();
+    assert_eq!(det.depth_model(), Some("self-calibrated"));
     let auto = ContactParams::default();
     assert_eq!(auto.region, RegionRule::Auto);
     let det = ContactDetector::new(auto, SensorKind::DIGIT.spec()).unwrap();
-    assert!(det.depth_is_kind_default().is_none());
+    assert!(det.depth_model().is_none());
 }
 
 /// Frames of another aspect ratio than the model's: `depth` refuses each one with the reason (the
@@ -151,4 +155,67 @@ fn region_depth_refuses_frames_the_model_does_not_fit() {
     assert!(err.contains("region: depth"), "{err}");
     let mut det = detector(RegionRule::Residual, &bg);
     assert!(det.measure(&press).unwrap().contact);
+}
+
+/// A gel without a model (the same GelSight Mini mock presses read as `generic`, and DIGIT's own
+/// mock presses): `region: depth` fits a linear model on each frame's press and reads the Hertz
+/// contact disc within x1.5, its centroid within a quarter radius; the depth has no scale, so no
+/// penetration in metres.
+#[test]
+fn a_self_calibrated_depth_reads_ball_presses_on_a_gel_without_a_model() {
+    let (bg, frames) = presses(&[0.4, 0.7, 1.0]);
+    let mut digit_cfg = MockConfig::new(SensorKind::DIGIT, 5);
+    digit_cfg.markers = false;
+    let digit = SensorKind::DIGIT.spec();
+    let ps: Vec<BallPress> = [0.4, 0.7, 1.0]
+        .iter()
+        .enumerate()
+        .map(|(i, &d)| BallPress {
+            center_px: [110.0 + 40.0 * i as f64, 150.0 - 20.0 * i as f64],
+            radius_mm: BALL_MM,
+            approach_mm: d,
+        })
+        .collect();
+    let noise = PressNoise {
+        noise_dn: 1.0,
+        shading_dn: 0.0,
+        seed: 22,
+    };
+    let (digit_bg, rendered) = render_presses(&digit_cfg, digit, &ps, noise).unwrap();
+    let digit_frames: Vec<(Frame, BallPress)> =
+        rendered.into_iter().map(|p| (p.frame, p.press)).collect();
+    // (kind read as, kind rendered, background, presses)
+    for (kind, rendered, bg, frames) in [
+        (SensorKind::GENERIC, SensorKind::GELSIGHT_MINI, &bg, &frames),
+        (
+            SensorKind::DIGIT,
+            SensorKind::DIGIT,
+            &digit_bg,
+            &digit_frames,
+        ),
+    ] {
+        let mut det = detector_of(kind, RegionRule::Depth, bg);
+        assert_eq!(det.depth_model(), Some("self-calibrated"));
+        let m_per_px = rendered.spec().m_per_px();
+        for (f, p) in frames {
+            let m = det.measure(f).unwrap();
+            assert!(m.from_depth && m.contact, "{kind} {p:?}: {m:?}");
+            let r_px = p.contact_radius_mm() / (m_per_px * 1e3);
+            let ratio = f64::from(m.area_px) / (std::f64::consts::PI * r_px * r_px);
+            assert!(
+                (1.0 / 1.5..1.5).contains(&ratio),
+                "{kind} {p:?}: {ratio:.2}x"
+            );
+            let off = (f64::from(m.centroid[0]) - p.center_px[0])
+                .hypot(f64::from(m.centroid[1]) - p.center_px[1]);
+            assert!(off < 0.25 * r_px, "{kind} {p:?}: centroid {:?}", m.centroid);
+            let (_, s) = det.depth().unwrap();
+            assert!(
+                s.unwrap().penetration_m.is_nan(),
+                "no scale, no penetration"
+            );
+        }
+        // The gel at rest: no contact.
+        assert!(!det.measure(bg).unwrap().contact);
+    }
 }

@@ -36,6 +36,11 @@ pub struct ContactBench {
     pub depth_ratio_median: Option<f64>,
     /// Frames with a deformation (where the depth is estimated) among those timed.
     pub deformed_frames: usize,
+    /// `region: depth` on the same frames read as `generic` (no model: one fitted on each
+    /// deformed frame, `depth::selfcal`), its share of one core, and the baseline over it.
+    pub selfcal_region: Timing,
+    pub selfcal_core_share: f64,
+    pub selfcal_ratio_median: Option<f64>,
 }
 
 /// `unitac-lab bench contact`: 320x240 and 640x480 in one run.
@@ -165,16 +170,22 @@ fn bench_contact_at(
         region: RegionRule::Depth,
         ..ContactParams::default()
     };
-    let mut det_depth = ContactDetector::new(depth_params, spec).map_err(anyhow::Error::msg)?;
+    let mut det_depth =
+        ContactDetector::new(depth_params.clone(), spec).map_err(anyhow::Error::msg)?;
+    let mut det_self = ContactDetector::new(depth_params, SensorKind::GENERIC.spec())
+        .map_err(anyhow::Error::msg)?;
     det.set_background_frame(&bg);
     det_depth.set_background_frame(&bg);
+    det_self.set_background_frame(&bg);
     // Warm-up, then time each step (detection, hysteresis, episodes, background update).
     for f in frames.iter().take(10) {
         let _ = black_box(det.step(f));
         let _ = black_box(det_depth.step(f));
+        let _ = black_box(det_self.step(f));
     }
     let mut rust = Vec::with_capacity(frames.len() * repeat);
     let mut depth = Vec::with_capacity(frames.len() * repeat);
+    let mut selfcal = Vec::with_capacity(frames.len() * repeat);
     let mut floor = Vec::with_capacity(frames.len() * repeat);
     let mut deformed_frames = 0;
     for _ in 0..repeat {
@@ -187,6 +198,9 @@ fn bench_contact_at(
             depth.push(t0.elapsed().as_secs_f64());
             deformed_frames += usize::from(det_depth.depth().is_some_and(|(_, s)| s.is_some()));
             let t0 = Instant::now();
+            let _ = black_box(det_self.step(black_box(f)));
+            selfcal.push(t0.elapsed().as_secs_f64());
+            let t0 = Instant::now();
             let s: u64 = black_box(f.data()).iter().map(|&b| u64::from(b)).sum();
             black_box(s);
             floor.push(t0.elapsed().as_secs_f64());
@@ -194,6 +208,7 @@ fn bench_contact_at(
     }
     let rust = timing(rust);
     let depth = timing(depth);
+    let selfcal = timing(selfcal);
     let floor = timing(floor);
     let (python, versions) = if with_python {
         let (t, v) = python_baseline(&frames, &bg, repeat)?;
@@ -217,6 +232,9 @@ fn bench_contact_at(
             depth_ratio_median: python.as_ref().map(|p| p.median_s / depth.median_s),
             deformed_frames,
             depth_region: depth,
+            selfcal_core_share: selfcal.mean_s * fps,
+            selfcal_ratio_median: python.as_ref().map(|p| p.median_s / selfcal.median_s),
+            selfcal_region: selfcal,
             rust,
             python,
             ratio_median: ratio,
@@ -287,6 +305,16 @@ impl ContactBenches {
                 b.depth_core_share * 100.0
             );
             if let Some(r) = b.depth_ratio_median {
+                s += &format!("  speed-up (median): {r:.1}x");
+            }
+            s += "\n";
+            s += &format!(
+                "  region: depth, self-calibrated (read as generic)          median {:>8.1} us  mean {:>8.1} us  {:.2} % of one core",
+                b.selfcal_region.median_s * 1e6,
+                b.selfcal_region.mean_s * 1e6,
+                b.selfcal_core_share * 100.0
+            );
+            if let Some(r) = b.selfcal_ratio_median {
                 s += &format!("  speed-up (median): {r:.1}x");
             }
             s += "\n";

@@ -272,6 +272,20 @@ impl DepthEstimator {
     pub fn calibration(&self) -> &DepthCalibration {
         &self.cal
     }
+    /// The background the depth is measured against.
+    pub fn background(&self) -> &Frame {
+        &self.background
+    }
+    /// Take a linear model (`GradientModel::linear`'s slopes per DN) for the next frames
+    /// instead of the calibration's (a model fitted on the frame itself, `super::selfcal`).
+    pub fn set_linear_model(&mut self, slope_per_dn: [[f32; 3]; 2]) {
+        self.cal.model = GradientModel::linear(slope_per_dn);
+        let step = self.m_per_px as f32;
+        self.step_model = GradientModel {
+            gx: self.cal.model.gx.iter().map(|v| v * step).collect(),
+            gy: self.cal.model.gy.iter().map(|v| v * step).collect(),
+        };
+    }
     /// The last frame's depth \[m, positive into the gel], row-major.
     pub fn depth_m(&self) -> &[f32] {
         &self.depth

@@ -7,13 +7,15 @@
 //! - [`calib`]: the contact circle of a ball press ([`find_circle`]) and the least-squares fit
 //!   ([`Fit`]);
 //! - [`poisson`]: gradients -> height ([`PoissonSolver`]: DCT rows through rustfft, tridiagonal columns);
-//! - [`estimate`]: one frame -> depth map, penetration, contact region ([`DepthEstimator`]).
+//! - [`estimate`]: one frame -> depth map, penetration, contact region ([`DepthEstimator`]);
+//! - [`selfcal`]: a linear model fitted on a press itself, up to scale (a gel with no model).
 
 pub mod calib;
 pub mod estimate;
 pub mod model;
 pub mod poisson;
 mod prep;
+pub mod selfcal;
 
 pub use calib::{Circle, Fit, Terms, find_circle, prepare};
 pub use estimate::{DepthEstimator, DepthParams, DepthSummary};

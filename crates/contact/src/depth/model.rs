@@ -369,6 +369,24 @@ impl DepthCalibration {
         })
     }
 
+    /// A placeholder for a model fitted on each frame itself (`super::selfcal`): the kind's
+    /// size and scale, no slopes yet.
+    pub fn self_calibrated(kind: SensorKind) -> Self {
+        let spec = kind.spec();
+        Self {
+            format: FORMAT,
+            sensor: kind,
+            serial: String::new(),
+            width: spec.width,
+            height: spec.height,
+            m_per_px: spec.m_per_px(),
+            ball_radius_m: 0.0,
+            presses_used: 0,
+            fit_rms_slope: 0.0,
+            model: GradientModel::linear([[0.0; 3]; 2]),
+        }
+    }
+
     /// Refuse frames from another sensor (when both serials are known).
     pub fn check_serial(&self, serial: &str) -> Result<(), DepthError> {
         if !self.serial.is_empty() && !serial.is_empty() && self.serial != serial {
