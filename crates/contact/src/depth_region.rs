@@ -177,16 +177,20 @@ impl DepthRegion {
             prepare(&mut self.prep, f, est.background())?;
             let (w, h) = est.size();
             let st = geo.stride as usize;
-            let cell = |gx: usize, gy: usize| {
-                (gx.saturating_sub(1)..=(gx + 1).min(geo.gw - 1)).any(|x| {
-                    (gy.saturating_sub(1)..=(gy + 1).min(geo.gh - 1))
-                        .any(|y| in_deformation(y * geo.gw + x))
+            let (gw, gh) = (geo.gw, geo.gh);
+            let grown = |gx: usize, gy: usize| {
+                (gx.saturating_sub(1)..=(gx + 1).min(gw - 1)).any(|x| {
+                    (gy.saturating_sub(1)..=(gy + 1).min(gh - 1))
+                        .any(|y| in_deformation(y * gw + x))
                 })
             };
+            let cells: Vec<bool> = (0..gw * gh)
+                .map(|i| !marker(i) && grown(i % gw, i / gw))
+                .collect();
             let mask: Vec<bool> = (0..w * h)
                 .map(|i| {
                     let (gx, gy) = ((i % w) / st, (i / w) / st);
-                    gx < geo.gw && gy < geo.gh && cell(gx, gy) && !marker(gy * geo.gw + gx)
+                    gx < gw && gy < gh && cells[gy * gw + gx]
                 })
                 .collect();
             match selfcal::fit(&self.prep.diff, w, h, &mask) {
