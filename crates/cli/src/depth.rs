@@ -6,9 +6,7 @@
 use anyhow::{Context, bail};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-use unitac_contact::depth::{
-    Circle, DepthCalibration, DepthEstimator, Fit, Prep, Terms, find_circle, prepare,
-};
+use unitac_contact::depth::{Circle, DepthCalibration, Fit, Prep, Terms, find_circle, prepare};
 use unitac_core::{Frame, SensorKind};
 use unitac_sim::MM_PER_M;
 use unitac_sim::ballpress::{PressNoise, random_presses, render_presses};
@@ -371,43 +369,24 @@ pub fn contact_calibration(
     Ok(cal)
 }
 
-/// The overlay file `path`: the picture of `unitac_contact::overlay` (the contact stage's `contact_overlay` is the same one): the frame with the contact region's outline and
-/// centroid, the markers' displacements (rest, now) as arrows, and with a depth estimator,
-/// beside it the depth colour map with the depth's contact outline (the depth unknown under the
-/// `unknown` pixels, the marker dots).
+/// The overlay file `path`: the picture of `unitac_contact::overlay` (the contact stage's
+/// `contact_overlay` is the same one): the frame with the contact region's outline and centroid,
+/// the markers' displacements (rest, now) as arrows, and with a depth, beside it the depth colour
+/// map (`ContactDetector::depth_map_m`: NaN where unknown) with the depth's contact outline.
 pub fn overlay_png(
     frame: &Frame,
     mask: &[bool],
     centroid: [f32; 2],
     arrows: &[([f32; 2], [f32; 2])],
-    depth: Option<(&DepthEstimator, &[bool])>,
+    depth: Option<(&[f32], &[bool])>,
     path: &Path,
 ) -> anyhow::Result<()> {
     use unitac_contact::overlay::{DepthPanel, Overlay, draw};
-    let depth_m: Option<Vec<f32>> = depth.map(|(d, unknown)| {
-        d.depth_m()
-            .iter()
-            .enumerate()
-            .map(|(i, v)| {
-                if unknown.get(i).copied().unwrap_or(false) {
-                    f32::NAN
-                } else {
-                    *v
-                }
-            })
-            .collect()
-    });
     let o = Overlay {
         contact: mask,
         centroid: (centroid != [0.0, 0.0]).then_some(centroid),
         arrows,
-        depth: match (&depth_m, depth) {
-            (Some(depth_m), Some((d, _))) => Some(DepthPanel {
-                depth_m,
-                mask: d.mask(),
-            }),
-            _ => None,
-        },
+        depth: depth.map(|(depth_m, mask)| DepthPanel { depth_m, mask }),
     };
     let img = draw(frame, &o)?;
     let img = image::RgbImage::from_raw(img.width, img.height, img.data().to_vec())

@@ -436,8 +436,11 @@ fn cmd_contact(
                     .map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
                 let d = det.depth().and_then(|(_, s)| s);
                 if let Some(dir) = extra.overlay {
-                    let unknown = det.marker_mask_px();
-                    let d = det.depth().map(|(e, _)| (e, unknown.as_slice()));
+                    let depth_m = det.depth_map_m();
+                    let d = match (det.depth(), &depth_m) {
+                        (Some((e, _)), Some(m)) => Some((m.as_slice(), e.mask())),
+                        _ => None,
+                    };
                     let arrows = match markers.as_mut() {
                         Some(field) if m.contact => {
                             field.reset();

@@ -375,6 +375,34 @@ impl ContactDetector {
         Some((d.estimator()?, d.last))
     }
 
+    /// The last measured frame's depth map for a picture or a topic \[m, into the gel], NaN
+    /// where unknown: under the masked marker dots (the gel's colour is the dots' there), and
+    /// everywhere for a self-calibrated model (its depth has no scale); None when the frame's
+    /// depth was not estimated.
+    pub fn depth_map_m(&self) -> Option<Vec<f32>> {
+        let d = self.depth.as_ref()?;
+        let (est, Some(_)) = (d.estimator()?, d.last) else {
+            return None;
+        };
+        if d.source == ModelSource::SelfCalibrated {
+            return Some(vec![f32::NAN; est.depth_m().len()]);
+        }
+        let unknown = self.marker_mask_px();
+        Some(
+            est.depth_m()
+                .iter()
+                .enumerate()
+                .map(|(i, v)| {
+                    if unknown.get(i).copied().unwrap_or(false) {
+                        f32::NAN
+                    } else {
+                        *v
+                    }
+                })
+                .collect(),
+        )
+    }
+
     /// Where the depth's model comes from: "calibration" (a unit's), "kind default" (the
     /// profile's) or "self-calibrated" (fitted on each frame, up to scale: no penetration); None
     /// without depth.

@@ -112,7 +112,7 @@ impl ContactStage {
         if !out.iter().any(|m| matches!(m, Msg::ContactState(_))) {
             return;
         }
-        let Some(depth_m) = self.depth_map() else {
+        let Some(depth_m) = self.det.depth_map_m() else {
             return;
         };
         let Some((_, Some(s))) = self.det.depth() else {
@@ -125,28 +125,6 @@ impl ContactStage {
             pixel_m: s.m_per_px,
             depth_m,
         }));
-    }
-
-    /// The last frame's depth map, NaN under the masked marker dots; None when it was not
-    /// estimated.
-    fn depth_map(&self) -> Option<Vec<f32>> {
-        let (est, Some(_)) = self.det.depth()? else {
-            return None;
-        };
-        let unknown = self.det.marker_mask_px();
-        Some(
-            est.depth_m()
-                .iter()
-                .enumerate()
-                .map(|(i, v)| {
-                    if unknown.get(i).copied().unwrap_or(false) {
-                        f32::NAN
-                    } else {
-                        *v
-                    }
-                })
-                .collect(),
-        )
     }
 
     /// The overlay's marker field: learned from each background announced, followed on frames
@@ -189,7 +167,7 @@ impl ContactStage {
         let depth_m: Option<Vec<f32>> = self
             .det
             .depth_model()
-            .map(|_| self.depth_map().unwrap_or_else(|| vec![f32::NAN; n]));
+            .map(|_| self.det.depth_map_m().unwrap_or_else(|| vec![f32::NAN; n]));
         let mask = estimated.map_or(&[][..], |(e, _)| e.mask());
         let depth = depth_m
             .as_deref()
