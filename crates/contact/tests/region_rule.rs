@@ -214,6 +214,8 @@ fn a_self_calibrated_depth_reads_ball_presses_on_a_gel_without_a_model() {
                 s.unwrap().penetration_m.is_nan(),
                 "no scale, no penetration"
             );
+            // Nor a depth map in metres to draw or publish.
+            assert!(det.depth_map_m().unwrap().iter().all(|v| v.is_nan()));
         }
         // The gel at rest: no contact.
         assert!(!det.measure(bg).unwrap().contact);
