@@ -11,14 +11,28 @@ use unitac_sim::ballpress::{BallPress, PressNoise, render_presses};
 const BALL_MM: f64 = 2.0;
 
 fn presses(approach_mm: &[f64]) -> (Frame, Vec<(Frame, BallPress)>) {
-    let mut cfg = MockConfig::new(SensorKind::GELSIGHT_MINI, 11);
+    presses_of(
+        SensorKind::GELSIGHT_MINI,
+        approach_mm,
+        ([120.0, 100.0], [40.0, 10.0]),
+        21,
+    )
+}
+
+/// Ball presses of `kind`'s mock gel (no markers): the i-th at `start + i * step` px.
+fn presses_of(
+    kind: SensorKind,
+    approach_mm: &[f64],
+    (start, step): ([f64; 2], [f64; 2]),
+    seed: u64,
+) -> (Frame, Vec<(Frame, BallPress)>) {
+    let mut cfg = MockConfig::new(kind, 11);
     cfg.markers = false;
-    let spec = SensorKind::GELSIGHT_MINI.spec();
     let ps: Vec<BallPress> = approach_mm
         .iter()
         .enumerate()
         .map(|(i, &d)| BallPress {
-            center_px: [120.0 + 40.0 * i as f64, 100.0 + 10.0 * i as f64],
+            center_px: [start[0] + step[0] * i as f64, start[1] + step[1] * i as f64],
             radius_mm: BALL_MM,
             approach_mm: d,
         })
@@ -26,9 +40,9 @@ fn presses(approach_mm: &[f64]) -> (Frame, Vec<(Frame, BallPress)>) {
     let noise = PressNoise {
         noise_dn: 1.0,
         shading_dn: 0.0,
-        seed: 21,
+        seed,
     };
-    let (bg, rendered) = render_presses(&cfg, spec, &ps, noise).unwrap();
+    let (bg, rendered) = render_presses(&cfg, kind.spec(), &ps, noise).unwrap();
     (
         bg,
         rendered.into_iter().map(|p| (p.frame, p.press)).collect(),
@@ -164,26 +178,12 @@ fn region_depth_refuses_frames_the_model_does_not_fit() {
 #[test]
 fn a_self_calibrated_depth_reads_ball_presses_on_a_gel_without_a_model() {
     let (bg, frames) = presses(&[0.4, 0.7, 1.0]);
-    let mut digit_cfg = MockConfig::new(SensorKind::DIGIT, 5);
-    digit_cfg.markers = false;
-    let digit = SensorKind::DIGIT.spec();
-    let ps: Vec<BallPress> = [0.4, 0.7, 1.0]
-        .iter()
-        .enumerate()
-        .map(|(i, &d)| BallPress {
-            center_px: [110.0 + 40.0 * i as f64, 150.0 - 20.0 * i as f64],
-            radius_mm: BALL_MM,
-            approach_mm: d,
-        })
-        .collect();
-    let noise = PressNoise {
-        noise_dn: 1.0,
-        shading_dn: 0.0,
-        seed: 22,
-    };
-    let (digit_bg, rendered) = render_presses(&digit_cfg, digit, &ps, noise).unwrap();
-    let digit_frames: Vec<(Frame, BallPress)> =
-        rendered.into_iter().map(|p| (p.frame, p.press)).collect();
+    let (digit_bg, digit_frames) = presses_of(
+        SensorKind::DIGIT,
+        &[0.4, 0.7, 1.0],
+        ([110.0, 150.0], [40.0, -20.0]),
+        22,
+    );
     // (kind read as, kind rendered, background, presses)
     for (kind, rendered, bg, frames) in [
         (SensorKind::GENERIC, SensorKind::GELSIGHT_MINI, &bg, &frames),

@@ -262,6 +262,20 @@ pub fn bench_contact(n: usize, repeat: usize, with_python: bool) -> anyhow::Resu
     })
 }
 
+/// One `region: depth` line of the contact bench's text.
+fn region_line(what: &str, t: &Timing, core_share: f64, ratio: Option<f64>) -> String {
+    let mut s = format!(
+        "  region: depth ({what}) median {:>8.1} us  mean {:>8.1} us  {:.2} % of one core",
+        t.median_s * 1e6,
+        t.mean_s * 1e6,
+        core_share * 100.0
+    );
+    if let Some(r) = ratio {
+        s += &format!("  speed-up (median): {r:.1}x");
+    }
+    s + "\n"
+}
+
 impl ContactBenches {
     pub fn text(&self) -> String {
         let mut s = String::new();
@@ -296,28 +310,23 @@ impl ContactBenches {
                 b.fps,
                 b.core_share * 100.0
             );
-            s += &format!(
-                "  region: depth (the kind's photometric model; depth on {} of {} frames) median {:>8.1} us  mean {:>8.1} us  {:.2} % of one core",
-                b.deformed_frames,
-                b.frames_timed,
-                b.depth_region.median_s * 1e6,
-                b.depth_region.mean_s * 1e6,
-                b.depth_core_share * 100.0
+            let what = format!(
+                "the kind's photometric model; depth on {} of {} frames",
+                b.deformed_frames, b.frames_timed
             );
-            if let Some(r) = b.depth_ratio_median {
-                s += &format!("  speed-up (median): {r:.1}x");
-            }
-            s += "\n";
-            s += &format!(
-                "  region: depth, self-calibrated (read as generic)          median {:>8.1} us  mean {:>8.1} us  {:.2} % of one core",
-                b.selfcal_region.median_s * 1e6,
-                b.selfcal_region.mean_s * 1e6,
-                b.selfcal_core_share * 100.0
+            s += &region_line(
+                &what,
+                &b.depth_region,
+                b.depth_core_share,
+                b.depth_ratio_median,
             );
-            if let Some(r) = b.selfcal_ratio_median {
-                s += &format!("  speed-up (median): {r:.1}x");
-            }
-            s += "\n";
+            let what = "self-calibrated, read as generic";
+            s += &region_line(
+                what,
+                &b.selfcal_region,
+                b.selfcal_core_share,
+                b.selfcal_ratio_median,
+            );
         }
         s
     }

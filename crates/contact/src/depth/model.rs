@@ -352,26 +352,20 @@ impl DepthCalibration {
     /// presses of other units): depth before a unit has its own calibration. None for a kind
     /// without one.
     pub fn kind_default(kind: SensorKind) -> Option<Self> {
-        let p = kind.profile();
-        let m = p.photometric?;
-        let spec = kind.spec();
-        Some(Self {
-            format: FORMAT,
-            sensor: kind,
-            serial: String::new(),
-            width: spec.width,
-            height: spec.height,
-            m_per_px: spec.m_per_px(),
-            ball_radius_m: m.ball_radius_m,
-            presses_used: 0,
-            fit_rms_slope: 0.0,
-            model: GradientModel::linear(m.slope_per_dn),
-        })
+        let m = kind.profile().photometric?;
+        let mut cal = Self::linear_for(kind, m.slope_per_dn);
+        cal.ball_radius_m = m.ball_radius_m;
+        Some(cal)
     }
 
     /// A placeholder for a model fitted on each frame itself (`super::selfcal`): the kind's
     /// size and scale, no slopes yet.
     pub fn self_calibrated(kind: SensorKind) -> Self {
+        Self::linear_for(kind, [[0.0; 3]; 2])
+    }
+
+    /// A linear model at the kind's published size and scale, fitted on no press of a unit.
+    fn linear_for(kind: SensorKind, slope_per_dn: [[f32; 3]; 2]) -> Self {
         let spec = kind.spec();
         Self {
             format: FORMAT,
@@ -383,7 +377,7 @@ impl DepthCalibration {
             ball_radius_m: 0.0,
             presses_used: 0,
             fit_rms_slope: 0.0,
-            model: GradientModel::linear([[0.0; 3]; 2]),
+            model: GradientModel::linear(slope_per_dn),
         }
     }
 
