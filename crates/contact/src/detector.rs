@@ -129,8 +129,9 @@ pub struct ContactDetector {
     /// The photometric model and its estimator (`region: auto` with a model, `depth`, or a
     /// depth calibration given).
     depth: Option<DepthRegion>,
-    /// The last measured frame's region is the depth's (`mask_px` reads the estimator's).
-    last_from_depth: bool,
+    /// The last measured frame's region is the depth's: Some(whether its depth region was
+    /// kept, which `mask_px` then reads from the estimator; else the region is empty).
+    last_depth_region: Option<bool>,
 }
 
 impl Scratch {
@@ -343,7 +344,7 @@ impl ContactDetector {
             pending_size: None,
             size_changes: 0,
             depth,
-            last_from_depth: false,
+            last_depth_region: None,
         })
     }
 
@@ -456,10 +457,10 @@ impl ContactDetector {
     /// a stride are never set.
     pub fn mask_px(&self) -> Vec<bool> {
         let Some(g) = self.geo else { return Vec::new() };
-        if self.last_from_depth {
+        if let Some(kept) = self.last_depth_region {
             let n = g.width as usize * g.height as usize;
             return match self.depth.as_ref().and_then(DepthRegion::estimator) {
-                Some(e) if e.mask().len() == n => e.mask().to_vec(),
+                Some(e) if kept && e.mask().len() == n => e.mask().to_vec(),
                 _ => vec![false; n],
             };
         }
@@ -734,7 +735,7 @@ impl ContactDetector {
             }
             None => None,
         };
-        self.last_from_depth = from_depth;
+        self.last_depth_region = from_depth.then_some(depth_area.is_some());
         let empty = Measurement {
             area_px: 0.0,
             centroid: [0.0; 2],
