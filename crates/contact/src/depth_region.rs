@@ -66,6 +66,9 @@ pub(crate) struct DepthRegion {
     /// Estimate every measured frame (a published depth map, a report), not only those whose
     /// region is taken from depth.
     pub every_frame: bool,
+    /// The last frame's press gave no self-calibrated model (its colour changed along one line
+    /// only: no gel's shading), so it has no depth and its region is the residual's.
+    pub unfitted: bool,
 }
 
 /// The depth region of one frame, in input pixels.
@@ -87,6 +90,7 @@ impl DepthRegion {
             unusable: None,
             last: None,
             every_frame: false,
+            unfitted: false,
         }
     }
 
@@ -148,6 +152,7 @@ impl DepthRegion {
         marker: impl Fn(usize) -> bool,
     ) -> Result<Option<DepthArea>, DepthError> {
         self.last = None;
+        self.unfitted = false;
         if !(wanted || self.every_frame) {
             return Ok(None);
         }
@@ -195,7 +200,10 @@ impl DepthRegion {
                 .collect();
             match selfcal::fit(&self.prep.diff, w, h, &mask) {
                 Some(k) => est.set_linear_model(k),
-                None => return Ok(None),
+                None => {
+                    self.unfitted = true;
+                    return Ok(None);
+                }
             }
         }
         let mut s = est.estimate(f)?;

@@ -735,6 +735,8 @@ impl ContactDetector {
             }
             None => None,
         };
+        // A frame the self-calibration found no model on takes the residual's region.
+        let from_depth = from_depth && !self.depth.as_ref().is_some_and(|d| d.unfitted);
         self.last_depth_region = from_depth.then_some(depth_area.is_some());
         let empty = Measurement {
             area_px: 0.0,

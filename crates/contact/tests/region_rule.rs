@@ -221,3 +221,39 @@ fn a_self_calibrated_depth_reads_ball_presses_on_a_gel_without_a_model() {
         assert!(!det.measure(bg).unwrap().contact);
     }
 }
+
+/// A change that is no gel's shading (a grey square brighter on every channel alike: colour
+/// changes along one line) gives a self-calibration no model: that frame's region is the
+/// residual's, not "no contact".
+#[test]
+fn a_press_with_no_self_calibrated_model_reads_the_residuals_region() {
+    let (w, h) = (80u32, 60u32);
+    let img = |pressed: bool| {
+        let mut data = Vec::with_capacity((w * h * 3) as usize);
+        for y in 0..h {
+            for x in 0..w {
+                let v = 100 + ((x * 7 + y * 13) % 5) as u8;
+                let v = if pressed && (25..55).contains(&x) && (15..45).contains(&y) {
+                    v + 60
+                } else {
+                    v
+                };
+                data.extend_from_slice(&[v, v, v]);
+            }
+        }
+        Frame::new("s", 0, unitac_core::Stamp::ZERO, w, h, data).unwrap()
+    };
+    let p = ContactParams {
+        region: RegionRule::Depth,
+        ..ContactParams::default()
+    };
+    let mut det = ContactDetector::new(p, SensorKind::GENERIC.spec()).unwrap();
+    det.set_background_frame(&img(false));
+    let m = det.measure(&img(true)).unwrap();
+    assert!(m.contact && !m.from_depth, "{m:?}");
+    assert!((700.0..1100.0).contains(&m.area_px), "{m:?}");
+    assert_eq!(
+        det.mask_px().iter().filter(|v| **v).count() as f32,
+        m.area_px
+    );
+}

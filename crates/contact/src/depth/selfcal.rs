@@ -21,12 +21,14 @@ use nalgebra::{Matrix3, Matrix4, SymmetricEigen, Vector3, Vector4};
 
 /// Fewest pixels a fit uses.
 pub const MIN_PIXELS: usize = 64;
+/// Half the span of the central differences the curl is taken from \[px].
+const STEP: usize = 3;
 
 /// The slopes per DN (`GradientModel::linear`'s form) of the press in `diff` (the prepared
 /// difference, RGB interleaved, `w` x `h`) over the pixels of `mask`, unit-normed; None with
 /// fewer than [`MIN_PIXELS`] pixels or a degenerate press (its colour changes along one line).
 pub fn fit(diff: &[f32], w: usize, h: usize, mask: &[bool]) -> Option<[[f32; 3]; 2]> {
-    if diff.len() < w * h * 3 || mask.len() < w * h || w < 3 || h < 3 {
+    if diff.len() < w * h * 3 || mask.len() < w * h || w <= 2 * STEP || h <= 2 * STEP {
         return None;
     }
     let px = |i: usize| {
@@ -59,21 +61,23 @@ pub fn fit(diff: &[f32], w: usize, h: usize, mask: &[bool]) -> Option<[[f32; 3];
         let d = px(i);
         (p1.dot(&d), p2.dot(&d))
     };
-    // The curl's constraints at the press's inner pixels (central differences):
+    // The curl's constraints at the press's inner pixels (central differences over STEP pixels:
+    // the slope's change grows with the step, the camera noise in it does not):
     // t21 q1x + t22 q2x - t11 q1y - t12 q2y = 0.
     let mut ata = Matrix4::<f64>::zeros();
     let mut used = 0usize;
     let (xy, centre) = centroid(mask, w, h);
-    for y in 1..h - 1 {
-        for x in 1..w - 1 {
+    let k = STEP;
+    for y in k..h.saturating_sub(k) {
+        for x in k..w.saturating_sub(k) {
             let i = y * w + x;
-            if !(mask[i] && mask[i - 1] && mask[i + 1] && mask[i - w] && mask[i + w]) {
+            if !(mask[i] && mask[i - k] && mask[i + k] && mask[i - k * w] && mask[i + k * w]) {
                 continue;
             }
-            let ((ax, bx), (cx, dx)) = (q(i + 1), q(i - 1));
-            let ((ay, by), (cy, dy)) = (q(i + w), q(i - w));
-            let (q1x, q2x) = ((ax - cx) * 0.5, (bx - dx) * 0.5);
-            let (q1y, q2y) = ((ay - cy) * 0.5, (by - dy) * 0.5);
+            let ((ax, bx), (cx, dx)) = (q(i + k), q(i - k));
+            let ((ay, by), (cy, dy)) = (q(i + k * w), q(i - k * w));
+            let (q1x, q2x) = (ax - cx, bx - dx);
+            let (q1y, q2y) = (ay - cy, by - dy);
             let a = Vector4::new(-q1y, -q2y, q1x, q2x);
             ata += a * a.transpose();
             used += 1;
@@ -87,12 +91,17 @@ pub fn fit(diff: &[f32], w: usize, h: usize, mask: &[bool]) -> Option<[[f32; 3];
     let t = e.eigenvectors.column(k);
     let row0 = p1 * t[0] + p2 * t[1];
     let row1 = p1 * t[2] + p2 * t[3];
-    // The sign: the slope (h into the gel) points toward the press's middle.
+    // The sign: the slope (h into the gel) points toward the press's middle. Each pixel votes
+    // with its slope along the unit direction to the middle, so the far skirt (where a press
+    // that bends the whole gel leaves the least signal) weighs no more than the cap.
     let mut toward = 0.0;
     for i in (0..w * h).filter(|&i| mask[i]) {
         let d = px(i);
         let (x, y) = ((i % w) as f64 - centre.0, (i / w) as f64 - centre.1);
-        toward += row0.dot(&d) * x + row1.dot(&d) * y;
+        let r = x.hypot(y);
+        if r > 0.0 {
+            toward += (row0.dot(&d) * x + row1.dot(&d) * y) / r;
+        }
     }
     let s = if toward > 0.0 { -1.0 } else { 1.0 };
     let norm = (row0.norm_squared() + row1.norm_squared()).sqrt();
@@ -187,6 +196,133 @@ mod tests {
                 assert!((f[c] / scale - g[c]).abs() < 0.02 * g_max, "{f:?} {g:?}");
             }
         }
+    }
+
+    /// Camera noise in the colour changes (here 1/6 of the press's largest change, one draw per
+    /// pixel and channel) does not turn the map: the curl is taken over differences across
+    /// 2 STEP pixels, over which the slope changes STEP times more than between neighbours while
+    /// the noise does not.
+    #[test]
+    fn a_noisy_press_gives_back_its_slopes() {
+        let (w, h) = (160usize, 140usize);
+        let (cx, cy, a, big_r) = (80.0f64, 70.0f64, 16.0f64, 60.0f64);
+        let d = a * a / big_r;
+        let slope = |x: f64, y: f64| {
+            let r = (x - cx).hypot(y - cy).max(1e-9);
+            let dr = if r <= a {
+                -r / big_r
+            } else {
+                let rho = r / a;
+                2.0 * d / std::f64::consts::PI
+                    * ((rho * rho - 1.0).sqrt() / rho - rho * (1.0 / rho).asin())
+                    / a
+            };
+            [dr * (x - cx) / r, dr * (y - cy) / r]
+        };
+        let m = [[60.0, 5.0], [-25.0, 48.0], [-30.0, -45.0]];
+        let mut diff = vec![0f32; w * h * 3];
+        let mut mask = vec![false; w * h];
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut noise = || {
+            // Sum of four uniforms: near-normal, sigma 1.
+            let mut s = 0.0;
+            for _ in 0..4 {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                s += (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            }
+            s * 3f64.sqrt()
+        };
+        let peak = 20.0 * 75.0 * a / big_r;
+        for y in 0..h {
+            for x in 0..w {
+                let (xf, yf) = (x as f64, y as f64);
+                if (xf - cx).hypot(yf - cy) >= 3.0 * a {
+                    continue;
+                }
+                let g = slope(xf, yf);
+                let i = y * w + x;
+                for c in 0..3 {
+                    let v = (m[c][0] * g[0] + m[c][1] * g[1]) * 20.0 + noise() * peak / 6.0;
+                    diff[i * 3 + c] = v as f32;
+                }
+                mask[i] = true;
+            }
+        }
+        let k = fit(&diff, w, h, &mask).unwrap();
+        // The fitted map times the true colour map is a positive multiple of the identity.
+        let p = [0, 1]
+            .map(|r| [0, 1].map(|col| (0..3).map(|c| f64::from(k[r][c]) * m[c][col]).sum::<f64>()));
+        let scale = 0.5 * (p[0][0] + p[1][1]);
+        assert!(scale > 0.0, "{p:?}");
+        for (r, row) in p.iter().enumerate() {
+            for (col, v) in row.iter().enumerate() {
+                let want = if r == col { scale } else { 0.0 };
+                assert!((v - want).abs() < 0.1 * scale, "{p:?}");
+            }
+        }
+    }
+
+    /// The sign holds when the far skirt's colour is wrong: a press that fills the frame leaves
+    /// the smooth-shading fit little gel at rest, and it takes part of the press out, which
+    /// turns the far skirt's colour change around. Each pixel votes by its direction to the
+    /// middle, not by its distance, so the many far pixels do not outvote the cap.
+    #[test]
+    fn the_sign_follows_the_cap_when_the_far_skirt_is_turned_around() {
+        let (w, h) = (160usize, 160usize);
+        let (cx, cy, a, big_r) = (80.0f64, 80.0f64, 12.0f64, 60.0f64);
+        let d = a * a / big_r;
+        let slope = |x: f64, y: f64| {
+            let r = (x - cx).hypot(y - cy).max(1e-9);
+            // dh/dr: the paraboloid's -r/R inside, Hertz's skirt outside (Johnson 3.42a).
+            let dr = if r <= a {
+                -r / big_r
+            } else {
+                let rho = r / a;
+                2.0 * d / std::f64::consts::PI
+                    * ((rho * rho - 1.0).sqrt() / rho - rho * (1.0 / rho).asin())
+                    / a
+            };
+            [dr * (x - cx) / r, dr * (y - cy) / r]
+        };
+        let m = [[60.0, 5.0], [-25.0, 48.0], [-30.0, -45.0]];
+        let mut diff = vec![0f32; w * h * 3];
+        let mut mask = vec![false; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let (xf, yf) = (x as f64, y as f64);
+                let r = (xf - cx).hypot(yf - cy);
+                if r >= 6.0 * a {
+                    continue;
+                }
+                let g = slope(xf, yf);
+                let turn = if r > 2.0 * a { -1.0 } else { 1.0 };
+                let i = y * w + x;
+                for c in 0..3 {
+                    diff[i * 3 + c] = (turn * (m[c][0] * g[0] + m[c][1] * g[1]) * 20.0) as f32;
+                }
+                mask[i] = true;
+            }
+        }
+        let k = fit(&diff, w, h, &mask).unwrap();
+        // Within the contact the fitted slope points to the middle (h grows toward it).
+        let mut toward = 0.0;
+        for y in 0..h {
+            for x in 0..w {
+                let (dx, dy) = (x as f64 - cx, y as f64 - cy);
+                if dx.hypot(dy) >= a {
+                    continue;
+                }
+                let dd = &diff[(y * w + x) * 3..(y * w + x) * 3 + 3];
+                let dot = |r: [f32; 3]| (0..3).map(|c| f64::from(r[c] * dd[c])).sum::<f64>();
+                toward -= dot(k[0]) * dx + dot(k[1]) * dy;
+            }
+        }
+        assert!(
+            toward > 0.0,
+            "the cap's slope points away from its middle: {toward}"
+        );
     }
 
     #[test]
