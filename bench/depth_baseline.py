@@ -27,21 +27,9 @@ import scipy
 from scipy import fftpack
 
 
-def main():
-    frames_path, bg_path, cal_path = sys.argv[1:4]
-    w, h = int(sys.argv[4]), int(sys.argv[5])
-    m_per_px = float(sys.argv[6])
-    repeat = int(sys.argv[7])
-    cv2.setNumThreads(1)
-    frames = np.fromfile(frames_path, np.uint8).reshape(-1, h, w, 3)
-    bg = np.fromfile(bg_path, np.uint8).reshape(h, w, 3).astype(np.float32)
-    cal = json.load(open(cal_path))
-    kx = np.array(cal["model"]["gx"], np.float32)
-    ky = np.array(cal["model"]["gy"], np.float32)
-    u = (np.arange(w, dtype=np.float32) / w - 0.5)[None, :].repeat(h, 0)
-    v = (np.arange(h, dtype=np.float32) / h - 0.5)[:, None].repeat(w, 1)
-    ones = np.ones((h, w), np.float32)
-    # Built once per size (gs_sdk: on every call).
+def make_poisson(w, h):
+    """gs_sdk's `poisson_dct_neumaan` for w x h gradients, with the eigenvalue grid and the index
+    lists built once (gs_sdk: on every call)."""
     nx = np.r_[1:w, w - 1]
     px = np.r_[0, 0 : w - 1]
     ny = np.r_[1:h, h - 1]
@@ -49,9 +37,6 @@ def main():
     kxg, kyg = np.meshgrid(np.arange(w), np.arange(h))
     denom = 4 * (np.sin(0.5 * np.pi * kxg / w) ** 2 + np.sin(0.5 * np.pi * kyg / h) ** 2)
     denom[0, 0] = 1.0
-    border = np.zeros((h, w), bool)
-    border[:2, :] = border[-2:, :] = True
-    border[:, :2] = border[:, -2:] = True
     r2 = np.sqrt(2.0)
 
     def poisson_neumann(gx, gy):
@@ -73,6 +58,37 @@ def main():
         c[0, 0] = 0.0
         z = fftpack.idct(fftpack.idct(c, norm="ortho").T, norm="ortho").T
         return z + z.mean()
+
+    return poisson_neumann
+
+
+def border_mask(w, h):
+    """The outer two pixels of a w x h image (where the zero level is taken)."""
+    border = np.zeros((h, w), bool)
+    border[:2, :] = border[-2:, :] = True
+    border[:, :2] = border[:, -2:] = True
+    return border
+
+
+POISSON = "scipy %s fftpack.dct (gs_sdk's poisson_dct_neumaan)" % scipy.__version__
+
+
+def main():
+    frames_path, bg_path, cal_path = sys.argv[1:4]
+    w, h = int(sys.argv[4]), int(sys.argv[5])
+    m_per_px = float(sys.argv[6])
+    repeat = int(sys.argv[7])
+    cv2.setNumThreads(1)
+    frames = np.fromfile(frames_path, np.uint8).reshape(-1, h, w, 3)
+    bg = np.fromfile(bg_path, np.uint8).reshape(h, w, 3).astype(np.float32)
+    cal = json.load(open(cal_path))
+    kx = np.array(cal["model"]["gx"], np.float32)
+    ky = np.array(cal["model"]["gy"], np.float32)
+    u = (np.arange(w, dtype=np.float32) / w - 0.5)[None, :].repeat(h, 0)
+    v = (np.arange(h, dtype=np.float32) / h - 0.5)[:, None].repeat(w, 1)
+    ones = np.ones((h, w), np.float32)
+    poisson_neumann = make_poisson(w, h)
+    border = border_mask(w, h)
 
     def depth(frame):
         d = cv2.blur(frame.astype(np.float32) - bg, (3, 3), borderType=cv2.BORDER_REFLECT) / 32.0
@@ -103,7 +119,7 @@ def main():
         "p90_s": times_s[len(times_s) * 9 // 10],
         "numpy": np.__version__,
         "opencv": cv2.__version__,
-        "poisson": f"scipy {scipy.__version__} fftpack.dct (gs_sdk's poisson_dct_neumaan)",
+        "poisson": POISSON,
     }))
 
 

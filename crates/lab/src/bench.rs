@@ -17,7 +17,10 @@ use unitac_sim::{MockConfig, MockSensor, Scenario};
 pub struct ContactBench {
     pub frame: String,
     pub frames_timed: usize,
+    /// The detector with its default params (the colour residual's region without a depth
+    /// calibration).
     pub rust: Timing,
+    /// The Python pipeline users run today for that output: gs_sdk's residual.
     pub python: Option<Timing>,
     pub ratio_median: Option<f64>,
     /// One read pass over the frame's bytes.
@@ -29,15 +32,19 @@ pub struct ContactBench {
     pub core_share: f64,
     /// The same detector with `region: depth` (the region from the GelSight Mini profile's
     /// default photometric model, a Poisson solve on each frame with a deformation), timed on
-    /// the same frames in the same loop; its share of one core at `fps`, and the Python
-    /// baseline's median over its median.
+    /// the same frames in the same loop; its share of one core at `fps`.
     pub depth_region: Timing,
     pub depth_core_share: f64,
+    /// The Python pipeline for that output: gs_sdk's residual, and on frames with contact the
+    /// depth by the same linear model, gs_sdk's Poisson solve and the half-depth region; its
+    /// median over the Rust median.
+    pub python_depth: Option<Timing>,
     pub depth_ratio_median: Option<f64>,
     /// Frames with a deformation (where the depth is estimated) among those timed.
     pub deformed_frames: usize,
     /// `region: depth` on the same frames read as `generic` (no model: one fitted on each
-    /// deformed frame, `depth::selfcal`), its share of one core, and the baseline over it.
+    /// deformed frame, `depth::selfcal`), its share of one core, and the Python depth
+    /// pipeline's median over its median.
     pub selfcal_region: Timing,
     pub selfcal_core_share: f64,
     pub selfcal_ratio_median: Option<f64>,
@@ -133,26 +140,43 @@ pub(crate) fn python_timing(j: &serde_json::Value) -> Timing {
     }
 }
 
+/// The Python baselines' timings: the residual alone, and with the region from depth.
+struct PythonContact {
+    residual: Timing,
+    depth: Timing,
+    versions: String,
+}
+
 fn python_baseline(
     frames: &[Frame],
     bg: &Frame,
     repeat: usize,
-) -> anyhow::Result<(Timing, String)> {
+    slope_per_dn: [[f32; 3]; 2],
+) -> anyhow::Result<PythonContact> {
     let dir = raw_frames_dir("bench", frames, bg)?;
+    std::fs::write(
+        dir.join("slope.json"),
+        serde_json::to_string(&slope_per_dn)?,
+    )?;
     let args = [
         dir.join("frames.raw").into_os_string(),
         dir.join("bg.raw").into_os_string(),
         bg.width.to_string().into(),
         bg.height.to_string().into(),
         repeat.to_string().into(),
+        dir.join("slope.json").into_os_string(),
     ];
     let j = run_python_baseline("contact_baseline.py", &args);
     std::fs::remove_dir_all(&dir).ok();
     let j = j?;
-    Ok((
-        python_timing(&j),
-        format!("numpy {} opencv {}", j["numpy"], j["opencv"]),
-    ))
+    Ok(PythonContact {
+        residual: python_timing(&j["residual"]),
+        depth: python_timing(&j["depth"]),
+        versions: format!(
+            "numpy {} opencv {}, Poisson by {}",
+            j["numpy"], j["opencv"], j["poisson"]
+        ),
+    })
 }
 
 fn bench_contact_at(
@@ -163,7 +187,13 @@ fn bench_contact_at(
 ) -> anyhow::Result<(ContactBench, String)> {
     let frames = frames_at(n.max(20), scale)?;
     let bg = frames.first().context("no frames")?.clone();
-    let spec = SensorKind::GELSIGHT_MINI.spec();
+    let kind = SensorKind::GELSIGHT_MINI;
+    let spec = kind.spec();
+    let slope_per_dn = kind
+        .profile()
+        .photometric
+        .context("the GelSight Mini profile has no photometric model")?
+        .slope_per_dn;
     let mut det =
         ContactDetector::new(ContactParams::default(), spec).map_err(anyhow::Error::msg)?;
     let depth_params = ContactParams {
@@ -210,14 +240,13 @@ fn bench_contact_at(
     let depth = timing(depth);
     let selfcal = timing(selfcal);
     let floor = timing(floor);
-    let (python, versions) = if with_python {
-        let (t, v) = python_baseline(&frames, &bg, repeat)?;
-        (Some(t), v)
+    let python = if with_python {
+        Some(python_baseline(&frames, &bg, repeat, slope_per_dn)?)
     } else {
-        (None, String::new())
+        None
     };
-    let ratio = python.as_ref().map(|p| p.median_s / rust.median_s);
-    let fps = SensorKind::GELSIGHT_MINI.spec().fps;
+    let over = |p: Option<&Timing>, r: &Timing| p.map(|p| p.median_s / r.median_s);
+    let fps = spec.fps;
     Ok((
         ContactBench {
             frame: format!(
@@ -228,19 +257,20 @@ fn bench_contact_at(
             over_floor: rust.median_s / floor.median_s.max(1e-9),
             fps,
             core_share: rust.mean_s * fps,
+            ratio_median: over(python.as_ref().map(|p| &p.residual), &rust),
             depth_core_share: depth.mean_s * fps,
-            depth_ratio_median: python.as_ref().map(|p| p.median_s / depth.median_s),
+            depth_ratio_median: over(python.as_ref().map(|p| &p.depth), &depth),
             deformed_frames,
             depth_region: depth,
             selfcal_core_share: selfcal.mean_s * fps,
-            selfcal_ratio_median: python.as_ref().map(|p| p.median_s / selfcal.median_s),
+            selfcal_ratio_median: over(python.as_ref().map(|p| &p.depth), &selfcal),
             selfcal_region: selfcal,
             rust,
-            python,
-            ratio_median: ratio,
+            python: python.as_ref().map(|p| p.residual),
+            python_depth: python.as_ref().map(|p| p.depth),
             floor,
         },
-        versions,
+        python.map(|p| p.versions).unwrap_or_default(),
     ))
 }
 
@@ -262,14 +292,17 @@ pub fn bench_contact(n: usize, repeat: usize, with_python: bool) -> anyhow::Resu
     })
 }
 
-/// One `region: depth` line of the contact bench's text.
-fn region_line(what: &str, t: &Timing, core_share: f64, ratio: Option<f64>) -> String {
+/// One row of the contact bench's text: median and mean, the share of one core, and the speed-up
+/// over a Python row.
+fn row(what: &str, t: &Timing, core_share: Option<f64>, ratio: Option<f64>) -> String {
     let mut s = format!(
-        "  region: depth ({what}) median {:>8.1} us  mean {:>8.1} us  {:.2} % of one core",
+        "  {what:<40} median {:>8.1} us  mean {:>8.1} us",
         t.median_s * 1e6,
         t.mean_s * 1e6,
-        core_share * 100.0
     );
+    if let Some(c) = core_share {
+        s += &format!("  {:.2} % of one core", c * 100.0);
+    }
     if let Some(r) = ratio {
         s += &format!("  speed-up (median): {r:.1}x");
     }
@@ -281,52 +314,44 @@ impl ContactBenches {
         let mut s = String::new();
         for b in &self.sizes {
             s += &format!(
-                "contact detection per {} frame, one core, {} frames\n",
-                b.frame, b.frames_timed
+                "contact detection per {} frame, one core, {} frames ({} with a deformation, \
+                 where region: depth estimates the depth); shares of one core at {} fps (mean \
+                 time x frame rate)\n",
+                b.frame, b.frames_timed, b.deformed_frames, b.fps
             );
-            s += &format!(
-                "  unitac (Rust)           median {:>8.1} us  mean {:>8.1} us\n",
-                b.rust.median_s * 1e6,
-                b.rust.mean_s * 1e6
+            s += &row(
+                "unitac, default (residual)",
+                &b.rust,
+                Some(b.core_share),
+                b.ratio_median,
             );
             if let Some(p) = &b.python {
-                s += &format!(
-                    "  numpy + OpenCV (gs_sdk) median {:>8.1} us  mean {:>8.1} us  [{}]\n",
-                    p.median_s * 1e6,
-                    p.mean_s * 1e6,
-                    self.python_versions
-                );
+                s += &row("numpy + OpenCV (gs_sdk), residual", p, None, None);
+            }
+            s += &row(
+                "unitac, region: depth (kind's model)",
+                &b.depth_region,
+                Some(b.depth_core_share),
+                b.depth_ratio_median,
+            );
+            s += &row(
+                "unitac, region: depth, self-calibrated",
+                &b.selfcal_region,
+                Some(b.selfcal_core_share),
+                b.selfcal_ratio_median,
+            );
+            if let Some(p) = &b.python_depth {
+                s += &row("numpy + OpenCV + scipy, depth", p, None, None);
             }
             s += &format!(
-                "  floor (one read pass)   median {:>8.1} us  (unitac is {:.1}x the floor)\n",
+                "  {:<40} median {:>8.1} us  (the default is {:.1}x the floor)\n",
+                "floor (one read pass)",
                 b.floor.median_s * 1e6,
                 b.over_floor
             );
-            if let Some(r) = b.ratio_median {
-                s += &format!("  speed-up (median): {r:.1}x\n");
-            }
-            s += &format!(
-                "  at {} fps: {:.2} % of one core (mean time x frame rate)\n",
-                b.fps,
-                b.core_share * 100.0
-            );
-            let what = format!(
-                "the kind's photometric model; depth on {} of {} frames",
-                b.deformed_frames, b.frames_timed
-            );
-            s += &region_line(
-                &what,
-                &b.depth_region,
-                b.depth_core_share,
-                b.depth_ratio_median,
-            );
-            let what = "self-calibrated, read as generic";
-            s += &region_line(
-                what,
-                &b.selfcal_region,
-                b.selfcal_core_share,
-                b.selfcal_ratio_median,
-            );
+        }
+        if !self.python_versions.is_empty() {
+            s += &format!("Python: {}\n", self.python_versions);
         }
         s
     }
