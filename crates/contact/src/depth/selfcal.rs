@@ -198,30 +198,61 @@ mod tests {
         }
     }
 
+    /// Colour per slope in the tests below: three lights 120 degrees apart, unequal gains.
+    const M: [[f64; 2]; 3] = [[60.0, 5.0], [-25.0, 48.0], [-30.0, -45.0]];
+
+    /// The slope (dh/dx, dh/dy) at (x, y) of a Hertz press of contact radius `a` and ball
+    /// radius `big_r` centred at `c`: the paraboloid's -r / R inside, the half-space's skirt
+    /// outside (Johnson, eq. 3.42a).
+    fn hertz_slope(x: f64, y: f64, c: (f64, f64), a: f64, big_r: f64) -> [f64; 2] {
+        let r = (x - c.0).hypot(y - c.1).max(1e-9);
+        let dr = if r <= a {
+            -r / big_r
+        } else {
+            let rho = r / a;
+            2.0 * (a * a / big_r) / std::f64::consts::PI
+                * ((rho * rho - 1.0).sqrt() / rho - rho * (1.0 / rho).asin())
+                / a
+        };
+        [dr * (x - c.0) / r, dr * (y - c.1) / r]
+    }
+
+    /// A `w` x `h` press's colour difference (20 `M` times its slope, each channel's value then
+    /// passed through `adjust(r, value)`, r the distance from the centre) and its mask, over the
+    /// pixels within `reach` of the centre.
+    fn press_diff(
+        (w, h): (usize, usize),
+        (c, a, big_r): ((f64, f64), f64, f64),
+        reach: f64,
+        mut adjust: impl FnMut(f64, f64) -> f64,
+    ) -> (Vec<f32>, Vec<bool>) {
+        let mut diff = vec![0f32; w * h * 3];
+        let mut mask = vec![false; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let (xf, yf) = (x as f64, y as f64);
+                let r = (xf - c.0).hypot(yf - c.1);
+                if r >= reach {
+                    continue;
+                }
+                let g = hertz_slope(xf, yf, c, a, big_r);
+                let i = y * w + x;
+                for (ch, m) in M.iter().enumerate() {
+                    diff[i * 3 + ch] = adjust(r, (m[0] * g[0] + m[1] * g[1]) * 20.0) as f32;
+                }
+                mask[i] = true;
+            }
+        }
+        (diff, mask)
+    }
+
     /// Camera noise in the colour changes (here 1/6 of the press's largest change, one draw per
     /// pixel and channel) does not turn the map: the curl is taken over differences across
     /// 2 STEP pixels, over which the slope changes STEP times more than between neighbours while
     /// the noise does not.
     #[test]
     fn a_noisy_press_gives_back_its_slopes() {
-        let (w, h) = (160usize, 140usize);
-        let (cx, cy, a, big_r) = (80.0f64, 70.0f64, 16.0f64, 60.0f64);
-        let d = a * a / big_r;
-        let slope = |x: f64, y: f64| {
-            let r = (x - cx).hypot(y - cy).max(1e-9);
-            let dr = if r <= a {
-                -r / big_r
-            } else {
-                let rho = r / a;
-                2.0 * d / std::f64::consts::PI
-                    * ((rho * rho - 1.0).sqrt() / rho - rho * (1.0 / rho).asin())
-                    / a
-            };
-            [dr * (x - cx) / r, dr * (y - cy) / r]
-        };
-        let m = [[60.0, 5.0], [-25.0, 48.0], [-30.0, -45.0]];
-        let mut diff = vec![0f32; w * h * 3];
-        let mut mask = vec![false; w * h];
+        let (a, big_r) = (16.0, 60.0);
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
         let mut noise = || {
             // Sum of four uniforms: near-normal, sigma 1.
@@ -235,25 +266,14 @@ mod tests {
             s * 3f64.sqrt()
         };
         let peak = 20.0 * 75.0 * a / big_r;
-        for y in 0..h {
-            for x in 0..w {
-                let (xf, yf) = (x as f64, y as f64);
-                if (xf - cx).hypot(yf - cy) >= 3.0 * a {
-                    continue;
-                }
-                let g = slope(xf, yf);
-                let i = y * w + x;
-                for c in 0..3 {
-                    let v = (m[c][0] * g[0] + m[c][1] * g[1]) * 20.0 + noise() * peak / 6.0;
-                    diff[i * 3 + c] = v as f32;
-                }
-                mask[i] = true;
-            }
-        }
+        let (w, h) = (160, 140);
+        let (diff, mask) = press_diff((w, h), ((80.0, 70.0), a, big_r), 3.0 * a, |_, v| {
+            v + noise() * peak / 6.0
+        });
         let k = fit(&diff, w, h, &mask).unwrap();
         // The fitted map times the true colour map is a positive multiple of the identity.
         let p = [0, 1]
-            .map(|r| [0, 1].map(|col| (0..3).map(|c| f64::from(k[r][c]) * m[c][col]).sum::<f64>()));
+            .map(|r| [0, 1].map(|col| (0..3).map(|c| f64::from(k[r][c]) * M[c][col]).sum::<f64>()));
         let scale = 0.5 * (p[0][0] + p[1][1]);
         assert!(scale > 0.0, "{p:?}");
         for (r, row) in p.iter().enumerate() {
@@ -270,47 +290,17 @@ mod tests {
     /// middle, not by its distance, so the many far pixels do not outvote the cap.
     #[test]
     fn the_sign_follows_the_cap_when_the_far_skirt_is_turned_around() {
-        let (w, h) = (160usize, 160usize);
-        let (cx, cy, a, big_r) = (80.0f64, 80.0f64, 12.0f64, 60.0f64);
-        let d = a * a / big_r;
-        let slope = |x: f64, y: f64| {
-            let r = (x - cx).hypot(y - cy).max(1e-9);
-            // dh/dr: the paraboloid's -r/R inside, Hertz's skirt outside (Johnson 3.42a).
-            let dr = if r <= a {
-                -r / big_r
-            } else {
-                let rho = r / a;
-                2.0 * d / std::f64::consts::PI
-                    * ((rho * rho - 1.0).sqrt() / rho - rho * (1.0 / rho).asin())
-                    / a
-            };
-            [dr * (x - cx) / r, dr * (y - cy) / r]
-        };
-        let m = [[60.0, 5.0], [-25.0, 48.0], [-30.0, -45.0]];
-        let mut diff = vec![0f32; w * h * 3];
-        let mut mask = vec![false; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                let (xf, yf) = (x as f64, y as f64);
-                let r = (xf - cx).hypot(yf - cy);
-                if r >= 6.0 * a {
-                    continue;
-                }
-                let g = slope(xf, yf);
-                let turn = if r > 2.0 * a { -1.0 } else { 1.0 };
-                let i = y * w + x;
-                for c in 0..3 {
-                    diff[i * 3 + c] = (turn * (m[c][0] * g[0] + m[c][1] * g[1]) * 20.0) as f32;
-                }
-                mask[i] = true;
-            }
-        }
+        let (w, h) = (160, 160);
+        let (c, a) = ((80.0, 80.0), 12.0);
+        let (diff, mask) = press_diff((w, h), (c, a, 60.0), 6.0 * a, |r, v| {
+            if r > 2.0 * a { -v } else { v }
+        });
         let k = fit(&diff, w, h, &mask).unwrap();
         // Within the contact the fitted slope points to the middle (h grows toward it).
         let mut toward = 0.0;
         for y in 0..h {
             for x in 0..w {
-                let (dx, dy) = (x as f64 - cx, y as f64 - cy);
+                let (dx, dy) = (x as f64 - c.0, y as f64 - c.1);
                 if dx.hypot(dy) >= a {
                     continue;
                 }
