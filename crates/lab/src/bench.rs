@@ -293,8 +293,16 @@ pub fn bench_contact(n: usize, repeat: usize, with_python: bool) -> anyhow::Resu
 }
 
 /// One row of the contact bench's text: median and mean, the share of one core, and the speed-up
-/// over a Python row.
-fn row(what: &str, t: &Timing, core_share: Option<f64>, ratio: Option<f64>) -> String {
+/// over a Python row (medians; and means, `python`'s mean over `t`'s: with the depth estimated
+/// only on frames with a deformation, the median frame of a run with half of them deformed may
+/// be one without).
+fn row(
+    what: &str,
+    t: &Timing,
+    core_share: Option<f64>,
+    ratio: Option<f64>,
+    python: Option<&Timing>,
+) -> String {
     let mut s = format!(
         "  {what:<40} median {:>8.1} us  mean {:>8.1} us",
         t.median_s * 1e6,
@@ -305,6 +313,9 @@ fn row(what: &str, t: &Timing, core_share: Option<f64>, ratio: Option<f64>) -> S
     }
     if let Some(r) = ratio {
         s += &format!("  speed-up (median): {r:.1}x");
+    }
+    if let Some(p) = python {
+        s += &format!(", (mean): {:.1}x", p.mean_s / t.mean_s);
     }
     s + "\n"
 }
@@ -324,24 +335,27 @@ impl ContactBenches {
                 &b.rust,
                 Some(b.core_share),
                 b.ratio_median,
+                b.python.as_ref(),
             );
             if let Some(p) = &b.python {
-                s += &row("numpy + OpenCV (gs_sdk), residual", p, None, None);
+                s += &row("numpy + OpenCV (gs_sdk), residual", p, None, None, None);
             }
             s += &row(
                 "unitac, region: depth (kind's model)",
                 &b.depth_region,
                 Some(b.depth_core_share),
                 b.depth_ratio_median,
+                b.python_depth.as_ref(),
             );
             s += &row(
                 "unitac, region: depth, self-calibrated",
                 &b.selfcal_region,
                 Some(b.selfcal_core_share),
                 b.selfcal_ratio_median,
+                b.python_depth.as_ref(),
             );
             if let Some(p) = &b.python_depth {
-                s += &row("numpy + OpenCV + scipy, depth", p, None, None);
+                s += &row("numpy + OpenCV + scipy, depth", p, None, None, None);
             }
             s += &format!(
                 "  {:<40} median {:>8.1} us  (the default is {:.1}x the floor)\n",
