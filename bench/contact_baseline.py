@@ -23,18 +23,7 @@ import time
 import cv2
 import numpy as np
 
-from depth_baseline import POISSON, border_mask, make_poisson
-
-
-def stats(times):
-    """The statistics of unitac_core::timing (same ranks)."""
-    t = sorted(times)
-    return {
-        "min_s": t[0],
-        "median_s": t[len(t) // 2],
-        "mean_s": sum(t) / len(t),
-        "p90_s": t[len(t) * 9 // 10],
-    }
+from depth_baseline import POISSON, border_mask, make_poisson, stats
 
 
 def main():

@@ -73,6 +73,17 @@ def border_mask(w, h):
 POISSON = "scipy %s fftpack.dct (gs_sdk's poisson_dct_neumaan)" % scipy.__version__
 
 
+def stats(times):
+    """The statistics of unitac_core::timing (same ranks)."""
+    t = sorted(times)
+    return {
+        "min_s": t[0],
+        "median_s": t[len(t) // 2],
+        "mean_s": sum(t) / len(t),
+        "p90_s": t[len(t) * 9 // 10],
+    }
+
+
 def main():
     frames_path, bg_path, cal_path = sys.argv[1:4]
     w, h = int(sys.argv[4]), int(sys.argv[5])
@@ -110,13 +121,9 @@ def main():
             t0 = time.perf_counter()
             depth(f)
             times.append(time.perf_counter() - t0)
-    times_s = sorted(times)
     print(json.dumps({
-        "frames": len(times_s),
-        "min_s": times_s[0],
-        "median_s": times_s[len(times_s) // 2],
-        "mean_s": sum(times_s) / len(times_s),
-        "p90_s": times_s[len(times_s) * 9 // 10],
+        "frames": len(times),
+        **stats(times),
         "numpy": np.__version__,
         "opencv": cv2.__version__,
         "poisson": POISSON,

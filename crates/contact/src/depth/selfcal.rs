@@ -92,8 +92,9 @@ pub fn fit(diff: &[f32], w: usize, h: usize, mask: &[bool]) -> Option<[[f32; 3];
     let row0 = p1 * t[0] + p2 * t[1];
     let row1 = p1 * t[2] + p2 * t[3];
     // The sign: the slope (h into the gel) points toward the press's middle. Each pixel votes
-    // with its slope along the unit direction to the middle, so the far skirt (where a press
-    // that bends the whole gel leaves the least signal) weighs no more than the cap.
+    // with its slope along the unit direction to the middle, so the far skirt (whose colour the
+    // smooth-shading fit can turn around when a press bends the whole gel) weighs no more than
+    // the cap.
     let mut toward = 0.0;
     for i in (0..w * h).filter(|&i| mask[i]) {
         let d = px(i);
